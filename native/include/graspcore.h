@@ -1,0 +1,131 @@
+/* graspcore: friction-cone (god-object) haptic rendering and rigid-body dynamics
+ * for multi-finger grasps.
+ *
+ * Units are SI (m, kg, N, s). Orientations are unit quaternions (w, x, y, z).
+ * Bodies and fingers are named by small integer ids handed out by the world.
+ * Every call returns a status; on an error the world is unchanged and
+ * gc_world_last_error() says what was wrong, naming the argument.
+ * Nothing allocates inside gc_world_step(): all storage is sized by gcWorldDef. */
+#ifndef GRASPCORE_H
+#define GRASPCORE_H
+
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum gcStatus {
+    GC_OK = 0,
+    GC_WARN_MAX_ITERATIONS = 1,     /* answer usable, iteration cap reached */
+    GC_ERR_INVALID_ARGUMENT = -1,
+    GC_ERR_DEGENERATE = -2,         /* degenerate hull: coplanar, collinear, coincident points */
+    GC_ERR_NO_MEMORY = -3,
+    GC_ERR_UNKNOWN_ID = -4,
+    GC_ERR_CAPACITY = -5,           /* a gcWorldDef capacity is exhausted */
+    GC_ERR_BUSY = -6                /* not allowed while the runtime threads run */
+} gcStatus;
+
+const char *gc_status_string(gcStatus status);
+
+typedef struct gcWorld gcWorld;
+
+typedef enum gcFingerState { GC_FINGER_FREE = 0, GC_FINGER_STICK = 1, GC_FINGER_SLIP = 2 } gcFingerState;
+
+typedef struct gcWorldDef {
+    double gravity[3];      /* m/s^2, default (0, 0, -9.81) */
+    int gyroscopic;         /* 1: keep -w x Jw in Euler's equation (default); 0: drop it as the chapter does */
+    int max_bodies;         /* capacity, default 256 */
+    int max_fingers;        /* capacity, default 32 */
+    int max_parts;          /* convex parts over all bodies, default 4096 */
+} gcWorldDef;
+gcWorldDef gc_default_world_def(void);
+
+typedef struct gcPartDef {
+    const double *points;   /* num_points xyz triples in the body frame */
+    int num_points;         /* >= 4 for a hull; 1 = sphere, 2 = capsule (radius > 0) */
+    double radius;          /* margin radius, default 0 */
+} gcPartDef;
+
+typedef struct gcBodyDef {
+    double position[3];        /* body frame origin, world */
+    double orientation[4];     /* w, x, y, z; normalised on creation */
+    double linear_velocity[3];
+    double angular_velocity[3];/* world frame, rad/s */
+    int is_static;
+    double mass;               /* kg, > 0 for a dynamic body */
+    int has_inertia;           /* 1: use inertia[] instead of computing it from the parts */
+    double inertia[9];         /* about the centre of mass, body axes, row-major, kg m^2 */
+    int has_center_of_mass;    /* 1: use center_of_mass[] instead of the parts' centroid */
+    double center_of_mass[3];  /* body frame */
+    double mu_s;               /* static friction, default 0.8 */
+    double mu_d;               /* dynamic friction, default 0.6, <= mu_s */
+    double viscosity;          /* s: slip speed limit is depth/viscosity; 0 = pure Coulomb */
+    double linear_damping;     /* 1/s, default 0 */
+    double angular_damping;    /* 1/s, default 0 */
+} gcBodyDef;
+gcBodyDef gc_default_body_def(void);
+
+typedef struct gcFingerDef {
+    double radius;          /* fingertip sphere, m (0 = point), default 0.008 */
+    double stiffness;       /* N/m, default 1000 */
+    double damping;         /* N s/m on the HIP vs god-object-point velocity, default 0 */
+    double position[3];     /* initial HIP */
+} gcFingerDef;
+gcFingerDef gc_default_finger_def(void);
+
+gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world);
+void gc_world_destroy(gcWorld *world);
+/* Message for the last failed call on this world (empty when none). */
+const char *gc_world_last_error(const gcWorld *world);
+
+gcStatus gc_world_add_body(gcWorld *world, const gcBodyDef *def, const gcPartDef *parts,
+                           int num_parts, int32_t *out_body);
+gcStatus gc_world_add_finger(gcWorld *world, const gcFingerDef *def, int32_t *out_finger);
+int gc_world_body_count(const gcWorld *world);
+int gc_world_finger_count(const gcWorld *world);
+
+gcStatus gc_world_set_gravity(gcWorld *world, const double gravity[3]);
+gcStatus gc_world_set_hip(gcWorld *world, int32_t finger, const double position[3]);
+/* count xyz triples for fingers 0..count-1. */
+gcStatus gc_world_set_hips(gcWorld *world, const double *positions, int count);
+gcStatus gc_world_set_body_velocity(gcWorld *world, int32_t body, const double linear[3],
+                                    const double angular[3]);
+gcStatus gc_world_set_body_pose(gcWorld *world, int32_t body, const double position[3],
+                                const double orientation[4]);
+gcStatus gc_world_set_body_friction(gcWorld *world, int32_t body, double mu_s, double mu_d,
+                                    double viscosity);
+
+gcStatus gc_world_step(gcWorld *world, double dt);
+
+gcStatus gc_world_body_pose(const gcWorld *world, int32_t body, double position[3],
+                            double orientation[4]);
+gcStatus gc_world_body_velocity(const gcWorld *world, int32_t body, double linear[3],
+                                double angular[3]);
+/* Mass properties: mass, centre of mass (body frame), inertia about it (body axes). */
+gcStatus gc_world_body_mass(const gcWorld *world, int32_t body, double *mass,
+                            double center_of_mass[3], double inertia[9]);
+/* Sum of finger reactions (and gravity) on the body; torque about the centre of mass. */
+gcStatus gc_world_residual_wrench(const gcWorld *world, int32_t body, double force[3],
+                                  double torque[3]);
+gcStatus gc_world_finger_force(const gcWorld *world, int32_t finger, double force[3]);
+gcStatus gc_world_god_object(const gcWorld *world, int32_t finger, double position[3]);
+gcStatus gc_world_finger_state(const gcWorld *world, int32_t finger, gcFingerState *state,
+                               int32_t *contact_body);
+
+/* Zero-copy bulk views, laid out contiguously and never reallocated:
+ * poses are 7 doubles a body (x, y, z, qw, qx, qy, qz), the others 3 a finger.
+ * Valid until gc_world_destroy; updated by gc_world_step. */
+const double *gc_world_body_pose_array(const gcWorld *world);
+const double *gc_world_god_object_array(const gcWorld *world);
+const double *gc_world_finger_force_array(const gcWorld *world);
+const double *gc_world_hip_array(const gcWorld *world);
+
+/* 64-bit hash of the full dynamic state (bit-exact), for determinism checks. */
+uint64_t gc_world_state_hash(const gcWorld *world);
+double gc_world_time(const gcWorld *world);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
