@@ -68,3 +68,6 @@ bench: core
 
 clean:
 	rm -rf $(BUILD) native/build native/*.egg-info
+
+# Blender extension targets (extension zip, multi-version bpy tests) live in addon.mk.
+-include addon.mk
