@@ -1,0 +1,548 @@
+/* graspcore._core: the one CPython binding of the C core, for the stable ABI (3.11+).
+ * Thin on purpose: argument conversion, status -> exception, GIL released while stepping,
+ * zero-copy array views through the buffer protocol. Friendlier argument handling
+ * (numpy conversion, keyword defaults) lives in graspcore/__init__.py. */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+
+#include <stdatomic.h>
+#include <string.h>
+
+#include "graspcore.h"
+
+typedef struct {
+    PyObject_HEAD
+    gcWorld *world;
+    atomic_int busy; /* set while a step runs without the GIL */
+} WorldObject;
+
+typedef struct {
+    PyObject_HEAD
+    PyObject *owner; /* keeps the world alive while the view exists */
+    const double *data;
+    Py_ssize_t shape[2];
+    Py_ssize_t strides[2];
+} ViewObject;
+
+static PyObject *World_Type, *View_Type;
+
+/* ---- helpers ------------------------------------------------------------------- */
+
+static PyObject *raise_status(WorldObject *self, gcStatus st) {
+    const char *msg = self->world ? gc_world_last_error(self->world) : "";
+    if (!msg || !msg[0]) msg = gc_status_string(st);
+    if (st == GC_ERR_NO_MEMORY) return PyErr_NoMemory();
+    if (st == GC_ERR_BUSY) {
+        PyErr_SetString(PyExc_RuntimeError, msg);
+        return NULL;
+    }
+    PyErr_SetString(PyExc_ValueError, msg);
+    return NULL;
+}
+
+static int check_ready(WorldObject *self) {
+    if (!self->world) {
+        PyErr_SetString(PyExc_RuntimeError, "World is not initialised");
+        return 0;
+    }
+    if (atomic_load(&self->busy)) {
+        PyErr_SetString(PyExc_RuntimeError, "World is stepping in another thread");
+        return 0;
+    }
+    return 1;
+}
+
+/* Convert a sequence of n numbers; ValueError naming the argument on failure. */
+static int parse_vec(PyObject *obj, int n, const char *name, double *out) {
+    if (obj == NULL || !PySequence_Check(obj) || PySequence_Size(obj) != n) {
+        PyErr_Clear();
+        PyErr_Format(PyExc_ValueError, "%s: expected a sequence of %d numbers", name, n);
+        return 0;
+    }
+    for (int i = 0; i < n; ++i) {
+        PyObject *item = PySequence_GetItem(obj, i);
+        if (!item) return 0;
+        double v = PyFloat_AsDouble(item);
+        Py_DECREF(item);
+        if (v == -1.0 && PyErr_Occurred()) {
+            PyErr_Clear();
+            PyErr_Format(PyExc_ValueError, "%s: item %d is not a number", name, i);
+            return 0;
+        }
+        out[i] = v;
+    }
+    return 1;
+}
+
+static PyObject *tuple3(const double *v) { return Py_BuildValue("(ddd)", v[0], v[1], v[2]); }
+
+/* ---- View: a read-only (rows, cols) float64 buffer into world storage ------------- */
+
+static int View_getbuffer(PyObject *obj, Py_buffer *view, int flags) {
+    ViewObject *self = (ViewObject *)obj;
+    if (flags & PyBUF_WRITABLE) {
+        PyErr_SetString(PyExc_BufferError, "graspcore views are read-only");
+        view->obj = NULL;
+        return -1;
+    }
+    view->buf = (void *)self->data;
+    view->obj = obj;
+    Py_INCREF(obj);
+    view->len = self->shape[0] * self->shape[1] * (Py_ssize_t)sizeof(double);
+    view->readonly = 1;
+    view->itemsize = sizeof(double);
+    view->format = (flags & PyBUF_FORMAT) ? "d" : NULL;
+    view->ndim = 2;
+    view->shape = (flags & PyBUF_ND) ? self->shape : NULL;
+    view->strides = (flags & PyBUF_STRIDES) == PyBUF_STRIDES ? self->strides : NULL;
+    view->suboffsets = NULL;
+    view->internal = NULL;
+    return 0;
+}
+
+static void View_releasebuffer(PyObject *obj, Py_buffer *view) { (void)obj, (void)view; }
+
+static void View_dealloc(PyObject *obj) {
+    ViewObject *self = (ViewObject *)obj;
+    PyTypeObject *tp = Py_TYPE(obj);
+    Py_XDECREF(self->owner);
+    freefunc tp_free = (freefunc)PyType_GetSlot(tp, Py_tp_free);
+    tp_free(obj);
+    Py_DECREF(tp);
+}
+
+static PyType_Slot View_slots[] = {
+    {Py_tp_dealloc, View_dealloc},
+    {Py_bf_getbuffer, View_getbuffer},
+    {Py_bf_releasebuffer, View_releasebuffer},
+    {Py_tp_doc, "Read-only float64 view of world state (use numpy.asarray)."},
+    {0, NULL},
+};
+static PyType_Spec View_spec = {"graspcore._core.View", sizeof(ViewObject), 0, Py_TPFLAGS_DEFAULT, View_slots};
+
+/* ---- World ------------------------------------------------------------------------ */
+
+static int World_init(PyObject *obj, PyObject *args, PyObject *kwargs) {
+    WorldObject *self = (WorldObject *)obj;
+    static char *kwlist[] = {"gravity", "gyroscopic", "max_bodies", "max_fingers", "max_parts", NULL};
+    gcWorldDef def = gc_default_world_def();
+    PyObject *gravity = NULL;
+    int gyroscopic = 1;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|Opiii", kwlist, &gravity, &gyroscopic, &def.max_bodies,
+                                     &def.max_fingers, &def.max_parts))
+        return -1;
+    if (gravity && !parse_vec(gravity, 3, "gravity", def.gravity)) return -1;
+    def.gyroscopic = gyroscopic;
+    if (self->world) {
+        PyErr_SetString(PyExc_RuntimeError, "World is already initialised");
+        return -1;
+    }
+    gcStatus st = gc_world_create(&def, &self->world);
+    if (st == GC_ERR_NO_MEMORY) {
+        PyErr_NoMemory();
+        return -1;
+    }
+    if (st != GC_OK) {
+        PyErr_SetString(PyExc_ValueError,
+                        "gravity/max_bodies/max_fingers/max_parts: gravity must be finite and capacities >= 1");
+        return -1;
+    }
+    return 0;
+}
+
+static void World_dealloc(PyObject *obj) {
+    WorldObject *self = (WorldObject *)obj;
+    PyTypeObject *tp = Py_TYPE(obj);
+    gc_world_destroy(self->world);
+    self->world = NULL;
+    freefunc tp_free = (freefunc)PyType_GetSlot(tp, Py_tp_free);
+    tp_free(obj);
+    Py_DECREF(tp);
+}
+
+/* _add_body(parts, radii, mass, position, orientation, static, mu_s, mu_d, viscosity,
+ *           inertia, center_of_mass, linear_velocity, angular_velocity,
+ *           linear_damping, angular_damping)
+ * parts: sequence of C-contiguous float64 buffers of shape (n, 3). */
+static PyObject *World_add_body(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    PyObject *parts, *radii, *position, *orientation, *inertia, *com, *lin, *ang;
+    gcBodyDef def = gc_default_body_def();
+    int is_static;
+    if (!PyArg_ParseTuple(args, "OOdOOpdddOOOOdd", &parts, &radii, &def.mass, &position, &orientation,
+                          &is_static, &def.mu_s, &def.mu_d, &def.viscosity, &inertia, &com, &lin, &ang,
+                          &def.linear_damping, &def.angular_damping))
+        return NULL;
+    if (!check_ready(self)) return NULL;
+    def.is_static = is_static;
+    if (!parse_vec(position, 3, "position", def.position) ||
+        !parse_vec(orientation, 4, "orientation", def.orientation) ||
+        !parse_vec(lin, 3, "linear_velocity", def.linear_velocity) ||
+        !parse_vec(ang, 3, "angular_velocity", def.angular_velocity))
+        return NULL;
+    if (inertia != Py_None) {
+        if (!parse_vec(inertia, 9, "inertia", def.inertia)) return NULL;
+        def.has_inertia = 1;
+    }
+    if (com != Py_None) {
+        if (!parse_vec(com, 3, "center_of_mass", def.center_of_mass)) return NULL;
+        def.has_center_of_mass = 1;
+    }
+    Py_ssize_t n = PySequence_Size(parts);
+    if (n < 1 || n > 65536 || PySequence_Size(radii) != n) {
+        PyErr_Clear();
+        PyErr_SetString(PyExc_ValueError, "parts: expected 1..65536 point arrays with one radius each");
+        return NULL;
+    }
+    gcPartDef *pdefs = PyMem_Calloc((size_t)n, sizeof *pdefs);
+    Py_buffer *bufs = PyMem_Calloc((size_t)n, sizeof *bufs);
+    int got = 0;
+    PyObject *result = NULL;
+    if (!pdefs || !bufs) {
+        PyErr_NoMemory();
+        goto done;
+    }
+    for (; got < n; ++got) {
+        PyObject *item = PySequence_GetItem(parts, got);
+        if (!item) goto done;
+        int rc = PyObject_GetBuffer(item, &bufs[got], PyBUF_C_CONTIGUOUS | PyBUF_FORMAT);
+        Py_DECREF(item);
+        if (rc < 0) goto done;
+        Py_buffer *b = &bufs[got];
+        if (!b->format || strcmp(b->format, "d") != 0 || b->len % (3 * (Py_ssize_t)sizeof(double)) != 0 ||
+            b->len / (Py_ssize_t)(3 * sizeof(double)) > (1 << 28)) {
+            PyErr_Format(PyExc_ValueError, "points: part %d must be float64 xyz rows", got);
+            PyBuffer_Release(b);
+            goto done;
+        }
+        pdefs[got].points = b->buf;
+        pdefs[got].num_points = (int)(b->len / (Py_ssize_t)(3 * sizeof(double)));
+        PyObject *r = PySequence_GetItem(radii, got);
+        if (!r) {
+            PyBuffer_Release(b);
+            goto done;
+        }
+        pdefs[got].radius = PyFloat_AsDouble(r);
+        Py_DECREF(r);
+        if (PyErr_Occurred()) {
+            PyBuffer_Release(b);
+            goto done;
+        }
+    }
+    int32_t id = -1;
+    gcStatus st = gc_world_add_body(self->world, &def, pdefs, (int)n, &id);
+    result = st < 0 ? raise_status(self, st) : PyLong_FromLong(id);
+done:
+    for (int i = 0; i < got; ++i) PyBuffer_Release(&bufs[i]);
+    PyMem_Free(pdefs);
+    PyMem_Free(bufs);
+    return result;
+}
+
+static PyObject *World_add_finger(PyObject *obj, PyObject *args, PyObject *kwargs) {
+    WorldObject *self = (WorldObject *)obj;
+    static char *kwlist[] = {"radius", "stiffness", "damping", "position", NULL};
+    gcFingerDef def = gc_default_finger_def();
+    PyObject *position = NULL;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|dddO", kwlist, &def.radius, &def.stiffness, &def.damping,
+                                     &position))
+        return NULL;
+    if (!check_ready(self)) return NULL;
+    if (position && !parse_vec(position, 3, "position", def.position)) return NULL;
+    int32_t id;
+    gcStatus st = gc_world_add_finger(self->world, &def, &id);
+    return st < 0 ? raise_status(self, st) : PyLong_FromLong(id);
+}
+
+static PyObject *World_set_hip(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int finger;
+    PyObject *pos;
+    double p[3];
+    if (!PyArg_ParseTuple(args, "iO", &finger, &pos) || !check_ready(self) || !parse_vec(pos, 3, "position", p))
+        return NULL;
+    gcStatus st = gc_world_set_hip(self->world, finger, p);
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+}
+
+static PyObject *World_set_hips(PyObject *obj, PyObject *arg) {
+    WorldObject *self = (WorldObject *)obj;
+    if (!check_ready(self)) return NULL;
+    Py_buffer b;
+    if (PyObject_GetBuffer(arg, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
+    PyObject *result = NULL;
+    if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0) {
+        PyErr_SetString(PyExc_ValueError, "positions: must be a C-contiguous float64 array of xyz rows");
+    } else {
+        gcStatus st = gc_world_set_hips(self->world, b.buf, (int)(b.len / (Py_ssize_t)(3 * sizeof(double))));
+        if (st < 0)
+            raise_status(self, st);
+        else
+            result = Py_NewRef(Py_None);
+    }
+    PyBuffer_Release(&b);
+    return result;
+}
+
+static PyObject *World_set_gravity(PyObject *obj, PyObject *arg) {
+    WorldObject *self = (WorldObject *)obj;
+    double g[3];
+    if (!check_ready(self) || !parse_vec(arg, 3, "gravity", g)) return NULL;
+    gcStatus st = gc_world_set_gravity(self->world, g);
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+}
+
+static PyObject *World_set_body_velocity(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int body;
+    PyObject *lin, *ang;
+    double l[3], a[3];
+    if (!PyArg_ParseTuple(args, "iOO", &body, &lin, &ang) || !check_ready(self) ||
+        !parse_vec(lin, 3, "linear", l) || !parse_vec(ang, 3, "angular", a))
+        return NULL;
+    gcStatus st = gc_world_set_body_velocity(self->world, body, l, a);
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+}
+
+static PyObject *World_set_body_pose(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int body;
+    PyObject *pos, *quat;
+    double p[3], q[4];
+    if (!PyArg_ParseTuple(args, "iOO", &body, &pos, &quat) || !check_ready(self) ||
+        !parse_vec(pos, 3, "position", p) || !parse_vec(quat, 4, "orientation", q))
+        return NULL;
+    gcStatus st = gc_world_set_body_pose(self->world, body, p, q);
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+}
+
+static PyObject *World_set_body_friction(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int body;
+    double mu_s, mu_d, viscosity;
+    if (!PyArg_ParseTuple(args, "iddd", &body, &mu_s, &mu_d, &viscosity) || !check_ready(self)) return NULL;
+    gcStatus st = gc_world_set_body_friction(self->world, body, mu_s, mu_d, viscosity);
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+}
+
+/* step(dt, steps=1): the GIL is released while the core runs. */
+static PyObject *World_step(PyObject *obj, PyObject *args, PyObject *kwargs) {
+    WorldObject *self = (WorldObject *)obj;
+    static char *kwlist[] = {"dt", "steps", NULL};
+    double dt;
+    int steps = 1;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "d|i", kwlist, &dt, &steps) || !check_ready(self)) return NULL;
+    if (steps < 1) {
+        PyErr_SetString(PyExc_ValueError, "steps: must be >= 1");
+        return NULL;
+    }
+    gcStatus st = GC_OK;
+    atomic_store(&self->busy, 1);
+    Py_BEGIN_ALLOW_THREADS
+    for (int i = 0; i < steps && st >= 0; ++i) st = gc_world_step(self->world, dt);
+    Py_END_ALLOW_THREADS
+    atomic_store(&self->busy, 0);
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+}
+
+static PyObject *World_body_pose(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int body;
+    double p[3], q[4];
+    if (!PyArg_ParseTuple(args, "i", &body) || !check_ready(self)) return NULL;
+    gcStatus st = gc_world_body_pose(self->world, body, p, q);
+    if (st < 0) return raise_status(self, st);
+    return Py_BuildValue("((ddd)(dddd))", p[0], p[1], p[2], q[0], q[1], q[2], q[3]);
+}
+
+static PyObject *World_body_velocity(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int body;
+    double l[3], a[3];
+    if (!PyArg_ParseTuple(args, "i", &body) || !check_ready(self)) return NULL;
+    gcStatus st = gc_world_body_velocity(self->world, body, l, a);
+    if (st < 0) return raise_status(self, st);
+    return Py_BuildValue("((ddd)(ddd))", l[0], l[1], l[2], a[0], a[1], a[2]);
+}
+
+static PyObject *World_body_mass(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int body;
+    double m, c[3], I[9];
+    if (!PyArg_ParseTuple(args, "i", &body) || !check_ready(self)) return NULL;
+    gcStatus st = gc_world_body_mass(self->world, body, &m, c, I);
+    if (st < 0) return raise_status(self, st);
+    return Py_BuildValue("(d(ddd)((ddd)(ddd)(ddd)))", m, c[0], c[1], c[2], I[0], I[1], I[2], I[3], I[4], I[5], I[6],
+                         I[7], I[8]);
+}
+
+static PyObject *World_residual_wrench(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int body;
+    double f[3], t[3];
+    if (!PyArg_ParseTuple(args, "i", &body) || !check_ready(self)) return NULL;
+    gcStatus st = gc_world_residual_wrench(self->world, body, f, t);
+    if (st < 0) return raise_status(self, st);
+    return Py_BuildValue("((ddd)(ddd))", f[0], f[1], f[2], t[0], t[1], t[2]);
+}
+
+typedef gcStatus (*FingerVecQuery)(const gcWorld *, int32_t, double[3]);
+
+static PyObject *finger_vec(WorldObject *self, PyObject *args, FingerVecQuery query) {
+    int finger;
+    double v[3];
+    if (!PyArg_ParseTuple(args, "i", &finger) || !check_ready(self)) return NULL;
+    gcStatus st = query(self->world, finger, v);
+    if (st < 0) return raise_status(self, st);
+    return tuple3(v);
+}
+
+static PyObject *World_finger_force(PyObject *obj, PyObject *args) {
+    return finger_vec((WorldObject *)obj, args, gc_world_finger_force);
+}
+
+static PyObject *World_god_object(PyObject *obj, PyObject *args) {
+    return finger_vec((WorldObject *)obj, args, gc_world_god_object);
+}
+
+static PyObject *finger_state_query(WorldObject *self, PyObject *args, int want_body) {
+    int finger;
+    gcFingerState state;
+    int32_t body;
+    if (!PyArg_ParseTuple(args, "i", &finger) || !check_ready(self)) return NULL;
+    gcStatus st = gc_world_finger_state(self->world, finger, &state, &body);
+    if (st < 0) return raise_status(self, st);
+    if (want_body) {
+        if (body < 0) Py_RETURN_NONE;
+        return PyLong_FromLong(body);
+    }
+    static const char *names[] = {"free", "stick", "slip"};
+    return PyUnicode_FromString(names[state]);
+}
+
+static PyObject *World_finger_state(PyObject *obj, PyObject *args) {
+    return finger_state_query((WorldObject *)obj, args, 0);
+}
+
+static PyObject *World_finger_contact(PyObject *obj, PyObject *args) {
+    return finger_state_query((WorldObject *)obj, args, 1);
+}
+
+/* _view(kind): 0 body poses (n,7), 1 god-objects, 2 finger forces, 3 HIPs (n,3). */
+static PyObject *World_view(PyObject *obj, PyObject *arg) {
+    WorldObject *self = (WorldObject *)obj;
+    long kind = PyLong_AsLong(arg);
+    if (kind == -1 && PyErr_Occurred()) return NULL;
+    if (!check_ready(self)) return NULL;
+    const double *data;
+    Py_ssize_t rows, cols = 3;
+    switch (kind) {
+    case 0: data = gc_world_body_pose_array(self->world), rows = gc_world_body_count(self->world), cols = 7; break;
+    case 1: data = gc_world_god_object_array(self->world), rows = gc_world_finger_count(self->world); break;
+    case 2: data = gc_world_finger_force_array(self->world), rows = gc_world_finger_count(self->world); break;
+    case 3: data = gc_world_hip_array(self->world), rows = gc_world_finger_count(self->world); break;
+    default: PyErr_SetString(PyExc_ValueError, "kind: must be 0..3"); return NULL;
+    }
+    allocfunc tp_alloc = (allocfunc)PyType_GetSlot((PyTypeObject *)View_Type, Py_tp_alloc);
+    ViewObject *view = (ViewObject *)tp_alloc((PyTypeObject *)View_Type, 0);
+    if (!view) return NULL;
+    view->owner = Py_NewRef(obj);
+    view->data = data;
+    view->shape[0] = rows;
+    view->shape[1] = cols;
+    view->strides[0] = cols * (Py_ssize_t)sizeof(double);
+    view->strides[1] = sizeof(double);
+    return (PyObject *)view;
+}
+
+static PyObject *World_state_hash(PyObject *obj, PyObject *unused) {
+    WorldObject *self = (WorldObject *)obj;
+    if (!check_ready(self)) return NULL;
+    return PyLong_FromUnsignedLongLong(gc_world_state_hash(self->world));
+}
+
+static PyObject *World_get_time(PyObject *obj, void *closure) {
+    WorldObject *self = (WorldObject *)obj;
+    if (!check_ready(self)) return NULL;
+    return PyFloat_FromDouble(gc_world_time(self->world));
+}
+
+static PyObject *World_get_body_count(PyObject *obj, void *closure) {
+    WorldObject *self = (WorldObject *)obj;
+    if (!check_ready(self)) return NULL;
+    return PyLong_FromLong(gc_world_body_count(self->world));
+}
+
+static PyObject *World_get_finger_count(PyObject *obj, void *closure) {
+    WorldObject *self = (WorldObject *)obj;
+    if (!check_ready(self)) return NULL;
+    return PyLong_FromLong(gc_world_finger_count(self->world));
+}
+
+static PyMethodDef World_methods[] = {
+    {"_add_body", World_add_body, METH_VARARGS, "Low-level add_body; use World.add_body."},
+    {"add_finger", (PyCFunction)(void (*)(void))World_add_finger, METH_VARARGS | METH_KEYWORDS,
+     "add_finger(radius=0.008, stiffness=1000.0, damping=0.0, position=(0,0,0)) -> finger id"},
+    {"set_hip", World_set_hip, METH_VARARGS, "set_hip(finger, (x, y, z)): the device (haptic interface) point."},
+    {"set_hips", World_set_hips, METH_O, "set_hips(array (n, 3) float64): HIPs of fingers 0..n-1."},
+    {"set_gravity", World_set_gravity, METH_O, "set_gravity((gx, gy, gz))"},
+    {"set_body_velocity", World_set_body_velocity, METH_VARARGS,
+     "set_body_velocity(body, linear, angular): world frame, of the body origin's COM."},
+    {"set_body_pose", World_set_body_pose, METH_VARARGS, "set_body_pose(body, position, orientation_wxyz)"},
+    {"set_body_friction", World_set_body_friction, METH_VARARGS, "set_body_friction(body, mu_s, mu_d, viscosity)"},
+    {"step", (PyCFunction)(void (*)(void))World_step, METH_VARARGS | METH_KEYWORDS,
+     "step(dt, steps=1): advance the world; the GIL is released meanwhile."},
+    {"body_pose", World_body_pose, METH_VARARGS, "body_pose(body) -> ((x, y, z), (w, x, y, z))"},
+    {"body_velocity", World_body_velocity, METH_VARARGS, "body_velocity(body) -> (linear, angular), world frame"},
+    {"body_mass", World_body_mass, METH_VARARGS, "body_mass(body) -> (mass, center_of_mass, inertia 3x3)"},
+    {"residual_wrench", World_residual_wrench, METH_VARARGS,
+     "residual_wrench(body) -> (force, torque about the centre of mass)"},
+    {"finger_force", World_finger_force, METH_VARARGS, "finger_force(finger) -> force rendered to the device, N"},
+    {"god_object", World_god_object, METH_VARARGS, "god_object(finger) -> world position"},
+    {"finger_state", World_finger_state, METH_VARARGS, "finger_state(finger) -> 'free' | 'stick' | 'slip'"},
+    {"finger_contact", World_finger_contact, METH_VARARGS, "finger_contact(finger) -> body id or None"},
+    {"_view", World_view, METH_O, "Zero-copy buffer view of world arrays."},
+    {"state_hash", World_state_hash, METH_NOARGS, "64-bit hash of the full dynamic state."},
+    {NULL, NULL, 0, NULL},
+};
+
+static PyGetSetDef World_getset[] = {
+    {"time", World_get_time, NULL, "Simulated time, s", NULL},
+    {"body_count", World_get_body_count, NULL, "Number of bodies", NULL},
+    {"finger_count", World_get_finger_count, NULL, "Number of fingers", NULL},
+    {NULL, NULL, NULL, NULL, NULL},
+};
+
+static PyType_Slot World_slots[] = {
+    {Py_tp_init, World_init},
+    {Py_tp_dealloc, World_dealloc},
+    {Py_tp_methods, World_methods},
+    {Py_tp_getset, World_getset},
+    {Py_tp_doc, "A grasp world: rigid bodies touched by god-object fingers."},
+    {0, NULL},
+};
+static PyType_Spec World_spec = {"graspcore._core.World", sizeof(WorldObject), 0,
+                                 Py_TPFLAGS_DEFAULT | Py_TPFLAGS_BASETYPE, World_slots};
+
+static int module_exec(PyObject *m) {
+    World_Type = PyType_FromSpec(&World_spec);
+    if (!World_Type || PyModule_AddObjectRef(m, "World", World_Type) < 0) return -1;
+    View_Type = PyType_FromSpec(&View_spec);
+    if (!View_Type || PyModule_AddObjectRef(m, "View", View_Type) < 0) return -1;
+    return 0;
+}
+
+static PyModuleDef_Slot module_slots[] = {{Py_mod_exec, module_exec}, {0, NULL}};
+
+static struct PyModuleDef module_def = {
+    PyModuleDef_HEAD_INIT, "graspcore._core", "C core of graspcore (stable ABI).", 0, NULL, module_slots,
+    NULL, NULL, NULL,
+};
+
+PyMODINIT_FUNC PyInit__core(void) { return PyModuleDef_Init(&module_def); }

@@ -1,0 +1,120 @@
+"""graspcore: friction-cone (god-object) haptic rendering and rigid-body dynamics.
+
+The world lives in C (``graspcore._core``); this module adds argument handling
+that is easier in Python (numpy conversion, inertia forms) and the zero-copy
+numpy views. See docs/api.md.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import _core
+
+__all__ = ["World", "FINGER_STATES"]
+
+FINGER_STATES = ("free", "stick", "slip")
+
+
+def _points_array(points, name: str) -> np.ndarray:
+    try:
+        array = np.ascontiguousarray(points, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}: expected an (N, 3) array of numbers ({exc})") from None
+    if array.ndim == 1 and array.size == 3:
+        array = array.reshape(1, 3)
+    if array.ndim != 2 or array.shape[1] != 3 or array.shape[0] < 1:
+        raise ValueError(f"{name}: expected an (N, 3) array of points, got shape {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name}: contains NaN or infinite coordinates")
+    return array
+
+
+def _inertia_matrix(inertia) -> list[float] | None:
+    if inertia is None:
+        return None
+    try:
+        array = np.asarray(inertia, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError("inertia: expected 3 principal moments or a 3x3 matrix") from None
+    if array.shape == (3,):
+        array = np.diag(array)
+    if array.shape != (3, 3):
+        raise ValueError(f"inertia: expected 3 principal moments or a 3x3 matrix, got shape {array.shape}")
+    return array.ravel().tolist()
+
+
+class World(_core.World):
+    """A grasp world.
+
+    ``World(gravity=(0, 0, -9.81), gyroscopic=True, max_bodies=256, max_fingers=32,
+    max_parts=4096)``. Capacities are fixed at creation so that the numpy views
+    (``body_poses``, ``god_objects``, ``finger_forces``, ``hips``) never dangle.
+    """
+
+    def add_body(
+        self,
+        points=None,
+        mass: float = 1.0,
+        position=(0.0, 0.0, 0.0),
+        orientation=(1.0, 0.0, 0.0, 0.0),
+        static: bool = False,
+        mu_s: float = 0.8,
+        mu_d: float = 0.6,
+        viscosity: float = 0.0,
+        inertia=None,
+        parts=None,
+        center_of_mass=None,
+        radius: float = 0.0,
+        linear_velocity=(0.0, 0.0, 0.0),
+        angular_velocity=(0.0, 0.0, 0.0),
+        linear_damping: float = 0.0,
+        angular_damping: float = 0.0,
+    ) -> int:
+        """Add a rigid body; returns its id.
+
+        ``points``: (N, 3) body-frame points whose convex hull is the body (N = 1 or 2
+        with ``radius`` > 0 give a sphere or a capsule). ``parts``: a list of such point
+        arrays for a compound of convex parts (instead of ``points``). ``inertia``: 3
+        principal moments (body axes) or a 3x3 matrix about the centre of mass; None
+        computes it from the hull and the mass at uniform density.
+        """
+        if parts is None:
+            if points is None:
+                raise ValueError("points: give the body's points, or parts for a compound")
+            part_arrays = [_points_array(points, "points")]
+        else:
+            if points is not None:
+                raise ValueError("parts: give either points or parts, not both")
+            if isinstance(parts, np.ndarray) or len(parts) == 0:
+                raise ValueError("parts: expected a non-empty list of (N, 3) point arrays")
+            part_arrays = [_points_array(p, f"parts[{i}]") for i, p in enumerate(parts)]
+        radii = [float(radius)] * len(part_arrays)
+        return self._add_body(
+            part_arrays, radii, float(mass), position, orientation, bool(static), float(mu_s),
+            float(mu_d), float(viscosity), _inertia_matrix(inertia), center_of_mass,
+            linear_velocity, angular_velocity, float(linear_damping), float(angular_damping),
+        )
+
+    @property
+    def body_poses(self) -> np.ndarray:
+        """(n_bodies, 7) read-only view: x, y, z, qw, qx, qy, qz of each body frame."""
+        return np.asarray(self._view(0))
+
+    @property
+    def god_objects(self) -> np.ndarray:
+        """(n_fingers, 3) read-only view of god-object positions (the HIP when free)."""
+        return np.asarray(self._view(1))
+
+    @property
+    def finger_forces(self) -> np.ndarray:
+        """(n_fingers, 3) read-only view of forces rendered to the devices, N."""
+        return np.asarray(self._view(2))
+
+    @property
+    def hips(self) -> np.ndarray:
+        """(n_fingers, 3) read-only view of the HIPs as last set."""
+        return np.asarray(self._view(3))
+
+    def set_hips(self, positions) -> None:
+        """HIPs of fingers 0..n-1 from an (n, 3) array."""
+        super().set_hips(_points_array(positions, "positions"))

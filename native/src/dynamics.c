@@ -1,0 +1,152 @@
+/* Newton-Euler integration of dynamic bodies with an implicit finger coupling.
+ *
+ * Each finger contact is a spring k (and damper c) between the HIP and the body point
+ * under the god-object. Stepped explicitly at 1 kHz, a light thin object held by stiff
+ * fingers has modes far above the step rate and explodes (DESIGN.md §2), so the springs
+ * are integrated with backward Euler, linearised about the current pose:
+ *
+ *   (M + sum (k dt^2 + c dt) J^T J) v' = M v + dt (F_ext - w x Iw + sum J^T (f_spring + c v_hip))
+ *
+ * with J = [I | -[r]x] mapping the body twist to the velocity of the contact point at
+ * r from the centre of mass. M is 6x6 block diagonal (m I, R I_body R^T). The pose is
+ * then advanced with the new twist: x += v' dt and R <- exp([w' dt]x) R, the world-frame
+ * update the chapter prints transposed. */
+#include "world_internal.h"
+
+#include <string.h>
+
+/* Cholesky solve of a 6x6 symmetric positive-definite system; 0 on failure. */
+static int solve6(double A[6][6], double b[6], double x[6]) {
+    double L[6][6];
+    memset(L, 0, sizeof L);
+    for (int i = 0; i < 6; ++i) {
+        for (int j = 0; j <= i; ++j) {
+            double s = A[i][j];
+            for (int k = 0; k < j; ++k) s -= L[i][k] * L[j][k];
+            if (i == j) {
+                if (!(s > 0.0)) return 0;
+                L[i][i] = sqrt(s);
+            } else {
+                L[i][j] = s / L[j][j];
+            }
+        }
+    }
+    double y[6];
+    for (int i = 0; i < 6; ++i) {
+        double s = b[i];
+        for (int k = 0; k < i; ++k) s -= L[i][k] * y[k];
+        y[i] = s / L[i][i];
+    }
+    for (int i = 5; i >= 0; --i) {
+        double s = y[i];
+        for (int k = i + 1; k < 6; ++k) s -= L[k][i] * x[k];
+        x[i] = s / L[i][i];
+    }
+    return 1;
+}
+
+/* A += s * J^T J for J = [I | -[r]x]. */
+static void add_point_coupling(double A[6][6], gcVec3 r, double s) {
+    double rv[3] = {r.x, r.y, r.z};
+    /* [r]x */
+    double S[3][3] = {{0, -r.z, r.y}, {r.z, 0, -r.x}, {-r.y, r.x, 0}};
+    double r2 = gc_len2(r);
+    for (int i = 0; i < 3; ++i) {
+        A[i][i] += s;
+        for (int j = 0; j < 3; ++j) {
+            A[i][3 + j] -= s * S[i][j];           /* I * (-[r]x) */
+            A[3 + i][j] += s * S[i][j];           /* [r]x * I */
+            A[3 + i][3 + j] += s * ((i == j ? r2 : 0.0) - rv[i] * rv[j]); /* -[r]x[r]x */
+        }
+    }
+}
+
+/* Rotation by the vector w*dt (axis-angle), as a quaternion. */
+static gcQuat quat_from_rotation_vector(gcVec3 v) {
+    double angle = gc_len(v);
+    if (angle < 1e-12) {
+        gcQuat q = {1.0, 0.5 * v.x, 0.5 * v.y, 0.5 * v.z};
+        return gc_quat_normalize(q);
+    }
+    double s = sin(0.5 * angle) / angle;
+    gcQuat q = {cos(0.5 * angle), v.x * s, v.y * s, v.z * s};
+    return q;
+}
+
+static void integrate_body(gcWorld *w, int32_t id, double dt) {
+    gcBody *b = &w->bodies[id];
+    /* World inertia J = R A R^T and the mass matrix. */
+    gcMat3 RI = gc_mat3_mul(&b->R, &b->inertia_local);
+    gcMat3 Rt = gc_mat3_transpose(&b->R);
+    gcMat3 Iw = gc_mat3_mul(&RI, &Rt);
+    double A[6][6];
+    memset(A, 0, sizeof A);
+    for (int i = 0; i < 3; ++i) {
+        A[i][i] = b->mass;
+        for (int j = 0; j < 3; ++j) A[3 + i][3 + j] = Iw.m[i][j];
+    }
+    gcVec3 Iw_w = gc_mat3_mul_vec(&Iw, b->w);
+    gcVec3 force = gc_scale(w->gravity, b->mass);
+    gcVec3 torque = w->def.gyroscopic ? gc_neg(gc_cross(b->w, Iw_w)) : gc_v3(0, 0, 0);
+    gcVec3 residual_force = force, residual_torque = gc_v3(0, 0, 0);
+    gcVec3 coupling_force = gc_v3(0, 0, 0), coupling_torque = gc_v3(0, 0, 0);
+
+    gcVec3 origin = gc_sub(b->com, gc_mat3_mul_vec(&b->R, b->com_local));
+    for (int fi = 0; fi < w->num_fingers; ++fi) {
+        const gcFinger *f = &w->fingers[fi];
+        for (int ci = 0; ci < f->num_contacts; ++ci) {
+            const gcFingerContact *c = &f->contacts[ci];
+            if (w->parts[c->part].body != id) continue;
+            gcVec3 go = gc_add(gc_mat3_mul_vec(&b->R, c->go_local), origin);
+            gcVec3 n = gc_mat3_mul_vec(&b->R, c->normal_local);
+            gcVec3 attach = gc_madd(go, n, -f->radius);
+            gcVec3 r = gc_sub(attach, b->com);
+            gcVec3 spring = gc_scale(gc_sub(f->hip, go), f->stiffness);
+            /* Reported wrench: spring plus damping at the current velocity. */
+            gcVec3 v_point = gc_add(b->v, gc_cross(b->w, r));
+            gcVec3 reaction = gc_madd(spring, gc_sub(f->hip_velocity, v_point), f->damping);
+            residual_force = gc_add(residual_force, reaction);
+            residual_torque = gc_add(residual_torque, gc_cross(r, reaction));
+            /* Implicit part: the velocity-dependent terms move into the matrix. */
+            gcVec3 explicit_part = gc_madd(spring, f->hip_velocity, f->damping);
+            coupling_force = gc_add(coupling_force, explicit_part);
+            coupling_torque = gc_add(coupling_torque, gc_cross(r, explicit_part));
+            add_point_coupling(A, r, f->stiffness * dt * dt + f->damping * dt);
+        }
+    }
+    b->residual_force = residual_force;
+    b->residual_torque = residual_torque;
+
+    force = gc_add(force, coupling_force);
+    torque = gc_add(torque, coupling_torque);
+    double rhs[6], x[6];
+    gcVec3 p = gc_scale(b->v, b->mass);
+    rhs[0] = p.x + dt * force.x;
+    rhs[1] = p.y + dt * force.y;
+    rhs[2] = p.z + dt * force.z;
+    rhs[3] = Iw_w.x + dt * torque.x;
+    rhs[4] = Iw_w.y + dt * torque.y;
+    rhs[5] = Iw_w.z + dt * torque.z;
+    if (!solve6(A, rhs, x)) return; /* cannot happen for a physical inertia; keep the state */
+    gcVec3 v = gc_v3(x[0], x[1], x[2]), om = gc_v3(x[3], x[4], x[5]);
+    if (b->linear_damping > 0.0) v = gc_scale(v, 1.0 / (1.0 + dt * b->linear_damping));
+    if (b->angular_damping > 0.0) om = gc_scale(om, 1.0 / (1.0 + dt * b->angular_damping));
+    if (!gc_vec_finite(v) || !gc_vec_finite(om)) return;
+    b->v = v;
+    b->w = om;
+    b->com = gc_madd(b->com, v, dt);
+    b->q = gc_quat_normalize(gc_quat_mul(quat_from_rotation_vector(gc_scale(om, dt)), b->q));
+}
+
+void gc_dynamics_integrate(gcWorld *w, double dt) {
+    for (int32_t i = 0; i < w->num_bodies; ++i) {
+        gcBody *b = &w->bodies[i];
+        if (b->is_static) {
+            b->residual_force = gc_v3(0, 0, 0);
+            b->residual_torque = gc_v3(0, 0, 0);
+            continue;
+        }
+        integrate_body(w, i, dt);
+        gc_body_refresh_derived(w, i);
+    }
+}

@@ -1,0 +1,569 @@
+/* World lifetime, bodies and fingers, argument validation, queries. */
+#include "world_internal.h"
+
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+const char *gc_status_string(gcStatus status) {
+    switch (status) {
+    case GC_OK: return "ok";
+    case GC_WARN_MAX_ITERATIONS: return "iteration cap reached";
+    case GC_ERR_INVALID_ARGUMENT: return "invalid argument";
+    case GC_ERR_DEGENERATE: return "degenerate geometry";
+    case GC_ERR_NO_MEMORY: return "out of memory";
+    case GC_ERR_UNKNOWN_ID: return "unknown id";
+    case GC_ERR_CAPACITY: return "capacity exhausted";
+    case GC_ERR_BUSY: return "busy";
+    }
+    return "unknown status";
+}
+
+void gc_world_set_error(const gcWorld *world, const char *fmt, ...) {
+    /* The error buffer is diagnostic state, not simulation state: writable from const queries. */
+    gcWorld *w = (gcWorld *)world;
+    va_list args;
+    va_start(args, fmt);
+    vsnprintf(w->last_error, sizeof w->last_error, fmt, args);
+    va_end(args);
+}
+
+const char *gc_world_last_error(const gcWorld *world) { return world ? world->last_error : "no world"; }
+
+gcWorldDef gc_default_world_def(void) {
+    gcWorldDef def;
+    memset(&def, 0, sizeof def);
+    def.gravity[2] = -9.81;
+    def.gyroscopic = 1;
+    def.max_bodies = 256;
+    def.max_fingers = 32;
+    def.max_parts = 4096;
+    return def;
+}
+
+gcBodyDef gc_default_body_def(void) {
+    gcBodyDef def;
+    memset(&def, 0, sizeof def);
+    def.orientation[0] = 1.0;
+    def.mass = 1.0;
+    def.mu_s = 0.8;
+    def.mu_d = 0.6;
+    return def;
+}
+
+gcFingerDef gc_default_finger_def(void) {
+    gcFingerDef def;
+    memset(&def, 0, sizeof def);
+    def.radius = 0.008;
+    def.stiffness = 1000.0;
+    return def;
+}
+
+static int all_finite(const double *v, int n) {
+    for (int i = 0; i < n; ++i)
+        if (!isfinite(v[i])) return 0;
+    return 1;
+}
+
+gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world) {
+    if (!def || !out_world) return GC_ERR_INVALID_ARGUMENT;
+    *out_world = NULL;
+    if (!all_finite(def->gravity, 3) || def->max_bodies < 1 || def->max_fingers < 1 ||
+        def->max_parts < 1 || def->max_bodies > (1 << 24) || def->max_fingers > (1 << 20) ||
+        def->max_parts > (1 << 24))
+        return GC_ERR_INVALID_ARGUMENT;
+    gcWorld *w = calloc(1, sizeof *w);
+    if (!w) return GC_ERR_NO_MEMORY;
+    w->def = *def;
+    w->gravity = gc_v3(def->gravity[0], def->gravity[1], def->gravity[2]);
+    w->bodies = calloc((size_t)def->max_bodies, sizeof *w->bodies);
+    w->fingers = calloc((size_t)def->max_fingers, sizeof *w->fingers);
+    w->parts = calloc((size_t)def->max_parts, sizeof *w->parts);
+    w->pose_array = calloc((size_t)def->max_bodies * 7, sizeof(double));
+    w->god_object_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
+    w->force_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
+    w->hip_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
+    if (!w->bodies || !w->fingers || !w->parts || !w->pose_array || !w->god_object_array ||
+        !w->force_array || !w->hip_array) {
+        gc_world_destroy(w);
+        return GC_ERR_NO_MEMORY;
+    }
+    *out_world = w;
+    return GC_OK;
+}
+
+void gc_world_destroy(gcWorld *w) {
+    if (!w) return;
+    for (int i = 0; i < w->num_parts; ++i) gc_hull_free(&w->parts[i].hull);
+    free(w->bodies);
+    free(w->fingers);
+    free(w->parts);
+    free(w->pose_array);
+    free(w->god_object_array);
+    free(w->force_array);
+    free(w->hip_array);
+    free(w);
+}
+
+int gc_world_body_count(const gcWorld *w) { return w->num_bodies; }
+int gc_world_finger_count(const gcWorld *w) { return w->num_fingers; }
+double gc_world_time(const gcWorld *w) { return w->time; }
+
+static gcStatus check_body(const gcWorld *w, int32_t body) {
+    if (body < 0 || body >= w->num_bodies) {
+        gc_world_set_error(w, "body: unknown id %d", (int)body);
+        return GC_ERR_UNKNOWN_ID;
+    }
+    return GC_OK;
+}
+
+static gcStatus check_finger(const gcWorld *w, int32_t finger) {
+    if (finger < 0 || finger >= w->num_fingers) {
+        gc_world_set_error(w, "finger: unknown id %d", (int)finger);
+        return GC_ERR_UNKNOWN_ID;
+    }
+    return GC_OK;
+}
+
+static gcStatus check_vec(const gcWorld *w, const double *v, int n, const char *name) {
+    if (!v || !all_finite(v, n)) {
+        gc_world_set_error(w, "%s: must be %d finite numbers", name, n);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    return GC_OK;
+}
+
+static gcStatus check_friction(const gcWorld *w, double mu_s, double mu_d, double viscosity) {
+    if (!isfinite(mu_s) || mu_s < 0.0) {
+        gc_world_set_error(w, "mu_s: must be a finite number >= 0 (got %g)", mu_s);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    if (!isfinite(mu_d) || mu_d < 0.0 || mu_d > mu_s) {
+        gc_world_set_error(w, "mu_d: must be finite, >= 0 and <= mu_s (got %g, mu_s %g)", mu_d, mu_s);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    if (!isfinite(viscosity) || viscosity < 0.0) {
+        gc_world_set_error(w, "viscosity: must be a finite number >= 0 (got %g)", viscosity);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    return GC_OK;
+}
+
+/* Inverse of a symmetric positive-definite 3x3 (inertia); 0 when singular. */
+static int invert_mat3(const gcMat3 *a, gcMat3 *out) {
+    const double(*m)[3] = a->m;
+    double c00 = m[1][1] * m[2][2] - m[1][2] * m[2][1];
+    double c01 = m[1][2] * m[2][0] - m[1][0] * m[2][2];
+    double c02 = m[1][0] * m[2][1] - m[1][1] * m[2][0];
+    double det = m[0][0] * c00 + m[0][1] * c01 + m[0][2] * c02;
+    if (!(fabs(det) > 0.0) || !isfinite(det)) return 0;
+    double inv = 1.0 / det;
+    out->m[0][0] = c00 * inv;
+    out->m[0][1] = (m[0][2] * m[2][1] - m[0][1] * m[2][2]) * inv;
+    out->m[0][2] = (m[0][1] * m[1][2] - m[0][2] * m[1][1]) * inv;
+    out->m[1][0] = c01 * inv;
+    out->m[1][1] = (m[0][0] * m[2][2] - m[0][2] * m[2][0]) * inv;
+    out->m[1][2] = (m[0][2] * m[1][0] - m[0][0] * m[1][2]) * inv;
+    out->m[2][0] = c02 * inv;
+    out->m[2][1] = (m[0][1] * m[2][0] - m[0][0] * m[2][1]) * inv;
+    out->m[2][2] = (m[0][0] * m[1][1] - m[0][1] * m[1][0]) * inv;
+    return 1;
+}
+
+/* Inertia of the principal minors must be positive and obey the triangle inequality. */
+static int inertia_is_physical(const gcMat3 *I) {
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            if (!isfinite(I->m[i][j]) || fabs(I->m[i][j] - I->m[j][i]) > 1e-9 * (fabs(I->m[i][j]) + 1e-30))
+                return 0;
+    double a = I->m[0][0], b = I->m[1][1], c = I->m[2][2];
+    if (!(a > 0 && b > 0 && c > 0)) return 0;
+    double tol = 1e-9 * (a + b + c);
+    if (a + b < c - tol || a + c < b - tol || b + c < a - tol) return 0;
+    /* Positive definite: leading minors. */
+    double m2 = a * b - I->m[0][1] * I->m[1][0];
+    gcMat3 inv;
+    return m2 > 0 && invert_mat3(I, &inv);
+}
+
+void gc_body_refresh_derived(gcWorld *w, int32_t id) {
+    gcBody *b = &w->bodies[id];
+    b->q = gc_quat_normalize(b->q);
+    b->R = gc_quat_to_mat3(b->q);
+    gcVec3 origin = gc_sub(b->com, gc_mat3_mul_vec(&b->R, b->com_local));
+    double *pose = &w->pose_array[7 * id];
+    pose[0] = origin.x, pose[1] = origin.y, pose[2] = origin.z;
+    pose[3] = b->q.w, pose[4] = b->q.x, pose[5] = b->q.y, pose[6] = b->q.z;
+    /* World AABB of all parts (core AABB corners transformed, inflated by the margin). */
+    gcVec3 lo = gc_v3(INFINITY, INFINITY, INFINITY), hi = gc_neg(lo);
+    for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
+        const gcHull *h = &w->parts[p].hull;
+        for (int corner = 0; corner < 8; ++corner) {
+            gcVec3 c = gc_v3(corner & 1 ? h->aabb_max.x : h->aabb_min.x,
+                             corner & 2 ? h->aabb_max.y : h->aabb_min.y,
+                             corner & 4 ? h->aabb_max.z : h->aabb_min.z);
+            gcVec3 wc = gc_add(gc_mat3_mul_vec(&b->R, c), origin);
+            lo = gc_v3(fmin(lo.x, wc.x - h->radius), fmin(lo.y, wc.y - h->radius), fmin(lo.z, wc.z - h->radius));
+            hi = gc_v3(fmax(hi.x, wc.x + h->radius), fmax(hi.y, wc.y + h->radius), fmax(hi.z, wc.z + h->radius));
+        }
+    }
+    b->aabb_min = lo;
+    b->aabb_max = hi;
+}
+
+gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *parts, int num_parts,
+                           int32_t *out_body) {
+    if (!w || !def || !out_body) return GC_ERR_INVALID_ARGUMENT;
+    gcStatus st;
+    if ((st = check_vec(w, def->position, 3, "position")) ||
+        (st = check_vec(w, def->orientation, 4, "orientation")) ||
+        (st = check_vec(w, def->linear_velocity, 3, "linear_velocity")) ||
+        (st = check_vec(w, def->angular_velocity, 3, "angular_velocity")) ||
+        (st = check_friction(w, def->mu_s, def->mu_d, def->viscosity)))
+        return st;
+    double qn = sqrt(def->orientation[0] * def->orientation[0] + def->orientation[1] * def->orientation[1] +
+                     def->orientation[2] * def->orientation[2] + def->orientation[3] * def->orientation[3]);
+    if (!(qn > 1e-9)) {
+        gc_world_set_error(w, "orientation: quaternion (w, x, y, z) must not be zero");
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    if (!def->is_static && (!isfinite(def->mass) || !(def->mass > 0.0))) {
+        gc_world_set_error(w, "mass: must be a finite number > 0 for a dynamic body (got %g)", def->mass);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    if (!isfinite(def->linear_damping) || def->linear_damping < 0 || !isfinite(def->angular_damping) ||
+        def->angular_damping < 0) {
+        gc_world_set_error(w, "linear_damping/angular_damping: must be finite and >= 0");
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    if (!parts || num_parts < 1) {
+        gc_world_set_error(w, "parts: a body needs at least one convex part");
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    if (w->num_bodies >= w->def.max_bodies) {
+        gc_world_set_error(w, "max_bodies: the world holds at most %d bodies", w->def.max_bodies);
+        return GC_ERR_CAPACITY;
+    }
+    if (w->num_parts + num_parts > w->def.max_parts) {
+        gc_world_set_error(w, "max_parts: the world holds at most %d convex parts", w->def.max_parts);
+        return GC_ERR_CAPACITY;
+    }
+    /* Build every hull first so that a bad part leaves the world untouched. */
+    int first = w->num_parts;
+    for (int i = 0; i < num_parts; ++i) {
+        const gcPartDef *pd = &parts[i];
+        const char *what = num_parts > 1 ? "parts" : "points";
+        if (!pd->points || pd->num_points < 1 || !isfinite(pd->radius) || pd->radius < 0 ||
+            !all_finite(pd->points, 3 * pd->num_points)) {
+            st = GC_ERR_INVALID_ARGUMENT;
+            gc_world_set_error(w, "%s: part %d must be finite xyz points with a radius >= 0", what, i);
+        } else {
+            st = gc_hull_build(pd->points, pd->num_points, pd->radius, 0.0, &w->parts[first + i].hull);
+            if (st == GC_ERR_DEGENERATE)
+                gc_world_set_error(w, "%s: part %d is a degenerate hull (coplanar, collinear or coincident points)",
+                                   what, i);
+            else if (st < 0)
+                gc_world_set_error(w, "%s: part %d could not be built (%s)", what, i, gc_status_string(st));
+        }
+        if (st < 0) {
+            for (int j = 0; j < i; ++j) gc_hull_free(&w->parts[first + j].hull);
+            memset(&w->parts[first], 0, sizeof(gcPart) * (size_t)num_parts);
+            return st;
+        }
+    }
+
+    gcBody b;
+    memset(&b, 0, sizeof b);
+    b.is_static = def->is_static != 0;
+    b.first_part = first;
+    b.num_parts = num_parts;
+    /* Mass properties: uniform density over the union of parts (overlaps counted twice). */
+    double volume = 0.0;
+    gcVec3 centroid = gc_v3(0, 0, 0);
+    for (int i = 0; i < num_parts; ++i) {
+        const gcHull *h = &w->parts[first + i].hull;
+        volume += h->volume;
+        centroid = gc_madd(centroid, h->centroid, h->volume);
+    }
+    centroid = gc_scale(centroid, 1.0 / volume);
+    b.com_local = def->has_center_of_mass ? gc_v3(def->center_of_mass[0], def->center_of_mass[1],
+                                                  def->center_of_mass[2])
+                                          : centroid;
+    if (def->has_center_of_mass && !all_finite(def->center_of_mass, 3)) {
+        st = GC_ERR_INVALID_ARGUMENT;
+        gc_world_set_error(w, "center_of_mass: must be 3 finite numbers");
+    }
+    if (!b.is_static) {
+        b.mass = def->mass;
+        b.inv_mass = 1.0 / def->mass;
+        if (def->has_inertia) {
+            memcpy(b.inertia_local.m, def->inertia, sizeof b.inertia_local.m);
+        } else {
+            double density = def->mass / volume;
+            memset(&b.inertia_local, 0, sizeof b.inertia_local);
+            for (int i = 0; i < num_parts; ++i) {
+                const gcHull *h = &w->parts[first + i].hull;
+                double m = density * h->volume;
+                gcVec3 d = gc_sub(h->centroid, b.com_local);
+                double d2 = gc_len2(d);
+                double dv[3] = {d.x, d.y, d.z};
+                for (int r = 0; r < 3; ++r)
+                    for (int c = 0; c < 3; ++c)
+                        b.inertia_local.m[r][c] += density * h->inertia_unit.m[r][c] +
+                                                   m * ((r == c ? d2 : 0.0) - dv[r] * dv[c]);
+            }
+        }
+        if (st == GC_OK && (!inertia_is_physical(&b.inertia_local) ||
+                            !invert_mat3(&b.inertia_local, &b.inv_inertia_local))) {
+            st = GC_ERR_INVALID_ARGUMENT;
+            gc_world_set_error(w, "inertia: must be symmetric positive definite and obey the triangle inequality");
+        }
+    }
+    if (st < 0) {
+        for (int i = 0; i < num_parts; ++i) gc_hull_free(&w->parts[first + i].hull);
+        return st;
+    }
+    b.mu_s = def->mu_s;
+    b.mu_d = def->mu_d;
+    b.viscosity = def->viscosity;
+    b.linear_damping = def->linear_damping;
+    b.angular_damping = def->angular_damping;
+    b.q = gc_quat_normalize((gcQuat){def->orientation[0], def->orientation[1], def->orientation[2],
+                                     def->orientation[3]});
+    b.R = gc_quat_to_mat3(b.q);
+    b.com = gc_add(gc_v3(def->position[0], def->position[1], def->position[2]),
+                   gc_mat3_mul_vec(&b.R, b.com_local));
+    if (!b.is_static) {
+        b.v = gc_v3(def->linear_velocity[0], def->linear_velocity[1], def->linear_velocity[2]);
+        b.w = gc_v3(def->angular_velocity[0], def->angular_velocity[1], def->angular_velocity[2]);
+    }
+    int32_t id = w->num_bodies;
+    for (int i = 0; i < num_parts; ++i) w->parts[first + i].body = id;
+    w->bodies[id] = b;
+    w->num_bodies++;
+    w->num_parts += num_parts;
+    gc_body_refresh_derived(w, id);
+    *out_body = id;
+    return GC_OK;
+}
+
+gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_finger) {
+    if (!w || !def || !out_finger) return GC_ERR_INVALID_ARGUMENT;
+    gcStatus st;
+    if ((st = check_vec(w, def->position, 3, "position"))) return st;
+    if (!isfinite(def->radius) || def->radius < 0) {
+        gc_world_set_error(w, "radius: must be a finite number >= 0 (got %g)", def->radius);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    if (!isfinite(def->stiffness) || !(def->stiffness > 0)) {
+        gc_world_set_error(w, "stiffness: must be a finite number > 0 (got %g)", def->stiffness);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    if (!isfinite(def->damping) || def->damping < 0) {
+        gc_world_set_error(w, "damping: must be a finite number >= 0 (got %g)", def->damping);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    if (w->num_fingers >= w->def.max_fingers) {
+        gc_world_set_error(w, "max_fingers: the world holds at most %d fingers", w->def.max_fingers);
+        return GC_ERR_CAPACITY;
+    }
+    int32_t id = w->num_fingers;
+    gcFinger *f = &w->fingers[id];
+    memset(f, 0, sizeof *f);
+    f->radius = def->radius;
+    f->stiffness = def->stiffness;
+    f->damping = def->damping;
+    f->hip = f->hip_prev = f->god_object = gc_v3(def->position[0], def->position[1], def->position[2]);
+    f->contact_body = -1;
+    f->state = GC_FINGER_FREE;
+    memcpy(&w->hip_array[3 * id], def->position, 3 * sizeof(double));
+    memcpy(&w->god_object_array[3 * id], def->position, 3 * sizeof(double));
+    w->num_fingers++;
+    *out_finger = id;
+    return GC_OK;
+}
+
+gcStatus gc_world_set_gravity(gcWorld *w, const double g[3]) {
+    gcStatus st = check_vec(w, g, 3, "gravity");
+    if (st) return st;
+    w->gravity = gc_v3(g[0], g[1], g[2]);
+    return GC_OK;
+}
+
+gcStatus gc_world_set_hip(gcWorld *w, int32_t finger, const double p[3]) {
+    gcStatus st;
+    if ((st = check_finger(w, finger)) || (st = check_vec(w, p, 3, "position"))) return st;
+    w->fingers[finger].hip = gc_v3(p[0], p[1], p[2]);
+    memcpy(&w->hip_array[3 * finger], p, 3 * sizeof(double));
+    return GC_OK;
+}
+
+gcStatus gc_world_set_hips(gcWorld *w, const double *p, int count) {
+    if (count < 0 || count > w->num_fingers) {
+        gc_world_set_error(w, "positions: %d rows given for %d fingers", count, w->num_fingers);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    gcStatus st = check_vec(w, p, 3 * count, "positions");
+    if (st) return st;
+    for (int i = 0; i < count; ++i) w->fingers[i].hip = gc_v3(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
+    memcpy(w->hip_array, p, 3 * (size_t)count * sizeof(double));
+    return GC_OK;
+}
+
+gcStatus gc_world_set_body_velocity(gcWorld *w, int32_t body, const double lin[3], const double ang[3]) {
+    gcStatus st;
+    if ((st = check_body(w, body)) || (st = check_vec(w, lin, 3, "linear")) || (st = check_vec(w, ang, 3, "angular")))
+        return st;
+    gcBody *b = &w->bodies[body];
+    if (b->is_static) {
+        gc_world_set_error(w, "body: %d is static and cannot be given a velocity", (int)body);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    b->v = gc_v3(lin[0], lin[1], lin[2]);
+    b->w = gc_v3(ang[0], ang[1], ang[2]);
+    return GC_OK;
+}
+
+gcStatus gc_world_set_body_pose(gcWorld *w, int32_t body, const double pos[3], const double quat[4]) {
+    gcStatus st;
+    if ((st = check_body(w, body)) || (st = check_vec(w, pos, 3, "position")) ||
+        (st = check_vec(w, quat, 4, "orientation")))
+        return st;
+    double qn = sqrt(quat[0] * quat[0] + quat[1] * quat[1] + quat[2] * quat[2] + quat[3] * quat[3]);
+    if (!(qn > 1e-9)) {
+        gc_world_set_error(w, "orientation: quaternion (w, x, y, z) must not be zero");
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    gcBody *b = &w->bodies[body];
+    b->q = gc_quat_normalize((gcQuat){quat[0], quat[1], quat[2], quat[3]});
+    b->R = gc_quat_to_mat3(b->q);
+    b->com = gc_add(gc_v3(pos[0], pos[1], pos[2]), gc_mat3_mul_vec(&b->R, b->com_local));
+    gc_body_refresh_derived(w, body);
+    return GC_OK;
+}
+
+gcStatus gc_world_set_body_friction(gcWorld *w, int32_t body, double mu_s, double mu_d, double viscosity) {
+    gcStatus st;
+    if ((st = check_body(w, body)) || (st = check_friction(w, mu_s, mu_d, viscosity))) return st;
+    w->bodies[body].mu_s = mu_s;
+    w->bodies[body].mu_d = mu_d;
+    w->bodies[body].viscosity = viscosity;
+    return GC_OK;
+}
+
+gcStatus gc_world_step(gcWorld *w, double dt) {
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (!isfinite(dt) || !(dt > 0.0) || dt > 1.0) {
+        gc_world_set_error(w, "dt: must be a finite step in (0, 1] seconds (got %g)", dt);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    gc_xfca_update(w, dt);
+    gc_dynamics_integrate(w, dt);
+    for (int i = 0; i < w->num_fingers; ++i) w->fingers[i].hip_prev = w->fingers[i].hip;
+    w->time += dt;
+    return GC_OK;
+}
+
+static void put3(double out[3], gcVec3 v) {
+    out[0] = v.x, out[1] = v.y, out[2] = v.z;
+}
+
+gcStatus gc_world_body_pose(const gcWorld *w, int32_t body, double pos[3], double quat[4]) {
+    gcStatus st = check_body(w, body);
+    if (st) return st;
+    memcpy(pos, &w->pose_array[7 * body], 3 * sizeof(double));
+    memcpy(quat, &w->pose_array[7 * body + 3], 4 * sizeof(double));
+    return GC_OK;
+}
+
+gcStatus gc_world_body_velocity(const gcWorld *w, int32_t body, double lin[3], double ang[3]) {
+    gcStatus st = check_body(w, body);
+    if (st) return st;
+    const gcBody *b = &w->bodies[body];
+    /* Report the velocity of the body frame origin, consistent with body_pose. */
+    gcVec3 r = gc_mat3_mul_vec(&b->R, gc_neg(b->com_local));
+    put3(lin, gc_add(b->v, gc_cross(b->w, r)));
+    put3(ang, b->w);
+    return GC_OK;
+}
+
+gcStatus gc_world_body_mass(const gcWorld *w, int32_t body, double *mass, double com[3], double inertia[9]) {
+    gcStatus st = check_body(w, body);
+    if (st) return st;
+    const gcBody *b = &w->bodies[body];
+    *mass = b->is_static ? INFINITY : b->mass;
+    put3(com, b->com_local);
+    memcpy(inertia, b->inertia_local.m, 9 * sizeof(double));
+    return GC_OK;
+}
+
+gcStatus gc_world_residual_wrench(const gcWorld *w, int32_t body, double force[3], double torque[3]) {
+    gcStatus st = check_body(w, body);
+    if (st) return st;
+    put3(force, w->bodies[body].residual_force);
+    put3(torque, w->bodies[body].residual_torque);
+    return GC_OK;
+}
+
+gcStatus gc_world_finger_force(const gcWorld *w, int32_t finger, double force[3]) {
+    gcStatus st = check_finger(w, finger);
+    if (st) return st;
+    put3(force, w->fingers[finger].force);
+    return GC_OK;
+}
+
+gcStatus gc_world_god_object(const gcWorld *w, int32_t finger, double pos[3]) {
+    gcStatus st = check_finger(w, finger);
+    if (st) return st;
+    put3(pos, w->fingers[finger].god_object);
+    return GC_OK;
+}
+
+gcStatus gc_world_finger_state(const gcWorld *w, int32_t finger, gcFingerState *state, int32_t *contact_body) {
+    gcStatus st = check_finger(w, finger);
+    if (st) return st;
+    *state = w->fingers[finger].state;
+    *contact_body = w->fingers[finger].contact_body;
+    return GC_OK;
+}
+
+const double *gc_world_body_pose_array(const gcWorld *w) { return w->pose_array; }
+const double *gc_world_god_object_array(const gcWorld *w) { return w->god_object_array; }
+const double *gc_world_finger_force_array(const gcWorld *w) { return w->force_array; }
+const double *gc_world_hip_array(const gcWorld *w) { return w->hip_array; }
+
+/* FNV-1a over the bytes of every state variable, in id order. */
+static uint64_t hash_bytes(uint64_t h, const void *data, size_t n) {
+    const unsigned char *p = data;
+    for (size_t i = 0; i < n; ++i) {
+        h ^= p[i];
+        h *= 1099511628211ull;
+    }
+    return h;
+}
+
+uint64_t gc_world_state_hash(const gcWorld *w) {
+    uint64_t h = 14695981039346656037ull;
+    h = hash_bytes(h, &w->time, sizeof w->time);
+    for (int i = 0; i < w->num_bodies; ++i) {
+        const gcBody *b = &w->bodies[i];
+        h = hash_bytes(h, &b->com, sizeof b->com);
+        h = hash_bytes(h, &b->q, sizeof b->q);
+        h = hash_bytes(h, &b->v, sizeof b->v);
+        h = hash_bytes(h, &b->w, sizeof b->w);
+    }
+    for (int i = 0; i < w->num_fingers; ++i) {
+        const gcFinger *f = &w->fingers[i];
+        h = hash_bytes(h, &f->hip, sizeof f->hip);
+        h = hash_bytes(h, &f->force, sizeof f->force);
+        for (int c = 0; c < f->num_contacts; ++c) {
+            const gcFingerContact *k = &f->contacts[c];
+            h = hash_bytes(h, &k->part, sizeof k->part);
+            h = hash_bytes(h, &k->state, sizeof k->state);
+            h = hash_bytes(h, &k->go_local, sizeof k->go_local);
+            h = hash_bytes(h, &k->normal_local, sizeof k->normal_local);
+        }
+    }
+    return h;
+}

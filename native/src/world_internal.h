@@ -1,0 +1,85 @@
+/* The world's private layout, shared by the core's translation units. */
+#ifndef GC_WORLD_INTERNAL_H
+#define GC_WORLD_INTERNAL_H
+
+#include "geometry.h"
+#include "graspcore.h"
+
+#include <stdint.h>
+
+/* One convex part of a body: its hull in the body frame. */
+typedef struct gcPart {
+    gcHull hull;
+    int32_t body;
+} gcPart;
+
+typedef struct gcBody {
+    int is_static;
+    int first_part, num_parts;      /* parts[first_part .. first_part+num_parts) */
+    double mass, inv_mass;
+    gcVec3 com_local;               /* centre of mass in the body frame */
+    gcMat3 inertia_local;           /* about the COM, body axes */
+    gcMat3 inv_inertia_local;
+    /* State: the COM is integrated; the frame origin is derived for output. */
+    gcVec3 com;                     /* world */
+    gcQuat q;                       /* body frame orientation */
+    gcMat3 R;                       /* cached rotation of q */
+    gcVec3 v, w;                    /* linear (of the COM) and angular velocity, world */
+    double mu_s, mu_d, viscosity;
+    double linear_damping, angular_damping;
+    gcVec3 aabb_min, aabb_max;      /* world, of all parts, refreshed each step */
+    /* Outputs of the last step. */
+    gcVec3 residual_force, residual_torque;
+} gcBody;
+
+/* Contact between one finger and one part. The god-object (GO) and the contact plane
+ * live in the part's body frame so that they move with the body. */
+typedef struct gcFingerContact {
+    int32_t part;                   /* -1 when the slot is unused */
+    gcFingerState state;            /* FREE, STICK or SLIP */
+    gcVec3 go_local;                /* god-object centre, body frame */
+    gcVec3 normal_local;            /* contact plane normal (outward), body frame */
+    gcVec3 so_local;                /* surface object, body frame */
+    double depth;                   /* HIP depth below the GO plane, last step */
+} gcFingerContact;
+
+#define GC_MAX_CONTACTS_PER_FINGER 8
+
+typedef struct gcFinger {
+    double radius, stiffness, damping;
+    gcVec3 hip, hip_prev, hip_velocity;
+    int hip_initialised;
+    int num_contacts;
+    gcFingerContact contacts[GC_MAX_CONTACTS_PER_FINGER];
+    /* Outputs. */
+    gcVec3 god_object;              /* world: force-weighted GO, or the HIP when free */
+    gcVec3 force;                   /* rendered to the device: k (GO - HIP) + damping */
+    int32_t contact_body;           /* -1 when free */
+    gcFingerState state;
+} gcFinger;
+
+struct gcWorld {
+    gcWorldDef def;
+    gcVec3 gravity;
+    double time;
+    int num_bodies, num_fingers, num_parts;
+    gcBody *bodies;
+    gcFinger *fingers;
+    gcPart *parts;
+    /* Zero-copy output arrays, sized by the capacities. */
+    double *pose_array;             /* 7 per body */
+    double *god_object_array;       /* 3 per finger */
+    double *force_array;            /* 3 per finger */
+    double *hip_array;              /* 3 per finger */
+    char last_error[256];
+};
+
+void gc_world_set_error(const gcWorld *world, const char *fmt, ...);
+
+/* xfca.c: one god-object update for every finger, then finger forces. */
+void gc_xfca_update(gcWorld *world, double dt);
+/* dynamics.c: integrate every dynamic body with implicit finger coupling. */
+void gc_dynamics_integrate(gcWorld *world, double dt);
+void gc_body_refresh_derived(gcWorld *world, int32_t body);
+
+#endif

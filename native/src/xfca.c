@@ -1,0 +1,252 @@
+/* Extended friction cone algorithm (xFCA): one god-object (GO) per finger per convex
+ * part, kept on the part's surface and inside the friction circle of radius mu*depth
+ * around the surface object (SO, the frictionless projection of the HIP).
+ * See docs/physics.md for how we read the chapter; the numbered steps below follow it.
+ * All positions here are fingertip-sphere centres: the surface the centre sees is the
+ * part inflated by the finger radius, so a point finger is radius 0. */
+#include "world_internal.h"
+
+#include <string.h>
+
+/* Conservative advancement is capped; a miss after the cap is treated as no contact
+ * this step (the HIP is then still outside, so nothing is lost). */
+#define GC_SWEEP_MAX_ITERATIONS 32
+/* The sweep stops within this distance of the surface (m). */
+#define GC_SWEEP_GAP 1e-6
+/* Distances below this count as touching (m). */
+#define GC_CONTACT_SLOP 1e-9
+/* Smallest push toward the HIP (m): keeps a GO resting on a flat face in contact
+ * despite rounding, far below anything a device resolves. */
+#define GC_MIN_PUSH 1e-7
+/* A push never exceeds this fraction of the part's thinnest width: no push-through. */
+#define GC_PUSH_WIDTH_FRACTION 0.25
+
+typedef struct gcBodyFrame {
+    gcVec3 origin; /* body frame origin, world */
+    const gcMat3 *R;
+} gcBodyFrame;
+
+static gcBodyFrame body_frame(const gcBody *b) {
+    gcBodyFrame fr;
+    fr.origin = gc_sub(b->com, gc_mat3_mul_vec(&b->R, b->com_local));
+    fr.R = &b->R;
+    return fr;
+}
+
+static gcVec3 to_local(const gcBodyFrame *fr, gcVec3 world) {
+    return gc_mat3_tmul_vec(fr->R, gc_sub(world, fr->origin));
+}
+
+static gcVec3 to_world(const gcBodyFrame *fr, gcVec3 local) {
+    return gc_add(gc_mat3_mul_vec(fr->R, local), fr->origin);
+}
+
+/* Signed distance of a fingertip centre to the part's surface, seen by a sphere of radius r. */
+static double tip_query(const gcHull *h, gcVec3 p, double r, gcVec3 *normal) {
+    double sd;
+    gcVec3 sp;
+    gc_point_query(h, p, &sd, &sp, normal);
+    return sd - r;
+}
+
+/* Push depth that keeps the GO on a convex surface after a tangential move of dmax:
+ * the surface falls rc - sqrt(rc^2 - dmax^2) below its tangent plane (DESIGN.md §2).
+ * The inflated surface of a polyhedron has its tightest curvature, r, at the rounded
+ * edges; for a point finger we allow a 45-degree fall. Bounded by the depth (never past
+ * the HIP) and by a fraction of the part's thinnest width (never through a plate). */
+static double push_depth(double rc, double dmax, double depth, double min_width) {
+    double fall;
+    if (rc <= 0.0)
+        fall = dmax;
+    else if (dmax >= rc)
+        fall = rc;
+    else
+        fall = rc - sqrt(rc * rc - dmax * dmax);
+    double push = fall + GC_MIN_PUSH;
+    push = fmin(push, depth);
+    push = fmin(push, GC_PUSH_WIDTH_FRACTION * min_width);
+    return fmax(push, 0.0);
+}
+
+/* Steps 4-6 for an existing contact, in the body frame. Returns 0 when contact is lost. */
+static int update_contact(const gcFinger *f, const gcBody *b, const gcHull *h, gcFingerContact *c,
+                          gcVec3 hip, double dt) {
+    gcVec3 n = c->normal_local;
+    double depth = gc_dot(n, gc_sub(c->go_local, hip));
+    if (depth <= 0.0) return 0; /* the HIP crossed the GO's plane */
+    c->depth = depth;
+    gcVec3 so = gc_madd(hip, n, depth);
+    c->so_local = so;
+    /* Friction circle around the SO (step 4): the GO's offset in the plane. */
+    gcVec3 offset = gc_sub(c->go_local, so);
+    offset = gc_madd(offset, n, -gc_dot(offset, n));
+    double dist = gc_len(offset);
+    gcVec3 go = gc_add(so, offset);
+    double static_radius = b->mu_s * depth, dynamic_radius = b->mu_d * depth;
+    int slipping;
+    if (c->state == GC_FINGER_STICK)
+        slipping = dist > static_radius;
+    else
+        slipping = dist > dynamic_radius;
+    if (slipping) {
+        /* Onto the Coulomb (mu_d) circle; with viscosity, no further than the viscous
+         * radius depth*dt/viscosity per step, so faster sliding trails further. */
+        gcVec3 target = gc_madd(so, offset, dynamic_radius / dist);
+        if (b->viscosity > 0.0) {
+            double max_move = depth * dt / b->viscosity;
+            gcVec3 move = gc_sub(target, go);
+            double len = gc_len(move);
+            if (len > max_move) target = gc_madd(go, move, max_move / len);
+        }
+        go = target;
+        c->state = GC_FINGER_SLIP;
+    } else {
+        c->state = GC_FINGER_STICK;
+    }
+    double dmax = gc_len(gc_sub(go, c->go_local));
+    /* Step 5: push toward the HIP so the GO cannot leave a convex surface. */
+    double rc = f->radius + h->radius;
+    go = gc_madd(go, n, -push_depth(rc, dmax, depth, h->min_width + 2.0 * h->radius));
+    /* Step 6: collision pass of the GO against the part, re-surface along the normal. */
+    gcVec3 nn;
+    double sd = tip_query(h, go, f->radius, &nn);
+    if (sd > GC_CONTACT_SLOP) return 0; /* the surface fell away faster than allowed */
+    go = gc_madd(go, nn, -sd);
+    c->go_local = go;
+    c->normal_local = nn;
+    (void)dt;
+    return 1;
+}
+
+/* First contact (steps 1-3): sweep the fingertip from the previous HIP to the current one
+ * by conservative advancement, so a fast HIP enters through the face it crossed. */
+static int find_entry(const gcFinger *f, const gcHull *h, gcVec3 from, gcVec3 to, gcVec3 *go,
+                      gcVec3 *normal) {
+    gcVec3 seg = gc_sub(to, from);
+    double len = gc_len(seg);
+    gcVec3 n;
+    double d = tip_query(h, from, f->radius, &n);
+    if (d <= GC_CONTACT_SLOP) {
+        /* Already inside at the start (the body moved onto the finger, or the first
+         * step): leave along the least-penetration normal. */
+        d = tip_query(h, to, f->radius, &n);
+        if (d > GC_CONTACT_SLOP) return 0;
+        *go = gc_madd(to, n, -d);
+        *normal = n;
+        return 1;
+    }
+    if (len <= 0.0) return 0;
+    /* Advance to a small gap short of the surface, where the normal is well defined
+     * (a point exactly on an edge has no unique one). */
+    double t = 0.0;
+    for (int it = 0; it < GC_SWEEP_MAX_ITERATIONS; ++it) {
+        t += (d - 0.5 * GC_SWEEP_GAP) / len;
+        if (t >= 1.0) {
+            d = tip_query(h, to, f->radius, &n);
+            if (d > GC_CONTACT_SLOP) return 0;
+            t = 1.0;
+        }
+        gcVec3 p = gc_madd(from, seg, t);
+        d = tip_query(h, p, f->radius, &n);
+        if (d <= GC_SWEEP_GAP || t >= 1.0) {
+            *go = gc_madd(p, n, -d);
+            *normal = n;
+            return 1;
+        }
+    }
+    return 0;
+}
+
+static int aabb_overlap(gcVec3 amin, gcVec3 amax, gcVec3 bmin, gcVec3 bmax) {
+    return amin.x <= bmax.x && bmin.x <= amax.x && amin.y <= bmax.y && bmin.y <= amax.y &&
+           amin.z <= bmax.z && bmin.z <= amax.z;
+}
+
+static int has_contact_with(const gcFinger *f, int32_t part) {
+    for (int i = 0; i < f->num_contacts; ++i)
+        if (f->contacts[i].part == part) return 1;
+    return 0;
+}
+
+static void finger_update(gcWorld *w, gcFinger *f, double dt) {
+    f->hip_velocity = gc_scale(gc_sub(f->hip, f->hip_prev), 1.0 / dt);
+    /* Existing contacts, compacting away the ones that ended. */
+    int kept = 0;
+    for (int i = 0; i < f->num_contacts; ++i) {
+        gcFingerContact c = f->contacts[i];
+        const gcPart *part = &w->parts[c.part];
+        const gcBody *b = &w->bodies[part->body];
+        gcBodyFrame fr = body_frame(b);
+        if (update_contact(f, b, &part->hull, &c, to_local(&fr, f->hip), dt)) f->contacts[kept++] = c;
+    }
+    f->num_contacts = kept;
+
+    /* New contacts: broad phase on the swept fingertip box, then the sweep per part. */
+    gcVec3 lo = gc_v3(fmin(f->hip.x, f->hip_prev.x), fmin(f->hip.y, f->hip_prev.y), fmin(f->hip.z, f->hip_prev.z));
+    gcVec3 hi = gc_v3(fmax(f->hip.x, f->hip_prev.x), fmax(f->hip.y, f->hip_prev.y), fmax(f->hip.z, f->hip_prev.z));
+    gcVec3 pad = gc_v3(f->radius, f->radius, f->radius);
+    lo = gc_sub(lo, pad);
+    hi = gc_add(hi, pad);
+    for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < GC_MAX_CONTACTS_PER_FINGER; ++bi) {
+        const gcBody *b = &w->bodies[bi];
+        if (!aabb_overlap(lo, hi, b->aabb_min, b->aabb_max)) continue;
+        gcBodyFrame fr = body_frame(b);
+        gcVec3 from = to_local(&fr, f->hip_prev), to = to_local(&fr, f->hip);
+        for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
+            if (f->num_contacts >= GC_MAX_CONTACTS_PER_FINGER) break;
+            if (has_contact_with(f, p)) continue;
+            const gcHull *h = &w->parts[p].hull;
+            gcVec3 go, n;
+            if (!find_entry(f, h, from, to, &go, &n)) continue;
+            gcFingerContact c;
+            memset(&c, 0, sizeof c);
+            c.part = p;
+            c.state = GC_FINGER_STICK;
+            c.go_local = go;
+            c.normal_local = n;
+            if (update_contact(f, b, h, &c, to, dt)) f->contacts[f->num_contacts++] = c;
+        }
+    }
+}
+
+/* Force rendered to the device and the finger's reported GO/state (the deepest contact). */
+static void finger_outputs(gcWorld *w, int32_t id) {
+    gcFinger *f = &w->fingers[id];
+    gcVec3 force = gc_v3(0, 0, 0);
+    double deepest = -1.0;
+    f->god_object = f->hip;
+    f->contact_body = -1;
+    f->state = GC_FINGER_FREE;
+    for (int i = 0; i < f->num_contacts; ++i) {
+        const gcFingerContact *c = &f->contacts[i];
+        const gcBody *b = &w->bodies[w->parts[c->part].body];
+        gcBodyFrame fr = body_frame(b);
+        gcVec3 go = to_world(&fr, c->go_local);
+        gcVec3 n = gc_mat3_mul_vec(&b->R, c->normal_local);
+        force = gc_madd(force, gc_sub(go, f->hip), f->stiffness);
+        if (f->damping > 0.0) {
+            /* Damping on the HIP vs the body point under the fingertip. */
+            gcVec3 attach = gc_madd(go, n, -f->radius);
+            gcVec3 v_point = b->is_static ? gc_v3(0, 0, 0) : gc_add(b->v, gc_cross(b->w, gc_sub(attach, b->com)));
+            force = gc_madd(force, gc_sub(v_point, f->hip_velocity), f->damping);
+        }
+        if (c->depth > deepest) {
+            deepest = c->depth;
+            f->god_object = go;
+            f->contact_body = w->parts[c->part].body;
+            f->state = c->state;
+        }
+    }
+    f->force = force;
+    double *out = &w->force_array[3 * id];
+    out[0] = force.x, out[1] = force.y, out[2] = force.z;
+    out = &w->god_object_array[3 * id];
+    out[0] = f->god_object.x, out[1] = f->god_object.y, out[2] = f->god_object.z;
+}
+
+void gc_xfca_update(gcWorld *w, double dt) {
+    for (int32_t i = 0; i < w->num_fingers; ++i) {
+        finger_update(w, &w->fingers[i], dt);
+        finger_outputs(w, i);
+    }
+}
