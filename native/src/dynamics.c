@@ -5,10 +5,10 @@
  * fingers has modes far above the step rate and explodes (DESIGN.md §2), so the springs
  * are integrated with backward Euler, linearised about the current pose:
  *
- *   (M + sum (k dt^2 + c dt) J^T J) v' = M v + dt (F_ext - w x Iw + sum J^T (f_spring + c v_hip))
+ *   (M' + sum (k dt^2 + c dt) J^T J) v' = M v + dt (F_ext + sum J^T (f_spring + c v_hip))
  *
- * with J = [I | -[r]x] mapping the body twist to the velocity of the contact point at
- * r from the centre of mass. M is 6x6 block diagonal (m I, R I_body R^T). The pose is
+ * with J = [I | -[r]x] mapping the body twist to the velocity of the god-object at r
+ * from the centre of mass. M is 6x6 block diagonal (m I, R I_body R^T). The pose is
  * then advanced with the new twist: x += v' dt and R <- exp([w' dt]x) R, the world-frame
  * update the chapter prints transposed. */
 #include "world_internal.h"
@@ -73,23 +73,24 @@ static gcQuat quat_from_rotation_vector(gcVec3 v) {
     return q;
 }
 
+static gcMat3 world_inertia(const gcMat3 *R, const gcMat3 *inertia_local) {
+    gcMat3 RI = gc_mat3_mul(R, inertia_local);
+    gcMat3 Rt = gc_mat3_transpose(R);
+    return gc_mat3_mul(&RI, &Rt);
+}
+
+/* Fixed-point passes for the inertia at the end of the step (gyroscopic term). */
+#define GC_GYRO_ITERATIONS 3
+
 static void integrate_body(gcWorld *w, int32_t id, double dt) {
     gcBody *b = &w->bodies[id];
-    /* World inertia J = R A R^T and the mass matrix. */
-    gcMat3 RI = gc_mat3_mul(&b->R, &b->inertia_local);
-    gcMat3 Rt = gc_mat3_transpose(&b->R);
-    gcMat3 Iw = gc_mat3_mul(&RI, &Rt);
-    double A[6][6];
-    memset(A, 0, sizeof A);
-    for (int i = 0; i < 3; ++i) {
-        A[i][i] = b->mass;
-        for (int j = 0; j < 3; ++j) A[3 + i][3 + j] = Iw.m[i][j];
-    }
-    gcVec3 Iw_w = gc_mat3_mul_vec(&Iw, b->w);
+    gcMat3 Iw = world_inertia(&b->R, &b->inertia_local);
+    gcVec3 L = gc_mat3_mul_vec(&Iw, b->w);
     gcVec3 force = gc_scale(w->gravity, b->mass);
-    gcVec3 torque = w->def.gyroscopic ? gc_neg(gc_cross(b->w, Iw_w)) : gc_v3(0, 0, 0);
+    gcVec3 torque = gc_v3(0, 0, 0);
     gcVec3 residual_force = force, residual_torque = gc_v3(0, 0, 0);
-    gcVec3 coupling_force = gc_v3(0, 0, 0), coupling_torque = gc_v3(0, 0, 0);
+    double C[6][6]; /* finger coupling: sum (k dt^2 + c dt) J^T J */
+    memset(C, 0, sizeof C);
 
     gcVec3 origin = gc_sub(b->com, gc_mat3_mul_vec(&b->R, b->com_local));
     for (int fi = 0; fi < w->num_fingers; ++fi) {
@@ -97,10 +98,11 @@ static void integrate_body(gcWorld *w, int32_t id, double dt) {
         for (int ci = 0; ci < f->num_contacts; ++ci) {
             const gcFingerContact *c = &f->contacts[ci];
             if (w->parts[c->part].body != id) continue;
+            /* The reaction acts at the GO (DESIGN.md §2), which moves rigidly with the body
+             * while it sticks: the same lever in the torque and in the coupling keeps the
+             * implicit model consistent with the explicit force. */
             gcVec3 go = gc_add(gc_mat3_mul_vec(&b->R, c->go_local), origin);
-            gcVec3 n = gc_mat3_mul_vec(&b->R, c->normal_local);
-            gcVec3 attach = gc_madd(go, n, -f->radius);
-            gcVec3 r = gc_sub(attach, b->com);
+            gcVec3 r = gc_sub(go, b->com);
             gcVec3 spring = gc_scale(gc_sub(f->hip, go), f->stiffness);
             /* Reported wrench: spring plus damping at the current velocity. */
             gcVec3 v_point = gc_add(b->v, gc_cross(b->w, r));
@@ -109,26 +111,47 @@ static void integrate_body(gcWorld *w, int32_t id, double dt) {
             residual_torque = gc_add(residual_torque, gc_cross(r, reaction));
             /* Implicit part: the velocity-dependent terms move into the matrix. */
             gcVec3 explicit_part = gc_madd(spring, f->hip_velocity, f->damping);
-            coupling_force = gc_add(coupling_force, explicit_part);
-            coupling_torque = gc_add(coupling_torque, gc_cross(r, explicit_part));
-            add_point_coupling(A, r, f->stiffness * dt * dt + f->damping * dt);
+            force = gc_add(force, explicit_part);
+            torque = gc_add(torque, gc_cross(r, explicit_part));
+            add_point_coupling(C, r, f->stiffness * dt * dt + f->damping * dt);
         }
     }
     b->residual_force = residual_force;
     b->residual_torque = residual_torque;
 
-    force = gc_add(force, coupling_force);
-    torque = gc_add(torque, coupling_torque);
     double rhs[6], x[6];
     gcVec3 p = gc_scale(b->v, b->mass);
     rhs[0] = p.x + dt * force.x;
     rhs[1] = p.y + dt * force.y;
     rhs[2] = p.z + dt * force.z;
-    rhs[3] = Iw_w.x + dt * torque.x;
-    rhs[4] = Iw_w.y + dt * torque.y;
-    rhs[5] = Iw_w.z + dt * torque.z;
-    if (!solve6(A, rhs, x)) return; /* cannot happen for a physical inertia; keep the state */
-    gcVec3 v = gc_v3(x[0], x[1], x[2]), om = gc_v3(x[3], x[4], x[5]);
+    rhs[3] = L.x + dt * torque.x;
+    rhs[4] = L.y + dt * torque.y;
+    rhs[5] = L.z + dt * torque.z;
+    /* Gyroscopic term: d(J w)/dt = T is J w_dot = T - w x J w. Solving J(t+dt) w' = L + dt T
+     * with the inertia at the end-of-step orientation keeps it implicitly (no explicit
+     * w x J w, which drifts on a tumbling body) and conserves L. The end orientation
+     * depends on w', hence a few fixed-point passes. Without the term (the chapter's
+     * form) the inertia stays J(t). */
+    gcVec3 omega = b->w;
+    int passes = w->def.gyroscopic ? GC_GYRO_ITERATIONS : 1;
+    for (int pass = 0; pass < passes; ++pass) {
+        gcMat3 Inext = Iw;
+        if (w->def.gyroscopic) {
+            gcMat3 Rnext = gc_quat_to_mat3(gc_quat_mul(quat_from_rotation_vector(gc_scale(omega, dt)), b->q));
+            Inext = world_inertia(&Rnext, &b->inertia_local);
+        }
+        double A[6][6];
+        memcpy(A, C, sizeof A);
+        for (int i = 0; i < 3; ++i) {
+            A[i][i] += b->mass;
+            for (int j = 0; j < 3; ++j) A[3 + i][3 + j] += Inext.m[i][j];
+        }
+        double rhs_copy[6];
+        memcpy(rhs_copy, rhs, sizeof rhs_copy);
+        if (!solve6(A, rhs_copy, x)) return; /* cannot happen for a physical inertia; keep the state */
+        omega = gc_v3(x[3], x[4], x[5]);
+    }
+    gcVec3 v = gc_v3(x[0], x[1], x[2]), om = omega;
     if (b->linear_damping > 0.0) v = gc_scale(v, 1.0 / (1.0 + dt * b->linear_damping));
     if (b->angular_damping > 0.0) om = gc_scale(om, 1.0 / (1.0 + dt * b->angular_damping));
     if (!gc_vec_finite(v) || !gc_vec_finite(om)) return;

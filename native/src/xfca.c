@@ -222,12 +222,10 @@ static void finger_outputs(gcWorld *w, int32_t id) {
         const gcBody *b = &w->bodies[w->parts[c->part].body];
         gcBodyFrame fr = body_frame(b);
         gcVec3 go = to_world(&fr, c->go_local);
-        gcVec3 n = gc_mat3_mul_vec(&b->R, c->normal_local);
         force = gc_madd(force, gc_sub(go, f->hip), f->stiffness);
         if (f->damping > 0.0) {
-            /* Damping on the HIP vs the body point under the fingertip. */
-            gcVec3 attach = gc_madd(go, n, -f->radius);
-            gcVec3 v_point = b->is_static ? gc_v3(0, 0, 0) : gc_add(b->v, gc_cross(b->w, gc_sub(attach, b->com)));
+            /* Damping on the HIP vs the body point at the god-object. */
+            gcVec3 v_point = b->is_static ? gc_v3(0, 0, 0) : gc_add(b->v, gc_cross(b->w, gc_sub(go, b->com)));
             force = gc_madd(force, gc_sub(v_point, f->hip_velocity), f->damping);
         }
         if (c->depth > deepest) {
