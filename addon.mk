@@ -1,0 +1,77 @@
+# Blender extension targets. Included by the top Makefile (`-include addon.mk`), so
+# VENV, PY, PIP and BUILD come from there.
+#
+#   make extension     dist/grasp_lab-<version>-linux_x64.zip, built and validated by
+#                      Blender's own blender_ext.py (from the bpy wheel), carrying the
+#                      abi3 core and the third-party wheels (cp311 + cp313).
+#   make test-blender  tests/blender on bpy 4.5 (.venv, full set), then an install +
+#                      focused subset on bpy 4.2 (.venv-bpy42) and 5.0.1 (.venv-bpy50).
+
+.PHONY: extension extension-validate test-blender test-blender-45 test-blender-42 \
+        test-blender-50 venv-bpy42 venv-bpy50 clean-extension
+
+EXT_VERSION := $(shell sed -n 's/^version *= *"\(.*\)"/\1/p' blender_manifest.toml | head -1)
+EXT_ZIP := dist/grasp_lab-$(EXT_VERSION)-linux_x64.zip
+EXT_STAGE := $(BUILD)/extension/grasp_lab
+EXT_WHEELS := $(BUILD)/extension-wheels
+BLENDER_EXT = $(shell ls $(VENV)/lib/python3.11/site-packages/bpy/*/scripts/addons_core/bl_pkg/cli/blender_ext.py 2>/dev/null | head -1)
+ADDON_SRC := $(shell find addon -name '*.py' -not -path '*/__pycache__/*' 2>/dev/null)
+# Third-party wheels bundled in the zip (numpy comes with Blender). Pinned so the zip
+# is reproducible offline once downloaded.
+EXT_PURE_WHEELS := trimesh==5.2.0 pyserial==3.5
+EXT_HIDAPI := hidapi==0.15.0
+PIPDL := $(PY) -m pip --disable-pip-version-check -q download --no-deps --only-binary=:all: -d $(EXT_WHEELS)
+
+$(EXT_WHEELS)/.done: | $(VENV)/.deps
+	mkdir -p $(EXT_WHEELS)
+	$(PIPDL) $(EXT_PURE_WHEELS)
+	$(PIPDL) --python-version 3.11 --implementation cp --abi cp311 --platform manylinux2014_x86_64 $(EXT_HIDAPI)
+	$(PIPDL) --python-version 3.13 --implementation cp --abi cp313 --platform manylinux2014_x86_64 $(EXT_HIDAPI)
+	touch $@
+
+# Stage: the add-on package + manifest + vendored core (from the core's abi3 wheel) + wheels.
+$(EXT_ZIP): $(VENV)/.core $(EXT_WHEELS)/.done blender_manifest.toml $(ADDON_SRC) addon.mk
+	rm -rf $(BUILD)/extension && mkdir -p $(EXT_STAGE)/wheels dist
+	cp -r addon/. $(EXT_STAGE)/
+	find $(EXT_STAGE) -name __pycache__ -prune -exec rm -rf {} +
+	$(PY) -c "import zipfile,glob,sys; w=sorted(glob.glob('$(BUILD)/wheel/graspcore-*.whl'))[-1]; z=zipfile.ZipFile(w); [z.extract(n,'$(EXT_STAGE)') for n in z.namelist() if n.startswith('graspcore/')]"
+	cp $(EXT_WHEELS)/*.whl $(EXT_STAGE)/wheels/
+	cp blender_manifest.toml $(EXT_STAGE)/
+	$(PY) $(BLENDER_EXT) build --source-dir $(EXT_STAGE) --output-dir dist --split-platforms
+	$(PY) $(BLENDER_EXT) validate $@
+
+extension: $(EXT_ZIP)
+	@ls -l $(EXT_ZIP)
+
+extension-validate: $(EXT_ZIP)
+	$(PY) $(BLENDER_EXT) validate $(EXT_ZIP)
+
+# --- multi-version bpy venvs (the zip brings trimesh/pyserial/hidapi and the core) ---
+.venv-bpy42/.deps:
+	$(PYTHON) -m venv .venv-bpy42
+	.venv-bpy42/bin/python -m pip --disable-pip-version-check -q install "bpy==4.2.*" pytest
+	touch $@
+
+.venv-bpy50/.deps:
+	$(PYTHON) -m venv .venv-bpy50
+	.venv-bpy50/bin/python -m pip --disable-pip-version-check -q install "bpy==5.0.1" pytest
+	touch $@
+
+venv-bpy42: .venv-bpy42/.deps
+venv-bpy50: .venv-bpy50/.deps
+
+# Full set on 4.5 (dev venv, graspcore installed there too); on 4.2 / 5.0.1 the
+# extension is installed from the zip and a focused subset runs (-m multiversion).
+test-blender-45: $(EXT_ZIP)
+	GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) -m pytest -q tests/blender
+
+test-blender-42: $(EXT_ZIP) .venv-bpy42/.deps
+	GRASP_LAB_ZIP=$(EXT_ZIP) .venv-bpy42/bin/python -m pytest -q -m multiversion tests/blender
+
+test-blender-50: $(EXT_ZIP) .venv-bpy50/.deps
+	GRASP_LAB_ZIP=$(EXT_ZIP) .venv-bpy50/bin/python -m pytest -q -m multiversion tests/blender
+
+test-blender: test-blender-45 test-blender-42 test-blender-50
+
+clean-extension:
+	rm -rf $(BUILD)/extension dist/grasp_lab-*.zip

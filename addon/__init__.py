@@ -1,0 +1,23 @@
+"""Grasp Lab: multi-finger grasp simulation with friction-cone god-objects.
+
+Blender-facing modules (``props``, ``prefs``, ``ops``, ``session``, ``display``,
+``ui``) are imported only when the add-on registers; the bpy-free logic lives in
+``engine`` (scene description, decomposition, input sources, session runner).
+"""
+
+_MODULES = ("props", "prefs", "ops", "session", "ui")
+
+
+def _modules():
+    import importlib
+    return [importlib.import_module(f".{name}", __package__) for name in _MODULES]
+
+
+def register():
+    for mod in _modules():
+        mod.register()
+
+
+def unregister():
+    for mod in reversed(_modules()):
+        mod.unregister()

@@ -1,0 +1,256 @@
+"""Showing a session: real objects in a "Grasp Lab" collection (they render and can be
+keyframed) and, in live sessions, a gpu overlay + HUD in the 3D viewport.
+
+The overlay's shaders are created lazily inside the draw callback (there is no GPU
+context headless); draw handlers are only added for live (INVOKE) sessions and are
+always removed on stop / unregister.
+"""
+from __future__ import annotations
+
+import bmesh
+import bpy
+import numpy as np
+from mathutils import Matrix, Vector
+
+COLLECTION = "Grasp Lab"
+GO_MESH = "GL Sphere"
+ARROW_MESH = "GL Arrow"
+COLORS = {
+    "GL God-object": (0.10, 0.45, 1.00, 1.0),
+    "GL Force": (1.00, 0.15, 0.10, 1.0),
+    "GL Torque": (0.10, 0.85, 0.25, 1.0),
+}
+ARROW_WIDTH = 0.004     # m, shaft radius of a drawn arrow
+MIN_GO_RADIUS = 0.002   # god-objects of point fingers are still visible
+_Z = Vector((0.0, 0.0, 1.0))
+
+
+# --------------------------------------------------------------------------- data-blocks
+
+def _material(name):
+    mat = bpy.data.materials.get(name)
+    if mat is None:
+        mat = bpy.data.materials.new(name)
+        mat.diffuse_color = COLORS[name]
+        mat.use_nodes = True
+        bsdf = mat.node_tree.nodes.get("Principled BSDF")
+        if bsdf is not None:
+            bsdf.inputs["Base Color"].default_value = COLORS[name]
+            for key in ("Emission Color", "Emission"):
+                if key in bsdf.inputs:
+                    bsdf.inputs[key].default_value = COLORS[name]
+                    break
+            if "Emission Strength" in bsdf.inputs:
+                bsdf.inputs["Emission Strength"].default_value = 0.5
+    return mat
+
+
+def _sphere_mesh():
+    me = bpy.data.meshes.get(GO_MESH)
+    if me is None:
+        me = bpy.data.meshes.new(GO_MESH)
+        bm = bmesh.new()
+        bmesh.ops.create_uvsphere(bm, u_segments=16, v_segments=8, radius=1.0)
+        bm.to_mesh(me)
+        bm.free()
+        for p in me.polygons:
+            p.use_smooth = True
+    return me
+
+
+def _arrow_mesh():
+    """Unit arrow along +Z: shaft radius 1, head radius 2.5, head 20 % of the length."""
+    me = bpy.data.meshes.get(ARROW_MESH)
+    if me is None:
+        me = bpy.data.meshes.new(ARROW_MESH)
+        bm = bmesh.new()
+        bmesh.ops.create_cone(bm, cap_ends=True, segments=12, radius1=1.0, radius2=1.0, depth=0.8,
+                              matrix=Matrix.Translation((0, 0, 0.4)))
+        bmesh.ops.create_cone(bm, cap_ends=True, segments=12, radius1=2.5, radius2=0.0, depth=0.2,
+                              matrix=Matrix.Translation((0, 0, 0.9)))
+        bm.to_mesh(me)
+        bm.free()
+    return me
+
+
+def ensure_collection(scene):
+    coll = bpy.data.collections.get(COLLECTION)
+    if coll is None:
+        coll = bpy.data.collections.new(COLLECTION)
+    if scene.collection.children.get(coll.name) is None:
+        scene.collection.children.link(coll)
+    return coll
+
+
+def _object(coll, name, mesh):
+    obj = bpy.data.objects.get(name)
+    if obj is None or obj.type != "MESH":
+        obj = bpy.data.objects.new(name, mesh)
+    if coll.objects.get(obj.name) is None:
+        coll.objects.link(obj)
+    obj.hide_select = True
+    return obj
+
+
+class DisplayObjects:
+    """God-objects (one sphere per finger) and residual force/torque arrows (per dynamic body)."""
+
+    def __init__(self, scene, desc):
+        self.scene = scene
+        coll = ensure_collection(scene)
+        sphere, arrow = _sphere_mesh(), _arrow_mesh()
+        for name in COLORS:
+            m = _material(name)
+            for me in ((sphere,) if name == "GL God-object" else (arrow,)):
+                if not me.materials:
+                    me.materials.append(m)
+        self.radii = [max(f.radius, MIN_GO_RADIUS) for f in desc.fingers]
+        self.god_objects = [_object(coll, f"GL God-object {f.name}", sphere)
+                            for f in desc.fingers]
+        self.dynamic = [i for i, b in enumerate(desc.bodies) if not b.static]
+        self.force_arrows = [_object(coll, f"GL Force {desc.bodies[i].name}", arrow)
+                             for i in self.dynamic]
+        self.torque_arrows = [_object(coll, f"GL Torque {desc.bodies[i].name}", arrow)
+                              for i in self.dynamic]
+        for a in self.torque_arrows:
+            a.material_slots[0].link = "OBJECT"
+            a.material_slots[0].material = _material("GL Torque")
+
+    @property
+    def objects(self):
+        return self.god_objects + self.force_arrows + self.torque_arrows
+
+    @staticmethod
+    def _arrow_matrix(origin, vec, scale):
+        v = Vector(vec)
+        length = v.length * scale
+        if length < 1e-9:
+            m = Matrix.Diagonal((0.0, 0.0, 0.0, 1.0))
+            m.translation = origin
+            return m
+        rot = _Z.rotation_difference(v).to_matrix().to_4x4()
+        rot.translation = origin
+        return rot @ Matrix.Diagonal((ARROW_WIDTH, ARROW_WIDTH, length, 1.0))
+
+    def update(self, snap, force_scale, torque_scale):
+        for obj, r, go in zip(self.god_objects, self.radii, snap.god_objects):
+            m = Matrix.Diagonal((r, r, r, 1.0))
+            m.translation = go
+            obj.matrix_world = m
+        for k, i in enumerate(self.dynamic):
+            com = Vector(snap.com[i])
+            self.force_arrows[k].matrix_world = self._arrow_matrix(com, snap.force[i], force_scale)
+            self.torque_arrows[k].matrix_world = self._arrow_matrix(com, snap.torque[i], torque_scale)
+
+
+def clear_display_objects():
+    """Remove the Grasp Lab collection, its objects and the shared meshes/materials."""
+    coll = bpy.data.collections.get(COLLECTION)
+    if coll is not None:
+        for obj in list(coll.objects):
+            bpy.data.objects.remove(obj)
+        bpy.data.collections.remove(coll)
+    for name in (GO_MESH, ARROW_MESH):
+        me = bpy.data.meshes.get(name)
+        if me is not None and me.users == 0:
+            bpy.data.meshes.remove(me)
+    for name in COLORS:
+        mat = bpy.data.materials.get(name)
+        if mat is not None and mat.users == 0:
+            bpy.data.materials.remove(mat)
+
+
+# --------------------------------------------------------------------------- overlay
+
+_handlers = []          # (space type, handle)
+_overlay = {"snap": None, "hud": "", "show_overlay": True, "show_hud": True}
+_shader = {}
+
+STATE_COLORS = ((0.6, 0.6, 0.6, 1.0), (0.1, 0.9, 0.3, 1.0), (1.0, 0.6, 0.1, 1.0))
+
+
+def _draw_view():
+    snap = _overlay["snap"]
+    if snap is None or not _overlay["show_overlay"] or len(snap.hips) == 0:
+        return
+    import gpu
+    from gpu_extras.batch import batch_for_shader
+    sh = _shader.get("uniform")
+    if sh is None:
+        sh = _shader["uniform"] = gpu.shader.from_builtin("UNIFORM_COLOR")
+    gpu.state.line_width_set(2.0)
+    gpu.state.blend_set("ALPHA")
+    for state in (0, 1, 2):
+        sel = snap.finger_states == state
+        if not np.any(sel):
+            continue
+        pts = np.empty((2 * int(sel.sum()), 3), dtype=np.float32)
+        pts[0::2] = snap.hips[sel]
+        pts[1::2] = snap.god_objects[sel]
+        batch = batch_for_shader(sh, "LINES", {"pos": pts})
+        sh.uniform_float("color", STATE_COLORS[state])
+        batch.draw(sh)
+    # Forces rendered to the device, from the god-objects (1 N = 2 cm).
+    pts = np.empty((2 * len(snap.hips), 3), dtype=np.float32)
+    pts[0::2] = snap.god_objects
+    pts[1::2] = snap.god_objects + 0.02 * snap.finger_forces
+    sh.uniform_float("color", (1.0, 0.2, 0.2, 1.0))
+    batch_for_shader(sh, "LINES", {"pos": pts}).draw(sh)
+    batch = batch_for_shader(sh, "POINTS", {"pos": snap.hips.astype(np.float32)})
+    gpu.state.point_size_set(6.0)
+    sh.uniform_float("color", (1.0, 1.0, 1.0, 1.0))
+    batch.draw(sh)
+    gpu.state.line_width_set(1.0)
+    gpu.state.point_size_set(1.0)
+    gpu.state.blend_set("NONE")
+
+
+def _draw_hud():
+    text = _overlay["hud"]
+    if not text or not _overlay["show_hud"]:
+        return
+    import blf
+    font = 0
+    blf.size(font, 14)
+    blf.color(font, 1.0, 1.0, 1.0, 0.9)
+    y = 60
+    for line in reversed(text.split("\n")):
+        blf.position(font, 20, y, 0)
+        blf.draw(font, line)
+        y += 20
+
+
+def add_overlay(show_overlay=True, show_hud=True):
+    """Add the viewport draw handlers (live sessions only; never headless)."""
+    if bpy.app.background or _handlers:
+        return
+    _overlay.update(snap=None, hud="", show_overlay=show_overlay, show_hud=show_hud)
+    st = bpy.types.SpaceView3D
+    _handlers.append(st.draw_handler_add(_draw_view, (), "WINDOW", "POST_VIEW"))
+    _handlers.append(st.draw_handler_add(_draw_hud, (), "WINDOW", "POST_PIXEL"))
+
+
+def set_overlay(snap, hud):
+    _overlay["snap"] = snap
+    _overlay["hud"] = hud
+
+
+def remove_overlay():
+    st = bpy.types.SpaceView3D
+    while _handlers:
+        st.draw_handler_remove(_handlers.pop(), "WINDOW")
+    _overlay["snap"] = None
+    _overlay["hud"] = ""
+    _shader.clear()
+
+
+def overlay_active() -> bool:
+    return bool(_handlers)
+
+
+def tag_redraw(context=None):
+    wm = bpy.context.window_manager if context is None else context.window_manager
+    for win in wm.windows:
+        for area in win.screen.areas:
+            if area.type == "VIEW_3D":
+                area.tag_redraw()

@@ -1,0 +1,88 @@
+"""Input sources: where HIPs (device fingertip positions) come from.
+
+Every source answers ``hips_at(t)``: an (n_fingers, 3) array of world positions at
+session time ``t`` (seconds). Scripted sources are pure functions of ``t``, which makes
+headless sessions deterministic. Real devices (serial, HID) implement the same
+interface later and simply return their latest sample.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+class InputSource:
+    """Base class. ``duration`` is None for open-ended (live) sources."""
+    name = "input"
+    duration = None
+
+    def __init__(self, n_fingers: int):
+        self.n_fingers = int(n_fingers)
+
+    def open(self) -> None:
+        pass
+
+    def hips_at(self, t: float) -> np.ndarray:  # pragma: no cover - interface
+        raise NotImplementedError
+
+    def close(self) -> None:
+        pass
+
+
+class StaticInput(InputSource):
+    """Fingertips that do not move."""
+    name = "static"
+
+    def __init__(self, positions):
+        p = np.array(positions, dtype=np.float64).reshape(-1, 3)
+        super().__init__(len(p))
+        self._p = p
+
+    def hips_at(self, t):
+        return self._p
+
+
+class SampledTrajectory(InputSource):
+    """HIPs sampled at increasing times (e.g. every animation frame), linearly
+    interpolated in between and held after the last sample: a scripted device."""
+    name = "timeline"
+
+    def __init__(self, times, positions):
+        times = np.asarray(times, dtype=np.float64)
+        positions = np.asarray(positions, dtype=np.float64)
+        if times.ndim != 1 or len(times) < 1:
+            raise ValueError("times: need a 1-D array with at least one sample")
+        if positions.ndim != 3 or positions.shape[0] != len(times) or positions.shape[2] != 3:
+            raise ValueError(f"positions: expected ({len(times)}, n_fingers, 3), got {positions.shape}")
+        if len(times) > 1 and np.any(np.diff(times) <= 0):
+            raise ValueError("times: must be strictly increasing")
+        if not np.all(np.isfinite(positions)):
+            raise ValueError("positions: non-finite fingertip position")
+        super().__init__(positions.shape[1])
+        self.times = times
+        self.positions = positions
+        self.duration = float(times[-1] - times[0])
+        self._t0 = float(times[0])
+
+    def hips_at(self, t):
+        ts = self.times
+        tt = self._t0 + float(t)
+        if tt <= ts[0] or len(ts) == 1:
+            return self.positions[0]
+        if tt >= ts[-1]:
+            return self.positions[-1]
+        i = int(np.searchsorted(ts, tt, side="right")) - 1
+        a = (tt - ts[i]) / (ts[i + 1] - ts[i])
+        return (1.0 - a) * self.positions[i] + a * self.positions[i + 1]
+
+
+class CallableInput(InputSource):
+    """HIPs from a Python function ``f(t) -> (n, 3)`` (scripts, tests)."""
+    name = "callable"
+
+    def __init__(self, n_fingers, fn, duration=None):
+        super().__init__(n_fingers)
+        self._fn = fn
+        self.duration = duration
+
+    def hips_at(self, t):
+        return np.asarray(self._fn(t), dtype=np.float64).reshape(self.n_fingers, 3)

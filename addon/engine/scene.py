@@ -1,0 +1,262 @@
+"""Scene description: what a grasp scene is, independent of Blender.
+
+The Blender side (``..convert``) fills these dataclasses from objects; everything
+here is plain Python + numpy (+ trimesh for mass properties), so it is tested
+without bpy. ``build_world`` turns a description into a ``graspcore.World``.
+
+Frames: a body's *frame* is its object's world matrix with scale and shear removed
+(translation + rotation). Mesh points are given in that frame with scale, shear and
+parenting already applied, so the core only ever sees rigid poses.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# Limits for the "absurd scale" check, in metres (largest bounding-box extent).
+MIN_SIZE = 1e-4     # 0.1 mm
+MAX_SIZE = 100.0    # 100 m
+# A body whose volume is below this fraction of its bounding box is "zero volume".
+MIN_VOLUME_FRACTION = 1e-9
+
+
+class SceneError(ValueError):
+    """A scene that cannot be simulated. The message names the object and the problem."""
+
+    def __init__(self, obj_name: str, problem: str):
+        self.obj_name = obj_name
+        self.problem = problem
+        super().__init__(f'"{obj_name}": {problem}')
+
+
+@dataclass
+class MeshData:
+    """A triangle mesh in a body frame (metres)."""
+    vertices: np.ndarray            # (V, 3) float64
+    triangles: np.ndarray           # (T, 3) int
+    source: str = ""                # object the mesh came from (for messages)
+
+
+@dataclass
+class MassProperties:
+    mass: float
+    volume: float
+    center_of_mass: np.ndarray      # (3,) body frame
+    inertia: np.ndarray             # (3, 3) about the centre of mass, body axes
+
+
+@dataclass
+class BodyDesc:
+    name: str
+    static: bool
+    parts: list                     # list of (N_i, 3) arrays: convex parts, body frame
+    meshes: list                    # list of MeshData: the solid(s), for mass properties
+    position: np.ndarray            # (3,) world
+    orientation: np.ndarray         # (4,) w, x, y, z
+    mass: float | None = None       # kg; None: use density
+    density: float = 1000.0         # kg/m^3
+    mu_s: float = 0.8
+    mu_d: float = 0.6
+    viscosity: float = 0.0
+    mass_properties: MassProperties | None = None
+
+
+@dataclass
+class FingerDesc:
+    name: str
+    position: np.ndarray            # (3,) world, initial HIP
+    radius: float = 0.008
+    stiffness: float = 1000.0
+    damping: float = 0.0
+    channel: int = 0
+
+
+@dataclass
+class SceneDesc:
+    gravity: tuple = (0.0, 0.0, -9.81)
+    gyroscopic: bool = True
+    haptic_rate: float = 1000.0
+    display_rate: float = 30.0
+    bodies: list = field(default_factory=list)
+    fingers: list = field(default_factory=list)
+
+    def body_index(self, name: str) -> int:
+        for i, b in enumerate(self.bodies):
+            if b.name == name:
+                return i
+        raise KeyError(name)
+
+
+# --------------------------------------------------------------------------- checks
+
+def _as_points(name: str, pts) -> np.ndarray:
+    a = np.asarray(pts, dtype=np.float64)
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise SceneError(name, f"expected (N, 3) points, got shape {a.shape}")
+    if not np.all(np.isfinite(a)):
+        raise SceneError(name, "has non-finite vertex coordinates (NaN or infinity)")
+    return a
+
+
+def check_scale(name: str, points: np.ndarray) -> None:
+    """Refuse sizes that are almost certainly a unit or scale mistake."""
+    if len(points) == 0:
+        raise SceneError(name, "has no vertices")
+    extent = float(np.max(points.max(axis=0) - points.min(axis=0)))
+    if extent > MAX_SIZE or extent < MIN_SIZE:
+        raise SceneError(
+            name,
+            f"absurd scale: largest extent is {extent:.3g} m (expected {MIN_SIZE:g} m to "
+            f"{MAX_SIZE:g} m); apply or fix the object's scale (units are metres)")
+
+
+def check_hull_points(name: str, points: np.ndarray) -> None:
+    """A convex part needs >= 4 points spanning a volume (not flat, not a line)."""
+    if len(points) < 4:
+        raise SceneError(name, f"convex part has {len(points)} vertices; at least 4 are needed")
+    centred = points - points.mean(axis=0)
+    s = np.linalg.svd(centred, compute_uv=False)
+    if s[0] <= 0 or s[-1] < 1e-9 * s[0]:
+        raise SceneError(name, "has zero volume: its vertices are flat (coplanar) or collinear")
+
+
+def mesh_to_trimesh(mesh: MeshData):
+    """Validated trimesh.Trimesh of a closed, outward-facing, non-degenerate mesh."""
+    import trimesh
+
+    name = mesh.source
+    v = _as_points(name, mesh.vertices)
+    t = np.asarray(mesh.triangles, dtype=np.int64).reshape(-1, 3)
+    if len(t) == 0:
+        raise SceneError(name, "mesh has no faces")
+    check_scale(name, v)
+    tm = trimesh.Trimesh(v, t, process=True, validate=False)
+    if not tm.is_watertight:
+        # Count edges used by exactly one face: the holes' borders.
+        edges = np.sort(tm.edges, axis=1)
+        _, counts = np.unique(edges, axis=0, return_counts=True)
+        n_open = int(np.sum(counts == 1))
+        n_bad = int(np.sum(counts > 2))
+        detail = f"{n_open} boundary edges" if n_open else f"{n_bad} edges shared by more than two faces"
+        raise SceneError(name, f"mesh is open (not watertight: {detail}); close the holes or "
+                               f"use the convex hull of a closed mesh")
+    if not tm.is_winding_consistent:
+        raise SceneError(name, "mesh has inconsistent face winding; recalculate normals")
+    extent = float(np.max(tm.extents))
+    volume = float(tm.volume)
+    if abs(volume) <= MIN_VOLUME_FRACTION * extent ** 3:
+        raise SceneError(name, "has zero volume (flat or degenerate mesh)")
+    if volume < 0:
+        raise SceneError(name, "mesh is inverted (normals point inward, negative volume); "
+                               "recalculate normals outside")
+    return tm
+
+
+def mass_properties(name: str, meshes, mass: float | None, density: float) -> MassProperties:
+    """Mass, centre of mass and inertia about it of the union of closed meshes.
+
+    With ``mass`` given, the density is derived from the total volume; otherwise the
+    mass is ``density * volume``. Each mesh is validated first.
+    """
+    if not meshes:
+        raise SceneError(name, "has no solid mesh to compute its mass from")
+    if mass is None and not (density > 0 and np.isfinite(density)):
+        raise SceneError(name, f"density must be > 0, got {density}")
+    if mass is not None and not (mass > 0 and np.isfinite(mass)):
+        raise SceneError(name, f"mass must be > 0, got {mass}")
+    tms = [mesh_to_trimesh(m) for m in meshes]
+    vols = np.array([tm.volume for tm in tms])
+    volume = float(vols.sum())
+    rho = density if mass is None else mass / volume
+    total = rho * volume
+    coms = np.array([tm.center_mass for tm in tms])
+    com = (vols[:, None] * coms).sum(axis=0) / volume
+    inertia = np.zeros((3, 3))
+    for tm, vol, c in zip(tms, vols, coms):
+        # trimesh: inertia about the mesh's own centre of mass for density 1.
+        i_c = np.asarray(tm.moment_inertia) * rho
+        d = c - com
+        m_i = rho * vol
+        inertia += i_c + m_i * (np.dot(d, d) * np.eye(3) - np.outer(d, d))
+    return MassProperties(mass=total, volume=volume, center_of_mass=com, inertia=inertia)
+
+
+def prepare(desc: SceneDesc) -> SceneDesc:
+    """Validate every body and finger; fill in mass properties. Raises SceneError."""
+    seen = set()
+    for b in desc.bodies:
+        if b.name in seen:
+            raise SceneError(b.name, "duplicate body name")
+        seen.add(b.name)
+        if not b.parts:
+            raise SceneError(b.name, "has no collision shape (no mesh and no child mesh parts)")
+        parts = []
+        for p in b.parts:
+            p = _as_points(b.name, p)
+            check_scale(b.name, p)
+            check_hull_points(b.name, p)
+            parts.append(p)
+        b.parts = parts
+        if not (0 <= b.mu_d <= b.mu_s):
+            raise SceneError(b.name, f"friction must satisfy 0 <= mu_d <= mu_s (mu_s={b.mu_s}, mu_d={b.mu_d})")
+        if b.viscosity < 0:
+            raise SceneError(b.name, f"viscosity must be >= 0, got {b.viscosity}")
+        if not b.static:
+            b.mass_properties = mass_properties(b.name, b.meshes, b.mass, b.density)
+    for f in desc.fingers:
+        if not (f.radius >= 0 and f.stiffness > 0 and f.damping >= 0):
+            raise SceneError(f.name, f"finger needs radius >= 0, stiffness > 0, damping >= 0 "
+                                     f"(got {f.radius}, {f.stiffness}, {f.damping})")
+        if not np.all(np.isfinite(f.position)):
+            raise SceneError(f.name, "finger position is not finite")
+    return desc
+
+
+# --------------------------------------------------------------------------- world
+
+@dataclass
+class WorldHandle:
+    """A built world and the mapping from description order to core ids."""
+    world: object
+    body_ids: list
+    finger_ids: list
+    desc: SceneDesc
+
+
+def build_world(desc: SceneDesc, graspcore) -> WorldHandle:
+    """Create a ``graspcore.World`` from a prepared description."""
+    n_b, n_f = len(desc.bodies), len(desc.fingers)
+    world = graspcore.World(gravity=tuple(float(g) for g in desc.gravity),
+                            gyroscopic=bool(desc.gyroscopic),
+                            max_bodies=max(256, n_b), max_fingers=max(32, n_f))
+    body_ids, finger_ids = [], []
+    for b in desc.bodies:
+        kw = dict(position=tuple(map(float, b.position)),
+                  orientation=tuple(map(float, b.orientation)),
+                  static=bool(b.static), mu_s=float(b.mu_s), mu_d=float(b.mu_d),
+                  viscosity=float(b.viscosity))
+        if len(b.parts) == 1:
+            kw["points"] = b.parts[0]
+        else:
+            kw["points"] = None
+            kw["parts"] = list(b.parts)
+        if b.static:
+            kw["mass"] = 1.0
+        else:
+            mp = b.mass_properties
+            kw.update(mass=float(mp.mass), inertia=np.asarray(mp.inertia, dtype=np.float64),
+                      center_of_mass=tuple(map(float, mp.center_of_mass)))
+        try:
+            points = kw.pop("points")
+            body_ids.append(world.add_body(points, **kw))
+        except ValueError as ex:
+            raise SceneError(b.name, f"rejected by the core: {ex}") from ex
+    for f in desc.fingers:
+        try:
+            finger_ids.append(world.add_finger(radius=float(f.radius), stiffness=float(f.stiffness),
+                                               damping=float(f.damping),
+                                               position=tuple(map(float, f.position))))
+        except ValueError as ex:
+            raise SceneError(f.name, f"rejected by the core: {ex}") from ex
+    return WorldHandle(world=world, body_ids=body_ids, finger_ids=finger_ids, desc=desc)

@@ -1,0 +1,78 @@
+"""Add-on preferences: defaults applied to new fingers / bodies and live-session options."""
+from __future__ import annotations
+
+import bpy
+from bpy.props import BoolProperty, FloatProperty
+
+
+class GRASPLAB_AP_preferences(bpy.types.AddonPreferences):
+    bl_idname = __package__
+
+    finger_radius: FloatProperty(name="Finger Radius", default=0.008, min=0.0, unit="LENGTH",
+                                 precision=4, description="Radius of new fingers")
+    finger_stiffness: FloatProperty(name="Finger Stiffness", default=1000.0, min=1.0,
+                                    description="Coupling stiffness of new fingers, N/m")
+    mu_s: FloatProperty(name="Static Friction", default=0.8, min=0.0,
+                        description="μs given to objects made dynamic or static")
+    mu_d: FloatProperty(name="Dynamic Friction", default=0.6, min=0.0,
+                        description="μd given to objects made dynamic or static")
+    use_runtime: BoolProperty(name="Threaded Runtime", default=True,
+                              description="Live sessions use the core's haptic thread when the "
+                                          "core provides it (otherwise the core is stepped on "
+                                          "Blender's main thread)")
+    max_step_ms: FloatProperty(name="Step Budget", default=8.0, min=1.0, max=100.0,
+                               description="Main-thread time a live session may spend stepping the "
+                                           "core per display update, ms; beyond it the session "
+                                           "falls behind real time instead of freezing the UI")
+    show_hud: BoolProperty(name="Show HUD", default=True,
+                           description="Show rates, jitter and contacts in the viewport during a session")
+    show_overlay: BoolProperty(name="Show Overlay", default=True,
+                               description="Draw HIP-to-god-object springs and finger forces in the "
+                                           "viewport during a live session")
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        col = layout.column(heading="New Objects")
+        col.prop(self, "finger_radius")
+        col.prop(self, "finger_stiffness")
+        col.prop(self, "mu_s")
+        col.prop(self, "mu_d")
+        col = layout.column(heading="Live Session")
+        col.prop(self, "use_runtime")
+        col.prop(self, "max_step_ms")
+        col.prop(self, "show_hud")
+        col.prop(self, "show_overlay")
+
+
+class _Defaults:
+    finger_radius = 0.008
+    finger_stiffness = 1000.0
+    mu_s = 0.8
+    mu_d = 0.6
+    use_runtime = True
+    max_step_ms = 8.0
+    show_hud = True
+    show_overlay = True
+
+
+def get_prefs(context=None):
+    """The preferences, or class defaults when the add-on is not registered as such."""
+    context = context or bpy.context
+    addon = context.preferences.addons.get(__package__)
+    if addon is None or addon.preferences is None:
+        return _Defaults
+    return addon.preferences
+
+
+CLASSES = (GRASPLAB_AP_preferences,)
+
+
+def register():
+    for c in CLASSES:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)

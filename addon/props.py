@@ -1,0 +1,119 @@
+"""Property groups: ``Object.grasp_lab`` (scene description per object) and
+``Scene.grasp_lab`` (session settings)."""
+from __future__ import annotations
+
+import bpy
+from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty,
+                       IntProperty, PointerProperty, StringProperty)
+
+ROLE_ITEMS = (
+    ("NONE", "None", "Not part of the grasp simulation"),
+    ("DYNAMIC", "Dynamic", "A rigid body moved by the fingers and gravity"),
+    ("STATIC", "Static", "A fixed obstacle (table, wall)"),
+    ("FINGER", "Finger", "A fingertip: its position is the HIP of one device channel"),
+)
+
+SHAPE_ITEMS = (
+    ("HULL", "Convex Hull", "Collide with the convex hull of the mesh"),
+    ("CHILDREN", "Child Parts", "A compound: the convex hulls of this object's child meshes "
+                                "(and of its own mesh, if any)"),
+    ("AUTO", "Automatic", "Split the mesh into convex parts automatically (islands, then cuts "
+                          "where it is concave)"),
+)
+
+MASS_MODE_ITEMS = (
+    ("MASS", "Mass", "Give the total mass; density follows from the volume"),
+    ("DENSITY", "Density", "Give the density; mass follows from the volume"),
+)
+
+INPUT_ITEMS = (
+    ("TIMELINE", "Animated Fingertips",
+     "Fingertip objects animated on the timeline act as a scripted device"),
+)
+
+
+class GRASPLAB_PG_object(bpy.types.PropertyGroup):
+    role: EnumProperty(name="Role", items=ROLE_ITEMS, default="NONE",
+                       description="What this object is in the grasp simulation")
+    # --- bodies
+    mass_mode: EnumProperty(name="Mass From", items=MASS_MODE_ITEMS, default="MASS",
+                            description="Give the mass or the density")
+    mass: FloatProperty(name="Mass", default=0.1, min=1e-6, soft_max=100.0, unit="MASS",
+                        precision=4, description="Total mass of the body, kg")
+    density: FloatProperty(name="Density", default=1000.0, min=1e-3, soft_max=20000.0,
+                           description="Density, kg/m³ (water = 1000)")
+    mu_s: FloatProperty(name="Static Friction", default=0.8, min=0.0, soft_max=2.0,
+                        description="Static friction coefficient μs (friction cone half angle atan μs)")
+    mu_d: FloatProperty(name="Dynamic Friction", default=0.6, min=0.0, soft_max=2.0,
+                        description="Dynamic (sliding) friction coefficient μd, at most μs")
+    viscosity: FloatProperty(name="Viscosity", default=0.0, min=0.0, soft_max=1.0, unit="TIME",
+                             description="Viscous friction: slip speed is limited to depth / viscosity "
+                                         "(0 = pure Coulomb friction)")
+    shape: EnumProperty(name="Collision Shape", items=SHAPE_ITEMS, default="HULL",
+                        description="How the body's collision shape is made from its mesh")
+    # --- fingers
+    radius: FloatProperty(name="Radius", default=0.008, min=0.0, soft_max=0.05, unit="LENGTH",
+                          precision=4, description="Fingertip sphere radius (0 = a point)")
+    stiffness: FloatProperty(name="Stiffness", default=1000.0, min=1.0, soft_max=10000.0,
+                             description="Coupling spring between HIP and god-object, N/m")
+    damping: FloatProperty(name="Damping", default=0.0, min=0.0, soft_max=50.0,
+                           description="Coupling damping, N·s/m")
+    channel: IntProperty(name="Device Channel", default=0, min=0, max=63,
+                         description="Which fingertip of the input device drives this finger; "
+                                     "fingers are ordered by channel, then by name")
+    # --- bookkeeping: world matrix before the last session (for Reset)
+    rest_matrix: FloatVectorProperty(size=16, options={"HIDDEN"})
+    has_rest: BoolProperty(default=False, options={"HIDDEN"})
+
+
+class GRASPLAB_PG_scene(bpy.types.PropertyGroup):
+    gravity: FloatVectorProperty(name="Gravity", default=(0.0, 0.0, -9.81), subtype="ACCELERATION",
+                                 unit="ACCELERATION", size=3, description="Gravity, m/s²")
+    gyroscopic: BoolProperty(name="Gyroscopic Term", default=True,
+                             description="Keep the −ω×Jω term in Euler's equation "
+                                         "(the chapter drops it)")
+    haptic_rate: FloatProperty(name="Haptic Rate", default=1000.0, min=100.0, max=10000.0,
+                               description="Core step rate, Hz")
+    display_rate: FloatProperty(name="Display Rate", default=30.0, min=1.0, max=240.0,
+                                description="Live session display updates per second, Hz")
+    input_source: EnumProperty(name="Input", items=INPUT_ITEMS, default="TIMELINE",
+                               description="Where fingertip positions (HIPs) come from")
+    duration: FloatProperty(name="Duration", default=0.0, min=0.0, unit="TIME_ABSOLUTE",
+                            description="Session length in seconds (0 = to the end of the animation)")
+    loop: BoolProperty(name="Stop at End", default=True,
+                       description="Stop a live session when the animation ends")
+    bake: BoolProperty(name="Bake Keyframes", default=False,
+                       description="Keyframe the bodies (and display objects) every frame of a session")
+    display_objects: BoolProperty(name="Display Objects", default=True,
+                                  description="Show god-objects and force/torque arrows as real "
+                                              "objects in the 'Grasp Lab' collection (they render)")
+    force_scale: FloatProperty(name="Force Scale", default=0.02, min=0.0, soft_max=1.0,
+                               unit="LENGTH", description="Arrow length per newton")
+    torque_scale: FloatProperty(name="Torque Scale", default=1.0, min=0.0, soft_max=10.0,
+                                unit="LENGTH", description="Arrow length per newton-metre")
+    record: BoolProperty(name="Record", default=False,
+                         description="Save every session to the recording folder (.npz)")
+    recording_folder: StringProperty(name="Recording Folder", default="//grasp_recordings/",
+                                     subtype="DIR_PATH",
+                                     description="Where session recordings are written")
+    # --- live status (read-only in the UI)
+    running: BoolProperty(name="Running", default=False)
+    status: StringProperty(name="Status", default="")
+    last_recording: StringProperty(name="Last Recording", default="", subtype="FILE_PATH")
+
+
+CLASSES = (GRASPLAB_PG_object, GRASPLAB_PG_scene)
+
+
+def register():
+    for c in CLASSES:
+        bpy.utils.register_class(c)
+    bpy.types.Object.grasp_lab = PointerProperty(type=GRASPLAB_PG_object)
+    bpy.types.Scene.grasp_lab = PointerProperty(type=GRASPLAB_PG_scene)
+
+
+def unregister():
+    del bpy.types.Scene.grasp_lab
+    del bpy.types.Object.grasp_lab
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)

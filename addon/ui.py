@@ -1,0 +1,134 @@
+"""The "Grasp" tab in the 3D viewport sidebar."""
+from __future__ import annotations
+
+import bpy
+
+from . import session
+
+
+class _GraspPanel:
+    bl_space_type = "VIEW_3D"
+    bl_region_type = "UI"
+    bl_category = "Grasp"
+
+
+class GRASPLAB_PT_main(_GraspPanel, bpy.types.Panel):
+    bl_label = "Grasp Lab"
+
+    def draw(self, context):
+        layout = self.layout
+        row = layout.row(align=True)
+        row.operator("grasp_lab.add_finger", icon="EMPTY_AXIS")
+        row.operator("grasp_lab.validate_scene", text="Check", icon="CHECKMARK")
+
+
+class GRASPLAB_PT_object(_GraspPanel, bpy.types.Panel):
+    bl_label = "Object"
+    bl_parent_id = "GRASPLAB_PT_main"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        obj = context.active_object
+        if obj is None:
+            layout.label(text="No active object")
+            return
+        gl = obj.grasp_lab
+        layout.prop(gl, "role")
+        if gl.role in {"DYNAMIC", "STATIC"}:
+            layout.prop(gl, "shape")
+            if gl.role == "DYNAMIC":
+                layout.prop(gl, "mass_mode")
+                layout.prop(gl, "mass" if gl.mass_mode == "MASS" else "density")
+            col = layout.column(align=True)
+            col.prop(gl, "mu_s")
+            col.prop(gl, "mu_d")
+            layout.prop(gl, "viscosity")
+        elif gl.role == "FINGER":
+            layout.prop(gl, "radius")
+            layout.prop(gl, "stiffness")
+            layout.prop(gl, "damping")
+            layout.prop(gl, "channel")
+
+
+class GRASPLAB_PT_scene(_GraspPanel, bpy.types.Panel):
+    bl_label = "Scene"
+    bl_parent_id = "GRASPLAB_PT_main"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        s = context.scene.grasp_lab
+        layout.prop(s, "gravity")
+        layout.prop(s, "gyroscopic")
+        layout.prop(s, "haptic_rate")
+        layout.prop(s, "display_rate")
+        layout.prop(s, "input_source")
+
+
+class GRASPLAB_PT_session(_GraspPanel, bpy.types.Panel):
+    bl_label = "Session"
+    bl_parent_id = "GRASPLAB_PT_main"
+
+    def draw(self, context):
+        layout = self.layout
+        s = context.scene.grasp_lab
+        active = session.active_session()
+        if active is None:
+            layout.operator("grasp_lab.session", text="Start Session", icon="PLAY")
+        else:
+            layout.operator("grasp_lab.stop_session", text="Stop Session", icon="PAUSE")
+            box = layout.box()
+            for line in active.hud_text().split("\n"):
+                box.label(text=line)
+        col = layout.column()
+        col.use_property_split = True
+        col.use_property_decorate = False
+        col.prop(s, "duration")
+        col.prop(s, "loop")
+        col.prop(s, "bake")
+        col.prop(s, "display_objects")
+        sub = col.column(align=True)
+        sub.active = s.display_objects
+        sub.prop(s, "force_scale")
+        sub.prop(s, "torque_scale")
+        row = layout.row(align=True)
+        row.operator("grasp_lab.reset", icon="LOOP_BACK")
+        row.operator("grasp_lab.clear_display", text="Clear Display", icon="TRASH")
+        res = session.last_result
+        if active is None and res is not None and res.stats:
+            layout.label(text=f"Last: {res.stats.get('time', 0):.2f} s, "
+                              f"{res.stats.get('step_us', 0):.0f} µs/step", icon="INFO")
+
+
+class GRASPLAB_PT_recording(_GraspPanel, bpy.types.Panel):
+    bl_label = "Recording"
+    bl_parent_id = "GRASPLAB_PT_main"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        s = context.scene.grasp_lab
+        layout.prop(s, "record")
+        layout.prop(s, "recording_folder")
+        if s.last_recording:
+            layout.label(text=bpy.path.basename(s.last_recording), icon="FILE")
+
+
+CLASSES = (GRASPLAB_PT_main, GRASPLAB_PT_object, GRASPLAB_PT_scene, GRASPLAB_PT_session,
+           GRASPLAB_PT_recording)
+
+
+def register():
+    for c in CLASSES:
+        bpy.utils.register_class(c)
+
+
+def unregister():
+    for c in reversed(CLASSES):
+        bpy.utils.unregister_class(c)
