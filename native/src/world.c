@@ -335,8 +335,9 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
     b.com = gc_add(gc_v3(def->position[0], def->position[1], def->position[2]),
                    gc_mat3_mul_vec(&b.R, b.com_local));
     if (!b.is_static) {
-        b.v = gc_v3(def->linear_velocity[0], def->linear_velocity[1], def->linear_velocity[2]);
         b.w = gc_v3(def->angular_velocity[0], def->angular_velocity[1], def->angular_velocity[2]);
+        b.v = gc_add(gc_v3(def->linear_velocity[0], def->linear_velocity[1], def->linear_velocity[2]),
+                     gc_cross(b.w, gc_mat3_mul_vec(&b.R, b.com_local))); /* origin -> COM */
     }
     int32_t id = w->num_bodies;
     for (int i = 0; i < num_parts; ++i) w->parts[first + i].body = id;
@@ -420,8 +421,9 @@ gcStatus gc_world_set_body_velocity(gcWorld *w, int32_t body, const double lin[3
         gc_world_set_error(w, "body: %d is static and cannot be given a velocity", (int)body);
         return GC_ERR_INVALID_ARGUMENT;
     }
-    b->v = gc_v3(lin[0], lin[1], lin[2]);
+    /* Given for the body frame origin, like body_velocity reports it; stored at the COM. */
     b->w = gc_v3(ang[0], ang[1], ang[2]);
+    b->v = gc_add(gc_v3(lin[0], lin[1], lin[2]), gc_cross(b->w, gc_mat3_mul_vec(&b->R, b->com_local)));
     return GC_OK;
 }
 

@@ -225,3 +225,15 @@ def test_views_are_zero_copy_and_read_only():
         poses[0, 0] = 1.0
     del w  # views keep the world alive
     assert poses[0, 3] == 1.0
+
+
+def test_velocity_is_set_and_read_at_the_body_origin():
+    w = graspcore.World(gravity=(0, 0, 0))
+    b = w.add_body(box_points(0.02, 0.02, 0.02, center=(0.1, 0, 0)), mass=1.0,
+                   linear_velocity=(0, 0.5, 0), angular_velocity=(0, 0, 2.0))
+    lin, ang = w.body_velocity(b)
+    np.testing.assert_allclose(lin, (0, 0.5, 0), atol=1e-15)
+    w.set_body_velocity(b, (0.1, 0.2, 0.3), (1.0, 0, 0))
+    lin, ang = w.body_velocity(b)
+    np.testing.assert_allclose(lin, (0.1, 0.2, 0.3), atol=1e-15)
+    np.testing.assert_allclose(ang, (1.0, 0, 0))
