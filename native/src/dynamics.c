@@ -15,10 +15,9 @@
 
 #include <string.h>
 
-/* Cholesky solve of a 6x6 symmetric positive-definite system; 0 on failure. */
-static int solve6(double A[6][6], double b[6], double x[6]) {
-    double L[6][6];
-    memset(L, 0, sizeof L);
+/* Cholesky factor of a 6x6 symmetric positive-definite matrix (lower); 0 on failure. */
+static int cholesky6(const double A[6][6], double L[6][6]) {
+    memset(L, 0, sizeof(double) * 36);
     for (int i = 0; i < 6; ++i) {
         for (int j = 0; j <= i; ++j) {
             double s = A[i][j];
@@ -31,6 +30,10 @@ static int solve6(double A[6][6], double b[6], double x[6]) {
             }
         }
     }
+    return 1;
+}
+
+static void cholesky_solve6(const double L[6][6], const double b[6], double x[6]) {
     double y[6];
     for (int i = 0; i < 6; ++i) {
         double s = b[i];
@@ -42,7 +45,6 @@ static int solve6(double A[6][6], double b[6], double x[6]) {
         for (int k = i + 1; k < 6; ++k) s -= L[k][i] * x[k];
         x[i] = s / L[i][i];
     }
-    return 1;
 }
 
 /* A += s * J^T J for J = [I | -[r]x]. */
@@ -82,7 +84,7 @@ static gcMat3 world_inertia(const gcMat3 *R, const gcMat3 *inertia_local) {
 /* Fixed-point passes for the inertia at the end of the step (gyroscopic term). */
 #define GC_GYRO_ITERATIONS 3
 
-static void integrate_body(gcWorld *w, int32_t id, double dt) {
+static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
     gcBody *b = &w->bodies[id];
     gcMat3 Iw = world_inertia(&b->R, &b->inertia_local);
     gcVec3 L = gc_mat3_mul_vec(&Iw, b->w);
@@ -146,22 +148,42 @@ static void integrate_body(gcWorld *w, int32_t id, double dt) {
             A[i][i] += b->mass;
             for (int j = 0; j < 3; ++j) A[3 + i][3 + j] += Inext.m[i][j];
         }
-        double rhs_copy[6];
-        memcpy(rhs_copy, rhs, sizeof rhs_copy);
-        if (!solve6(A, rhs_copy, x)) return; /* cannot happen for a physical inertia; keep the state */
+        b->effective_mass_valid = cholesky6(A, b->effective_mass_factor);
+        if (!b->effective_mass_valid) return; /* cannot happen for a physical inertia; keep the state */
+        cholesky_solve6(b->effective_mass_factor, rhs, x);
         omega = gc_v3(x[3], x[4], x[5]);
     }
     gcVec3 v = gc_v3(x[0], x[1], x[2]), om = omega;
     if (b->linear_damping > 0.0) v = gc_scale(v, 1.0 / (1.0 + dt * b->linear_damping));
     if (b->angular_damping > 0.0) om = gc_scale(om, 1.0 / (1.0 + dt * b->angular_damping));
-    if (!gc_vec_finite(v) || !gc_vec_finite(om)) return;
+    if (!gc_vec_finite(v) || !gc_vec_finite(om)) {
+        b->effective_mass_valid = 0;
+        return;
+    }
     b->v = v;
     b->w = om;
-    b->com = gc_madd(b->com, v, dt);
-    b->q = gc_quat_normalize(gc_quat_mul(quat_from_rotation_vector(gc_scale(om, dt)), b->q));
 }
 
-void gc_dynamics_integrate(gcWorld *w, double dt) {
+void gc_body_apply_impulse(gcWorld *w, int32_t id, gcVec3 point, gcVec3 impulse) {
+    gcBody *b = &w->bodies[id];
+    if (b->is_static || !b->effective_mass_valid) return;
+    gcVec3 r = gc_sub(point, b->com);
+    gcVec3 ang = gc_cross(r, impulse);
+    double rhs[6] = {impulse.x, impulse.y, impulse.z, ang.x, ang.y, ang.z}, dv[6];
+    cholesky_solve6(b->effective_mass_factor, rhs, dv);
+    b->v = gc_add(b->v, gc_v3(dv[0], dv[1], dv[2]));
+    b->w = gc_add(b->w, gc_v3(dv[3], dv[4], dv[5]));
+}
+
+void gc_body_solve_effective_mass(const gcBody *b, const double wrench[6], double twist[6]) {
+    if (b->is_static || !b->effective_mass_valid) {
+        memset(twist, 0, 6 * sizeof(double));
+        return;
+    }
+    cholesky_solve6(b->effective_mass_factor, wrench, twist);
+}
+
+void gc_dynamics_velocities(gcWorld *w, double dt) {
     for (int32_t i = 0; i < w->num_bodies; ++i) {
         gcBody *b = &w->bodies[i];
         if (b->is_static) {
@@ -169,7 +191,16 @@ void gc_dynamics_integrate(gcWorld *w, double dt) {
             b->residual_torque = gc_v3(0, 0, 0);
             continue;
         }
-        integrate_body(w, i, dt);
+        integrate_velocity(w, i, dt);
+    }
+}
+
+void gc_dynamics_positions(gcWorld *w, double dt) {
+    for (int32_t i = 0; i < w->num_bodies; ++i) {
+        gcBody *b = &w->bodies[i];
+        if (b->is_static) continue;
+        b->com = gc_madd(b->com, b->v, dt);
+        b->q = gc_quat_normalize(gc_quat_mul(quat_from_rotation_vector(gc_scale(b->w, dt)), b->q));
         gc_body_refresh_derived(w, i);
     }
 }

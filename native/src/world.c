@@ -461,7 +461,8 @@ gcStatus gc_world_step(gcWorld *w, double dt) {
         return GC_ERR_INVALID_ARGUMENT;
     }
     gc_xfca_update(w, dt);
-    gc_dynamics_integrate(w, dt);
+    gc_dynamics_velocities(w, dt);
+    gc_dynamics_positions(w, dt);
     for (int i = 0; i < w->num_fingers; ++i) w->fingers[i].hip_prev = w->fingers[i].hip;
     w->time += dt;
     return GC_OK;

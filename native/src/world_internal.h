@@ -30,6 +30,10 @@ typedef struct gcBody {
     gcVec3 aabb_min, aabb_max;      /* world, of all parts, refreshed each step */
     /* Outputs of the last step. */
     gcVec3 residual_force, residual_torque;
+    /* Step scratch: Cholesky factor of the effective mass (mass matrix plus the implicit
+     * finger coupling) used for this step's velocity; contact impulses go through it. */
+    double effective_mass_factor[6][6];
+    int effective_mass_valid;
 } gcBody;
 
 /* Contact between one finger and one part. The god-object (GO) and the contact plane
@@ -78,8 +82,15 @@ void gc_world_set_error(const gcWorld *world, const char *fmt, ...);
 
 /* xfca.c: one god-object update for every finger, then finger forces. */
 void gc_xfca_update(gcWorld *world, double dt);
-/* dynamics.c: integrate every dynamic body with implicit finger coupling. */
-void gc_dynamics_integrate(gcWorld *world, double dt);
+/* dynamics.c, in step order: new velocities of every dynamic body under gravity and the
+ * implicit finger coupling (leaves each body's effective-mass factor); then positions. */
+void gc_dynamics_velocities(gcWorld *world, double dt);
+void gc_dynamics_positions(gcWorld *world, double dt);
+/* Between the two: a world-frame impulse at a world point changes the body's twist by
+ * (effective mass)^-1 [p; r x p], so contacts see the finger springs as part of the mass. */
+void gc_body_apply_impulse(gcWorld *world, int32_t body, gcVec3 point, gcVec3 impulse);
+/* twist = (effective mass)^-1 wrench, both (linear, angular) world frame; zero for static. */
+void gc_body_solve_effective_mass(const gcBody *body, const double wrench[6], double twist[6]);
 void gc_body_refresh_derived(gcWorld *world, int32_t body);
 
 #endif
