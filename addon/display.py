@@ -32,7 +32,8 @@ def _material(name):
     if mat is None:
         mat = bpy.data.materials.new(name)
         mat.diffuse_color = COLORS[name]
-        mat.use_nodes = True
+        if bpy.app.version < (5, 0, 0):
+            mat.use_nodes = True        # always on (and deprecated) from 5.0
         bsdf = mat.node_tree.nodes.get("Principled BSDF")
         if bsdf is not None:
             bsdf.inputs["Base Color"].default_value = COLORS[name]

@@ -58,9 +58,12 @@ class BlenderSession:
         self.settings = s
         prefs = get_prefs(context)
         gc = core_loader.load()
+        # Sessions start at the first frame: fingertips (and any animated objects) there.
+        self.frame_start = scene.frame_start
+        scene.frame_set(self.frame_start)
         if reset:
             restore_rest_poses(context)
-        self.frame_start = scene.frame_start
+            context.view_layer.update()
         self.fps = scene.render.fps / scene.render.fps_base
         desc, self.links, finger_objs = convert.scene_description(context)
         if not desc.bodies and not desc.fingers:

@@ -163,7 +163,8 @@ class SessionRunner:
         """Advance session time to ``t`` (seconds). Returns the number of core steps.
 
         With ``max_steps``, at most that many steps are taken; the rest of the interval
-        is dropped (session time falls behind real time instead of blocking the UI).
+        is added to ``dropped_time``: session time falls behind real time instead of
+        blocking the UI (live callers aim at ``wall_time - dropped_time``).
         """
         if not self._started:
             self.start()
@@ -176,8 +177,9 @@ class SessionRunner:
             target = int(np.floor(t / self.dt + 1e-9))
             todo = target - self.driver.steps
             if max_steps is not None and todo > max_steps:
+                # Session time lags real time from now on (callers subtract dropped_time
+                # from the wall clock); the input is not skipped.
                 self.dropped_time += (todo - max_steps) * self.dt
-                self.driver.steps += todo - max_steps   # skip ahead in input time
                 todo = max_steps
             for _ in range(max(todo, 0)):
                 self.driver.step_once()

@@ -1,0 +1,192 @@
+"""The bpy-free half of the extension (addon/engine), tested in plain Python."""
+import os
+import sys
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
+from addon.engine import decompose, inputs, runner, scene  # noqa: E402
+
+
+class FakeWorld:
+    """Records what the runner asks of the core."""
+
+    def __init__(self, n_fingers=2, threaded=False):
+        self.hips_log = []
+        self.dts = []
+        self.n = n_fingers
+        self.body_poses = np.array([[0, 0, 0, 1, 0, 0, 0]], dtype=float)
+        if threaded:
+            self.start = lambda haptic_rate: setattr(self, "started", haptic_rate)
+
+    def set_hips(self, hips):
+        self.hips_log.append(np.array(hips))
+
+    def step(self, dt):
+        self.dts.append(dt)
+
+    def residual_wrench(self, b):
+        return (0, 0, -1), (0, 0, 0)
+
+    def god_object(self, f):
+        return tuple(self.hips_log[-1][f]) if self.hips_log else (0, 0, 0)
+
+    def finger_force(self, f):
+        return (0, 0, 0)
+
+    def finger_state(self, f):
+        return "free"
+
+    def finger_contact(self, f):
+        return None
+
+
+def _handle(world, n_fingers=2):
+    box = scene.BodyDesc("B", False, [np.eye(3)], [], np.zeros(3), np.array([1, 0, 0, 0.]))
+    box.mass_properties = scene.MassProperties(1.0, 1.0, np.zeros(3), np.eye(3))
+    desc = scene.SceneDesc(bodies=[box], fingers=[scene.FingerDesc(f"F{i}", np.zeros(3))
+                                                  for i in range(n_fingers)])
+    return scene.WorldHandle(world, [0], list(range(n_fingers)), desc)
+
+
+def test_sampled_trajectory_interpolates_and_holds():
+    src = inputs.SampledTrajectory([0.0, 1.0, 2.0],
+                                   np.array([[[0, 0, 0]], [[1, 0, 0]], [[1, 2, 0]]], dtype=float))
+    np.testing.assert_allclose(src.hips_at(0.25), [[0.25, 0, 0]])
+    np.testing.assert_allclose(src.hips_at(1.5), [[1, 1, 0]])
+    np.testing.assert_allclose(src.hips_at(5.0), [[1, 2, 0]])
+    np.testing.assert_allclose(src.hips_at(-1.0), [[0, 0, 0]])
+    assert src.duration == 2.0
+
+
+@pytest.mark.parametrize("times, pos, word", [
+    ([0.0, 0.0], np.zeros((2, 1, 3)), "increasing"),
+    ([0.0, 1.0], np.zeros((3, 1, 3)), "positions"),
+    ([0.0, 1.0], np.full((2, 1, 3), np.nan), "non-finite"),
+])
+def test_sampled_trajectory_rejects_bad_input(times, pos, word):
+    with pytest.raises(ValueError, match=word):
+        inputs.SampledTrajectory(times, pos)
+
+
+def test_runner_substeps_at_haptic_rate_with_end_of_step_hips():
+    w = FakeWorld()
+    src = inputs.CallableInput(2, lambda t: [[t, 0, 0], [0, t, 0]])
+    r = runner.SessionRunner(_handle(w), src, haptic_rate=1000.0)
+    assert r.advance_to(1 / 24) == 41
+    assert r.advance_to(2 / 24) == 42
+    assert len(w.dts) == 83 and all(dt == 1e-3 for dt in w.dts)
+    np.testing.assert_allclose(w.hips_log[0][0], [1e-3, 0, 0])
+    np.testing.assert_allclose(w.hips_log[-1][1], [0, 83e-3, 0])
+    snap = r.snapshot()
+    assert snap.poses.shape == (1, 7) and snap.n_contacts == 0
+    np.testing.assert_allclose(snap.force, [[0, 0, -1]])
+
+
+def test_runner_falls_behind_instead_of_blocking():
+    w = FakeWorld()
+    r = runner.SessionRunner(_handle(w), inputs.StaticInput(np.zeros((2, 3))), haptic_rate=1000.0)
+    assert r.advance_to(1.0, max_steps=10) == 10
+    assert r.dropped_time == pytest.approx(0.99)
+    assert r.time == pytest.approx(0.01)
+
+
+def test_runner_uses_threaded_runtime_only_when_present():
+    src = inputs.StaticInput(np.zeros((2, 3)))
+    assert not runner.SessionRunner(_handle(FakeWorld()), src, use_runtime=True).threaded
+    assert runner.SessionRunner(_handle(FakeWorld(threaded=True)), src, use_runtime=True).threaded
+    assert not runner.SessionRunner(_handle(FakeWorld(threaded=True)), src, use_runtime=False).threaded
+
+
+def test_runner_checks_finger_count():
+    with pytest.raises(ValueError, match="3 fingertips"):
+        runner.SessionRunner(_handle(FakeWorld()), inputs.StaticInput(np.zeros((3, 3))))
+
+
+def test_quat_rotate():
+    q = np.array([np.cos(np.pi / 4), 0, 0, np.sin(np.pi / 4)])      # 90 deg about z
+    np.testing.assert_allclose(runner.quat_rotate(q, [1, 0, 0]), [0, 1, 0], atol=1e-12)
+
+
+def _box_mesh(ext=(0.04, 0.06, 0.1), name="box"):
+    import trimesh
+    b = trimesh.creation.box(ext)
+    return scene.MeshData(np.array(b.vertices), np.array(b.faces), source=name), b
+
+
+def test_mass_properties_box_and_offset_compound():
+    import trimesh
+    m1, ref = _box_mesh()
+    mp = scene.mass_properties("b", [m1], mass=None, density=500.0)
+    ref.density = 500.0
+    assert mp.mass == pytest.approx(ref.mass)
+    np.testing.assert_allclose(mp.inertia, ref.moment_inertia, rtol=1e-9)
+    a = trimesh.creation.box((0.02,) * 3).apply_translation((0.05, 0, 0))
+    b = trimesh.creation.box((0.02,) * 3).apply_translation((-0.01, 0.02, 0))
+    meshes = [scene.MeshData(np.array(x.vertices), np.array(x.faces), "p") for x in (a, b)]
+    mp = scene.mass_properties("c", meshes, mass=2.0, density=1.0)
+    both = trimesh.util.concatenate([a, b])
+    both.density = 2.0 / both.volume
+    np.testing.assert_allclose(mp.center_of_mass, both.center_mass, atol=1e-12)
+    np.testing.assert_allclose(mp.inertia, both.moment_inertia, rtol=1e-9, atol=1e-15)
+
+
+def test_scene_errors_name_object_and_problem():
+    m, _ = _box_mesh(name="Cup")
+    inv = scene.MeshData(m.vertices, m.triangles[:, ::-1], "Cup")
+    with pytest.raises(scene.SceneError, match='"Cup": mesh is inverted'):
+        scene.mass_properties("Cup", [inv], None, 1000.0)
+    opened = scene.MeshData(m.vertices, m.triangles[2:], "Cup")
+    with pytest.raises(scene.SceneError, match='"Cup": mesh is open'):
+        scene.mass_properties("Cup", [opened], None, 1000.0)
+    with pytest.raises(scene.SceneError, match="absurd scale"):
+        scene.check_scale("Cup", m.vertices * 1e4)
+    with pytest.raises(scene.SceneError, match="zero volume"):
+        scene.check_hull_points("Cup", np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.0]]))
+    with pytest.raises(scene.SceneError, match="mass must be > 0"):
+        scene.mass_properties("Cup", [m], 0.0, 1000.0)
+
+
+def test_decompose_box_islands_and_ring():
+    import trimesh
+    box = trimesh.creation.box((1, 1, 1))
+    assert len(decompose.decompose(box.vertices, box.faces)) == 1
+    two = trimesh.util.concatenate([box, box.copy().apply_translation((3, 0, 0))])
+    assert len(decompose.decompose(two.vertices, two.faces)) == 2
+    ring = trimesh.creation.annulus(r_min=0.5, r_max=1.0, height=0.3, sections=32)
+    parts = decompose.decompose(ring.vertices, ring.faces)
+    assert 4 <= len(parts) <= 64
+    for p in parts:                      # no part bridges the hole
+        assert np.linalg.norm(p.mean(axis=0)[:2]) > 0.4
+    # Together the parts cover the ring's vertices.
+    allp = np.vstack(parts)
+    for v in ring.vertices[::7]:
+        assert np.min(np.linalg.norm(allp - v, axis=1)) < 1e-9
+
+
+def test_build_world_with_core():
+    gc = pytest.importorskip("graspcore")
+    m, ref = _box_mesh((0.05, 0.05, 0.05))
+    body = scene.BodyDesc("Box", False, [m.vertices], [m], np.zeros(3), np.array([1.0, 0, 0, 0]),
+                          mass=0.1)
+    desc = scene.prepare(scene.SceneDesc(bodies=[body], fingers=[
+        scene.FingerDesc("F0", np.array([-0.030, 0, 0])), scene.FingerDesc("F1", np.array([0.030, 0, 0]))]))
+    h = scene.build_world(desc, gc)
+    mass, com, inertia = h.world.body_mass(h.body_ids[0])
+    assert mass == pytest.approx(0.1)
+    ref.density = 0.1 / ref.volume
+    np.testing.assert_allclose(np.array(inertia).reshape(3, 3), ref.moment_inertia, rtol=1e-9)
+    r = runner.SessionRunner(h, inputs.StaticInput([[-0.030, 0, 0], [0.030, 0, 0]]))
+    r.advance_to(0.2)
+    snap = r.snapshot()
+    assert snap.n_contacts == 2
+    assert abs(snap.poses[0, 2]) < 0.002        # held against gravity
+
+
+def test_build_world_reports_core_rejection():
+    gc = pytest.importorskip("graspcore")
+    body = scene.BodyDesc("Needle", True, [np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0.0]])],
+                          [], np.zeros(3), np.array([1.0, 0, 0, 0]))
+    with pytest.raises(scene.SceneError, match='"Needle": rejected by the core'):
+        scene.build_world(scene.SceneDesc(bodies=[body]), gc)

@@ -1,0 +1,149 @@
+"""Headless sessions (EXEC): the scripted pinch-and-lift gives the same box trajectory
+as driving graspcore directly with the same HIPs."""
+import numpy as np
+import pytest
+
+import grasp_env
+
+
+def _direct_trajectory(core, sample, n_frames, fps=24, rate=1000.0):
+    """Box poses at every frame, driving the core directly with the analytic HIPs."""
+    import trimesh
+    h = sample.BOX_SIZE / 2
+    pts = np.array([(x, y, z) for x in (-h, h) for y in (-h, h) for z in (-h, h)])
+    ref = trimesh.creation.box((sample.BOX_SIZE,) * 3)
+    ref.density = sample.BOX_MASS / ref.volume
+    w = core.World(gravity=(0, 0, -9.81))
+    b = w.add_body(pts, mass=sample.BOX_MASS, inertia=ref.moment_inertia, center_of_mass=(0, 0, 0),
+                   mu_s=0.8, mu_d=0.6)
+    for p in sample.hip_positions(0.0):
+        w.add_finger(radius=sample.FINGER_RADIUS, stiffness=sample.STIFFNESS, position=tuple(p))
+    dt = 1.0 / rate
+    poses = [np.concatenate(w.body_pose(b))]
+    step = 0
+    for k in range(1, n_frames + 1):
+        target = int(np.floor(k / fps / dt + 1e-9))
+        while step < target:
+            step += 1
+            w.set_hips(sample.hip_positions(step * dt))
+            w.step(dt)
+        poses.append(np.concatenate(w.body_pose(b)))
+    return np.array(poses)
+
+
+@pytest.mark.multiversion
+def test_exec_pinch_and_lift_matches_core(bpy, sample, core):
+    box = sample.build(bpy)
+    assert bpy.ops.grasp_lab.session() == {"FINISHED"}
+    res = grasp_env.submodule("session").last_result
+    traj = res.trajectory("Box")
+    n_frames = bpy.context.scene.frame_end - bpy.context.scene.frame_start
+    assert len(traj) == n_frames + 1
+    assert res.stats["steps"] == int(round(n_frames / 24 * 1000))
+    direct = _direct_trajectory(core, sample, n_frames)
+    # Blender stores locations as float32: HIPs differ from the analytic ones by ~1e-9 m.
+    np.testing.assert_allclose(traj[:, :3], direct[:, :3], atol=2e-6)
+    np.testing.assert_allclose(np.abs(np.sum(traj[:, 3:] * direct[:, 3:], axis=1)), 1.0, atol=1e-6)
+    # The box was lifted ~10 cm and held; the scene is left in the final state.
+    assert traj[-1, 2] == pytest.approx(sample.LIFT, abs=0.005)
+    assert box.matrix_world.translation.z == pytest.approx(traj[-1, 2], abs=1e-6)
+    assert bpy.context.scene.frame_current == bpy.context.scene.frame_end
+    assert res.final.n_contacts == 2
+    assert all(s == 1 for s in res.final.finger_states)    # both sticking
+
+
+@pytest.mark.multiversion
+def test_display_objects_and_bake(bpy, sample, core):
+    sample.build(bpy)
+    bpy.context.scene.grasp_lab.bake = True
+    bpy.ops.grasp_lab.session(duration=0.5)
+    coll = bpy.data.collections["Grasp Lab"]
+    names = sorted(o.name for o in coll.objects)
+    assert names == ["GL Force Box", "GL God-object Finger 0", "GL God-object Finger 1",
+                     "GL Torque Box"]
+    res = grasp_env.submodule("session").last_result
+    go = bpy.data.objects["GL God-object Finger 0"].matrix_world.translation
+    np.testing.assert_allclose(tuple(go), res.final.god_objects[0], atol=1e-6)
+    # Fingers in contact: god-objects sit on the box surface, the HIPs are inside.
+    assert abs(go.x) == pytest.approx(sample.BOX_SIZE / 2 + sample.FINGER_RADIUS, abs=1e-3)
+    # Keyframes on the box: one per frame, matching the session (5.0: channelbags).
+    box = bpy.data.objects["Box"]
+    z_final = box.matrix_world.translation.z
+    bpy.context.scene.frame_set(1)
+    assert box.matrix_world.translation.z == pytest.approx(res.poses[0][0][2], abs=1e-6)
+    bpy.context.scene.frame_set(13)
+    assert box.matrix_world.translation.z == pytest.approx(res.trajectory("Box")[-1][2], abs=1e-6)
+    assert z_final == pytest.approx(res.trajectory("Box")[-1][2], abs=1e-6)
+
+
+def test_second_run_resets_and_repeats(bpy, sample, core):
+    sample.build(bpy)
+    bpy.ops.grasp_lab.session(duration=1.0)
+    first = grasp_env.submodule("session").last_result.trajectory("Box")
+    bpy.ops.grasp_lab.session(duration=1.0)
+    second = grasp_env.submodule("session").last_result.trajectory("Box")
+    np.testing.assert_array_equal(first, second)
+    bpy.ops.grasp_lab.reset()
+    assert bpy.data.objects["Box"].matrix_world.translation.z == pytest.approx(0.0, abs=1e-9)
+
+
+def test_recording_written(bpy, sample, core, tmp_path):
+    sample.build(bpy)
+    s = bpy.context.scene.grasp_lab
+    s.record = True
+    s.recording_folder = str(tmp_path)
+    bpy.ops.grasp_lab.session(duration=0.25)
+    path = s.last_recording
+    data = np.load(path)
+    assert data["poses"].shape == (7, 1, 7)        # start + 6 frames at 24 fps
+    assert data["hips"].shape == (7, 2, 3)
+    assert list(data["body_names"]) == ["Box"]
+
+
+def test_invoke_headless_runs_exec(bpy, sample, core):
+    sample.build(bpy)
+    assert bpy.ops.grasp_lab.session("INVOKE_DEFAULT", duration=0.25) == {"FINISHED"}
+    assert grasp_env.submodule("session").active_session() is None
+
+
+def test_parented_body_writes_back_world_pose(bpy, sample, core):
+    box = sample.build(bpy)
+    holder = bpy.data.objects.new("Holder", None)
+    bpy.context.scene.collection.objects.link(holder)
+    holder.location = (0.0, 0.0, 0.0)
+    holder.scale = (2.0, 2.0, 2.0)
+    box.parent = holder
+    box.scale = (0.5, 0.5, 0.5)     # world size unchanged
+    bpy.context.view_layer.update()
+    bpy.ops.grasp_lab.session()
+    res = grasp_env.submodule("session").last_result
+    np.testing.assert_allclose(tuple(box.matrix_world.translation), res.final.poses[0][:3], atol=1e-6)
+    np.testing.assert_allclose(box.matrix_world.to_scale(), (1, 1, 1), atol=1e-6)
+
+
+def test_empty_scene_reports(bpy, core):
+    with pytest.raises(RuntimeError, match="nothing to simulate"):
+        bpy.ops.grasp_lab.session()
+
+
+def test_live_session_ticks_without_timers(bpy, sample, core):
+    """The live (modal) path, driven by hand: bounded work per tick, falls behind real time
+    rather than blocking, and draws nothing headless."""
+    session = grasp_env.submodule("session")
+    display = grasp_env.submodule("display")
+    sample.build(bpy)
+    s = session.BlenderSession(bpy.context, live=True, duration=1.0)
+    assert not s.runner.threaded or hasattr(s.runner.world, "start")
+    assert s.tick(0.1, max_steps=1000) is False
+    assert s.runner.time == pytest.approx(0.1)
+    s.tick(0.9, max_steps=50)                        # a stall: only 50 steps done
+    assert s.runner.time == pytest.approx(0.15)
+    assert s.runner.dropped_time == pytest.approx(0.75)
+    s.tick(1.0, max_steps=1000)                      # session time lags the wall clock
+    assert s.runner.time == pytest.approx(0.25)
+    assert bpy.context.scene.frame_current == 1 + round(0.25 * 24)
+    assert "contacts 2 / 2" in s.hud_text()
+    assert s.tick(5.0, max_steps=100000) is True     # reached the duration
+    s.finish()
+    display.add_overlay()                            # no-op headless
+    assert not display.overlay_active()
