@@ -13,6 +13,8 @@
 #define GC_SWEEP_MAX_ITERATIONS 32
 /* The sweep stops within this distance of the surface (m). */
 #define GC_SWEEP_GAP 1e-6
+/* Relative round-off allowed on the friction circle's radius. */
+#define GC_CIRCLE_TOLERANCE 1e-9
 /* Distances below this count as touching (m). */
 #define GC_CONTACT_SLOP 1e-9
 /* Smallest push toward the HIP (m): keeps a GO resting on a flat face in contact
@@ -83,11 +85,13 @@ static int update_contact(const gcFinger *f, const gcBody *b, const gcHull *h, g
     double dist = gc_len(offset);
     gcVec3 go = gc_add(so, offset);
     double static_radius = b->mu_s * depth, dynamic_radius = b->mu_d * depth;
+    /* A GO left on the mu_d circle by the previous step is at rest on the surface: the
+     * tolerance keeps re-surfacing round-off from counting as sliding. */
     int slipping;
     if (c->state == GC_FINGER_STICK)
         slipping = dist > static_radius;
     else
-        slipping = dist > dynamic_radius;
+        slipping = dist > dynamic_radius * (1.0 + GC_CIRCLE_TOLERANCE) + GC_CONTACT_SLOP;
     if (slipping) {
         /* Onto the Coulomb (mu_d) circle; with viscosity, no further than the viscous
          * radius depth*dt/viscosity per step, so faster sliding trails further. */
