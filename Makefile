@@ -55,9 +55,10 @@ test-c-asan: $(addprefix $(BUILD)/c-asan/,$(C_TESTS))
 
 # --- Python tests ---------------------------------------------------------------
 test-py: core
-	$(PY) -m pytest -q tests
+	$(PY) -m pytest -q tests/core
 
-test: test-c test-c-asan test-py
+# test-blender (addon.mk) runs tests/blender on bpy 4.5, 4.2 and 5.0.1.
+test: test-c test-c-asan test-py test-blender
 
 # --- The main job -------------------------------------------------------------
 demo: core
