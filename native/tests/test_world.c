@@ -1,0 +1,152 @@
+/* World-level C tests: a pinch held through the public API, determinism by state hash,
+ * statuses for bad input, and a world left unchanged by a failed call. Run plain and
+ * under ASan/UBSan by `make test`. */
+#include <string.h>
+
+#include "gc_test.h"
+#include "graspcore.h"
+
+static void box_points(double h, double out[24]) {
+    int k = 0;
+    for (int i = 0; i < 8; ++i) {
+        out[k++] = (i & 1) ? h : -h;
+        out[k++] = (i & 2) ? h : -h;
+        out[k++] = (i & 4) ? h : -h;
+    }
+}
+
+/* Two fingers pinch a 0.2 kg box 3 mm deep and lift it 5 cm; returns the state hash. */
+static uint64_t run_pinch(double *out_z, gcFingerState *out_state) {
+    gcWorldDef wd = gc_default_world_def();
+    gcWorld *w = NULL;
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    double pts[24];
+    box_points(0.03, pts);
+    gcPartDef part = {pts, 8, 0.0};
+    gcBodyDef bd = gc_default_body_def();
+    bd.mass = 0.2;
+    int32_t box, f[2];
+    GC_CHECK(gc_world_add_body(w, &bd, &part, 1, &box) == GC_OK, "add box: %s", gc_world_last_error(w));
+    for (int i = 0; i < 2; ++i) {
+        gcFingerDef fd = gc_default_finger_def();
+        fd.damping = 2.0;
+        fd.position[0] = (i ? 1 : -1) * 0.035;
+        GC_CHECK(gc_world_add_finger(w, &fd, &f[i]) == GC_OK, "add finger");
+    }
+    for (int step = 0; step < 2000; ++step) {
+        double lift = 0.05 * (step < 1000 ? step / 1000.0 : 1.0);
+        for (int i = 0; i < 2; ++i) {
+            double hip[3] = {(i ? 1 : -1) * 0.035, 0.0, lift};
+            gc_world_set_hip(w, f[i], hip);
+        }
+        GC_CHECK(gc_world_step(w, 1e-3) == GC_OK, "step");
+    }
+    double pos[3], q[4];
+    gc_world_body_pose(w, box, pos, q);
+    int32_t contact;
+    gc_world_finger_state(w, f[0], out_state, &contact);
+    GC_CHECK(contact == box, "finger 0 touches the box");
+    *out_z = pos[2];
+    uint64_t hash = gc_world_state_hash(w);
+    gc_world_destroy(w);
+    return hash;
+}
+
+static void test_pinch_and_determinism(void) {
+    double z1, z2;
+    gcFingerState s1, s2;
+    uint64_t h1 = run_pinch(&z1, &s1), h2 = run_pinch(&z2, &s2);
+    GC_CHECK(h1 == h2, "same inputs, same hash (%llx vs %llx)", (unsigned long long)h1, (unsigned long long)h2);
+    GC_CHECK(s1 == GC_FINGER_STICK, "held in stick");
+    /* Lifted 5 cm, sagging m g / 2k = 0.98 mm. */
+    GC_CHECK_NEAR(z1, 0.05 - 0.2 * 9.81 / 2000.0, 5e-5, "held box height");
+}
+
+static void test_bad_input_leaves_world_unchanged(void) {
+    gcWorldDef wd = gc_default_world_def();
+    wd.max_bodies = 2;
+    gcWorld *w = NULL;
+    gc_world_create(&wd, &w);
+    double pts[24];
+    box_points(0.01, pts);
+    gcPartDef part = {pts, 8, 0.0};
+    gcBodyDef bd = gc_default_body_def();
+    int32_t id;
+    GC_CHECK(gc_world_add_body(w, &bd, &part, 1, &id) == GC_OK, "first body");
+    gc_world_step(w, 1e-3);
+    uint64_t before = gc_world_state_hash(w);
+
+    double flat[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0};
+    gcPartDef flat_part = {flat, 4, 0.0};
+    GC_CHECK(gc_world_add_body(w, &bd, &flat_part, 1, &id) == GC_ERR_DEGENERATE, "coplanar hull");
+    GC_CHECK(strncmp(gc_world_last_error(w), "points", 6) == 0, "error names points: %s", gc_world_last_error(w));
+    /* A compound whose second part is bad leaves no first part behind. */
+    gcPartDef parts[2] = {part, flat_part};
+    GC_CHECK(gc_world_add_body(w, &bd, parts, 2, &id) == GC_ERR_DEGENERATE, "bad compound");
+    bd.mass = -1.0;
+    GC_CHECK(gc_world_add_body(w, &bd, &part, 1, &id) == GC_ERR_INVALID_ARGUMENT, "negative mass");
+    GC_CHECK(strncmp(gc_world_last_error(w), "mass", 4) == 0, "error names mass");
+    bd.mass = 1.0;
+    double nan_hip[3] = {0.0, NAN, 0.0};
+    GC_CHECK(gc_world_set_hip(w, 0, nan_hip) == GC_ERR_UNKNOWN_ID, "no finger 0 yet");
+    int32_t f;
+    gcFingerDef fd = gc_default_finger_def();
+    gc_world_add_finger(w, &fd, &f);
+    before = gc_world_state_hash(w);
+    GC_CHECK(gc_world_set_hip(w, f, nan_hip) == GC_ERR_INVALID_ARGUMENT, "NaN HIP");
+    GC_CHECK(gc_world_step(w, -1.0) == GC_ERR_INVALID_ARGUMENT, "negative dt");
+    GC_CHECK(gc_world_body_count(w) == 1, "one body still");
+    GC_CHECK(gc_world_state_hash(w) == before, "state unchanged");
+    GC_CHECK(gc_world_add_body(w, &bd, &part, 1, &id) == GC_OK && id == 1, "second body after errors");
+    GC_CHECK(gc_world_add_body(w, &bd, &part, 1, &id) == GC_ERR_CAPACITY, "capacity");
+    gc_world_destroy(w);
+}
+
+static void test_shapes_and_compounds(void) {
+    gcWorldDef wd = gc_default_world_def();
+    wd.gravity[2] = 0.0;
+    gcWorld *w = NULL;
+    gc_world_create(&wd, &w);
+    double centre[3] = {0, 0, 0}, seg[6] = {-0.05, 0, 0, 0.05, 0, 0};
+    gcPartDef sphere = {centre, 1, 0.02}, capsule = {seg, 2, 0.01};
+    gcBodyDef bd = gc_default_body_def();
+    int32_t s, c, k;
+    GC_CHECK(gc_world_add_body(w, &bd, &sphere, 1, &s) == GC_OK, "sphere: %s", gc_world_last_error(w));
+    GC_CHECK(gc_world_add_body(w, &bd, &capsule, 1, &c) == GC_OK, "capsule: %s", gc_world_last_error(w));
+    double a[24], b[24];
+    box_points(0.01, a);
+    box_points(0.01, b);
+    for (int i = 0; i < 8; ++i) b[3 * i] += 0.04;
+    gcPartDef parts[2] = {{a, 8, 0.0}, {b, 8, 0.0}};
+    GC_CHECK(gc_world_add_body(w, &bd, parts, 2, &k) == GC_OK, "compound");
+    double m, com[3], I[9];
+    gc_world_body_mass(w, s, &m, com, I);
+    GC_CHECK_NEAR(I[0], 0.4 * 1.0 * 0.02 * 0.02, 1e-12, "solid sphere inertia");
+    gc_world_body_mass(w, k, &m, com, I);
+    GC_CHECK_NEAR(com[0], 0.02, 1e-12, "compound centroid halfway");
+    /* Two 2 cm cubes of 0.5 kg 4 cm apart: Izz = 2 (m a^2/6 + m d^2) with d = 2 cm. */
+    GC_CHECK_NEAR(I[8], 2 * (0.5 * 0.02 * 0.02 / 6 + 0.5 * 0.02 * 0.02), 1e-12, "compound parallel axis");
+    /* A point finger pressed into the sphere feels k * depth along the normal. */
+    int32_t f;
+    gcFingerDef fd = gc_default_finger_def();
+    fd.radius = 0.0;
+    fd.position[2] = 0.03;
+    gc_world_add_finger(w, &fd, &f);
+    bd.is_static = 1;
+    for (int i = 1; i <= 10; ++i) {
+        double hip[3] = {0, 0, 0.03 - 0.0115 * i / 10.0};
+        gc_world_set_hip(w, f, hip);
+        gc_world_step(w, 1e-3);
+    }
+    double force[3];
+    gc_world_finger_force(w, f, force);
+    GC_CHECK(force[2] > 0.0, "pushed out of the sphere");
+    gc_world_destroy(w);
+}
+
+int main(void) {
+    test_pinch_and_determinism();
+    test_bad_input_leaves_world_unchanged();
+    test_shapes_and_compounds();
+    return gc_test_summary("test_world");
+}
