@@ -110,9 +110,19 @@ def add_camera_and_light(bpy):
     cam_data.lens = 50
     cam = bpy.data.objects.new("Camera", cam_data)
     scene.collection.objects.link(cam)
-    cam.location = (0.28, -0.42, 0.22)
-    cam.rotation_euler = (math.radians(72), 0.0, math.radians(34))
+    cam.location = (0.30, -0.42, 0.26)
+    target = bpy.data.objects.new("Camera Target", None)
+    target.location = (0.0, 0.0, 0.075)
+    scene.collection.objects.link(target)
+    track = cam.constraints.new("TRACK_TO")
+    track.target = target
     scene.camera = cam
+    # A ground plane for context only (role None: the core has no body-body contacts yet).
+    ground = bpy.data.meshes.new("Ground")
+    g = 0.15
+    ground.from_pydata([(-g, -g, -0.08), (g, -g, -0.08), (g, g, -0.08), (-g, g, -0.08)], [],
+                       [(0, 1, 2, 3)])
+    scene.collection.objects.link(bpy.data.objects.new("Ground", ground))
     light = bpy.data.objects.new("Light", bpy.data.lights.new("Light", "SUN"))
     light.rotation_euler = (math.radians(40), math.radians(10), math.radians(30))
     scene.collection.objects.link(light)
@@ -135,8 +145,19 @@ def main(argv):
     ap.add_argument("--save", help="write the .blend here")
     ap.add_argument("--run", action="store_true", help="run a headless session after building")
     ap.add_argument("--render", help="run, then render the final frame (Workbench) to this PNG")
+    ap.add_argument("--duration", type=float, default=0.0,
+                    help="session length for --run/--render, s (0: the whole animation)")
+    ap.add_argument("--force-scale", type=float, default=0.02, help="force arrow length, m/N")
+    ap.add_argument("--zip", help="install the extension from this built zip (default: "
+                                  "$GRASP_LAB_ZIP, else a development repository of addon/)")
     args = ap.parse_args(argv)
+    import os
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))),
+                                    "tests", "blender"))
+    import grasp_env                 # isolates Blender's user resources, then loads the add-on
+    grasp_env.isolate()
     import bpy
+    grasp_env.enable(args.zip)
     bpy.ops.wm.read_homefile(use_empty=True)
     build(bpy)
     if args.render:
@@ -145,7 +166,8 @@ def main(argv):
         import os
         bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(args.save))
     if args.run or args.render:
-        bpy.ops.grasp_lab.session()
+        bpy.context.scene.grasp_lab.force_scale = args.force_scale
+        bpy.ops.grasp_lab.session(duration=args.duration)
     if args.render:
         import os
         scene = bpy.context.scene

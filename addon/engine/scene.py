@@ -88,6 +88,40 @@ class SceneDesc:
         raise KeyError(name)
 
 
+# Collision hulls are given to the core with at most this many points: the extreme
+# points of the part along as many evenly spread directions. The hull shrinks by at
+# most ~0.2 % of the part's size (0.15 mm on a 10 cm sphere, the worst case: every
+# vertex on the hull); mass properties always use the full mesh.
+HULL_MAX_POINTS = 1024
+
+
+def _sphere_directions(k: int) -> np.ndarray:
+    i = np.arange(k) + 0.5
+    phi = np.arccos(1.0 - 2.0 * i / k)
+    theta = np.pi * (1.0 + 5.0 ** 0.5) * i
+    return np.stack([np.cos(theta) * np.sin(phi), np.sin(theta) * np.sin(phi), np.cos(phi)], axis=1)
+
+
+def reduce_hull_points(points: np.ndarray, max_points: int = HULL_MAX_POINTS) -> np.ndarray:
+    """At most ``max_points`` of ``points`` (plus the 6 axis extremes) spanning nearly the
+    same convex hull: the extreme point along each of ``max_points`` directions."""
+    if len(points) <= max_points:
+        return points
+    centred = (points - points.mean(axis=0)).astype(np.float32)
+    dirs = np.vstack([np.eye(3), -np.eye(3), _sphere_directions(max_points - 6)]).astype(np.float32)
+    best_val = np.full(len(dirs), -np.inf, dtype=np.float32)
+    best_idx = np.zeros(len(dirs), dtype=np.int64)
+    chunk = 16384
+    for start in range(0, len(points), chunk):
+        proj = dirs @ centred[start:start + chunk].T          # (K, chunk)
+        j = np.argmax(proj, axis=1)
+        v = proj[np.arange(len(dirs)), j]
+        better = v > best_val
+        best_val[better] = v[better]
+        best_idx[better] = j[better] + start
+    return points[np.unique(best_idx)]
+
+
 # --------------------------------------------------------------------------- checks
 
 def _as_points(name: str, pts) -> np.ndarray:
@@ -196,7 +230,7 @@ def prepare(desc: SceneDesc) -> SceneDesc:
             p = _as_points(b.name, p)
             check_scale(b.name, p)
             check_hull_points(b.name, p)
-            parts.append(p)
+            parts.append(reduce_hull_points(p))
         b.parts = parts
         if not (0 <= b.mu_d <= b.mu_s):
             raise SceneError(b.name, f"friction must satisfy 0 <= mu_d <= mu_s (mu_s={b.mu_s}, mu_d={b.mu_d})")

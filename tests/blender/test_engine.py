@@ -190,3 +190,18 @@ def test_build_world_reports_core_rejection():
                           [], np.zeros(3), np.array([1.0, 0, 0, 0]))
     with pytest.raises(scene.SceneError, match='"Needle": rejected by the core'):
         scene.build_world(scene.SceneDesc(bodies=[body]), gc)
+
+
+def test_reduce_hull_points_keeps_the_hull():
+    import trimesh
+    s = trimesh.creation.icosphere(subdivisions=6, radius=0.05)     # 40962 vertices
+    p = np.array(s.vertices)
+    q = scene.reduce_hull_points(p, 1024)
+    assert len(q) <= 1024
+    assert set(map(tuple, q)) <= set(map(tuple, p))
+    # The reduced hull supports every direction within 0.2 % of the size.
+    d = scene._sphere_directions(4000)
+    gap = (p @ d.T).max(axis=0) - (q @ d.T).max(axis=0)
+    assert gap.max() < 2e-4          # 0.2 % of the 10 cm diameter
+    small = p[:100]
+    assert scene.reduce_hull_points(small) is small
