@@ -8,7 +8,8 @@
 #                      focused subset on bpy 4.2 (.venv-bpy42) and 5.0.1 (.venv-bpy50).
 
 .PHONY: extension extension-validate test-blender test-blender-45 test-blender-42 \
-        test-blender-50 venv-bpy42 venv-bpy50 clean-extension
+        test-blender-50 venv-bpy42 venv-bpy50 clean-extension sample-scenes blender-docs-image \
+        bench-blender
 
 EXT_VERSION := $(shell sed -n 's/^version *= *"\(.*\)"/\1/p' blender_manifest.toml | head -1)
 EXT_ZIP := dist/grasp_lab-$(EXT_VERSION)-linux_x64.zip
@@ -63,15 +64,26 @@ venv-bpy50: .venv-bpy50/.deps
 # Full set on 4.5 (dev venv, graspcore installed there too); on 4.2 / 5.0.1 the
 # extension is installed from the zip and a focused subset runs (-m multiversion).
 test-blender-45: $(EXT_ZIP)
-	GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) -m pytest -q tests/blender
+	GRASP_LAB_REQUIRE_CORE=1 GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) -m pytest -q tests/blender
 
 test-blender-42: $(EXT_ZIP) .venv-bpy42/.deps
-	GRASP_LAB_ZIP=$(EXT_ZIP) .venv-bpy42/bin/python -m pytest -q -m multiversion tests/blender
+	GRASP_LAB_REQUIRE_CORE=1 GRASP_LAB_ZIP=$(EXT_ZIP) .venv-bpy42/bin/python -m pytest -q -m multiversion tests/blender
 
 test-blender-50: $(EXT_ZIP) .venv-bpy50/.deps
-	GRASP_LAB_ZIP=$(EXT_ZIP) .venv-bpy50/bin/python -m pytest -q -m multiversion tests/blender
+	GRASP_LAB_REQUIRE_CORE=1 GRASP_LAB_ZIP=$(EXT_ZIP) .venv-bpy50/bin/python -m pytest -q -m multiversion tests/blender
 
 test-blender: test-blender-45 test-blender-42 test-blender-50
+
+# The sample scene as a .blend (built, not committed) and the docs render.
+sample-scenes: $(EXT_ZIP)
+	GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) sample_scenes/build_pinch_and_lift.py --save $(BUILD)/pinch_and_lift.blend
+
+blender-docs-image: $(EXT_ZIP)
+	GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) sample_scenes/build_pinch_and_lift.py --duration 1.584 \
+	  --force-scale 0.1 --render docs/images/pinch_and_lift.png
+
+bench-blender: $(EXT_ZIP)
+	GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) bench/bench_blender.py
 
 clean-extension:
 	rm -rf $(BUILD)/extension dist/grasp_lab-*.zip
