@@ -8,22 +8,50 @@
 /* Relative tolerances, multiplied by the size of the pair (sum of AABB diagonals). */
 #define GJK_REL_TOL 1e-10    /* distance accuracy; below this the cores are "touching" */
 #define EPA_REL_TOL 1e-9     /* penetration depth accuracy */
+/* Below this many vertices a linear scan beats hill climbing (measured with
+ * bench/bench_gjk.sh: branchy graph walks lose to a tight loop). */
+#ifndef GC_SUPPORT_BRUTE_MAX
+#define GC_SUPPORT_BRUTE_MAX 128
+#endif
 #define EPA_MAX_VERTICES (GC_EPA_MAX_ITERATIONS + 8)
 #define EPA_MAX_FACES (2 * EPA_MAX_VERTICES + 8)
 
 /* ------------------------------------------------------------------ support */
 
-static int support_index(const gcHull *h, gcVec3 d, int start) {
-    const gcVec3 *v = h->vertices;
-    if (!h->adjacency) {
+/* Brute-force argmax of dot(v[i], d), four independent lanes (no loop-carried
+ * compare chain); ties go to the lowest index, as in a plain loop. */
+static int argmax_dot(const gcVec3 *v, int n, gcVec3 d) {
+    if (n < 4) {
         int best = 0;
         double best_dot = gc_dot(v[0], d);
-        for (int i = 1; i < h->num_vertices; ++i) {
+        for (int i = 1; i < n; ++i) {
             double x = gc_dot(v[i], d);
             if (x > best_dot) { best_dot = x; best = i; }
         }
         return best;
     }
+    double m0 = gc_dot(v[0], d), m1 = gc_dot(v[1], d), m2 = gc_dot(v[2], d), m3 = gc_dot(v[3], d);
+    int i0 = 0, i1 = 1, i2 = 2, i3 = 3, i = 4;
+    for (; i + 3 < n; i += 4) {
+        double x0 = gc_dot(v[i], d), x1 = gc_dot(v[i + 1], d), x2 = gc_dot(v[i + 2], d), x3 = gc_dot(v[i + 3], d);
+        if (x0 > m0) { m0 = x0; i0 = i; }
+        if (x1 > m1) { m1 = x1; i1 = i + 1; }
+        if (x2 > m2) { m2 = x2; i2 = i + 2; }
+        if (x3 > m3) { m3 = x3; i3 = i + 3; }
+    }
+    for (; i < n; ++i) {
+        double x = gc_dot(v[i], d);
+        if (x > m0) { m0 = x; i0 = i; }
+    }
+    if (m1 > m0 || (m1 == m0 && i1 < i0)) { m0 = m1; i0 = i1; }
+    if (m2 > m0 || (m2 == m0 && i2 < i0)) { m0 = m2; i0 = i2; }
+    if (m3 > m0 || (m3 == m0 && i3 < i0)) { m0 = m3; i0 = i3; }
+    return i0;
+}
+
+static int support_index(const gcHull *h, gcVec3 d, int start) {
+    const gcVec3 *v = h->vertices;
+    if (!h->adjacency || h->num_vertices <= GC_SUPPORT_BRUTE_MAX) return argmax_dot(v, h->num_vertices, d);
     /* Steepest ascent over the vertex graph: on a convex polytope a vertex with no
      * better neighbour is a global maximum. Strict increase bounds the walk. */
     int cur = start, steps = 0;
@@ -316,42 +344,34 @@ typedef struct EpaFace {
     int v[3];    /* CCW from outside */
     int nb[3];   /* face across edge v[i] -> v[i+1] */
     gcVec3 n;
-    double d;    /* plane distance from the origin */
-    int alive, mark;
+    int mark;
 } EpaFace;
 
 typedef struct Polytope {
     SVert v[EPA_MAX_VERTICES];
     int nv;
     EpaFace f[EPA_MAX_FACES];
-    int nf;
+    double d[EPA_MAX_FACES];  /* plane distance from the origin; DBL_MAX for dead slots */
+    int nf;                   /* slots used so far */
+    int free_slot[EPA_MAX_FACES], num_free;
     int horizon_of[EPA_MAX_VERTICES];
 } Polytope;
 
-static int epa_face_plane(Polytope *P, EpaFace *f) {
-    gcVec3 a = P->v[f->v[0]].w, b = P->v[f->v[1]].w, c = P->v[f->v[2]].w;
-    gcVec3 n = gc_cross(gc_sub(b, a), gc_sub(c, a));
-    double len = gc_len(n);
-    if (!(len > 0.0)) return 0;
-    f->n = gc_scale(n, 1.0 / len);
-    f->d = (gc_dot(f->n, a) + gc_dot(f->n, b) + gc_dot(f->n, c)) / 3.0;
-    return 1;
-}
-
 static int epa_new_face(Polytope *P, int a, int b, int c) {
-    int slot = -1;
-    for (int i = 0; i < P->nf; ++i)
-        if (!P->f[i].alive) { slot = i; break; }
-    if (slot < 0) {
-        if (P->nf >= EPA_MAX_FACES) return -1;
-        slot = P->nf++;
-    }
+    gcVec3 pa = P->v[a].w, pb = P->v[b].w, pc = P->v[c].w;
+    gcVec3 n = gc_cross(gc_sub(pb, pa), gc_sub(pc, pa));
+    double len = gc_len(n);
+    if (!(len > 0.0)) return -1;
+    int slot;
+    if (P->num_free > 0) slot = P->free_slot[--P->num_free];
+    else if (P->nf < EPA_MAX_FACES) slot = P->nf++;
+    else return -1;
     EpaFace *f = &P->f[slot];
     f->v[0] = a; f->v[1] = b; f->v[2] = c;
     f->nb[0] = f->nb[1] = f->nb[2] = -1;
-    f->alive = 1;
     f->mark = -1;
-    if (!epa_face_plane(P, f)) { f->alive = 0; return -1; }
+    f->n = gc_scale(n, 1.0 / len);
+    P->d[slot] = (gc_dot(f->n, pa) + gc_dot(f->n, pb) + gc_dot(f->n, pc)) / 3.0;
     return slot;
 }
 
@@ -410,6 +430,7 @@ static int epa_init(Pair *q, const Simplex *s, Polytope *P, double tol) {
     if (vol > 0.0) { SVert t = p[1]; p[1] = p[2]; p[2] = t; }
     P->nv = 4;
     P->nf = 0;
+    P->num_free = 0;
     for (int i = 0; i < 4; ++i) {
         P->v[i] = p[i];
         P->horizon_of[i] = -1;
@@ -428,25 +449,26 @@ static int epa_init(Pair *q, const Simplex *s, Polytope *P, double tol) {
  * clean disc or capacity is exhausted (the polytope is then left unchanged). */
 static int epa_expand(Polytope *P, int f0, SVert w, int stamp, double tol_visible) {
     if (P->nv >= EPA_MAX_VERTICES) return 0;
-    int stack[EPA_MAX_FACES], top = 0;
+    int visible[EPA_MAX_FACES], num_visible = 0;
+    int ha[EPA_MAX_FACES], hb[EPA_MAX_FACES], hout[EPA_MAX_FACES], hnew[EPA_MAX_FACES];
+    int nh = 0, ok = 1;
+    /* Flood the visible region from f0 (keeps it connected); horizon edges are
+     * the visible faces' edges towards non-visible neighbours. */
     P->f[f0].mark = stamp;
-    stack[top++] = f0;
-    while (top > 0) {
-        int fi = stack[--top];
+    visible[num_visible++] = f0;
+    for (int k = 0; k < num_visible; ++k) {
+        EpaFace *f = &P->f[visible[k]];
         for (int e = 0; e < 3; ++e) {
-            int g = P->f[fi].nb[e];
+            int g = f->nb[e];
             if (P->f[g].mark == stamp) continue;
-            if (gc_dot(P->f[g].n, w.w) - P->f[g].d > tol_visible) {
+            if (gc_dot(P->f[g].n, w.w) - P->d[g] > tol_visible) {
                 P->f[g].mark = stamp;
-                stack[top++] = g;
+                visible[num_visible++] = g;
             }
         }
     }
-    int ha[EPA_MAX_FACES], hb[EPA_MAX_FACES], hout[EPA_MAX_FACES], hnew[EPA_MAX_FACES];
-    int nh = 0, ok = 1;
-    for (int fi = 0; fi < P->nf && ok; ++fi) {
-        EpaFace *f = &P->f[fi];
-        if (!f->alive || f->mark != stamp) continue;
+    for (int k = 0; k < num_visible && ok; ++k) {
+        EpaFace *f = &P->f[visible[k]];
         for (int e = 0; e < 3; ++e) {
             int g = f->nb[e];
             if (P->f[g].mark == stamp) continue;
@@ -470,27 +492,22 @@ static int epa_expand(Polytope *P, int f0, SVert w, int stamp, double tol_visibl
         } while (h > 0 && steps <= nh);
         ok = nh >= 3 && h == 0 && steps == nh;
     }
-    /* New faces reuse dead slots: count that there is room before touching anything. */
-    int free_slots = EPA_MAX_FACES - P->nf;
-    for (int fi = 0; fi < P->nf; ++fi)
-        if (!P->f[fi].alive || P->f[fi].mark == stamp) ++free_slots;
-    if (free_slots < nh) ok = 0;
-    if (ok) {
-        /* New faces must be non-degenerate. */
-        for (int h = 0; h < nh && ok; ++h) {
-            gcVec3 a = P->v[ha[h]].w, b = P->v[hb[h]].w;
-            if (!(gc_len2(gc_cross(gc_sub(b, a), gc_sub(w.w, a))) > 0.0)) ok = 0;
-        }
+    /* Room for the new faces (the visible ones are recycled), non-degenerate ones. */
+    if (P->num_free + (EPA_MAX_FACES - P->nf) + num_visible < nh) ok = 0;
+    for (int h = 0; h < nh && ok; ++h) {
+        gcVec3 a = P->v[ha[h]].w, b = P->v[hb[h]].w;
+        if (!(gc_len2(gc_cross(gc_sub(b, a), gc_sub(w.w, a))) > 0.0)) ok = 0;
     }
     if (!ok) {
         for (int h = 0; h < nh; ++h)
             if (P->horizon_of[ha[h]] == h) P->horizon_of[ha[h]] = -1;
-        for (int fi = 0; fi < P->nf; ++fi)
-            if (P->f[fi].mark == stamp) P->f[fi].mark = -1;
+        for (int k = 0; k < num_visible; ++k) P->f[visible[k]].mark = -1;
         return 0;
     }
-    for (int fi = 0; fi < P->nf; ++fi)
-        if (P->f[fi].alive && P->f[fi].mark == stamp) P->f[fi].alive = 0;
+    for (int k = 0; k < num_visible; ++k) {
+        P->d[visible[k]] = DBL_MAX;
+        P->free_slot[P->num_free++] = visible[k];
+    }
     int wi = P->nv++;
     P->v[wi] = w;
     P->horizon_of[wi] = -1;
@@ -537,7 +554,7 @@ static void epa(Pair *q, const Simplex *s, double tol, EpaResult *r) {
         face = -1;
         double dmin = DBL_MAX;
         for (int i = 0; i < P.nf; ++i)
-            if (P.f[i].alive && P.f[i].d < dmin) { dmin = P.f[i].d; face = i; }
+            if (P.d[i] < dmin) { dmin = P.d[i]; face = i; }
         if (face < 0) break;
         gcVec3 n = P.f[face].n;
         SVert w = pair_support(q, n);
@@ -555,7 +572,7 @@ static void epa(Pair *q, const Simplex *s, double tol, EpaResult *r) {
         t.n = 3;
         solve3(&t);
         simplex_witness(&t, &r->pa, &r->pb);
-        r->depth = f->d;
+        r->depth = P.d[face];
         r->normal = f->n;
         r->ok = 1;
         return;
