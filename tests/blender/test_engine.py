@@ -213,3 +213,35 @@ def test_reduce_hull_points_keeps_the_hull():
     assert gap.max() < 2e-4          # 0.2 % of the 10 cm diameter
     small = p[:100]
     assert scene.reduce_hull_points(small) is small
+
+
+def test_runtime_driver_plug_in_point():
+    class RuntimeWorld(FakeWorld):
+        def __init__(self):
+            super().__init__()
+            self.pushed = []
+
+        def start(self, haptic_rate):
+            self.rate = haptic_rate
+
+        def push_hips(self, hips, t):
+            self.pushed.append((t, np.array(hips)))
+
+        def stop(self):
+            self.stopped = True
+
+    w = RuntimeWorld()
+    src = inputs.CallableInput(2, lambda t: [[t, 0, 0], [0, 0, t]])
+    r = runner.SessionRunner(_handle(w), src, haptic_rate=2000.0, use_runtime=True)
+    r.advance_to(0.5)
+    assert r.threaded and w.rate == pytest.approx(2000.0)
+    assert w.pushed[-1][0] == 0.5 and w.dts == []          # the runtime steps, not us
+    r.stop()
+    assert w.stopped
+
+    class BadRuntime(FakeWorld):
+        def start(self):                                   # unexpected signature
+            pass
+
+    r = runner.SessionRunner(_handle(BadRuntime()), src, use_runtime=True)
+    assert r.advance_to(0.01) == 10 and not r.threaded and r.runtime_error
