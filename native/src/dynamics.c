@@ -90,7 +90,6 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
     gcVec3 L = gc_mat3_mul_vec(&Iw, b->w);
     gcVec3 force = gc_scale(w->gravity, b->mass);
     gcVec3 torque = gc_v3(0, 0, 0);
-    gcVec3 residual_force = force, residual_torque = gc_v3(0, 0, 0);
     double C[6][6]; /* finger coupling: sum (k dt^2 + c dt) J^T J */
     memset(C, 0, sizeof C);
 
@@ -106,11 +105,6 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
             gcVec3 go = gc_add(gc_mat3_mul_vec(&b->R, c->go_local), origin);
             gcVec3 r = gc_sub(go, b->com);
             gcVec3 spring = gc_scale(gc_sub(f->hip, go), f->stiffness);
-            /* Reported wrench: spring plus damping at the current velocity. */
-            gcVec3 v_point = gc_add(b->v, gc_cross(b->w, r));
-            gcVec3 reaction = gc_madd(spring, gc_sub(f->hip_velocity, v_point), f->damping);
-            residual_force = gc_add(residual_force, reaction);
-            residual_torque = gc_add(residual_torque, gc_cross(r, reaction));
             /* Implicit part: the velocity-dependent terms move into the matrix. */
             gcVec3 explicit_part = gc_madd(spring, f->hip_velocity, f->damping);
             force = gc_add(force, explicit_part);
@@ -118,8 +112,8 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
             add_point_coupling(C, r, f->stiffness * dt * dt + f->damping * dt);
         }
     }
-    b->residual_force = residual_force;
-    b->residual_torque = residual_torque;
+    b->step_start_momentum = gc_scale(b->v, b->mass);
+    b->step_start_angular_momentum = L;
 
     double rhs[6], x[6];
     gcVec3 p = gc_scale(b->v, b->mass);
@@ -202,5 +196,13 @@ void gc_dynamics_positions(gcWorld *w, double dt) {
         b->com = gc_madd(b->com, b->v, dt);
         b->q = gc_quat_normalize(gc_quat_mul(quat_from_rotation_vector(gc_scale(b->w, dt)), b->q));
         gc_body_refresh_derived(w, i);
+        /* The residual wrench is what the step actually applied (gravity, the implicit
+         * finger springs at their end-of-step stretch, contacts): the rate of change of
+         * momentum. Evaluating the springs at the start of the step instead would be off
+         * by k dt v for a body carried at speed v. */
+        gcMat3 Iw = world_inertia(&b->R, &b->inertia_local);
+        gcVec3 L = gc_mat3_mul_vec(&Iw, b->w);
+        b->residual_force = gc_scale(gc_sub(gc_scale(b->v, b->mass), b->step_start_momentum), 1.0 / dt);
+        b->residual_torque = gc_scale(gc_sub(L, b->step_start_angular_momentum), 1.0 / dt);
     }
 }

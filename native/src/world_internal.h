@@ -34,6 +34,8 @@ typedef struct gcBody {
      * finger coupling) used for this step's velocity; contact impulses go through it. */
     double effective_mass_factor[6][6];
     int effective_mass_valid;
+    /* Momentum at the start of the step: the residual wrench is its rate of change. */
+    gcVec3 step_start_momentum, step_start_angular_momentum;
 } gcBody;
 
 /* Contact between one finger and one part. The god-object (GO) and the contact plane

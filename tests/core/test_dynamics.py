@@ -105,8 +105,8 @@ def test_angular_response_is_r_cross_f_over_j():
     force, torque = w.residual_wrench(b)
     F = np.array([0, 0, -k * 0.001])
     r = np.array([0.03, 0.0, 0.02])
-    np.testing.assert_allclose(force, F, rtol=1e-9, atol=1e-12)
-    np.testing.assert_allclose(torque, np.cross(r, F), rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(force, F, rtol=1e-4, atol=1e-6)
+    np.testing.assert_allclose(torque, np.cross(r, F), rtol=1e-4, atol=1e-8)  # implicit spring: k dt v off
     _, _, inertia = w.body_mass(b)
     expected_omega = np.linalg.solve(np.array(inertia), np.cross(r, F)) * DT
     np.testing.assert_allclose(w.body_velocity(b)[1], expected_omega, rtol=2e-3, atol=1e-12)
@@ -237,3 +237,16 @@ def test_velocity_is_set_and_read_at_the_body_origin():
     lin, ang = w.body_velocity(b)
     np.testing.assert_allclose(lin, (0.1, 0.2, 0.3), atol=1e-15)
     np.testing.assert_allclose(ang, (1.0, 0, 0))
+
+
+def test_residual_wrench_vanishes_for_a_box_carried_at_constant_speed():
+    w, b, (f1, f2), x = pinch_world(depth=0.003)
+    w.step(DT, steps=1000)
+    for i in range(2000):
+        lift = 0.1 * i * DT  # 10 cm/s
+        w.set_hip(f1, (-x, 0, lift))
+        w.set_hip(f2, (x, 0, lift))
+        w.step(DT)
+    force, torque = w.residual_wrench(b)
+    assert np.linalg.norm(force) < 1e-3  # was k dt v = 0.2 N when springs were read at step start
+    assert w.body_velocity(b)[0][2] == pytest.approx(0.1, rel=1e-3)
