@@ -124,12 +124,13 @@ static PyType_Spec View_spec = {"graspcore._core.View", sizeof(ViewObject), 0, P
 
 static int World_init(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
-    static char *kwlist[] = {"gravity", "gyroscopic", "max_bodies", "max_fingers", "max_parts", NULL};
+    static char *kwlist[] = {"gravity", "gyroscopic", "max_bodies", "max_fingers", "max_parts",
+                             "threads", "max_contacts", NULL}; /* threads, max_contacts: contacts.c */
     gcWorldDef def = gc_default_world_def();
     PyObject *gravity = NULL;
     int gyroscopic = 1;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|Opiii", kwlist, &gravity, &gyroscopic, &def.max_bodies,
-                                     &def.max_fingers, &def.max_parts))
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|Opiiiii", kwlist, &gravity, &gyroscopic, &def.max_bodies,
+                                     &def.max_fingers, &def.max_parts, &def.threads, &def.max_contacts))
         return -1;
     if (gravity && !parse_vec(gravity, 3, "gravity", def.gravity)) return -1;
     def.gyroscopic = gyroscopic;
@@ -144,7 +145,8 @@ static int World_init(PyObject *obj, PyObject *args, PyObject *kwargs) {
     }
     if (st != GC_OK) {
         PyErr_SetString(PyExc_ValueError,
-                        "gravity/max_bodies/max_fingers/max_parts: gravity must be finite and capacities >= 1");
+                        "gravity/max_bodies/max_fingers/max_parts/threads/max_contacts: gravity must be finite, "
+                        "capacities >= 1 and threads in 1..64");
         return -1;
     }
     return 0;
@@ -467,6 +469,58 @@ static PyObject *World_state_hash(PyObject *obj, PyObject *unused) {
     return PyLong_FromUnsignedLongLong(gc_world_state_hash(self->world));
 }
 
+/* ---- Body-body contacts and collision chains (contacts.c, islands.c) ---------------- */
+
+/* contacts() -> list of dicts, one per contact point of the last step. */
+static PyObject *World_contacts(PyObject *obj, PyObject *unused) {
+    WorldObject *self = (WorldObject *)obj;
+    if (!check_ready(self)) return NULL;
+    int n = gc_world_contacts(self->world, NULL, 0);
+    gcContactPoint *pts = PyMem_Malloc(sizeof(gcContactPoint) * (size_t)(n > 0 ? n : 1));
+    if (!pts) return PyErr_NoMemory();
+    n = gc_world_contacts(self->world, pts, n);
+    PyObject *list = PyList_New(n);
+    for (int i = 0; list && i < n; ++i) {
+        const gcContactPoint *p = &pts[i];
+        PyObject *item = Py_BuildValue(
+            "{s:i,s:i,s:(ddd),s:(ddd),s:d,s:d,s:(ddd),s:O}", "body_a", (int)p->body_a, "body_b", (int)p->body_b,
+            "point", p->point[0], p->point[1], p->point[2], "normal", p->normal[0], p->normal[1], p->normal[2],
+            "separation", p->separation, "normal_impulse", p->normal_impulse, "friction_impulse",
+            p->friction_impulse[0], p->friction_impulse[1], p->friction_impulse[2], "sticking",
+            p->sticking ? Py_True : Py_False);
+        if (!item) {
+            Py_CLEAR(list);
+            break;
+        }
+        PyList_SetItem(list, i, item);
+    }
+    PyMem_Free(pts);
+    return list;
+}
+
+static PyObject *World_chain_count(PyObject *obj, PyObject *unused) {
+    WorldObject *self = (WorldObject *)obj;
+    if (!check_ready(self)) return NULL;
+    return PyLong_FromLong(gc_world_chain_count(self->world));
+}
+
+static PyObject *World_body_chain(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int body;
+    if (!PyArg_ParseTuple(args, "i", &body) || !check_ready(self)) return NULL;
+    int32_t chain;
+    gcStatus st = gc_world_body_chain(self->world, body, &chain);
+    if (st != GC_OK) return raise_status(self, st);
+    if (chain < 0) Py_RETURN_NONE;
+    return PyLong_FromLong(chain);
+}
+
+static PyObject *World_contact_overflow(PyObject *obj, PyObject *unused) {
+    WorldObject *self = (WorldObject *)obj;
+    if (!check_ready(self)) return NULL;
+    return PyLong_FromLongLong((long long)gc_world_contact_overflow(self->world));
+}
+
 static PyObject *World_get_time(PyObject *obj, void *closure) {
     WorldObject *self = (WorldObject *)obj;
     if (!check_ready(self)) return NULL;
@@ -509,6 +563,14 @@ static PyMethodDef World_methods[] = {
     {"finger_contact", World_finger_contact, METH_VARARGS, "finger_contact(finger) -> body id or None"},
     {"_view", World_view, METH_O, "Zero-copy buffer view of world arrays."},
     {"state_hash", World_state_hash, METH_NOARGS, "64-bit hash of the full dynamic state."},
+    {"contacts", World_contacts, METH_NOARGS,
+     "contacts() -> list of dicts (body_a, body_b, point, normal, separation, normal_impulse, "
+     "friction_impulse, sticking), one per body-body contact point of the last step."},
+    {"chain_count", World_chain_count, METH_NOARGS, "chain_count() -> number of collision chains, last step"},
+    {"body_chain", World_body_chain, METH_VARARGS,
+     "body_chain(body) -> index of the body's collision chain (last step), None for a static body"},
+    {"contact_overflow", World_contact_overflow, METH_NOARGS,
+     "contact_overflow() -> contact pairs dropped since creation for want of max_contacts"},
     {NULL, NULL, 0, NULL},
 };
 

@@ -38,6 +38,10 @@ typedef struct gcWorldDef {
     int max_bodies;         /* capacity, default 256 */
     int max_fingers;        /* capacity, default 32 */
     int max_parts;          /* convex parts over all bodies, default 4096 */
+    /* Body-body contacts (docs/solver.md). */
+    int threads;            /* threads solving collision chains, the caller included; default 1 (0 = 1) */
+    int max_contacts;       /* contact manifolds (convex part pairs), default 2048 (0 = default);
+                             * pairs beyond it are dropped and counted (gc_world_contact_overflow) */
 } gcWorldDef;
 gcWorldDef gc_default_world_def(void);
 
@@ -120,6 +124,29 @@ const double *gc_world_body_pose_array(const gcWorld *world);
 const double *gc_world_god_object_array(const gcWorld *world);
 const double *gc_world_finger_force_array(const gcWorld *world);
 const double *gc_world_hip_array(const gcWorld *world);
+
+/* Body-body contacts (docs/solver.md). Friction between two bodies combines their
+ * coefficients by the geometric mean: mu_s = sqrt(mu_s_a mu_s_b), mu_d = sqrt(mu_d_a mu_d_b).
+ * One entry per contact point of the last step, in a fixed order. */
+typedef struct gcContactPoint {
+    int32_t body_a, body_b;     /* body_a < body_b */
+    double point[3];            /* world, midway between the two surfaces */
+    double normal[3];           /* unit, from body_a towards body_b */
+    double separation;          /* m, negative when penetrating (speculative points are > 0) */
+    double normal_impulse;      /* N s over the last step (force = impulse / dt) */
+    double friction_impulse[3]; /* N s, world */
+    int sticking;               /* 1: static friction holds (anchored), 0: sliding */
+} gcContactPoint;
+int gc_world_contact_count(const gcWorld *world);
+/* Copies up to capacity points; returns how many exist (may exceed capacity). */
+int gc_world_contacts(const gcWorld *world, gcContactPoint *out, int capacity);
+/* Contact pairs dropped since creation because max_contacts was exhausted. */
+int64_t gc_world_contact_overflow(const gcWorld *world);
+/* Collision chains of the last step: dynamic bodies linked by contacts (a static body never
+ * joins two chains; fingers do not link chains). A dynamic body without contacts is a chain
+ * of its own. Chains are numbered 0..count-1 by their lowest body id; static bodies get -1. */
+int gc_world_chain_count(const gcWorld *world);
+gcStatus gc_world_body_chain(const gcWorld *world, int32_t body, int32_t *chain);
 
 /* 64-bit hash of the full dynamic state (bit-exact), for determinism checks. */
 uint64_t gc_world_state_hash(const gcWorld *world);

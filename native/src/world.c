@@ -39,6 +39,8 @@ gcWorldDef gc_default_world_def(void) {
     def.max_bodies = 256;
     def.max_fingers = 32;
     def.max_parts = 4096;
+    def.threads = 1;         /* contacts.c */
+    def.max_contacts = 2048; /* contacts.c */
     return def;
 }
 
@@ -89,12 +91,18 @@ gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world) {
         gc_world_destroy(w);
         return GC_ERR_NO_MEMORY;
     }
+    gcStatus contacts_status = gc_contacts_create(w); /* contact storage and thread pool */
+    if (contacts_status != GC_OK) {
+        gc_world_destroy(w);
+        return contacts_status;
+    }
     *out_world = w;
     return GC_OK;
 }
 
 void gc_world_destroy(gcWorld *w) {
     if (!w) return;
+    gc_contacts_destroy(w); /* joins the contact thread pool */
     for (int i = 0; i < w->num_parts; ++i) gc_hull_free(&w->parts[i].hull);
     free(w->bodies);
     free(w->fingers);
@@ -462,6 +470,7 @@ gcStatus gc_world_step(gcWorld *w, double dt) {
     }
     gc_xfca_update(w, dt);
     gc_dynamics_velocities(w, dt);
+    gc_contacts_step(w, dt); /* body-body contacts: chains solved through the effective masses */
     gc_dynamics_positions(w, dt);
     for (int i = 0; i < w->num_fingers; ++i) w->fingers[i].hip_prev = w->fingers[i].hip;
     w->time += dt;

@@ -78,6 +78,8 @@ struct gcWorld {
     double *force_array;            /* 3 per finger */
     double *hip_array;              /* 3 per finger */
     char last_error[256];
+    /* Contacts, chains and their worker pool (contacts.c, islands.c, threadpool.c). */
+    struct gcContactSystem *contacts;
 };
 
 void gc_world_set_error(const gcWorld *world, const char *fmt, ...);
@@ -94,5 +96,17 @@ void gc_body_apply_impulse(gcWorld *world, int32_t body, gcVec3 point, gcVec3 im
 /* twist = (effective mass)^-1 wrench, both (linear, angular) world frame; zero for static. */
 void gc_body_solve_effective_mass(const gcBody *body, const double wrench[6], double twist[6]);
 void gc_body_refresh_derived(gcWorld *world, int32_t body);
+
+/* contacts.c: body-body contacts, collision chains, the contact solver (docs/solver.md).
+ * Storage and the thread pool are made once at world creation (sizes from gcWorldDef). */
+gcStatus gc_contacts_create(gcWorld *world);
+void gc_contacts_destroy(gcWorld *world);
+/* Between gc_dynamics_velocities and gc_dynamics_positions: detect, build chains, solve
+ * every chain (in parallel). Changes body velocities, and poses for the position correction. */
+void gc_contacts_step(gcWorld *world, double dt);
+/* Its two halves, for a caller that solves some chains itself (gc_contacts_solve_chain
+ * in contacts.h solves one). */
+void gc_contacts_detect(gcWorld *world);
+void gc_contacts_solve(gcWorld *world, double dt);
 
 #endif

@@ -47,8 +47,10 @@ class World(_core.World):
     """A grasp world.
 
     ``World(gravity=(0, 0, -9.81), gyroscopic=True, max_bodies=256, max_fingers=32,
-    max_parts=4096)``. Capacities are fixed at creation so that the numpy views
-    (``body_poses``, ``god_objects``, ``finger_forces``, ``hips``) never dangle.
+    max_parts=4096, threads=1, max_contacts=2048)``. Capacities are fixed at creation so
+    that the numpy views (``body_poses``, ``god_objects``, ``finger_forces``, ``hips``)
+    never dangle. ``threads``: threads solving collision chains (results do not depend on
+    it); ``max_contacts``: body-body contact manifolds (docs/solver.md).
     """
 
     def add_body(
