@@ -4,6 +4,9 @@
 
 #include <float.h>
 #include <string.h>
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 /* Relative tolerances, multiplied by the size of the pair (sum of AABB diagonals). */
 #define GJK_REL_TOL 1e-10    /* distance accuracy; below this the cores are "touching" */
@@ -18,40 +21,80 @@
 
 /* ------------------------------------------------------------------ support */
 
-/* Brute-force argmax of dot(v[i], d), four independent lanes (no loop-carried
- * compare chain); ties go to the lowest index, as in a plain loop. */
+/* Brute-force argmax of dot(v[i], d) over the array-of-structs vertices (hulls not
+ * made by gc_hull_build); ties go to the lowest index. */
 static int argmax_dot(const gcVec3 *v, int n, gcVec3 d) {
-    if (n < 4) {
-        int best = 0;
-        double best_dot = gc_dot(v[0], d);
-        for (int i = 1; i < n; ++i) {
-            double x = gc_dot(v[i], d);
-            if (x > best_dot) { best_dot = x; best = i; }
-        }
-        return best;
-    }
-    double m0 = gc_dot(v[0], d), m1 = gc_dot(v[1], d), m2 = gc_dot(v[2], d), m3 = gc_dot(v[3], d);
-    int i0 = 0, i1 = 1, i2 = 2, i3 = 3, i = 4;
-    for (; i + 3 < n; i += 4) {
-        double x0 = gc_dot(v[i], d), x1 = gc_dot(v[i + 1], d), x2 = gc_dot(v[i + 2], d), x3 = gc_dot(v[i + 3], d);
-        if (x0 > m0) { m0 = x0; i0 = i; }
-        if (x1 > m1) { m1 = x1; i1 = i + 1; }
-        if (x2 > m2) { m2 = x2; i2 = i + 2; }
-        if (x3 > m3) { m3 = x3; i3 = i + 3; }
-    }
-    for (; i < n; ++i) {
+    int best = 0;
+    double best_dot = gc_dot(v[0], d);
+    for (int i = 1; i < n; ++i) {
         double x = gc_dot(v[i], d);
-        if (x > m0) { m0 = x; i0 = i; }
+        if (x > best_dot) { best_dot = x; best = i; }
     }
-    if (m1 > m0 || (m1 == m0 && i1 < i0)) { m0 = m1; i0 = i1; }
-    if (m2 > m0 || (m2 == m0 && i2 < i0)) { m0 = m2; i0 = i2; }
-    if (m3 > m0 || (m3 == m0 && i3 < i0)) { m0 = m3; i0 = i3; }
-    return i0;
+    return best;
 }
+
+/* The same argmax over the structure-of-arrays copy (np a multiple of 4, padding =
+ * vertex 0). Two passes per chunk: the dot products (computed exactly as gc_dot:
+ * (x dx + y dy) + z dz, no contraction) are stored while a branch-free running
+ * maximum is kept, then the first index holding that maximum is returned, so ties
+ * go to the lowest index as in argmax_dot and the answers are bit-identical.
+ * SSE2 (baseline x86-64) when available, plain C otherwise. */
+#define GC_SOA_CHUNK 256
+#if defined(__SSE2__)
+static int argmax_soa(const double *X, const double *Y, const double *Z, int np, gcVec3 d) {
+    __m128d dx = _mm_set1_pd(d.x), dy = _mm_set1_pd(d.y), dz = _mm_set1_pd(d.z);
+    _Alignas(16) double buf[GC_SOA_CHUNK];
+    int best = 0;
+    double best_dot = 0.0;
+    for (int base = 0; base < np; base += GC_SOA_CHUNK) {
+        int m = np - base < GC_SOA_CHUNK ? np - base : GC_SOA_CHUNK;
+        const double *x = X + base, *y = Y + base, *z = Z + base;
+        __m128d m0 = _mm_set1_pd(-DBL_MAX), m1 = m0;
+        for (int i = 0; i < m; i += 4) {
+            __m128d a0 = _mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_load_pd(x + i), dx), _mm_mul_pd(_mm_load_pd(y + i), dy)),
+                                    _mm_mul_pd(_mm_load_pd(z + i), dz));
+            __m128d a1 = _mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_load_pd(x + i + 2), dx), _mm_mul_pd(_mm_load_pd(y + i + 2), dy)),
+                                    _mm_mul_pd(_mm_load_pd(z + i + 2), dz));
+            _mm_store_pd(buf + i, a0);
+            _mm_store_pd(buf + i + 2, a1);
+            m0 = _mm_max_pd(a0, m0);
+            m1 = _mm_max_pd(a1, m1);
+        }
+        m0 = _mm_max_pd(m0, m1);
+        m0 = _mm_max_pd(m0, _mm_unpackhi_pd(m0, m0));
+        double chunk_max = _mm_cvtsd_f64(m0);
+        if (base > 0 && !(chunk_max > best_dot)) continue;
+        m0 = _mm_unpacklo_pd(m0, m0);
+        int found = -1;
+        for (int i = 0; i < m; i += 4) {
+            int mask = _mm_movemask_pd(_mm_cmpeq_pd(_mm_load_pd(buf + i), m0)) |
+                       (_mm_movemask_pd(_mm_cmpeq_pd(_mm_load_pd(buf + i + 2), m0)) << 2);
+            if (mask) { found = i + (mask & 1 ? 0 : mask & 2 ? 1 : mask & 4 ? 2 : 3); break; }
+        }
+        if (found < 0) return base == 0 ? 0 : best; /* NaN direction: any vertex */
+        best = base + found;
+        best_dot = chunk_max;
+    }
+    return best;
+}
+#else
+static int argmax_soa(const double *X, const double *Y, const double *Z, int np, gcVec3 d) {
+    int best = 0;
+    double best_dot = X[0] * d.x + Y[0] * d.y + Z[0] * d.z;
+    for (int i = 1; i < np; ++i) {
+        double x = X[i] * d.x + Y[i] * d.y + Z[i] * d.z;
+        if (x > best_dot) { best_dot = x; best = i; }
+    }
+    return best;
+}
+#endif
 
 static int support_index(const gcHull *h, gcVec3 d, int start) {
     const gcVec3 *v = h->vertices;
-    if (!h->adjacency || h->num_vertices <= GC_SUPPORT_BRUTE_MAX) return argmax_dot(v, h->num_vertices, d);
+    if (!h->adjacency || h->num_vertices <= GC_SUPPORT_BRUTE_MAX) {
+        if (h->soa_x) return argmax_soa(h->soa_x, h->soa_y, h->soa_z, h->num_padded, d);
+        return argmax_dot(v, h->num_vertices, d);
+    }
     /* Steepest ascent over the vertex graph: on a convex polytope a vertex with no
      * better neighbour is a global maximum. Strict increase bounds the walk. */
     int cur = start, steps = 0;
@@ -296,9 +339,13 @@ typedef struct GjkResult {
     int overlap;       /* cores intersect or touch within tolerance */
     int iterations;
     int capped;
+    int separated;     /* stopped early on a separating axis (sep_margin >= 0 only) */
+    SVert sep_w;       /* the support point that proved it: dot(v, w) > sep_margin |v| */
 } GjkResult;
 
-static void gjk(Pair *q, Simplex *s, double tol, GjkResult *r) {
+/* sep_margin < 0: run to convergence (distance query). sep_margin >= 0: also stop as
+ * soon as a support point w along -v proves dist >= dot(v, w)/|v| > sep_margin. */
+static void gjk(Pair *q, Simplex *s, double tol, double sep_margin, GjkResult *r) {
     gcVec3 ca = gc_scale(gc_add(q->a->aabb_min, q->a->aabb_max), 0.5);
     gcVec3 cb = gc_add(gc_mat3_mul_vec(&q->R, gc_scale(gc_add(q->b->aabb_min, q->b->aabb_max), 0.5)), q->p);
     gcVec3 d = gc_sub(cb, ca);
@@ -310,14 +357,22 @@ static void gjk(Pair *q, Simplex *s, double tol, GjkResult *r) {
     gcVec3 v = s->v[0].w;
     r->overlap = 0;
     r->capped = 1;
+    r->separated = 0;
     int it = 0;
     while (it < GC_GJK_MAX_ITERATIONS) {
         ++it;
         double vv = gc_dot(v, v);
         if (vv <= tol * tol) { r->overlap = 1; r->capped = 0; break; }
         SVert w = pair_support(q, gc_neg(v));
+        double vw = gc_dot(v, w.w);
+        if (sep_margin >= 0.0 && vw > 0.0 && vw * vw > sep_margin * sep_margin * vv) {
+            r->separated = 1;
+            r->sep_w = w;
+            r->capped = 0;
+            break;
+        }
         /* |v| - dist <= (v.v - v.w)/|v|: stop when that gap is within tolerance. */
-        double gap = vv - gc_dot(v, w.w);
+        double gap = vv - vw;
         if (gap <= tol * sqrt(vv)) { r->capped = 0; break; }
         int duplicate = 0;
         for (int i = 0; i < s->n; ++i)
@@ -699,7 +754,7 @@ gcStatus gc_gjk_distance(const gcHull *a, const gcTransform *ta, const gcHull *b
     GjkResult r;
     pair_init(&q, a, ta, b, tb);
     double tol = GJK_REL_TOL * (hull_size(a) + hull_size(b)) + 4.0 * DBL_EPSILON * gc_len(q.p);
-    gjk(&q, &s, tol, &r);
+    gjk(&q, &s, tol, -1.0, &r);
     gcVec3 pa, pb;
     simplex_witness(&s, &pa, &pb);
     if (r.overlap) pb = pa;
@@ -724,7 +779,7 @@ static int core_closest_point(const gcHull *h, gcVec3 p, gcVec3 *closest) {
     q.ia = q.ib = 0;
     Simplex s;
     GjkResult r;
-    gjk(&q, &s, GJK_REL_TOL * hull_size(h) + 4.0 * DBL_EPSILON * gc_len(p), &r);
+    gjk(&q, &s, GJK_REL_TOL * hull_size(h) + 4.0 * DBL_EPSILON * gc_len(p), -1.0, &r);
     gcVec3 pb;
     simplex_witness(&s, closest, &pb);
     return r.capped;
@@ -799,26 +854,32 @@ static gcStatus collide_sphere(const gcHull *sphere, const gcTransform *ts, cons
     return st;
 }
 
-gcStatus gc_collide(const gcHull *a, const gcTransform *ta, const gcHull *b,
-                    const gcTransform *tb, gcContact *out) {
-    if (!out || !hull_ok(a) || !hull_ok(b) || !ta || !tb || !transform_ok(ta) || !transform_ok(tb))
-        return GC_ERR_INVALID_ARGUMENT;
-    if (a->num_vertices <= 2 && b->num_vertices <= 2) return collide_rounded(a, ta, b, tb, out);
-    if (a->num_vertices == 1) return collide_sphere(a, ta, b, tb, 0, out);
-    if (b->num_vertices == 1) return collide_sphere(b, tb, a, ta, 1, out);
-
+/* Hull pairs (neither is a sphere; not both rounded segments). early: stop GJK on
+ * the first separating axis (gc_penetration); *separated is then set when it did. */
+static gcStatus collide_hulls(const gcHull *a, const gcTransform *ta, const gcHull *b,
+                              const gcTransform *tb, int early, gcContact *out, int *separated) {
     Pair q;
     Simplex s;
     GjkResult g;
     pair_init(&q, a, ta, b, tb);
     double size = hull_size(a) + hull_size(b);
     double tol = GJK_REL_TOL * size + 4.0 * DBL_EPSILON * gc_len(q.p);
-    gjk(&q, &s, tol, &g);
+    /* Early exit only when the lower bound clears the radii by the GJK tolerance:
+     * gc_collide would then certainly report a positive distance too. */
+    gjk(&q, &s, tol, early ? a->radius + b->radius + tol : -1.0, &g);
     gcStatus status = g.capped ? GC_WARN_MAX_ITERATIONS : GC_OK;
     gcVec3 n, pa, pb;
     double core_dist;
     int iterations = g.iterations;
-    if (!g.overlap) {
+    *separated = 0;
+    if (g.separated) {
+        double len = gc_len(g.v);
+        n = gc_scale(g.v, -1.0 / len);
+        pa = g.sep_w.a;
+        pb = g.sep_w.b;
+        core_dist = gc_dot(g.v, g.sep_w.w) / len;
+        *separated = 1;
+    } else if (!g.overlap) {
         simplex_witness(&s, &pa, &pb);
         gcVec3 delta = gc_sub(pb, pa);
         core_dist = gc_len(delta);
@@ -845,11 +906,39 @@ gcStatus gc_collide(const gcHull *a, const gcTransform *ta, const gcHull *b,
         pa = pb = ta->p;
         core_dist = 0.0;
         status = GC_WARN_MAX_ITERATIONS;
+        *separated = 0;
     }
     out->normal = n;
     out->distance = core_dist - a->radius - b->radius;
     out->point_a = gc_madd(pa, n, a->radius);
     out->point_b = gc_madd(pb, n, -b->radius);
     out->iterations = iterations;
+    if (out->distance > 0.0) *separated = 1;
     return status;
+}
+
+static gcStatus collide_dispatch(const gcHull *a, const gcTransform *ta, const gcHull *b,
+                                 const gcTransform *tb, int early, gcContact *out, int *separated) {
+    if (!out || !hull_ok(a) || !hull_ok(b) || !ta || !tb || !transform_ok(ta) || !transform_ok(tb))
+        return GC_ERR_INVALID_ARGUMENT;
+    gcStatus st;
+    if (a->num_vertices <= 2 && b->num_vertices <= 2) st = collide_rounded(a, ta, b, tb, out);
+    else if (a->num_vertices == 1) st = collide_sphere(a, ta, b, tb, 0, out);
+    else if (b->num_vertices == 1) st = collide_sphere(b, tb, a, ta, 1, out);
+    else return collide_hulls(a, ta, b, tb, early, out, separated);
+    if (st >= 0) *separated = out->distance > 0.0;
+    return st;
+}
+
+gcStatus gc_collide(const gcHull *a, const gcTransform *ta, const gcHull *b,
+                    const gcTransform *tb, gcContact *out) {
+    int separated;
+    return collide_dispatch(a, ta, b, tb, 0, out, &separated);
+}
+
+gcStatus gc_penetration(const gcHull *a, const gcTransform *ta, const gcHull *b,
+                        const gcTransform *tb, gcContact *out, int *separated) {
+    if (!separated) return GC_ERR_INVALID_ARGUMENT;
+    *separated = 0;
+    return collide_dispatch(a, ta, b, tb, 1, out, separated);
 }

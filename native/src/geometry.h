@@ -29,6 +29,14 @@ typedef struct gcHull {
     double volume;             /* of the inflated shape for spheres/capsules, of the hull otherwise */
     gcVec3 centroid;           /* volume centroid, local frame */
     gcMat3 inertia_unit;       /* inertia tensor about the centroid for unit density, local axes */
+    /* Structure-of-arrays copy of `vertices` for the vectorised support scan, built by
+     * gc_hull_build: soa_x, soa_y, soa_z each hold num_padded entries (num_vertices
+     * rounded up to a multiple of 4; the padding repeats vertex 0), 32-byte aligned,
+     * one allocation starting at soa_x. NULL in a hull not made by gc_hull_build: the
+     * queries then read `vertices`. Do not edit `vertices` of a built hull (the copy
+     * would go stale). */
+    double *soa_x, *soa_y, *soa_z;
+    int num_padded;
 } gcHull;
 
 /* Build from n points (xyz triples). tolerance: points closer than this to a face are
@@ -65,6 +73,21 @@ typedef struct gcContact {
 #define GC_EPA_MAX_ITERATIONS 64
 gcStatus gc_collide(const gcHull *a, const gcTransform *ta, const gcHull *b,
                     const gcTransform *tb, gcContact *out);
+
+/* Penetration query with libccd's ccdGJKPenetration contract: GJK stops as soon as
+ * it finds a separating axis (no distance computed); when the shapes overlap, EPA
+ * gives the depth, normal and witness points exactly as gc_collide does.
+ * *separated (required) is set to 1 when the inflated shapes do not touch, 0 when
+ * they overlap. Then:
+ *   separated == 0: *out is what gc_collide returns (distance <= 0).
+ *   separated == 1: out->distance > 0 is only a LOWER BOUND on the true distance
+ *     (the gap between the two support planes of the separating axis), normal is
+ *     that axis (unit, A towards B), point_a / point_b are the support points of A
+ *     along normal and of B along -normal on the inflated surfaces. When GJK had to
+ *     converge to prove separation the values are gc_collide's exact ones.
+ * separated == 1 exactly when gc_collide's distance would be > 0. */
+gcStatus gc_penetration(const gcHull *a, const gcTransform *ta, const gcHull *b,
+                        const gcTransform *tb, gcContact *out, int *separated);
 
 /* Plain GJK distance between cores (no radii): >= 0; 0 when they overlap. */
 gcStatus gc_gjk_distance(const gcHull *a, const gcTransform *ta, const gcHull *b,

@@ -250,8 +250,30 @@ static void polyhedron_mass(gcHull *h) {
     h->centroid = gc_add(ref, c_rel);
 }
 
+/* Structure-of-arrays copy of the vertices (see gcHull): x[], y[], z[] padded to a
+ * multiple of 4 with copies of vertex 0, so that the support scan runs on whole
+ * aligned blocks and the padding never wins over vertex 0 (ties go to the lowest index). */
+static gcStatus build_soa(gcHull *h) {
+    int np = (h->num_vertices + 3) & ~3;
+    /* 3 * np doubles is a multiple of 96 bytes, hence of the 32-byte alignment. */
+    double *block = (double *)aligned_alloc(32, (size_t)np * 3 * sizeof(double));
+    if (!block) return GC_ERR_NO_MEMORY;
+    h->soa_x = block;
+    h->soa_y = block + np;
+    h->soa_z = block + 2 * np;
+    h->num_padded = np;
+    for (int i = 0; i < np; ++i) {
+        gcVec3 v = h->vertices[i < h->num_vertices ? i : 0];
+        h->soa_x[i] = v.x;
+        h->soa_y[i] = v.y;
+        h->soa_z[i] = v.z;
+    }
+    return GC_OK;
+}
+
 void gc_hull_free(gcHull *hull) {
     if (!hull) return;
+    free(hull->soa_x);
     free(hull->vertices);
     free(hull->triangles);
     free(hull->plane_normals);
@@ -371,7 +393,12 @@ gcStatus gc_hull_build(const double *points, int n, double radius, double tolera
     double tol = tolerance > 0.0 ? tolerance : 1e-10 * extent + 8.0 * DBL_EPSILON * max_abs;
 
     if (extent <= tol) {
-        if (radius > 0.0) return make_sphere_or_capsule(gc_scale(gc_add(lo, hi), 0.5), gc_v3(0, 0, 0), 1, radius, out);
+        if (radius > 0.0) {
+            gcStatus st = make_sphere_or_capsule(gc_scale(gc_add(lo, hi), 0.5), gc_v3(0, 0, 0), 1, radius, out);
+            if (st == GC_OK) st = build_soa(out);
+            if (st != GC_OK) gc_hull_free(out);
+            return st;
+        }
         return GC_ERR_DEGENERATE;
     }
     int axis = ext.x >= ext.y && ext.x >= ext.z ? 0 : (ext.y >= ext.z ? 1 : 2);
@@ -392,7 +419,10 @@ gcStatus gc_hull_build(const double *points, int n, double radius, double tolera
                 if (t < gc_dot(pts[lo_i], dir)) lo_i = i;
                 if (t > gc_dot(pts[hi_i], dir)) hi_i = i;
             }
-            return make_sphere_or_capsule(pts[lo_i], pts[hi_i], 2, radius, out);
+            gcStatus st = make_sphere_or_capsule(pts[lo_i], pts[hi_i], 2, radius, out);
+            if (st == GC_OK) st = build_soa(out);
+            if (st != GC_OK) gc_hull_free(out);
+            return st;
         }
         return GC_ERR_DEGENERATE;
     }
@@ -448,6 +478,7 @@ gcStatus gc_hull_build(const double *points, int n, double radius, double tolera
         if (r > 0) b.owner[eye] = -1; /* skipped: within rounding of the hull */
     }
     status = finish_hull(&b, radius, out);
+    if (status == GC_OK) status = build_soa(out);
 done:
     free(b.faces);
     free(b.owner);

@@ -78,6 +78,13 @@ static int contact_finite(const gcContact *c) {
            gc_vec_finite(c->point_b);
 }
 
+static int contact_identical(const gcContact *x, const gcContact *y) {
+    return x->distance == y->distance && x->normal.x == y->normal.x && x->normal.y == y->normal.y &&
+           x->normal.z == y->normal.z && x->point_a.x == y->point_a.x && x->point_a.y == y->point_a.y &&
+           x->point_a.z == y->point_a.z && x->point_b.x == y->point_b.x && x->point_b.y == y->point_b.y &&
+           x->point_b.z == y->point_b.z && x->iterations == y->iterations;
+}
+
 static int hull_is_consistent(const gcHull *h, double tol) {
     /* every vertex below every plane, every triangle's winding matches its normal */
     for (int f = 0; f < h->num_planes; ++f) {
@@ -525,6 +532,65 @@ static void test_spheres_capsules(void) {
     gc_hull_free(&cap2);
 }
 
+/* gc_penetration: analytic pairs (boxes, rounded boxes, spheres, capsules) and its
+ * argument checks; the fuzz and corpus runs compare it with gc_collide on every pair. */
+static void test_penetration(void) {
+    gcHull box, rbox, sph, cap;
+    make_box(1, 1, 1, 0, &box);
+    make_box(1, 1, 1, 0.1, &rbox);
+    double c[3] = {0, 0, 0}, seg[6] = {-0.5, 0, 0, 0.5, 0, 0};
+    gc_hull_build(c, 1, 0.5, 0, &sph);
+    gc_hull_build(seg, 2, 0.2, 0, &cap);
+    gcQuat I = quat_identity();
+    gcTransform ta = make_tf(0, 0, 0, I), tb;
+    gcContact p, q;
+    int sep = -1;
+    /* apart along x by 0.5: separated, lower bound <= 0.5 along a separating axis */
+    tb = make_tf(2.5, 0.3, -0.2, I);
+    GC_CHECK(gc_penetration(&box, &ta, &box, &tb, &p, &sep) == GC_OK && sep == 1, "boxes apart: separated");
+    GC_CHECK(p.distance > 0 && p.distance <= 0.5 + 1e-12, "boxes apart: lower bound %g", p.distance);
+    GC_CHECK(fabs(gc_len(p.normal) - 1) < 1e-12 && p.normal.x > 0, "boxes apart: axis (%g %g %g)", p.normal.x,
+             p.normal.y, p.normal.z);
+    /* penetrating: identical to gc_collide */
+    tb = make_tf(1.9, 0.3, -0.2, I);
+    GC_CHECK(gc_penetration(&box, &ta, &box, &tb, &p, &sep) == GC_OK && sep == 0, "boxes overlap: not separated");
+    gc_collide(&box, &ta, &box, &tb, &q);
+    GC_CHECK(contact_identical(&p, &q), "boxes overlap: same contact as gc_collide");
+    GC_CHECK_NEAR(p.distance, -0.1, 1e-9, "boxes overlap depth");
+    /* rounded boxes whose cores are 0.15 apart: margins 0.2 overlap them */
+    tb = make_tf(2.15, 0.1, 0.0, I);
+    GC_CHECK(gc_penetration(&rbox, &ta, &rbox, &tb, &p, &sep) == GC_OK && sep == 0, "rounded boxes: touching");
+    gc_collide(&rbox, &ta, &rbox, &tb, &q);
+    GC_CHECK(contact_identical(&p, &q), "rounded boxes: same contact as gc_collide");
+    GC_CHECK_NEAR(p.distance, -0.05, 1e-9, "rounded boxes depth");
+    tb = make_tf(2.25, 0.1, 0.0, I);
+    GC_CHECK(gc_penetration(&rbox, &ta, &rbox, &tb, &p, &sep) == GC_OK && sep == 1, "rounded boxes: apart");
+    GC_CHECK(p.distance > 0 && p.distance <= 0.05 + 1e-12, "rounded boxes apart: bound %g", p.distance);
+    /* closed-form shapes go through gc_collide */
+    tb = make_tf(0, 0, 1.6, I);
+    GC_CHECK(gc_penetration(&box, &ta, &sph, &tb, &p, &sep) == GC_OK && sep == 1, "sphere apart");
+    GC_CHECK_NEAR(p.distance, 0.1, 1e-12, "sphere distance");
+    tb = make_tf(0, 0, 1.4, I);
+    GC_CHECK(gc_penetration(&box, &ta, &sph, &tb, &p, &sep) == GC_OK && sep == 0, "sphere overlap");
+    GC_CHECK_NEAR(p.distance, -0.1, 1e-12, "sphere depth");
+    tb = make_tf(0, 0.3, 0, I);
+    GC_CHECK(gc_penetration(&cap, &ta, &cap, &tb, &p, &sep) == GC_OK && sep == 0, "capsules overlap");
+    GC_CHECK_NEAR(p.distance, 0.3 - 0.4, 1e-12, "capsules: parallel axes 0.3 apart, radii 0.2 + 0.2");
+    tb = make_tf(0, 0.5, 0, I);
+    GC_CHECK(gc_penetration(&cap, &ta, &cap, &tb, &p, &sep) == GC_OK && sep == 1, "capsules apart");
+    GC_CHECK_NEAR(p.distance, 0.5 - 0.4, 1e-12, "capsules distance");
+    /* invalid arguments */
+    gcTransform bad = ta;
+    bad.p.x = NAN;
+    GC_CHECK(gc_penetration(&box, &ta, &box, &ta, &p, NULL) == GC_ERR_INVALID_ARGUMENT, "NULL separated");
+    GC_CHECK(gc_penetration(&box, &ta, &box, &bad, &p, &sep) == GC_ERR_INVALID_ARGUMENT, "NaN transform");
+    GC_CHECK(gc_penetration(&box, &ta, &box, &ta, NULL, &sep) == GC_ERR_INVALID_ARGUMENT, "NULL out");
+    gc_hull_free(&box);
+    gc_hull_free(&rbox);
+    gc_hull_free(&sph);
+    gc_hull_free(&cap);
+}
+
 static void test_invalid_queries(void) {
     gcHull box, empty;
     make_box(1, 1, 1, 0, &box);
@@ -585,8 +651,43 @@ static double brute_mtd(const gcHull *a, const gcTransform *ta, const gcHull *b,
 
 typedef struct FuzzStats {
     int pairs, separated, penetrating, warnings, errors, nan, fail_gap, fail_points, fail_lower, fail_sep,
-        fail_min, fail_mtd, max_iterations;
+        fail_min, fail_mtd, max_iterations, fail_pen, pen_early;
 } FuzzStats;
+
+/* gc_penetration against gc_collide's answer c (status s) on the same pair:
+ * separated exactly when c.distance > 0; overlapping: the identical contact;
+ * separated: a positive lower bound on the distance whose normal is a separating
+ * axis and whose points are the support points on the surfaces. */
+static int verify_penetration(const gcHull *a, const gcTransform *ta, const gcHull *b, const gcTransform *tb,
+                              const gcContact *c, gcStatus s, double tol, FuzzStats *st, const char *label) {
+    gcContact p;
+    int sep = -1, fails = 0;
+    gcStatus ps = gc_penetration(a, ta, b, tb, &p, &sep);
+    if (ps != s) { fails++; fprintf(stderr, "%s: penetration status %d vs collide %d\n", label, ps, s); }
+    if (sep != (c->distance > 0)) {
+        fails++;
+        fprintf(stderr, "%s: penetration separated=%d but collide distance %.17g\n", label, sep, c->distance);
+    } else if (!sep) {
+        if (!contact_identical(&p, c)) {
+            fails++;
+            fprintf(stderr, "%s: penetration contact differs from collide (%.17g vs %.17g)\n", label, p.distance,
+                    c->distance);
+        }
+    } else {
+        if (!contact_identical(&p, c)) st->pen_early++;
+        double along = -(world_support(a, ta, p.normal) + world_support(b, tb, gc_neg(p.normal)));
+        if (!contact_finite(&p) || !(p.distance > 0) || p.distance > c->distance + tol ||
+            fabs(gc_len(p.normal) - 1) > 1e-9 || fabs(p.distance - along) > tol ||
+            fabs(world_sd(a, ta, p.point_a)) > tol || fabs(world_sd(b, tb, p.point_b)) > tol ||
+            fabs(gc_dot(gc_sub(p.point_b, p.point_a), p.normal) - p.distance) > tol) {
+            fails++;
+            fprintf(stderr, "%s: penetration separated answer: distance %.12g (collide %.12g, axis gap %.12g)\n",
+                    label, p.distance, c->distance, along);
+        }
+    }
+    if (fails) st->fail_pen++;
+    return fails;
+}
 
 /* Checks one query against brute force; returns the number of failed checks. */
 static int verify_pair(const gcHull *a, const gcTransform *ta, const gcHull *b, const gcTransform *tb,
@@ -602,6 +703,7 @@ static int verify_pair(const gcHull *a, const gcTransform *ta, const gcHull *b, 
     double size = gc_len(gc_sub(a->aabb_max, a->aabb_min)) + gc_len(gc_sub(b->aabb_max, b->aabb_min)) +
                   2 * (a->radius + b->radius);
     double tol = 1e-7 * size;
+    fails += verify_penetration(a, ta, b, tb, &c, s, tol, st, label);
     if (fabs(gc_len(c.normal) - 1) > 1e-9) { fails++; fprintf(stderr, "%s: normal not unit\n", label); }
     /* witnesses on the surfaces */
     double sa = world_sd(a, ta, c.point_a), sb = world_sd(b, tb, c.point_b);
@@ -697,11 +799,13 @@ static void test_fuzz(void) {
         gc_hull_free(&a);
         gc_hull_free(&b);
     }
-    printf("fuzz: %d queries, %d separated, %d penetrating, %d warnings, max iterations %d\n", st.pairs,
-           st.separated, st.penetrating, st.warnings, st.max_iterations);
-    GC_CHECK(total_fail == 0, "fuzz failures: %d (errors %d nan %d gap %d points %d bound %d sep %d min %d mtd %d)",
+    printf("fuzz: %d queries, %d separated (%d proven early by gc_penetration), %d penetrating, %d warnings, "
+           "max iterations %d\n", st.pairs, st.separated, st.pen_early, st.penetrating, st.warnings, st.max_iterations);
+    GC_CHECK(total_fail == 0,
+             "fuzz failures: %d (errors %d nan %d gap %d points %d bound %d sep %d min %d mtd %d penetration %d)",
              total_fail, st.errors, st.nan, st.fail_gap, st.fail_points, st.fail_lower, st.fail_sep, st.fail_min,
-             st.fail_mtd);
+             st.fail_mtd, st.fail_pen);
+    GC_CHECK(st.pen_early > 1000, "gc_penetration stops early on most separated pairs (%d)", st.pen_early);
     GC_CHECK(st.warnings == 0, "fuzz warnings: %d", st.warnings);
     GC_CHECK(st.separated > 500 && st.penetrating > 500, "fuzz covers both cases (%d, %d)", st.separated,
              st.penetrating);
@@ -864,8 +968,9 @@ static void test_corpus(const char *path) {
         }
     }
     fclose(f);
-    printf("corpus: %d cases, %d queries, %d penetrating, max iterations %d\n", cases, st.pairs, st.penetrating,
-           st.max_iterations);
+    printf("corpus: %d cases, %d queries, %d penetrating, max iterations %d, penetration mismatches %d\n", cases,
+           st.pairs, st.penetrating, st.max_iterations, st.fail_pen);
+    GC_CHECK(st.fail_pen == 0, "corpus: gc_penetration disagrees with gc_collide on %d queries", st.fail_pen);
     GC_CHECK(parse_errors == 0, "corpus parse errors: %d", parse_errors);
     GC_CHECK(cases >= 20, "corpus has %d cases", cases);
 }
@@ -881,6 +986,7 @@ int main(void) {
     test_box_box();
     test_spheres_capsules();
     test_invalid_queries();
+    test_penetration();
     test_fuzz();
     test_corpus("native/tests/corpus/geometry_cases.txt");
     return gc_test_summary("test_geometry");
