@@ -1,20 +1,28 @@
-/* GJK+EPA benchmark: graspcore's gc_collide against libccd on the same hulls.
+/* GJK+EPA benchmark: graspcore against libccd on the same hulls.
  *
  * For each hull size (8, 32, 128 vertices) a fixed set of random pairs is built:
  * vertices on random ellipsoids (so every point is a hull vertex), random poses,
- * half of the pairs overlapping and half separated. Each library answers every
- * pair; the time per query is the best of several rounds.
+ * half of the pairs overlapping and half separated. Each method answers every
+ * pair; the methods are interleaved inside each round and the time per query is
+ * the best of several rounds.
  *
- * What is compared (libccd 2.1 has no distance query):
- *   ours           gc_collide: GJK distance for separated pairs (full distance and
- *                  witness points), GJK + EPA depth/normal/points for overlapping ones.
- *   libccd         ccdGJKPenetration: GJK intersection test, then EPA when
- *                  overlapping; separated pairs only get the boolean "no contact".
- *                  Support callback = gc_hull_support on the same gcHull (brute force
- *                  up to 24 vertices, hill climbing above), direction rotated into
- *                  the local frame, point rotated back: the same work as ours.
- *   libccd-brute   same, with a plain loop over the vertex array as support.
- *   libccd-MPR     ccdMPRPenetration (different algorithm, approximate depth).
+ * What is compared:
+ *   ours penetration  gc_penetration: the same task as ccdGJKPenetration. GJK stops
+ *                     at the first separating axis (separated pairs get "separated"
+ *                     and a lower bound, no distance); overlapping pairs get GJK + EPA
+ *                     depth/normal/witness points (identical to gc_collide's).
+ *   ours distance     gc_collide: separated pairs get the exact distance and witness
+ *                     points (GJK run to convergence), overlapping ones GJK + EPA.
+ *                     libccd 2.1 has no distance query, so its rows against libccd
+ *                     are informative only (more work than libccd does).
+ *   libccd            ccdGJKPenetration: GJK intersection test, then EPA when
+ *                     overlapping; separated pairs only get the boolean "no contact".
+ *                     Support callback = gc_hull_support on the same gcHull (SoA SSE2
+ *                     scan up to 128 vertices), direction rotated into the local frame,
+ *                     point rotated back: the same support work as ours.
+ *   libccd-brute      same, with a plain scalar loop over the vertex array as support.
+ *   libccd-MPR        ccdMPRPenetration (different algorithm, approximate depth).
+ * The libccd column of the summary is the faster of libccd and libccd-brute.
  * libccd runs with its default tolerances (epa_tolerance 1e-4 absolute); ours uses
  * 1e-9 relative to the pair's size, i.e. tighter. */
 #define _POSIX_C_SOURCE 199309L
@@ -116,9 +124,17 @@ static double now_ns(void) {
 
 static volatile double sink;
 
-enum { OURS, CCD_GJK, CCD_GJK_BRUTE, CCD_MPR, NUM_METHODS };
+enum { OURS_PEN, OURS, CCD_GJK, CCD_GJK_BRUTE, CCD_MPR, NUM_METHODS };
 
 static void run_one(int method, Pair *p, ccd_t *ccd, double *depth_out, int *hit_out) {
+    if (method == OURS_PEN) {
+        gcContact c;
+        int separated;
+        gc_penetration(&p->a, &p->sa.t, &p->b, &p->sb.t, &c, &separated);
+        *hit_out = !separated;
+        *depth_out = separated ? 0 : -c.distance;
+        return;
+    }
     if (method == OURS) {
         gcContact c;
         gc_collide(&p->a, &p->sa.t, &p->b, &p->sb.t, &c);
@@ -153,15 +169,29 @@ static double time_once(int method, Pair *pairs, int n, ccd_t *ccd, int only) {
     return t;
 }
 
-int main(void) {
+/* Usage: bench_gjk                      the tables (Markdown on stdout)
+ *        bench_gjk profile <m> <size> [ov]  run method m (0 ours penetration, 1 ours
+ *                                         distance, 2 libccd, 3 libccd-brute, 4 MPR)
+ *                                         for ~3 s on one size, for perf; ov = 0/1 keeps
+ *                                         only separated/overlapping pairs. */
+int main(int argc, char **argv) {
+    int profile_method = -1, profile_size = 0, profile_only = -1;
+    if (argc >= 4 && !strcmp(argv[1], "profile")) {
+        profile_method = atoi(argv[2]);
+        profile_size = atoi(argv[3]);
+        if (argc >= 5) profile_only = atoi(argv[4]);
+        if (profile_method < 0 || profile_method >= NUM_METHODS) return 2;
+    }
     static const int sizes[3] = {8, 32, 128};
-    static const char *names[NUM_METHODS] = {"ours", "libccd GJK+EPA", "libccd GJK+EPA (brute support)", "libccd MPR"};
+    static const char *names[NUM_METHODS] = {"ours penetration", "ours distance", "libccd GJK+EPA",
+                                             "libccd GJK+EPA (brute support)", "libccd MPR"};
     double ns[3][NUM_METHODS], ns_split[3][NUM_METHODS][2];
     double max_depth_diff[3] = {0}, mean_depth_diff[3] = {0};
-    int disagree[3] = {0}, ccd_deeper[3] = {0}, ccd_not_separating[3] = {0}, ours_not_separating[3] = {0},
+    int disagree[3] = {0}, pen_disagree[3] = {0}, ccd_deeper[3] = {0}, ccd_not_separating[3] = {0}, ours_not_separating[3] = {0},
         num_overlapping[3] = {0};
     for (int si = 0; si < 3; ++si) {
         int nv = sizes[si];
+        if (profile_method >= 0 && nv != profile_size) continue;
         Pair *pairs = (Pair *)calloc(NUM_PAIRS, sizeof(Pair));
         int want[2] = {NUM_PAIRS / 2, NUM_PAIRS - NUM_PAIRS / 2}, have[2] = {0, 0}, n = 0;
         while (n < NUM_PAIRS) {
@@ -194,7 +224,12 @@ int main(void) {
         ccd_ours.max_iterations = 100;
         ccd_brute = ccd_ours;
         ccd_brute.support1 = ccd_brute.support2 = ccd_support_brute;
-        ccd_t *ccds[NUM_METHODS] = {NULL, &ccd_ours, &ccd_brute, &ccd_ours};
+        ccd_t *ccds[NUM_METHODS] = {NULL, NULL, &ccd_ours, &ccd_brute, &ccd_ours};
+        if (profile_method >= 0) {
+            double t0 = now_ns();
+            while (now_ns() - t0 < 3e9) time_once(profile_method, pairs, n, ccds[profile_method], profile_only);
+            return 0;
+        }
         /* Agreement on the same pairs (overlap decision and depth). */
         double sum_diff = 0;
         int n_ov = 0;
@@ -204,6 +239,12 @@ int main(void) {
             run_one(OURS, &pairs[i], NULL, &d0, &h0);
             run_one(CCD_GJK, &pairs[i], &ccd_ours, &d1, &h1);
             if (h0 != h1) disagree[si]++;
+            {
+                double dp;
+                int hp;
+                run_one(OURS_PEN, &pairs[i], NULL, &dp, &hp);
+                if (hp != h0 || (hp && dp != d0)) pen_disagree[si]++;
+            }
             if (h0 && h1) {
                 /* Does each answer's translation of B actually separate the pair? */
                 num_overlapping[si]++;
@@ -248,26 +289,41 @@ int main(void) {
         free(pairs);
     }
     printf("## GJK+EPA per query: graspcore vs libccd (%d pairs per size, half overlapping)\n\n", NUM_PAIRS);
-    printf("| vertices | ours ns/query | libccd ns/query | ratio ours/libccd |\n");
-    printf("|---:|---:|---:|---:|\n");
+    printf("Same task: gc_penetration vs ccdGJKPenetration (separated pairs: stop at the first\n"
+           "separating axis; overlapping pairs: GJK + EPA depth, normal, witness points).\n\n");
+    printf("| vertices | ours ns/query | libccd ns/query | ratio ours/libccd | overlapping: ours / libccd | separated: ours / libccd |\n");
+    printf("|---:|---:|---:|---:|---:|---:|\n");
     for (int si = 0; si < 3; ++si) {
-        double ccd_best = fmin(ns[si][CCD_GJK], ns[si][CCD_GJK_BRUTE]);
-        printf("| %d | %.0f | %.0f | %.2f |\n", sizes[si], ns[si][OURS], ccd_best, ns[si][OURS] / ccd_best);
+        int c = ns[si][CCD_GJK] <= ns[si][CCD_GJK_BRUTE] ? CCD_GJK : CCD_GJK_BRUTE;
+        printf("| %d | %.0f | %.0f | %.2f | %.0f / %.0f | %.0f / %.0f |\n", sizes[si], ns[si][OURS_PEN], ns[si][c],
+               ns[si][OURS_PEN] / ns[si][c], ns_split[si][OURS_PEN][1], ns_split[si][c][1], ns_split[si][OURS_PEN][0],
+               ns_split[si][c][0]);
+    }
+    printf("\nInformative only (different task): gc_collide, which also computes the exact distance and\n"
+           "witness points of separated pairs, vs ccdGJKPenetration (libccd 2.1 has no distance query).\n\n");
+    printf("| vertices | ours distance ns/query | libccd ns/query | ratio ours/libccd | overlapping: ours / libccd | separated: ours / libccd |\n");
+    printf("|---:|---:|---:|---:|---:|---:|\n");
+    for (int si = 0; si < 3; ++si) {
+        int c = ns[si][CCD_GJK] <= ns[si][CCD_GJK_BRUTE] ? CCD_GJK : CCD_GJK_BRUTE;
+        printf("| %d | %.0f | %.0f | %.2f | %.0f / %.0f | %.0f / %.0f |\n", sizes[si], ns[si][OURS], ns[si][c],
+               ns[si][OURS] / ns[si][c], ns_split[si][OURS][1], ns_split[si][c][1], ns_split[si][OURS][0],
+               ns_split[si][c][0]);
     }
     printf("\nlibccd = ccdGJKPenetration (GJK + EPA, default tolerances), the faster of its two support\n"
-           "callbacks (gc_hull_support or a plain loop); separated pairs: ours computes the distance,\n"
-           "libccd only the boolean.\n");
+           "callbacks (gc_hull_support or a plain loop). Times: best of %d interleaved rounds.\n", ROUNDS);
     printf("\n### Details (ns/query: all / overlapping / separated)\n\n| vertices |");
     for (int m = 0; m < NUM_METHODS; ++m) printf(" %s |", names[m]);
-    printf(" overlap disagreements | mean / max depth diff | libccd deeper | answer fails to separate: ours / libccd |\n|---:|");
+    printf(" overlap disagreements ours/libccd | penetration vs distance disagreements | mean / max depth diff |"
+           " libccd deeper | answer fails to separate: ours / libccd |\n|---:|");
     for (int m = 0; m < NUM_METHODS; ++m) printf("---:|");
-    printf("---:|---:|---:|---:|\n");
+    printf("---:|---:|---:|---:|---:|\n");
     for (int si = 0; si < 3; ++si) {
         printf("| %d |", sizes[si]);
         for (int m = 0; m < NUM_METHODS; ++m)
             printf(" %.0f / %.0f / %.0f |", ns[si][m], ns_split[si][m][1], ns_split[si][m][0]);
-        printf(" %d | %.2g / %.2g | %d | %d / %d of %d |\n", disagree[si], mean_depth_diff[si], max_depth_diff[si],
-               ccd_deeper[si], ours_not_separating[si], ccd_not_separating[si], num_overlapping[si]);
+        printf(" %d | %d | %.2g / %.2g | %d | %d / %d of %d |\n", disagree[si], pen_disagree[si], mean_depth_diff[si],
+               max_depth_diff[si], ccd_deeper[si], ours_not_separating[si], ccd_not_separating[si],
+               num_overlapping[si]);
     }
     return sink == 12345.678 ? 1 : 0;
 }

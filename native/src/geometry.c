@@ -41,8 +41,38 @@ static int argmax_dot(const gcVec3 *v, int n, gcVec3 d) {
  * SSE2 (baseline x86-64) when available, plain C otherwise. */
 #define GC_SOA_CHUNK 256
 #if defined(__SSE2__)
+static inline __m128d dot2(const double *X, const double *Y, const double *Z, int i, __m128d dx, __m128d dy,
+                           __m128d dz) {
+    return _mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_load_pd(X + i), dx), _mm_mul_pd(_mm_load_pd(Y + i), dy)),
+                      _mm_mul_pd(_mm_load_pd(Z + i), dz));
+}
+
+static inline int lowest_bit(int mask) { /* mask != 0 */
+#if defined(__GNUC__)
+    return __builtin_ctz((unsigned)mask);
+#else
+    int i = 0;
+    while (!((mask >> i) & 1)) ++i;
+    return i;
+#endif
+}
+
 static int argmax_soa(const double *X, const double *Y, const double *Z, int np, gcVec3 d) {
     __m128d dx = _mm_set1_pd(d.x), dy = _mm_set1_pd(d.y), dz = _mm_set1_pd(d.z);
+    if (np <= 8) {
+        /* Up to 8 vertices (boxes): all dot products stay in registers. */
+        __m128d a0 = dot2(X, Y, Z, 0, dx, dy, dz), a1 = dot2(X, Y, Z, 2, dx, dy, dz), a2 = a0, a3 = a1;
+        if (np == 8) {
+            a2 = dot2(X, Y, Z, 4, dx, dy, dz);
+            a3 = dot2(X, Y, Z, 6, dx, dy, dz);
+        }
+        __m128d m = _mm_max_pd(_mm_max_pd(a0, a1), _mm_max_pd(a2, a3));
+        m = _mm_max_pd(m, _mm_unpackhi_pd(m, m));
+        m = _mm_unpacklo_pd(m, m);
+        int mask = _mm_movemask_pd(_mm_cmpeq_pd(a0, m)) | (_mm_movemask_pd(_mm_cmpeq_pd(a1, m)) << 2) |
+                   (_mm_movemask_pd(_mm_cmpeq_pd(a2, m)) << 4) | (_mm_movemask_pd(_mm_cmpeq_pd(a3, m)) << 6);
+        return mask ? lowest_bit(mask) : 0; /* 0: NaN direction */
+    }
     _Alignas(16) double buf[GC_SOA_CHUNK];
     int best = 0;
     double best_dot = 0.0;
@@ -51,10 +81,7 @@ static int argmax_soa(const double *X, const double *Y, const double *Z, int np,
         const double *x = X + base, *y = Y + base, *z = Z + base;
         __m128d m0 = _mm_set1_pd(-DBL_MAX), m1 = m0;
         for (int i = 0; i < m; i += 4) {
-            __m128d a0 = _mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_load_pd(x + i), dx), _mm_mul_pd(_mm_load_pd(y + i), dy)),
-                                    _mm_mul_pd(_mm_load_pd(z + i), dz));
-            __m128d a1 = _mm_add_pd(_mm_add_pd(_mm_mul_pd(_mm_load_pd(x + i + 2), dx), _mm_mul_pd(_mm_load_pd(y + i + 2), dy)),
-                                    _mm_mul_pd(_mm_load_pd(z + i + 2), dz));
+            __m128d a0 = dot2(x, y, z, i, dx, dy, dz), a1 = dot2(x, y, z, i + 2, dx, dy, dz);
             _mm_store_pd(buf + i, a0);
             _mm_store_pd(buf + i + 2, a1);
             m0 = _mm_max_pd(a0, m0);
@@ -69,7 +96,7 @@ static int argmax_soa(const double *X, const double *Y, const double *Z, int np,
         for (int i = 0; i < m; i += 4) {
             int mask = _mm_movemask_pd(_mm_cmpeq_pd(_mm_load_pd(buf + i), m0)) |
                        (_mm_movemask_pd(_mm_cmpeq_pd(_mm_load_pd(buf + i + 2), m0)) << 2);
-            if (mask) { found = i + (mask & 1 ? 0 : mask & 2 ? 1 : mask & 4 ? 2 : 3); break; }
+            if (mask) { found = i + lowest_bit(mask); break; }
         }
         if (found < 0) return base == 0 ? 0 : best; /* NaN direction: any vertex */
         best = base + found;
@@ -491,12 +518,12 @@ static int epa_init(Pair *q, const Simplex *s, Polytope *P, double tol) {
         P->horizon_of[i] = -1;
     }
     static const int tet[4][3] = {{0, 1, 2}, {0, 3, 1}, {1, 3, 2}, {2, 3, 0}};
+    /* tet_nb[f][e]: the face holding edge tet[f][e+1] -> tet[f][e] (fixed topology). */
+    static const int tet_nb[4][3] = {{1, 2, 3}, {3, 2, 0}, {1, 3, 0}, {2, 1, 0}};
     for (int f = 0; f < 4; ++f)
         if (epa_new_face(P, tet[f][0], tet[f][1], tet[f][2]) != f) return 0;
     for (int f = 0; f < 4; ++f)
-        for (int e = 0; e < 3; ++e)
-            for (int g = 0; g < 4; ++g)
-                if (g != f && epa_edge(&P->f[g], P->f[f].v[(e + 1) % 3], P->f[f].v[e]) >= 0) P->f[f].nb[e] = g;
+        for (int e = 0; e < 3; ++e) P->f[f].nb[e] = tet_nb[f][e];
     return 1;
 }
 
