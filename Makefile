@@ -14,7 +14,7 @@ PY_SRC := $(wildcard native/python/graspcore/*.py)
 CFLAGS_COMMON := -std=c11 -Inative/include -Inative/src -Wall -Wextra -Wno-unused-parameter -ffp-contract=off
 C_TESTS := $(patsubst native/tests/%.c,%,$(wildcard native/tests/test_*.c))
 
-.PHONY: all venv core demo test test-c test-c-asan test-py bench clean
+.PHONY: all venv core demo test test-c test-c-asan test-c-tsan test-py bench clean
 
 all: core
 
@@ -53,12 +53,21 @@ test-c: $(addprefix $(BUILD)/c/,$(C_TESTS))
 test-c-asan: $(addprefix $(BUILD)/c-asan/,$(C_TESTS))
 	@for t in $^; do echo "== $$t (ASan/UBSan)"; ASAN_OPTIONS=detect_leaks=1 $$t || exit 1; done
 
+# The threaded tests under ThreadSanitizer (the runtime's loops, its lock-free channels).
+TSAN_TESTS := $(filter test_runtime test_contacts,$(C_TESTS))
+$(BUILD)/c-tsan/%: native/tests/%.c $(CORE_SRC) $(CORE_HDR) native/tests/gc_test.h
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS_COMMON) -O1 -g -fsanitize=thread -o $@ $< $(CORE_SRC) -lm -lpthread
+
+test-c-tsan: $(addprefix $(BUILD)/c-tsan/,$(TSAN_TESTS))
+	@for t in $^; do echo "== $$t (TSan)"; TSAN_OPTIONS=halt_on_error=1 $$t || exit 1; done
+
 # --- Python tests ---------------------------------------------------------------
 test-py: core
 	$(PY) -m pytest -q tests/core
 
 # test-blender (addon.mk) runs tests/blender on bpy 4.5, 4.2 and 5.0.1.
-test: test-c test-c-asan test-py test-blender
+test: test-c test-c-asan test-c-tsan test-py test-blender
 
 # --- The main job -------------------------------------------------------------
 demo: core

@@ -18,12 +18,14 @@ extern "C" {
 typedef enum gcStatus {
     GC_OK = 0,
     GC_WARN_MAX_ITERATIONS = 1,     /* answer usable, iteration cap reached */
+    GC_WARN_REJECTED = 2,           /* runtime input refused (NaN/Inf, time going back) and counted */
     GC_ERR_INVALID_ARGUMENT = -1,
     GC_ERR_DEGENERATE = -2,         /* degenerate hull: coplanar, collinear, coincident points */
     GC_ERR_NO_MEMORY = -3,
     GC_ERR_UNKNOWN_ID = -4,
     GC_ERR_CAPACITY = -5,           /* a gcWorldDef capacity is exhausted */
-    GC_ERR_BUSY = -6                /* not allowed while the runtime threads run */
+    GC_ERR_BUSY = -6,               /* not allowed while the runtime threads run */
+    GC_ERR_NOT_RUNNING = -7         /* a runtime call while the runtime is stopped */
 } gcStatus;
 
 const char *gc_status_string(gcStatus status);
@@ -151,6 +153,84 @@ gcStatus gc_world_body_chain(const gcWorld *world, int32_t body, int32_t *chain)
 /* 64-bit hash of the full dynamic state (bit-exact), for determinism checks. */
 uint64_t gc_world_state_hash(const gcWorld *world);
 double gc_world_time(const gcWorld *world);
+
+/* ---- Runtime: the haptic loop and the object manager on threads (docs/runtime.md) ----
+ * gc_world_start hands the world to a haptic loop (god-objects, finger springs, and the
+ * bodies it adopts: the chain of a touched body while it has at most max_adopted_bodies)
+ * and an object manager (every other body, steps of at most 2 ms). While it runs, the
+ * world's mutating calls answer GC_ERR_BUSY and its queries and views answer from the last
+ * gc_world_snapshot; gc_world_stop puts the final state back. push_hips, snapshot and stats
+ * may be called from any thread; the loops never wait on them. */
+typedef struct gcRuntimeDef {
+    double haptic_rate;         /* Hz, default 1000 */
+    double object_rate;         /* Hz, <= haptic_rate, default 500; each object tick covers
+                                 * 1/object_rate in steps of at most 2 ms */
+    int max_adopted_bodies;     /* adopt a touched chain while it has at most this many bodies;
+                                 * default 3, 0 = never adopt */
+    double release_delay;       /* s a chain stays adopted after its last touch, default 0.05 */
+    double max_force;           /* N, device force clamp (norm per finger), default 10 */
+    double ramp_time;           /* s, device forces ramp in from 0 when enabled, default 0.5 */
+    double watchdog_timeout;    /* s, a haptic period longer than this zeroes device forces
+                                 * (then they ramp in again), default 0.005 */
+    double hip_timeout;         /* s, device forces are zero while the last push_hips is older, default 0.1 */
+    int realtime;               /* 1: threads on CLOCK_MONOTONIC (default); 0: manual clock,
+                                 * no threads, ticks run by gc_world_advance (deterministic) */
+    int priority;               /* SCHED_FIFO priority tried for the haptic loop, default 80;
+                                 * 0 = normal priority. Refused -> normal priority, said in stats */
+} gcRuntimeDef;
+gcRuntimeDef gc_default_runtime_def(void);
+
+gcStatus gc_world_start(gcWorld *world, const gcRuntimeDef *def);
+/* Joins the threads and puts the final state back into the world; GC_OK when not running. */
+gcStatus gc_world_stop(gcWorld *world);
+int gc_world_running(const gcWorld *world);
+/* Manual clock only: run `ticks` haptic ticks (and the object ticks that fall among them) on
+ * the calling thread. `delay` s is added to the clock before the first, as a stalled loop. */
+gcStatus gc_world_advance(gcWorld *world, int ticks, double delay);
+/* Latest HIPs of fingers 0..count-1 (xyz triples) at device time t, from any thread.
+ * GC_OK: taken; GC_WARN_REJECTED: NaN/Inf or t older than the last push (counted, ignored). */
+gcStatus gc_world_push_hips(gcWorld *world, const double *positions, int count, double t);
+
+/* One haptic tick's consistent view. Arrays are the caller's (NULL to skip), sized for
+ * gc_world_body_count / gc_world_finger_count. When stopped: the world's state, forces 0. */
+typedef struct gcSnapshot {
+    double time;                /* s, haptic loop's simulated time */
+    double object_time;         /* s, object manager's simulated time as last seen */
+    uint64_t tick;              /* haptic ticks since start */
+    int forces_enabled;         /* 0: device forces held at zero (watchdog, stale input) */
+    int num_bodies, num_fingers;
+    double *poses;              /* 7 per body: x y z qw qx qy qz */
+    double *residual_wrenches;  /* 6 per body: force, torque about the centre of mass */
+    uint8_t *adopted;           /* per body: 1 while the haptic loop steps it */
+    double *god_objects;        /* 3 per finger */
+    double *hips;               /* 3 per finger */
+    double *forces;             /* 3 per finger: device force (clamped, ramped, watchdog) */
+    double *spring_forces;      /* 3 per finger: the physics spring force, unclamped */
+    int32_t *finger_states;     /* gcFingerState per finger */
+    int32_t *contact_bodies;    /* per finger, -1 when free */
+} gcSnapshot;
+gcStatus gc_world_snapshot(gcWorld *world, gcSnapshot *snapshot);
+
+typedef struct gcRuntimeStats {
+    int running, realtime;
+    int rt_priority;            /* 1: the haptic loop runs at SCHED_FIFO */
+    char priority_note[128];
+    double haptic_rate, object_rate;   /* achieved, Hz (manual clock: per simulated second) */
+    double object_speed;        /* object manager's simulated time / wall time (< 1: behind) */
+    uint64_t haptic_ticks, object_ticks;
+    double jitter_p50_us, jitter_p99_us, jitter_max_us; /* |haptic period - nominal| */
+    uint64_t overruns;          /* haptic ticks that ended past the next deadline */
+    uint64_t late_periods;      /* haptic periods late by more than one period */
+    uint64_t object_overruns;
+    int adopted_bodies;
+    uint64_t accepted_inputs, rejected_inputs;
+    uint64_t watchdog_trips, stale_inputs, nonfinite_forces;
+    int forces_enabled;
+    double haptic_time, object_time;
+} gcRuntimeStats;
+gcStatus gc_world_stats(gcWorld *world, gcRuntimeStats *stats);
+/* Test hook: the haptic loop sleeps this long before its next tick, as a stalled loop. */
+gcStatus gc_world_debug_stall(gcWorld *world, double seconds);
 
 #ifdef __cplusplus
 }

@@ -185,6 +185,10 @@ void gc_dynamics_velocities(gcWorld *w, double dt) {
             b->residual_torque = gc_v3(0, 0, 0);
             continue;
         }
+        if (w->body_active && !w->body_active[i]) {
+            b->effective_mass_valid = 0; /* another runtime thread steps it: immovable here */
+            continue;
+        }
         integrate_velocity(w, i, dt);
     }
 }
@@ -192,7 +196,7 @@ void gc_dynamics_velocities(gcWorld *w, double dt) {
 void gc_dynamics_positions(gcWorld *w, double dt) {
     for (int32_t i = 0; i < w->num_bodies; ++i) {
         gcBody *b = &w->bodies[i];
-        if (b->is_static) continue;
+        if (b->is_static || (w->body_active && !w->body_active[i])) continue;
         b->com = gc_madd(b->com, b->v, dt);
         b->q = gc_quat_normalize(gc_quat_mul(quat_from_rotation_vector(gc_scale(b->w, dt)), b->q));
         gc_body_refresh_derived(w, i);

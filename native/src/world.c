@@ -1,5 +1,6 @@
 /* World lifetime, bodies and fingers, argument validation, queries. */
 #include "world_internal.h"
+#include "runtime.h"
 
 #include <stdarg.h>
 #include <stdio.h>
@@ -10,12 +11,14 @@ const char *gc_status_string(gcStatus status) {
     switch (status) {
     case GC_OK: return "ok";
     case GC_WARN_MAX_ITERATIONS: return "iteration cap reached";
+    case GC_WARN_REJECTED: return "input rejected";
     case GC_ERR_INVALID_ARGUMENT: return "invalid argument";
     case GC_ERR_DEGENERATE: return "degenerate geometry";
     case GC_ERR_NO_MEMORY: return "out of memory";
     case GC_ERR_UNKNOWN_ID: return "unknown id";
     case GC_ERR_CAPACITY: return "capacity exhausted";
     case GC_ERR_BUSY: return "busy";
+    case GC_ERR_NOT_RUNNING: return "runtime not running";
     }
     return "unknown status";
 }
@@ -102,6 +105,7 @@ gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world) {
 
 void gc_world_destroy(gcWorld *w) {
     if (!w) return;
+    gc_runtime_free(w); /* stops the runtime threads first */
     gc_contacts_destroy(w); /* joins the contact thread pool */
     for (int i = 0; i < w->num_parts; ++i) gc_hull_free(&w->parts[i].hull);
     free(w->bodies);
@@ -130,6 +134,15 @@ static gcStatus check_finger(const gcWorld *w, int32_t finger) {
     if (finger < 0 || finger >= w->num_fingers) {
         gc_world_set_error(w, "finger: unknown id %d", (int)finger);
         return GC_ERR_UNKNOWN_ID;
+    }
+    return GC_OK;
+}
+
+/* While the runtime runs it owns the dynamic state (runtime.c): mutating calls are refused. */
+static gcStatus check_idle(const gcWorld *w) {
+    if (gc_runtime_running(w)) {
+        gc_world_set_error(w, "the runtime is running: stop it first (World.stop / gc_world_stop)");
+        return GC_ERR_BUSY;
     }
     return GC_OK;
 }
@@ -224,6 +237,7 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
                            int32_t *out_body) {
     if (!w || !def || !out_body) return GC_ERR_INVALID_ARGUMENT;
     gcStatus st;
+    if ((st = check_idle(w))) return st;
     if ((st = check_vec(w, def->position, 3, "position")) ||
         (st = check_vec(w, def->orientation, 4, "orientation")) ||
         (st = check_vec(w, def->linear_velocity, 3, "linear_velocity")) ||
@@ -360,7 +374,7 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
 gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_finger) {
     if (!w || !def || !out_finger) return GC_ERR_INVALID_ARGUMENT;
     gcStatus st;
-    if ((st = check_vec(w, def->position, 3, "position"))) return st;
+    if ((st = check_idle(w)) || (st = check_vec(w, def->position, 3, "position"))) return st;
     if (!isfinite(def->radius) || def->radius < 0) {
         gc_world_set_error(w, "radius: must be a finite number >= 0 (got %g)", def->radius);
         return GC_ERR_INVALID_ARGUMENT;
@@ -394,21 +408,22 @@ gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_fi
 }
 
 gcStatus gc_world_set_gravity(gcWorld *w, const double g[3]) {
-    gcStatus st = check_vec(w, g, 3, "gravity");
-    if (st) return st;
+    gcStatus st = check_idle(w);
+    if (st || (st = check_vec(w, g, 3, "gravity"))) return st;
     w->gravity = gc_v3(g[0], g[1], g[2]);
     return GC_OK;
 }
 
 gcStatus gc_world_set_hip(gcWorld *w, int32_t finger, const double p[3]) {
     gcStatus st;
-    if ((st = check_finger(w, finger)) || (st = check_vec(w, p, 3, "position"))) return st;
+    if ((st = check_idle(w)) || (st = check_finger(w, finger)) || (st = check_vec(w, p, 3, "position"))) return st;
     w->fingers[finger].hip = gc_v3(p[0], p[1], p[2]);
     memcpy(&w->hip_array[3 * finger], p, 3 * sizeof(double));
     return GC_OK;
 }
 
 gcStatus gc_world_set_hips(gcWorld *w, const double *p, int count) {
+    if (check_idle(w)) return GC_ERR_BUSY;
     if (count < 0 || count > w->num_fingers) {
         gc_world_set_error(w, "positions: %d rows given for %d fingers", count, w->num_fingers);
         return GC_ERR_INVALID_ARGUMENT;
@@ -422,7 +437,8 @@ gcStatus gc_world_set_hips(gcWorld *w, const double *p, int count) {
 
 gcStatus gc_world_set_body_velocity(gcWorld *w, int32_t body, const double lin[3], const double ang[3]) {
     gcStatus st;
-    if ((st = check_body(w, body)) || (st = check_vec(w, lin, 3, "linear")) || (st = check_vec(w, ang, 3, "angular")))
+    if ((st = check_idle(w)) || (st = check_body(w, body)) || (st = check_vec(w, lin, 3, "linear")) ||
+        (st = check_vec(w, ang, 3, "angular")))
         return st;
     gcBody *b = &w->bodies[body];
     if (b->is_static) {
@@ -437,7 +453,7 @@ gcStatus gc_world_set_body_velocity(gcWorld *w, int32_t body, const double lin[3
 
 gcStatus gc_world_set_body_pose(gcWorld *w, int32_t body, const double pos[3], const double quat[4]) {
     gcStatus st;
-    if ((st = check_body(w, body)) || (st = check_vec(w, pos, 3, "position")) ||
+    if ((st = check_idle(w)) || (st = check_body(w, body)) || (st = check_vec(w, pos, 3, "position")) ||
         (st = check_vec(w, quat, 4, "orientation")))
         return st;
     double qn = sqrt(quat[0] * quat[0] + quat[1] * quat[1] + quat[2] * quat[2] + quat[3] * quat[3]);
@@ -455,7 +471,7 @@ gcStatus gc_world_set_body_pose(gcWorld *w, int32_t body, const double pos[3], c
 
 gcStatus gc_world_set_body_friction(gcWorld *w, int32_t body, double mu_s, double mu_d, double viscosity) {
     gcStatus st;
-    if ((st = check_body(w, body)) || (st = check_friction(w, mu_s, mu_d, viscosity))) return st;
+    if ((st = check_idle(w)) || (st = check_body(w, body)) || (st = check_friction(w, mu_s, mu_d, viscosity))) return st;
     w->bodies[body].mu_s = mu_s;
     w->bodies[body].mu_d = mu_d;
     w->bodies[body].viscosity = viscosity;
@@ -464,6 +480,7 @@ gcStatus gc_world_set_body_friction(gcWorld *w, int32_t body, double mu_s, doubl
 
 gcStatus gc_world_step(gcWorld *w, double dt) {
     if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (check_idle(w)) return GC_ERR_BUSY;
     if (!isfinite(dt) || !(dt > 0.0) || dt > 1.0) {
         gc_world_set_error(w, "dt: must be a finite step in (0, 1] seconds (got %g)", dt);
         return GC_ERR_INVALID_ARGUMENT;

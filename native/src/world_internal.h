@@ -80,6 +80,12 @@ struct gcWorld {
     char last_error[256];
     /* Contacts, chains and their worker pool (contacts.c, islands.c, threadpool.c). */
     struct gcContactSystem *contacts;
+    /* Runtime (runtime.c): made on the first gc_world_start, freed by gc_world_destroy. */
+    struct gcRuntime *runtime;
+    /* NULL: a step moves every dynamic body. Otherwise only bodies with body_active[i] != 0
+     * move; the others are stepped by another runtime thread and are immovable here (their
+     * effective mass is marked invalid). Set only in the runtime's per-thread shadows. */
+    const unsigned char *body_active;
 };
 
 void gc_world_set_error(const gcWorld *world, const char *fmt, ...);
