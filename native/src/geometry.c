@@ -910,7 +910,11 @@ static gcStatus collide_hulls(const gcHull *a, const gcTransform *ta, const gcHu
         simplex_witness(&s, &pa, &pb);
         gcVec3 delta = gc_sub(pb, pa);
         core_dist = gc_len(delta);
-        n = gc_scale(delta, 1.0 / core_dist);
+        /* The normal from GJK's closest point v (computed directly, e.g. as the
+         * triangle's normal): accurate even when the gap is a hairline and pb - pa
+         * is mostly rounding of the witness points. */
+        double vlen = gc_len(g.v);
+        n = vlen > 0.0 ? gc_scale(g.v, -1.0 / vlen) : gc_scale(delta, 1.0 / core_dist);
     } else {
         EpaResult e;
         epa(&q, &s, EPA_REL_TOL * size + 4.0 * DBL_EPSILON * gc_len(q.p), &e);
