@@ -32,7 +32,7 @@ static PyObject *raise_status(WorldObject *self, gcStatus st) {
     const char *msg = self->world ? gc_world_last_error(self->world) : "";
     if (!msg || !msg[0]) msg = gc_status_string(st);
     if (st == GC_ERR_NO_MEMORY) return PyErr_NoMemory();
-    if (st == GC_ERR_BUSY) {
+    if (st == GC_ERR_BUSY || st == GC_ERR_NOT_RUNNING) {
         PyErr_SetString(PyExc_RuntimeError, msg);
         return NULL;
     }
@@ -539,6 +539,171 @@ static PyObject *World_get_finger_count(PyObject *obj, void *closure) {
     return PyLong_FromLong(gc_world_finger_count(self->world));
 }
 
+/* ---- Runtime: haptic loop and object manager threads (runtime.c, docs/runtime.md) ----
+ * push_hips, _snapshot and stats may run while another thread is inside advance/stop: the
+ * core serialises them itself. */
+
+static int check_world(WorldObject *self) {
+    if (!self->world) {
+        PyErr_SetString(PyExc_RuntimeError, "World is not initialised");
+        return 0;
+    }
+    return 1;
+}
+
+static PyObject *World_start(PyObject *obj, PyObject *args, PyObject *kwargs) {
+    WorldObject *self = (WorldObject *)obj;
+    static char *kwlist[] = {"haptic_rate", "object_rate", "max_adopted_bodies", "max_force", "ramp_time",
+                             "watchdog_timeout", "hip_timeout", "release_delay", "realtime", "priority", NULL};
+    gcRuntimeDef def = gc_default_runtime_def();
+    int realtime = def.realtime;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|$ddidddddpi", kwlist, &def.haptic_rate, &def.object_rate,
+                                     &def.max_adopted_bodies, &def.max_force, &def.ramp_time,
+                                     &def.watchdog_timeout, &def.hip_timeout, &def.release_delay, &realtime,
+                                     &def.priority) ||
+        !check_ready(self))
+        return NULL;
+    def.realtime = realtime;
+    gcStatus st = gc_world_start(self->world, &def);
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+}
+
+/* stop(): joins the threads with the GIL released (the loops never need it). */
+static PyObject *World_stop(PyObject *obj, PyObject *unused) {
+    WorldObject *self = (WorldObject *)obj;
+    if (!check_ready(self)) return NULL;
+    gcStatus st;
+    atomic_store(&self->busy, 1);
+    Py_BEGIN_ALLOW_THREADS
+    st = gc_world_stop(self->world);
+    Py_END_ALLOW_THREADS
+    atomic_store(&self->busy, 0);
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+}
+
+/* advance(ticks, delay=0.0): manual clock only; the GIL is released meanwhile. */
+static PyObject *World_advance(PyObject *obj, PyObject *args, PyObject *kwargs) {
+    WorldObject *self = (WorldObject *)obj;
+    static char *kwlist[] = {"ticks", "delay", NULL};
+    int ticks;
+    double delay = 0.0;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "i|d", kwlist, &ticks, &delay) || !check_ready(self)) return NULL;
+    gcStatus st;
+    atomic_store(&self->busy, 1);
+    Py_BEGIN_ALLOW_THREADS
+    st = gc_world_advance(self->world, ticks, delay);
+    Py_END_ALLOW_THREADS
+    atomic_store(&self->busy, 0);
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+}
+
+/* _push_hips(float64 buffer of xyz rows, t) -> True if taken, False if rejected (counted). */
+static PyObject *World_push_hips(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    PyObject *positions;
+    double t;
+    if (!PyArg_ParseTuple(args, "Od", &positions, &t) || !check_world(self)) return NULL;
+    Py_buffer b;
+    if (PyObject_GetBuffer(positions, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
+    PyObject *result = NULL;
+    if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0 || b.len == 0) {
+        PyErr_SetString(PyExc_ValueError, "positions: must be a C-contiguous float64 array of xyz rows");
+    } else {
+        int rows = (int)(b.len / (Py_ssize_t)(3 * sizeof(double)));
+        gcStatus st = gc_world_push_hips(self->world, b.buf, rows, t);
+        if (st == GC_ERR_NOT_RUNNING)
+            PyErr_SetString(PyExc_RuntimeError, "push_hips: the runtime is not running (World.start)");
+        else if (st == GC_ERR_INVALID_ARGUMENT)
+            PyErr_Format(PyExc_ValueError, "positions: %d rows given for %d fingers", rows,
+                         gc_world_finger_count(self->world));
+        else
+            result = PyBool_FromLong(st == GC_OK);
+    }
+    PyBuffer_Release(&b);
+    return result;
+}
+
+/* _snapshot() -> (time, object_time, tick, forces_enabled, n_bodies, n_fingers, poses,
+ * wrenches, adopted, god_objects, hips, forces, spring_forces, states, contact_bodies),
+ * arrays as bytearrays (float64, uint8 or int32) for numpy.frombuffer. */
+static PyObject *World_snapshot(PyObject *obj, PyObject *unused) {
+    WorldObject *self = (WorldObject *)obj;
+    if (!check_world(self)) return NULL;
+    if (!gc_world_running(self->world) && !check_ready(self)) return NULL;
+    int nb = gc_world_body_count(self->world), nf = gc_world_finger_count(self->world);
+    Py_ssize_t sizes[9] = {nb * 7 * 8, nb * 6 * 8, nb, nf * 3 * 8, nf * 3 * 8, nf * 3 * 8, nf * 3 * 8, nf * 4, nf * 4};
+    PyObject *arrays[9] = {NULL};
+    for (int i = 0; i < 9; ++i) {
+        arrays[i] = PyByteArray_FromStringAndSize(NULL, sizes[i]);
+        if (!arrays[i]) {
+            for (int j = 0; j < i; ++j) Py_DECREF(arrays[j]);
+            return NULL;
+        }
+    }
+    gcSnapshot snap;
+    memset(&snap, 0, sizeof snap);
+    snap.poses = (double *)PyByteArray_AsString(arrays[0]);
+    snap.residual_wrenches = (double *)PyByteArray_AsString(arrays[1]);
+    snap.adopted = (uint8_t *)PyByteArray_AsString(arrays[2]);
+    snap.god_objects = (double *)PyByteArray_AsString(arrays[3]);
+    snap.hips = (double *)PyByteArray_AsString(arrays[4]);
+    snap.forces = (double *)PyByteArray_AsString(arrays[5]);
+    snap.spring_forces = (double *)PyByteArray_AsString(arrays[6]);
+    snap.finger_states = (int32_t *)PyByteArray_AsString(arrays[7]);
+    snap.contact_bodies = (int32_t *)PyByteArray_AsString(arrays[8]);
+    gcStatus st = gc_world_snapshot(self->world, &snap);
+    if (st < 0) {
+        for (int i = 0; i < 9; ++i) Py_DECREF(arrays[i]);
+        return raise_status(self, st);
+    }
+    return Py_BuildValue("(ddKiiiNNNNNNNNN)", snap.time, snap.object_time, (unsigned long long)snap.tick,
+                         snap.forces_enabled, nb, nf, arrays[0], arrays[1], arrays[2], arrays[3], arrays[4],
+                         arrays[5], arrays[6], arrays[7], arrays[8]);
+}
+
+static PyObject *World_stats(PyObject *obj, PyObject *unused) {
+    WorldObject *self = (WorldObject *)obj;
+    if (!check_world(self)) return NULL;
+    gcRuntimeStats s;
+    gcStatus st = gc_world_stats(self->world, &s);
+    if (st < 0) return raise_status(self, st);
+    return Py_BuildValue(
+        "{s:N,s:N,s:N,s:s,s:d,s:d,s:d,s:K,s:K,s:d,s:d,s:d,s:K,s:K,s:K,s:i,s:K,s:K,s:K,s:K,s:K,s:N,s:d,s:d}",
+        "running", PyBool_FromLong(s.running), "realtime", PyBool_FromLong(s.realtime), "rt_priority",
+        PyBool_FromLong(s.rt_priority), "priority_note", s.priority_note, "haptic_rate", s.haptic_rate,
+        "object_rate", s.object_rate, "object_speed", s.object_speed, "haptic_ticks",
+        (unsigned long long)s.haptic_ticks, "object_ticks", (unsigned long long)s.object_ticks, "jitter_p50_us",
+        s.jitter_p50_us, "jitter_p99_us", s.jitter_p99_us, "jitter_max_us", s.jitter_max_us, "overruns",
+        (unsigned long long)s.overruns, "late_periods", (unsigned long long)s.late_periods, "object_overruns",
+        (unsigned long long)s.object_overruns, "adopted_bodies", s.adopted_bodies, "accepted_inputs",
+        (unsigned long long)s.accepted_inputs, "rejected_inputs", (unsigned long long)s.rejected_inputs,
+        "watchdog_trips", (unsigned long long)s.watchdog_trips, "stale_inputs", (unsigned long long)s.stale_inputs,
+        "nonfinite_forces", (unsigned long long)s.nonfinite_forces, "forces_enabled",
+        PyBool_FromLong(s.forces_enabled), "haptic_time", s.haptic_time, "object_time", s.object_time);
+}
+
+static PyObject *World_debug_stall(PyObject *obj, PyObject *arg) {
+    WorldObject *self = (WorldObject *)obj;
+    double seconds = PyFloat_AsDouble(arg);
+    if ((seconds == -1.0 && PyErr_Occurred()) || !check_world(self)) return NULL;
+    gcStatus st = gc_world_debug_stall(self->world, seconds);
+    if (st == GC_ERR_NOT_RUNNING) {
+        PyErr_SetString(PyExc_RuntimeError, "the runtime is not running");
+        return NULL;
+    }
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+}
+
+static PyObject *World_get_running(PyObject *obj, void *closure) {
+    WorldObject *self = (WorldObject *)obj;
+    if (!check_world(self)) return NULL;
+    return PyBool_FromLong(gc_world_running(self->world));
+}
+
 static PyMethodDef World_methods[] = {
     {"_add_body", World_add_body, METH_VARARGS, "Low-level add_body; use World.add_body."},
     {"add_finger", (PyCFunction)(void (*)(void))World_add_finger, METH_VARARGS | METH_KEYWORDS,
@@ -571,6 +736,18 @@ static PyMethodDef World_methods[] = {
      "body_chain(body) -> index of the body's collision chain (last step), None for a static body"},
     {"contact_overflow", World_contact_overflow, METH_NOARGS,
      "contact_overflow() -> contact pairs dropped since creation for want of max_contacts"},
+    /* Runtime (docs/runtime.md). */
+    {"start", (PyCFunction)(void (*)(void))World_start, METH_VARARGS | METH_KEYWORDS,
+     "start(*, haptic_rate=1000, object_rate=500, max_adopted_bodies=3, max_force=10, ramp_time=0.5,\n"
+     "      watchdog_timeout=0.005, hip_timeout=0.1, release_delay=0.05, realtime=True, priority=80)\n"
+     "Run the world on a haptic loop and an object manager thread (docs/runtime.md)."},
+    {"stop", World_stop, METH_NOARGS, "stop(): join the runtime threads; the world steps synchronously again."},
+    {"advance", (PyCFunction)(void (*)(void))World_advance, METH_VARARGS | METH_KEYWORDS,
+     "advance(ticks, delay=0.0): manual clock (start(realtime=False)) only: run ticks haptic ticks."},
+    {"_push_hips", World_push_hips, METH_VARARGS, "Low-level push_hips; use World.push_hips."},
+    {"_snapshot", World_snapshot, METH_NOARGS, "Low-level snapshot; use World.snapshot."},
+    {"stats", World_stats, METH_NOARGS, "stats() -> dict: rates, jitter, overruns, adoption, inputs, safety."},
+    {"_debug_stall", World_debug_stall, METH_O, "Test hook: stall the haptic loop this many seconds once."},
     {NULL, NULL, 0, NULL},
 };
 
@@ -578,6 +755,7 @@ static PyGetSetDef World_getset[] = {
     {"time", World_get_time, NULL, "Simulated time, s", NULL},
     {"body_count", World_get_body_count, NULL, "Number of bodies", NULL},
     {"finger_count", World_get_finger_count, NULL, "Number of fingers", NULL},
+    {"running", World_get_running, NULL, "True between start() and stop()", NULL},
     {NULL, NULL, NULL, NULL, NULL},
 };
 

@@ -1150,9 +1150,9 @@ gcStatus gc_world_stats(gcWorld *w, gcRuntimeStats *out) {
         hist[i] = atomic_load_explicit(&rt->jitter_hist[i], memory_order_relaxed);
         total += hist[i];
     }
-    out->jitter_p50_us = percentile_us(hist, total, 0.50);
-    out->jitter_p99_us = percentile_us(hist, total, 0.99);
     out->jitter_max_us = (double)atomic_load_explicit(&rt->jitter_max_ns, memory_order_relaxed) * 1e-3;
+    out->jitter_p50_us = fmin(percentile_us(hist, total, 0.50), out->jitter_max_us);
+    out->jitter_p99_us = fmin(percentile_us(hist, total, 0.99), out->jitter_max_us);
     pthread_mutex_unlock(&rt->api_mutex);
     return GC_OK;
 }

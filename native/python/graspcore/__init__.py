@@ -120,3 +120,50 @@ class World(_core.World):
     def set_hips(self, positions) -> None:
         """HIPs of fingers 0..n-1 from an (n, 3) array."""
         super().set_hips(_points_array(positions, "positions"))
+
+    # ---- Runtime (docs/runtime.md): start / stop / advance / stats come from the core.
+
+    def push_hips(self, positions, t: float) -> bool:
+        """Latest HIPs of fingers 0..n-1 ((n, 3) array) at device time ``t``, from any thread
+        while the runtime runs. Returns False when the input was rejected (NaN/Inf, or ``t``
+        older than the last push): it is counted in ``stats()['rejected_inputs']`` and
+        ignored. Raises RuntimeError when the runtime is not running."""
+        try:
+            array = np.ascontiguousarray(positions, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"positions: expected an (n, 3) array of numbers ({exc})") from None
+        if array.ndim == 1 and array.size == 3:
+            array = array.reshape(1, 3)
+        if array.ndim != 2 or array.shape[1] != 3 or array.shape[0] < 1:
+            raise ValueError(f"positions: expected an (n, 3) array, got shape {array.shape}")
+        return self._push_hips(array, float(t))
+
+    def snapshot(self) -> dict:
+        """A consistent copy of one haptic tick (the world's own state when stopped):
+
+        ``time``, ``object_time`` (s), ``tick``, ``forces_enabled``; per body ``poses``
+        (n, 7), ``residual_forces`` / ``residual_torques`` (n, 3), ``adopted`` (n,) bool;
+        per finger ``god_objects``, ``hips``, ``forces`` (device: clamped, ramped, zero
+        under the watchdog), ``spring_forces`` (physics, unclamped) (m, 3),
+        ``finger_states`` (m,) int32 (0 free, 1 stick, 2 slip) and ``contact_bodies``
+        (m,) int32 (-1 when free). While the runtime runs, the world's queries and views
+        answer from the last snapshot."""
+        (time, object_time, tick, enabled, nb, nf, poses, wrenches, adopted, gos, hips, forces,
+         springs, states, contacts) = self._snapshot()
+        wrenches = np.frombuffer(wrenches, dtype=np.float64).reshape(nb, 6)
+        return {
+            "time": time,
+            "object_time": object_time,
+            "tick": tick,
+            "forces_enabled": bool(enabled),
+            "poses": np.frombuffer(poses, dtype=np.float64).reshape(nb, 7),
+            "residual_forces": wrenches[:, :3],
+            "residual_torques": wrenches[:, 3:],
+            "adopted": np.frombuffer(adopted, dtype=np.uint8).astype(bool),
+            "god_objects": np.frombuffer(gos, dtype=np.float64).reshape(nf, 3),
+            "hips": np.frombuffer(hips, dtype=np.float64).reshape(nf, 3),
+            "forces": np.frombuffer(forces, dtype=np.float64).reshape(nf, 3),
+            "spring_forces": np.frombuffer(springs, dtype=np.float64).reshape(nf, 3),
+            "finger_states": np.frombuffer(states, dtype=np.int32),
+            "contact_bodies": np.frombuffer(contacts, dtype=np.int32),
+        }
