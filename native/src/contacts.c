@@ -63,7 +63,8 @@ gcStatus gc_contacts_create(gcWorld *w) {
     cs->cursor = calloc(nb + 1, sizeof *cs->cursor);
     cs->pseudo_v = calloc(nb, sizeof *cs->pseudo_v);
     cs->pseudo_w = calloc(nb, sizeof *cs->pseudo_w);
-    if (!cs->manifolds || !cs->previous || !cs->candidates || !cs->sorted_bodies || !cs->part_min ||
+    cs->inv_mass = calloc(nb, sizeof *cs->inv_mass);
+    if (!cs->inv_mass || !cs->manifolds || !cs->previous || !cs->candidates || !cs->sorted_bodies || !cs->part_min ||
         !cs->part_max || !cs->parent || !cs->body_chain || !cs->chain_body_start || !cs->chain_bodies ||
         !cs->chain_manifold_start || !cs->chain_manifolds || !cs->cursor || !cs->pseudo_v || !cs->pseudo_w)
         return GC_ERR_NO_MEMORY; /* the caller destroys the world, which frees what was made */
@@ -91,6 +92,7 @@ void gc_contacts_destroy(gcWorld *w) {
     free(cs->cursor);
     free(cs->pseudo_v);
     free(cs->pseudo_w);
+    free(cs->inv_mass);
     free(cs);
     w->contacts = NULL;
 }
@@ -262,9 +264,11 @@ static int face_polygon(const gcHull *h, const gcTransform *t, int tri, gcVec3 *
     gcVec3 u, v;
     tangent_basis(n, &u, &v);
     double angle[GC_MAX_POLY];
-    for (int i = 0; i < count; ++i) {
+    for (int i = 0; i < count; ++i) { /* pseudo-angle in [0, 4): monotone in the angle, no atan2 */
         gcVec3 d = gc_sub(local[i], c);
-        angle[i] = atan2(gc_dot(d, v), gc_dot(d, u));
+        double x = gc_dot(d, u), y = gc_dot(d, v), r = fabs(x) + fabs(y);
+        double t = r > 0.0 ? y / r : 0.0;
+        angle[i] = x >= 0.0 ? (y >= 0.0 ? t : 4.0 + t) : 2.0 - t;
     }
     for (int i = 1; i < count; ++i) { /* insertion sort by angle */
         double a = angle[i];
@@ -445,6 +449,19 @@ static const gcManifold *find_previous(const struct gcContactSystem *cs, int64_t
     return NULL;
 }
 
+/* Whether the pair moved (relative to itself) less than the reuse tolerances since the
+ * manifold was computed: translation of B's COM in A's frame, and the angle of the
+ * relative rotation (from the trace: |R_ref^T R - I| small). */
+static int reusable(const gcManifold *old, gcVec3 rel_p, const gcMat3 *rel_R) {
+    if (old->num_points == 0) return 0;
+    if (gc_len2(gc_sub(rel_p, old->ref_position)) > GC_REUSE_DISTANCE * GC_REUSE_DISTANCE) return 0;
+    double trace = 0.0; /* trace(R_ref^T R) = 1 + 2 cos(angle) */
+    for (int i = 0; i < 3; ++i)
+        for (int k = 0; k < 3; ++k) trace += old->ref_rotation.m[k][i] * rel_R->m[k][i];
+    double one_minus_cos = 0.5 * (3.0 - trace);
+    return one_minus_cos < 0.5 * GC_REUSE_ANGLE * GC_REUSE_ANGLE;
+}
+
 /* Narrow phase for candidate i: fills manifolds[i] (num_points 0 when apart). */
 static void narrow_pair(gcWorld *w, int i) {
     struct gcContactSystem *cs = w->contacts;
@@ -458,6 +475,26 @@ static void narrow_pair(gcWorld *w, int i) {
     m->num_points = 0;
     const gcBody *A = &w->bodies[m->body_a], *B = &w->bodies[m->body_b];
     const gcHull *ha = &w->parts[m->part_a].hull, *hb = &w->parts[m->part_b].hull;
+    const gcManifold *old = find_previous(cs, m->key);
+    /* B relative to A, in A's COM frame. */
+    gcVec3 rel_p = gc_mat3_tmul_vec(&A->R, gc_sub(B->com, A->com));
+    gcMat3 At = gc_mat3_transpose(&A->R);
+    gcMat3 rel_R = gc_mat3_mul(&At, &B->R);
+    if (old && reusable(old, rel_p, &rel_R)) {
+        /* The pair has hardly moved relative to itself since its manifold was computed:
+         * keep the material points, refresh their world positions and separations. */
+        *m = *old;
+        m->normal = gc_mat3_mul_vec(&A->R, old->normal_local_a);
+        tangent_basis(m->normal, &m->t1, &m->t2);
+        for (int k = 0; k < m->num_points; ++k) {
+            gcManifoldPoint *p = &m->points[k];
+            gcVec3 pa = gc_add(A->com, gc_mat3_mul_vec(&A->R, p->local_a));
+            gcVec3 pb = gc_add(B->com, gc_mat3_mul_vec(&B->R, p->local_b));
+            p->point = gc_scale(gc_add(pa, pb), 0.5);
+            p->separation = gc_dot(m->normal, gc_sub(pb, pa));
+        }
+        return;
+    }
     gcTransform ta = body_transform(A), tb = body_transform(B);
     gcContact c;
     gcStatus st = gc_collide(ha, &ta, hb, &tb, &c);
@@ -470,7 +507,9 @@ static void narrow_pair(gcWorld *w, int i) {
     m->mu_s = sqrt(A->mu_s * B->mu_s);
     m->mu_d = sqrt(A->mu_d * B->mu_d);
     if (m->mu_d > m->mu_s) m->mu_d = m->mu_s;
-    const gcManifold *old = find_previous(cs, m->key);
+    m->ref_position = rel_p;
+    m->ref_rotation = rel_R;
+    m->normal_local_a = gc_mat3_tmul_vec(&A->R, normal);
     int used[GC_MANIFOLD_MAX_POINTS] = {0, 0, 0, 0};
     double match = 0.25 * fmin(ha->min_width, hb->min_width);
     if (!(match < 0.002)) match = 0.002;
@@ -574,8 +613,23 @@ static inline void apply(const gcManifoldPoint *p, int k, double lambda, const S
     if (s->va) add_twist(s->va, s->wa, p->wa[k], -lambda);
 }
 
+/* out = M x for a row-major 6x6 M (NULL: a static body, out = 0). */
+static void mul6(const double *M, const double x[6], double out[6]) {
+    if (!M) {
+        for (int i = 0; i < 6; ++i) out[i] = 0.0;
+        return;
+    }
+    for (int i = 0; i < 6; ++i) {
+        const double *r = M + 6 * i;
+        out[i] = r[0] * x[0] + r[1] * x[1] + r[2] * x[2] + r[3] * x[3] + r[4] * x[4] + r[5] * x[5];
+    }
+}
+
 static void prepare_manifold(gcWorld *w, gcManifold *m, double dt) {
     const gcBody *A = &w->bodies[m->body_a], *B = &w->bodies[m->body_b];
+    struct gcContactSystem *cs = w->contacts;
+    const double *ma = A->is_static ? NULL : cs->inv_mass[m->body_a];
+    const double *mb = B->is_static ? NULL : cs->inv_mass[m->body_b];
     gcVec3 dirs[3] = {m->normal, m->t1, m->t2};
     for (int k = 0; k < m->num_points; ++k) {
         gcManifoldPoint *p = &m->points[k];
@@ -585,8 +639,8 @@ static void prepare_manifold(gcWorld *w, gcManifold *m, double dt) {
             p->ang_b[d] = gc_cross(rb, dirs[d]);
             double ja[6] = {dirs[d].x, dirs[d].y, dirs[d].z, p->ang_a[d].x, p->ang_a[d].y, p->ang_a[d].z};
             double jb[6] = {dirs[d].x, dirs[d].y, dirs[d].z, p->ang_b[d].x, p->ang_b[d].y, p->ang_b[d].z};
-            gc_body_solve_effective_mass(A, ja, p->wa[d]);
-            gc_body_solve_effective_mass(B, jb, p->wb[d]);
+            mul6(ma, ja, p->wa[d]);
+            mul6(mb, jb, p->wb[d]);
         }
         double K[3][3];
         for (int i = 0; i < 3; ++i)
@@ -663,15 +717,51 @@ static void warm_start(gcWorld *w, gcManifold *m) {
     }
 }
 
-static void solve_velocity(gcWorld *w, gcManifold *m) {
+/* The two bodies' twists, held in locals while a manifold is solved (the bodies differ, so
+ * nothing aliases); a static body is a zero twist that is never written back. */
+typedef struct LocalTwists {
+    gcVec3 va, wa, vb, wb;
+} LocalTwists;
+
+static inline LocalTwists load_twists(const SolverBodies *s) {
+    LocalTwists t;
+    gcVec3 zero = {0.0, 0.0, 0.0};
+    t.va = s->va ? *s->va : zero;
+    t.wa = s->wa ? *s->wa : zero;
+    t.vb = s->vb ? *s->vb : zero;
+    t.wb = s->wb ? *s->wb : zero;
+    return t;
+}
+
+static inline void store_twists(const SolverBodies *s, const LocalTwists *t) {
+    if (s->va) *s->va = t->va, *s->wa = t->wa;
+    if (s->vb) *s->vb = t->vb, *s->wb = t->wb;
+}
+
+/* Velocity of B relative to A at the point, along direction k (d is that direction). */
+static inline double rel_vel(const gcManifoldPoint *p, int k, gcVec3 d, gcVec3 dv, const LocalTwists *t) {
+    return gc_dot(d, dv) + gc_dot(p->ang_b[k], t->wb) - gc_dot(p->ang_a[k], t->wa);
+}
+
+static inline void apply_local(const gcManifoldPoint *p, int k, double lambda, LocalTwists *t) {
+    add_twist(&t->vb, &t->wb, p->wb[k], lambda);
+    add_twist(&t->va, &t->wa, p->wa[k], -lambda);
+}
+
+/* One Gauss-Seidel pass over the manifold's rows; returns the largest velocity error a
+ * row saw before its update (sliding friction rows and separating normals excepted). */
+static double solve_velocity(gcWorld *w, gcManifold *m) {
     SolverBodies s = solver_bodies(w, m, NULL, NULL);
+    LocalTwists t = load_twists(&s);
+    double residual = 0.0;
+    double mu = m->sticking ? m->mu_s : m->mu_d;
     /* Friction first (its bound uses the current normal impulses), normals last. */
     for (int k = 0; k < m->num_points; ++k) {
         gcManifoldPoint *p = &m->points[k];
-        double mu = m->sticking ? m->mu_s : m->mu_d;
         double limit = mu * p->normal_impulse;
-        double e1 = relative_velocity(p, m->t1, 1, s.va, s.wa, s.vb, s.wb) - p->target_t[0];
-        double e2 = relative_velocity(p, m->t2, 2, s.va, s.wa, s.vb, s.wb) - p->target_t[1];
+        gcVec3 dv = gc_sub(t.vb, t.va);
+        double e1 = rel_vel(p, 1, m->t1, dv, &t) - p->target_t[0];
+        double e2 = rel_vel(p, 2, m->t2, dv, &t) - p->target_t[1];
         double l1 = p->lambda_t[0] - (p->inv_kt[0][0] * e1 + p->inv_kt[0][1] * e2);
         double l2 = p->lambda_t[1] - (p->inv_kt[1][0] * e1 + p->inv_kt[1][1] * e2);
         p->saturated = l1 * l1 + l2 * l2 > limit * limit;
@@ -687,29 +777,38 @@ static void solve_velocity(gcWorld *w, gcManifold *m) {
                 l1 *= scale;
                 l2 *= scale;
             }
+        } else {
+            residual = fmax(residual, fabs(e1) + fabs(e2));
         }
-        apply(p, 1, l1 - p->lambda_t[0], &s);
-        apply(p, 2, l2 - p->lambda_t[1], &s);
+        apply_local(p, 1, l1 - p->lambda_t[0], &t);
+        apply_local(p, 2, l2 - p->lambda_t[1], &t);
         p->lambda_t[0] = l1;
         p->lambda_t[1] = l2;
     }
     for (int k = 0; k < m->num_points; ++k) {
         gcManifoldPoint *p = &m->points[k];
-        double vn = relative_velocity(p, m->normal, 0, s.va, s.wa, s.vb, s.wb);
+        double vn = rel_vel(p, 0, m->normal, gc_sub(t.vb, t.va), &t);
         double l = p->normal_impulse - (vn - p->target_n) * p->inv_kn;
         if (l < 0.0) l = 0.0;
-        apply(p, 0, l - p->normal_impulse, &s);
+        if (l > 0.0 || vn < p->target_n) residual = fmax(residual, fabs(vn - p->target_n));
+        apply_local(p, 0, l - p->normal_impulse, &t);
         p->normal_impulse = l;
     }
+    store_twists(&s, &t);
+    return residual;
 }
 
 /* After the velocity iterations: the reported impulses, then the stick/slip transition of
  * the whole manifold. Coulomb's law bounds each point by mu times its own normal impulse, but
  * how a rigid contact patch shares its load between points is not unique: deciding slip per
  * point would let one lightly loaded corner drop to mu_d and drag the patch with it below
- * mu_s. The patch slips when every pressed point was on its cone at its last update. */
-static void finish_velocity(gcManifold *m) {
+ * mu_s. The patch slips when every pressed point was on its cone at its last update and
+ * it slides faster than GC_SLIP_SPEED: an unconverged first solve of a fresh contact
+ * saturates without the patch really sliding. */
+static void finish_velocity(gcWorld *w, gcManifold *m) {
+    SolverBodies s = solver_bodies(w, m, NULL, NULL);
     int pressed = 0, all_saturated = 1;
+    double slip2 = 0.0;
     for (int k = 0; k < m->num_points; ++k) {
         gcManifoldPoint *p = &m->points[k];
         p->friction_impulse = gc_add(gc_scale(m->t1, p->lambda_t[0]), gc_scale(m->t2, p->lambda_t[1]));
@@ -719,10 +818,13 @@ static void finish_velocity(gcManifold *m) {
         }
         pressed = 1;
         if (!p->saturated) all_saturated = 0;
+        double e1 = relative_velocity(p, m->t1, 1, s.va, s.wa, s.vb, s.wb) - p->target_t[0];
+        double e2 = relative_velocity(p, m->t2, 2, s.va, s.wa, s.vb, s.wb) - p->target_t[1];
+        slip2 = fmax(slip2, e1 * e1 + e2 * e2);
     }
     if (!pressed) {
         m->sticking = 1;
-    } else if (all_saturated) {
+    } else if (all_saturated && slip2 > GC_SLIP_SPEED * GC_SLIP_SPEED) {
         m->sticking = 0; /* on the cone: sliding */
     } else if (!m->sticking) {
         m->sticking = 1; /* inside the mu_d cone: it stopped; anchors are set at the next step */
@@ -733,17 +835,19 @@ static void finish_velocity(gcManifold *m) {
 static void solve_position(gcWorld *w, gcManifold *m, double dt) {
     struct gcContactSystem *cs = w->contacts;
     SolverBodies s = solver_bodies(w, m, cs->pseudo_v, cs->pseudo_w);
+    LocalTwists t = load_twists(&s);
     for (int k = 0; k < m->num_points; ++k) {
         gcManifoldPoint *p = &m->points[k];
         double depth = -(p->separation + GC_CONTACT_SLOP);
         if (!(depth > 0.0) && p->position_impulse == 0.0) continue;
         double target = depth > 0.0 ? fmin(GC_POSITION_BETA * depth / dt, GC_MAX_CORRECTION_SPEED) : 0.0;
-        double vn = relative_velocity(p, m->normal, 0, s.va, s.wa, s.vb, s.wb);
+        double vn = rel_vel(p, 0, m->normal, gc_sub(t.vb, t.va), &t);
         double l = p->position_impulse - (vn - target) * p->inv_kn;
         if (l < 0.0) l = 0.0;
-        apply(p, 0, l - p->position_impulse, &s);
+        apply_local(p, 0, l - p->position_impulse, &t);
         p->position_impulse = l;
     }
+    store_twists(&s, &t);
 }
 
 void gc_contacts_solve_chain(gcWorld *w, int chain, double dt) {
@@ -752,13 +856,31 @@ void gc_contacts_solve_chain(gcWorld *w, int chain, double dt) {
     int m0 = cs->chain_manifold_start[chain], m1 = cs->chain_manifold_start[chain + 1];
     if (m0 == m1) return;
     const int32_t *list = cs->chain_manifolds;
+    int b0 = cs->chain_body_start[chain], b1 = cs->chain_body_start[chain + 1];
+    /* Each body's inverse effective mass (with the finger coupling), once per step. */
+    for (int i = b0; i < b1; ++i) {
+        int32_t id = cs->chain_bodies[i];
+        double *M = cs->inv_mass[id];
+        for (int j = 0; j < 6; ++j) {
+            double e[6] = {0, 0, 0, 0, 0, 0}, col[6];
+            e[j] = 1.0;
+            gc_body_solve_effective_mass(&w->bodies[id], e, col);
+            for (int r = 0; r < 6; ++r) M[6 * r + j] = col[r];
+        }
+    }
     for (int i = m0; i < m1; ++i) prepare_manifold(w, &cs->manifolds[list[i]], dt);
     for (int i = m0; i < m1; ++i) warm_start(w, &cs->manifolds[list[i]]);
-    for (int it = 0; it < GC_VELOCITY_ITERATIONS; ++it)
-        for (int i = m0; i < m1; ++i) solve_velocity(w, &cs->manifolds[list[i]]);
-    for (int i = m0; i < m1; ++i) finish_velocity(&cs->manifolds[list[i]]);
+    /* Gauss-Seidel until every row meets its velocity target within GC_SOLVER_TOLERANCE
+     * (the impulses of a statically indeterminate stack may still wander along the null
+     * space; the velocities are what moves the bodies), or the iteration cap. A chain's own
+     * data decide, so the count does not depend on the thread that solves it. */
+    for (int it = 0; it < GC_VELOCITY_ITERATIONS; ++it) {
+        double residual = 0.0;
+        for (int i = m0; i < m1; ++i) residual = fmax(residual, solve_velocity(w, &cs->manifolds[list[i]]));
+        if (residual <= GC_SOLVER_TOLERANCE) break;
+    }
+    for (int i = m0; i < m1; ++i) finish_velocity(w, &cs->manifolds[list[i]]);
     /* Split-impulse position pass: pseudo-velocities move the poses, not the momenta. */
-    int b0 = cs->chain_body_start[chain], b1 = cs->chain_body_start[chain + 1];
     for (int i = b0; i < b1; ++i) {
         int32_t id = cs->chain_bodies[i];
         cs->pseudo_v[id] = gc_v3(0, 0, 0);

@@ -16,9 +16,13 @@
 #define GC_MAX_CORRECTION_SPEED 0.2    /* m/s: cap on the position pass's pseudo-velocity */
 #define GC_ANCHOR_BETA 0.3             /* fraction of the friction-anchor error removed per step */
 #define GC_ANCHOR_RESET 1e-4           /* m: an anchor this far from its contact point is renewed */
-#define GC_VELOCITY_ITERATIONS 12
+#define GC_SLIP_SPEED 1e-4             /* m/s: a saturated patch slower than this still sticks */
+#define GC_VELOCITY_ITERATIONS 12      /* cap; the solve stops earlier once converged */
+#define GC_SOLVER_TOLERANCE 1e-8       /* m/s: velocity error at which a chain's solve stops */
 #define GC_POSITION_ITERATIONS 4
 #define GC_FACE_CONTACT_COS 0.996      /* face clipping when a face normal is within ~5 deg of the normal */
+#define GC_REUSE_DISTANCE 2e-5         /* m: a manifold is reused while the pair moved less than this */
+#define GC_REUSE_ANGLE 2e-4            /* rad: ... and turned less than this relative to each other */
 
 typedef struct gcManifoldPoint {
     gcVec3 local_a, local_b;     /* the contact on each surface, COM-relative body axes */
@@ -49,6 +53,11 @@ typedef struct gcManifold {
     double mu_s, mu_d;           /* combined: geometric means */
     int sticking;                /* 1: static friction (mu_s, anchors), 0: sliding (mu_d) */
     gcManifoldPoint points[GC_MANIFOLD_MAX_POINTS];
+    /* Where the pair was when the manifold was last computed (for reuse): B's COM and axes
+     * in A's COM frame, and the normal in A's axes. */
+    gcVec3 ref_position;
+    gcMat3 ref_rotation;
+    gcVec3 normal_local_a;
 } gcManifold;
 
 typedef struct gcCandidate {
@@ -77,6 +86,7 @@ struct gcContactSystem {
     int32_t *cursor;             /* scratch for the counting sorts */
     /* Solver. */
     gcVec3 *pseudo_v, *pseudo_w; /* split-impulse position pass */
+    double (*inv_mass)[36];      /* per body: (effective mass)^-1, row-major 6x6, this step */
     double dt;
     gcPool *pool;
 };

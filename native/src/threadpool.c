@@ -1,9 +1,11 @@
 /* Worker pool for the contact phases (narrow phase per pair, solver per chain).
  *
- * One job at a time: the caller publishes (task, ctx, count), bumps a generation counter
- * and wakes the workers; everyone, the caller included, takes indices from an atomic
- * counter until none are left; the caller then waits until every worker has left the job
- * so that ctx may go out of scope. Workers sleep on a condition variable between jobs.
+ * One job at a time: the caller publishes (task, ctx, count), opens the job, bumps a
+ * generation counter and wakes the workers; everyone, the caller included, takes indices
+ * from an atomic counter until none are left. The caller then closes the job and waits only
+ * for the workers that joined it (they are finishing their last task): a worker that wakes
+ * late, after the job closed, never touches it, so a descheduled worker never delays the
+ * caller. Workers sleep on a condition variable between jobs.
  * Which thread runs which index is not deterministic, so tasks write only to storage owned
  * by their index (DESIGN.md §3: results independent of the thread count). */
 #define _POSIX_C_SOURCE 200809L
@@ -19,13 +21,14 @@ struct gcPool {
     int threads;                /* including the caller */
     int num_workers;
     pthread_t workers[GC_POOL_MAX_THREADS];
-    pthread_mutex_t mutex;      /* guards generation, quit, busy_workers */
+    pthread_mutex_t mutex;      /* guards generation, quit, open, busy_workers */
     pthread_cond_t wake;        /* workers wait for a new generation */
     pthread_cond_t done;        /* the caller waits for busy_workers == 0 */
     pthread_mutex_t submit;     /* one job at a time; trylock, else run inline */
     unsigned long generation;
     int quit;
-    int busy_workers;
+    int open;                   /* the current job still accepts workers */
+    int busy_workers;           /* workers inside the current job */
     /* The current job. */
     gcTaskFn task;
     void *ctx;
@@ -49,6 +52,8 @@ static void *worker_main(void *arg) {
         while (!p->quit && p->generation == seen) pthread_cond_wait(&p->wake, &p->mutex);
         if (p->quit) break;
         seen = p->generation;
+        if (!p->open) continue; /* woke after the job closed: nothing to do */
+        p->busy_workers++;
         pthread_mutex_unlock(&p->mutex);
         drain(p);
         pthread_mutex_lock(&p->mutex);
@@ -116,12 +121,14 @@ void gc_pool_run(gcPool *p, gcTaskFn task, void *ctx, int count) {
     p->ctx = ctx;
     p->count = count;
     atomic_store_explicit(&p->next, 0, memory_order_relaxed);
-    p->busy_workers = p->num_workers;
+    p->busy_workers = 0;
+    p->open = 1;
     p->generation++;
     pthread_cond_broadcast(&p->wake);
     pthread_mutex_unlock(&p->mutex);
     drain(p);
     pthread_mutex_lock(&p->mutex);
+    p->open = 0;
     while (p->busy_workers > 0) pthread_cond_wait(&p->done, &p->mutex);
     pthread_mutex_unlock(&p->mutex);
     pthread_mutex_unlock(&p->submit);
