@@ -544,6 +544,8 @@ static void narrow_pair(gcWorld *w, int i) {
 }
 
 #define GC_NARROW_CHUNK 8
+#define GC_POOL_MIN_PAIRS 64   /* narrow phase on the pool from this many candidate pairs */
+#define GC_POOL_MIN_POINTS 64  /* solver on the pool when the chains besides the largest have this many points */
 
 typedef struct NarrowJob {
     gcWorld *world;
@@ -569,7 +571,7 @@ void gc_contacts_detect(gcWorld *w) {
     broad_phase(w);
     NarrowJob job = {w, cs->num_candidates};
     int tasks = (cs->num_candidates + GC_NARROW_CHUNK - 1) / GC_NARROW_CHUNK;
-    gc_pool_run(cs->num_candidates >= 2 * GC_NARROW_CHUNK ? cs->pool : NULL, narrow_task, &job, tasks);
+    gc_pool_run(cs->num_candidates >= GC_POOL_MIN_PAIRS ? cs->pool : NULL, narrow_task, &job, tasks);
     /* Compact, keeping the key order. */
     int n = 0;
     for (int i = 0; i < cs->num_candidates; ++i) {
@@ -921,8 +923,18 @@ void gc_contacts_solve(gcWorld *w, double dt) {
     if (!cs || cs->num_manifolds == 0) return;
     cs->dt = dt;
     SolveJob job = {w, dt};
-    /* Small jobs are cheaper on one thread; the result is the same either way. */
-    gc_pool_run(cs->num_manifolds >= 8 ? cs->pool : NULL, solve_task, &job, cs->num_chains);
+    /* Waking a worker costs a few microseconds: hand chains to the pool only when the
+     * chains other than the largest hold enough points to pay for it. The result is the
+     * same either way. */
+    int total = 0, largest = 0;
+    for (int c = 0; c < cs->num_chains; ++c) {
+        int points = 0;
+        for (int i = cs->chain_manifold_start[c]; i < cs->chain_manifold_start[c + 1]; ++i)
+            points += cs->manifolds[cs->chain_manifolds[i]].num_points;
+        total += points;
+        if (points > largest) largest = points;
+    }
+    gc_pool_run(total - largest >= GC_POOL_MIN_POINTS ? cs->pool : NULL, solve_task, &job, cs->num_chains);
 }
 
 void gc_contacts_step(gcWorld *w, double dt) {
