@@ -694,7 +694,9 @@ static void prepare_manifold(gcWorld *w, gcManifold *m, double dt) {
 static SolverBodies solver_bodies(gcWorld *w, const gcManifold *m, gcVec3 *lin, gcVec3 *ang) {
     SolverBodies s;
     gcBody *A = &w->bodies[m->body_a], *B = &w->bodies[m->body_b];
-    int da = !A->is_static, db = !B->is_static;
+    /* A body without a valid effective mass (degenerate, or stepped by another runtime
+     * thread this step) is immovable here and never written. */
+    int da = !A->is_static && A->effective_mass_valid, db = !B->is_static && B->effective_mass_valid;
     if (lin) { /* pseudo-velocities of the position pass */
         s.va = da ? &lin[m->body_a] : NULL;
         s.wa = da ? &ang[m->body_a] : NULL;
