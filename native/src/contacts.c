@@ -598,14 +598,6 @@ static inline void add_twist(gcVec3 *v, gcVec3 *om, const double W[6], double s)
     om->z += W[5] * s;
 }
 
-/* Velocity of B relative to A at the point along direction k. */
-static inline double relative_velocity(const gcManifoldPoint *p, gcVec3 d, int k, const gcVec3 *va, const gcVec3 *wa,
-                                       const gcVec3 *vb, const gcVec3 *wb) {
-    double r = gc_dot(d, *vb) + gc_dot(p->ang_b[k], *wb);
-    if (va) r -= gc_dot(d, *va) + gc_dot(p->ang_a[k], *wa);
-    return r;
-}
-
 typedef struct SolverBodies {
     gcVec3 *va, *wa, *vb, *wb; /* NULL for a static body */
 } SolverBodies;
@@ -811,6 +803,7 @@ static double solve_velocity(gcWorld *w, gcManifold *m) {
  * saturates without the patch really sliding. */
 static void finish_velocity(gcWorld *w, gcManifold *m) {
     SolverBodies s = solver_bodies(w, m, NULL, NULL);
+    LocalTwists t = load_twists(&s);
     int pressed = 0, all_saturated = 1;
     double slip2 = 0.0;
     for (int k = 0; k < m->num_points; ++k) {
@@ -822,8 +815,9 @@ static void finish_velocity(gcWorld *w, gcManifold *m) {
         }
         pressed = 1;
         if (!p->saturated) all_saturated = 0;
-        double e1 = relative_velocity(p, m->t1, 1, s.va, s.wa, s.vb, s.wb) - p->target_t[0];
-        double e2 = relative_velocity(p, m->t2, 2, s.va, s.wa, s.vb, s.wb) - p->target_t[1];
+        gcVec3 dv = gc_sub(t.vb, t.va);
+        double e1 = rel_vel(p, 1, m->t1, dv, &t) - p->target_t[0];
+        double e2 = rel_vel(p, 2, m->t2, dv, &t) - p->target_t[1];
         slip2 = fmax(slip2, e1 * e1 + e2 * e2);
     }
     if (!pressed) {

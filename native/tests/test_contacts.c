@@ -282,6 +282,19 @@ static void test_thread_independence(void) {
              (unsigned long long)h2, (unsigned long long)h4);
 }
 
+/* The static body need not come first: manifolds where body B is static. */
+static void test_static_last(void) {
+    gcWorld *w = make_world(1, -9.81);
+    double a[3] = {0, 0, 0.02}, table[3] = {0, 0, -0.05};
+    int32_t b = add_box(w, 0.02, 0.02, 0.02, a, NULL, 0, 0.2, 0.8, 0.6);
+    add_box(w, 0.3, 0.3, 0.05, table, NULL, 1, 0, 0.8, 0.6);
+    step_n(w, 500);
+    double p[3], q[4];
+    pose(w, b, p, q);
+    GC_CHECK_NEAR(p[2], 0.02, 1e-5, "rests on a static body added after it");
+    gc_world_destroy(w);
+}
+
 static void test_overflow(void) {
     gcWorldDef def = gc_default_world_def();
     def.max_contacts = 2;
@@ -309,6 +322,7 @@ int main(void) {
     test_momentum();
     test_chains();
     test_thread_independence();
+    test_static_last();
     test_overflow();
     return gc_test_summary("test_contacts");
 }

@@ -42,6 +42,16 @@ def test_box_rests_on_table_without_drift():
     np.testing.assert_allclose(contacts[0]["normal"], (0, 0, 1), atol=1e-12)
 
 
+def test_static_body_added_after_the_dynamic_ones():
+    w = graspcore.World()
+    boxes = [w.add_body(box_points(0.02, 0.02, 0.02), mass=0.1, position=(0.1 * i, 0, 0.02)) for i in range(3)]
+    table(w)                                               # the static body has the highest id
+    w.step(DT, steps=1000)
+    for b in boxes:
+        assert w.body_pose(b)[0][2] == pytest.approx(0.02, abs=1e-5)
+    assert w.chain_count() == 3 and w.body_chain(3) is None
+
+
 def incline_run(theta, mu_s, mu_d, seconds, box_mu=None):
     """A box on a slab tilted by theta about x; returns (displacement, acceleration) down the slope."""
     q = (math.cos(theta / 2), math.sin(theta / 2), 0.0, 0.0)
