@@ -473,6 +473,7 @@ static void narrow_pair(gcWorld *w, int i) {
     m->body_a = w->parts[cand->part_a].body;
     m->body_b = w->parts[cand->part_b].body;
     m->num_points = 0;
+    m->reused = 0;
     const gcBody *A = &w->bodies[m->body_a], *B = &w->bodies[m->body_b];
     const gcHull *ha = &w->parts[m->part_a].hull, *hb = &w->parts[m->part_b].hull;
     const gcManifold *old = find_previous(cs, m->key);
@@ -493,6 +494,7 @@ static void narrow_pair(gcWorld *w, int i) {
             p->point = gc_scale(gc_add(pa, pb), 0.5);
             p->separation = gc_dot(m->normal, gc_sub(pb, pa));
         }
+        m->reused = 1;
         return;
     }
     gcTransform ta = body_transform(A), tb = body_transform(B);
@@ -540,12 +542,13 @@ static void narrow_pair(gcWorld *w, int i) {
         }
     }
     m->sticking = old ? old->sticking : 1;
+    m->reused = 0;
     m->num_points = n;
 }
 
 #define GC_NARROW_CHUNK 8
 #define GC_POOL_MIN_PAIRS 64   /* narrow phase on the pool from this many candidate pairs */
-#define GC_POOL_MIN_POINTS 64  /* solver on the pool when the chains besides the largest have this many points */
+#define GC_POOL_MIN_POINTS 128 /* solver on the pool when the chains besides the largest have this many points */
 
 typedef struct NarrowJob {
     gcWorld *world;
@@ -571,10 +574,14 @@ void gc_contacts_detect(gcWorld *w) {
     broad_phase(w);
     NarrowJob job = {w, cs->num_candidates};
     int tasks = (cs->num_candidates + GC_NARROW_CHUNK - 1) / GC_NARROW_CHUNK;
-    gc_pool_run(cs->num_candidates >= GC_POOL_MIN_PAIRS ? cs->pool : NULL, narrow_task, &job, tasks);
+    /* Reused manifolds cost next to nothing: judge the work by last step's full pairs. */
+    int busy = cs->num_candidates >= GC_POOL_MIN_PAIRS && cs->full_pairs >= GC_POOL_MIN_PAIRS / 2;
+    gc_pool_run(busy ? cs->pool : NULL, narrow_task, &job, tasks);
     /* Compact, keeping the key order. */
     int n = 0;
+    cs->full_pairs = 0;
     for (int i = 0; i < cs->num_candidates; ++i) {
+        cs->full_pairs += !cs->manifolds[i].reused;
         if (cs->manifolds[i].num_points == 0) continue;
         if (n != i) cs->manifolds[n] = cs->manifolds[i];
         n++;

@@ -58,6 +58,7 @@ typedef struct gcManifold {
     gcVec3 ref_position;
     gcMat3 ref_rotation;
     gcVec3 normal_local_a;
+    int reused;                  /* this step's points were refreshed, not recomputed */
 } gcManifold;
 
 typedef struct gcCandidate {
@@ -75,6 +76,7 @@ struct gcContactSystem {
     int num_sorted;
     gcVec3 *part_min, *part_max; /* world AABBs of the parts, inflated by the margin */
     int64_t overflow;            /* candidate pairs dropped for want of max_contacts */
+    int full_pairs;              /* pairs computed in full (not reused) last step: pool heuristic */
     /* Chains (islands.c). */
     int32_t *parent;             /* union-find over bodies */
     int32_t *body_chain;         /* chain index per body, -1 for static bodies */

@@ -256,13 +256,13 @@ static uint64_t pile_hash(int threads) {
     gcWorld *w = make_world(threads, -9.81);
     double table[3] = {0, 0, -0.05};
     add_box(w, 0.5, 0.5, 0.05, table, NULL, 1, 0, 0.8, 0.6);
-    /* Eight separate stacks (eight chains: enough work for the pool) and a pile falling
+    /* Twelve separate stacks (twelve chains: enough work for the pool) and a pile falling
      * onto each other. */
-    for (int s = 0; s < 8; ++s)
+    for (int s = 0; s < 12; ++s)
         for (int i = 0; i < 3; ++i) {
-            double at[3] = {-0.35 + 0.1 * s, 0.2, 0.02 + 0.0405 * i};
+            double at[3] = {-0.35 + 0.1 * (s % 6), 0.2 + 0.1 * (s / 6), 0.02 + 0.0405 * i};
             double q[4] = {cos(0.05 * i), 0, 0, sin(0.05 * i)};
-            add_box(w, 0.02, 0.02, 0.02, at, q, 0, 0.1 + 0.05 * s, 0.8, 0.6);
+            add_box(w, 0.02, 0.02, 0.02, at, q, 0, 0.1 + 0.05 * (s % 4), 0.8, 0.6);
         }
     for (int i = 0; i < 12; ++i) {
         double at[3] = {-0.1 + 0.013 * (i % 4), -0.1 + 0.011 * (i / 4), 0.05 + 0.045 * i};
@@ -271,7 +271,7 @@ static uint64_t pile_hash(int threads) {
     }
     step_n(w, 600);
     uint64_t h = gc_world_state_hash(w);
-    GC_CHECK(gc_world_chain_count(w) >= 9, "several chains (got %d)", gc_world_chain_count(w));
+    GC_CHECK(gc_world_chain_count(w) >= 13, "several chains (got %d)", gc_world_chain_count(w));
     gc_world_destroy(w);
     return h;
 }
