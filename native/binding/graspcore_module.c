@@ -671,12 +671,12 @@ static PyObject *World_stats(PyObject *obj, PyObject *unused) {
     gcStatus st = gc_world_stats(self->world, &s);
     if (st < 0) return raise_status(self, st);
     return Py_BuildValue(
-        "{s:N,s:N,s:N,s:s,s:d,s:d,s:d,s:K,s:K,s:d,s:d,s:d,s:K,s:K,s:K,s:i,s:K,s:K,s:K,s:K,s:K,s:N,s:d,s:d}",
+        "{s:N,s:N,s:N,s:s,s:d,s:d,s:d,s:K,s:K,s:d,s:d,s:d,s:d,s:d,s:K,s:K,s:K,s:i,s:K,s:K,s:K,s:K,s:K,s:N,s:d,s:d}",
         "running", PyBool_FromLong(s.running), "realtime", PyBool_FromLong(s.realtime), "rt_priority",
         PyBool_FromLong(s.rt_priority), "priority_note", s.priority_note, "haptic_rate", s.haptic_rate,
         "object_rate", s.object_rate, "object_speed", s.object_speed, "haptic_ticks",
         (unsigned long long)s.haptic_ticks, "object_ticks", (unsigned long long)s.object_ticks, "jitter_p50_us",
-        s.jitter_p50_us, "jitter_p99_us", s.jitter_p99_us, "jitter_max_us", s.jitter_max_us, "overruns",
+        s.jitter_p50_us, "jitter_p99_us", s.jitter_p99_us, "jitter_max_us", s.jitter_max_us, "tick_max_us", s.tick_max_us, "wake_max_us", s.wake_max_us, "overruns",
         (unsigned long long)s.overruns, "late_periods", (unsigned long long)s.late_periods, "object_overruns",
         (unsigned long long)s.object_overruns, "adopted_bodies", s.adopted_bodies, "accepted_inputs",
         (unsigned long long)s.accepted_inputs, "rejected_inputs", (unsigned long long)s.rejected_inputs,

@@ -219,6 +219,8 @@ typedef struct gcRuntimeStats {
     double object_speed;        /* object manager's simulated time / wall time (< 1: behind) */
     uint64_t haptic_ticks, object_ticks;
     double jitter_p50_us, jitter_p99_us, jitter_max_us; /* |haptic period - nominal| */
+    double tick_max_us;         /* longest haptic tick (its work, real-time clock) */
+    double wake_max_us;         /* latest wake-up of the haptic loop after its deadline */
     uint64_t overruns;          /* haptic ticks that ended past the next deadline */
     uint64_t late_periods;      /* haptic periods late by more than one period */
     uint64_t object_overruns;

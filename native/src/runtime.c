@@ -174,6 +174,7 @@ typedef struct gcRuntime {
     _Atomic uint64_t accepted_inputs, rejected_inputs, watchdog_trips, stale_inputs, nonfinite_forces;
     _Atomic int adopted, forces_enabled;
     _Atomic int64_t first_tick_ns, last_tick_ns, first_object_ns, last_object_ns, jitter_max_ns;
+    _Atomic int64_t tick_max_ns, wake_max_ns; /* haptic tick's work; wake-up after its deadline */
     _Atomic uint64_t haptic_time_bits, object_time_bits, object_time0_bits;
     _Atomic uint32_t jitter_hist[GC_JITTER_BINS];
     uint32_t stats_hist[GC_JITTER_BINS]; /* gc_world_stats scratch, under api_mutex */
@@ -640,6 +641,10 @@ static int64_t next_deadline(int64_t deadline, int64_t period, int64_t end, _Ato
     return deadline;
 }
 
+static void record_max(_Atomic int64_t *slot, int64_t v) {
+    if (v > atomic_load_explicit(slot, memory_order_relaxed)) atomic_store_explicit(slot, v, memory_order_relaxed);
+}
+
 static void *haptic_main(void *arg) {
     gcRuntime *rt = arg;
     int64_t deadline = clock_now_ns() + rt->period_ns, prev_wake = NEVER;
@@ -647,6 +652,7 @@ static void *haptic_main(void *arg) {
         int64_t stall = atomic_exchange_explicit(&rt->debug_stall_ns, 0, memory_order_relaxed);
         sleep_until_ns(deadline + stall);
         int64_t wake = clock_now_ns();
+        record_max(&rt->wake_max_ns, wake - deadline);
         if (prev_wake == NEVER)
             atomic_store_explicit(&rt->first_tick_ns, wake, memory_order_relaxed);
         else
@@ -654,6 +660,7 @@ static void *haptic_main(void *arg) {
         prev_wake = wake;
         haptic_tick(rt, wake);
         int64_t end = clock_now_ns();
+        record_max(&rt->tick_max_ns, end - wake);
         atomic_store_explicit(&rt->last_tick_ns, wake, memory_order_relaxed);
         deadline = next_deadline(deadline, rt->period_ns, end, &rt->overruns);
     }
@@ -741,6 +748,8 @@ static void reset_stats(gcRuntime *rt) {
     atomic_store(&rt->first_object_ns, NEVER);
     atomic_store(&rt->last_object_ns, NEVER);
     atomic_store(&rt->jitter_max_ns, 0);
+    atomic_store(&rt->tick_max_ns, 0);
+    atomic_store(&rt->wake_max_ns, 0);
     for (int i = 0; i < GC_JITTER_BINS; ++i) atomic_store_explicit(&rt->jitter_hist[i], 0, memory_order_relaxed);
 }
 
@@ -1151,6 +1160,8 @@ gcStatus gc_world_stats(gcWorld *w, gcRuntimeStats *out) {
         total += hist[i];
     }
     out->jitter_max_us = (double)atomic_load_explicit(&rt->jitter_max_ns, memory_order_relaxed) * 1e-3;
+    out->tick_max_us = (double)atomic_load_explicit(&rt->tick_max_ns, memory_order_relaxed) * 1e-3;
+    out->wake_max_us = (double)atomic_load_explicit(&rt->wake_max_ns, memory_order_relaxed) * 1e-3;
     out->jitter_p50_us = fmin(percentile_us(hist, total, 0.50), out->jitter_max_us);
     out->jitter_p99_us = fmin(percentile_us(hist, total, 0.99), out->jitter_max_us);
     pthread_mutex_unlock(&rt->api_mutex);
