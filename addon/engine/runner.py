@@ -237,24 +237,22 @@ class SessionRunner:
             contacts = np.zeros(0, np.int32)
         return Snapshot(self.time, poses, com, force, torque, hips, gos, ff, states, contacts)
 
-    def _snapshot_from_runtime(self, snap):  # pragma: no cover - runtime not available yet
-        if isinstance(snap, Snapshot):
-            return snap
-        g = snap.get if isinstance(snap, dict) else (lambda k, d=None: getattr(snap, k, d))
-        n_b = len(self.handle.body_ids)
-        poses = np.asarray(g("body_poses"), dtype=np.float64).reshape(-1, 7)[:n_b]
-        z3 = np.zeros((n_b, 3))
+    def _snapshot_from_runtime(self, snap: dict) -> Snapshot:
+        """Map the core runtime's snapshot (graspcore.World.snapshot, docs/runtime.md)."""
+        h = self.handle
+        poses = np.asarray(snap["poses"], dtype=np.float64)[h.body_ids]
         com = poses[:, :3] + quat_rotate(poses[:, 3:], self._coms)
-        n_f = len(self.handle.finger_ids)
-        zf = np.zeros((n_f, 3))
-        return Snapshot(float(g("time", self.time)), poses, com,
-                        np.asarray(g("residual_forces", z3)).reshape(n_b, 3),
-                        np.asarray(g("residual_torques", z3)).reshape(n_b, 3),
-                        np.asarray(g("hips", zf)).reshape(n_f, 3),
-                        np.asarray(g("god_objects", zf)).reshape(n_f, 3),
-                        np.asarray(g("finger_forces", zf)).reshape(n_f, 3),
-                        np.asarray(g("finger_states", np.zeros(n_f)), dtype=np.int8),
-                        np.full(n_f, -1, np.int32))
+        fids = h.finger_ids
+        contacts = np.array([self._body_index.get(int(b), -1) for b in snap["contact_bodies"][fids]],
+                            dtype=np.int32)
+        return Snapshot(float(snap["time"]), poses, com,
+                        np.asarray(snap["residual_forces"])[h.body_ids],
+                        np.asarray(snap["residual_torques"])[h.body_ids],
+                        np.asarray(snap["hips"])[fids],
+                        np.asarray(snap["god_objects"])[fids],
+                        np.asarray(snap["forces"])[fids],  # what the device renders (clamped, ramped)
+                        np.asarray(snap["finger_states"], dtype=np.int8)[fids],
+                        contacts)
 
     def stats(self) -> dict:
         ticks = np.diff(np.array(self.ticks)) if len(self.ticks) > 2 else np.zeros(0)
@@ -277,8 +275,9 @@ class SessionRunner:
             out["haptic_rate"] = steps / self.step_wall
         else:
             out["haptic_rate"] = 0.0
-        if hasattr(self.world, "stats") and self.threaded:  # pragma: no cover
-            out.update(self.world.stats())
+        if hasattr(self.world, "stats") and self.threaded:
+            # The core's own rates and jitter, under a prefix so they do not overwrite ours.
+            out.update({f"runtime_{k}": v for k, v in self.world.stats().items()})
         return out
 
     def save_recording(self, path: str) -> str:
