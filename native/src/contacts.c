@@ -99,24 +99,6 @@ void gc_contacts_destroy(gcWorld *w) {
 
 /* ------------------------------------------------------------------ helpers */
 
-static gcTransform body_transform(const gcBody *b) {
-    gcTransform t;
-    t.R = b->R;
-    t.p = gc_sub(b->com, gc_mat3_mul_vec(&b->R, b->com_local));
-    return t;
-}
-
-static gcQuat quat_from_rotation_vector(gcVec3 v) {
-    double angle = gc_len(v);
-    if (angle < 1e-12) {
-        gcQuat q = {1.0, 0.5 * v.x, 0.5 * v.y, 0.5 * v.z};
-        return gc_quat_normalize(q);
-    }
-    double s = sin(0.5 * angle) / angle;
-    gcQuat q = {cos(0.5 * angle), v.x * s, v.y * s, v.z * s};
-    return q;
-}
-
 /* Unit tangents t1, t2 with (n, t1, t2) right-handed; a fixed function of n. */
 static void tangent_basis(gcVec3 n, gcVec3 *t1, gcVec3 *t2) {
     gcVec3 a = fabs(n.x) < 0.57735 ? gc_v3(1, 0, 0) : (fabs(n.y) < 0.57735 ? gc_v3(0, 1, 0) : gc_v3(0, 0, 1));
@@ -133,7 +115,7 @@ static void update_part_aabbs(gcWorld *w) {
     const double h = 0.5 * GC_CONTACT_MARGIN;
     for (int32_t bi = 0; bi < w->num_bodies; ++bi) {
         const gcBody *b = &w->bodies[bi];
-        gcTransform t = body_transform(b);
+        gcTransform t = gc_body_transform(b);
         for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
             const gcHull *hull = &w->parts[p].hull;
             if (b->num_parts == 1) {
@@ -497,7 +479,7 @@ static void narrow_pair(gcWorld *w, int i) {
         m->reused = 1;
         return;
     }
-    gcTransform ta = body_transform(A), tb = body_transform(B);
+    gcTransform ta = gc_body_transform(A), tb = gc_body_transform(B);
     gcContact c;
     gcStatus st = gc_collide(ha, &ta, hb, &tb, &c);
     if (st < 0 || !(c.distance < GC_CONTACT_MARGIN)) return;
@@ -906,7 +888,7 @@ void gc_contacts_solve_chain(gcWorld *w, int chain, double dt) {
         gcVec3 pv = cs->pseudo_v[id], pw = cs->pseudo_w[id];
         if (gc_len2(pv) == 0.0 && gc_len2(pw) == 0.0) continue;
         b->com = gc_madd(b->com, pv, dt);
-        b->q = gc_quat_normalize(gc_quat_mul(quat_from_rotation_vector(gc_scale(pw, dt)), b->q));
+        b->q = gc_quat_normalize(gc_quat_mul(gc_quat_from_rotation_vector(gc_scale(pw, dt)), b->q));
         b->R = gc_quat_to_mat3(b->q);
     }
 }

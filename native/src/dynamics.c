@@ -63,18 +63,6 @@ static void add_point_coupling(double A[6][6], gcVec3 r, double s) {
     }
 }
 
-/* Rotation by the vector w*dt (axis-angle), as a quaternion. */
-static gcQuat quat_from_rotation_vector(gcVec3 v) {
-    double angle = gc_len(v);
-    if (angle < 1e-12) {
-        gcQuat q = {1.0, 0.5 * v.x, 0.5 * v.y, 0.5 * v.z};
-        return gc_quat_normalize(q);
-    }
-    double s = sin(0.5 * angle) / angle;
-    gcQuat q = {cos(0.5 * angle), v.x * s, v.y * s, v.z * s};
-    return q;
-}
-
 static gcMat3 world_inertia(const gcMat3 *R, const gcMat3 *inertia_local) {
     gcMat3 RI = gc_mat3_mul(R, inertia_local);
     gcMat3 Rt = gc_mat3_transpose(R);
@@ -93,7 +81,7 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
     double C[6][6]; /* finger coupling: sum (k dt^2 + c dt) J^T J */
     memset(C, 0, sizeof C);
 
-    gcVec3 origin = gc_sub(b->com, gc_mat3_mul_vec(&b->R, b->com_local));
+    gcTransform frame = gc_body_transform(b);
     for (int fi = 0; fi < w->num_fingers; ++fi) {
         const gcFinger *f = &w->fingers[fi];
         for (int ci = 0; ci < f->num_contacts; ++ci) {
@@ -102,7 +90,7 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
             /* The reaction acts at the GO (DESIGN.md §2), which moves rigidly with the body
              * while it sticks: the same lever in the torque and in the coupling keeps the
              * implicit model consistent with the explicit force. */
-            gcVec3 go = gc_add(gc_mat3_mul_vec(&b->R, c->go_local), origin);
+            gcVec3 go = gc_transform_point(&frame, c->go_local);
             gcVec3 r = gc_sub(go, b->com);
             gcVec3 spring = gc_scale(gc_sub(f->hip, go), f->stiffness);
             /* Implicit part: the velocity-dependent terms move into the matrix. */
@@ -133,7 +121,7 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
     for (int pass = 0; pass < passes; ++pass) {
         gcMat3 Inext = Iw;
         if (w->def.gyroscopic) {
-            gcMat3 Rnext = gc_quat_to_mat3(gc_quat_mul(quat_from_rotation_vector(gc_scale(omega, dt)), b->q));
+            gcMat3 Rnext = gc_quat_to_mat3(gc_quat_mul(gc_quat_from_rotation_vector(gc_scale(omega, dt)), b->q));
             Inext = world_inertia(&Rnext, &b->inertia_local);
         }
         double A[6][6];
@@ -198,7 +186,7 @@ void gc_dynamics_positions(gcWorld *w, double dt) {
         gcBody *b = &w->bodies[i];
         if (b->is_static || (w->body_active && !w->body_active[i])) continue;
         b->com = gc_madd(b->com, b->v, dt);
-        b->q = gc_quat_normalize(gc_quat_mul(quat_from_rotation_vector(gc_scale(b->w, dt)), b->q));
+        b->q = gc_quat_normalize(gc_quat_mul(gc_quat_from_rotation_vector(gc_scale(b->w, dt)), b->q));
         gc_body_refresh_derived(w, i);
         /* The residual wrench is what the step actually applied (gravity, the implicit
          * finger springs at their end-of-step stretch, contacts): the rate of change of

@@ -85,6 +85,18 @@ static inline gcQuat gc_quat_mul(gcQuat a, gcQuat b) {
                 a.w * b.z + a.x * b.y - a.y * b.x + a.z * b.w};
     return r;
 }
+/* Rotation by the rotation vector v (axis times angle): exp of the world-frame update. */
+static inline gcQuat gc_quat_from_rotation_vector(gcVec3 v) {
+    double angle = gc_len(v);
+    if (angle < 1e-12) {
+        gcQuat q = {1.0, 0.5 * v.x, 0.5 * v.y, 0.5 * v.z};
+        return gc_quat_normalize(q);
+    }
+    double s = sin(0.5 * angle) / angle;
+    gcQuat q = {cos(0.5 * angle), v.x * s, v.y * s, v.z * s};
+    return q;
+}
+
 static inline gcMat3 gc_quat_to_mat3(gcQuat q) {
     double w = q.w, x = q.x, y = q.y, z = q.z;
     gcMat3 r = {{{1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)},

@@ -212,7 +212,8 @@ void gc_body_refresh_derived(gcWorld *w, int32_t id) {
     gcBody *b = &w->bodies[id];
     b->q = gc_quat_normalize(b->q);
     b->R = gc_quat_to_mat3(b->q);
-    gcVec3 origin = gc_sub(b->com, gc_mat3_mul_vec(&b->R, b->com_local));
+    gcTransform frame = gc_body_transform(b);
+    gcVec3 origin = frame.p;
     double *pose = &w->pose_array[7 * id];
     pose[0] = origin.x, pose[1] = origin.y, pose[2] = origin.z;
     pose[3] = b->q.w, pose[4] = b->q.x, pose[5] = b->q.y, pose[6] = b->q.z;
@@ -224,7 +225,7 @@ void gc_body_refresh_derived(gcWorld *w, int32_t id) {
             gcVec3 c = gc_v3(corner & 1 ? h->aabb_max.x : h->aabb_min.x,
                              corner & 2 ? h->aabb_max.y : h->aabb_min.y,
                              corner & 4 ? h->aabb_max.z : h->aabb_min.z);
-            gcVec3 wc = gc_add(gc_mat3_mul_vec(&b->R, c), origin);
+            gcVec3 wc = gc_transform_point(&frame, c);
             lo = gc_v3(fmin(lo.x, wc.x - h->radius), fmin(lo.y, wc.y - h->radius), fmin(lo.z, wc.z - h->radius));
             hi = gc_v3(fmax(hi.x, wc.x + h->radius), fmax(hi.y, wc.y + h->radius), fmax(hi.z, wc.z + h->radius));
         }

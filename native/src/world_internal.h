@@ -90,6 +90,14 @@ struct gcWorld {
 
 void gc_world_set_error(const gcWorld *world, const char *fmt, ...);
 
+/* The body frame (the user's origin, not the centre of mass) as a transform. */
+static inline gcTransform gc_body_transform(const gcBody *b) {
+    gcTransform t;
+    t.R = b->R;
+    t.p = gc_sub(b->com, gc_mat3_mul_vec(&b->R, b->com_local));
+    return t;
+}
+
 /* xfca.c: one god-object update for every finger, then finger forces. */
 void gc_xfca_update(gcWorld *world, double dt);
 /* dynamics.c, in step order: new velocities of every dynamic body under gravity and the

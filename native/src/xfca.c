@@ -23,26 +23,6 @@
 /* A push never exceeds this fraction of the part's thinnest width: no push-through. */
 #define GC_PUSH_WIDTH_FRACTION 0.25
 
-typedef struct gcBodyFrame {
-    gcVec3 origin; /* body frame origin, world */
-    const gcMat3 *R;
-} gcBodyFrame;
-
-static gcBodyFrame body_frame(const gcBody *b) {
-    gcBodyFrame fr;
-    fr.origin = gc_sub(b->com, gc_mat3_mul_vec(&b->R, b->com_local));
-    fr.R = &b->R;
-    return fr;
-}
-
-static gcVec3 to_local(const gcBodyFrame *fr, gcVec3 world) {
-    return gc_mat3_tmul_vec(fr->R, gc_sub(world, fr->origin));
-}
-
-static gcVec3 to_world(const gcBodyFrame *fr, gcVec3 local) {
-    return gc_add(gc_mat3_mul_vec(fr->R, local), fr->origin);
-}
-
 /* Signed distance of a fingertip centre to the part's surface, seen by a sphere of radius r. */
 static double tip_query(const gcHull *h, gcVec3 p, double r, gcVec3 *normal) {
     double sd;
@@ -180,8 +160,8 @@ static void finger_update(gcWorld *w, gcFinger *f, double dt) {
         gcFingerContact c = f->contacts[i];
         const gcPart *part = &w->parts[c.part];
         const gcBody *b = &w->bodies[part->body];
-        gcBodyFrame fr = body_frame(b);
-        if (update_contact(f, b, &part->hull, &c, to_local(&fr, f->hip), dt)) f->contacts[kept++] = c;
+        gcTransform fr = gc_body_transform(b);
+        if (update_contact(f, b, &part->hull, &c, gc_inv_transform_point(&fr, f->hip), dt)) f->contacts[kept++] = c;
     }
     f->num_contacts = kept;
 
@@ -194,8 +174,8 @@ static void finger_update(gcWorld *w, gcFinger *f, double dt) {
     for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < GC_MAX_CONTACTS_PER_FINGER; ++bi) {
         const gcBody *b = &w->bodies[bi];
         if (!aabb_overlap(lo, hi, b->aabb_min, b->aabb_max)) continue;
-        gcBodyFrame fr = body_frame(b);
-        gcVec3 from = to_local(&fr, f->hip_prev), to = to_local(&fr, f->hip);
+        gcTransform fr = gc_body_transform(b);
+        gcVec3 from = gc_inv_transform_point(&fr, f->hip_prev), to = gc_inv_transform_point(&fr, f->hip);
         for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
             if (f->num_contacts >= GC_MAX_CONTACTS_PER_FINGER) break;
             if (has_contact_with(f, p)) continue;
@@ -224,8 +204,8 @@ static void finger_outputs(gcWorld *w, int32_t id) {
     for (int i = 0; i < f->num_contacts; ++i) {
         const gcFingerContact *c = &f->contacts[i];
         const gcBody *b = &w->bodies[w->parts[c->part].body];
-        gcBodyFrame fr = body_frame(b);
-        gcVec3 go = to_world(&fr, c->go_local);
+        gcTransform fr = gc_body_transform(b);
+        gcVec3 go = gc_transform_point(&fr, c->go_local);
         force = gc_madd(force, gc_sub(go, f->hip), f->stiffness);
         if (f->damping > 0.0) {
             /* Damping on the HIP vs the body point at the god-object. */
