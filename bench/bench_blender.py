@@ -21,18 +21,6 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "tests", "blender"))
 
 
-def _cube(bpy, name, size, location):
-    import bmesh
-    me = bpy.data.meshes.new(name)
-    bm = bmesh.new()
-    bmesh.ops.create_cube(bm, size=size)
-    bm.to_mesh(me)
-    bm.free()
-    obj = bpy.data.objects.new(name, me)
-    obj.location = location
-    bpy.context.scene.collection.objects.link(obj)
-    return obj
-
 
 def _pct(values, p):
     v = sorted(values)
@@ -45,7 +33,7 @@ def bench_display(bpy, grasp_env, frames):
     scene = bpy.context.scene
     scene.frame_start, scene.frame_end = 1, 1 + frames
     for i in range(20):
-        obj = _cube(bpy, f"Body {i:02d}", 0.04, ((i % 5) * 0.1, (i // 5) * 0.1, 0.0))
+        obj = grasp_env.add_cube(bpy, f"Body {i:02d}", 0.04, ((i % 5) * 0.1, (i // 5) * 0.1, 0.0))
         obj.grasp_lab.role = "DYNAMIC"
         obj.grasp_lab.mass = 0.1
     for j in range(10):

@@ -96,3 +96,17 @@ def submodule(name):
 def graspcore():
     """The core the extension uses (vendored in the zip, or the venv's)."""
     return submodule("core_loader").load()
+
+
+def add_cube(bpy, name, size=1.0, location=(0, 0, 0)):
+    """A cube mesh object of edge ``size`` linked to the current scene."""
+    import bmesh
+    me = bpy.data.meshes.new(name)
+    bm = bmesh.new()
+    bmesh.ops.create_cube(bm, size=size)
+    bm.to_mesh(me)
+    bm.free()
+    obj = bpy.data.objects.new(name, me)
+    obj.location = location
+    bpy.context.scene.collection.objects.link(obj)
+    return obj

@@ -7,18 +7,6 @@ import pytest
 import grasp_env
 
 
-def _cube(bpy, name, size=1.0, location=(0, 0, 0)):
-    import bmesh
-    me = bpy.data.meshes.new(name)
-    bm = bmesh.new()
-    bmesh.ops.create_cube(bm, size=size)
-    bm.to_mesh(me)
-    bm.free()
-    obj = bpy.data.objects.new(name, me)
-    obj.location = location
-    bpy.context.scene.collection.objects.link(obj)
-    return obj
-
 
 def _describe(bpy):
     convert = grasp_env.submodule("convert")
@@ -50,7 +38,7 @@ def test_box_scaled_and_parented_mass_properties(bpy):
     parent.scale = (2.0, 2.0, 2.0)
     parent.rotation_euler = (0.3, 0.0, 0.5)
     parent.location = (0.1, 0.2, 0.3)
-    box = _cube(bpy, "Brick", size=1.0, location=(0.01, 0.0, 0.0))
+    box = grasp_env.add_cube(bpy, "Brick", size=1.0, location=(0.01, 0.0, 0.0))
     box.scale = (0.02, 0.03, 0.05)            # world size 0.04 x 0.06 x 0.10 m
     box.rotation_euler = (0.0, 0.2, 0.0)
     box.parent = parent
@@ -111,8 +99,8 @@ def test_child_parts_compound(bpy):
     import trimesh
     root = bpy.data.objects.new("Dumbbell", None)
     bpy.context.scene.collection.objects.link(root)
-    a = _cube(bpy, "Weight A", size=0.04, location=(-0.05, 0, 0))
-    b = _cube(bpy, "Weight B", size=0.04, location=(0.05, 0, 0))
+    a = grasp_env.add_cube(bpy, "Weight A", size=0.04, location=(-0.05, 0, 0))
+    b = grasp_env.add_cube(bpy, "Weight B", size=0.04, location=(0.05, 0, 0))
     for c in (a, b):
         c.parent = root
     root.grasp_lab.role = "DYNAMIC"
@@ -171,7 +159,7 @@ def _bad(bpy, make):
 
 def _open_box(bpy):
     import bmesh
-    obj = _cube(bpy, "Open Box", size=0.05)
+    obj = grasp_env.add_cube(bpy, "Open Box", size=0.05)
     bm = bmesh.new()
     bm.from_mesh(obj.data)
     bm.faces.ensure_lookup_table()
@@ -182,14 +170,14 @@ def _open_box(bpy):
 
 
 def _flat(bpy):
-    obj = _cube(bpy, "Flat Box", size=0.05)
+    obj = grasp_env.add_cube(bpy, "Flat Box", size=0.05)
     obj.scale = (1.0, 1.0, 0.0)
     return obj
 
 
 def _inverted(bpy):
     import bmesh
-    obj = _cube(bpy, "Inside Out", size=0.05)
+    obj = grasp_env.add_cube(bpy, "Inside Out", size=0.05)
     bm = bmesh.new()
     bm.from_mesh(obj.data)
     bmesh.ops.reverse_faces(bm, faces=bm.faces)
@@ -199,11 +187,11 @@ def _inverted(bpy):
 
 
 def _huge(bpy):
-    return _cube(bpy, "Huge Box", size=500.0)
+    return grasp_env.add_cube(bpy, "Huge Box", size=500.0)
 
 
 def _tiny(bpy):
-    return _cube(bpy, "Tiny Box", size=1e-6)
+    return grasp_env.add_cube(bpy, "Tiny Box", size=1e-6)
 
 
 def _plane(bpy):
@@ -238,7 +226,7 @@ def test_absurd_scale_refused(bpy, make):
 
 
 def test_mirrored_object_is_not_inverted(bpy):
-    obj = _cube(bpy, "Mirrored", size=0.05)
+    obj = grasp_env.add_cube(bpy, "Mirrored", size=0.05)
     obj.scale = (-1.0, 1.0, 1.0)
     obj.grasp_lab.role = "DYNAMIC"
     desc, _, _ = _describe(bpy)
@@ -255,7 +243,7 @@ def test_non_mesh_body_refused(bpy):
 
 
 def test_bad_friction_refused(bpy):
-    obj = _cube(bpy, "Slippery", size=0.05)
+    obj = grasp_env.add_cube(bpy, "Slippery", size=0.05)
     obj.grasp_lab.role = "DYNAMIC"
     obj.grasp_lab.mu_s, obj.grasp_lab.mu_d = 0.3, 0.5
     scene = grasp_env.submodule("engine.scene")
@@ -273,7 +261,7 @@ def test_operator_reports_bad_mesh(bpy, core):
 
 
 def test_validate_operator_ok(bpy):
-    _cube(bpy, "Good", size=0.05).grasp_lab.role = "DYNAMIC"
+    grasp_env.add_cube(bpy, "Good", size=0.05).grasp_lab.role = "DYNAMIC"
     assert bpy.ops.grasp_lab.validate_scene() == {"FINISHED"}
 
 
