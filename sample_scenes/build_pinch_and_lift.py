@@ -1,20 +1,31 @@
 """Build the pinch-and-lift sample scene (and optionally run it and render it).
 
-A 5 cm, 100 g box is pinched by two fingertips (8 mm spheres, 1000 N/m) that start
-3 mm inside its sides, i.e. already in contact and squeezing with about 3 N each:
-there is no table in the core yet, so the grip must hold the box from the first
-step. The fingertips are empties animated on the timeline (the scripted device):
+A 5 cm, 100 g box rests on a static table (a 40 x 30 x 2 cm slab, top at z = 0).
+Two fingertips (8 mm spheres, 1000 N/m, 2 N s/m) start 15 mm clear of its sides,
+close until their HIPs are 3 mm inside the faces (about 3 N of squeeze each, well
+above the 0.98 N weight with mu_s = 0.8), lift it 10 cm, hold it, carry it 10 cm
+sideways, put it back down on the table and let go. The fingertips are empties
+animated on the timeline (the scripted device), 24 fps, linear interpolation:
 
-    frames  1-13  hold (0.5 s at 24 fps)
-    frames 13-37  lift 10 cm (1 s)
-    frames 37-61  hold (1 s)
+    frames   1- 13  rest: the box settles on the table, fingers open   (0.5 s)
+    frames  13- 25  close                                              (0.5 s)
+    frames  25- 31  squeeze                                            (0.25 s)
+    frames  31- 55  lift 10 cm                                         (1 s)
+    frames  55- 61  hold                                               (0.25 s)
+    frames  61- 85  carry 10 cm along +y                               (1 s)
+    frames  85- 91  hold                                               (0.25 s)
+    frames  91-115  put down                                           (1 s)
+    frames 115-121  hold on the table                                  (0.25 s)
+    frames 121-133  release                                            (0.5 s)
+    frames 133-145  rest                                               (0.5 s)
 
 Usage (with the extension enabled, e.g. from the tests or Blender's Python console):
 
-    python sample_scenes/build_pinch_and_lift.py [--save sample_scenes/pinch_and_lift.blend]
-        [--run] [--render docs/images/pinch_and_lift.png]
+    python sample_scenes/build_pinch_and_lift.py [--save build/pinch_and_lift.blend]
+        [--run] [--render docs/images/pinch_and_lift.png [--frame 43]]
 
-``build(bpy)`` is importable: the tests call it to set up the scene.
+``build(bpy)`` is importable: the tests call it to set up the scene, and
+``hip_positions(t)`` gives the same fingertip path analytically.
 """
 from __future__ import annotations
 
@@ -23,28 +34,70 @@ import sys
 
 BOX_SIZE = 0.05
 BOX_MASS = 0.1
+BOX_MU = (0.8, 0.6)             # mu_s, mu_d of the box
+TABLE_SIZE = (0.40, 0.30, 0.02)
+TABLE_CENTER = (0.0, 0.05, -0.01)   # top face at z = 0
+TABLE_MU = (0.6, 0.5)           # box on table: sqrt(0.8 * 0.6) = 0.69 static
+BOX_Z = BOX_SIZE / 2            # box centre when it rests on the table
 FINGER_RADIUS = 0.008
-SQUEEZE = 0.003                 # HIP depth inside the box side at rest
-FINGER_X = BOX_SIZE / 2 + FINGER_RADIUS - SQUEEZE
 STIFFNESS = 1000.0
+DAMPING = 2.0
+SQUEEZE = 0.003                 # HIP depth inside the box side when closed
+CLEARANCE = 0.015               # gap between the open fingertips and the box
+CLOSED_X = BOX_SIZE / 2 + FINGER_RADIUS - SQUEEZE
+OPEN_X = BOX_SIZE / 2 + FINGER_RADIUS + CLEARANCE
 FPS = 24
 LIFT = 0.10
-# (frame, z offset) of the fingertip keyframes, linear interpolation.
-KEYS = ((1, 0.0), (13, 0.0), (37, LIFT), (61, LIFT))
+CARRY = 0.10                    # sideways, along +y
+# (frame, phase that starts there, half distance between the HIPs, y, z); linear in between.
+KEYS = (
+    (1, "rest", OPEN_X, 0.0, BOX_Z),
+    (13, "close", OPEN_X, 0.0, BOX_Z),
+    (25, "squeeze", CLOSED_X, 0.0, BOX_Z),
+    (31, "lift", CLOSED_X, 0.0, BOX_Z),
+    (55, "hold", CLOSED_X, 0.0, BOX_Z + LIFT),
+    (61, "carry", CLOSED_X, 0.0, BOX_Z + LIFT),
+    (85, "hold", CLOSED_X, CARRY, BOX_Z + LIFT),
+    (91, "put down", CLOSED_X, CARRY, BOX_Z + LIFT),
+    (115, "hold", CLOSED_X, CARRY, BOX_Z),
+    (121, "release", CLOSED_X, CARRY, BOX_Z),
+    (133, "rest", OPEN_X, CARRY, BOX_Z),
+    (145, "end", OPEN_X, CARRY, BOX_Z),
+)
+MID_LIFT_FRAME = 43             # halfway through the lift
 
 
 def hip_positions(t):
     """Analytic HIPs at time t (s) from frame 1: (2, 3) array. Used by the tests."""
     import numpy as np
     frame = 1 + t * FPS
-    fr = np.array([k[0] for k in KEYS], dtype=float)
-    zs = np.array([k[1] for k in KEYS], dtype=float)
-    z = float(np.interp(frame, fr, zs))
-    return np.array([[-FINGER_X, 0.0, z], [FINGER_X, 0.0, z]])
+    fr = [k[0] for k in KEYS]
+    x, y, z = (float(np.interp(frame, fr, [k[i] for k in KEYS])) for i in (2, 3, 4))
+    return np.array([[-x, y, z], [x, y, z]])
+
+
+def phase_at(frame):
+    """Name of the phase the animation is in at ``frame``."""
+    name = KEYS[0][1]
+    for f, n, *_ in KEYS:
+        if frame >= f:
+            name = n
+    return name
+
+
+def _box_mesh(bpy, name, size):
+    sx, sy, sz = (s / 2 for s in size)
+    me = bpy.data.meshes.new(name)
+    verts = [(x, y, z) for x in (-sx, sx) for y in (-sy, sy) for z in (-sz, sz)]
+    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    me.from_pydata(verts, [], faces)
+    me.update()
+    return me
 
 
 def build(bpy):
-    """Create the scene in the current file (expects an empty or default scene)."""
+    """Create the scene in the current file (expects an empty or default scene).
+    Returns the box object."""
     scene = bpy.context.scene
     scene.render.fps = FPS
     scene.render.fps_base = 1.0
@@ -57,19 +110,21 @@ def build(bpy):
     s.haptic_rate = 1000.0
     s.duration = 0.0
 
-    me = bpy.data.meshes.new("Box")
-    h = BOX_SIZE / 2
-    verts = [(x, y, z) for x in (-h, h) for y in (-h, h) for z in (-h, h)]
-    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
-    me.from_pydata(verts, [], faces)
-    me.update()
-    box = bpy.data.objects.new("Box", me)
+    table = bpy.data.objects.new("Table", _box_mesh(bpy, "Table", TABLE_SIZE))
+    table.location = TABLE_CENTER
+    scene.collection.objects.link(table)
+    gl = table.grasp_lab
+    gl.role = "STATIC"
+    gl.mu_s, gl.mu_d = TABLE_MU
+
+    box = bpy.data.objects.new("Box", _box_mesh(bpy, "Box", (BOX_SIZE,) * 3))
+    box.location = (0.0, 0.0, BOX_Z)
     scene.collection.objects.link(box)
     gl = box.grasp_lab
     gl.role = "DYNAMIC"
     gl.mass_mode = "MASS"
     gl.mass = BOX_MASS
-    gl.mu_s, gl.mu_d = 0.8, 0.6
+    gl.mu_s, gl.mu_d = BOX_MU
 
     for i, sign in enumerate((-1.0, 1.0)):
         f = bpy.data.objects.new(f"Finger {i}", None)
@@ -80,9 +135,10 @@ def build(bpy):
         fg.role = "FINGER"
         fg.radius = FINGER_RADIUS
         fg.stiffness = STIFFNESS
+        fg.damping = DAMPING
         fg.channel = i
-        for frame, z in KEYS:
-            f.location = (sign * FINGER_X, 0.0, z)
+        for frame, _phase, x, y, z in KEYS:
+            f.location = (sign * x, y, z)
             f.keyframe_insert("location", frame=frame)
         _set_linear(bpy, f)
     scene.frame_set(scene.frame_start)
@@ -103,50 +159,124 @@ def _set_linear(bpy, obj):
         fc.update()
 
 
-def add_camera_and_light(bpy):
+# --------------------------------------------------------------------------- rendering
+
+def _material(bpy, name, color):
+    mat = bpy.data.materials.get(name) or bpy.data.materials.new(name)
+    mat.diffuse_color = color
+    return mat
+
+
+def add_render_setup(bpy):
+    """Camera, sun, materials (Workbench shows the material colour) and visible fingertip
+    spheres (role None, parented to the finger empties: the HIPs)."""
     import math
+    import bmesh
     scene = bpy.context.scene
-    cam_data = bpy.data.cameras.new("Camera")
-    cam_data.lens = 50
-    cam = bpy.data.objects.new("Camera", cam_data)
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    cam.data.lens = 60
     scene.collection.objects.link(cam)
-    cam.location = (0.30, -0.42, 0.26)
+    cam.location = (0.17, -0.42, 0.16)
     target = bpy.data.objects.new("Camera Target", None)
-    target.location = (0.0, 0.0, 0.075)
+    target.location = (0.0, 0.035, 0.055)
     scene.collection.objects.link(target)
     track = cam.constraints.new("TRACK_TO")
     track.target = target
     scene.camera = cam
-    # A ground plane for context only (role None: the core has no body-body contacts yet).
-    ground = bpy.data.meshes.new("Ground")
-    g = 0.15
-    ground.from_pydata([(-g, -g, -0.08), (g, -g, -0.08), (g, g, -0.08), (-g, g, -0.08)], [],
-                       [(0, 1, 2, 3)])
-    scene.collection.objects.link(bpy.data.objects.new("Ground", ground))
     light = bpy.data.objects.new("Light", bpy.data.lights.new("Light", "SUN"))
     light.rotation_euler = (math.radians(40), math.radians(10), math.radians(30))
     scene.collection.objects.link(light)
-    # Make the fingertips visible in renders: small spheres parented to the empties.
+    bpy.data.objects["Table"].data.materials.append(_material(bpy, "Table", (0.78, 0.66, 0.50, 1.0)))
+    bpy.data.objects["Box"].data.materials.append(_material(bpy, "Box", (0.93, 0.90, 0.80, 1.0)))
+    tip_mat = _material(bpy, "Fingertip", (0.30, 0.30, 0.33, 1.0))
     for i in range(2):
-        f = bpy.data.objects[f"Finger {i}"]
         me = bpy.data.meshes.new(f"Fingertip {i}")
-        import bmesh
         bm = bmesh.new()
         bmesh.ops.create_uvsphere(bm, u_segments=24, v_segments=12, radius=FINGER_RADIUS)
         bm.to_mesh(me)
         bm.free()
+        for p in me.polygons:
+            p.use_smooth = True
+        me.materials.append(tip_mat)
         tip = bpy.data.objects.new(f"Fingertip {i}", me)
-        tip.parent = f
+        tip.parent = bpy.data.objects[f"Finger {i}"]
         scene.collection.objects.link(tip)
+    scene.render.engine = "BLENDER_WORKBENCH"
+    scene.display.shading.light = "STUDIO"
+    scene.display.shading.studio_light = "studio.sl"        # the default leaves the table dark
+    scene.display.shading.color_type = "MATERIAL"
+    scene.display.shading.show_shadows = True
+    scene.view_settings.view_transform = "Standard"
+    if scene.world is None:
+        scene.world = bpy.data.worlds.new("World")
+    scene.world.color = (0.80, 0.84, 0.90)
+    scene.render.resolution_x, scene.render.resolution_y = 960, 600
+    scene.render.resolution_percentage = 100
+
+
+def add_finger_force_arrows(bpy, frames, god_objects, forces, scale, bake=True):
+    """Orange arrows from each god-object along the force rendered to the device
+    (`finger_forces`: squeeze outward, the weight downward), as the live overlay draws them.
+    ``god_objects``/``forces``: (n_frames, n_fingers, 3). Keyframed per frame when ``bake``,
+    otherwise set to the last frame. Uses the extension's arrow mesh (after a session)."""
+    import numpy as np
+    from mathutils import Matrix, Vector
+    arrow = bpy.data.meshes.get("GL Arrow")
+    if arrow is None:
+        raise RuntimeError("no 'GL Arrow' mesh: run a session with Display Objects on first")
+    mat = _material(bpy, "Finger Force", (1.0, 0.55, 0.0, 1.0))
+    width, z = 0.003, Vector((0.0, 0.0, 1.0))
+    scene = bpy.context.scene
+    anim = _extension_module("anim") if bake else None
+    objs = []
+    for j in range(np.shape(forces)[1]):
+        obj = bpy.data.objects.new(f"Finger Force {j}", arrow)
+        scene.collection.objects.link(obj)
+        obj.material_slots[0].link = "OBJECT"
+        obj.material_slots[0].material = mat
+        objs.append(obj)
+        rows = []
+        for go, f in zip(np.asarray(god_objects)[:, j], np.asarray(forces)[:, j]):
+            v = Vector(f)
+            length = v.length * scale
+            if length < 1e-9:
+                m = Matrix.Diagonal((0.0, 0.0, 0.0, 1.0))
+            else:
+                m = z.rotation_difference(v).to_matrix().to_4x4() @ Matrix.Diagonal(
+                    (width, width, length, 1.0))
+            m.translation = go
+            obj.matrix_world = m
+            if bake:
+                rows.append(anim.read_transform(obj))
+        if bake:
+            anim.bake(obj, frames, np.array(rows))
+    return objs
+
+
+def _extension_module(name):
+    import importlib
+    import bpy
+    for mod in bpy.context.preferences.addons.keys():
+        if mod.endswith(".grasp_lab"):
+            return importlib.import_module(f"{mod}.{name}")
+    raise RuntimeError("the grasp_lab extension is not enabled")
+
+
+def render(bpy, filepath):
+    import os
+    scene = bpy.context.scene
+    scene.render.filepath = os.path.abspath(filepath)
+    bpy.ops.render.render(write_still=True)
+    return scene.render.filepath
 
 
 def main(argv):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--save", help="write the .blend here")
     ap.add_argument("--run", action="store_true", help="run a headless session after building")
-    ap.add_argument("--render", help="run, then render the final frame (Workbench) to this PNG")
-    ap.add_argument("--duration", type=float, default=0.0,
-                    help="session length for --run/--render, s (0: the whole animation)")
+    ap.add_argument("--render", help="run to --frame, then render it (Workbench) to this PNG")
+    ap.add_argument("--frame", type=int, default=MID_LIFT_FRAME,
+                    help=f"last frame of the session for --render (default {MID_LIFT_FRAME}: mid-lift)")
     ap.add_argument("--force-scale", type=float, default=0.02, help="force arrow length, m/N")
     ap.add_argument("--zip", help="install the extension from this built zip (default: "
                                   "$GRASP_LAB_ZIP, else a development repository of addon/)")
@@ -161,23 +291,22 @@ def main(argv):
     bpy.ops.wm.read_homefile(use_empty=True)
     build(bpy)
     if args.render:
-        add_camera_and_light(bpy)
+        add_render_setup(bpy)
     if args.save:
-        import os
         bpy.ops.wm.save_as_mainfile(filepath=os.path.abspath(args.save))
-    if args.run or args.render:
-        bpy.context.scene.grasp_lab.force_scale = args.force_scale
-        bpy.ops.grasp_lab.session(duration=args.duration)
+    scene = bpy.context.scene
+    scene.grasp_lab.force_scale = args.force_scale
     if args.render:
-        import os
-        scene = bpy.context.scene
-        scene.render.engine = "BLENDER_WORKBENCH"
-        scene.display.shading.light = "STUDIO"
-        scene.display.shading.color_type = "MATERIAL"
-        scene.render.resolution_x, scene.render.resolution_y = 960, 600
-        scene.render.resolution_percentage = 100
-        scene.render.filepath = os.path.abspath(args.render)
-        bpy.ops.render.render(write_still=True)
+        scene.grasp_lab.record = True
+        scene.grasp_lab.recording_folder = grasp_env.isolate()
+        bpy.ops.grasp_lab.session(duration=(args.frame - scene.frame_start) / FPS)
+        import numpy as np
+        rec = np.load(scene.grasp_lab.last_recording)
+        add_finger_force_arrows(bpy, None, rec["god_objects"][-1:], rec["finger_forces"][-1:],
+                                args.force_scale, bake=False)
+        print(render(bpy, args.render))
+    elif args.run:
+        bpy.ops.grasp_lab.session()
     return 0
 
 

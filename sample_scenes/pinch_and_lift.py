@@ -1,8 +1,9 @@
-"""Headless pinch-and-lift with the core alone (`make demo`).
+"""Headless pinch-and-lift with the core alone (the first part of `make demo`).
 
 A 200 g box, 6 cm on a side, is pinched by two fingertips (8 mm spheres, 1000 N/m)
 that close on it, lift it 5 cm, hold it, shake it sideways and let it drop. Prints a compact
-table over time and writes the full 1 kHz trajectory to build/demo/pinch_and_lift.csv.
+table over time and writes the full 1 kHz trajectory to build/demo/core_only.csv.
+The second part, the Blender sample scene through the extension, is demo_session.py.
 """
 from __future__ import annotations
 
@@ -87,7 +88,7 @@ def run(duration=4.5, out_csv=None, every=0.2, stream=sys.stdout):
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--duration", type=float, default=4.5)
-    parser.add_argument("--csv", default=os.path.join("build", "demo", "pinch_and_lift.csv"))
+    parser.add_argument("--csv", default=os.path.join("build", "demo", "core_only.csv"))
     args = parser.parse_args(argv)
     rows = run(args.duration, args.csv)
     held = [r for r in rows if 2.0 <= r[0] < 2.5]

@@ -6,18 +6,32 @@ import pytest
 import grasp_env
 
 
+def _f32(v):
+    """Blender stores locations and mesh coordinates as float32."""
+    return np.asarray(v, dtype=np.float32).astype(np.float64)
+
+
 def _direct_trajectory(core, sample, n_frames, fps=24, rate=1000.0):
-    """Box poses at every frame, driving the core directly with the analytic HIPs."""
+    """Box poses at every frame, driving the core directly: the table and the box as the
+    scene has them (float32 coordinates), the analytic HIPs."""
     import trimesh
-    h = sample.BOX_SIZE / 2
-    pts = np.array([(x, y, z) for x in (-h, h) for y in (-h, h) for z in (-h, h)])
+
+    def corners(size):
+        return _f32([(x, y, z) for x in (-size[0] / 2, size[0] / 2) for y in (-size[1] / 2, size[1] / 2)
+                     for z in (-size[2] / 2, size[2] / 2)])
+
     ref = trimesh.creation.box((sample.BOX_SIZE,) * 3)
     ref.density = sample.BOX_MASS / ref.volume
     w = core.World(gravity=(0, 0, -9.81))
-    b = w.add_body(pts, mass=sample.BOX_MASS, inertia=ref.moment_inertia, center_of_mass=(0, 0, 0),
-                   mu_s=0.8, mu_d=0.6)
+    # Bodies in name order, as the extension adds them: Box, then Table.
+    b = w.add_body(corners((sample.BOX_SIZE,) * 3), mass=sample.BOX_MASS, inertia=ref.moment_inertia,
+                   center_of_mass=(0, 0, 0), position=tuple(_f32((0, 0, sample.BOX_Z))),
+                   mu_s=sample.BOX_MU[0], mu_d=sample.BOX_MU[1])
+    w.add_body(corners(sample.TABLE_SIZE), static=True, position=tuple(_f32(sample.TABLE_CENTER)),
+               mu_s=sample.TABLE_MU[0], mu_d=sample.TABLE_MU[1])
     for p in sample.hip_positions(0.0):
-        w.add_finger(radius=sample.FINGER_RADIUS, stiffness=sample.STIFFNESS, position=tuple(p))
+        w.add_finger(radius=sample.FINGER_RADIUS, stiffness=sample.STIFFNESS, damping=sample.DAMPING,
+                     position=tuple(p))
     dt = 1.0 / rate
     poses = [np.concatenate(w.body_pose(b))]
     step = 0
@@ -36,6 +50,7 @@ def test_exec_pinch_and_lift_matches_core(bpy, sample, core):
     box = sample.build(bpy)
     assert bpy.ops.grasp_lab.session() == {"FINISHED"}
     res = grasp_env.submodule("session").last_result
+    assert res.body_names == ["Box", "Table"]
     traj = res.trajectory("Box")
     n_frames = bpy.context.scene.frame_end - bpy.context.scene.frame_start
     assert len(traj) == n_frames + 1
@@ -44,19 +59,38 @@ def test_exec_pinch_and_lift_matches_core(bpy, sample, core):
     # Blender stores locations as float32: HIPs differ from the analytic ones by ~1e-9 m.
     np.testing.assert_allclose(traj[:, :3], direct[:, :3], atol=2e-6)
     np.testing.assert_allclose(np.abs(np.sum(traj[:, 3:] * direct[:, 3:], axis=1)), 1.0, atol=1e-6)
-    # The box was lifted ~10 cm and held; the scene is left in the final state.
-    assert traj[-1, 2] == pytest.approx(sample.LIFT, abs=0.005)
+    frame = np.array(res.frames)
+    z = traj[:, 2]
+    # Resting on the table until the fingers close, then lifted 10 cm (sagging m g / 2k below
+    # the HIPs), carried 10 cm sideways, put down and left on the table.
+    sag = sample.BOX_MASS * 9.81 / (2 * sample.STIFFNESS)
+    np.testing.assert_allclose(z[frame <= 31], sample.BOX_Z, atol=1e-5)
+    held = (frame >= 57) & (frame <= 61)
+    np.testing.assert_allclose(z[held], sample.BOX_Z + sample.LIFT - sag, atol=1e-4)
+    assert traj[-1, 1] == pytest.approx(sample.CARRY, abs=1e-3)
+    assert traj[-1, 2] == pytest.approx(sample.BOX_Z, abs=1e-5)
     assert box.matrix_world.translation.z == pytest.approx(traj[-1, 2], abs=1e-6)
     assert bpy.context.scene.frame_current == bpy.context.scene.frame_end
+    assert res.final.n_contacts == 0                        # released
+    assert all(s == 0 for s in res.final.finger_states)     # both free
+
+
+@pytest.mark.multiversion
+def test_fingers_stick_while_holding(bpy, sample, core):
+    sample.build(bpy)
+    bpy.ops.grasp_lab.session(duration=2.5)                 # frame 61: lifted and held
+    res = grasp_env.submodule("session").last_result
     assert res.final.n_contacts == 2
-    assert all(s == 1 for s in res.final.finger_states)    # both sticking
+    assert list(res.final.contacts) == [0, 0]               # both on the box
+    assert all(s == 1 for s in res.final.finger_states)     # both sticking
+    assert res.trajectory("Box")[-1, 2] > sample.BOX_Z + sample.LIFT - 0.001
 
 
 @pytest.mark.multiversion
 def test_display_objects_and_bake(bpy, sample, core):
     sample.build(bpy)
     bpy.context.scene.grasp_lab.bake = True
-    bpy.ops.grasp_lab.session(duration=0.5)
+    bpy.ops.grasp_lab.session(duration=1.25)             # frames 1-31: closed on the box
     coll = bpy.data.collections["Grasp Lab"]
     names = sorted(o.name for o in coll.objects)
     assert names == ["GL Force Box", "GL God-object Finger 0", "GL God-object Finger 1",
@@ -71,20 +105,21 @@ def test_display_objects_and_bake(bpy, sample, core):
     z_final = box.matrix_world.translation.z
     bpy.context.scene.frame_set(1)
     assert box.matrix_world.translation.z == pytest.approx(res.poses[0][0][2], abs=1e-6)
-    bpy.context.scene.frame_set(13)
+    bpy.context.scene.frame_set(31)
     assert box.matrix_world.translation.z == pytest.approx(res.trajectory("Box")[-1][2], abs=1e-6)
     assert z_final == pytest.approx(res.trajectory("Box")[-1][2], abs=1e-6)
 
 
 def test_second_run_resets_and_repeats(bpy, sample, core):
     sample.build(bpy)
-    bpy.ops.grasp_lab.session(duration=1.0)
+    bpy.ops.grasp_lab.session(duration=2.0)
     first = grasp_env.submodule("session").last_result.trajectory("Box")
-    bpy.ops.grasp_lab.session(duration=1.0)
+    assert first[-1, 2] > sample.BOX_Z + 0.05               # lifted
+    bpy.ops.grasp_lab.session(duration=2.0)
     second = grasp_env.submodule("session").last_result.trajectory("Box")
     np.testing.assert_array_equal(first, second)
     bpy.ops.grasp_lab.reset()
-    assert bpy.data.objects["Box"].matrix_world.translation.z == pytest.approx(0.0, abs=1e-9)
+    assert bpy.data.objects["Box"].matrix_world.translation.z == pytest.approx(sample.BOX_Z, abs=1e-9)
 
 
 def test_recording_written(bpy, sample, core, tmp_path):
@@ -95,9 +130,9 @@ def test_recording_written(bpy, sample, core, tmp_path):
     bpy.ops.grasp_lab.session(duration=0.25)
     path = s.last_recording
     data = np.load(path)
-    assert data["poses"].shape == (7, 1, 7)        # start + 6 frames at 24 fps
+    assert data["poses"].shape == (7, 2, 7)        # start + 6 frames at 24 fps, box and table
     assert data["hips"].shape == (7, 2, 3)
-    assert list(data["body_names"]) == ["Box"]
+    assert list(data["body_names"]) == ["Box", "Table"]
 
 
 def test_invoke_headless_runs_exec(bpy, sample, core):
@@ -114,6 +149,7 @@ def test_parented_body_writes_back_world_pose(bpy, sample, core):
     holder.scale = (2.0, 2.0, 2.0)
     box.parent = holder
     box.scale = (0.5, 0.5, 0.5)     # world size unchanged
+    box.location = (0.0, 0.0, sample.BOX_Z / 2)   # world position unchanged: on the table
     bpy.context.view_layer.update()
     bpy.ops.grasp_lab.session()
     res = grasp_env.submodule("session").last_result
@@ -135,7 +171,7 @@ def test_live_session_ticks_without_timers(bpy, sample, core):
     sample.build(bpy)
     prefs.use_runtime = False
     try:
-        s = session.BlenderSession(bpy.context, live=True, duration=1.0)
+        s = session.BlenderSession(bpy.context, live=True, duration=1.25)
     finally:
         prefs.use_runtime = True
     assert not s.runner.threaded
@@ -147,8 +183,9 @@ def test_live_session_ticks_without_timers(bpy, sample, core):
     s.tick(1.0, max_steps=1000)                      # session time lags the wall clock
     assert s.runner.time == pytest.approx(0.25)
     assert bpy.context.scene.frame_current == 1 + round(0.25 * 24)
-    assert "contacts 2 / 2" in s.hud_text()
+    assert "contacts 0 / 2" in s.hud_text()          # fingers still open
     assert s.tick(5.0, max_steps=100000) is True     # reached the duration
+    assert "contacts 2 / 2" in s.hud_text()          # closed on the box
     s.finish()
     display.add_overlay()                            # no-op headless
     assert not display.overlay_active()
@@ -160,6 +197,7 @@ def test_live_session_on_the_threaded_runtime(bpy, sample, core):
     import time as _time
     session = grasp_env.submodule("session")
     box = sample.build(bpy)
+    bpy.context.scene.frame_start = 25               # start squeezing, 0.25 s before the lift
     z0 = box.matrix_world.translation.z
     s = session.BlenderSession(bpy.context, live=True, duration=2.0)
     assert s.runner.threaded and s.runner.world.running
