@@ -132,9 +132,8 @@ def run(bpy, out_dir, render=True, stream=sys.stdout) -> dict:
     p(f"box: rests at z {z0 * 1e3:.3f} mm, lifted to {top * 1e3:.3f} mm, carried "
       f"{(box[-1, 1] - box[0, 1]) * 1e3:.2f} mm along y, back on the table at z {z1 * 1e3:.3f} mm "
       f"({round((z1 - z0) * 1e6, 2) + 0.0:+.2f} um)")
-    p("lift = the weight the fingers carry, as the device renders it: computed from this tick's "
-      "HIPs and the previous tick's box, so it reads k v dt = 0.1 N per finger more (less) while "
-      "the HIPs rise (sink) at 10 cm/s")
+    p("lift = the weight the fingers carry, as the device renders it (m g = 0.981 N while held "
+      "or carried at constant speed)")
     p(f"outputs in {os.path.relpath(out_dir)}/ (session {timings['session']:.2f} s, arrows "
       f"{timings['bake']:.2f} s" + (f", render {timings['render']:.2f} s" if render else "") + "):")
     notes = {"blend": "baked keyframes, opens on the mid-lift frame",

@@ -572,6 +572,7 @@ static void haptic_tick(gcRuntime *rt, int64_t now) {
     /* 3. As gc_world_step: god-objects and springs, then the bodies this loop owns. */
     gc_xfca_update(hw, dt);
     step_bodies(hw, dt);
+    gc_xfca_outputs(hw);
     for (int i = 0; i < hw->num_fingers; ++i) hw->fingers[i].hip_prev = hw->fingers[i].hip;
     hw->time += dt;
     rt->tick++;

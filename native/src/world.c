@@ -490,6 +490,7 @@ gcStatus gc_world_step(gcWorld *w, double dt) {
     gc_dynamics_velocities(w, dt);
     gc_contacts_step(w, dt); /* body-body contacts: chains solved through the effective masses */
     gc_dynamics_positions(w, dt);
+    gc_xfca_outputs(w);
     for (int i = 0; i < w->num_fingers; ++i) w->fingers[i].hip_prev = w->fingers[i].hip;
     w->time += dt;
     return GC_OK;

@@ -98,8 +98,12 @@ static inline gcTransform gc_body_transform(const gcBody *b) {
     return t;
 }
 
-/* xfca.c: one god-object update for every finger, then finger forces. */
+/* xfca.c: one god-object update for every finger (start of a step, on the current poses). */
 void gc_xfca_update(gcWorld *world, double dt);
+/* Finger forces and reported god-objects, at the end of a step: on the poses the bodies
+ * moved to, so a fingertip carrying a body feels the spring the body felt (no one-step
+ * lag of k v dt against the motion). */
+void gc_xfca_outputs(gcWorld *world);
 /* dynamics.c, in step order: new velocities of every dynamic body under gravity and the
  * implicit finger coupling (leaves each body's effective-mass factor); then positions. */
 void gc_dynamics_velocities(gcWorld *world, double dt);

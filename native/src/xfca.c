@@ -227,8 +227,9 @@ static void finger_outputs(gcWorld *w, int32_t id) {
 }
 
 void gc_xfca_update(gcWorld *w, double dt) {
-    for (int32_t i = 0; i < w->num_fingers; ++i) {
-        finger_update(w, &w->fingers[i], dt);
-        finger_outputs(w, i);
-    }
+    for (int32_t i = 0; i < w->num_fingers; ++i) finger_update(w, &w->fingers[i], dt);
+}
+
+void gc_xfca_outputs(gcWorld *w) {
+    for (int32_t i = 0; i < w->num_fingers; ++i) finger_outputs(w, i);
 }

@@ -250,3 +250,16 @@ def test_residual_wrench_vanishes_for_a_box_carried_at_constant_speed():
     force, torque = w.residual_wrench(b)
     assert np.linalg.norm(force) < 1e-3  # was k dt v = 0.2 N when springs were read at step start
     assert w.body_velocity(b)[0][2] == pytest.approx(0.1, rel=1e-3)
+
+
+def test_fingers_carrying_a_box_at_constant_speed_feel_its_weight():
+    """Device forces are read on the poses the step moved the body to: no k v dt lag."""
+    w, b, (f1, f2), x = pinch_world(depth=0.003)
+    w.step(DT, steps=1000)
+    for i in range(1500):
+        lift = 0.1 * i * DT  # 10 cm/s up
+        w.set_hip(f1, (-x, 0, lift))
+        w.set_hip(f2, (x, 0, lift))
+        w.step(DT)
+    carried = -w.finger_forces[:, 2].sum()
+    assert carried == pytest.approx(0.2 * 9.81, rel=1e-3)
