@@ -1,9 +1,11 @@
-"""`make bench`: graspcore beside MuJoCo on the same grasp scenes, creep, GJK/EPA, Blender.
+"""`make bench`: graspcore beside MuJoCo and PyBullet on the same scenes, creep, haptic jitter, GJK/EPA, Blender.
 
-Runs in .venv (graspcore built by `make core`). MuJoCo runs in its own environment,
-.venv-bench, created here from bench/requirements.txt on first use (mujoco pins its own
-numpy; bpy in .venv pins numpy < 2), as a subprocess serving bench/scenes_mujoco.py.
-Timing repeats of the two engines are interleaved so both see the same machine load.
+Runs in .venv (graspcore built by `make core`). MuJoCo and PyBullet run in their own
+environment, .venv-bench, created here from bench/requirements.txt on first use (mujoco
+pins its own numpy; bpy in .venv pins numpy < 2), as subprocesses serving
+bench/scenes_mujoco.py and bench/scenes_pybullet.py. Timing repeats of the engines are
+interleaved so all see the same machine load. The multi-body scenes are run by
+bench/bench_multibody.py, the haptic-loop jitter by bench/bench_jitter.py.
 Writes docs/benchmarks.md and prints it.
 
     .venv/bin/python bench/run_bench.py [--quick] [--out docs/benchmarks.md]
@@ -20,6 +22,7 @@ import shutil
 import statistics
 import subprocess
 import sys
+import tempfile
 import time
 
 import numpy as np
@@ -29,6 +32,8 @@ ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
 
 import bench_core_scenes as core  # noqa: E402
+import bench_multibody as mb  # noqa: E402
+import bench_scenes  # noqa: E402
 
 BENCH_VENV = os.path.join(ROOT, ".venv-bench")
 BENCH_REQ = os.path.join(HERE, "requirements.txt")
@@ -72,11 +77,13 @@ def ensure_bench_venv() -> str:
     return py
 
 
-class MuJoCo:
-    """The MuJoCo worker (bench/scenes_mujoco.py in .venv-bench), one JSON line each way."""
+class Worker:
+    """An engine worker in .venv-bench (bench/scenes_mujoco.py, bench/scenes_pybullet.py),
+    one JSON line each way."""
 
-    def __init__(self, python: str):
-        self.proc = subprocess.Popen([python, os.path.join(HERE, "scenes_mujoco.py")],
+    def __init__(self, python: str, script: str = "scenes_mujoco.py"):
+        self.name = script
+        self.proc = subprocess.Popen([python, os.path.join(HERE, script)],
                                      stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
                                      cwd=ROOT)
 
@@ -85,16 +92,19 @@ class MuJoCo:
         self.proc.stdin.flush()
         line = self.proc.stdout.readline()
         if not line:
-            raise RuntimeError("MuJoCo worker exited")
+            raise RuntimeError(f"{self.name} worker exited")
         reply = json.loads(line)
         if not reply.pop("ok"):
-            raise RuntimeError(f"MuJoCo worker: {reply['error']}")
+            raise RuntimeError(f"{self.name} worker: {reply['error']}")
         return reply
 
     def close(self) -> None:
         if self.proc.poll() is None:
             self.proc.stdin.close()
             self.proc.wait(timeout=30)
+
+
+MuJoCo = Worker
 
 
 # --- machine --------------------------------------------------------------------------
@@ -230,6 +240,37 @@ def run_external(cmd: list[str], timeout: float) -> tuple[bool, str]:
     return True, demote_headings(r.stdout.strip())
 
 
+def jitter(seconds: float) -> tuple[bool, str, list[str]]:
+    """bench/bench_jitter.py in both modes (SCHED_FIFO and normal priority): (ok, its
+    Markdown, target rows for the summary)."""
+    script = os.path.join(HERE, "bench_jitter.py")
+    if not os.path.exists(script):
+        return False, "`bench/bench_jitter.py` does not exist: not measured.", []
+    venv_py = os.path.join(ROOT, ".venv", "bin", "python")
+    fd, js = tempfile.mkstemp(suffix=".json")
+    os.close(fd)
+    try:
+        good, md = run_external([venv_py if os.path.exists(venv_py) else sys.executable, script,
+                                 "--seconds", f"{seconds:g}", "--modes", "fifo,normal", "--json", js],
+                                timeout=2 * seconds + 120)
+        rows = json.load(open(js)) if good else []
+    except (OSError, ValueError) as exc:
+        good, md, rows = False, f"bench_jitter.py wrote no statistics: {exc}", []
+    finally:
+        os.unlink(js)
+    targets = []
+    for r in rows:
+        mode = "SCHED_FIFO" if r.get("rt_priority") else (
+            "normal priority" if not r.get("priority_requested") else "normal priority (SCHED_FIFO refused)")
+        p99, late = r["jitter_p99_us"], r["late_periods"]
+        targets.append(f"| 1 kHz haptic loop, p99 period error < 100 µs, {r['seconds']:.0f} s under Python load, "
+                       f"{mode} | {p99:.0f} µs (max {r['jitter_max_us']:.0f} µs) | "
+                       f"{'**met**' if p99 < 100 else '**MISSED**'} |")
+        targets.append(f"| 1 kHz haptic loop, no period > 1 ms late in {r['seconds']:.0f} s, {mode} | "
+                       f"{late} late, {r['overruns']} overruns | {'**met**' if late == 0 else '**MISSED**'} |")
+    return good, md, targets
+
+
 # --- report ---------------------------------------------------------------------------
 def us(x: float) -> str:
     return f"{x * 1e6:.2f}"
@@ -242,7 +283,8 @@ def um(x: float) -> str:
     return f"{x:.3g}" if x >= 1e-3 else f"{x:.1e}"
 
 
-def report(info, mjinfo, grasps, creep, profile, gjk, blender, xml3, meta) -> str:
+def report(info, mjinfo, grasps, creep, profile, gjk, blender, xml3, meta, pbinfo=None,
+           extra_targets=(), sections=()) -> str:
     L = []
     add = L.append
     add("# Benchmarks")
@@ -260,6 +302,10 @@ def report(info, mjinfo, grasps, creep, profile, gjk, blender, xml3, meta) -> st
         add(f"- MuJoCo {mjinfo['mujoco']}, Python {mjinfo['python']}, numpy {mjinfo['numpy']} (.venv-bench)")
     else:
         add(f"- MuJoCo: not run ({meta.get('mj_error', 'unavailable')})")
+    if pbinfo:
+        add(f"- PyBullet {pbinfo['pybullet']}, Python {pbinfo['python']}, numpy {pbinfo['numpy']} (.venv-bench)")
+    else:
+        add(f"- PyBullet: not run ({meta.get('pb_error', 'unavailable')})")
     add(f"- Load average at start / end: {meta['load_start']} / {meta['load_end']} "
         "(other jobs on the machine inflate both engines alike: repeats are interleaved)")
     add("")
@@ -287,6 +333,8 @@ def report(info, mjinfo, grasps, creep, profile, gjk, blender, xml3, meta) -> st
                 f"{'**met**' if r <= 0.5 else '**MISSED**'} |")
     else:
         add("| GJK+EPA ≤ 0.5× libccd | see [GJK/EPA](#gjkepa-vs-libccd) | |")
+    for row in extra_targets:
+        add(row)
     add("")
 
     # grasp timing
@@ -431,6 +479,10 @@ def report(info, mjinfo, grasps, creep, profile, gjk, blender, xml3, meta) -> st
         pass
     add("")
 
+    for sec in sections:
+        add(sec)
+        add("")
+
     add("## GJK/EPA vs libccd")
     add("")
     add(gjk)
@@ -481,24 +533,44 @@ def main(argv=None) -> int:
     steps, repeats = (1000, 5) if args.quick else (5000, 31)
 
     info = machine_info()
-    mj = mjinfo = None
-    xml3 = ""
+    mj = mjinfo = pb = pbinfo = None
+    xml3 = xml_mb = ""
     ok = True
+    bench_py = None
     try:
-        mj = MuJoCo(ensure_bench_venv())
+        bench_py = ensure_bench_venv()
+        mj = MuJoCo(bench_py)
         mjinfo = mj(cmd="info")
         xml3 = mj(cmd="xml", spec=core.scene_spec(3), variant=MJ_MAIN)["xml"]
+        xml_mb = mj(cmd="mb_xml", spec=bench_scenes.scene_spec(bench_scenes.SCENES[0]), variant="recommended")["xml"]
     except Exception as exc:  # keep going: graspcore's numbers are still worth writing
         log(f"MuJoCo side unavailable: {exc}")
         meta["mj_error"] = str(exc)
         mj, ok = None, False
+    if bench_py:
+        try:
+            pb = Worker(bench_py, "scenes_pybullet.py")
+            pbinfo = pb(cmd="info")
+        except Exception as exc:
+            log(f"PyBullet side unavailable: {exc}")
+            meta["pb_error"] = str(exc)
+            pb, ok = None, False
+    else:
+        meta["pb_error"] = ".venv-bench could not be created"
 
     log("grasp step time (graspcore and MuJoCo interleaved)")
     grasps = grasp_timing(mj, (2, 3, 5), steps, repeats)
     log("creep")
     creep = creep_all(mj)
+    log("multi-body scenes (graspcore 1 and 2 threads, MuJoCo, PyBullet interleaved)")
+    mb_rows = mb.run_all(mj, pb, quick=args.quick)
     if mj:
         mj.close()
+    if pb:
+        pb.close()
+    overlaps = {"100-body pile": mb.initial_overlaps(bench_scenes.scene_spec("100-body pile"))}
+    log("multi-body profile (perf)")
+    mb_prof = mb.profile_all(mb_rows, quick=args.quick)
     log("per-finger profile")
     prof_rows = core.per_finger_profile(steps, max(5, repeats // 2))
     static = [r["case"] for r in prof_rows if "static box" in r["case"]]
@@ -528,9 +600,24 @@ def main(argv=None) -> int:
             ok &= good
         else:
             blender = "`bench/bench_blender.py` does not exist yet: no Blender numbers in this run."
+    jitter_s = 5.0 if args.quick else 60.0
+    log(f"haptic-loop jitter (bench/bench_jitter.py, {jitter_s:g} s per mode, SCHED_FIFO and normal)")
+    good, jitter_md, jitter_targets = jitter(jitter_s)
+    ok &= good
+    mb_section = mb.report_section(mb_rows, mjinfo, pbinfo, mb_prof, overlaps, xml_mb,
+                                   pb_error=meta.get("pb_error", ""))
+    jitter_section = "\n".join([
+        "## Haptic loop period jitter (1 kHz, under Python CPU load)", "",
+        "`bench/bench_jitter.py --seconds {0:g} --modes fifo,normal`: the runtime (`World.start`) with a held "
+        "box, four boxes resting on a table and five fingers, the haptic loop at 1 kHz, while the main "
+        "Python thread pushes HIPs at ~500 Hz and another Python thread burns CPU. Targets: p99 period "
+        "error < 100 µs and no period more than 1 ms late over the run. Its output:".format(jitter_s), "",
+        jitter_md])
     meta["load_end"] = loadavg()
     meta["wall_s"] = time.perf_counter() - t_start
-    md = report(info, mjinfo, grasps, creep, profile, gjk, blender, xml3, meta)
+    md = report(info, mjinfo, grasps, creep, profile, gjk, blender, xml3, meta, pbinfo=pbinfo,
+                extra_targets=mb.target_rows(mb_rows, mjinfo is not None) + jitter_targets,
+                sections=[mb_section, jitter_section])
     if args.quick:
         md = md.replace("# Benchmarks\n", "# Benchmarks (--quick run: too few repeats to quote)\n", 1)
     os.makedirs(os.path.dirname(args.out), exist_ok=True)

@@ -23,6 +23,9 @@ Settings ("recommended"), MuJoCo's documented recommendations for grasping:
   into the box and a 3 mm squeeze cannot hold it). "recommended+noslip" adds
   noslip_iterations="10", MuJoCo's post-processing against slip. A request may pass its
   own config dict (noslip_iterations, solref, finger_mass) for sensitivity runs.
+
+The multi-body scenes (bench/bench_scenes.py) are built by bench/multibody_mujoco.py and
+served here by the `mb_*` commands (mb_setup, mb_time, mb_positions, mb_drop, mb_xml).
 """
 from __future__ import annotations
 
@@ -30,8 +33,13 @@ import json
 import sys
 import time
 
+import os
+
 import mujoco
 import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import multibody_mujoco  # noqa: E402
 
 # The configurations measured. "recommended" is the one the ratio and the creep target
 # are quoted against; the others show how much the numbers depend on the choices.
@@ -175,6 +183,21 @@ def handle(req: dict) -> dict:
         return {"displacement_m": float(np.linalg.norm(d)), "dz_m": float(d[2]),
                 "max_deviation_m": max_dev, "sag_at_settle_m": float(-p0[2]),
                 "ncon": int(s.d.ncon)}
+    if cmd == "mb_xml":
+        return {"xml": multibody_mujoco.model_xml(req["spec"], req["variant"])}
+    if cmd == "mb_setup":        # a multi-body scene, after its warm-up
+        s = multibody_mujoco.MultiBodyScene(req["spec"], req["variant"])
+        s.step(int(round(req["spec"].get("warmup_s", 0.0) / s.dt)))
+        _scenes[req["key"]] = s
+        return {"positions": s.positions(), "ncon": int(s.d.ncon)}
+    if cmd == "mb_time":         # one timed repeat, continuing the simulation
+        return _scenes[req["key"]].time(req["steps"])
+    if cmd == "mb_positions":
+        s = _scenes[req["key"]]
+        return {"positions": s.positions(), "warnings": s.warnings()}
+    if cmd == "mb_drop":
+        _scenes.pop(req["key"], None)
+        return {}
     raise ValueError(f"unknown command {cmd!r}")
 
 
