@@ -64,7 +64,8 @@ gcStatus gc_contacts_create(gcWorld *w) {
     cs->pseudo_v = calloc(nb, sizeof *cs->pseudo_v);
     cs->pseudo_w = calloc(nb, sizeof *cs->pseudo_w);
     cs->inv_mass = calloc(nb, sizeof *cs->inv_mass);
-    if (!cs->inv_mass || !cs->manifolds || !cs->previous || !cs->candidates || !cs->sorted_bodies || !cs->part_min ||
+    cs->scratch = calloc((size_t)cs->capacity * GC_MANIFOLD_MAX_POINTS, sizeof *cs->scratch);
+    if (!cs->inv_mass || !cs->scratch || !cs->manifolds || !cs->previous || !cs->candidates || !cs->sorted_bodies || !cs->part_min ||
         !cs->part_max || !cs->parent || !cs->body_chain || !cs->chain_body_start || !cs->chain_bodies ||
         !cs->chain_manifold_start || !cs->chain_manifolds || !cs->cursor || !cs->pseudo_v || !cs->pseudo_w)
         return GC_ERR_NO_MEMORY; /* the caller destroys the world, which frees what was made */
@@ -93,6 +94,7 @@ void gc_contacts_destroy(gcWorld *w) {
     free(cs->pseudo_v);
     free(cs->pseudo_w);
     free(cs->inv_mass);
+    free(cs->scratch);
     free(cs);
     w->contacts = NULL;
 }
@@ -591,15 +593,26 @@ typedef struct SolverBodies {
     gcVec3 *va, *wa, *vb, *wb; /* NULL for a static body */
 } SolverBodies;
 
-static inline void apply(const gcManifoldPoint *p, int k, double lambda, const SolverBodies *s) {
-    if (s->vb) add_twist(s->vb, s->wb, p->wb[k], lambda);
-    if (s->va) add_twist(s->va, s->wa, p->wa[k], -lambda);
+static inline void apply(const gcPointScratch *q, int k, double lambda, const SolverBodies *s) {
+    if (s->vb) add_twist(s->vb, s->wb, q->wb[k], lambda);
+    if (s->va) add_twist(s->va, s->wa, q->wa[k], -lambda);
 }
 
-/* out = M x for a row-major 6x6 M (NULL: a static body, out = 0). */
-static void mul6(const double *M, const double x[6], double out[6]) {
+/* out = M x for a body's row-major 6x6 inverse effective mass (NULL: a static body,
+ * out = 0). Without a finger on the body M is block diagonal: m^-1 I and I_world^-1. */
+static void mul_inv_mass(const double *M, int dense, const double x[6], double out[6]) {
     if (!M) {
         for (int i = 0; i < 6; ++i) out[i] = 0.0;
+        return;
+    }
+    if (!dense) {
+        out[0] = M[0] * x[0];
+        out[1] = M[0] * x[1];
+        out[2] = M[0] * x[2];
+        for (int i = 3; i < 6; ++i) {
+            const double *r = M + 6 * i;
+            out[i] = r[3] * x[3] + r[4] * x[4] + r[5] * x[5];
+        }
         return;
     }
     for (int i = 0; i < 6; ++i) {
@@ -608,7 +621,14 @@ static void mul6(const double *M, const double x[6], double out[6]) {
     }
 }
 
+/* The solver's per-point scratch of a manifold of this step (rebuilt by prepare_manifold,
+ * kept apart so that manifolds copied between steps stay small). */
+static inline gcPointScratch *scratch_of(struct gcContactSystem *cs, const gcManifold *m) {
+    return &cs->scratch[(m - cs->manifolds) * GC_MANIFOLD_MAX_POINTS];
+}
+
 static void prepare_manifold(gcWorld *w, gcManifold *m, double dt) {
+    gcPointScratch *scratch = scratch_of(w->contacts, m);
     const gcBody *A = &w->bodies[m->body_a], *B = &w->bodies[m->body_b];
     struct gcContactSystem *cs = w->contacts;
     const double *ma = A->is_static ? NULL : cs->inv_mass[m->body_a];
@@ -616,35 +636,36 @@ static void prepare_manifold(gcWorld *w, gcManifold *m, double dt) {
     gcVec3 dirs[3] = {m->normal, m->t1, m->t2};
     for (int k = 0; k < m->num_points; ++k) {
         gcManifoldPoint *p = &m->points[k];
+        gcPointScratch *q = &scratch[k];
         gcVec3 ra = gc_sub(p->point, A->com), rb = gc_sub(p->point, B->com);
         for (int d = 0; d < 3; ++d) {
-            p->ang_a[d] = gc_cross(ra, dirs[d]);
-            p->ang_b[d] = gc_cross(rb, dirs[d]);
-            double ja[6] = {dirs[d].x, dirs[d].y, dirs[d].z, p->ang_a[d].x, p->ang_a[d].y, p->ang_a[d].z};
-            double jb[6] = {dirs[d].x, dirs[d].y, dirs[d].z, p->ang_b[d].x, p->ang_b[d].y, p->ang_b[d].z};
-            mul6(ma, ja, p->wa[d]);
-            mul6(mb, jb, p->wb[d]);
+            q->ang_a[d] = gc_cross(ra, dirs[d]);
+            q->ang_b[d] = gc_cross(rb, dirs[d]);
+            double ja[6] = {dirs[d].x, dirs[d].y, dirs[d].z, q->ang_a[d].x, q->ang_a[d].y, q->ang_a[d].z};
+            double jb[6] = {dirs[d].x, dirs[d].y, dirs[d].z, q->ang_b[d].x, q->ang_b[d].y, q->ang_b[d].z};
+            mul_inv_mass(ma, A->coupled, ja, q->wa[d]);
+            mul_inv_mass(mb, B->coupled, jb, q->wb[d]);
         }
-        double K[3][3];
-        for (int i = 0; i < 3; ++i)
-            for (int j = 0; j < 3; ++j)
-                K[i][j] = dot6(dirs[i], p->ang_b[i], p->wb[j]) + dot6(dirs[i], p->ang_a[i], p->wa[j]);
-        p->inv_kn = K[0][0] > 0.0 ? 1.0 / K[0][0] : 0.0;
-        double k11 = K[1][1], k22 = K[2][2], k12 = 0.5 * (K[1][2] + K[2][1]);
+        /* K = J M^-1 J^T is symmetric: the normal and tangential blocks are what the rows use. */
+        double kn = dot6(dirs[0], q->ang_b[0], q->wb[0]) + dot6(dirs[0], q->ang_a[0], q->wa[0]);
+        double k11 = dot6(dirs[1], q->ang_b[1], q->wb[1]) + dot6(dirs[1], q->ang_a[1], q->wa[1]);
+        double k22 = dot6(dirs[2], q->ang_b[2], q->wb[2]) + dot6(dirs[2], q->ang_a[2], q->wa[2]);
+        double k12 = dot6(dirs[1], q->ang_b[1], q->wb[2]) + dot6(dirs[1], q->ang_a[1], q->wa[2]);
+        q->inv_kn = kn > 0.0 ? 1.0 / kn : 0.0;
         double det = k11 * k22 - k12 * k12;
         if (det > 1e-300 * (k11 * k22 + 1e-300) && k11 > 0 && k22 > 0) {
-            p->inv_kt[0][0] = k22 / det;
-            p->inv_kt[1][1] = k11 / det;
-            p->inv_kt[0][1] = p->inv_kt[1][0] = -k12 / det;
+            q->inv_kt[0][0] = k22 / det;
+            q->inv_kt[1][1] = k11 / det;
+            q->inv_kt[0][1] = q->inv_kt[1][0] = -k12 / det;
         } else {
-            memset(p->inv_kt, 0, sizeof p->inv_kt);
+            memset(q->inv_kt, 0, sizeof q->inv_kt);
         }
         double kmax = 0.5 * (k11 + k22) + sqrt(0.25 * (k11 - k22) * (k11 - k22) + k12 * k12);
-        p->inv_kt_max = kmax > 0.0 ? 1.0 / kmax : 0.0;
+        q->inv_kt_max = kmax > 0.0 ? 1.0 / kmax : 0.0;
         /* Normal: a speculative point (apart) may close its gap this step, no more. */
-        p->target_n = -fmax(p->separation, 0.0) / dt;
+        q->target_n = -gc_max(p->separation, 0.0) / dt;
         /* Static friction: the anchors (one material point on each body) must not slide. */
-        p->target_t[0] = p->target_t[1] = 0.0;
+        q->target_t[0] = q->target_t[1] = 0.0;
         if (!m->sticking) p->anchored = 0;
         if (m->sticking && p->anchored) {
             gcVec3 wa = gc_add(A->com, gc_mat3_mul_vec(&A->R, p->anchor_a));
@@ -662,13 +683,13 @@ static void prepare_manifold(gcWorld *w, gcManifold *m, double dt) {
             gcVec3 wa = gc_add(A->com, gc_mat3_mul_vec(&A->R, p->anchor_a));
             gcVec3 wb = gc_add(B->com, gc_mat3_mul_vec(&B->R, p->anchor_b));
             gcVec3 e = gc_sub(wb, wa);
-            p->target_t[0] = -GC_ANCHOR_BETA * gc_dot(e, m->t1) / dt;
-            p->target_t[1] = -GC_ANCHOR_BETA * gc_dot(e, m->t2) / dt;
+            q->target_t[0] = -GC_ANCHOR_BETA * gc_dot(e, m->t1) / dt;
+            q->target_t[1] = -GC_ANCHOR_BETA * gc_dot(e, m->t2) / dt;
         }
         /* Warm start: last step's impulses (friction re-projected on this step's tangents). */
-        p->lambda_t[0] = gc_dot(p->friction_impulse, m->t1);
-        p->lambda_t[1] = gc_dot(p->friction_impulse, m->t2);
-        p->position_impulse = 0.0;
+        q->lambda_t[0] = gc_dot(p->friction_impulse, m->t1);
+        q->lambda_t[1] = gc_dot(p->friction_impulse, m->t2);
+        q->position_impulse = 0.0;
     }
 }
 
@@ -693,12 +714,14 @@ static SolverBodies solver_bodies(gcWorld *w, const gcManifold *m, gcVec3 *lin, 
 }
 
 static void warm_start(gcWorld *w, gcManifold *m) {
+    gcPointScratch *scratch = scratch_of(w->contacts, m);
     SolverBodies s = solver_bodies(w, m, NULL, NULL);
     for (int k = 0; k < m->num_points; ++k) {
         const gcManifoldPoint *p = &m->points[k];
-        apply(p, 0, p->normal_impulse, &s);
-        apply(p, 1, p->lambda_t[0], &s);
-        apply(p, 2, p->lambda_t[1], &s);
+        const gcPointScratch *q = &scratch[k];
+        apply(q, 0, p->normal_impulse, &s);
+        apply(q, 1, q->lambda_t[0], &s);
+        apply(q, 2, q->lambda_t[1], &s);
     }
 }
 
@@ -724,18 +747,19 @@ static inline void store_twists(const SolverBodies *s, const LocalTwists *t) {
 }
 
 /* Velocity of B relative to A at the point, along direction k (d is that direction). */
-static inline double rel_vel(const gcManifoldPoint *p, int k, gcVec3 d, gcVec3 dv, const LocalTwists *t) {
-    return gc_dot(d, dv) + gc_dot(p->ang_b[k], t->wb) - gc_dot(p->ang_a[k], t->wa);
+static inline double rel_vel(const gcPointScratch *q, int k, gcVec3 d, gcVec3 dv, const LocalTwists *t) {
+    return gc_dot(d, dv) + gc_dot(q->ang_b[k], t->wb) - gc_dot(q->ang_a[k], t->wa);
 }
 
-static inline void apply_local(const gcManifoldPoint *p, int k, double lambda, LocalTwists *t) {
-    add_twist(&t->vb, &t->wb, p->wb[k], lambda);
-    add_twist(&t->va, &t->wa, p->wa[k], -lambda);
+static inline void apply_local(const gcPointScratch *q, int k, double lambda, LocalTwists *t) {
+    add_twist(&t->vb, &t->wb, q->wb[k], lambda);
+    add_twist(&t->va, &t->wa, q->wa[k], -lambda);
 }
 
 /* One Gauss-Seidel pass over the manifold's rows; returns the largest velocity error a
  * row saw before its update (sliding friction rows and separating normals excepted). */
 static double solve_velocity(gcWorld *w, gcManifold *m) {
+    gcPointScratch *scratch = scratch_of(w->contacts, m);
     SolverBodies s = solver_bodies(w, m, NULL, NULL);
     LocalTwists t = load_twists(&s);
     double residual = 0.0;
@@ -743,19 +767,20 @@ static double solve_velocity(gcWorld *w, gcManifold *m) {
     /* Friction first (its bound uses the current normal impulses), normals last. */
     for (int k = 0; k < m->num_points; ++k) {
         gcManifoldPoint *p = &m->points[k];
+        gcPointScratch *q = &scratch[k];
         double limit = mu * p->normal_impulse;
         gcVec3 dv = gc_sub(t.vb, t.va);
-        double e1 = rel_vel(p, 1, m->t1, dv, &t) - p->target_t[0];
-        double e2 = rel_vel(p, 2, m->t2, dv, &t) - p->target_t[1];
-        double l1 = p->lambda_t[0] - (p->inv_kt[0][0] * e1 + p->inv_kt[0][1] * e2);
-        double l2 = p->lambda_t[1] - (p->inv_kt[1][0] * e1 + p->inv_kt[1][1] * e2);
-        p->saturated = l1 * l1 + l2 * l2 > limit * limit;
-        if (p->saturated) {
+        double e1 = rel_vel(q, 1, m->t1, dv, &t) - q->target_t[0];
+        double e2 = rel_vel(q, 2, m->t2, dv, &t) - q->target_t[1];
+        double l1 = q->lambda_t[0] - (q->inv_kt[0][0] * e1 + q->inv_kt[0][1] * e2);
+        double l2 = q->lambda_t[1] - (q->inv_kt[1][0] * e1 + q->inv_kt[1][1] * e2);
+        q->saturated = l1 * l1 + l2 * l2 > limit * limit;
+        if (q->saturated) {
             /* Sliding. The block step projected on the disc would settle where the impulse
              * is parallel to K^-1 v, not to v; an isotropic step settles where it opposes
              * the slip velocity (Coulomb's maximal dissipation). Then the true cone. */
-            l1 = p->lambda_t[0] - e1 * p->inv_kt_max;
-            l2 = p->lambda_t[1] - e2 * p->inv_kt_max;
+            l1 = q->lambda_t[0] - e1 * q->inv_kt_max;
+            l2 = q->lambda_t[1] - e2 * q->inv_kt_max;
             double len2 = l1 * l1 + l2 * l2;
             if (len2 > limit * limit) {
                 double scale = limit > 0.0 ? limit / sqrt(len2) : 0.0;
@@ -763,20 +788,21 @@ static double solve_velocity(gcWorld *w, gcManifold *m) {
                 l2 *= scale;
             }
         } else {
-            residual = fmax(residual, fabs(e1) + fabs(e2));
+            residual = gc_max(residual, fabs(e1) + fabs(e2));
         }
-        apply_local(p, 1, l1 - p->lambda_t[0], &t);
-        apply_local(p, 2, l2 - p->lambda_t[1], &t);
-        p->lambda_t[0] = l1;
-        p->lambda_t[1] = l2;
+        apply_local(q, 1, l1 - q->lambda_t[0], &t);
+        apply_local(q, 2, l2 - q->lambda_t[1], &t);
+        q->lambda_t[0] = l1;
+        q->lambda_t[1] = l2;
     }
     for (int k = 0; k < m->num_points; ++k) {
         gcManifoldPoint *p = &m->points[k];
-        double vn = rel_vel(p, 0, m->normal, gc_sub(t.vb, t.va), &t);
-        double l = p->normal_impulse - (vn - p->target_n) * p->inv_kn;
+        gcPointScratch *q = &scratch[k];
+        double vn = rel_vel(q, 0, m->normal, gc_sub(t.vb, t.va), &t);
+        double l = p->normal_impulse - (vn - q->target_n) * q->inv_kn;
         if (l < 0.0) l = 0.0;
-        if (l > 0.0 || vn < p->target_n) residual = fmax(residual, fabs(vn - p->target_n));
-        apply_local(p, 0, l - p->normal_impulse, &t);
+        if (l > 0.0 || vn < q->target_n) residual = gc_max(residual, fabs(vn - q->target_n));
+        apply_local(q, 0, l - p->normal_impulse, &t);
         p->normal_impulse = l;
     }
     store_twists(&s, &t);
@@ -791,23 +817,25 @@ static double solve_velocity(gcWorld *w, gcManifold *m) {
  * it slides faster than GC_SLIP_SPEED: an unconverged first solve of a fresh contact
  * saturates without the patch really sliding. */
 static void finish_velocity(gcWorld *w, gcManifold *m) {
+    gcPointScratch *scratch = scratch_of(w->contacts, m);
     SolverBodies s = solver_bodies(w, m, NULL, NULL);
     LocalTwists t = load_twists(&s);
     int pressed = 0, all_saturated = 1;
     double slip2 = 0.0;
     for (int k = 0; k < m->num_points; ++k) {
         gcManifoldPoint *p = &m->points[k];
-        p->friction_impulse = gc_add(gc_scale(m->t1, p->lambda_t[0]), gc_scale(m->t2, p->lambda_t[1]));
+        gcPointScratch *q = &scratch[k];
+        p->friction_impulse = gc_add(gc_scale(m->t1, q->lambda_t[0]), gc_scale(m->t2, q->lambda_t[1]));
         if (!(p->normal_impulse > 0.0)) {
             p->anchored = 0; /* not pressed: anchor afresh at the next touch */
             continue;
         }
         pressed = 1;
-        if (!p->saturated) all_saturated = 0;
+        if (!q->saturated) all_saturated = 0;
         gcVec3 dv = gc_sub(t.vb, t.va);
-        double e1 = rel_vel(p, 1, m->t1, dv, &t) - p->target_t[0];
-        double e2 = rel_vel(p, 2, m->t2, dv, &t) - p->target_t[1];
-        slip2 = fmax(slip2, e1 * e1 + e2 * e2);
+        double e1 = rel_vel(q, 1, m->t1, dv, &t) - q->target_t[0];
+        double e2 = rel_vel(q, 2, m->t2, dv, &t) - q->target_t[1];
+        slip2 = gc_max(slip2, e1 * e1 + e2 * e2);
     }
     if (!pressed) {
         m->sticking = 1;
@@ -820,19 +848,21 @@ static void finish_velocity(gcWorld *w, gcManifold *m) {
 }
 
 static void solve_position(gcWorld *w, gcManifold *m, double dt) {
+    gcPointScratch *scratch = scratch_of(w->contacts, m);
     struct gcContactSystem *cs = w->contacts;
     SolverBodies s = solver_bodies(w, m, cs->pseudo_v, cs->pseudo_w);
     LocalTwists t = load_twists(&s);
     for (int k = 0; k < m->num_points; ++k) {
         gcManifoldPoint *p = &m->points[k];
+        gcPointScratch *q = &scratch[k];
         double depth = -(p->separation + GC_CONTACT_SLOP);
-        if (!(depth > 0.0) && p->position_impulse == 0.0) continue;
+        if (!(depth > 0.0) && q->position_impulse == 0.0) continue;
         double target = depth > 0.0 ? fmin(GC_POSITION_BETA * depth / dt, GC_MAX_CORRECTION_SPEED) : 0.0;
-        double vn = rel_vel(p, 0, m->normal, gc_sub(t.vb, t.va), &t);
-        double l = p->position_impulse - (vn - target) * p->inv_kn;
+        double vn = rel_vel(q, 0, m->normal, gc_sub(t.vb, t.va), &t);
+        double l = q->position_impulse - (vn - target) * q->inv_kn;
         if (l < 0.0) l = 0.0;
-        apply_local(p, 0, l - p->position_impulse, &t);
-        p->position_impulse = l;
+        apply_local(q, 0, l - q->position_impulse, &t);
+        q->position_impulse = l;
     }
     store_twists(&s, &t);
 }
@@ -847,13 +877,7 @@ void gc_contacts_solve_chain(gcWorld *w, int chain, double dt) {
     /* Each body's inverse effective mass (with the finger coupling), once per step. */
     for (int i = b0; i < b1; ++i) {
         int32_t id = cs->chain_bodies[i];
-        double *M = cs->inv_mass[id];
-        for (int j = 0; j < 6; ++j) {
-            double e[6] = {0, 0, 0, 0, 0, 0}, col[6];
-            e[j] = 1.0;
-            gc_body_solve_effective_mass(&w->bodies[id], e, col);
-            for (int r = 0; r < 6; ++r) M[6 * r + j] = col[r];
-        }
+        gc_body_inverse_effective_mass(&w->bodies[id], cs->inv_mass[id]);
     }
     for (int i = m0; i < m1; ++i) prepare_manifold(w, &cs->manifolds[list[i]], dt);
     for (int i = m0; i < m1; ++i) warm_start(w, &cs->manifolds[list[i]]);
@@ -863,7 +887,7 @@ void gc_contacts_solve_chain(gcWorld *w, int chain, double dt) {
      * data decide, so the count does not depend on the thread that solves it. */
     for (int it = 0; it < GC_VELOCITY_ITERATIONS; ++it) {
         double residual = 0.0;
-        for (int i = m0; i < m1; ++i) residual = fmax(residual, solve_velocity(w, &cs->manifolds[list[i]]));
+        for (int i = m0; i < m1; ++i) residual = gc_max(residual, solve_velocity(w, &cs->manifolds[list[i]]));
         if (residual <= GC_SOLVER_TOLERANCE) break;
     }
     for (int i = m0; i < m1; ++i) finish_velocity(w, &cs->manifolds[list[i]]);

@@ -32,7 +32,10 @@ typedef struct gcManifoldPoint {
     double normal_impulse;       /* accumulated this step (warm start for the next) */
     gcVec3 friction_impulse;     /* accumulated, world */
     int anchored;                /* anchors valid (the manifold sticks and this point is pressed) */
-    /* Solver scratch, rebuilt every step. */
+} gcManifoldPoint;
+
+/* Solver scratch of one manifold point, rebuilt every step (not copied between steps). */
+typedef struct gcPointScratch {
     gcVec3 ang_a[3], ang_b[3];   /* r x d for d = n, t1, t2 */
     double wa[3][6], wb[3][6];   /* (effective mass)^-1 [d; r x d] per body (0 for static) */
     double inv_kn;               /* 1 / normal effective mass */
@@ -42,7 +45,7 @@ typedef struct gcManifoldPoint {
     double target_n, target_t[2];
     double position_impulse;
     int saturated;               /* friction was on the cone at its last update */
-} gcManifoldPoint;
+} gcPointScratch;
 
 typedef struct gcManifold {
     int64_t key;                 /* part_a * max_parts + part_b, part_a < part_b */
@@ -89,6 +92,7 @@ struct gcContactSystem {
     /* Solver. */
     gcVec3 *pseudo_v, *pseudo_w; /* split-impulse position pass */
     double (*inv_mass)[36];      /* per body: (effective mass)^-1, row-major 6x6, this step */
+    gcPointScratch *scratch;     /* GC_MANIFOLD_MAX_POINTS per manifold slot */
     double dt;
     gcPool *pool;
 };

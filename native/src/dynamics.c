@@ -63,23 +63,37 @@ static void add_point_coupling(double A[6][6], gcVec3 r, double s) {
     }
 }
 
-static gcMat3 world_inertia(const gcMat3 *R, const gcMat3 *inertia_local) {
-    gcMat3 RI = gc_mat3_mul(R, inertia_local);
+/* R A R^T: a body-frame tensor in world axes. */
+static gcMat3 to_world(const gcMat3 *R, const gcMat3 *A) {
+    gcMat3 RA = gc_mat3_mul(R, A);
     gcMat3 Rt = gc_mat3_transpose(R);
-    return gc_mat3_mul(&RI, &Rt);
+    return gc_mat3_mul(&RA, &Rt);
 }
 
-/* Fixed-point passes for the inertia at the end of the step (gyroscopic term). */
+/* I_world w without forming I_world: R (I_body (R^T w)). */
+static gcVec3 angular_momentum(const gcMat3 *R, const gcMat3 *inertia_local, gcVec3 w) {
+    gcVec3 local = gc_mat3_tmul_vec(R, w);
+    return gc_mat3_mul_vec(R, gc_mat3_mul_vec(inertia_local, local));
+}
+
+/* Fixed-point passes for the inertia at the end of the step (gyroscopic term); they stop
+ * early once a pass returns the same angular velocity bit for bit (the next pass would
+ * repeat it exactly, so the result does not depend on stopping). */
 #define GC_GYRO_ITERATIONS 3
+
+static gcMat3 end_of_step_rotation(const gcBody *b, gcVec3 omega, double dt) {
+    return gc_quat_to_mat3(gc_quat_mul(gc_quat_from_rotation_vector(gc_scale(omega, dt)), b->q));
+}
+
+static int same_vec(gcVec3 a, gcVec3 b) { return a.x == b.x && a.y == b.y && a.z == b.z; }
 
 static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
     gcBody *b = &w->bodies[id];
-    gcMat3 Iw = world_inertia(&b->R, &b->inertia_local);
-    gcVec3 L = gc_mat3_mul_vec(&Iw, b->w);
+    gcVec3 L = angular_momentum(&b->R, &b->inertia_local, b->w);
     gcVec3 force = gc_scale(w->gravity, b->mass);
     gcVec3 torque = gc_v3(0, 0, 0);
     double C[6][6]; /* finger coupling: sum (k dt^2 + c dt) J^T J */
-    memset(C, 0, sizeof C);
+    int coupled = 0;
 
     gcTransform frame = gc_body_transform(b);
     for (int fi = 0; fi < w->num_fingers; ++fi) {
@@ -87,6 +101,8 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
         for (int ci = 0; ci < f->num_contacts; ++ci) {
             const gcFingerContact *c = &f->contacts[ci];
             if (w->parts[c->part].body != id) continue;
+            if (!coupled) memset(C, 0, sizeof C);
+            coupled = 1;
             /* The reaction acts at the GO (DESIGN.md §2), which moves rigidly with the body
              * while it sticks: the same lever in the torque and in the coupling keeps the
              * implicit model consistent with the explicit force. */
@@ -103,39 +119,52 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
     b->step_start_momentum = gc_scale(b->v, b->mass);
     b->step_start_angular_momentum = L;
 
-    double rhs[6], x[6];
-    gcVec3 p = gc_scale(b->v, b->mass);
-    rhs[0] = p.x + dt * force.x;
-    rhs[1] = p.y + dt * force.y;
-    rhs[2] = p.z + dt * force.z;
-    rhs[3] = L.x + dt * torque.x;
-    rhs[4] = L.y + dt * torque.y;
-    rhs[5] = L.z + dt * torque.z;
+    gcVec3 p = gc_add(b->step_start_momentum, gc_scale(force, dt));
+    gcVec3 Lnew = gc_add(L, gc_scale(torque, dt));
     /* Gyroscopic term: d(J w)/dt = T is J w_dot = T - w x J w. Solving J(t+dt) w' = L + dt T
      * with the inertia at the end-of-step orientation keeps it implicitly (no explicit
      * w x J w, which drifts on a tumbling body) and conserves L. The end orientation
      * depends on w', hence a few fixed-point passes. Without the term (the chapter's
      * form) the inertia stays J(t). */
-    gcVec3 omega = b->w;
+    gcVec3 v, omega = b->w;
     int passes = w->def.gyroscopic ? GC_GYRO_ITERATIONS : 1;
-    for (int pass = 0; pass < passes; ++pass) {
-        gcMat3 Inext = Iw;
-        if (w->def.gyroscopic) {
-            gcMat3 Rnext = gc_quat_to_mat3(gc_quat_mul(gc_quat_from_rotation_vector(gc_scale(omega, dt)), b->q));
-            Inext = world_inertia(&Rnext, &b->inertia_local);
+    gcMat3 Rend = b->R;
+    b->coupled = coupled;
+    if (!coupled) {
+        /* No finger on it: the effective mass is the block-diagonal mass matrix, inverted
+         * directly (no 6x6 factor); contacts use the same blocks. */
+        v = gc_scale(p, b->inv_mass);
+        for (int pass = 0; pass < passes; ++pass) {
+            if (w->def.gyroscopic) Rend = end_of_step_rotation(b, omega, dt);
+            gcVec3 next = gc_mat3_mul_vec(&Rend, gc_mat3_mul_vec(&b->inv_inertia_local, gc_mat3_tmul_vec(&Rend, Lnew)));
+            int converged = pass > 0 && same_vec(next, omega);
+            omega = next;
+            if (converged) break;
         }
-        double A[6][6];
-        memcpy(A, C, sizeof A);
-        for (int i = 0; i < 3; ++i) {
-            A[i][i] += b->mass;
-            for (int j = 0; j < 3; ++j) A[3 + i][3 + j] += Inext.m[i][j];
+        b->inv_inertia_world = to_world(&Rend, &b->inv_inertia_local);
+        b->effective_mass_valid = 1;
+    } else {
+        double rhs[6] = {p.x, p.y, p.z, Lnew.x, Lnew.y, Lnew.z}, x[6];
+        for (int pass = 0; pass < passes; ++pass) {
+            if (w->def.gyroscopic) Rend = end_of_step_rotation(b, omega, dt);
+            gcMat3 Inext = to_world(&Rend, &b->inertia_local);
+            double A[6][6];
+            memcpy(A, C, sizeof A);
+            for (int i = 0; i < 3; ++i) {
+                A[i][i] += b->mass;
+                for (int j = 0; j < 3; ++j) A[3 + i][3 + j] += Inext.m[i][j];
+            }
+            b->effective_mass_valid = cholesky6(A, b->effective_mass_factor);
+            if (!b->effective_mass_valid) return; /* cannot happen for a physical inertia; keep the state */
+            cholesky_solve6(b->effective_mass_factor, rhs, x);
+            gcVec3 next = gc_v3(x[3], x[4], x[5]);
+            int converged = pass > 0 && same_vec(next, omega);
+            omega = next;
+            if (converged) break;
         }
-        b->effective_mass_valid = cholesky6(A, b->effective_mass_factor);
-        if (!b->effective_mass_valid) return; /* cannot happen for a physical inertia; keep the state */
-        cholesky_solve6(b->effective_mass_factor, rhs, x);
-        omega = gc_v3(x[3], x[4], x[5]);
+        v = gc_v3(x[0], x[1], x[2]);
     }
-    gcVec3 v = gc_v3(x[0], x[1], x[2]), om = omega;
+    gcVec3 om = omega;
     if (b->linear_damping > 0.0) v = gc_scale(v, 1.0 / (1.0 + dt * b->linear_damping));
     if (b->angular_damping > 0.0) om = gc_scale(om, 1.0 / (1.0 + dt * b->angular_damping));
     if (!gc_vec_finite(v) || !gc_vec_finite(om)) {
@@ -146,23 +175,22 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
     b->w = om;
 }
 
-void gc_body_apply_impulse(gcWorld *w, int32_t id, gcVec3 point, gcVec3 impulse) {
-    gcBody *b = &w->bodies[id];
+void gc_body_inverse_effective_mass(const gcBody *b, double M[36]) {
+    memset(M, 0, 36 * sizeof(double));
     if (b->is_static || !b->effective_mass_valid) return;
-    gcVec3 r = gc_sub(point, b->com);
-    gcVec3 ang = gc_cross(r, impulse);
-    double rhs[6] = {impulse.x, impulse.y, impulse.z, ang.x, ang.y, ang.z}, dv[6];
-    cholesky_solve6(b->effective_mass_factor, rhs, dv);
-    b->v = gc_add(b->v, gc_v3(dv[0], dv[1], dv[2]));
-    b->w = gc_add(b->w, gc_v3(dv[3], dv[4], dv[5]));
-}
-
-void gc_body_solve_effective_mass(const gcBody *b, const double wrench[6], double twist[6]) {
-    if (b->is_static || !b->effective_mass_valid) {
-        memset(twist, 0, 6 * sizeof(double));
+    if (!b->coupled) {
+        for (int i = 0; i < 3; ++i) {
+            M[6 * i + i] = b->inv_mass;
+            for (int j = 0; j < 3; ++j) M[6 * (3 + i) + 3 + j] = b->inv_inertia_world.m[i][j];
+        }
         return;
     }
-    cholesky_solve6(b->effective_mass_factor, wrench, twist);
+    for (int j = 0; j < 6; ++j) {
+        double e[6] = {0, 0, 0, 0, 0, 0}, col[6];
+        e[j] = 1.0;
+        cholesky_solve6(b->effective_mass_factor, e, col);
+        for (int r = 0; r < 6; ++r) M[6 * r + j] = col[r];
+    }
 }
 
 void gc_dynamics_velocities(gcWorld *w, double dt) {
@@ -192,8 +220,7 @@ void gc_dynamics_positions(gcWorld *w, double dt) {
          * finger springs at their end-of-step stretch, contacts): the rate of change of
          * momentum. Evaluating the springs at the start of the step instead would be off
          * by k dt v for a body carried at speed v. */
-        gcMat3 Iw = world_inertia(&b->R, &b->inertia_local);
-        gcVec3 L = gc_mat3_mul_vec(&Iw, b->w);
+        gcVec3 L = angular_momentum(&b->R, &b->inertia_local, b->w);
         b->residual_force = gc_scale(gc_sub(gc_scale(b->v, b->mass), b->step_start_momentum), 1.0 / dt);
         b->residual_torque = gc_scale(gc_sub(L, b->step_start_angular_momentum), 1.0 / dt);
     }

@@ -13,6 +13,9 @@ typedef struct gcQuat { double w, x, y, z; } gcQuat;
 /* Rigid transform: world = R * local + p. */
 typedef struct gcTransform { gcVec3 p; gcMat3 R; } gcTransform;
 
+/* max/min for values known not to be NaN (libm's fmax/fmin are calls, not instructions). */
+static inline double gc_max(double a, double b) { return a > b ? a : b; }
+static inline double gc_min(double a, double b) { return a < b ? a : b; }
 static inline gcVec3 gc_v3(double x, double y, double z) { gcVec3 v = {x, y, z}; return v; }
 static inline gcVec3 gc_add(gcVec3 a, gcVec3 b) { return gc_v3(a.x + b.x, a.y + b.y, a.z + b.z); }
 static inline gcVec3 gc_sub(gcVec3 a, gcVec3 b) { return gc_v3(a.x - b.x, a.y - b.y, a.z - b.z); }

@@ -217,18 +217,18 @@ void gc_body_refresh_derived(gcWorld *w, int32_t id) {
     double *pose = &w->pose_array[7 * id];
     pose[0] = origin.x, pose[1] = origin.y, pose[2] = origin.z;
     pose[3] = b->q.w, pose[4] = b->q.x, pose[5] = b->q.y, pose[6] = b->q.z;
-    /* World AABB of all parts (core AABB corners transformed, inflated by the margin). */
+    /* World AABB of all parts: each part's local box turned into world axes (centre
+     * transformed, half extents through |R|), grown by the part's radius. */
     gcVec3 lo = gc_v3(INFINITY, INFINITY, INFINITY), hi = gc_neg(lo);
     for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
         const gcHull *h = &w->parts[p].hull;
-        for (int corner = 0; corner < 8; ++corner) {
-            gcVec3 c = gc_v3(corner & 1 ? h->aabb_max.x : h->aabb_min.x,
-                             corner & 2 ? h->aabb_max.y : h->aabb_min.y,
-                             corner & 4 ? h->aabb_max.z : h->aabb_min.z);
-            gcVec3 wc = gc_transform_point(&frame, c);
-            lo = gc_v3(fmin(lo.x, wc.x - h->radius), fmin(lo.y, wc.y - h->radius), fmin(lo.z, wc.z - h->radius));
-            hi = gc_v3(fmax(hi.x, wc.x + h->radius), fmax(hi.y, wc.y + h->radius), fmax(hi.z, wc.z + h->radius));
-        }
+        gcVec3 centre = gc_transform_point(&frame, gc_scale(gc_add(h->aabb_min, h->aabb_max), 0.5));
+        gcVec3 half = gc_scale(gc_sub(h->aabb_max, h->aabb_min), 0.5);
+        double e[3];
+        for (int i = 0; i < 3; ++i)
+            e[i] = fabs(b->R.m[i][0]) * half.x + fabs(b->R.m[i][1]) * half.y + fabs(b->R.m[i][2]) * half.z + h->radius;
+        lo = gc_v3(gc_min(lo.x, centre.x - e[0]), gc_min(lo.y, centre.y - e[1]), gc_min(lo.z, centre.z - e[2]));
+        hi = gc_v3(gc_max(hi.x, centre.x + e[0]), gc_max(hi.y, centre.y + e[1]), gc_max(hi.z, centre.z + e[2]));
     }
     b->aabb_min = lo;
     b->aabb_max = hi;

@@ -30,9 +30,13 @@ typedef struct gcBody {
     gcVec3 aabb_min, aabb_max;      /* world, of all parts, refreshed each step */
     /* Outputs of the last step. */
     gcVec3 residual_force, residual_torque;
-    /* Step scratch: Cholesky factor of the effective mass (mass matrix plus the implicit
-     * finger coupling) used for this step's velocity; contact impulses go through it. */
+    /* Step scratch: the effective mass used for this step's velocity, which contact
+     * impulses go through. With a finger on the body (coupled) it is the mass matrix plus
+     * the implicit finger coupling, kept as a 6x6 Cholesky factor; otherwise it is block
+     * diagonal: inv_mass and the inverse world inertia at the end-of-step orientation. */
+    int coupled;
     double effective_mass_factor[6][6];
+    gcMat3 inv_inertia_world;
     int effective_mass_valid;
     /* Momentum at the start of the step: the residual wrench is its rate of change. */
     gcVec3 step_start_momentum, step_start_angular_momentum;
@@ -108,11 +112,10 @@ void gc_xfca_outputs(gcWorld *world);
  * implicit finger coupling (leaves each body's effective-mass factor); then positions. */
 void gc_dynamics_velocities(gcWorld *world, double dt);
 void gc_dynamics_positions(gcWorld *world, double dt);
-/* Between the two: a world-frame impulse at a world point changes the body's twist by
- * (effective mass)^-1 [p; r x p], so contacts see the finger springs as part of the mass. */
-void gc_body_apply_impulse(gcWorld *world, int32_t body, gcVec3 point, gcVec3 impulse);
-/* twist = (effective mass)^-1 wrench, both (linear, angular) world frame; zero for static. */
-void gc_body_solve_effective_mass(const gcBody *body, const double wrench[6], double twist[6]);
+/* Between the two: the body's (effective mass)^-1 as a row-major 6x6, (linear, angular)
+ * world frame, zero for a static or immovable body. A world impulse p at r from the COM
+ * changes the twist by M [p; r x p], so contacts see the finger springs as mass. */
+void gc_body_inverse_effective_mass(const gcBody *body, double M[36]);
 void gc_body_refresh_derived(gcWorld *world, int32_t body);
 
 /* contacts.c: body-body contacts, collision chains, the contact solver (docs/solver.md).
