@@ -74,7 +74,7 @@ struct gcContactSystem {
     int num_manifolds, num_previous;
     gcManifold *manifolds, *previous; /* this step's and the last step's, sorted by key */
     int num_candidates;
-    gcCandidate *candidates;
+    gcCandidate *candidates, *candidates_scratch; /* the second: radix-sort buffer */
     int32_t *sorted_bodies;      /* broad-phase order, kept between steps (insertion sort) */
     int num_sorted;
     gcVec3 *part_min, *part_max; /* world AABBs of the parts, inflated by the margin */
