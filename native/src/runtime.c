@@ -24,7 +24,7 @@
  * stepping, so with the manual clock (realtime = 0, gc_world_advance) and equal rates every
  * body is stepped exactly once per tick with the same inputs as gc_world_step: the runtime
  * reproduces a synchronous run bit for bit (tests/core/test_runtime.py). */
-#define _POSIX_C_SOURCE 200809L
+#define _GNU_SOURCE /* Linux: prctl, sched_setattr, mlock */
 
 #include "runtime.h"
 
@@ -38,6 +38,13 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#ifdef __linux__
+#include <sys/mman.h>
+#include <sys/prctl.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+#endif
 
 #define NS_PER_S 1000000000LL
 /* The object manager's step cap (DESIGN.md §2: the chapter's "0.002 ms" is a typo for 2 ms). */
@@ -45,6 +52,13 @@
 /* Period-error histogram of the haptic loop: 1 us bins, the last one collects the rest. */
 #define GC_JITTER_BINS 20000
 #define NEVER INT64_MIN
+/* The haptic loop's wait (docs/runtime.md "Getting on time"): the scheduler time slice it
+ * asks for at normal priority (Linux >= 6.12; the kernel's minimum), the stack it touches
+ * before its first tick, and the most runtime memory it locks in RAM. */
+#define GC_HAPTIC_SLICE_NS 100000
+#define GC_HAPTIC_STACK_PREFAULT (64 * 1024)
+#define GC_LOCK_BUDGET (64u << 20)
+#define GC_MAX_REGIONS 96
 
 /* ---- triple buffer: the latest value from one writer to one reader ------------------ */
 
@@ -168,6 +182,16 @@ typedef struct gcRuntime {
     _Atomic int64_t debug_stall_ns;
     int rt_priority;
     char priority_note[128];
+    /* Set by the haptic thread before its first tick (its scheduling: rt_priority, thread_note);
+     * gc_world_start waits for it. */
+    _Atomic int haptic_ready;
+    char thread_note[85];
+
+    /* The runtime's own allocations, locked in RAM (mlock) while the threads run. */
+    struct { void *p; size_t n; } region[GC_MAX_REGIONS];
+    int num_regions;
+    size_t locked_bytes;
+    char memory_note[40];
 
     /* Statistics: written by one thread each, read by gc_world_stats. */
     _Atomic uint64_t haptic_ticks, object_ticks, overruns, late_periods, object_overruns;
@@ -266,19 +290,74 @@ static void contacts_copy_state(gcWorld *dst, const gcWorld *src) {
     gc_chains_build(dst);
 }
 
+/* ---- the runtime's memory ------------------------------------------------------------ */
+
+/* calloc, remembering the block so that gc_world_start can lock it in RAM. */
+static void *rt_calloc(gcRuntime *rt, size_t n, size_t size) {
+    void *p = calloc(n, size);
+    if (p && rt->num_regions < GC_MAX_REGIONS) {
+        rt->region[rt->num_regions].p = p;
+        rt->region[rt->num_regions].n = n * size;
+        rt->num_regions++;
+    }
+    return p;
+}
+
+static void unlock_memory(gcRuntime *rt) {
+#ifdef __linux__
+    if (rt->locked_bytes) {
+        for (int i = 0; i < rt->num_regions; ++i) munlock(rt->region[i].p, rt->region[i].n);
+        /* A page shared with another locked block (another world's runtime) is unlocked
+         * with it: the worst case is that page can be swapped out again. */
+    }
+#endif
+    rt->locked_bytes = 0;
+}
+
+/* Locks the runtime's own blocks (shadows, messages, this struct) in RAM, which also
+ * faults them in: the haptic loop never waits for a page of them to come back from swap.
+ * Not the contact state (contacts.c) nor the world's hulls, which the runtime does not
+ * allocate. Never the whole process (mlockall): this runs inside Blender. Refused (no
+ * CAP_IPC_LOCK and RLIMIT_MEMLOCK too small) or over GC_LOCK_BUDGET: nothing is locked and
+ * the note says why. */
+static void lock_memory(gcRuntime *rt) {
+    rt->locked_bytes = 0;
+#ifdef __linux__
+    size_t total = 0;
+    for (int i = 0; i < rt->num_regions; ++i) total += rt->region[i].n;
+    if (total > GC_LOCK_BUDGET) {
+        snprintf(rt->memory_note, sizeof rt->memory_note, "memory not locked (over %u MiB)", GC_LOCK_BUDGET >> 20);
+        return;
+    }
+    for (int i = 0; i < rt->num_regions; ++i) {
+        if (mlock(rt->region[i].p, rt->region[i].n) != 0) {
+            int e = errno;
+            for (int k = 0; k < i; ++k) munlock(rt->region[k].p, rt->region[k].n);
+            snprintf(rt->memory_note, sizeof rt->memory_note, "memory not locked (%s)",
+                     e == EPERM ? "not permitted" : e == ENOMEM ? "RLIMIT_MEMLOCK" : "refused");
+            return;
+        }
+    }
+    rt->locked_bytes = total;
+    snprintf(rt->memory_note, sizeof rt->memory_note, "%zu KiB locked", (total + 1023) >> 10);
+#else
+    snprintf(rt->memory_note, sizeof rt->memory_note, "memory not locked");
+#endif
+}
+
 /* ---- shadows ------------------------------------------------------------------------ */
 
-static int shadow_alloc(gcWorld *s, const gcWorld *w, unsigned char **active, int threads) {
+static int shadow_alloc(gcRuntime *rt, gcWorld *s, const gcWorld *w, unsigned char **active, int threads) {
     *s = *w; /* configuration and the shared read-only parts */
     s->contacts = NULL;
     s->def.threads = threads;
-    s->bodies = calloc((size_t)w->def.max_bodies, sizeof *s->bodies);
-    s->fingers = calloc((size_t)w->def.max_fingers, sizeof *s->fingers);
-    s->pose_array = calloc((size_t)w->def.max_bodies * 7, sizeof(double));
-    s->god_object_array = calloc((size_t)w->def.max_fingers * 3, sizeof(double));
-    s->force_array = calloc((size_t)w->def.max_fingers * 3, sizeof(double));
-    s->hip_array = calloc((size_t)w->def.max_fingers * 3, sizeof(double));
-    *active = calloc((size_t)w->def.max_bodies, 1);
+    s->bodies = rt_calloc(rt, (size_t)w->def.max_bodies, sizeof *s->bodies);
+    s->fingers = rt_calloc(rt, (size_t)w->def.max_fingers, sizeof *s->fingers);
+    s->pose_array = rt_calloc(rt, (size_t)w->def.max_bodies * 7, sizeof(double));
+    s->god_object_array = rt_calloc(rt, (size_t)w->def.max_fingers * 3, sizeof(double));
+    s->force_array = rt_calloc(rt, (size_t)w->def.max_fingers * 3, sizeof(double));
+    s->hip_array = rt_calloc(rt, (size_t)w->def.max_fingers * 3, sizeof(double));
+    *active = rt_calloc(rt, (size_t)w->def.max_bodies, 1);
     s->body_active = *active;
     s->runtime = NULL;
     if (!(s->bodies && s->fingers && s->pose_array && s->god_object_array && s->force_array && s->hip_array &&
@@ -353,37 +432,40 @@ static void runtime_free_memory(gcRuntime *rt) {
 static gcRuntime *runtime_alloc(const gcWorld *w) {
     gcRuntime *rt = calloc(1, sizeof *rt);
     if (!rt) return NULL;
+    rt->region[0].p = rt;
+    rt->region[0].n = sizeof *rt;
+    rt->num_regions = 1;
     size_t nb = (size_t)w->def.max_bodies, nf = (size_t)w->def.max_fingers;
     rt->max_bodies = w->def.max_bodies;
     rt->max_fingers = w->def.max_fingers;
-    int ok = shadow_alloc(&rt->hap, w, &rt->hap_active, 1);
-    ok &= shadow_alloc(&rt->obj, w, &rt->obj_active, w->def.threads);
-    rt->hstate = calloc(nb, 1);
-    rt->last_touch = calloc(nb, sizeof(double));
-    rt->chain = calloc(nb, sizeof(int32_t));
-    rt->device_force = calloc(nf * 3, sizeof(double));
-    rt->ostate = calloc(nb, 1);
+    int ok = shadow_alloc(rt, &rt->hap, w, &rt->hap_active, 1);
+    ok &= shadow_alloc(rt, &rt->obj, w, &rt->obj_active, w->def.threads);
+    rt->hstate = rt_calloc(rt, nb, 1);
+    rt->last_touch = rt_calloc(rt, nb, sizeof(double));
+    rt->chain = rt_calloc(rt, nb, sizeof(int32_t));
+    rt->device_force = rt_calloc(rt, nf * 3, sizeof(double));
+    rt->ostate = rt_calloc(rt, nb, 1);
     ok &= rt->hstate && rt->last_touch && rt->chain && rt->device_force && rt->ostate;
     for (int i = 0; i < 3; ++i) {
         gcInputMsg *in = &rt->input_msg[i];
         gcHapticMsg *h = &rt->haptic_msg[i];
         gcObjectMsg *o = &rt->object_msg[i];
         gcDisplayMsg *d = &rt->display_msg[i];
-        in->hips = calloc(nf * 3, sizeof(double));
-        h->want = calloc(nb, 1);
-        h->has_state = calloc(nb, 1);
-        h->body = calloc(nb, sizeof(gcRtBody));
-        h->fingers = calloc(nf, sizeof(gcFinger));
-        o->released = calloc(nb, 1);
-        o->body = calloc(nb, sizeof(gcRtBody));
-        d->body = calloc(nb, sizeof(gcRtBody));
-        d->adopted = calloc(nb, 1);
-        d->hip = calloc(nf * 3, sizeof(double));
-        d->god_object = calloc(nf * 3, sizeof(double));
-        d->spring_force = calloc(nf * 3, sizeof(double));
-        d->device_force = calloc(nf * 3, sizeof(double));
-        d->state = calloc(nf, sizeof(int32_t));
-        d->contact_body = calloc(nf, sizeof(int32_t));
+        in->hips = rt_calloc(rt, nf * 3, sizeof(double));
+        h->want = rt_calloc(rt, nb, 1);
+        h->has_state = rt_calloc(rt, nb, 1);
+        h->body = rt_calloc(rt, nb, sizeof(gcRtBody));
+        h->fingers = rt_calloc(rt, nf, sizeof(gcFinger));
+        o->released = rt_calloc(rt, nb, 1);
+        o->body = rt_calloc(rt, nb, sizeof(gcRtBody));
+        d->body = rt_calloc(rt, nb, sizeof(gcRtBody));
+        d->adopted = rt_calloc(rt, nb, 1);
+        d->hip = rt_calloc(rt, nf * 3, sizeof(double));
+        d->god_object = rt_calloc(rt, nf * 3, sizeof(double));
+        d->spring_force = rt_calloc(rt, nf * 3, sizeof(double));
+        d->device_force = rt_calloc(rt, nf * 3, sizeof(double));
+        d->state = rt_calloc(rt, nf, sizeof(int32_t));
+        d->contact_body = rt_calloc(rt, nf, sizeof(int32_t));
         ok &= in->hips && h->want && h->has_state && h->body && h->fingers && o->released && o->body && d->body &&
               d->adopted && d->hip && d->god_object && d->spring_force && d->device_force && d->state &&
               d->contact_body;
@@ -646,8 +728,98 @@ static void record_max(_Atomic int64_t *slot, int64_t v) {
     if (v > atomic_load_explicit(slot, memory_order_relaxed)) atomic_store_explicit(slot, v, memory_order_relaxed);
 }
 
+#ifdef __linux__
+/* struct sched_attr as the kernel reads it (SCHED_ATTR_SIZE_VER0); glibc 2.36 has no wrapper. */
+typedef struct gcSchedAttr {
+    uint32_t size, policy;
+    uint64_t flags;
+    int32_t nice;
+    uint32_t priority;
+    uint64_t runtime, deadline, period;
+} gcSchedAttr;
+
+/* At normal priority: ask for a GC_HAPTIC_SLICE_NS time slice. Since Linux 6.12 (EEVDF) a
+ * waking task with a shorter slice than the running one preempts it sooner; the nice level
+ * and so the thread's share of the CPU are unchanged, and no privilege is needed. Returns 1
+ * when the kernel took it (read back; older kernels ignore the field). */
+static int request_short_slice(void) {
+    gcSchedAttr a;
+    memset(&a, 0, sizeof a);
+    if (syscall(SYS_sched_getattr, 0, &a, sizeof a, 0) != 0 || a.policy != SCHED_OTHER) return 0;
+    a.size = sizeof a;
+    a.flags &= 1; /* SCHED_FLAG_RESET_ON_FORK */
+    a.runtime = GC_HAPTIC_SLICE_NS;
+    a.deadline = a.period = 0;
+    if (syscall(SYS_sched_setattr, 0, &a, 0) != 0) return 0;
+    memset(&a, 0, sizeof a);
+    return syscall(SYS_sched_getattr, 0, &a, sizeof a, 0) == 0 && a.runtime == GC_HAPTIC_SLICE_NS;
+}
+#endif
+
+/* Touches the next GC_HAPTIC_STACK_PREFAULT bytes of stack below the caller's frame, so that
+ * no tick faults a stack page in. */
+__attribute__((noinline)) static void prefault_stack(void) {
+    volatile unsigned char pad[GC_HAPTIC_STACK_PREFAULT];
+    for (size_t i = 0; i < sizeof pad; i += 4096) pad[i] = 0;
+    pad[sizeof pad - 1] = 0;
+}
+
+/* The haptic thread's own scheduling, before its first tick (docs/runtime.md "Getting on
+ * time"): SCHED_FIFO when asked for and granted, else normal priority with a short time
+ * slice; timer slack 1 ns (the kernel's default of 50 us for normal threads lets a wake-up
+ * drift that late); its stack pre-faulted, and locked when the runtime's memory is.
+ * Returns the locked stack window's start (or NULL). */
+static void *haptic_thread_setup(gcRuntime *rt, size_t *stack_locked) {
+    const int prio = rt->def.priority;
+    int fifo = 0;
+    char *note = rt->thread_note;
+    const size_t cap = sizeof rt->thread_note;
+    if (prio > 0) {
+        struct sched_param sp;
+        memset(&sp, 0, sizeof sp);
+        sp.sched_priority = prio;
+        int e = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+        fifo = e == 0;
+        if (fifo)
+            snprintf(note, cap, "haptic loop at SCHED_FIFO %d", prio);
+        else
+            snprintf(note, cap, "SCHED_FIFO %d refused (%s): haptic loop at normal priority", prio,
+                     e == EPERM ? "not permitted" : e == EINVAL ? "invalid" : "error");
+    } else {
+        snprintf(note, cap, "normal priority (priority=0)");
+    }
+    rt->rt_priority = fifo;
+    void *window = NULL;
+    *stack_locked = 0;
+#ifdef __linux__
+    pthread_setname_np(pthread_self(), "gc-haptic"); /* as top -H, perf and ftrace show it */
+    prctl(PR_SET_TIMERSLACK, 1UL, 0UL, 0UL, 0UL); /* 0 would mean "back to the default" */
+    if (!fifo) {
+        size_t n = strlen(note);
+        snprintf(note + n, cap - n, "%s", request_short_slice() ? ", 0.1 ms slice" : ", default slice");
+    }
+#endif
+    prefault_stack();
+#ifdef __linux__
+    if (rt->locked_bytes) {
+        const uintptr_t page = 4096;
+        char probe;
+        uintptr_t top = ((uintptr_t)&probe & ~(page - 1)) + page;
+        window = (void *)(top - GC_HAPTIC_STACK_PREFAULT - page);
+        if (mlock(window, GC_HAPTIC_STACK_PREFAULT + page) == 0)
+            *stack_locked = GC_HAPTIC_STACK_PREFAULT + page;
+        else
+            window = NULL;
+    }
+#endif
+    return window;
+}
+
 static void *haptic_main(void *arg) {
     gcRuntime *rt = arg;
+    size_t stack_locked;
+    void *stack_window = haptic_thread_setup(rt, &stack_locked);
+    atomic_store_explicit(&rt->haptic_ready, 1, memory_order_release);
     int64_t deadline = clock_now_ns() + rt->period_ns, prev_wake = NEVER;
     while (atomic_load_explicit(&rt->run, memory_order_acquire)) {
         int64_t stall = atomic_exchange_explicit(&rt->debug_stall_ns, 0, memory_order_relaxed);
@@ -665,11 +837,19 @@ static void *haptic_main(void *arg) {
         atomic_store_explicit(&rt->last_tick_ns, wake, memory_order_relaxed);
         deadline = next_deadline(deadline, rt->period_ns, end, &rt->overruns);
     }
+#ifdef __linux__
+    if (stack_window) munlock(stack_window, stack_locked);
+#else
+    (void)stack_window;
+#endif
     return NULL;
 }
 
 static void *object_main(void *arg) {
     gcRuntime *rt = arg;
+#ifdef __linux__
+    pthread_setname_np(pthread_self(), "gc-object");
+#endif
     int64_t deadline = clock_now_ns() + rt->object_period_ns;
     int first = 1;
     while (atomic_load_explicit(&rt->run, memory_order_acquire)) {
@@ -825,6 +1005,8 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
         pthread_mutex_unlock(&rt->api_mutex);
         return GC_OK;
     }
+    lock_memory(rt);
+    atomic_store_explicit(&rt->haptic_ready, 0, memory_order_relaxed);
     atomic_store_explicit(&rt->run, 1, memory_order_release);
     atomic_store_explicit(&rt->state, RT_RUNNING, memory_order_release);
     int e = pthread_create(&rt->object_thread, NULL, object_main, rt);
@@ -836,26 +1018,19 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
         }
     }
     if (e != 0) {
+        unlock_memory(rt);
         atomic_store_explicit(&rt->state, RT_STOPPED, memory_order_release);
         pthread_mutex_unlock(&rt->api_mutex);
         gc_world_set_error(w, "runtime: could not create its threads (error %d)", e);
         return GC_ERR_NO_MEMORY;
     }
-    if (def->priority > 0) {
-        struct sched_param sp;
-        memset(&sp, 0, sizeof sp);
-        sp.sched_priority = def->priority;
-        e = pthread_setschedparam(rt->haptic_thread, SCHED_FIFO, &sp);
-        rt->rt_priority = e == 0;
-        if (e == 0)
-            snprintf(rt->priority_note, sizeof rt->priority_note, "haptic loop at SCHED_FIFO %d", def->priority);
-        else
-            snprintf(rt->priority_note, sizeof rt->priority_note,
-                     "SCHED_FIFO %d refused (%s): haptic loop at normal priority", def->priority,
-                     e == EPERM ? "not permitted" : e == EINVAL ? "invalid priority" : "error");
-    } else {
-        snprintf(rt->priority_note, sizeof rt->priority_note, "normal priority (priority=0)");
+    /* The haptic thread sets up its own scheduling before its first tick; wait for its note
+     * (microseconds), so that stats() is complete as soon as start() returns. */
+    while (!atomic_load_explicit(&rt->haptic_ready, memory_order_acquire)) {
+        struct timespec ts = {0, 20000};
+        nanosleep(&ts, NULL);
     }
+    snprintf(rt->priority_note, sizeof rt->priority_note, "%s; %s", rt->thread_note, rt->memory_note);
     pthread_mutex_unlock(&rt->api_mutex);
     return GC_OK;
 }
@@ -929,6 +1104,7 @@ gcStatus gc_world_stop(gcWorld *w) {
         atomic_store_explicit(&rt->run, 0, memory_order_release);
         pthread_join(rt->haptic_thread, NULL);
         pthread_join(rt->object_thread, NULL);
+        unlock_memory(rt);
     }
     rt->stop_ns = clock_now_ns();
     merge_into_world(rt, w);

@@ -2,15 +2,18 @@
  * (with hand-over of a pinched box to the haptic loop and back), 1000 start/stop cycles,
  * stop while the loops are busy and inputs arrive from other threads, the watchdog (stale
  * input, missed deadlines), the force clamp and ramp, NaN/Inf input rejected and counted,
- * mutating calls refused while running. Built plain, with ASan/UBSan and with TSan.
+ * mutating calls refused while running, the haptic thread's own setup (timer slack, memory
+ * locked while running and unlocked at stop). Built plain, with ASan/UBSan and with TSan.
  * Asserts behaviour, never precise rates (CI machines are small and loaded). */
 #define _POSIX_C_SOURCE 200809L
 #include "graspcore.h"
 #include "gc_test.h"
 
+#include <dirent.h>
 #include <math.h>
 #include <pthread.h>
 #include <stdatomic.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -493,6 +496,86 @@ static void test_realtime(void) {
 }
 
 /* Destroying a running world stops it. */
+/* ASan and TSan intercept mlock and munlock as no-ops (they return 0, nothing is locked). */
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define MLOCK_IGNORED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define MLOCK_IGNORED 1
+#endif
+#endif
+#ifndef MLOCK_IGNORED
+#define MLOCK_IGNORED 0
+#endif
+
+/* VmLck of this process in KiB (-1 where /proc is missing). */
+static long locked_kib(void) {
+    FILE *f = fopen("/proc/self/status", "r");
+    if (!f) return -1;
+    char line[256];
+    long kib = -1;
+    while (fgets(line, sizeof line, f))
+        if (sscanf(line, "VmLck: %ld", &kib) == 1) break;
+    fclose(f);
+    return kib;
+}
+
+/* How many of this process's threads have exactly `ns` of timer slack; -1 when another
+ * thread's slack cannot be read (it needs CAP_SYS_NICE) or there is no /proc. */
+static int threads_with_slack(long ns) {
+    DIR *d = opendir("/proc/self/task");
+    if (!d) return -1;
+    int n = 0, readable = 0;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        if (e->d_name[0] == '.') continue;
+        char path[300];
+        snprintf(path, sizeof path, "/proc/%.255s/timerslack_ns", e->d_name);
+        FILE *f = fopen(path, "r");
+        long v;
+        if (f && fscanf(f, "%ld", &v) == 1) {
+            ++readable;
+            n += v == ns;
+        }
+        if (f) fclose(f);
+    }
+    closedir(d);
+    return readable > 1 ? n : -1;
+}
+
+/* The haptic thread sets itself up before its first tick: its note says how it runs (a
+ * short time slice at normal priority) and what memory is locked; its timer slack is 1 ns;
+ * the locked memory is unlocked at stop, also over repeated start/stop. */
+static void test_haptic_thread_setup(void) {
+    gcWorld *w = pinch_scene();
+    gcRuntimeDef def = realtime_def();
+    def.priority = 0;
+    long before = locked_kib();
+    for (int cycle = 0; cycle < 3; ++cycle) {
+        GC_CHECK(gc_world_start(w, &def) == GC_OK, "start");
+        gcRuntimeStats st;
+        gc_world_stats(w, &st);
+        GC_CHECK(!st.rt_priority && strstr(st.priority_note, "normal priority (priority=0), ") &&
+                     strstr(st.priority_note, " slice; "),
+                 "note at normal priority: '%s'", st.priority_note);
+        long kib = 0;
+        const char *lock = strstr(st.priority_note, "; ") + 2;
+        if (sscanf(lock, "%ld KiB locked", &kib) == 1) {
+            long now = locked_kib(); /* blocks sharing a page count once here */
+            GC_CHECK(kib > 0 && (now < 0 || now > before || MLOCK_IGNORED), "VmLck %ld KiB with %ld KiB locked (%ld before)",
+                     now, kib, before);
+        } else {
+            GC_CHECK(strncmp(lock, "memory not locked (", 19) == 0, "memory note: '%s'", lock);
+        }
+        int slack = threads_with_slack(1);
+        GC_CHECK(slack != 0, "a thread (the haptic loop) has 1 ns timer slack");
+        gc_world_stop(w);
+        long after = locked_kib();
+        GC_CHECK(after == before, "VmLck back to %ld KiB after stop (%ld)", before, after);
+    }
+    gc_world_destroy(w);
+}
+
 static void test_destroy_running(void) {
     gcWorld *w = pinch_scene();
     gcRuntimeDef def = realtime_def();
@@ -509,6 +592,7 @@ int main(void) {
     test_start_stop_cycles();
     test_stop_while_busy();
     test_realtime();
+    test_haptic_thread_setup();
     test_destroy_running();
     return gc_test_summary("test_runtime");
 }

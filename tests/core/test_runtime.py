@@ -1,6 +1,8 @@
 """The runtime's Python API (docs/runtime.md): start/stop, push_hips, snapshot, stats,
 the manual clock that reproduces synchronous stepping, safety, refusals while running.
 Behaviour only: rates and jitter are measured by bench/bench_jitter.py, not asserted."""
+import pathlib
+import re
 import threading
 import time
 
@@ -250,6 +252,24 @@ def test_realtime_threads_with_inputs_and_snapshots_from_other_threads():
     assert stats["jitter_p50_us"] <= stats["jitter_p99_us"] <= stats["jitter_max_us"]
     assert np.all(np.isfinite(w.body_poses)) and w.time > 0.0
     w.step(DT)                                       # synchronous again
+
+
+def test_haptic_thread_reports_its_setup():
+    """The haptic thread sets itself up before its first tick (docs/runtime.md, "Getting on
+    time"); start() returns once the note says how it runs and whether memory is locked."""
+    w = pinch_scene()
+    for priority, head in ((0, r"normal priority \(priority=0\), (0\.1 ms|default) slice"),
+                           (80, r"(haptic loop at SCHED_FIFO 80|SCHED_FIFO 80 refused \(.+\): haptic loop at "
+                                r"normal priority, (0\.1 ms|default) slice)")):
+        w.start(watchdog_timeout=0.05, priority=priority)
+        note = w.stats()["priority_note"]
+        assert re.fullmatch(head + r"; (\d+ KiB locked|memory not locked \(.+\))", note), note
+        assert w.stats()["rt_priority"] == note.startswith("haptic loop at SCHED_FIFO")
+        tasks = pathlib.Path("/proc/self/task")
+        if tasks.is_dir():
+            names = {(t / "comm").read_text().strip() for t in tasks.iterdir()}
+            assert {"gc-haptic", "gc-object"} <= names, names
+        w.stop()
 
 
 def test_many_start_stop_cycles_and_deleting_a_running_world():
