@@ -150,11 +150,20 @@ class BlenderSession:
         snap = self.snapshot
         n_c = snap.n_contacts if snap is not None else 0
         mode = "threaded runtime" if st["threaded"] else "main thread"
-        return (f"Grasp Lab  t = {st['time']:.2f} / {self.duration:.2f} s  ({mode})\n"
+        text = (f"Grasp Lab  t = {st['time']:.2f} / {self.duration:.2f} s  ({mode})\n"
                 f"haptic {st['haptic_rate']:.0f} Hz (target {st['haptic_rate_target']:.0f})   "
                 f"display {st['display_rate']:.1f} Hz   jitter {st['jitter_ms']:.1f} ms\n"
                 f"contacts {n_c} / {len(self.desc.fingers)}   step {st['step_us']:.0f} µs   "
                 f"behind {st['dropped_s']:.2f} s")
+        if "runtime_jitter_p99_us" in st:
+            # The operator's view of the C haptic loop: its timing, what the OS granted it
+            # (SCHED_FIFO or not), and the safety counters that explain lost forces.
+            text += (f"\nhaptic loop p99 {st['runtime_jitter_p99_us']:.0f} µs   "
+                     f"late {st['runtime_late_periods']}   overruns {st['runtime_overruns']}   "
+                     f"rejected inputs {st['runtime_rejected_inputs']}   "
+                     f"watchdog {st['runtime_watchdog_trips']}   adopted {st['runtime_adopted_bodies']}\n"
+                     f"{st['runtime_priority_note']}")
+        return text
 
     def finish(self):
         """Stop the runner, bake, save the recording; leave the scene in its final state."""

@@ -212,5 +212,7 @@ def test_live_session_on_the_threaded_runtime(bpy, sample, core):
     assert box.matrix_world.translation.z != z0      # poses written back from snapshots
     stats = s.runner.stats()
     assert stats["runtime_haptic_rate"] > 0
+    hud = s.hud_text()                               # the C loop's own timing and safety
+    assert "haptic loop p99" in hud and stats["runtime_priority_note"] in hud
     s.finish()
     assert not s.runner.world.running
