@@ -141,7 +141,7 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
             omega = next;
             if (converged) break;
         }
-        b->inv_inertia_world = to_world(&Rend, &b->inv_inertia_local);
+        b->inertia_rotation = Rend; /* contacts form R I^-1 R^T from it, for bodies that touch */
         b->effective_mass_valid = 1;
     } else {
         double rhs[6] = {p.x, p.y, p.z, Lnew.x, Lnew.y, Lnew.z}, x[6];
@@ -179,9 +179,10 @@ void gc_body_inverse_effective_mass(const gcBody *b, double M[36]) {
     memset(M, 0, 36 * sizeof(double));
     if (b->is_static || !b->effective_mass_valid) return;
     if (!b->coupled) {
+        gcMat3 inv_inertia_world = to_world(&b->inertia_rotation, &b->inv_inertia_local);
         for (int i = 0; i < 3; ++i) {
             M[6 * i + i] = b->inv_mass;
-            for (int j = 0; j < 3; ++j) M[6 * (3 + i) + 3 + j] = b->inv_inertia_world.m[i][j];
+            for (int j = 0; j < 3; ++j) M[6 * (3 + i) + 3 + j] = inv_inertia_world.m[i][j];
         }
         return;
     }

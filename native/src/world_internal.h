@@ -33,10 +33,11 @@ typedef struct gcBody {
     /* Step scratch: the effective mass used for this step's velocity, which contact
      * impulses go through. With a finger on the body (coupled) it is the mass matrix plus
      * the implicit finger coupling, kept as a 6x6 Cholesky factor; otherwise it is block
-     * diagonal: inv_mass and the inverse world inertia at the end-of-step orientation. */
+     * diagonal: inv_mass and the inverse world inertia at the end-of-step orientation
+     * inertia_rotation (formed only for bodies in contact). */
     int coupled;
     double effective_mass_factor[6][6];
-    gcMat3 inv_inertia_world;
+    gcMat3 inertia_rotation;
     int effective_mass_valid;
     /* Momentum at the start of the step: the residual wrench is its rate of change. */
     gcVec3 step_start_momentum, step_start_angular_momentum;
