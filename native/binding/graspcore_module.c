@@ -704,6 +704,73 @@ static PyObject *World_get_running(PyObject *obj, void *closure) {
     return PyBool_FromLong(gc_world_running(self->world));
 }
 
+/* ---- Tick log (tick_log.c, docs/recording-format.md) --------------------------------- */
+
+/* A writable, C-contiguous buffer of at least `need` bytes (the caller releases it). */
+static int writable_buffer(PyObject *arg, Py_buffer *b, size_t need, const char *what) {
+    if (PyObject_GetBuffer(arg, b, PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS) < 0) return 0;
+    if ((size_t)b->len < need) {
+        PyErr_Format(PyExc_ValueError, "%s: buffer of %zd bytes, need at least %zu", what, b->len, need);
+        PyBuffer_Release(b);
+        return 0;
+    }
+    return 1;
+}
+
+static PyObject *World_tick_record(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    PyObject *out;
+    unsigned long long tick;
+    if (!check_ready(self) || !PyArg_ParseTuple(args, "OK", &out, &tick)) return NULL;
+    Py_buffer b;
+    size_t need = gc_tick_record_size(gc_world_body_count(self->world), gc_world_finger_count(self->world));
+    if (!writable_buffer(out, &b, need, "tick_record")) return NULL;
+    gcStatus st = gc_world_tick_record(self->world, tick, b.buf, (size_t)b.len);
+    PyBuffer_Release(&b);
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+}
+
+static PyObject *World_set_tick_log(PyObject *obj, PyObject *arg) {
+    WorldObject *self = (WorldObject *)obj;
+    if (!check_ready(self)) return NULL;
+    int capacity = PyLong_AsLong(arg);
+    if (capacity == -1 && PyErr_Occurred()) return NULL;
+    gcStatus st = gc_world_set_tick_log(self->world, capacity);
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+}
+
+static PyObject *World_drain_ticks(PyObject *obj, PyObject *arg) {
+    WorldObject *self = (WorldObject *)obj;
+    if (!check_ready(self)) return NULL;
+    Py_buffer b;
+    if (!writable_buffer(arg, &b, 0, "drain_ticks")) return NULL;
+    int n;
+    Py_BEGIN_ALLOW_THREADS
+    n = gc_world_drain_ticks(self->world, b.buf, (size_t)b.len, 1 << 30);
+    Py_END_ALLOW_THREADS
+    PyBuffer_Release(&b);
+    if (n < 0) return raise_status(self, (gcStatus)n);
+    return PyLong_FromLong(n);
+}
+
+static PyObject *World_tick_log_overflow(PyObject *obj, PyObject *unused) {
+    WorldObject *self = (WorldObject *)obj;
+    if (!check_ready(self)) return NULL;
+    return PyLong_FromUnsignedLongLong(gc_world_tick_log_overflow(self->world));
+}
+
+static PyObject *module_tick_record_size(PyObject *mod, PyObject *args) {
+    int nb, nf;
+    if (!PyArg_ParseTuple(args, "ii", &nb, &nf)) return NULL;
+    if (nb < 0 || nf < 0) {
+        PyErr_SetString(PyExc_ValueError, "tick_record_size: counts must be >= 0");
+        return NULL;
+    }
+    return PyLong_FromSize_t(gc_tick_record_size(nb, nf));
+}
+
 static PyMethodDef World_methods[] = {
     {"_add_body", World_add_body, METH_VARARGS, "Low-level add_body; use World.add_body."},
     {"add_finger", (PyCFunction)(void (*)(void))World_add_finger, METH_VARARGS | METH_KEYWORDS,
@@ -747,6 +814,11 @@ static PyMethodDef World_methods[] = {
     {"_push_hips", World_push_hips, METH_VARARGS, "Low-level push_hips; use World.push_hips."},
     {"_snapshot", World_snapshot, METH_NOARGS, "Low-level snapshot; use World.snapshot."},
     {"stats", World_stats, METH_NOARGS, "stats() -> dict: rates, jitter, overruns, adoption, inputs, safety."},
+    {"_tick_record", World_tick_record, METH_VARARGS, "Low-level tick_record(buffer, tick); see graspcore.tick_log."},
+    {"_set_tick_log", World_set_tick_log, METH_O, "Low-level set_tick_log(capacity)."},
+    {"_drain_ticks", World_drain_ticks, METH_O, "Low-level drain_ticks(buffer) -> records copied."},
+    {"tick_log_overflow", World_tick_log_overflow, METH_NOARGS,
+     "tick_log_overflow() -> ticks dropped on a full tick log since the last start()."},
     {"_debug_stall", World_debug_stall, METH_O, "Test hook: stall the haptic loop this many seconds once."},
     {NULL, NULL, 0, NULL},
 };
@@ -778,10 +850,16 @@ static int module_exec(PyObject *m) {
     return 0;
 }
 
+static PyMethodDef module_methods[] = {
+    {"tick_record_size", module_tick_record_size, METH_VARARGS,
+     "tick_record_size(num_bodies, num_fingers) -> bytes of one tick log record."},
+    {NULL, NULL, 0, NULL},
+};
+
 static PyModuleDef_Slot module_slots[] = {{Py_mod_exec, module_exec}, {0, NULL}};
 
 static struct PyModuleDef module_def = {
-    PyModuleDef_HEAD_INIT, "graspcore._core", "C core of graspcore (stable ABI).", 0, NULL, module_slots,
+    PyModuleDef_HEAD_INIT, "graspcore._core", "C core of graspcore (stable ABI).", 0, module_methods, module_slots,
     NULL, NULL, NULL,
 };
 

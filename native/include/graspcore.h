@@ -9,6 +9,7 @@
 #ifndef GRASPCORE_H
 #define GRASPCORE_H
 
+#include <stddef.h>
 #include <stdint.h>
 
 #ifdef __cplusplus
@@ -233,6 +234,25 @@ typedef struct gcRuntimeStats {
 gcStatus gc_world_stats(gcWorld *world, gcRuntimeStats *stats);
 /* Test hook: the haptic loop sleeps this long before its next tick, as a stalled loop. */
 gcStatus gc_world_debug_stall(gcWorld *world, double seconds);
+
+/* ---- Tick log: one record per tick for recorders (docs/recording-format.md) ----
+ * A record is gc_tick_record_size(bodies, fingers) bytes, little-endian, packed: tick u64,
+ * time f64, object_time f64, state_hash u64, period_us f32, work_us f32, flags u32 (bit 0:
+ * device forces enabled), adopted u32; then per finger hip, god_object, force (the coupling
+ * spring), device_force (after the safety layer) as 3 f64 each; per body pose (7 f64),
+ * velocity (linear of the centre of mass, angular; 6 f64), residual wrench (6 f64); per
+ * finger state i32, contact body i32 (-1 free). */
+size_t gc_tick_record_size(int num_bodies, int num_fingers);
+/* The stopped world as one record (after a gc_world_step); device_force = force. */
+gcStatus gc_world_tick_record(gcWorld *world, uint64_t tick, void *out, size_t size);
+/* While stopped: a ring of `capacity` records (0 = off) that gc_world_start sizes and empties
+ * and every haptic tick fills; a full ring drops the tick and counts it, never waits. */
+gcStatus gc_world_set_tick_log(gcWorld *world, int capacity);
+/* Copies up to max_records (and size bytes) of the oldest undrained records; returns how many,
+ * or a negative gcStatus. From one thread at a time (other callers wait), while running or not. */
+int gc_world_drain_ticks(gcWorld *world, void *out, size_t size, int max_records);
+/* Ticks dropped on a full ring since the last gc_world_start. */
+uint64_t gc_world_tick_log_overflow(const gcWorld *world);
 
 #ifdef __cplusplus
 }

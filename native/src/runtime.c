@@ -27,6 +27,7 @@
 #define _GNU_SOURCE /* Linux: prctl, sched_setattr, mlock */
 
 #include "runtime.h"
+#include "tick_log.h"
 
 #include "contacts.h"
 
@@ -154,6 +155,7 @@ typedef struct gcRuntime {
     double *last_touch;       /* haptic simulated time of the last touch of the body's chain */
     int32_t *chain;           /* chain_of() scratch */
     double *device_force;     /* 3 per finger */
+    struct gcTickLog *tick_log; /* the world's, sized by gc_world_start; NULL when off */
     double object_time_seen;
     int64_t prev_tick_ns, enabled_since_ns, last_input_ns;
     int was_stale;
@@ -664,6 +666,9 @@ static void haptic_tick(gcRuntime *rt, int64_t now) {
     int ok = update_safety(rt, now);
     publish_to_object(rt);
     publish_display(rt, now, ok);
+    if (rt->tick_log)
+        gc_tick_log_push(rt->tick_log, hw, rt->device_force, rt->tick, rt->object_time_seen, now,
+                         rt->def.realtime, ok, atomic_load_explicit(&rt->adopted, memory_order_relaxed));
     store_double(&rt->haptic_time_bits, hw->time);
     count(&rt->haptic_ticks);
 }
@@ -981,6 +986,11 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
     atomic_store(&rt->manual_now_ns, 0);
     atomic_store(&rt->debug_stall_ns, 0);
     reset_stats(rt);
+    rt->tick_log = gc_tick_log_begin(w, &st);
+    if (st) {
+        pthread_mutex_unlock(&rt->api_mutex);
+        return st;
+    }
     store_double(&rt->haptic_time_bits, w->time);
     store_double(&rt->object_time_bits, w->time);
     store_double(&rt->object_time0_bits, w->time);

@@ -1,6 +1,7 @@
 /* World lifetime, bodies and fingers, argument validation, queries. */
 #include "world_internal.h"
 #include "runtime.h"
+#include "tick_log.h"
 
 #include <stdarg.h>
 #include <stdio.h>
@@ -106,6 +107,7 @@ gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world) {
 void gc_world_destroy(gcWorld *w) {
     if (!w) return;
     gc_runtime_free(w); /* stops the runtime threads first */
+    gc_tick_log_free(w);
     gc_contacts_destroy(w); /* joins the contact thread pool */
     for (int i = 0; i < w->num_parts; ++i) gc_hull_free(&w->parts[i].hull);
     free(w->bodies);

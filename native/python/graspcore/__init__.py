@@ -10,9 +10,23 @@ import numpy as np
 
 from . import _core
 
-__all__ = ["World", "FINGER_STATES"]
+__all__ = ["World", "FINGER_STATES", "tick_dtype"]
 
 FINGER_STATES = ("free", "stick", "slip")
+
+
+def tick_dtype(num_bodies: int, num_fingers: int) -> np.dtype:
+    """The numpy dtype of one tick log record (graspcore.h, docs/recording-format.md)."""
+    nb, nf = int(num_bodies), int(num_fingers)
+    dtype = np.dtype([
+        ("tick", "<u8"), ("time", "<f8"), ("object_time", "<f8"), ("state_hash", "<u8"),
+        ("period_us", "<f4"), ("work_us", "<f4"), ("flags", "<u4"), ("adopted", "<u4"),
+        ("hip", "<f8", (nf, 3)), ("god_object", "<f8", (nf, 3)), ("force", "<f8", (nf, 3)),
+        ("device_force", "<f8", (nf, 3)), ("pose", "<f8", (nb, 7)), ("velocity", "<f8", (nb, 6)),
+        ("wrench", "<f8", (nb, 6)), ("state", "<i4", (nf,)), ("contact", "<i4", (nf,)),
+    ])
+    assert dtype.itemsize == _core.tick_record_size(nb, nf)
+    return dtype
 
 
 def _points_array(points, name: str) -> np.ndarray:
@@ -167,3 +181,29 @@ class World(_core.World):
             "finger_states": np.frombuffer(states, dtype=np.int32),
             "contact_bodies": np.frombuffer(contacts, dtype=np.int32),
         }
+
+    # ---- Tick log (docs/recording-format.md): one record per tick for recorders.
+
+    def tick_dtype(self) -> np.dtype:
+        """dtype of this world's tick records (its current bodies and fingers)."""
+        return tick_dtype(self.body_count, self.finger_count)
+
+    def tick_record(self, out=None, tick: int = 0) -> np.ndarray:
+        """The stopped world as one tick record (a 0-d structured array; ``out`` to reuse one)."""
+        if out is None:
+            out = np.zeros((), dtype=self.tick_dtype())
+        self._tick_record(out, int(tick))
+        return out
+
+    def set_tick_log(self, capacity: int) -> None:
+        """While stopped: keep the last ``capacity`` undrained haptic ticks (0 = off). start()
+        sizes and empties the ring; a full ring drops ticks and counts them
+        (``tick_log_overflow()``), the haptic loop never waits."""
+        self._set_tick_log(int(capacity))
+
+    def drain_ticks(self, out: np.ndarray) -> np.ndarray:
+        """Move the oldest undrained tick records into ``out`` (a 1-d array of
+        ``tick_dtype()``); returns the filled part of it."""
+        if out.dtype != self.tick_dtype() or out.ndim != 1 or not out.flags.c_contiguous:
+            raise ValueError("out: expected a C-contiguous 1-d array of World.tick_dtype()")
+        return out[:self._drain_ticks(out)]

@@ -1,0 +1,203 @@
+/* The per-tick log: one record per haptic tick in a fixed-size SPSC ring (docs/recording-format.md).
+ *
+ * The producer is the haptic loop (or gc_world_advance on the manual clock); the consumer is
+ * whoever calls gc_world_drain_ticks (the recorder thread). The ring is sized at gc_world_start,
+ * so the producer never allocates and never waits: a full ring drops the record and counts it. */
+#define _POSIX_C_SOURCE 200809L /* clock_gettime */
+
+#include "tick_log.h"
+
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "graspcore.h"
+
+struct gcTickLog {
+    int capacity;                 /* records, as asked by gc_world_set_tick_log */
+    int num_bodies, num_fingers;  /* the layout the ring was sized for */
+    size_t record_size;
+    unsigned char *records;       /* capacity * record_size */
+    _Atomic uint64_t head;        /* records written (producer) */
+    _Atomic uint64_t tail;        /* records drained (consumer) */
+    _Atomic uint64_t overflow;    /* records dropped on a full ring since the start */
+    int64_t prev_now_ns;          /* producer: the previous tick's clock, for its period */
+    pthread_mutex_t drain_mutex;  /* among drain callers; the producer never takes it */
+};
+
+/* Field offsets inside a record (all little-endian; the f64 arrays first, then the i32). */
+enum { REC_HEADER = 48 };
+
+size_t gc_tick_record_size(int num_bodies, int num_fingers) {
+    if (num_bodies < 0 || num_fingers < 0) return 0;
+    return REC_HEADER + sizeof(double) * (12 * (size_t)num_fingers + 19 * (size_t)num_bodies) +
+           sizeof(int32_t) * 2 * (size_t)num_fingers;
+}
+
+static unsigned char *put(unsigned char *p, const void *v, size_t n) {
+    memcpy(p, v, n);
+    return p + n;
+}
+
+/* One record of world `w`: device forces given (NULL: the physics forces, no safety layer). */
+static void fill_record(const gcWorld *w, const double *device_force, uint64_t tick, double object_time,
+                        float period_us, float work_us, uint32_t flags, uint32_t adopted,
+                        unsigned char *out) {
+    const int nb = w->num_bodies, nf = w->num_fingers;
+    uint64_t hash = gc_world_state_hash(w);
+    unsigned char *p = out;
+    p = put(p, &tick, 8);
+    p = put(p, &w->time, 8);
+    p = put(p, &object_time, 8);
+    p = put(p, &hash, 8);
+    p = put(p, &period_us, 4);
+    p = put(p, &work_us, 4);
+    p = put(p, &flags, 4);
+    p = put(p, &adopted, 4);
+    for (int i = 0; i < nf; ++i) p = put(p, &w->fingers[i].hip, 24);
+    for (int i = 0; i < nf; ++i) p = put(p, &w->fingers[i].god_object, 24);
+    for (int i = 0; i < nf; ++i) p = put(p, &w->fingers[i].force, 24);
+    if (device_force)
+        p = put(p, device_force, 24 * (size_t)nf);
+    else
+        for (int i = 0; i < nf; ++i) p = put(p, &w->fingers[i].force, 24);
+    p = put(p, w->pose_array, 56 * (size_t)nb);
+    for (int b = 0; b < nb; ++b) {
+        p = put(p, &w->bodies[b].v, 24);
+        p = put(p, &w->bodies[b].w, 24);
+    }
+    for (int b = 0; b < nb; ++b) {
+        p = put(p, &w->bodies[b].residual_force, 24);
+        p = put(p, &w->bodies[b].residual_torque, 24);
+    }
+    for (int i = 0; i < nf; ++i) {
+        int32_t s = (int32_t)w->fingers[i].state;
+        p = put(p, &s, 4);
+    }
+    for (int i = 0; i < nf; ++i) p = put(p, &w->fingers[i].contact_body, 4);
+}
+
+gcStatus gc_world_tick_record(gcWorld *w, uint64_t tick, void *out, size_t size) {
+    if (!w || !out) return GC_ERR_INVALID_ARGUMENT;
+    if (gc_world_running(w)) {
+        gc_world_set_error(w, "tick_record: the runtime is running (its ticks are in the tick log)");
+        return GC_ERR_BUSY;
+    }
+    size_t need = gc_tick_record_size(w->num_bodies, w->num_fingers);
+    if (size < need) {
+        gc_world_set_error(w, "tick_record: buffer of %zu bytes, a record needs %zu", size, need);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    fill_record(w, NULL, tick, w->time, 0.0f, 0.0f, 1u, 0u, out);
+    return GC_OK;
+}
+
+gcStatus gc_world_set_tick_log(gcWorld *w, int capacity) {
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (gc_world_running(w)) {
+        gc_world_set_error(w, "set_tick_log: the runtime is running: stop it first");
+        return GC_ERR_BUSY;
+    }
+    if (capacity < 0 || capacity > (1 << 22)) {
+        gc_world_set_error(w, "capacity: must be 0 (off) to %d records (got %d)", 1 << 22, capacity);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    if (capacity == 0) {
+        gc_tick_log_free(w);
+        return GC_OK;
+    }
+    if (!w->tick_log) {
+        gcTickLog *log = calloc(1, sizeof *log);
+        if (!log) return GC_ERR_NO_MEMORY;
+        pthread_mutex_init(&log->drain_mutex, NULL);
+        w->tick_log = log;
+    }
+    if (w->tick_log->capacity != capacity) {
+        free(w->tick_log->records);
+        w->tick_log->records = NULL;
+        w->tick_log->record_size = 0;
+        w->tick_log->capacity = capacity;
+    }
+    return GC_OK;
+}
+
+gcTickLog *gc_tick_log_begin(gcWorld *w, gcStatus *status) {
+    gcTickLog *log = w->tick_log;
+    *status = GC_OK;
+    if (!log) return NULL;
+    size_t size = gc_tick_record_size(w->num_bodies, w->num_fingers);
+    if (!log->records || size != log->record_size) {
+        free(log->records);
+        log->records = malloc((size_t)log->capacity * size);
+        log->record_size = log->records ? size : 0;
+        if (!log->records) {
+            gc_world_set_error(w, "tick log: out of memory for %d records of %zu bytes", log->capacity, size);
+            *status = GC_ERR_NO_MEMORY;
+            return NULL;
+        }
+    }
+    log->num_bodies = w->num_bodies;
+    log->num_fingers = w->num_fingers;
+    atomic_store(&log->head, 0);
+    atomic_store(&log->tail, 0);
+    atomic_store(&log->overflow, 0);
+    log->prev_now_ns = INT64_MIN;
+    return log;
+}
+
+void gc_tick_log_free(gcWorld *w) {
+    if (!w->tick_log) return;
+    pthread_mutex_destroy(&w->tick_log->drain_mutex);
+    free(w->tick_log->records);
+    free(w->tick_log);
+    w->tick_log = NULL;
+}
+
+void gc_tick_log_push(gcTickLog *log, const gcWorld *hw, const double *device_force, uint64_t tick,
+                      double object_time, int64_t now_ns, int realtime, int forces_enabled,
+                      int adopted) {
+    float period_us = log->prev_now_ns == INT64_MIN ? 0.0f : (float)((now_ns - log->prev_now_ns) * 1e-3);
+    log->prev_now_ns = now_ns;
+    float work_us = 0.0f;
+    if (realtime) { /* from the wake-up to here: this tick's work */
+        struct timespec ts;
+        clock_gettime(CLOCK_MONOTONIC, &ts);
+        work_us = (float)(((int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec - now_ns) * 1e-3);
+    }
+    uint64_t head = atomic_load_explicit(&log->head, memory_order_relaxed);
+    uint64_t tail = atomic_load_explicit(&log->tail, memory_order_acquire);
+    if (head - tail >= (uint64_t)log->capacity) {
+        atomic_fetch_add_explicit(&log->overflow, 1, memory_order_relaxed);
+        return;
+    }
+    unsigned char *slot = log->records + (head % (uint64_t)log->capacity) * log->record_size;
+    fill_record(hw, device_force, tick, object_time, period_us, work_us, forces_enabled ? 1u : 0u,
+                (uint32_t)adopted, slot);
+    atomic_store_explicit(&log->head, head + 1, memory_order_release);
+}
+
+int gc_world_drain_ticks(gcWorld *w, void *out, size_t size, int max_records) {
+    if (!w || !out || max_records < 0) return GC_ERR_INVALID_ARGUMENT;
+    gcTickLog *log = w->tick_log;
+    if (!log || !log->records) return 0;
+    pthread_mutex_lock(&log->drain_mutex);
+    uint64_t tail = atomic_load_explicit(&log->tail, memory_order_relaxed);
+    uint64_t head = atomic_load_explicit(&log->head, memory_order_acquire);
+    uint64_t n = head - tail;
+    uint64_t room = size / log->record_size;
+    if (n > room) n = room;
+    if (n > (uint64_t)max_records) n = (uint64_t)max_records;
+    unsigned char *dst = out;
+    for (uint64_t k = 0; k < n; ++k)
+        memcpy(dst + k * log->record_size,
+               log->records + ((tail + k) % (uint64_t)log->capacity) * log->record_size, log->record_size);
+    atomic_store_explicit(&log->tail, tail + n, memory_order_release);
+    pthread_mutex_unlock(&log->drain_mutex);
+    return (int)n;
+}
+
+uint64_t gc_world_tick_log_overflow(const gcWorld *w) {
+    return w && w->tick_log ? atomic_load_explicit(&w->tick_log->overflow, memory_order_relaxed) : 0;
+}

@@ -1,0 +1,22 @@
+/* The per-tick log (tick_log.c, docs/recording-format.md): a fixed-size single-producer,
+ * single-consumer ring of tick records that the haptic loop fills at the end of every tick
+ * and a recorder drains. What runtime.c and world.c need of it. */
+#ifndef GC_TICK_LOG_H
+#define GC_TICK_LOG_H
+
+#include "world_internal.h"
+
+typedef struct gcTickLog gcTickLog;
+
+/* gc_world_start: (re)size the world's ring for its current bodies and fingers and empty it.
+ * Returns the ring (NULL when the log is off) or sets *status on failure. */
+gcTickLog *gc_tick_log_begin(gcWorld *world, gcStatus *status);
+/* gc_world_destroy. */
+void gc_tick_log_free(gcWorld *world);
+/* The haptic loop, once a tick: one record of the shadow world `hw` and the device forces.
+ * Never blocks, never allocates; a full ring drops the record and counts it. */
+void gc_tick_log_push(gcTickLog *log, const gcWorld *hw, const double *device_force, uint64_t tick,
+                      double object_time, int64_t now_ns, int realtime, int forces_enabled,
+                      int adopted);
+
+#endif
