@@ -9,7 +9,6 @@ after every advance writes body poses back and updates the display. The operator
 """
 from __future__ import annotations
 
-import os
 import time
 from dataclasses import dataclass, field
 
@@ -17,7 +16,7 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, FloatProperty
 
-from . import anim, convert, core_loader, display
+from . import anim, convert, core_loader, display, record
 from .engine.inputs import SampledTrajectory
 from .engine.runner import SessionRunner
 from .engine.scene import SceneError, build_world, prepare
@@ -50,7 +49,8 @@ def active_session():
 
 
 class BlenderSession:
-    def __init__(self, context, *, live: bool, duration: float | None = None, reset: bool = True):
+    def __init__(self, context, *, live: bool, duration: float | None = None, reset: bool = True,
+                 record_path: str | None = None):
         scene = context.scene
         s = scene.grasp_lab
         self.scene = scene
@@ -83,8 +83,11 @@ class BlenderSession:
         times, pos = convert.sample_fingers(context, finger_objs, self.frame_start,
                                             min(self.frame_start + n_frames, scene.frame_end))
         self.source = SampledTrajectory(times, pos)
+        use_runtime = live and prefs.use_runtime
+        self.recorder = record.session_recorder(self, record_path, use_runtime) \
+            if (record_path or s.record) else None
         self.runner = SessionRunner(self.handle, self.source, haptic_rate=s.haptic_rate,
-                                    use_runtime=live and prefs.use_runtime, record=s.record)
+                                    use_runtime=use_runtime, recorder=self.recorder)
         store_rest_poses(context, self.links)
         self.objects = [bpy.data.objects[link.name] for link in self.links]
         self.dynamic = [i for i, link in enumerate(self.links) if not link.static]
@@ -180,11 +183,8 @@ class BlenderSession:
                 obj = bpy.data.objects.get(name)
                 if obj is not None:
                     anim.bake(obj, frames, np.array(vals))
-        if self.runner.recording is not None:
-            folder = bpy.path.abspath(self.settings.recording_folder)
-            os.makedirs(folder, exist_ok=True)
-            path = os.path.join(folder, time.strftime("grasp_%Y%m%d_%H%M%S.npz"))
-            r.recording = self.runner.save_recording(path)
+        if self.recorder is not None:
+            r.recording = self.recorder.writer.path
             self.settings.last_recording = r.recording
         # Final state: the frame the session ended on, bodies where the session left them.
         final_frame = r.frames[-1] if r.frames else self.scene.frame_current

@@ -59,6 +59,7 @@ class DirectDriver:
         self.source = source
         self.dt = dt
         self.steps = 0
+        self.on_step = None         # called with the step count after every step (the recorder)
         self._finger_ids = list(finger_ids)
         self._contiguous = self._finger_ids == list(range(len(self._finger_ids)))
 
@@ -76,6 +77,8 @@ class DirectDriver:
                     self.world.set_hip(fid, tuple(h))
         self.world.step(self.dt)
         self.steps += 1
+        if self.on_step is not None:
+            self.on_step(self.steps)
 
     @property
     def time(self):
@@ -115,9 +118,10 @@ class RuntimeDriver:
 
 
 class SessionRunner:
-    """Advance a world from an input source; collect snapshots, stats and a recording."""
+    """Advance a world from an input source; collect snapshots and stats. With a
+    ``recorder`` (engine.recording.SessionRecorder) every haptic tick is recorded."""
 
-    def __init__(self, handle, source, haptic_rate=1000.0, use_runtime=False, record=False):
+    def __init__(self, handle, source, haptic_rate=1000.0, use_runtime=False, recorder=None):
         if not (haptic_rate > 0):
             raise ValueError(f"haptic_rate must be > 0, got {haptic_rate}")
         if source.n_fingers != len(handle.finger_ids):
@@ -135,7 +139,8 @@ class SessionRunner:
         self.step_wall = 0.0        # wall time spent stepping the core on this thread
         self.max_step_wall = 0.0    # longest single advance_to, seconds
         self.ticks = []             # wall clock of every advance_to (for jitter)
-        self.recording = [] if record else None
+        self.recorder = recorder
+        self.recording_end = {}     # what the recorder reported when it closed the file
         self._body_index = {bid: i for i, bid in enumerate(handle.body_ids)}
         self._coms = np.array([b.mass_properties.center_of_mass if b.mass_properties is not None
                                else np.zeros(3) for b in handle.desc.bodies]).reshape(-1, 3)
@@ -155,6 +160,8 @@ class SessionRunner:
     def start(self):
         if not self._started:
             self.source.open()
+            if self.recorder is not None:
+                self.recorder.begin(threaded=self.driver.threaded)
             try:
                 self.driver.start()
             except (TypeError, AttributeError, RuntimeError) as ex:
@@ -163,10 +170,15 @@ class SessionRunner:
                 # A runtime whose API does not match: step directly instead.
                 self.runtime_error = str(ex)
                 self.driver = DirectDriver(self.world, self.source, self.dt, self.handle.finger_ids)
+                if self.recorder is not None:
+                    self.recorder.begin(threaded=False)
                 self.driver.start()
+            if self.recorder is not None:
+                if self.driver.threaded:
+                    self.recorder.runtime_started()
+                else:
+                    self.driver.on_step = self.recorder.after_step
             self._started = True
-            if self.recording is not None:
-                self.recording.append(self.snapshot())
 
     def advance_to(self, t: float, max_steps: int | None = None) -> int:
         """Advance session time to ``t`` (seconds). Returns the number of core steps.
@@ -196,8 +208,6 @@ class SessionRunner:
         elapsed = time.perf_counter() - w0
         self.step_wall += elapsed
         self.max_step_wall = max(self.max_step_wall, elapsed)
-        if self.recording is not None:
-            self.recording.append(self.snapshot())
         return n
 
     def stop(self):
@@ -205,6 +215,8 @@ class SessionRunner:
             self._stopped = True
             self.driver.stop()
             self.source.close()
+            if self.recorder is not None:
+                self.recording_end = self.recorder.finish()
 
     # -------------------------------------------------------------- state
     def snapshot(self) -> Snapshot:
@@ -279,25 +291,3 @@ class SessionRunner:
             # The core's own rates and jitter, under a prefix so they do not overwrite ours.
             out.update({f"runtime_{k}": v for k, v in self.world.stats().items()})
         return out
-
-    def save_recording(self, path: str) -> str:
-        """Write the recorded snapshots to ``path`` (.npz). Returns the path."""
-        if not self.recording:
-            raise ValueError("nothing recorded (start the runner with record=True)")
-        r = self.recording
-        desc = self.handle.desc
-        np.savez_compressed(
-            path,
-            time=np.array([s.time for s in r]),
-            body_names=np.array([b.name for b in desc.bodies]),
-            finger_names=np.array([f.name for f in desc.fingers]),
-            poses=np.stack([s.poses for s in r]),
-            hips=np.stack([s.hips for s in r]),
-            god_objects=np.stack([s.god_objects for s in r]),
-            finger_forces=np.stack([s.finger_forces for s in r]),
-            finger_states=np.stack([s.finger_states for s in r]),
-            residual_force=np.stack([s.force for s in r]),
-            residual_torque=np.stack([s.torque for s in r]),
-            haptic_rate=self.haptic_rate,
-        )
-        return path

@@ -1,0 +1,670 @@
+"""Session recordings: MCAP files with every haptic tick (docs/recording-format.md).
+
+Plain Python + numpy + ``mcap``; no bpy, no graspcore (a recording opens anywhere).
+
+* ``RecordingWriter`` writes the header, blocks of tick records and events, and closes
+  (flushes) a chunk at least every ``flush_interval`` seconds, so a killed session loses
+  at most that much.
+* ``SessionRecorder`` feeds a writer from a running world: from ``World.tick_record`` after
+  every synchronous step (EXEC), or on its own thread from the C tick log that the haptic
+  loop fills (threaded runtime); it derives the events (contacts, stick/slip, safety).
+* ``open_recording`` reads a file back linearly, recovering everything before any damage;
+  ``summarize`` answers ``grasp-lab info`` from the summary section when the file is whole.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+import threading
+import time
+import zlib
+from dataclasses import dataclass, field
+
+import numpy as np
+
+FORMAT_VERSION = 1
+PROFILE = "grasp_lab"
+TOPIC_HEADER = "/grasp_lab/header"
+TOPIC_TICKS = "/grasp_lab/ticks"
+TOPIC_EVENTS = "/grasp_lab/events"
+TOPIC_END = "/grasp_lab/end"
+TICK_SCHEMA = "grasp_lab.TickBlock"
+TICK_ENCODING = "grasp_lab.tick_records"    # message: whole records, back to back
+JSON_SCHEMA = {"type": "object"}
+FLUSH_INTERVAL = 0.1        # s: at most this much of a session is lost to a kill -9
+BLOCK_TICKS = 256           # ticks per message at most
+STATE_NAMES = ("free", "stick", "slip")
+UNITS = {"length": "m", "mass": "kg", "time": "s", "force": "N", "torque": "N m",
+         "velocity": "m/s", "angular_velocity": "rad/s (world)", "orientation": "quaternion w x y z",
+         "stiffness": "N/m", "damping": "N s/m", "rate": "Hz", "period_us": "us", "work_us": "us"}
+COMPRESSIONS = ("zstd", "lz4", "none")
+
+# One tick record (graspcore.h, gc_tick_record_size): fixed fields, then per-finger and
+# per-body arrays. Kept here too so a recording opens without the core.
+FIXED_FIELDS = [("tick", "<u8", ()), ("time", "<f8", ()), ("object_time", "<f8", ()),
+                ("state_hash", "<u8", ()), ("period_us", "<f4", ()), ("work_us", "<f4", ()),
+                ("flags", "<u4", ()), ("adopted", "<u4", ())]
+FLAG_FORCES_ENABLED = 1
+
+
+class RecordingError(ValueError):
+    """A file that cannot be read as a recording. The message names the file and the problem."""
+
+
+def tick_dtype(n_bodies: int, n_fingers: int) -> np.dtype:
+    nb, nf = int(n_bodies), int(n_fingers)
+    return np.dtype([(n, t, s) for n, t, s in FIXED_FIELDS] + [
+        ("hip", "<f8", (nf, 3)), ("god_object", "<f8", (nf, 3)), ("force", "<f8", (nf, 3)),
+        ("device_force", "<f8", (nf, 3)), ("pose", "<f8", (nb, 7)), ("velocity", "<f8", (nb, 6)),
+        ("wrench", "<f8", (nb, 6)), ("state", "<i4", (nf,)), ("contact", "<i4", (nf,))])
+
+
+def schema_of(dtype: np.dtype) -> dict:
+    """The tick schema stored in the file: every field with its type, shape and offset."""
+    fields = []
+    for name in dtype.names:
+        sub, offset = dtype.fields[name][:2]
+        base, shape = (sub.base, list(sub.shape)) if sub.shape else (sub, [])
+        fields.append({"name": name, "type": base.str, "shape": shape, "offset": offset})
+    return {"record_size": dtype.itemsize, "byte_order": "little", "fields": fields,
+            "message": "a whole number of records back to back, in tick order"}
+
+
+def dtype_of(schema: dict) -> np.dtype:
+    try:
+        spec = {"names": [f["name"] for f in schema["fields"]],
+                "formats": [np.dtype((f["type"], tuple(f["shape"]))) if f["shape"] else np.dtype(f["type"])
+                            for f in schema["fields"]],
+                "offsets": [int(f["offset"]) for f in schema["fields"]],
+                "itemsize": int(schema["record_size"])}
+        dtype = np.dtype(spec)
+    except (KeyError, TypeError, ValueError) as ex:
+        raise ValueError(f"tick schema is malformed ({ex})") from None
+    missing = {n for n, _, _ in FIXED_FIELDS} - set(dtype.names)
+    if missing:
+        raise ValueError(f"tick schema lacks {sorted(missing)}")
+    return dtype
+
+
+# --------------------------------------------------------------------------- header
+
+def addon_version() -> str:
+    here = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    for folder in (here, os.path.dirname(here)):
+        path = os.path.join(folder, "blender_manifest.toml")
+        if os.path.exists(path):
+            with open(path) as fh:
+                for line in fh:
+                    if line.startswith("version"):
+                        return line.split("=", 1)[1].strip().strip('"')
+    return "unknown"
+
+
+def scene_to_dict(desc) -> dict:
+    """A prepared ``engine.scene.SceneDesc`` as JSON-able data, exact (floats round-trip)."""
+    def arr(a):
+        return np.asarray(a, dtype=np.float64).tolist()
+    bodies = []
+    for b in desc.bodies:
+        mp = b.mass_properties
+        bodies.append({
+            "name": b.name, "static": bool(b.static), "parts": [arr(p) for p in b.parts],
+            "position": arr(b.position), "orientation": arr(b.orientation),
+            "mu_s": float(b.mu_s), "mu_d": float(b.mu_d), "viscosity": float(b.viscosity),
+            "mass": None if mp is None else float(mp.mass),
+            "volume": None if mp is None else float(mp.volume),
+            "center_of_mass": None if mp is None else arr(mp.center_of_mass),
+            "inertia": None if mp is None else arr(mp.inertia)})
+    fingers = [{"name": f.name, "position": arr(f.position), "radius": float(f.radius),
+                "stiffness": float(f.stiffness), "damping": float(f.damping), "channel": int(f.channel)}
+               for f in desc.fingers]
+    return {"gravity": [float(g) for g in desc.gravity], "gyroscopic": bool(desc.gyroscopic),
+            "haptic_rate": float(desc.haptic_rate), "display_rate": float(desc.display_rate),
+            "bodies": bodies, "fingers": fingers}
+
+
+def scene_from_dict(data: dict):
+    """The ``SceneDesc`` a recording was made with (prepared: mass properties included)."""
+    from .scene import BodyDesc, FingerDesc, MassProperties, SceneDesc
+    bodies = []
+    for b in data["bodies"]:
+        mp = None if b.get("mass") is None else MassProperties(
+            mass=b["mass"], volume=b["volume"], center_of_mass=np.array(b["center_of_mass"]),
+            inertia=np.array(b["inertia"]))
+        bodies.append(BodyDesc(name=b["name"], static=b["static"],
+                               parts=[np.array(p, dtype=np.float64).reshape(-1, 3) for p in b["parts"]],
+                               meshes=[], position=np.array(b["position"]),
+                               orientation=np.array(b["orientation"]), mass=b.get("mass"),
+                               mu_s=b["mu_s"], mu_d=b["mu_d"], viscosity=b["viscosity"], mass_properties=mp))
+    fingers = [FingerDesc(name=f["name"], position=np.array(f["position"]), radius=f["radius"],
+                          stiffness=f["stiffness"], damping=f["damping"], channel=f.get("channel", 0))
+               for f in data["fingers"]]
+    return SceneDesc(gravity=tuple(data["gravity"]), gyroscopic=data["gyroscopic"],
+                     haptic_rate=data["haptic_rate"], display_rate=data.get("display_rate", 30.0),
+                     bodies=bodies, fingers=fingers)
+
+
+def fingerprint(scene: dict) -> str:
+    """sha256 of the scene as recorded (geometry, masses, friction, fingers, gravity)."""
+    text = json.dumps(scene, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
+def make_header(desc, *, mode: str, haptic_rate: float, source: str = "", fps: float | None = None,
+                device: dict | None = None, runtime: dict | None = None, extra: dict | None = None) -> dict:
+    """Everything needed to read, bake and re-simulate a recording."""
+    import mcap
+    scene = scene_to_dict(desc)
+    versions = {"grasp_lab": addon_version(), "python": platform.python_version(),
+                "numpy": np.__version__, "mcap": getattr(mcap, "__version__", "")}
+    try:
+        import graspcore
+        versions["graspcore"] = getattr(graspcore, "__version__", "present")
+    except ImportError:
+        pass
+    try:
+        import bpy
+        versions["blender"] = bpy.app.version_string
+    except ImportError:
+        pass
+    header = {
+        "format": "grasp_lab recording", "format_version": FORMAT_VERSION,
+        "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "mode": mode, "source": source, "versions": versions, "units": UNITS,
+        "rates": {"haptic_hz": float(haptic_rate), "display_hz": float(desc.display_rate),
+                  "fps": None if fps is None else float(fps)},
+        "device": device or {}, "runtime": runtime or {},
+        "body_names": [b.name for b in desc.bodies], "finger_names": [f.name for f in desc.fingers],
+        "fingerprint": fingerprint(scene), "scene": scene,
+    }
+    header.update(extra or {})
+    return header
+
+
+# --------------------------------------------------------------------------- writer
+
+class RecordingWriter:
+    """Writes one recording. Not thread-safe: one thread writes (the recorder)."""
+
+    def __init__(self, path: str, header: dict, compression: str = "zstd",
+                 flush_interval: float = FLUSH_INTERVAL):
+        from mcap.writer import CompressionType, Writer
+        if compression not in COMPRESSIONS:
+            raise ValueError(f"compression: expected one of {COMPRESSIONS}, got {compression!r}")
+        self.path = path
+        self.header = header
+        self.dtype = tick_dtype(len(header["body_names"]), len(header["finger_names"]))
+        self.flush_interval = float(flush_interval)
+        self._file = open(path, "wb")
+        kind = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+        # Chunks close on the flush timer (far below this size), CRCs on every chunk and on the
+        # whole data section (so `info` checks a whole file without decompressing it).
+        self._mcap = Writer(self._file, chunk_size=64 << 20, compression=kind[compression],
+                            enable_data_crcs=True)
+        self._mcap.start(profile=PROFILE, library=f"grasp_lab {header['versions'].get('grasp_lab', '')}")
+        json_schema = self._mcap.register_schema("grasp_lab.Json", "jsonschema",
+                                                 json.dumps(JSON_SCHEMA).encode())
+        tick_schema = self._mcap.register_schema(TICK_SCHEMA, TICK_ENCODING,
+                                                 json.dumps(schema_of(self.dtype)).encode())
+        self._ch = {topic: self._mcap.register_channel(topic, "json", json_schema)
+                    for topic in (TOPIC_HEADER, TOPIC_EVENTS, TOPIC_END)}
+        self._ch[TOPIC_TICKS] = self._mcap.register_channel(TOPIC_TICKS, TICK_ENCODING, tick_schema)
+        self._seq = 0
+        self.ticks = 0
+        self.events = 0
+        self.last_time = 0.0
+        self._write_json(TOPIC_HEADER, header, 0.0)
+        self.flush()
+        self.closed = False
+
+    @staticmethod
+    def _ns(t: float) -> int:
+        return max(0, int(round(t * 1e9)))
+
+    def _write_json(self, topic, data, t):
+        self._mcap.add_message(self._ch[topic], log_time=self._ns(t), publish_time=self._ns(t),
+                               data=json.dumps(data).encode(), sequence=self._seq)
+        self._seq += 1
+
+    def write_ticks(self, records: np.ndarray) -> None:
+        """Tick records (``self.dtype``), in tick order."""
+        if records.dtype != self.dtype:
+            raise ValueError(f"records: dtype does not match the header's bodies and fingers")
+        for start in range(0, len(records), BLOCK_TICKS):
+            block = np.ascontiguousarray(records[start:start + BLOCK_TICKS])
+            t = float(block["time"][0])
+            self._mcap.add_message(self._ch[TOPIC_TICKS], log_time=self._ns(t), publish_time=self._ns(t),
+                                   data=block.tobytes(), sequence=self._seq)
+            self._seq += 1
+        if len(records):
+            self.ticks += len(records)
+            self.last_time = float(records["time"][-1])
+
+    def event(self, t: float, kind: str, subject: str = "", detail: str = "", tick: int = -1, **extra):
+        data = {"tick": int(tick), "time": float(t), "kind": kind, "subject": subject, "detail": detail}
+        data.update(extra)
+        self._write_json(TOPIC_EVENTS, data, t)
+        self.events += 1
+
+    def flush(self) -> None:
+        """Close the chunk in progress and hand the bytes to the OS (a kill -9 keeps them)."""
+        self._mcap.flush()
+        self._file.flush()
+
+    def close(self, end: dict | None = None) -> None:
+        """The end record (counts, overflow), the summary and the footer."""
+        if self.closed:
+            return
+        data = {"ticks": self.ticks, "events": self.events, "duration": self.last_time, "clean": True}
+        data.update(end or {})
+        self._write_json(TOPIC_END, data, self.last_time)
+        self._mcap.finish()
+        self._file.close()
+        self.closed = True
+
+
+# --------------------------------------------------------------------------- events
+
+class EventDetector:
+    """Events from consecutive tick records: contact begin/end, stick/slip changes,
+    device forces switched off/on by the safety layer, force clamping."""
+
+    def __init__(self, header: dict):
+        self.bodies = header["body_names"]
+        self.fingers = header["finger_names"]
+        rt = header.get("runtime") or {}
+        self.max_force = rt.get("max_force")
+        self.watchdog_us = 1e6 * rt["watchdog_timeout"] if rt.get("watchdog_timeout") else None
+        self._last = None       # (state, contact, enabled, clamped) of the previous tick
+
+    def _body(self, i):
+        return self.bodies[i] if 0 <= i < len(self.bodies) else f"body {i}"
+
+    def __call__(self, records: np.ndarray):
+        """Yields (tick, time, kind, subject, detail)."""
+        if len(records) == 0:
+            return
+        state, contact = records["state"], records["contact"]
+        enabled = (records["flags"] & FLAG_FORCES_ENABLED) != 0
+        if self.max_force is not None and len(self.fingers):
+            clamped = np.linalg.norm(records["device_force"], axis=2) >= self.max_force * (1 - 1e-9)
+        else:
+            clamped = np.zeros(state.shape, dtype=bool)
+        if self._last is None:
+            prev = (np.zeros_like(state[0]), np.full_like(contact[0], -1), np.ones((), bool),
+                    np.zeros_like(clamped[0]))
+        else:
+            prev = self._last
+        cat = lambda p, a: np.concatenate([np.asarray(p)[None], a])  # noqa: E731
+        s2, c2, e2, k2 = cat(prev[0], state), cat(prev[1], contact), cat(prev[2], enabled), cat(prev[3], clamped)
+        ticks, times = records["tick"], records["time"]
+        for k in np.flatnonzero(e2[1:] != e2[:-1]):
+            t = int(ticks[k]), float(times[k])
+            if e2[k + 1]:
+                yield (*t, "forces_on", "", "device forces enabled (ramping in)")
+            else:
+                period = float(records["period_us"][k])
+                why = (f"watchdog: haptic period {period:.0f} us" if self.watchdog_us and period > self.watchdog_us
+                       else "input stale or not yet received")
+                yield (*t, "forces_off", "", why)
+        for k, f in zip(*np.nonzero(c2[1:] != c2[:-1])):
+            t = int(ticks[k]), float(times[k])
+            finger = self.fingers[f]
+            was, now = int(c2[k, f]), int(c2[k + 1, f])
+            if was >= 0:
+                yield (*t, "contact_end", finger, self._body(was))
+            if now >= 0:
+                yield (*t, "contact_begin", finger, self._body(now))
+        for k, f in zip(*np.nonzero(s2[1:] != s2[:-1])):
+            now = int(s2[k + 1, f])
+            if now in (1, 2):
+                name = STATE_NAMES[now]
+                yield (int(ticks[k]), float(times[k]), name, self.fingers[f],
+                       f"{STATE_NAMES[int(s2[k, f])] if 0 <= s2[k, f] < 3 else s2[k, f]} -> {name}")
+        for k, f in zip(*np.nonzero(k2[1:] != k2[:-1])):
+            kind = "clamp_begin" if k2[k + 1, f] else "clamp_end"
+            yield (int(ticks[k]), float(times[k]), kind, self.fingers[f], f"max_force {self.max_force} N")
+        self._last = (state[-1].copy(), contact[-1].copy(), enabled[-1].copy(), clamped[-1].copy())
+
+
+# --------------------------------------------------------------------------- recorder
+
+class SessionRecorder:
+    """Records every tick of a session into a RecordingWriter.
+
+    EXEC (synchronous steps): ``after_step(tick)`` copies the stepped world into a block
+    (one C call); the block is written and the chunk closed when ``flush_interval`` of wall
+    time has passed. Threaded runtime: ``begin(threaded=True)`` gives the world a tick log
+    (the haptic loop fills it, never waits); a thread drains it every ``poll`` seconds and
+    writes. Ticks the full ring dropped are counted (``overflow``) and reported.
+    """
+
+    def __init__(self, writer: RecordingWriter, world, ring_seconds: float = 2.0, poll: float = 0.02):
+        self.writer = writer
+        self.world = world
+        self.dtype = writer.dtype
+        rate = writer.header["rates"]["haptic_hz"]
+        self.capacity = max(256, int(ring_seconds * rate))
+        self.poll = poll
+        self.events = EventDetector(writer.header)
+        self.overflow = 0
+        self.threaded = False
+        self.error = ""
+        self._block = np.zeros(max(256, int(rate * writer.flush_interval) + 1), dtype=self.dtype)
+        self._n = 0
+        self._last_flush = time.perf_counter()
+        self._wall0 = None
+        self._thread = None
+        self._stop = threading.Event()
+        self._lock = threading.Lock()       # writer: recorder thread vs parameter events
+        self.finished = False
+
+    # ---- setup
+    def begin(self, threaded: bool) -> None:
+        """Before the world starts stepping (before ``world.start`` when threaded)."""
+        self.threaded = threaded
+        if threaded:
+            self.world.set_tick_log(self.capacity)
+
+    def runtime_started(self) -> None:
+        self._thread = threading.Thread(target=self._drain_loop, name="grasp_lab recorder", daemon=True)
+        self._thread.start()
+
+    # ---- EXEC
+    def after_step(self, tick: int) -> None:
+        now = time.perf_counter()
+        self.world._tick_record(self._block[self._n:self._n + 1], tick)
+        if self._wall0 is not None:
+            self._block["period_us"][self._n] = (now - self._wall0) * 1e6
+        self._wall0 = now
+        self._n += 1
+        if self._n == len(self._block) or now - self._last_flush >= self.writer.flush_interval:
+            self._write_block()
+
+    def _write_block(self) -> None:
+        if self._n:
+            self._write(self._block[:self._n])
+            self._n = 0
+        self.writer.flush()
+        self._last_flush = time.perf_counter()
+
+    def _write(self, records) -> None:
+        with self._lock:
+            self.writer.write_ticks(records)
+            for tick, t, kind, subject, detail in self.events(records):
+                self.writer.event(t, kind, subject, detail, tick=tick)
+
+    # ---- threaded
+    def _drain_loop(self) -> None:
+        buf = np.zeros(self.capacity, dtype=self.dtype)
+        last_flush = time.perf_counter()
+        try:
+            while True:
+                stopping = self._stop.wait(self.poll)
+                n = self.world._drain_ticks(buf)
+                if n:
+                    self._write(buf[:n])
+                overflow = int(self.world.tick_log_overflow())
+                if overflow > self.overflow:
+                    with self._lock:
+                        self.writer.event(self.writer.last_time, "overflow", "recorder",
+                                          f"{overflow - self.overflow} ticks dropped (ring of "
+                                          f"{self.capacity} full)", dropped=overflow - self.overflow)
+                    self.overflow = overflow
+                now = time.perf_counter()
+                if stopping or now - last_flush >= self.writer.flush_interval:
+                    with self._lock:
+                        self.writer.flush()
+                    last_flush = now
+                if stopping and n == 0:
+                    return
+        except Exception as ex:     # the session goes on; finish() reports it
+            self.error = f"recorder stopped: {ex}"
+
+    # ---- both
+    def parameter_change(self, t: float, subject: str, name: str, value) -> None:
+        with self._lock:
+            self.writer.event(t, "parameter", subject, f"{name} = {value}", name=name, value=value)
+
+    def finish(self) -> dict:
+        """After the world stopped: write what is left, the end record, close the file."""
+        if self.finished:
+            return {}
+        self.finished = True
+        if self._thread is not None:
+            self._stop.set()
+            self._thread.join()
+            self.overflow = int(self.world.tick_log_overflow())
+        else:
+            self._write_block()
+        end = {"overflow": self.overflow, "recorder_error": self.error}
+        self.writer.close(end)
+        return end
+
+
+# --------------------------------------------------------------------------- reader
+
+@dataclass
+class Recording:
+    path: str
+    header: dict
+    dtype: np.dtype
+    ticks: np.ndarray                       # all tick records read, in order
+    events: list = field(default_factory=list)
+    end: dict | None = None                 # the end record (None: cut short)
+    damage: list = field(default_factory=list)   # what was wrong, where (empty: intact)
+
+    @property
+    def body_names(self):
+        return self.header["body_names"]
+
+    @property
+    def finger_names(self):
+        return self.header["finger_names"]
+
+    @property
+    def haptic_rate(self) -> float:
+        return float(self.header["rates"]["haptic_hz"])
+
+    @property
+    def duration(self) -> float:
+        return float(self.ticks["time"][-1] - self.ticks["time"][0]) + 1.0 / self.haptic_rate \
+            if len(self.ticks) else 0.0
+
+    def warnings(self) -> list:
+        return [f"{self.path}: {d}" for d in self.damage]
+
+    def sample(self, times) -> np.ndarray:
+        """Indices of the last tick at or before each time (the first tick before it)."""
+        t = self.ticks["time"]
+        return np.clip(np.searchsorted(t, np.asarray(times) + 1e-12, side="right") - 1, 0, len(t) - 1)
+
+
+def _check_version(path, header):
+    if header.get("format") != "grasp_lab recording":
+        raise RecordingError(f"{path}: not a Grasp Lab recording (its header says format "
+                             f"{header.get('format')!r})")
+    version = header.get("format_version")
+    if not isinstance(version, int):
+        raise RecordingError(f"{path}: header has no format version")
+    if version > FORMAT_VERSION:
+        raise RecordingError(f"{path}: recording format version {version} is newer than this Grasp Lab "
+                             f"reads (version {FORMAT_VERSION}); open it with a newer Grasp Lab")
+
+
+def open_recording(path: str) -> Recording:
+    """Read a recording, all of it that is intact. Damage (a file cut short, a bad CRC, garbage)
+    ends the read: what came before it is kept and ``damage`` says what and where. Raises
+    RecordingError when nothing usable is there (not MCAP, no header, a newer format)."""
+    from mcap.records import Channel, Footer, Message, Schema
+    from mcap.stream_reader import StreamReader
+    path = os.fspath(path)
+    try:
+        size = os.path.getsize(path)
+        fh = open(path, "rb")
+    except OSError as ex:
+        raise RecordingError(f"{path}: cannot open ({ex.strerror or ex})") from None
+    schemas, channels = {}, {}
+    header = dtype = None
+    blocks, events, damage = [], [], []
+    end = None
+    footer = False
+    next_tick = None
+    with fh:
+        reader = StreamReader(fh, validate_crcs=True, record_size_limit=max(size, 1))
+        try:
+            for rec in reader.records:
+                if isinstance(rec, Schema):
+                    schemas[rec.id] = rec
+                elif isinstance(rec, Channel):
+                    channels[rec.id] = rec
+                elif isinstance(rec, Message):
+                    ch = channels.get(rec.channel_id)
+                    if ch is None:
+                        raise ValueError(f"message on unknown channel {rec.channel_id}")
+                    if ch.topic == TOPIC_HEADER:
+                        header = json.loads(rec.data)
+                        _check_version(path, header)
+                        dtype = dtype_of(json.loads(schemas[channels_by_topic(channels, TOPIC_TICKS)
+                                                            .schema_id].data))
+                    elif header is None:
+                        raise ValueError(f"{ch.topic} message before the header")
+                    elif ch.topic == TOPIC_TICKS:
+                        if len(rec.data) % dtype.itemsize:
+                            raise ValueError(f"tick block of {len(rec.data)} bytes is not a whole number "
+                                             f"of {dtype.itemsize}-byte records")
+                        block = np.frombuffer(rec.data, dtype=dtype)
+                        ticks = block["tick"].astype(np.int64)
+                        if next_tick is not None and len(ticks) and ticks[0] < next_tick:
+                            raise ValueError(f"tick {ticks[0]} after tick {next_tick - 1}")
+                        if len(ticks) > 1 and np.any(np.diff(ticks) <= 0):
+                            raise ValueError("tick numbers out of order inside a block")
+                        if len(ticks):
+                            next_tick = int(ticks[-1]) + 1
+                        blocks.append(block)
+                    elif ch.topic == TOPIC_EVENTS:
+                        ev = json.loads(rec.data)
+                        if not isinstance(ev, dict) or "kind" not in ev:
+                            raise ValueError("malformed event")
+                        events.append(ev)
+                    elif ch.topic == TOPIC_END:
+                        end = json.loads(rec.data)
+                elif isinstance(rec, Footer):
+                    footer = True
+        except RecordingError:
+            raise
+        except Exception as ex:     # any damage: keep what came before it
+            where = fh.tell()
+            damage.append(f"damaged near byte {where} of {size} ({type(ex).__name__}: {ex}); "
+                          f"everything before it was read")
+    if header is None:
+        detail = damage[0] if damage else "no header"
+        raise RecordingError(f"{path}: not a readable Grasp Lab recording ({detail})")
+    if not damage and not footer:
+        damage.append("file ends without its summary: the session did not end cleanly (cut short)")
+    elif not damage and end is None:
+        damage.append("no end record")
+    ticks = np.concatenate(blocks) if blocks else np.zeros(0, dtype=dtype)
+    if end is not None and not damage and end.get("ticks") not in (None, len(ticks)):
+        damage.append(f"end record counts {end['ticks']} ticks, {len(ticks)} read")
+    return Recording(path, header, dtype, ticks, events, end, damage)
+
+
+def channels_by_topic(channels: dict, topic: str):
+    for ch in channels.values():
+        if ch.topic == topic:
+            return ch
+    raise ValueError(f"no {topic} channel before the header")
+
+
+def _data_section_intact(path: str) -> tuple[bool, str]:
+    """CRC of the whole data section against its DataEnd record, without decompressing."""
+    import struct
+
+    from mcap.opcode import Opcode
+    with open(path, "rb") as fh:
+        fh.seek(-(8 + 1 + 8 + 8 + 8 + 4), os.SEEK_END)     # footer record + magic
+        footer = fh.read(1 + 8 + 8 + 8 + 4)
+        if footer[0] != Opcode.FOOTER:
+            return False, "no footer"
+        summary_start = struct.unpack_from("<Q", footer, 9)[0]
+        if summary_start == 0:
+            return False, "no summary"
+        # DataEnd: opcode, length, crc (13 bytes) right before the summary.
+        fh.seek(summary_start - 13)
+        data_end = fh.read(13)
+        if data_end[0] != Opcode.DATA_END:
+            return False, "no data end record before the summary"
+        expected = struct.unpack_from("<I", data_end, 9)[0]
+        fh.seek(0)
+        crc, todo = 0, summary_start - 13
+        while todo > 0:
+            buf = fh.read(min(todo, 16 << 20))
+            if not buf:
+                return False, "file shorter than its footer says"
+            crc = zlib.crc32(buf, crc)
+            todo -= len(buf)
+    if expected and crc != expected:
+        return False, f"data section CRC {crc:08x}, expected {expected:08x}"
+    return True, ""
+
+
+def summarize(path: str) -> dict:
+    """What ``grasp-lab info`` prints. A whole file answers from its summary section (only the
+    header, event and end messages are decompressed) after checking the data section CRC; a
+    damaged or cut file is read linearly (open_recording) and the damage reported."""
+    from mcap.reader import SeekingReader
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise RecordingError(f"{path}: no such file")
+    intact, why = False, ""
+    try:
+        intact, why = _data_section_intact(path)
+    except (OSError, ValueError, IndexError):
+        intact = False
+    if intact:
+        try:
+            with open(path, "rb") as fh:
+                reader = SeekingReader(fh, validate_crcs=True)
+                header, events, end = None, [], None
+                for _schema, channel, message in reader.iter_messages(
+                        topics=[TOPIC_HEADER, TOPIC_EVENTS, TOPIC_END]):
+                    data = json.loads(message.data)
+                    if channel.topic == TOPIC_HEADER:
+                        _check_version(path, data)
+                        header = data
+                    elif channel.topic == TOPIC_EVENTS:
+                        events.append(data)
+                    else:
+                        end = data
+                if header is not None and end is not None:
+                    stats = reader.get_summary().statistics
+                    return _summary(path, header, events, end, ticks=end["ticks"],
+                                    t0=None, t1=end["duration"], damage=[],
+                                    chunks=stats.chunk_count if stats else None)
+        except RecordingError:
+            raise
+        except Exception:       # fall through to the linear read
+            pass
+    rec = open_recording(path)
+    t = rec.ticks["time"]
+    return _summary(path, rec.header, rec.events, rec.end or {}, ticks=len(rec.ticks),
+                    t0=float(t[0]) if len(t) else None, t1=float(t[-1]) if len(t) else 0.0,
+                    damage=rec.damage, chunks=None)
+
+
+def _summary(path, header, events, end, ticks, t0, t1, damage, chunks) -> dict:
+    rate = float(header["rates"]["haptic_hz"])
+    kinds = {}
+    for e in events:
+        kinds[e.get("kind", "?")] = kinds.get(e.get("kind", "?"), 0) + 1
+    return {"path": path, "size": os.path.getsize(path), "format_version": header["format_version"],
+            "mode": header.get("mode"), "created": header.get("created"), "source": header.get("source"),
+            "ticks": int(ticks), "duration": ticks / rate, "end_time": t1, "haptic_rate": rate,
+            "rates": header["rates"], "bodies": header["body_names"], "fingers": header["finger_names"],
+            "scene": header["scene"], "fingerprint": header["fingerprint"], "device": header.get("device"),
+            "runtime": header.get("runtime"), "versions": header.get("versions"),
+            "events": kinds, "event_list": events, "overflow": end.get("overflow"),
+            "recorder_error": end.get("recorder_error", ""), "damage": damage, "chunks": chunks}

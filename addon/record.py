@@ -1,0 +1,37 @@
+"""Recording a Blender session: where the file goes and what its header says
+(the format and the recorder are bpy-free: engine/recording.py)."""
+from __future__ import annotations
+
+import os
+import time
+
+import bpy
+
+from .engine.recording import RecordingWriter, SessionRecorder, make_header
+
+# The runtime settings RuntimeDriver starts the core with (graspcore.h gc_default_runtime_def):
+# the recorder reads clamping and watchdog events against them.
+RUNTIME_DEFAULTS = {"max_force": 10.0, "ramp_time": 0.5, "watchdog_timeout": 0.005, "hip_timeout": 0.1}
+
+
+def default_path(settings) -> str:
+    folder = bpy.path.abspath(settings.recording_folder)
+    os.makedirs(folder, exist_ok=True)
+    return os.path.join(folder, time.strftime("grasp_%Y%m%d_%H%M%S.mcap"))
+
+
+def session_recorder(session, path, threaded: bool) -> SessionRecorder:
+    """A recorder for a BlenderSession about to start (path None: the scene's recording folder)."""
+    s = session.settings
+    path = bpy.path.abspath(path) if path else default_path(s)
+    folder = os.path.dirname(os.path.abspath(path))
+    os.makedirs(folder, exist_ok=True)
+    runtime = dict(RUNTIME_DEFAULTS, threaded=True) if threaded else {"threaded": False}
+    header = make_header(
+        session.desc, mode="realtime" if threaded else "exec", haptic_rate=s.haptic_rate,
+        fps=session.fps, source=bpy.data.filepath,
+        device={"kind": session.source.name, "fingers": len(session.desc.fingers),
+                "detail": "fingertip objects animated on the timeline (scripted device)"},
+        runtime=runtime,
+        extra={"scene_name": session.scene.name, "frame_start": session.frame_start})
+    return SessionRecorder(RecordingWriter(path, header), session.handle.world)
