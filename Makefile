@@ -35,7 +35,13 @@ $(VENV)/.core: $(VENV)/.deps $(CORE_SRC) $(CORE_HDR) $(BINDING) $(PY_SRC) native
 	rm -rf native/build native/*.egg-info
 	touch $@
 
-core: $(VENV)/.core
+# `grasp-lab` in the venv (docs/cli.md): the command line of this checkout's extension.
+$(VENV)/bin/grasp-lab: $(VENV)/.deps
+	printf '%s\n' '#!/bin/sh' '# grasp-lab (docs/cli.md), written by make' \
+	  'exec "$(CURDIR)/$(PY)" -c "import sys; sys.path.insert(0, \"$(CURDIR)\"); from addon.engine.cli import launch; sys.exit(launch())" "$$@"' > $@
+	chmod +x $@
+
+core: $(VENV)/.core $(VENV)/bin/grasp-lab
 
 # --- C tests (plain, then ASan/UBSan) -----------------------------------------
 $(BUILD)/c/%: native/tests/%.c $(CORE_SRC) $(CORE_HDR) native/tests/gc_test.h

@@ -19,15 +19,16 @@ BLENDER_EXT = $(shell ls $(VENV)/lib/python3.11/site-packages/bpy/*/scripts/addo
 ADDON_SRC := $(shell find addon -name '*.py' -not -path '*/__pycache__/*' 2>/dev/null)
 # Third-party wheels bundled in the zip (numpy comes with Blender). Pinned so the zip
 # is reproducible offline once downloaded.
-EXT_PURE_WHEELS := trimesh==5.2.0 pyserial==3.5
-EXT_HIDAPI := hidapi==0.15.0
+EXT_PURE_WHEELS := trimesh==5.2.0 pyserial==3.5 mcap==1.6.0
+# Binary wheels without an abi3 build: bundled for cp311 (Blender 4.2-5.0) and cp313 (5.1+).
+EXT_BINARY_WHEELS := hidapi==0.15.0 lz4==4.4.5 zstandard==0.25.0
 PIPDL := $(PY) -m pip --disable-pip-version-check -q download --no-deps --only-binary=:all: -d $(EXT_WHEELS)
 
-$(EXT_WHEELS)/.done: | $(VENV)/.deps
+$(EXT_WHEELS)/.done: addon.mk | $(VENV)/.deps
 	mkdir -p $(EXT_WHEELS)
 	$(PIPDL) $(EXT_PURE_WHEELS)
-	$(PIPDL) --python-version 3.11 --implementation cp --abi cp311 --platform manylinux2014_x86_64 $(EXT_HIDAPI)
-	$(PIPDL) --python-version 3.13 --implementation cp --abi cp313 --platform manylinux2014_x86_64 $(EXT_HIDAPI)
+	$(PIPDL) --python-version 3.11 --implementation cp --abi cp311 --platform manylinux2014_x86_64 $(EXT_BINARY_WHEELS)
+	$(PIPDL) --python-version 3.13 --implementation cp --abi cp313 --platform manylinux2014_x86_64 $(EXT_BINARY_WHEELS)
 	touch $@
 
 # Stage: the add-on package + manifest + vendored core (from the core's abi3 wheel) + wheels.

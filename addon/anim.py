@@ -38,27 +38,37 @@ def read_transform(obj) -> np.ndarray:
 
 def bake(obj, frames, values) -> None:
     """Replace the object's transform keys with ``values`` (n_frames, n_channels)."""
-    frames = np.asarray(frames, dtype=np.float64)
     values = np.asarray(values, dtype=np.float64)
-    if len(frames) == 0:
-        return
-    obj.animation_data_create()
-    for path, _ in transform_channels(obj):
-        obj.keyframe_insert(path, frame=float(frames[0]))   # creates action/slot/fcurves
-    fcurves = _fcurves(obj)
-    col = 0
+    channels, col = [], 0
     for path, n in transform_channels(obj):
         for i in range(n):
-            fc = fcurves.find(path, index=i)
-            if fc is None:
-                fc = fcurves.new(path, index=i)
-            kp = fc.keyframe_points
-            kp.clear()
-            kp.add(len(frames))
-            co = np.empty(2 * len(frames), dtype=np.float32)
-            co[0::2] = frames
-            co[1::2] = values[:, col]
-            kp.foreach_set("co", co)
-            kp.foreach_set("interpolation", np.full(len(frames), LINEAR, dtype=np.int32))
-            fc.update()
+            channels.append((path, i, values[:, col]))
             col += 1
+    bake_channels(obj, frames, channels)
+
+
+def bake_channels(obj, frames, channels) -> None:
+    """Replace the keys of each (data path, index, values) channel of ``obj`` with one key a
+    frame (linear). Custom properties (``'["name"]'``) must exist. Baking again replaces the
+    keys; it never adds a second F-curve."""
+    frames = np.asarray(frames, dtype=np.float64)
+    if len(frames) == 0 or not channels:
+        return
+    obj.animation_data_create()
+    for path in dict.fromkeys(path for path, _, _ in channels):
+        obj.keyframe_insert(path, frame=float(frames[0]))   # creates action/slot/fcurves
+    fcurves = _fcurves(obj)
+    interpolation = np.full(len(frames), LINEAR, dtype=np.int32)
+    co = np.empty(2 * len(frames), dtype=np.float32)
+    co[0::2] = frames
+    for path, index, values in channels:
+        fc = fcurves.find(path, index=index)
+        if fc is None:
+            fc = fcurves.new(path, index=index)
+        kp = fc.keyframe_points
+        kp.clear()
+        kp.add(len(frames))
+        co[1::2] = values
+        kp.foreach_set("co", co)
+        kp.foreach_set("interpolation", interpolation)
+        fc.update()

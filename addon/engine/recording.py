@@ -17,6 +17,7 @@ import hashlib
 import json
 import os
 import platform
+import sys
 import threading
 import time
 import zlib
@@ -57,7 +58,7 @@ def tick_dtype(n_bodies: int, n_fingers: int) -> np.dtype:
     nb, nf = int(n_bodies), int(n_fingers)
     return np.dtype([(n, t, s) for n, t, s in FIXED_FIELDS] + [
         ("hip", "<f8", (nf, 3)), ("god_object", "<f8", (nf, 3)), ("force", "<f8", (nf, 3)),
-        ("device_force", "<f8", (nf, 3)), ("pose", "<f8", (nb, 7)), ("velocity", "<f8", (nb, 6)),
+        ("device_force", "<f8", (nf, 3)), ("normal", "<f8", (nf, 3)), ("pose", "<f8", (nb, 7)), ("velocity", "<f8", (nb, 6)),
         ("wrench", "<f8", (nb, 6)), ("state", "<i4", (nf,)), ("contact", "<i4", (nf,))])
 
 
@@ -164,11 +165,9 @@ def make_header(desc, *, mode: str, haptic_rate: float, source: str = "", fps: f
         versions["graspcore"] = getattr(graspcore, "__version__", "present")
     except ImportError:
         pass
-    try:
-        import bpy
+    bpy = sys.modules.get("bpy")       # only when running inside Blender (never imported here)
+    if bpy is not None:
         versions["blender"] = bpy.app.version_string
-    except ImportError:
-        pass
     header = {
         "format": "grasp_lab recording", "format_version": FORMAT_VERSION,
         "created": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),

@@ -13,6 +13,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "gc_math.h"
 #include "graspcore.h"
 
 struct gcTickLog {
@@ -32,7 +33,7 @@ enum { REC_HEADER = 48 };
 
 size_t gc_tick_record_size(int num_bodies, int num_fingers) {
     if (num_bodies < 0 || num_fingers < 0) return 0;
-    return REC_HEADER + sizeof(double) * (12 * (size_t)num_fingers + 19 * (size_t)num_bodies) +
+    return REC_HEADER + sizeof(double) * (15 * (size_t)num_fingers + 19 * (size_t)num_bodies) +
            sizeof(int32_t) * 2 * (size_t)num_fingers;
 }
 
@@ -63,6 +64,15 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
         p = put(p, device_force, 24 * (size_t)nf);
     else
         for (int i = 0; i < nf; ++i) p = put(p, &w->fingers[i].force, 24);
+    for (int i = 0; i < nf; ++i) { /* the first contact's plane normal, world (0 when free) */
+        const gcFinger *f = &w->fingers[i];
+        gcVec3 n = gc_v3(0, 0, 0);
+        if (f->num_contacts > 0 && f->contacts[0].part >= 0) {
+            const gcBody *b = &w->bodies[w->parts[f->contacts[0].part].body];
+            n = gc_mat3_mul_vec(&b->R, f->contacts[0].normal_local);
+        }
+        p = put(p, &n, 24);
+    }
     p = put(p, w->pose_array, 56 * (size_t)nb);
     for (int b = 0; b < nb; ++b) {
         p = put(p, &w->bodies[b].v, 24);

@@ -1,0 +1,346 @@
+"""The ``grasp-lab`` command line (docs/cli.md).
+
+One implementation, two entry points: ``grasp-lab`` in the development venv (the launcher
+``make`` writes calls ``launch()``) and ``blender -c grasp_lab ...`` inside Blender 4.2+
+(``cli_blender.py`` registers ``main`` with ``bpy.utils.register_cli_command``).
+
+Commands live in ``COMMANDS`` (``register_command``); commands that need Blender (``run``,
+``bake``) are carried out by the extension's ``headless`` module, so when the launcher
+runs outside Blender it first loads the extension into the ``bpy`` module and hands the
+command line to the extension's own copy of this module. Device backends (``--device``)
+register in ``DEVICE_BACKENDS``.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from dataclasses import dataclass
+from typing import Callable
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+PROG = "grasp-lab"
+
+
+class CliError(Exception):
+    """A command that failed; the message names the file and what is wrong (exit 1)."""
+
+
+@dataclass
+class Command:
+    name: str
+    help: str
+    configure: Callable      # (argparse.ArgumentParser) -> None
+    run: Callable            # (args, out) -> int | None
+    needs_blender: bool = False
+
+
+COMMANDS: dict[str, Command] = {}
+# Device backends by SPEC kind ("serial", "spacemouse", "opengloves"): kind -> factory(spec, n_fingers).
+DEVICE_BACKENDS: dict[str, Callable] = {}
+
+
+def register_command(name, help, configure, run, needs_blender=False) -> None:
+    COMMANDS[name] = Command(name, help, configure, run, needs_blender)
+
+
+def register_device_backend(kind: str, factory: Callable) -> None:
+    DEVICE_BACKENDS[kind] = factory
+
+
+def device_factory(spec: str) -> Callable:
+    """The backend for a --device SPEC, or CliError saying that none is available."""
+    kind = spec.split(":", 1)[0]
+    if kind not in DEVICE_BACKENDS:
+        known = ", ".join(sorted(DEVICE_BACKENDS)) or "none yet"
+        raise CliError(f"--device {spec}: device backend {kind!r} is not available yet "
+                       f"(registered backends: {known}); run without --device to use the "
+                       f"scene's animated fingertips")
+    return DEVICE_BACKENDS[kind]
+
+
+# ------------------------------------------------------------------------ arguments
+
+def _override(text):
+    from .resim import OverrideError, parse_override
+    try:
+        return parse_override(text)
+    except OverrideError as ex:
+        raise argparse.ArgumentTypeError(str(ex)) from None
+
+
+def _positive_int(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {v}")
+    return v
+
+
+def _positive_float(text):
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not v > 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {v}")
+    return v
+
+
+SET_HELP = ("OBJECT.PROPERTY=VALUE (mass, mu_s, mu_d, viscosity, radius, stiffness, damping) or a "
+            "scene setting: haptic_rate=HZ, gravity=X,Y,Z, gyroscopic=0|1; repeatable")
+
+
+def _configure_run(p):
+    p.add_argument("scene", metavar="SCENE.blend", help="the .blend to simulate")
+    p.add_argument("--duration", type=_positive_float, metavar="S",
+                   help="seconds to run (default: the scene's duration, else its animation)")
+    p.add_argument("--realtime", action="store_true",
+                   help="the threaded runtime at wall-clock speed, as a live session "
+                        "(default: stepped as fast as it goes, deterministic)")
+    p.add_argument("--device", action="append", default=[], metavar="SPEC",
+                   help="an input device: serial:PORT, spacemouse, opengloves:PORT (repeatable)")
+    p.add_argument("--record", metavar="OUT.mcap", help="record every haptic tick to this file")
+    p.add_argument("--save", metavar="OUT.blend", help="save the scene after the session")
+    p.add_argument("--set", action="append", default=[], type=_override, metavar="KEY=VALUE", help=SET_HELP)
+
+
+def _configure_info(p):
+    p.add_argument("recording", metavar="REC.mcap")
+
+
+def _configure_bake(p):
+    p.add_argument("recording", metavar="REC.mcap")
+    p.add_argument("scene", metavar="SCENE.blend", help="the scene the recording was made in")
+    p.add_argument("--save", metavar="OUT.blend", required=True, help="where to save the baked scene")
+    p.add_argument("--every-tick", action="store_true",
+                   help="a key at every haptic tick (subframes) instead of every frame")
+
+
+def _configure_resim(p):
+    p.add_argument("recording", metavar="REC.mcap")
+    p.add_argument("--set", action="append", default=[], type=_override, metavar="KEY=VALUE", help=SET_HELP)
+    p.add_argument("--record", metavar="OUT.mcap", help="write the new run as a recording")
+    p.add_argument("--tolerance", type=_positive_float, default=1e-6, metavar="METRES",
+                   help="distance at which a body or god-object counts as diverged (default 1e-6)")
+
+
+def _configure_export(p):
+    p.add_argument("recording", metavar="REC.mcap")
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--csv", metavar="DIR", help="write DIR/bodies.csv, fingers.csv, events.csv")
+    g.add_argument("--npz", metavar="FILE", help="write one .npz with every field")
+    p.add_argument("--every", type=_positive_int, default=1, metavar="N", help="every N-th tick (default 1)")
+
+
+# ------------------------------------------------------------------------ commands
+
+def _warn(rec_or_summary, err):
+    damage = rec_or_summary.damage if hasattr(rec_or_summary, "damage") else rec_or_summary["damage"]
+    path = rec_or_summary.path if hasattr(rec_or_summary, "path") else rec_or_summary["path"]
+    for d in damage:
+        print(f"{PROG}: warning: {path}: {d}", file=err)
+
+
+def _open(path, err):
+    from .recording import open_recording
+    rec = open_recording(path)
+    _warn(rec, err)
+    if len(rec.ticks) == 0:
+        raise CliError(f"{path}: no tick was recorded")
+    return rec
+
+
+def _run_info(args, out, err):
+    from .recording import summarize
+    s = summarize(args.recording)
+    _warn(s, err)
+    p = lambda *a: print(*a, file=out)  # noqa: E731
+    p(f"{s['path']}: Grasp Lab recording, format {s['format_version']}, {s['size'] / 1e6:.2f} MB"
+      + (f", {s['chunks']} chunks" if s["chunks"] else ""))
+    p(f"mode        {s['mode']}   created {s['created']}   source {s['source'] or '-'}")
+    p(f"duration    {s['duration']:.3f} s   haptic ticks {s['ticks']}   rate {s['haptic_rate']:g} Hz"
+      + (f"   scene fps {s['rates']['fps']:g}" if s["rates"].get("fps") else ""))
+    p(f"fingers     {len(s['fingers'])}: " + ", ".join(
+        f"{f['name']} (r {f['radius']:g} m, k {f['stiffness']:g} N/m, c {f['damping']:g} N s/m)"
+        for f in s["scene"]["fingers"]))
+    p(f"bodies      {len(s['bodies'])}: " + ", ".join(
+        f"{b['name']} (" + ("static" if b["static"] else f"{b['mass']:g} kg") +
+        f", mu_s {b['mu_s']:g}, mu_d {b['mu_d']:g})" for b in s["scene"]["bodies"]))
+    sc = s["scene"]
+    p(f"parameters  gravity {tuple(sc['gravity'])} m/s^2, gyroscopic {int(sc['gyroscopic'])}, "
+      f"fingerprint {s['fingerprint'][:16]}")
+    if s["runtime"]:
+        p("runtime     " + ", ".join(f"{k} {v}" for k, v in s["runtime"].items()))
+    if s["device"]:
+        p("device      " + ", ".join(f"{k} {v}" for k, v in s["device"].items()))
+    p("versions    " + ", ".join(f"{k} {v}" for k, v in (s["versions"] or {}).items()))
+    p("events      " + (", ".join(f"{k} {v}" for k, v in sorted(s["events"].items())) or "none"))
+    if s["overflow"]:
+        p(f"overflow    {s['overflow']} ticks dropped by the recorder (ring full)")
+    if s["recorder_error"]:
+        p(f"recorder    {s['recorder_error']}")
+    p("damage      " + ("; ".join(s["damage"]) if s["damage"] else "none (summary, footer and data CRC intact)"))
+    return EXIT_OK
+
+
+def _load_core():
+    from .. import core_loader
+    return core_loader.load()
+
+
+def _run_resim(args, out, err):
+    from .resim import resimulate
+    rec = _open(args.recording, err)
+    result = resimulate(rec, _load_core(), overrides=args.set, tolerance=args.tolerance,
+                        record_path=args.record)
+    print(result.divergence.report(), file=out)
+    if result.path:
+        print(f"new run: {result.path} ({len(result.ticks)} ticks)", file=out)
+    return EXIT_OK
+
+
+def _run_export(args, out, err):
+    from .export import export_csv, export_npz
+    rec = _open(args.recording, err)
+    if args.csv:
+        counts = export_csv(rec, args.csv, args.every)
+        for name, n in counts.items():
+            print(f"{os.path.join(args.csv, name)}: {n} rows", file=out)
+    else:
+        n = export_npz(rec, args.npz, args.every)
+        print(f"{args.npz}: {n} ticks", file=out)
+    return EXIT_OK
+
+
+def _run_run(args, out, err):
+    from .. import headless
+    for spec in args.device:
+        device_factory(spec)
+    return headless.run(args, out, err)
+
+
+def _run_bake(args, out, err):
+    from .. import headless
+    return headless.bake(args, out, err)
+
+
+register_command("run", "run a scene headless (EXEC, deterministic; --realtime: the threaded runtime)",
+                 _configure_run, _run_run, needs_blender=True)
+register_command("info", "duration, ticks, rates, fingers, bodies, parameters, events and damage of a "
+                         "recording", _configure_info, _run_info)
+register_command("bake", "bake a recording into a scene as keyframes", _configure_bake, _run_bake,
+                 needs_blender=True)
+register_command("resim", "re-simulate a recording (with overrides); 'identical' or the divergence report",
+                 _configure_resim, _run_resim)
+register_command("export", "a recording as CSV tables or one .npz", _configure_export, _run_export)
+
+
+# ------------------------------------------------------------------------ dispatch
+
+def build_parser(prog=PROG) -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog=prog, description="Grasp Lab: multi-finger grasp sessions, "
+                                                            "recordings, baking and re-simulation.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for cmd in COMMANDS.values():
+        cmd.configure(sub.add_parser(cmd.name, help=cmd.help, description=cmd.help))
+    return parser
+
+
+def in_extension() -> bool:
+    """This module is the copy inside the enabled extension (Blender or the bpy module)."""
+    return __name__.startswith("bl_ext.")
+
+
+def main(argv=None, prog=PROG, out=None, err=None) -> int:
+    out = out or sys.stdout
+    err = err or sys.stderr
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(prog)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as ex:      # --help (0) or a usage error (2): argparse has printed it
+        return EXIT_USAGE if ex.code not in (0, None) else EXIT_OK
+    cmd = COMMANDS[args.command]
+    if cmd.needs_blender and not in_extension():
+        try:
+            module = boot_extension()
+        except (ImportError, RuntimeError, OSError) as ex:
+            print(f"{prog} {cmd.name}: error: Blender (the bpy module) with the Grasp Lab extension is "
+                  f"needed: {ex}", file=err)
+            return EXIT_FAILED
+        import importlib
+        return importlib.import_module(f"{module}.engine.cli").main(argv, prog, out, err)
+    from .recording import RecordingError
+    from .scene import SceneError
+    try:
+        return int(cmd.run(args, out, err) or EXIT_OK)
+    except (CliError, RecordingError, SceneError, ValueError, OSError) as ex:
+        msg = str(ex)
+        if isinstance(ex, OSError) and getattr(ex, "filename", None) and str(ex.filename) not in msg:
+            msg = f"{ex.filename}: {msg}"
+        print(f"{prog} {cmd.name}: error: {msg}", file=err)
+        return EXIT_FAILED
+
+
+# ------------------------------------------------------------------------ outside Blender
+
+ADDON_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+DEV_REPO = "grasp_cli"
+
+
+def boot_extension() -> str:
+    """Load the extension into the ``bpy`` module (isolated user resources): the zip in
+    $GRASP_LAB_ZIP, else this checkout's addon/ as a development repository. Returns the
+    extension's module name."""
+    import atexit
+    import re
+    import shutil
+    import tempfile
+    if "bpy" not in sys.modules and "BLENDER_USER_RESOURCES" not in os.environ:
+        tmp = tempfile.mkdtemp(prefix="grasp_lab_cli_")
+        os.environ["BLENDER_USER_RESOURCES"] = tmp
+        atexit.register(shutil.rmtree, tmp, True)
+    import bpy
+    import addon_utils      # Blender's, importable once bpy is
+    for name in bpy.context.preferences.addons.keys():
+        if name.startswith("bl_ext.") and name.endswith(".grasp_lab"):
+            return name
+    zip_path = os.environ.get("GRASP_LAB_ZIP")
+    if zip_path:
+        res = bpy.ops.extensions.package_install_files(filepath=os.path.abspath(zip_path),
+                                                       repo="user_default", enable_on_install=True)
+        if res != {"FINISHED"}:
+            raise RuntimeError(f"{zip_path}: could not install the extension ({res})")
+        return "bl_ext.user_default.grasp_lab"
+    manifest = os.path.join(os.path.dirname(ADDON_DIR), "blender_manifest.toml")
+    if not os.path.exists(manifest):
+        raise RuntimeError(f"no extension to load: set GRASP_LAB_ZIP or run from a checkout ({manifest} missing)")
+    repo_dir = tempfile.mkdtemp(prefix="grasp_lab_cli_repo_")
+    atexit.register(shutil.rmtree, repo_dir, True)
+    pkg = os.path.join(repo_dir, "grasp_lab")
+    os.makedirs(pkg)
+    for name in os.listdir(ADDON_DIR):
+        if name != "__pycache__":
+            os.symlink(os.path.join(ADDON_DIR, name), os.path.join(pkg, name))
+    with open(manifest) as fh:       # the venv provides the wheels
+        text = re.sub(r"(?ms)^wheels = \[.*?^\]\n", "", fh.read())
+    with open(os.path.join(pkg, "blender_manifest.toml"), "w") as fh:
+        fh.write(text)
+    bpy.context.preferences.extensions.repos.new(name="Grasp Lab CLI", module=DEV_REPO,
+                                                 custom_directory=repo_dir, source="USER")
+    module = f"bl_ext.{DEV_REPO}.grasp_lab"
+
+    def fail(ex):
+        raise ex
+    addon_utils.enable(module, default_set=True, handle_error=fail)
+    return module
+
+
+def launch() -> int:
+    """``grasp-lab`` in the venv."""
+    return main(sys.argv[1:])
+
+

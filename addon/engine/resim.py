@@ -1,0 +1,236 @@
+"""Re-simulation: a recording's HIP streams replayed through the core, with overrides.
+
+With no override a recording made by a synchronous session (EXEC) is reproduced bit for
+bit: every tick's ``World.state_hash()`` equals the recorded one. Otherwise the
+divergence report says when and where the two runs part.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .recording import EventDetector, Recording, RecordingWriter, make_header, scene_from_dict
+from .scene import build_world
+
+OBJECT_KEYS = ("mass", "mu_s", "mu_d", "viscosity", "radius", "stiffness", "damping")
+BODY_KEYS = ("mass", "mu_s", "mu_d", "viscosity")
+FINGER_KEYS = ("radius", "stiffness", "damping")
+SCENE_KEYS = ("haptic_rate", "gravity", "gyroscopic")
+
+
+class OverrideError(ValueError):
+    """A KEY=VALUE that is malformed (usage) or names nothing in the scene."""
+
+
+@dataclass
+class Override:
+    key: str                # "haptic_rate" | "gravity" | "gyroscopic" | property name
+    value: object           # float, (x, y, z) or bool
+    obj: str = ""           # object name for an object property, "" for a scene setting
+
+    def __str__(self):
+        target = f"{self.obj}.{self.key}" if self.obj else self.key
+        return f"{target}={self.value}"
+
+
+def parse_override(text: str) -> Override:
+    """``OBJECT.PROPERTY=VALUE`` or ``haptic_rate=HZ`` / ``gravity=X,Y,Z`` / ``gyroscopic=0|1``."""
+    if "=" not in text:
+        raise OverrideError(f"--set {text!r}: expected KEY=VALUE")
+    key, value = text.split("=", 1)
+    key, value = key.strip(), value.strip()
+    try:
+        if key in SCENE_KEYS:
+            if key == "gravity":
+                g = tuple(float(v) for v in value.split(","))
+                if len(g) != 3 or not all(np.isfinite(g)):
+                    raise ValueError
+                return Override(key, g)
+            if key == "gyroscopic":
+                if value not in ("0", "1"):
+                    raise ValueError
+                return Override(key, value == "1")
+            hz = float(value)
+            if not (np.isfinite(hz) and hz > 0):
+                raise ValueError
+            return Override(key, hz)
+    except ValueError:
+        want = {"gravity": "X,Y,Z in m/s^2", "gyroscopic": "0 or 1", "haptic_rate": "a rate in Hz > 0"}[key]
+        raise OverrideError(f"--set {text!r}: {key} expects {want}") from None
+    obj, dot, prop = key.rpartition(".")
+    if not dot or not obj:
+        raise OverrideError(f"--set {text!r}: expected OBJECT.PROPERTY=VALUE (PROPERTY one of "
+                            f"{', '.join(OBJECT_KEYS)}) or a scene setting ({', '.join(SCENE_KEYS)})")
+    if prop not in OBJECT_KEYS:
+        raise OverrideError(f"--set {text!r}: unknown property {prop!r} (one of {', '.join(OBJECT_KEYS)})")
+    try:
+        v = float(value)
+    except ValueError:
+        raise OverrideError(f"--set {text!r}: {prop} expects a number") from None
+    if not np.isfinite(v) or v < 0 or (prop in ("mass", "stiffness") and v <= 0):
+        raise OverrideError(f"--set {text!r}: {prop} must be {'> 0' if prop in ('mass', 'stiffness') else '>= 0'}")
+    return Override(prop, v, obj)
+
+
+def apply_to_desc(desc, overrides) -> None:
+    """Overrides on a prepared SceneDesc (a recording's). Raises OverrideError naming what is missing."""
+    for o in overrides:
+        if not o.obj:
+            setattr(desc, o.key, o.value)
+            continue
+        body = next((b for b in desc.bodies if b.name == o.obj), None)
+        finger = next((f for f in desc.fingers if f.name == o.obj), None)
+        if body is None and finger is None:
+            raise OverrideError(f"--set {o}: no body or finger named {o.obj!r} in the recording "
+                                f"(bodies: {', '.join(b.name for b in desc.bodies) or 'none'}; fingers: "
+                                f"{', '.join(f.name for f in desc.fingers) or 'none'})")
+        if body is not None and o.key in BODY_KEYS:
+            if o.key == "mass":
+                if body.static:
+                    raise OverrideError(f"--set {o}: {o.obj!r} is static (no mass)")
+                mp = body.mass_properties
+                scale = o.value / mp.mass
+                mp.mass, mp.inertia = o.value, np.asarray(mp.inertia) * scale
+                body.mass = o.value
+            else:
+                setattr(body, o.key, o.value)
+            if not (0 <= body.mu_d <= body.mu_s):
+                raise OverrideError(f"--set {o}: {o.obj!r} needs 0 <= mu_d <= mu_s "
+                                    f"(mu_s={body.mu_s}, mu_d={body.mu_d})")
+        elif finger is not None and o.key in FINGER_KEYS:
+            setattr(finger, o.key, o.value)
+        else:
+            kind = "body" if body is not None else "finger"
+            raise OverrideError(f"--set {o}: {o.obj!r} is a {kind}; {o.key} is not a {kind} property")
+
+
+@dataclass
+class Divergence:
+    identical: bool                 # every tick's state hash equal (bit for bit)
+    ticks: int                      # ticks compared
+    tolerance: float
+    first_tick: int | None = None   # first tick where a body or god-object is off by > tolerance
+    first_time: float | None = None
+    first_subject: str = ""
+    first_distance: float = 0.0
+    first_hash_tick: int | None = None   # first tick whose state hash differs
+    worst: list = field(default_factory=list)        # (subject, max distance, at time)
+    timeline: list = field(default_factory=list)     # (time, max body distance, max finger distance)
+
+    def report(self) -> str:
+        if self.identical:
+            return "identical"
+        lines = [f"diverged: {self.ticks} ticks compared, tolerance {self.tolerance:g} m"]
+        if self.first_hash_tick is not None:
+            lines.append(f"state hashes differ from tick {self.first_hash_tick}")
+        if self.first_tick is None:
+            lines.append(f"no body or god-object is ever more than {self.tolerance:g} m off")
+        else:
+            lines.append(f"first over tolerance: tick {self.first_tick} (t = {self.first_time:.4f} s), "
+                         f"{self.first_subject} off by {self.first_distance:.3g} m")
+        lines.append("largest distance per body / finger:")
+        for subject, dist, t in self.worst:
+            lines.append(f"  {subject:<24} {dist:10.3g} m  at t = {t:.4f} s")
+        lines.append("over time (largest body distance, largest god-object distance):")
+        for t, db, df in self.timeline:
+            lines.append(f"  t = {t:8.3f} s  {db:10.3g} m  {df:10.3g} m")
+        return "\n".join(lines)
+
+
+@dataclass
+class ResimResult:
+    ticks: np.ndarray               # the new run's tick records
+    divergence: Divergence
+    header: dict                    # the new run's header (overrides applied)
+    path: str = ""                  # where the new run was written, if asked
+
+
+def compare(recorded: Recording, new_ticks: np.ndarray, tolerance: float, same_rate: bool,
+            samples: int = 10) -> Divergence:
+    names_b, names_f = recorded.body_names, recorded.finger_names
+    if same_rate:
+        n = min(len(recorded.ticks), len(new_ticks))
+        old = recorded.ticks[:n]
+        new = new_ticks[:n]
+    else:   # the recorded tick at or before each new tick's time
+        new = new_ticks
+        old = recorded.ticks[recorded.sample(new_ticks["time"])]
+        n = len(new)
+    if n == 0:
+        return Divergence(identical=len(recorded.ticks) == len(new_ticks), ticks=0, tolerance=tolerance)
+    hashes_equal = old["state_hash"] == new["state_hash"]
+    identical = bool(same_rate and len(recorded.ticks) == len(new_ticks) and hashes_equal.all())
+    d_body = np.linalg.norm(old["pose"][:, :, :3] - new["pose"][:, :, :3], axis=2)           # (n, nb)
+    d_fing = np.linalg.norm(old["god_object"] - new["god_object"], axis=2)                   # (n, nf)
+    dist = np.concatenate([d_body, d_fing], axis=1)
+    subjects = [f"body {b}" for b in names_b] + [f"finger {f}" for f in names_f]
+    div = Divergence(identical=identical, ticks=n, tolerance=tolerance)
+    if not hashes_equal.all():
+        div.first_hash_tick = int(new["tick"][np.argmin(hashes_equal)])
+    over = dist > tolerance
+    if dist.size and over.any():
+        k = int(np.argmax(over.any(axis=1)))
+        j = int(np.argmax(dist[k]))
+        div.first_tick, div.first_time = int(new["tick"][k]), float(new["time"][k])
+        div.first_subject, div.first_distance = subjects[j], float(dist[k, j])
+    times = new["time"]
+    for j, subject in enumerate(subjects):
+        k = int(np.argmax(dist[:, j]))
+        div.worst.append((subject, float(dist[k, j]), float(times[k])))
+    edges = np.linspace(0, n, min(samples, n) + 1).astype(int)
+    for a, b in zip(edges[:-1], edges[1:]):
+        db = float(d_body[a:b].max()) if d_body.size else 0.0
+        df = float(d_fing[a:b].max()) if d_fing.size else 0.0
+        div.timeline.append((float(times[b - 1]), db, df))
+    return div
+
+
+def resimulate(recorded: Recording, graspcore, overrides=(), tolerance: float = 1e-6,
+               record_path: str | None = None, compression: str = "zstd") -> ResimResult:
+    """Replay ``recorded``'s HIPs, tick by tick, through a world built from its header."""
+    if len(recorded.ticks) == 0:
+        raise ValueError(f"{recorded.path}: no ticks to re-simulate")
+    desc = scene_from_dict(recorded.header["scene"])
+    desc.haptic_rate = recorded.haptic_rate
+    apply_to_desc(desc, overrides)
+    rate = float(desc.haptic_rate)
+    same_rate = rate == recorded.haptic_rate
+    handle = build_world(desc, graspcore)
+    world = handle.world
+    dt = 1.0 / rate
+    t_rec = recorded.ticks["time"]
+    hip_rec = recorded.ticks["hip"]
+    if same_rate:
+        hips = hip_rec
+    else:   # the HIP stream resampled at the new rate (linear between recorded ticks)
+        start = float(t_rec[0]) - 1.0 / recorded.haptic_rate
+        n_new = int(np.floor((float(t_rec[-1]) - start) * rate + 1e-9))
+        times = start + dt * np.arange(1, n_new + 1)
+        hips = np.stack([np.stack([np.interp(times, t_rec, hip_rec[:, f, a]) for a in range(3)], axis=1)
+                         for f in range(hip_rec.shape[1])], axis=1) if hip_rec.shape[1] else \
+            np.zeros((n_new, 0, 3))
+    ticks = np.zeros(len(hips), dtype=world.tick_dtype())
+    first_tick = int(recorded.ticks["tick"][0])
+    n_f = len(handle.finger_ids)
+    for k in range(len(hips)):
+        if n_f:
+            world.set_hips(hips[k])
+        world.step(dt)
+        world._tick_record(ticks[k:k + 1], first_tick + k)
+    div = compare(recorded, ticks, tolerance, same_rate)
+    header = make_header(desc, mode="resim", haptic_rate=rate, source=recorded.path,
+                         fps=recorded.header["rates"].get("fps"), device=recorded.header.get("device"),
+                         runtime={"threaded": False},
+                         extra={"resim_of": recorded.header.get("fingerprint"),
+                                "overrides": [str(o) for o in overrides]})
+    result = ResimResult(ticks=ticks, divergence=div, header=header)
+    if record_path:
+        writer = RecordingWriter(record_path, header, compression=compression)
+        events = EventDetector(header)
+        writer.write_ticks(ticks)
+        for tick, t, kind, subject, detail in events(ticks):
+            writer.event(t, kind, subject, detail, tick=tick)
+        writer.close({"overflow": 0})
+        result.path = record_path
+    return result

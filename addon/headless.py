@@ -1,0 +1,103 @@
+"""The Blender half of ``grasp-lab run`` and ``grasp-lab bake`` (engine/cli.py parses and
+dispatches; this runs them in the loaded extension, headless or in a Blender)."""
+from __future__ import annotations
+
+import os
+import time
+
+import bpy
+
+from . import bake as baking
+from .engine.cli import CliError
+from .engine.recording import open_recording
+from .engine.resim import BODY_KEYS, FINGER_KEYS
+
+
+def open_blend(path: str) -> None:
+    path = os.path.abspath(path)
+    if not os.path.isfile(path):
+        raise CliError(f"{path}: no such file")
+    try:
+        bpy.ops.wm.open_mainfile(filepath=path)
+    except RuntimeError as ex:
+        raise CliError(f"{path}: cannot open as a .blend ({str(ex).strip()})") from None
+
+
+def save_blend(path: str) -> str:
+    path = os.path.abspath(path)
+    os.makedirs(os.path.dirname(path), exist_ok=True)
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    return path
+
+
+def apply_overrides(context, overrides) -> list:
+    """--set on the open scene's objects and settings. Returns what was set, as text."""
+    s = context.scene.grasp_lab
+    done = []
+    for o in overrides:
+        if not o.obj:
+            setattr(s, o.key, o.value)
+        else:
+            obj = bpy.data.objects.get(o.obj)
+            if obj is None or obj.grasp_lab.role == "NONE":
+                raise CliError(f"--set {o}: no Grasp Lab body or finger named {o.obj!r} in the scene")
+            gl = obj.grasp_lab
+            allowed = FINGER_KEYS if gl.role == "FINGER" else BODY_KEYS
+            if o.key not in allowed:
+                raise CliError(f"--set {o}: {o.obj!r} is a {gl.role.lower()} object; {o.key} is not one "
+                               f"of its properties ({', '.join(allowed)})")
+            if o.key == "mass":
+                gl.mass_mode = "MASS"
+            setattr(gl, o.key, o.value)
+        done.append(str(o))
+    return done
+
+
+def run(args, out, err) -> int:
+    from .session import BlenderSession
+    open_blend(args.scene)
+    context = bpy.context
+    applied = apply_overrides(context, args.set)
+    record = os.path.abspath(args.record) if args.record else None
+    session = BlenderSession(context, live=args.realtime,
+                             duration=args.duration if args.duration else None, record_path=record)
+    try:
+        if args.realtime:
+            period = 1.0 / context.scene.grasp_lab.display_rate
+            t0 = time.perf_counter()
+            while True:
+                wall = time.perf_counter() - t0
+                session.tick(wall, max_steps=None)
+                if session.runner.time >= session.duration - 1e-9:
+                    break
+                time.sleep(max(0.0, period - (time.perf_counter() - t0 - wall)))
+        else:
+            session.run_to_end()
+    finally:
+        result = session.finish()
+    st = result.stats
+    print(f"{os.path.abspath(args.scene)}: {st['time']:.3f} s simulated, {st.get('runtime_haptic_ticks', st['steps'])} ticks at "
+          f"{st['haptic_rate_target']:g} Hz ({'threaded runtime, real time' if st['threaded'] else 'EXEC'}), "
+          f"{len(result.body_names)} bodies, {len(result.finger_names)} fingers"
+          + (f"; set {', '.join(applied)}" if applied else ""), file=out)
+    if result.recording:
+        end = session.runner.recording_end
+        print(f"recording: {result.recording} ({end.get('overflow', 0)} ticks lost to overflow)", file=out)
+        if end.get("recorder_error"):
+            raise CliError(f"{result.recording}: {end['recorder_error']}")
+    if args.save:
+        print(f"saved: {save_blend(args.save)}", file=out)
+    return 0
+
+
+def bake(args, out, err) -> int:
+    rec = open_recording(args.recording)
+    for w in rec.warnings():
+        print(f"warning: {w}", file=err)
+    open_blend(args.scene)
+    report = baking.bake_recording(bpy.context, rec, every_tick=args.every_tick)
+    for name in report.missing:
+        print(f"warning: {args.scene}: {name} is not in the scene (renamed or deleted): not baked", file=err)
+    print(f"{args.recording}: {report.message()}", file=out)
+    print(f"saved: {save_blend(args.save)}", file=out)
+    return 0
