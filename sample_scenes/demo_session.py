@@ -8,7 +8,7 @@ recording on, and writes to OUT (default build/demo/):
     pinch_and_lift.blend            the scene, keyframed at every frame (box, god-objects,
                                     residual force/torque arrows, finger-force arrows);
                                     opens on the mid-lift frame
-    pinch_and_lift.npz              the session recording (grasp_lab's format)
+    pinch_and_lift.mcap             the session recording: every haptic tick (docs/recording-format.md)
     pinch_and_lift_box.csv          the box per frame, with the finger forces and states
     pinch_and_lift_frame43.png      a Workbench render of frame 43 (mid-lift)
 
@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import importlib
 import os
 import sys
 import time
@@ -55,7 +56,7 @@ def run(bpy, out_dir, render=True, stream=sys.stdout) -> dict:
     out_dir = os.path.abspath(out_dir)
     os.makedirs(out_dir, exist_ok=True)
     paths = {k: os.path.join(out_dir, f"pinch_and_lift{suffix}") for k, suffix in (
-        ("blend", ".blend"), ("recording", ".npz"), ("csv", "_box.csv"),
+        ("blend", ".blend"), ("recording", ".mcap"), ("csv", "_box.csv"),
         ("png", f"_frame{sample.MID_LIFT_FRAME}.png"))}
     timings = {}
 
@@ -78,20 +79,20 @@ def run(bpy, out_dir, render=True, stream=sys.stdout) -> dict:
     os.replace(res.recording, paths["recording"])
     s.last_recording = paths["recording"]
 
-    rec = np.load(paths["recording"])
+    recording = importlib.import_module(f"{_session_module(bpy).__package__}.engine.recording")
     frames = np.array(res.frames)
-    if len(rec["time"]) != len(frames):
-        raise RuntimeError(f"recording has {len(rec['time'])} rows for {len(frames)} frames")
+    full = recording.open_recording(paths["recording"])
+    rec = full.ticks[full.sample((frames - frames[0]) / sample.FPS)]    # the tick each frame shows
     box = res.trajectory("Box")
-    forces = rec["finger_forces"]                       # rendered to the device, N
+    forces = rec["device_force"]                        # rendered to the device, N
     grip = 0.5 * (forces[:, 1, 0] - forces[:, 0, 0])    # squeeze (finger 0 is on the -x side)
     lift = -forces[:, :, 2].sum(axis=1)                 # weight carried by the fingers
     grip, lift = (np.where(np.abs(v) < 5e-7, 0.0, v) for v in (grip, lift))   # no "-0.000"
-    states = rec["finger_states"]
+    states = rec["state"]
 
     # The device forces as baked arrows too, so the .blend and the render show them.
     t0 = time.perf_counter()
-    sample.add_finger_force_arrows(bpy, frames, rec["god_objects"], forces, FORCE_SCALE)
+    sample.add_finger_force_arrows(bpy, frames, rec["god_object"], forces, FORCE_SCALE)
     timings["bake"] = time.perf_counter() - t0
 
     with open(paths["csv"], "w", newline="") as fh:
@@ -137,8 +138,8 @@ def run(bpy, out_dir, render=True, stream=sys.stdout) -> dict:
     p(f"outputs in {os.path.relpath(out_dir)}/ (session {timings['session']:.2f} s, arrows "
       f"{timings['bake']:.2f} s" + (f", render {timings['render']:.2f} s" if render else "") + "):")
     notes = {"blend": "baked keyframes, opens on the mid-lift frame",
-             "recording": "session recording: " + ", ".join(
-                 f"{k} {tuple(rec[k].shape)}" for k in ("time", "poses", "hips", "finger_forces")),
+             "recording": f"session recording: {len(full.ticks)} haptic ticks, {len(full.events)} events "
+                          f"(grasp-lab info / export / bake / resim)",
              "csv": f"box pose, grip, lift and finger states per frame ({len(frames)} rows)",
              "png": f"Workbench render of frame {sample.MID_LIFT_FRAME}, mid-lift"}
     for key, path in paths.items():

@@ -213,6 +213,7 @@ class RecordingWriter:
         self._seq = 0
         self.ticks = 0
         self.events = 0
+        self.first_time = None
         self.last_time = 0.0
         self._write_json(TOPIC_HEADER, header, 0.0)
         self.flush()
@@ -238,6 +239,8 @@ class RecordingWriter:
                                    data=block.tobytes(), sequence=self._seq)
             self._seq += 1
         if len(records):
+            if self.first_time is None:
+                self.first_time = float(records["time"][0])
             self.ticks += len(records)
             self.last_time = float(records["time"][-1])
 
@@ -256,7 +259,9 @@ class RecordingWriter:
         """The end record (counts, overflow), the summary and the footer."""
         if self.closed:
             return
-        data = {"ticks": self.ticks, "events": self.events, "duration": self.last_time, "clean": True}
+        start = self.last_time if self.first_time is None else self.first_time
+        data = {"ticks": self.ticks, "events": self.events, "start_time": start, "end_time": self.last_time,
+                "duration": self.last_time - start, "clean": True}
         data.update(end or {})
         self._write_json(TOPIC_END, data, self.last_time)
         self._mcap.finish()
@@ -362,9 +367,14 @@ class SessionRecorder:
 
     # ---- setup
     def begin(self, threaded: bool) -> None:
-        """Before the world starts stepping (before ``world.start`` when threaded)."""
+        """Before the world starts stepping (before ``world.start`` when threaded): tick 0 is
+        the state the session starts from."""
         self.threaded = threaded
+        if self._n == 0 and self.writer.ticks == 0:
+            self.world._tick_record(self._block[:1], 0)
+            self._n = 1
         if threaded:
+            self._write_block()
             self.world.set_tick_log(self.capacity)
 
     def runtime_started(self) -> None:
@@ -469,16 +479,21 @@ class Recording:
 
     @property
     def duration(self) -> float:
-        return float(self.ticks["time"][-1] - self.ticks["time"][0]) + 1.0 / self.haptic_rate \
-            if len(self.ticks) else 0.0
+        """Session time from the first tick (tick 0: the start state) to the last."""
+        return float(self.ticks["time"][-1] - self.ticks["time"][0]) if len(self.ticks) else 0.0
 
     def warnings(self) -> list:
         return [f"{self.path}: {d}" for d in self.damage]
 
     def sample(self, times) -> np.ndarray:
-        """Indices of the last tick at or before each time (the first tick before it)."""
-        t = self.ticks["time"]
-        return np.clip(np.searchsorted(t, np.asarray(times) + 1e-12, side="right") - 1, 0, len(t) - 1)
+        """Indices of the ticks a session shows at session times ``times`` (s from the start):
+        the last tick at or before each, on the haptic grid as the runner steps it (the
+        nearest earlier tick where the ring dropped some)."""
+        ticks = self.ticks["tick"].astype(np.int64)
+        first = int(ticks[0])
+        start = float(self.ticks["time"][0]) - first / self.haptic_rate
+        wanted = np.floor((np.asarray(times, dtype=np.float64) - start) * self.haptic_rate + 1e-9)
+        return np.clip(np.searchsorted(ticks, wanted, side="right") - 1, 0, len(ticks) - 1)
 
 
 def _check_version(path, header):
@@ -641,27 +656,25 @@ def summarize(path: str) -> dict:
                 if header is not None and end is not None:
                     stats = reader.get_summary().statistics
                     return _summary(path, header, events, end, ticks=end["ticks"],
-                                    t0=None, t1=end["duration"], damage=[],
+                                    duration=end["duration"], damage=[],
                                     chunks=stats.chunk_count if stats else None)
         except RecordingError:
             raise
         except Exception:       # fall through to the linear read
             pass
     rec = open_recording(path)
-    t = rec.ticks["time"]
     return _summary(path, rec.header, rec.events, rec.end or {}, ticks=len(rec.ticks),
-                    t0=float(t[0]) if len(t) else None, t1=float(t[-1]) if len(t) else 0.0,
-                    damage=rec.damage, chunks=None)
+                    duration=rec.duration, damage=rec.damage, chunks=None)
 
 
-def _summary(path, header, events, end, ticks, t0, t1, damage, chunks) -> dict:
+def _summary(path, header, events, end, ticks, duration, damage, chunks) -> dict:
     rate = float(header["rates"]["haptic_hz"])
     kinds = {}
     for e in events:
         kinds[e.get("kind", "?")] = kinds.get(e.get("kind", "?"), 0) + 1
     return {"path": path, "size": os.path.getsize(path), "format_version": header["format_version"],
             "mode": header.get("mode"), "created": header.get("created"), "source": header.get("source"),
-            "ticks": int(ticks), "duration": ticks / rate, "end_time": t1, "haptic_rate": rate,
+            "ticks": int(ticks), "duration": float(duration), "haptic_rate": rate,
             "rates": header["rates"], "bodies": header["body_names"], "fingers": header["finger_names"],
             "scene": header["scene"], "fingerprint": header["fingerprint"], "device": header.get("device"),
             "runtime": header.get("runtime"), "versions": header.get("versions"),

@@ -204,20 +204,28 @@ def resimulate(recorded: Recording, graspcore, overrides=(), tolerance: float = 
     if same_rate:
         hips = hip_rec
     else:   # the HIP stream resampled at the new rate (linear between recorded ticks)
-        start = float(t_rec[0]) - 1.0 / recorded.haptic_rate
+        start = float(t_rec[0]) if int(recorded.ticks["tick"][0]) == 0 else \
+            float(t_rec[0]) - 1.0 / recorded.haptic_rate
         n_new = int(np.floor((float(t_rec[-1]) - start) * rate + 1e-9))
         times = start + dt * np.arange(1, n_new + 1)
         hips = np.stack([np.stack([np.interp(times, t_rec, hip_rec[:, f, a]) for a in range(3)], axis=1)
                          for f in range(hip_rec.shape[1])], axis=1) if hip_rec.shape[1] else \
             np.zeros((n_new, 0, 3))
-    ticks = np.zeros(len(hips), dtype=world.tick_dtype())
-    first_tick = int(recorded.ticks["tick"][0])
+    # Tick 0 is the state before the first step (the header rebuilt); the others each follow
+    # one step with that tick's HIPs.
+    has_start = int(recorded.ticks["tick"][0]) == 0
+    if same_rate and has_start:
+        hips = hips[1:]
+    ticks = np.zeros(len(hips) + 1, dtype=world.tick_dtype())
+    world._tick_record(ticks[:1], 0)
     n_f = len(handle.finger_ids)
     for k in range(len(hips)):
         if n_f:
             world.set_hips(hips[k])
         world.step(dt)
-        world._tick_record(ticks[k:k + 1], first_tick + k)
+        world._tick_record(ticks[k + 1:k + 2], k + 1)
+    if not has_start:
+        ticks = ticks[1:]
     div = compare(recorded, ticks, tolerance, same_rate)
     header = make_header(desc, mode="resim", haptic_rate=rate, source=recorded.path,
                          fps=recorded.header["rates"].get("fps"), device=recorded.header.get("device"),

@@ -56,16 +56,19 @@ def test_demo_outputs(bpy, sample, core, tmp_path):
     assert float(rows[sample.MID_LIFT_FRAME - 1]["grip_N"]) == pytest.approx(
         sample.STIFFNESS * sample.SQUEEZE, rel=0.05)
 
-    # The recording: one snapshot per frame (the first is the start), both bodies and fingers.
-    rec = np.load(paths["recording"])
-    assert rec["time"].shape == (n,)
-    assert rec["poses"].shape == (n, 2, 7)
-    assert rec["hips"].shape == rec["god_objects"].shape == rec["finger_forces"].shape == (n, 2, 3)
-    assert rec["finger_states"].shape == (n, 2)
-    assert list(rec["body_names"]) == ["Box", "Table"]
-    np.testing.assert_allclose(rec["poses"][:, 0, 2], z, atol=1e-8)
-    # Frame times on the 1 kHz step grid.
-    np.testing.assert_allclose(rec["time"], np.floor(np.arange(n) / sample.FPS * 1000 + 1e-9) / 1000,
+    # The recording: every haptic tick (tick 0 is the start), both bodies and fingers; the
+    # tick each frame shows has the box where the CSV has it.
+    recording = grasp_env.submodule("engine.recording")
+    rec = recording.open_recording(paths["recording"])
+    assert rec.damage == [] and rec.end["overflow"] == 0
+    n_ticks = round((n - 1) / sample.FPS * 1000) + 1
+    assert len(rec.ticks) == n_ticks
+    np.testing.assert_array_equal(rec.ticks["tick"], np.arange(n_ticks))
+    assert rec.body_names == ["Box", "Table"] and rec.ticks["pose"].shape == (n_ticks, 2, 7)
+    assert rec.ticks["hip"].shape == rec.ticks["god_object"].shape == (n_ticks, 2, 3)
+    at_frames = rec.ticks[rec.sample(np.arange(n) / sample.FPS)]
+    np.testing.assert_allclose(at_frames["pose"][:, 0, 2], z, atol=1e-9)   # the CSV has 9 decimals
+    np.testing.assert_allclose(at_frames["time"], np.floor(np.arange(n) / sample.FPS * 1000 + 1e-9) / 1000,
                                atol=1e-9)
 
     # The render: a 960 x 600 PNG that is not blank.

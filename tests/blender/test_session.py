@@ -1,5 +1,7 @@
 """Headless sessions (EXEC): the scripted pinch-and-lift gives the same box trajectory
 as driving graspcore directly with the same HIPs."""
+import os
+
 import numpy as np
 import pytest
 
@@ -129,10 +131,14 @@ def test_recording_written(bpy, sample, core, tmp_path):
     s.recording_folder = str(tmp_path)
     bpy.ops.grasp_lab.session(duration=0.25)
     path = s.last_recording
-    data = np.load(path)
-    assert data["poses"].shape == (7, 2, 7)        # start + 6 frames at 24 fps, box and table
-    assert data["hips"].shape == (7, 2, 3)
-    assert list(data["body_names"]) == ["Box", "Table"]
+    assert path.endswith(".mcap") and os.path.dirname(path) == str(tmp_path)
+    rec = grasp_env.submodule("engine.recording").open_recording(path)
+    # Every haptic tick: tick 0 (the start) and the 250 steps of 0.25 s at 1 kHz.
+    assert rec.damage == [] and len(rec.ticks) == 251
+    assert rec.ticks["pose"].shape == (251, 2, 7) and rec.ticks["hip"].shape == (251, 2, 3)
+    assert rec.body_names == ["Box", "Table"]
+    res = grasp_env.submodule("session").last_result
+    np.testing.assert_array_equal(rec.ticks["pose"][-1], res.final.poses)
 
 
 def test_invoke_headless_runs_exec(bpy, sample, core):
