@@ -241,7 +241,7 @@ gcStatus gc_world_debug_stall(gcWorld *world, double seconds);
  * device forces enabled), adopted u32; then per finger hip, god_object, force (the coupling
  * spring), device_force (after the safety layer), normal (of the first contact, world; 0
  * when free) as 3 f64 each; per body pose (7 f64),
- * velocity (linear of the centre of mass, angular; 6 f64), residual wrench (6 f64); per
+ * velocity (linear of the body frame origin, angular; 6 f64), residual wrench (6 f64); per
  * finger state i32, contact body i32 (-1 free). */
 size_t gc_tick_record_size(int num_bodies, int num_fingers);
 /* The stopped world as one record (after a gc_world_step); device_force = force. */

@@ -74,9 +74,11 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
         p = put(p, &n, 24);
     }
     p = put(p, w->pose_array, 56 * (size_t)nb);
-    for (int b = 0; b < nb; ++b) {
-        p = put(p, &w->bodies[b].v, 24);
-        p = put(p, &w->bodies[b].w, 24);
+    for (int b = 0; b < nb; ++b) { /* of the body frame origin, as gc_world_body_velocity */
+        const gcBody *body = &w->bodies[b];
+        gcVec3 v = gc_add(body->v, gc_cross(body->w, gc_mat3_mul_vec(&body->R, gc_neg(body->com_local))));
+        p = put(p, &v, 24);
+        p = put(p, &body->w, 24);
     }
     for (int b = 0; b < nb; ++b) {
         p = put(p, &w->bodies[b].residual_force, 24);

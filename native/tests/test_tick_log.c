@@ -1,0 +1,186 @@
+/* The tick log (tick_log.c): record layout and contents, one record per haptic tick on the
+ * manual clock, a full ring drops and counts (never waits), a consumer thread draining while
+ * the real-time haptic loop fills it sees every tick once and in order, restart empties it,
+ * calls refused while running. Built plain, with ASan/UBSan and with TSan. */
+#define _POSIX_C_SOURCE 200809L
+#include "graspcore.h"
+#include "gc_test.h"
+
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+/* Offsets of the fixed fields and the arrays (graspcore.h). */
+#define OFF_TICK 0
+#define OFF_TIME 8
+#define OFF_HASH 24
+#define OFF_FLAGS 40
+
+static uint64_t rec_u64(const unsigned char *r, size_t off) {
+    uint64_t v;
+    memcpy(&v, r + off, 8);
+    return v;
+}
+
+static double rec_f64(const unsigned char *r, size_t off) {
+    double v;
+    memcpy(&v, r + off, 8);
+    return v;
+}
+
+static gcWorld *pinch_world(void) {
+    gcWorldDef wd = gc_default_world_def();
+    gcWorld *w = NULL;
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    double pts[24];
+    for (int i = 0; i < 8; ++i) {
+        pts[3 * i] = (i & 1) ? 0.03 : -0.03;
+        pts[3 * i + 1] = (i & 2) ? 0.03 : -0.03;
+        pts[3 * i + 2] = (i & 4) ? 0.03 : -0.03;
+    }
+    gcPartDef part = {pts, 8, 0.0};
+    gcBodyDef bd = gc_default_body_def();
+    bd.mass = 0.1;
+    bd.position[2] = 0.2;
+    int32_t id;
+    GC_CHECK(gc_world_add_body(w, &bd, &part, 1, &id) == GC_OK, "box");
+    gcFingerDef fd = gc_default_finger_def();
+    fd.position[0] = -0.035, fd.position[2] = 0.2;
+    GC_CHECK(gc_world_add_finger(w, &fd, &id) == GC_OK, "finger 0");
+    fd.position[0] = 0.035;
+    GC_CHECK(gc_world_add_finger(w, &fd, &id) == GC_OK, "finger 1");
+    return w;
+}
+
+static void test_layout_and_stopped_record(void) {
+    GC_CHECK(gc_tick_record_size(2, 3) == 48 + 8 * (15 * 3 + 19 * 2) + 4 * 2 * 3, "size %zu",
+             gc_tick_record_size(2, 3));
+    GC_CHECK(gc_tick_record_size(0, 0) == 48, "empty world: the fixed fields only");
+    gcWorld *w = pinch_world();
+    double hips[6] = {-0.025, 0, 0.2, 0.025, 0, 0.2};
+    gc_world_set_hips(w, hips, 2);
+    gc_world_step(w, 1e-3);
+    size_t size = gc_tick_record_size(1, 2);
+    unsigned char *r = calloc(1, size);
+    GC_CHECK(gc_world_tick_record(w, 7, r, size - 1) == GC_ERR_INVALID_ARGUMENT, "short buffer refused");
+    GC_CHECK(gc_world_tick_record(w, 7, r, size) == GC_OK, "record");
+    GC_CHECK(rec_u64(r, OFF_TICK) == 7, "tick");
+    GC_CHECK(rec_f64(r, OFF_TIME) == gc_world_time(w), "time");
+    GC_CHECK(rec_u64(r, OFF_HASH) == gc_world_state_hash(w), "state hash");
+    double pos[3], q[4], f[3], go[3];
+    gc_world_body_pose(w, 0, pos, q);
+    gc_world_finger_force(w, 1, f);
+    gc_world_god_object(w, 1, go);
+    const size_t arrays = 48, nf = 2;
+    GC_CHECK(rec_f64(r, arrays + 8 * 3 * nf + 24 + 0) == go[0], "god-object of finger 1");       /* god_object[1].x */
+    GC_CHECK(rec_f64(r, arrays + 8 * 6 * nf + 24 + 0) == f[0], "force of finger 1");            /* force[1].x */
+    GC_CHECK(rec_f64(r, arrays + 8 * 9 * nf + 24 + 0) == f[0], "device force = force when stepped");
+    GC_CHECK(rec_f64(r, arrays + 8 * 15 * nf + 16) == pos[2], "box z");                        /* pose[0].z */
+    gcFingerState st;
+    int32_t body;
+    gc_world_finger_state(w, 1, &st, &body);
+    int32_t rs, rb;
+    memcpy(&rs, r + size - 4 * 2 * nf + 4, 4);
+    memcpy(&rb, r + size - 4 * nf + 4, 4);
+    GC_CHECK(rs == (int32_t)st && rb == body && body == 0, "finger 1 touches the box: state %d body %d", rs, rb);
+    double normal_x = rec_f64(r, arrays + 8 * 12 * nf + 24);                                    /* normal[1].x */
+    GC_CHECK(normal_x > 0.99, "finger 1's contact normal is +x (%g)", normal_x);
+    free(r);
+    gc_world_destroy(w);
+}
+
+static void test_manual_clock_and_overflow(void) {
+    gcWorld *w = pinch_world();
+    GC_CHECK(gc_world_set_tick_log(w, -1) == GC_ERR_INVALID_ARGUMENT, "negative capacity refused");
+    GC_CHECK(gc_world_set_tick_log(w, 16) == GC_OK, "set_tick_log");
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.realtime = 0;
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start");
+    size_t size = gc_tick_record_size(1, 2);
+    unsigned char *buf = malloc(64 * size);
+    GC_CHECK(gc_world_set_tick_log(w, 8) == GC_ERR_BUSY, "set_tick_log refused while running");
+    GC_CHECK(gc_world_tick_record(w, 0, buf, size) == GC_ERR_BUSY, "tick_record refused while running");
+    gc_world_advance(w, 5, 0.0);
+    GC_CHECK(gc_world_drain_ticks(w, buf, 64 * size, 64) == 5, "five ticks, five records");
+    for (int k = 0; k < 5; ++k) GC_CHECK(rec_u64(buf + k * size, OFF_TICK) == (uint64_t)(k + 1), "tick %d", k);
+    GC_CHECK(gc_world_drain_ticks(w, buf, 64 * size, 64) == 0, "drained");
+    gc_world_advance(w, 40, 0.0);       /* nobody drains: 16 kept, 24 dropped and counted */
+    GC_CHECK(gc_world_tick_log_overflow(w) == 24, "overflow %llu", (unsigned long long)gc_world_tick_log_overflow(w));
+    GC_CHECK(gc_world_drain_ticks(w, buf, 3 * size + 1, 64) == 3, "the buffer size bounds a drain");
+    int n = gc_world_drain_ticks(w, buf, 64 * size, 64);
+    GC_CHECK(n == 13, "the rest of the 16 kept (%d)", n);
+    GC_CHECK(rec_u64(buf + 12 * size, OFF_TICK) == 21, "the oldest are kept, the newest dropped");
+    GC_CHECK((rec_u64(buf, OFF_FLAGS) & 0xffffffffu) <= 1, "flags");
+    gc_world_stop(w);
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "restart");
+    GC_CHECK(gc_world_tick_log_overflow(w) == 0 && gc_world_drain_ticks(w, buf, 64 * size, 64) == 0,
+             "a start empties the ring and its count");
+    gc_world_stop(w);
+    GC_CHECK(gc_world_set_tick_log(w, 0) == GC_OK && gc_world_drain_ticks(w, buf, 64 * size, 64) == 0, "off");
+    free(buf);
+    gc_world_destroy(w);
+}
+
+typedef struct {
+    gcWorld *w;
+    size_t size;
+    _Atomic int stop;
+    uint64_t seen, last_tick, out_of_order;
+} Drainer;
+
+static void *drain_main(void *arg) {
+    Drainer *d = arg;
+    unsigned char *buf = malloc(32 * d->size);
+    for (;;) {
+        int stopping = atomic_load(&d->stop);
+        int n = gc_world_drain_ticks(d->w, buf, 32 * d->size, 32);
+        for (int k = 0; k < n; ++k) {
+            uint64_t t = rec_u64(buf + k * d->size, OFF_TICK);
+            if (t != d->last_tick + 1) d->out_of_order++;
+            d->last_tick = t;
+            d->seen++;
+        }
+        if (stopping && n == 0) break;
+        struct timespec ts = {0, 200000};
+        nanosleep(&ts, NULL);
+    }
+    free(buf);
+    return NULL;
+}
+
+static void test_threads(void) {
+    gcWorld *w = pinch_world();
+    GC_CHECK(gc_world_set_tick_log(w, 4096) == GC_OK, "set_tick_log");
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    Drainer d = {w, gc_tick_record_size(1, 2), 0, 0, 0, 0};
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start: %s", gc_world_last_error(w));
+    pthread_t th;
+    pthread_create(&th, NULL, drain_main, &d);
+    double hips[6] = {-0.025, 0, 0.2, 0.025, 0, 0.2};
+    for (int i = 0; i < 30; ++i) {
+        gc_world_push_hips(w, hips, 2, 0.01 * i);
+        struct timespec ts = {0, 10000000};
+        nanosleep(&ts, NULL);
+    }
+    gc_world_stop(w);
+    atomic_store(&d.stop, 1);
+    pthread_join(th, NULL);
+    gcRuntimeStats st;
+    gc_world_stats(w, &st);
+    GC_CHECK(d.seen > 100, "records drained while the loop ran: %llu", (unsigned long long)d.seen);
+    GC_CHECK(d.seen + gc_world_tick_log_overflow(w) == st.haptic_ticks, "every tick recorded or counted: "
+             "%llu + %llu vs %llu", (unsigned long long)d.seen, (unsigned long long)gc_world_tick_log_overflow(w),
+             (unsigned long long)st.haptic_ticks);
+    GC_CHECK(gc_world_tick_log_overflow(w) != 0 || d.out_of_order == 0, "in order, none twice");
+    gc_world_destroy(w);
+}
+
+int main(void) {
+    test_layout_and_stopped_record();
+    test_manual_clock_and_overflow();
+    test_threads();
+    return gc_test_summary("test_tick_log");
+}
