@@ -512,6 +512,7 @@ def open_recording(path: str) -> Recording:
     """Read a recording, all of it that is intact. Damage (a file cut short, a bad CRC, garbage)
     ends the read: what came before it is kept and ``damage`` says what and where. Raises
     RecordingError when nothing usable is there (not MCAP, no header, a newer format)."""
+    from mcap.exceptions import EndOfFile
     from mcap.records import Channel, Footer, Message, Schema
     from mcap.stream_reader import StreamReader
     path = os.fspath(path)
@@ -569,6 +570,9 @@ def open_recording(path: str) -> Recording:
                     footer = True
         except RecordingError:
             raise
+        except EndOfFile:
+            damage.append(f"file ends mid-record at byte {size} (cut short: the session did not end "
+                          f"cleanly); everything before it was read")
         except Exception as ex:     # any damage: keep what came before it
             where = fh.tell()
             damage.append(f"damaged near byte {where} of {size} ({type(ex).__name__}: {ex}); "

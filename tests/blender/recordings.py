@@ -1,0 +1,58 @@
+"""Recordings for the tests, made in plain Python (no bpy): the pinch-and-lift scene as an
+engine SceneDesc (the sample scene's sizes, masses and fingertip path) run by the session
+runner with a recorder, as a Blender EXEC session runs it."""
+from __future__ import annotations
+
+import importlib.util
+import os
+import sys
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+sys.path.insert(0, ROOT)
+from addon.engine import inputs, recording, runner, scene  # noqa: E402
+
+
+def sample_module():
+    spec = importlib.util.spec_from_file_location(
+        "build_pinch_and_lift", os.path.join(ROOT, "sample_scenes", "build_pinch_and_lift.py"))
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _box(size, name):
+    import trimesh
+    tm = trimesh.creation.box(size)
+    return scene.MeshData(np.array(tm.vertices), np.array(tm.faces), source=name)
+
+
+def pinch_desc():
+    S = sample_module()
+    d = scene.SceneDesc()
+    box = _box((S.BOX_SIZE,) * 3, "Box")
+    d.bodies.append(scene.BodyDesc("Box", False, [box.vertices], [box], np.array([0.0, 0.0, S.BOX_Z]),
+                                   np.array([1.0, 0, 0, 0]), mass=S.BOX_MASS, mu_s=S.BOX_MU[0], mu_d=S.BOX_MU[1]))
+    table = _box(S.TABLE_SIZE, "Table")
+    d.bodies.append(scene.BodyDesc("Table", True, [table.vertices], [table], np.array(S.TABLE_CENTER),
+                                   np.array([1.0, 0, 0, 0]), mu_s=S.TABLE_MU[0], mu_d=S.TABLE_MU[1]))
+    for i, p in enumerate(S.hip_positions(0.0)):
+        d.fingers.append(scene.FingerDesc(f"Finger {i}", p, S.FINGER_RADIUS, S.STIFFNESS, S.DAMPING, i))
+    return scene.prepare(d), S
+
+
+def record_exec(path, graspcore, seconds=6.0, fps=24, compression="zstd", flush_interval=0.1):
+    """An EXEC session of the pinch scene recorded to ``path``; returns (runner, world handle)."""
+    desc, S = pinch_desc()
+    handle = scene.build_world(desc, graspcore)
+    header = recording.make_header(desc, mode="exec", haptic_rate=1000.0, fps=fps)
+    writer = recording.RecordingWriter(str(path), header, compression=compression,
+                                       flush_interval=flush_interval)
+    rec = recording.SessionRecorder(writer, handle.world)
+    run = runner.SessionRunner(handle, inputs.CallableInput(2, S.hip_positions, duration=seconds), 1000.0,
+                               recorder=rec)
+    for k in range(1, int(round(seconds * fps)) + 1):
+        run.advance_to(k / fps)
+    run.stop()
+    return run, handle

@@ -1,0 +1,259 @@
+"""The recording format (addon/engine/recording.py) in plain Python: round trip, every tick
+against the world, events, the summary, a file cut short or damaged (fuzzed) never crashing
+the reader and giving back the intact prefix, newer versions refused, the 100 ms flush,
+the threaded runtime's recorder (every tick, overflow reported)."""
+import json
+import os
+import random
+import shutil
+import time
+
+import numpy as np
+import pytest
+
+import recordings
+from addon.engine import inputs, recording, runner, scene
+
+
+@pytest.fixture(scope="module")
+def exec_rec(core, tmp_path_factory):
+    """A 6 s EXEC recording of the pinch scene, and the world at its end."""
+    path = tmp_path_factory.mktemp("rec") / "pinch.mcap"
+    run, handle = recordings.record_exec(path, core)
+    return path, run, handle
+
+
+def test_round_trip_every_tick(exec_rec):
+    path, run, handle = exec_rec
+    rec = recording.open_recording(path)
+    assert rec.damage == [] and rec.end["clean"] and rec.end["overflow"] == 0
+    assert len(rec.ticks) == 6001 and list(rec.ticks["tick"]) == list(range(6001))
+    np.testing.assert_allclose(rec.ticks["time"], np.arange(6001) * 1e-3, atol=1e-9)
+    assert rec.duration == pytest.approx(6.0)
+    w = handle.world
+    last = rec.ticks[-1]
+    assert last["state_hash"] == w.state_hash()
+    np.testing.assert_array_equal(last["pose"], w.body_poses)
+    np.testing.assert_array_equal(last["god_object"], w.god_objects)
+    # The HIPs as the input gave them, every tick.
+    S = recordings.sample_module()
+    for k in (0, 1, 917, 3000, 6000):
+        np.testing.assert_array_equal(rec.ticks["hip"][k], S.hip_positions(k * 1e-3) if k else S.hip_positions(0))
+    h = rec.header
+    assert h["format_version"] == recording.FORMAT_VERSION and h["mode"] == "exec"
+    assert h["body_names"] == ["Box", "Table"] and h["finger_names"] == ["Finger 0", "Finger 1"]
+    assert h["rates"]["haptic_hz"] == 1000.0 and h["units"]["force"] == "N"
+    assert h["scene"]["bodies"][0]["mass"] == pytest.approx(S.BOX_MASS)
+    assert h["fingerprint"] == recording.fingerprint(h["scene"])
+    assert {"grasp_lab", "python", "numpy", "mcap"} <= set(h["versions"])
+
+
+def test_events_match_the_ticks(exec_rec):
+    rec = recording.open_recording(exec_rec[0])
+    contact = rec.ticks["contact"]
+    begins = [e for e in rec.events if e["kind"] == "contact_begin"]
+    ends = [e for e in rec.events if e["kind"] == "contact_end"]
+    first = int(np.argmax(contact[:, 0] >= 0))
+    assert {e["subject"] for e in begins} == {"Finger 0", "Finger 1"}
+    assert all(e["detail"] == "Box" for e in begins + ends)
+    assert min(e["tick"] for e in begins if e["subject"] == "Finger 0") == rec.ticks["tick"][first]
+    last = len(contact) - 1 - int(np.argmax(contact[::-1, 0] >= 0))
+    assert max(e["tick"] for e in ends if e["subject"] == "Finger 0") == rec.ticks["tick"][last + 1]
+    sticks = [e for e in rec.events if e["kind"] == "stick" and e["subject"] == "Finger 0"]
+    assert sticks and rec.ticks["state"][rec.ticks["tick"] == sticks[0]["tick"]][0, 0] == 1
+
+
+def test_summary_from_the_summary_section(exec_rec):
+    path = exec_rec[0]
+    s = recording.summarize(path)
+    rec = recording.open_recording(path)
+    assert s["chunks"] and s["damage"] == []          # answered from the summary section
+    assert s["ticks"] == len(rec.ticks) and s["duration"] == pytest.approx(rec.duration)
+    assert sum(s["events"].values()) == len(rec.events)
+    assert s["bodies"] == ["Box", "Table"] and s["haptic_rate"] == 1000.0
+
+
+def _prefix_of(rec, full):
+    n = len(rec.ticks)
+    assert n <= len(full.ticks)
+    assert rec.ticks.tobytes() == full.ticks[:n].tobytes()
+
+
+def test_truncated_files_give_their_intact_prefix(exec_rec, tmp_path):
+    full = recording.open_recording(exec_rec[0])
+    data = exec_rec[0].read_bytes()
+    rng = random.Random(1)
+    cuts = sorted(rng.sample(range(1, len(data)), 60)) + [len(data) - 1, len(data) - 40]
+    cut = tmp_path / "cut.mcap"
+    for n in cuts:
+        cut.write_bytes(data[:n])
+        try:
+            rec = recording.open_recording(cut)
+        except recording.RecordingError as ex:     # cut before the header: nothing to give
+            assert str(cut) in str(ex)
+            continue
+        assert rec.damage, n
+        _prefix_of(rec, full)
+        s = recording.summarize(cut)
+        assert s["damage"] and s["ticks"] == len(rec.ticks)
+    # A cut past the middle keeps most of the session: all the chunks before it.
+    cut.write_bytes(data[:len(data) * 3 // 4])
+    assert len(recording.open_recording(cut).ticks) > len(full.ticks) // 2
+
+
+def test_random_corruption_never_crashes_and_keeps_the_prefix(exec_rec, tmp_path):
+    full = recording.open_recording(exec_rec[0])
+    data = exec_rec[0].read_bytes()
+    rng = random.Random(7)
+    bad = tmp_path / "bad.mcap"
+    lost = 0
+    for trial in range(150):
+        b = bytearray(data)
+        for _ in range(rng.choice((1, 1, 3, 20))):
+            pos = rng.randrange(len(b))
+            b[pos] = rng.randrange(256) if rng.random() < 0.7 else b[pos] ^ 0xFF
+        if rng.random() < 0.2:      # and a zeroed block
+            start, n = rng.randrange(len(b)), rng.randrange(1, 4096)
+            b[start:start + n] = bytes(len(b[start:start + n]))
+        bad.write_bytes(bytes(b))
+        try:
+            rec = recording.open_recording(bad)
+        except recording.RecordingError:
+            continue
+        _prefix_of(rec, full)
+        if len(rec.ticks) < len(full.ticks):
+            lost += 1
+            assert rec.damage, f"trial {trial}: ticks lost without a word"
+        try:
+            recording.summarize(bad)
+        except recording.RecordingError:
+            pass
+    assert lost > 50       # most corruptions hit tick data, and were caught
+
+
+def test_not_a_recording_and_newer_versions_refused(exec_rec, tmp_path):
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(os.urandom(5000))
+    with pytest.raises(recording.RecordingError, match="junk.mcap.*not a readable"):
+        recording.open_recording(junk)
+    with pytest.raises(recording.RecordingError, match="no such file"):
+        recording.summarize(tmp_path / "missing.mcap")
+    desc, _ = recordings.pinch_desc()
+    header = recording.make_header(desc, mode="exec", haptic_rate=1000.0)
+    header["format_version"] = recording.FORMAT_VERSION + 1
+    newer = tmp_path / "newer.mcap"
+    w = recording.RecordingWriter(str(newer), header)
+    w.close()
+    for read in (recording.open_recording, recording.summarize):
+        with pytest.raises(recording.RecordingError, match=f"version {recording.FORMAT_VERSION + 1} is newer"):
+            read(newer)
+
+
+def test_a_running_session_is_on_disk_within_100_ms(core, tmp_path):
+    """What an open (still recording) file holds: every tick up to the last flush, and the
+    flushes come at least every 100 ms of wall time."""
+    desc, S = recordings.pinch_desc()
+    handle = scene.build_world(desc, core)
+    path = tmp_path / "open.mcap"
+    writer = recording.RecordingWriter(str(path), recording.make_header(desc, mode="exec", haptic_rate=1000.0))
+    rec = recording.SessionRecorder(writer, handle.world)
+    run = runner.SessionRunner(handle, inputs.CallableInput(2, S.hip_positions), 1000.0, recorder=rec)
+    run.start()
+    for k in range(1, 6):
+        run.advance_to(0.01 * k)          # 10 ticks, then a pause
+        time.sleep(0.12)
+    run.advance_to(0.06)
+    copy = tmp_path / "copy.mcap"
+    shutil.copy(path, copy)               # as a kill -9 would leave it
+    got = recording.open_recording(copy)
+    assert got.damage and "cut short" in got.damage[0]
+    assert len(got.ticks) >= 51           # all but the ticks of the last 100 ms
+    run.stop()
+    assert len(recording.open_recording(path).ticks) == 61
+
+
+def test_threaded_runtime_records_every_tick(core, tmp_path):
+    desc, S = recordings.pinch_desc()
+    handle = scene.build_world(desc, core)
+    path = tmp_path / "live.mcap"
+    header = recording.make_header(desc, mode="realtime", haptic_rate=1000.0,
+                                   runtime={"threaded": True, "max_force": 10.0, "watchdog_timeout": 0.005})
+    rec = recording.SessionRecorder(recording.RecordingWriter(str(path), header), handle.world)
+    run = runner.SessionRunner(handle, inputs.CallableInput(2, S.hip_positions), 1000.0, use_runtime=True,
+                               recorder=rec)
+    run.start()
+    t0 = time.perf_counter()
+    stalled = False
+    while time.perf_counter() - t0 < 1.5:
+        run.advance_to(time.perf_counter() - t0)
+        if not stalled and time.perf_counter() - t0 > 0.5:
+            handle.world._debug_stall(0.02)        # a missed deadline: the watchdog zeroes forces
+            stalled = True
+        time.sleep(0.01)
+    run.stop()
+    got = recording.open_recording(path)
+    stats = run.stats()
+    assert got.damage == [] and got.end["overflow"] == 0
+    assert got.ticks["tick"][0] == 0 and np.all(np.diff(got.ticks["tick"].astype(np.int64)) == 1)
+    assert len(got.ticks) == stats["runtime_haptic_ticks"] + 1
+    assert got.ticks["pose"][-1, 0, 2] > S.BOX_Z - 1e-3           # the box is there, on the table
+    kinds = [e["kind"] for e in got.events]
+    assert "contact_begin" in kinds                            # closed on the box
+    off = next(e for e in got.events if e["kind"] == "forces_off")
+    assert "watchdog" in off["detail"] and stats["runtime_watchdog_trips"] >= 1
+    assert any(e["kind"] == "forces_on" and e["tick"] > off["tick"] for e in got.events)
+
+
+def test_threaded_overflow_is_counted_and_reported(core, tmp_path):
+    desc, S = recordings.pinch_desc()
+    handle = scene.build_world(desc, core)
+    path = tmp_path / "overflow.mcap"
+    header = recording.make_header(desc, mode="realtime", haptic_rate=1000.0, runtime={"threaded": True})
+    # A 256-tick ring drained every 0.6 s: the haptic loop outruns it and must not wait.
+    rec = recording.SessionRecorder(recording.RecordingWriter(str(path), header), handle.world,
+                                    ring_seconds=0.0, poll=0.6)
+    run = runner.SessionRunner(handle, inputs.CallableInput(2, S.hip_positions), 1000.0, use_runtime=True,
+                               recorder=rec)
+    run.start()
+    t0 = time.perf_counter()
+    while time.perf_counter() - t0 < 1.3:
+        run.advance_to(time.perf_counter() - t0)
+        time.sleep(0.02)
+    run.stop()
+    got = recording.open_recording(path)
+    ticks = run.stats()["runtime_haptic_ticks"]
+    assert got.end["overflow"] > 300
+    assert len(got.ticks) - 1 + got.end["overflow"] == ticks           # kept + dropped = all
+    dropped = [e for e in got.events if e["kind"] == "overflow"]
+    assert dropped and sum(e["dropped"] for e in dropped) == got.end["overflow"]
+    assert recording.summarize(path)["overflow"] == got.end["overflow"]
+
+
+def test_compressions_read_back_alike(core, tmp_path):
+    sizes = {}
+    base = None
+    for c in recording.COMPRESSIONS:
+        path = tmp_path / f"{c}.mcap"
+        recordings.record_exec(path, core, seconds=1.0, compression=c)
+        rec = recording.open_recording(path)
+        sizes[c] = path.stat().st_size
+        base = rec.ticks if base is None else base
+        for name in rec.ticks.dtype.names:
+            if name not in ("period_us", "work_us"):       # wall-clock timing differs run to run
+                np.testing.assert_array_equal(rec.ticks[name], base[name])
+    assert sizes["zstd"] < sizes["none"] and sizes["lz4"] < sizes["none"]
+    with pytest.raises(ValueError, match="compression"):
+        recordings.record_exec(tmp_path / "x.mcap", core, seconds=0.1, compression="gzip")
+
+
+def test_tick_schema_in_the_file_describes_the_records(exec_rec):
+    from mcap.reader import make_reader
+    with open(exec_rec[0], "rb") as fh:
+        summary = make_reader(fh).get_summary()
+    schema = next(s for s in summary.schemas.values() if s.name == recording.TICK_SCHEMA)
+    assert schema.encoding == recording.TICK_ENCODING
+    described = json.loads(schema.data)
+    dtype = recording.dtype_of(described)
+    assert dtype == recording.tick_dtype(2, 2) and described["record_size"] == dtype.itemsize
+    with pytest.raises(ValueError, match="malformed"):
+        recording.dtype_of({"fields": [{"name": "tick"}]})
