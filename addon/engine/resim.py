@@ -95,14 +95,14 @@ def apply_to_desc(desc, overrides) -> None:
                 body.mass = o.value
             else:
                 setattr(body, o.key, o.value)
-            if not (0 <= body.mu_d <= body.mu_s):
-                raise OverrideError(f"--set {o}: {o.obj!r} needs 0 <= mu_d <= mu_s "
-                                    f"(mu_s={body.mu_s}, mu_d={body.mu_d})")
         elif finger is not None and o.key in FINGER_KEYS:
             setattr(finger, o.key, o.value)
         else:
             kind = "body" if body is not None else "finger"
             raise OverrideError(f"--set {o}: {o.obj!r} is a {kind}; {o.key} is not a {kind} property")
+    for b in desc.bodies:       # after all of them: mu_s and mu_d may change together
+        if not (0 <= b.mu_d <= b.mu_s):
+            raise OverrideError(f"--set: {b.name!r} needs 0 <= mu_d <= mu_s (now mu_s={b.mu_s}, mu_d={b.mu_d})")
 
 
 @dataclass
