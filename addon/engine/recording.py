@@ -35,6 +35,7 @@ TICK_SCHEMA = "grasp_lab.TickBlock"
 TICK_ENCODING = "grasp_lab.tick_records"    # message: whole records, back to back
 JSON_SCHEMA = {"type": "object"}
 FLUSH_INTERVAL = 0.1        # s: at most this much of a session is lost to a kill -9
+FLUSH_MARGIN = 0.02         # s: the recorder thread flushes this early (it may wake late: GIL, load)
 BLOCK_TICKS = 256           # ticks per message at most
 STATE_NAMES = ("free", "stick", "slip")
 UNITS = {"length": "m", "mass": "kg", "time": "s", "force": "N", "torque": "N m",
@@ -411,7 +412,10 @@ class SessionRecorder:
         last_flush = time.perf_counter()
         try:
             while True:
-                stopping = self._stop.wait(self.poll)
+                # Wake for the next poll or the flush deadline, whichever comes first.
+                due = last_flush + self.writer.flush_interval - FLUSH_MARGIN
+                wait = min(self.poll, max(0.0, due - time.perf_counter()))
+                stopping = self._stop.wait(wait)
                 n = self.world._drain_ticks(buf)
                 if n:
                     self._write(buf[:n])
@@ -423,7 +427,7 @@ class SessionRecorder:
                                           f"{self.capacity} full)", dropped=overflow - self.overflow)
                     self.overflow = overflow
                 now = time.perf_counter()
-                if stopping or now - last_flush >= self.writer.flush_interval:
+                if stopping or now >= due - 1e-3:
                     with self._lock:
                         self.writer.flush()
                     last_flush = now
