@@ -351,7 +351,7 @@ class SessionRecorder:
         self.world = world
         self.dtype = writer.dtype
         rate = writer.header["rates"]["haptic_hz"]
-        self.capacity = max(256, int(ring_seconds * rate))
+        self.capacity = max(16, int(ring_seconds * rate))
         self.poll = poll
         self.events = EventDetector(writer.header)
         self.overflow = 0
@@ -582,7 +582,9 @@ def open_recording(path: str) -> Recording:
             damage.append(f"damaged near byte {where} of {size} ({type(ex).__name__}: {ex}); "
                           f"everything before it was read")
     if header is None:
-        detail = damage[0] if damage else "no header"
+        detail = f"no Grasp Lab header in its {size} bytes"
+        if damage and "cut short" not in damage[0]:
+            detail += f"; {damage[0]}"
         raise RecordingError(f"{path}: not a readable Grasp Lab recording ({detail})")
     if not damage and not footer:
         damage.append("file ends without its summary: the session did not end cleanly (cut short)")

@@ -209,9 +209,9 @@ def test_threaded_overflow_is_counted_and_reported(core, tmp_path):
     handle = scene.build_world(desc, core)
     path = tmp_path / "overflow.mcap"
     header = recording.make_header(desc, mode="realtime", haptic_rate=1000.0, runtime={"threaded": True})
-    # A 256-tick ring drained every 0.6 s: the haptic loop outruns it and must not wait.
+    # A 20-tick ring drained every 80 ms: the haptic loop outruns it and must not wait.
     rec = recording.SessionRecorder(recording.RecordingWriter(str(path), header), handle.world,
-                                    ring_seconds=0.0, poll=0.6)
+                                    ring_seconds=0.02, poll=0.6)
     run = runner.SessionRunner(handle, inputs.CallableInput(2, S.hip_positions), 1000.0, use_runtime=True,
                                recorder=rec)
     run.start()

@@ -1,0 +1,147 @@
+"""Baking a recording (addon/bake.py, File > Import > Grasp Lab Recording): the keys equal the
+recorded poses, HIPs and god-objects at sampled frames, measures animate as custom
+properties, baking again replaces, every tick bakes subframes, renamed objects are reported
+and the rest baked, parents are respected, quaternions stay on one side."""
+import numpy as np
+import pytest
+
+import grasp_env
+
+SAMPLED_FRAMES = (1, 20, 31, 43, 58, 70, 100, 118, 145)
+
+
+def _fcurves(bpy, obj):
+    ad = obj.animation_data
+    if bpy.app.version >= (4, 4, 0):
+        from bpy_extras import anim_utils
+        return anim_utils.action_get_channelbag_for_slot(ad.action, ad.action_slot).fcurves
+    return ad.action.fcurves
+
+
+@pytest.fixture()
+def recorded(bpy, sample, core, tmp_path):
+    """A recording of the sample scene, then a fresh copy of the scene to bake it into."""
+    sample.build(bpy)
+    s = bpy.context.scene.grasp_lab
+    s.record, s.recording_folder = True, str(tmp_path)
+    assert bpy.ops.grasp_lab.session() == {"FINISHED"}
+    path = s.last_recording
+    bpy.ops.wm.read_homefile(use_empty=True)
+    sample.build(bpy)
+    return path, grasp_env.submodule("engine.recording").open_recording(path)
+
+
+def _at(rec, frame, fps=24):
+    return rec.ticks[rec.sample([(frame - 1) / fps])[0]]
+
+
+@pytest.mark.multiversion
+def test_baked_keys_equal_the_recording(bpy, recorded):
+    path, rec = recorded
+    assert bpy.ops.grasp_lab.import_recording(filepath=path) == {"FINISHED"}
+    scene = bpy.context.scene
+    box = bpy.data.objects["Box"]
+    fingers = [bpy.data.objects[f"Finger {i}"] for i in range(2)]
+    go = bpy.data.objects["GL God-object Finger 0"]
+    arrow = bpy.data.objects["GL Force Box"]
+    for frame in SAMPLED_FRAMES:
+        scene.frame_set(frame)
+        t = _at(rec, frame)
+        np.testing.assert_allclose(tuple(box.matrix_world.translation), t["pose"][0, :3], atol=1e-6)
+        q = np.array(box.matrix_world.to_quaternion())
+        assert abs(np.dot(q, t["pose"][0, 3:])) == pytest.approx(1.0, abs=1e-6)
+        for i, f in enumerate(fingers):
+            np.testing.assert_allclose(tuple(f.matrix_world.translation), t["hip"][i], atol=1e-6)
+        np.testing.assert_allclose(tuple(go.matrix_world.translation), t["god_object"][0], atol=1e-6)
+        assert go["gl_state"] == pytest.approx(float(t["state"][0]))
+        assert arrow["gl_force"] == pytest.approx(np.linalg.norm(t["wrench"][0, :3]), rel=1e-5, abs=1e-6)
+    # Mid-lift: both fingers stick, each squeezing k * 3 mm = 3 N; friction holds with room to spare.
+    scene.frame_set(43)
+    assert go["gl_state"] == 1.0
+    assert arrow["gl_grip"] == pytest.approx(2 * 1000.0 * 0.003, rel=0.05)
+    assert 0.0 < go["gl_friction_use"] < 1.0
+    assert go["gl_normal_force"] == pytest.approx(3.0, rel=0.05)
+    # One key per frame (145), linear; the scene covers the recording.
+    fc = {(f.data_path, f.array_index): f for f in _fcurves(bpy, box)}
+    assert len(fc[("location", 2)].keyframe_points) == 145 and scene.frame_end >= 145
+
+
+@pytest.mark.multiversion
+def test_baking_again_replaces(bpy, recorded):
+    path, rec = recorded
+    bake = grasp_env.submodule("bake")
+    bake.bake_recording(bpy.context, rec)
+    before = {o.name: [(f.data_path, f.array_index, len(f.keyframe_points)) for f in _fcurves(bpy, o)]
+              for o in bpy.data.objects if o.animation_data}
+    bake.bake_recording(bpy.context, rec)
+    after = {o.name: [(f.data_path, f.array_index, len(f.keyframe_points)) for f in _fcurves(bpy, o)]
+             for o in bpy.data.objects if o.animation_data}
+    assert after == before and len(bpy.data.actions) == len(before)
+
+
+def test_every_tick_bakes_subframes(bpy, recorded):
+    path, rec = recorded
+    report = grasp_env.submodule("bake").bake_recording(bpy.context, rec, every_tick=True)
+    assert report.frames == len(rec.ticks)
+    kp = {(f.data_path, f.array_index): f for f in _fcurves(bpy, bpy.data.objects["Box"])}[("location", 2)]
+    keys = np.empty(2 * len(kp.keyframe_points), dtype=np.float32)
+    kp.keyframe_points.foreach_get("co", keys)
+    np.testing.assert_allclose(keys[0::2], 1 + rec.ticks["time"] * 24, atol=1e-4)
+    np.testing.assert_allclose(keys[1::2], rec.ticks["pose"][:, 0, 2], atol=1e-7)
+
+
+def test_renamed_and_deleted_objects(bpy, recorded):
+    path, rec = recorded
+    bpy.data.objects["Box"].name = "Crate"
+    bpy.data.objects.remove(bpy.data.objects["Finger 1"])
+    report = grasp_env.submodule("bake").bake_recording(bpy.context, rec)
+    assert report.missing == ["body Box", "finger Finger 1"]
+    assert "Finger 0" in report.baked and "GL Force Box" in report.baked
+    assert "renamed or deleted" in report.message() and "body Box" in report.message()
+    assert bpy.data.objects["Crate"].animation_data is None
+    # The operator says so too, and still finishes.
+    assert bpy.ops.grasp_lab.import_recording(filepath=path) == {"FINISHED"}
+
+
+def test_parented_body(bpy, recorded):
+    path, rec = recorded
+    box = bpy.data.objects["Box"]
+    holder = bpy.data.objects.new("Holder", None)
+    bpy.context.scene.collection.objects.link(holder)
+    holder.location = (0.01, -0.02, 0.0)
+    holder.rotation_euler = (0.0, 0.0, 0.7)
+    holder.scale = (2.0, 2.0, 2.0)
+    bpy.context.view_layer.update()
+    world = box.matrix_world.copy()
+    box.parent = holder
+    box.matrix_world = world
+    bpy.context.view_layer.update()
+    grasp_env.submodule("bake").bake_recording(bpy.context, rec)
+    for frame in (1, 43, 100):
+        bpy.context.scene.frame_set(frame)
+        np.testing.assert_allclose(tuple(box.matrix_world.translation), _at(rec, frame)["pose"][0, :3], atol=1e-6)
+        np.testing.assert_allclose(tuple(box.matrix_world.to_scale()), (1, 1, 1), atol=1e-6)
+
+
+def test_quaternions(bpy):
+    from mathutils import Quaternion
+    bake = grasp_env.submodule("bake")
+    rng = np.random.default_rng(3)
+    q = rng.normal(size=(200, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    mats = np.array([np.array(Quaternion(v).to_matrix()) for v in q])
+    back = bake.quats_from_matrices(mats)
+    assert np.all(np.sum(back[1:] * back[:-1], axis=1) >= 0)               # one side, key to key
+    np.testing.assert_allclose(np.abs(np.sum(back * q, axis=1)), 1.0, atol=1e-12)
+    # A rotation turning past 180 degrees: without continuity the sign flips halfway.
+    angles = np.linspace(0, 3 * np.pi, 50)
+    spin = np.stack([np.cos(angles / 2), np.zeros(50), np.zeros(50), np.sin(angles / 2)], axis=1)
+    flipped = spin * np.where(np.arange(50) % 7 == 3, -1.0, 1.0)[:, None]
+    np.testing.assert_allclose(bake.continuous(flipped), spin)
+
+
+def test_bad_files_are_reported(bpy, tmp_path):
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"\x89MCAP0\r\n" + b"\x00" * 100)
+    with pytest.raises(RuntimeError, match="junk.mcap: not a readable Grasp Lab recording"):
+        bpy.ops.grasp_lab.import_recording(filepath=str(junk))
