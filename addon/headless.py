@@ -91,10 +91,11 @@ def run(args, out, err) -> int:
 
 
 def bake(args, out, err) -> int:
-    rec = open_recording(args.recording)
+    open_blend(args.scene)
+    render = bpy.context.scene.render
+    rec = open_recording(args.recording, fps=None if args.every_tick else render.fps / render.fps_base)
     for w in rec.warnings():
         print(f"warning: {w}", file=err)
-    open_blend(args.scene)
     report = baking.bake_recording(bpy.context, rec, every_tick=args.every_tick)
     for name in report.missing:
         print(f"warning: {args.scene}: {name} is not in the scene (renamed or deleted): not baked", file=err)

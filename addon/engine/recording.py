@@ -512,10 +512,25 @@ def _check_version(path, header):
                              f"reads (version {FORMAT_VERSION}); open it with a newer Grasp Lab")
 
 
-def open_recording(path: str) -> Recording:
+def _frame_ticks(ticks: np.ndarray, rate: float, fps: float) -> np.ndarray:
+    """Mask of the ticks (numbers, tick 0 at the start) a session shows at frames of ``fps``:
+    for frame k the last tick at or before k / fps, on the haptic grid as the runner steps."""
+    if len(ticks) == 0:
+        return np.zeros(0, dtype=bool)
+    lo, hi = int(ticks.min()), int(ticks.max())
+    k = np.arange(int(np.floor(lo * fps / rate)), int(np.ceil(hi * fps / rate)) + 2)
+    wanted = np.floor(k * rate / fps + 1e-9).astype(np.int64)
+    return np.isin(ticks.astype(np.int64), wanted)
+
+
+def open_recording(path: str, fps: float | None = None) -> Recording:
     """Read a recording, all of it that is intact. Damage (a file cut short, a bad CRC, garbage)
     ends the read: what came before it is kept and ``damage`` says what and where. Raises
-    RecordingError when nothing usable is there (not MCAP, no header, a newer format)."""
+    RecordingError when nothing usable is there (not MCAP, no header, a newer format).
+
+    ``fps``: keep only the ticks a session shows at frames of that rate (what baking at the
+    frame rate needs), instead of every tick. A whole file (data section CRC intact) is read
+    without checking each chunk's CRC a second time."""
     from mcap.exceptions import EndOfFile
     from mcap.records import Channel, Footer, Message, Schema
     from mcap.stream_reader import StreamReader
@@ -531,8 +546,12 @@ def open_recording(path: str) -> Recording:
     end = None
     footer = False
     next_tick = None
+    try:
+        whole = _data_section_intact(path)[0]
+    except (OSError, ValueError, IndexError):
+        whole = False
     with fh:
-        reader = StreamReader(fh, validate_crcs=True, record_size_limit=max(size, 1))
+        reader = StreamReader(fh, validate_crcs=not whole, record_size_limit=max(size, 1))
         try:
             for rec in reader.records:
                 if isinstance(rec, Schema):
@@ -562,6 +581,8 @@ def open_recording(path: str) -> Recording:
                             raise ValueError("tick numbers out of order inside a block")
                         if len(ticks):
                             next_tick = int(ticks[-1]) + 1
+                        if fps is not None:
+                            block = block[_frame_ticks(ticks, float(header["rates"]["haptic_hz"]), fps)]
                         blocks.append(block)
                     elif ch.topic == TOPIC_EVENTS:
                         ev = json.loads(rec.data)
@@ -591,7 +612,7 @@ def open_recording(path: str) -> Recording:
     elif not damage and end is None:
         damage.append("no end record")
     ticks = np.concatenate(blocks) if blocks else np.zeros(0, dtype=dtype)
-    if end is not None and not damage and end.get("ticks") not in (None, len(ticks)):
+    if fps is None and end is not None and not damage and end.get("ticks") not in (None, len(ticks)):
         damage.append(f"end record counts {end['ticks']} ticks, {len(ticks)} read")
     return Recording(path, header, dtype, ticks, events, end, damage)
 
