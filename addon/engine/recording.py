@@ -14,6 +14,7 @@ Plain Python + numpy + ``mcap``; no bpy, no graspcore (a recording opens anywher
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import os
 import platform
@@ -512,6 +513,63 @@ def _check_version(path, header):
                              f"reads (version {FORMAT_VERSION}); open it with a newer Grasp Lab")
 
 
+MAX_CHUNK = 1 << 30         # bytes: a chunk claiming more is damage, not a reason to allocate it
+
+
+def _chunk_data(chunk, validate: bool) -> bytes:
+    """The uncompressed records of an MCAP chunk, CRC checked when ``validate``."""
+    if chunk.uncompressed_size > MAX_CHUNK:
+        raise ValueError(f"chunk claims {chunk.uncompressed_size} bytes")
+    if chunk.compression == "zstd":
+        import zstandard
+        data = zstandard.ZstdDecompressor().decompress(chunk.data, max_output_size=chunk.uncompressed_size)
+    elif chunk.compression == "lz4":
+        import lz4.frame
+        data = lz4.frame.decompress(chunk.data)
+    elif chunk.compression == "":
+        data = chunk.data
+    else:
+        raise ValueError(f"unknown chunk compression {chunk.compression!r}")
+    if len(data) != chunk.uncompressed_size:
+        raise ValueError(f"chunk holds {len(data)} bytes, its header says {chunk.uncompressed_size}")
+    if validate and chunk.uncompressed_crc != 0 and zlib.crc32(data) != chunk.uncompressed_crc:
+        raise ValueError("chunk CRC mismatch")
+    return data
+
+
+def _records(fh, size: int, validate: bool):
+    """MCAP records in file order; a chunk's messages as (channel id, zero-copy data view)."""
+    import struct
+
+    from mcap.data_stream import ReadDataStream
+    from mcap.opcode import Opcode
+    from mcap.records import Channel, Chunk, Schema
+    from mcap.stream_reader import StreamReader
+    for rec in StreamReader(fh, emit_chunks=True, validate_crcs=validate, record_size_limit=max(size, 1)).records:
+        if not isinstance(rec, Chunk):
+            yield rec
+            continue
+        data = memoryview(_chunk_data(rec, validate))
+        pos = 0
+        while pos < len(data):
+            if pos + 9 > len(data):
+                raise ValueError("chunk ends inside a record header")
+            opcode = data[pos]
+            (length,) = struct.unpack_from("<Q", data, pos + 1)
+            body = data[pos + 9:pos + 9 + length]
+            if len(body) != length:
+                raise ValueError("a record overruns its chunk")
+            pos += 9 + length
+            if opcode == Opcode.MESSAGE:
+                if length < 22:
+                    raise ValueError("message record too short")
+                (channel_id,) = struct.unpack_from("<H", body, 0)
+                yield channel_id, body[22:]
+            elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
+                cls = Schema if opcode == Opcode.SCHEMA else Channel
+                yield cls.read(ReadDataStream(io.BytesIO(bytes(body))))
+
+
 def _frame_ticks(ticks: np.ndarray, rate: float, fps: float) -> np.ndarray:
     """Mask of the ticks (numbers, tick 0 at the start) a session shows at frames of ``fps``:
     for frame k the last tick at or before k / fps, on the haptic grid as the runner steps."""
@@ -533,7 +591,6 @@ def open_recording(path: str, fps: float | None = None) -> Recording:
     without checking each chunk's CRC a second time."""
     from mcap.exceptions import EndOfFile
     from mcap.records import Channel, Footer, Message, Schema
-    from mcap.stream_reader import StreamReader
     path = os.fspath(path)
     try:
         size = os.path.getsize(path)
@@ -551,29 +608,31 @@ def open_recording(path: str, fps: float | None = None) -> Recording:
     except (OSError, ValueError, IndexError):
         whole = False
     with fh:
-        reader = StreamReader(fh, validate_crcs=not whole, record_size_limit=max(size, 1))
         try:
-            for rec in reader.records:
+            for rec in _records(fh, size, validate=not whole):
+                if isinstance(rec, Message):     # outside chunks (other writers)
+                    rec = (rec.channel_id, memoryview(rec.data))
                 if isinstance(rec, Schema):
                     schemas[rec.id] = rec
                 elif isinstance(rec, Channel):
                     channels[rec.id] = rec
-                elif isinstance(rec, Message):
-                    ch = channels.get(rec.channel_id)
+                elif isinstance(rec, tuple):
+                    channel_id, data = rec
+                    ch = channels.get(channel_id)
                     if ch is None:
-                        raise ValueError(f"message on unknown channel {rec.channel_id}")
+                        raise ValueError(f"message on unknown channel {channel_id}")
                     if ch.topic == TOPIC_HEADER:
-                        header = json.loads(rec.data)
+                        header = json.loads(bytes(data))
                         _check_version(path, header)
                         dtype = dtype_of(json.loads(schemas[channels_by_topic(channels, TOPIC_TICKS)
                                                             .schema_id].data))
                     elif header is None:
                         raise ValueError(f"{ch.topic} message before the header")
                     elif ch.topic == TOPIC_TICKS:
-                        if len(rec.data) % dtype.itemsize:
-                            raise ValueError(f"tick block of {len(rec.data)} bytes is not a whole number "
+                        if len(data) % dtype.itemsize:
+                            raise ValueError(f"tick block of {len(data)} bytes is not a whole number "
                                              f"of {dtype.itemsize}-byte records")
-                        block = np.frombuffer(rec.data, dtype=dtype)
+                        block = np.frombuffer(data, dtype=dtype)
                         ticks = block["tick"].astype(np.int64)
                         if next_tick is not None and len(ticks) and ticks[0] < next_tick:
                             raise ValueError(f"tick {ticks[0]} after tick {next_tick - 1}")
@@ -585,12 +644,12 @@ def open_recording(path: str, fps: float | None = None) -> Recording:
                             block = block[_frame_ticks(ticks, float(header["rates"]["haptic_hz"]), fps)]
                         blocks.append(block)
                     elif ch.topic == TOPIC_EVENTS:
-                        ev = json.loads(rec.data)
+                        ev = json.loads(bytes(data))
                         if not isinstance(ev, dict) or "kind" not in ev:
                             raise ValueError("malformed event")
                         events.append(ev)
                     elif ch.topic == TOPIC_END:
-                        end = json.loads(rec.data)
+                        end = json.loads(bytes(data))
                 elif isinstance(rec, Footer):
                     footer = True
         except RecordingError:

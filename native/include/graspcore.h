@@ -250,7 +250,8 @@ gcStatus gc_world_tick_record(gcWorld *world, uint64_t tick, void *out, size_t s
  * and every haptic tick fills; a full ring drops the tick and counts it, never waits. */
 gcStatus gc_world_set_tick_log(gcWorld *world, int capacity);
 /* Copies up to max_records (and size bytes) of the oldest undrained records; returns how many,
- * or a negative gcStatus. From one thread at a time (other callers wait), while running or not. */
+ * or a negative gcStatus. From any thread (callers take turns), while the loops run, while the
+ * world starts or stops; not during gc_world_set_tick_log or gc_world_destroy. */
 int gc_world_drain_ticks(gcWorld *world, void *out, size_t size, int max_records);
 /* Ticks dropped on a full ring since the last gc_world_start. */
 uint64_t gc_world_tick_log_overflow(const gcWorld *world);

@@ -139,6 +139,7 @@ gcTickLog *gc_tick_log_begin(gcWorld *w, gcStatus *status) {
     gcTickLog *log = w->tick_log;
     *status = GC_OK;
     if (!log) return NULL;
+    pthread_mutex_lock(&log->drain_mutex); /* a drain from another thread waits for the new ring */
     size_t size = gc_tick_record_size(w->num_bodies, w->num_fingers);
     if (!log->records || size != log->record_size) {
         free(log->records);
@@ -147,8 +148,11 @@ gcTickLog *gc_tick_log_begin(gcWorld *w, gcStatus *status) {
         if (!log->records) {
             gc_world_set_error(w, "tick log: out of memory for %d records of %zu bytes", log->capacity, size);
             *status = GC_ERR_NO_MEMORY;
+            pthread_mutex_unlock(&log->drain_mutex);
             return NULL;
         }
+        /* Touch every page now: the haptic loop must not take page faults on its first lap. */
+        memset(log->records, 0, (size_t)log->capacity * size);
     }
     log->num_bodies = w->num_bodies;
     log->num_fingers = w->num_fingers;
@@ -156,6 +160,7 @@ gcTickLog *gc_tick_log_begin(gcWorld *w, gcStatus *status) {
     atomic_store(&log->tail, 0);
     atomic_store(&log->overflow, 0);
     log->prev_now_ns = INT64_MIN;
+    pthread_mutex_unlock(&log->drain_mutex);
     return log;
 }
 
