@@ -29,7 +29,7 @@ class BakeReport:
     keys: int = 0
 
     def message(self) -> str:
-        text = f"baked {len(self.baked)} objects, {self.frames} keys each ({self.keys} keys)"
+        text = f"baked {len(self.baked)} objects over {self.frames} frames ({self.keys} keys)"
         if self.missing:
             text += ("; not in the scene (renamed or deleted), not baked: " + ", ".join(self.missing))
         return text
@@ -104,7 +104,7 @@ def _rest_matrix(obj) -> Matrix:
     return obj.matrix_world.copy()
 
 
-def _bake_rigid(obj, frames, poses, start_pos, start_quat) -> None:
+def _bake_rigid(obj, frames, poses, start_pos, start_quat) -> int:
     """Keys for ``obj`` following body frame poses (n, 7): the object keeps its offset from the
     body frame at the start of the recording (its rest matrix), its scale and its parent."""
     f0 = Quaternion(start_quat).to_matrix().to_4x4()
@@ -120,19 +120,19 @@ def _bake_rigid(obj, frames, poses, start_pos, start_quat) -> None:
     scale = np.linalg.norm(basis[:, :3, :3], axis=1)           # column norms
     rot = quats_from_matrices(basis[:, :3, :3] / scale[:, None, :])
     obj.rotation_mode = "QUATERNION"
-    anim.bake_channels(obj, frames, [("location", i, loc[:, i]) for i in range(3)]
-                       + [("rotation_quaternion", i, rot[:, i]) for i in range(4)]
-                       + [("scale", i, scale[:, i]) for i in range(3)])
+    obj.scale = scale[0]        # rigid motion under a fixed parent: the scale does not change
+    return anim.bake_channels(obj, frames, [("location", i, loc[:, i]) for i in range(3)]
+                              + [("rotation_quaternion", i, rot[:, i]) for i in range(4)], reduce=True)
 
 
-def _bake_points(obj, frames, points, size=None) -> None:
-    """Keys for an object whose origin follows world points (n, 3)."""
+def _bake_points(obj, frames, points, size=None, extra=()) -> int:
+    """Keys for an object whose origin follows world points (n, 3), and ``extra`` channels."""
     inv = _parent_inverse(obj)
     loc = points @ inv[:3, :3].T + inv[:3, 3]
-    channels = [("location", i, loc[:, i]) for i in range(3)]
     if size is not None:
-        channels += [("scale", i, np.full(len(frames), size)) for i in range(3)]
-    anim.bake_channels(obj, frames, channels)
+        obj.scale = (size, size, size)
+    return anim.bake_channels(obj, frames, [("location", i, loc[:, i]) for i in range(3)] + list(extra),
+                              reduce=True)
 
 
 def _arrow_channels(origin, vec, scale):
@@ -205,9 +205,9 @@ def bake_recording(context, rec: Recording, every_tick: bool = False, force_scal
         done += 1
         wm.progress_update(done)
 
-    def keyed(obj, channels):
+    def keyed(obj, keys):
         report.baked.append(obj.name)
-        report.keys += channels * len(frames)
+        report.keys += keys
 
     try:
         for i, b in enumerate(desc.bodies):
@@ -218,23 +218,20 @@ def bake_recording(context, rec: Recording, every_tick: bool = False, force_scal
                 continue
             if b.static:
                 continue
-            _bake_rigid(obj, frames, ticks["pose"][:, i], b.position, b.orientation)
-            keyed(obj, 10)
+            keyed(obj, _bake_rigid(obj, frames, ticks["pose"][:, i], b.position, b.orientation))
         for j, f in enumerate(desc.fingers):
             progress()
             obj = bpy.data.objects.get(f.name)
             if obj is None:
                 report.missing.append(f"finger {f.name}")
                 continue
-            _bake_points(obj, frames, ticks["hip"][:, j])
-            keyed(obj, 3)
+            keyed(obj, _bake_points(obj, frames, ticks["hip"][:, j]))
         # The display objects: made if missing, so a scene whose bodies are gone still shows forces.
         shown = display.DisplayObjects(scene, desc)
         measures = finger_measures(rec, ticks)
         for j, obj in enumerate(shown.god_objects):
-            _bake_points(obj, frames, ticks["god_object"][:, j], size=shown.radii[j])
-            anim.bake_channels(obj, frames, _custom(obj, frames, {k: v[:, j] for k, v in measures.items()}))
-            keyed(obj, 6 + len(measures))
+            keyed(obj, _bake_points(obj, frames, ticks["god_object"][:, j], size=shown.radii[j],
+                                    extra=_custom(obj, frames, {k: v[:, j] for k, v in measures.items()})))
         progress()
         grip = np.zeros((len(idx), len(desc.bodies)))
         fn = measures["gl_normal_force"]
@@ -251,12 +248,12 @@ def bake_recording(context, rec: Recording, every_tick: bool = False, force_scal
             arrow.rotation_mode = "QUATERNION"
             props = _custom(arrow, frames, {"gl_grip": grip[:, i], "gl_force": np.linalg.norm(force, axis=1),
                                             "gl_torque": np.linalg.norm(torque, axis=1)})
-            anim.bake_channels(arrow, frames, _arrow_channels(com, force, force_scale) + props)
-            keyed(arrow, 13)
+            keyed(arrow, anim.bake_channels(arrow, frames, _arrow_channels(com, force, force_scale) + props,
+                                            reduce=True))
             arrow = shown.torque_arrows[k]
             arrow.rotation_mode = "QUATERNION"
-            anim.bake_channels(arrow, frames, _arrow_channels(com, torque, torque_scale))
-            keyed(arrow, 10)
+            keyed(arrow, anim.bake_channels(arrow, frames, _arrow_channels(com, torque, torque_scale),
+                                            reduce=True))
         progress()
     finally:
         wm.progress_end()

@@ -42,7 +42,7 @@ STATE_NAMES = ("free", "stick", "slip")
 UNITS = {"length": "m", "mass": "kg", "time": "s", "force": "N", "torque": "N m",
          "velocity": "m/s", "angular_velocity": "rad/s (world)", "orientation": "quaternion w x y z",
          "stiffness": "N/m", "damping": "N s/m", "rate": "Hz", "period_us": "us", "work_us": "us"}
-COMPRESSIONS = ("zstd", "lz4", "none")
+COMPRESSIONS = ("lz4", "zstd", "none")   # lz4 by default: 3x faster to read back than zstd
 
 # One tick record (graspcore.h, gc_tick_record_size): fixed fields, then per-finger and
 # per-body arrays. Kept here too so a recording opens without the core.
@@ -189,7 +189,7 @@ def make_header(desc, *, mode: str, haptic_rate: float, source: str = "", fps: f
 class RecordingWriter:
     """Writes one recording. Not thread-safe: one thread writes (the recorder)."""
 
-    def __init__(self, path: str, header: dict, compression: str = "zstd",
+    def __init__(self, path: str, header: dict, compression: str = "lz4",
                  flush_interval: float = FLUSH_INTERVAL):
         from mcap.writer import CompressionType, Writer
         if compression not in COMPRESSIONS:

@@ -187,7 +187,7 @@ def compare(recorded: Recording, new_ticks: np.ndarray, tolerance: float, same_r
 
 
 def resimulate(recorded: Recording, graspcore, overrides=(), tolerance: float = 1e-6,
-               record_path: str | None = None, compression: str = "zstd") -> ResimResult:
+               record_path: str | None = None, compression: str = "lz4") -> ResimResult:
     """Replay ``recorded``'s HIPs, tick by tick, through a world built from its header."""
     if len(recorded.ticks) == 0:
         raise ValueError(f"{recorded.path}: no ticks to re-simulate")

@@ -42,7 +42,7 @@ def pinch_desc():
     return scene.prepare(d), S
 
 
-def record_exec(path, graspcore, seconds=6.0, fps=24, compression="zstd", flush_interval=0.1):
+def record_exec(path, graspcore, seconds=6.0, fps=24, compression="lz4", flush_interval=0.1):
     """An EXEC session of the pinch scene recorded to ``path``; returns (runner, world handle)."""
     desc, S = pinch_desc()
     handle = scene.build_world(desc, graspcore)

@@ -35,6 +35,10 @@ def _at(rec, frame, fps=24):
     return rec.ticks[rec.sample([(frame - 1) / fps])[0]]
 
 
+def _at_frames(rec, n=145, fps=24):
+    return rec.ticks[rec.sample(np.arange(n) / fps)]
+
+
 @pytest.mark.multiversion
 def test_baked_keys_equal_the_recording(bpy, recorded):
     path, rec = recorded
@@ -61,9 +65,14 @@ def test_baked_keys_equal_the_recording(bpy, recorded):
     assert arrow["gl_grip"] == pytest.approx(2 * 1000.0 * 0.003, rel=0.05)
     assert 0.0 < go["gl_friction_use"] < 1.0
     assert go["gl_normal_force"] == pytest.approx(3.0, rel=0.05)
-    # One key per frame (145), linear; the scene covers the recording.
+    # A key per frame where the value changes (runs of equal values keep their ends), linear;
+    # the scene covers the recording.
     fc = {(f.data_path, f.array_index): f for f in _fcurves(bpy, box)}
-    assert len(fc[("location", 2)].keyframe_points) == 145 and scene.frame_end >= 145
+    z = fc[("location", 2)].keyframe_points
+    frames_z = np.array(_at_frames(rec)["pose"][:, 0, 2], dtype=np.float32)
+    changes = 2 + int(np.sum((frames_z[1:-1] != frames_z[:-2]) | (frames_z[1:-1] != frames_z[2:])))
+    assert len(z) == changes and changes < 145      # resting at the start and the end
+    assert {k.interpolation for k in z} == {"LINEAR"} and scene.frame_end >= 145
 
 
 @pytest.mark.multiversion
@@ -83,11 +92,14 @@ def test_every_tick_bakes_subframes(bpy, recorded):
     path, rec = recorded
     report = grasp_env.submodule("bake").bake_recording(bpy.context, rec, every_tick=True)
     assert report.frames == len(rec.ticks)
-    kp = {(f.data_path, f.array_index): f for f in _fcurves(bpy, bpy.data.objects["Box"])}[("location", 2)]
-    keys = np.empty(2 * len(kp.keyframe_points), dtype=np.float32)
-    kp.keyframe_points.foreach_get("co", keys)
-    np.testing.assert_allclose(keys[0::2], 1 + rec.ticks["time"] * 24, atol=1e-4)
-    np.testing.assert_allclose(keys[1::2], rec.ticks["pose"][:, 0, 2], atol=1e-7)
+    fc = {(f.data_path, f.array_index): f for f in _fcurves(bpy, bpy.data.objects["Box"])}[("location", 2)]
+    keys = np.empty(2 * len(fc.keyframe_points), dtype=np.float32)
+    fc.keyframe_points.foreach_get("co", keys)
+    tick_of_key = (keys[0::2].astype(np.float64) - 1) / 24 * 1000
+    np.testing.assert_allclose(tick_of_key, np.round(tick_of_key), atol=0.02)     # keys sit on ticks
+    # Every tick, subframes included, evaluates to the recorded height (float32).
+    for k in range(0, len(rec.ticks), 37):
+        assert fc.evaluate(1 + rec.ticks["time"][k] * 24) == pytest.approx(rec.ticks["pose"][k, 0, 2], abs=1e-7)
 
 
 def test_renamed_and_deleted_objects(bpy, recorded):
