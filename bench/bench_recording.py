@@ -1,9 +1,10 @@
 """Recording benchmarks; prints a Markdown section (docs/benchmarks.md, "Recording").
 
-1. Recorder cost in the runtime: the manual-clock runtime (the haptic tick's own code, on
-   this thread) with and without the tick log, 20 bodies + 10 fingers (3 bodies held) and
-   the sample scene's 2 + 2; interleaved repeats, medians. Beside it the haptic tick's own
-   work on the real-time loop (``work_us`` of its records). Target: <= 2 % of the tick.
+1. Recorder cost in the runtime, 20 bodies + 10 fingers (3 bodies held) and the sample
+   scene's 2 + 2: on the real-time haptic loop, what recording a tick costs (``log_us``, timed
+   in the loop) beside the tick's own work (``work_us``), medians over 2 s; and the
+   manual-clock runtime (the same tick code on this thread) with and without the tick log,
+   interleaved repeats. Target: <= 2 % of the tick.
 2. A 10-minute session, 20 bodies and 10 fingers at 1 kHz (synthetic motion: 4 bodies and
    the fingers moving, the rest at rest), written with zstd: baking it at 60 fps (open +
    bake) beside ``keyframe_insert`` on a slice of it in the same run. Target: < 2 s.
@@ -91,7 +92,9 @@ def realtime_work(graspcore, make, seconds=2.0):
     out = np.zeros(int(seconds * 1000) + 500, w.tick_dtype())
     rec = w.drain_ticks(out)
     work = rec["work_us"][10:].astype(np.float64)
-    return float(np.median(work)), float(np.percentile(work, 99)), int(w.tick_log_overflow())
+    log = rec["log_us"][10:].astype(np.float64)
+    return (float(np.median(work)), float(np.percentile(work, 99)), float(np.median(log)),
+            float(np.percentile(log, 99)), int(w.tick_log_overflow()))
 
 
 def synthetic_session(path, minutes, compression, n_bodies=20, n_fingers=10, block=6000):
@@ -186,15 +189,15 @@ def main(argv=None):
         # 1. recorder cost
         for label, make in (("20 bodies + 10 fingers", many_world), ("sample scene, 2 + 2", sample_world)):
             off, on, w = recorder_cost(gc, make)
-            work50, work99, overflow = realtime_work(gc, make)
-            cost = on - off
-            rows.append((f"manual-clock runtime tick, {label}: without / with the tick log", f"{off:.2f} / {on:.2f} µs"))
-            rows.append((f"recorder cost per tick, {label}", f"{cost:.3f} µs ({w.tick_dtype().itemsize} B record)"))
-            rows.append((f"real-time haptic tick's own work, {label}: median / p99", f"{work50:.1f} / {work99:.1f} µs"
-                         f" (overflow {overflow})"))
-            share = cost / work50 * 100 if work50 > 0 else float("inf")
+            work50, work99, log50, log99, overflow = realtime_work(gc, make)
+            rows.append((f"real-time haptic tick, {label}: its work / recording it (median; p99)",
+                         f"{work50:.1f} / {log50:.2f} µs ({work99:.1f} / {log99:.2f}); "
+                         f"{w.tick_dtype().itemsize} B a record, {overflow} dropped"))
+            rows.append((f"manual-clock runtime tick (haptic + object ticks), {label}: without / with the "
+                         f"tick log (median of 7, interleaved)", f"{off:.2f} / {on:.2f} µs ({on - off:+.2f} µs)"))
+            share = log50 / work50 * 100 if work50 > 0 else float("inf")
             targets.append((f"recorder cost ≤ 2 % of the haptic tick, {label}",
-                            f"{share:.1f} % ({cost:.3f} of {work50:.1f} µs)", share <= 2.0))
+                            f"{share:.1f} % ({log50:.2f} of {work50:.1f} µs)", share <= 2.0))
         # 2-4. the 10-minute session
         sizes = {}
         for c in ("zstd", "lz4", "none"):

@@ -48,7 +48,7 @@ COMPRESSIONS = ("lz4", "zstd", "none")   # lz4 by default: 3x faster to read bac
 # per-body arrays. Kept here too so a recording opens without the core.
 FIXED_FIELDS = [("tick", "<u8", ()), ("time", "<f8", ()), ("object_time", "<f8", ()),
                 ("state_hash", "<u8", ()), ("period_us", "<f4", ()), ("work_us", "<f4", ()),
-                ("flags", "<u4", ()), ("adopted", "<u4", ())]
+                ("flags", "<u4", ()), ("adopted", "<u4", ()), ("log_us", "<f4", ())]
 FLAG_FORCES_ENABLED = 1
 
 

@@ -741,13 +741,8 @@ static PyObject *World_set_tick_log(PyObject *obj, PyObject *arg) {
     Py_RETURN_NONE;
 }
 
-/* The tick log is safe from any thread at any time (tick_log.c): no busy check, so a recorder
- * thread drains while another thread steps, advances or stops the world. */
-static int check_world(WorldObject *self) {
-    if (!self->world) PyErr_SetString(PyExc_RuntimeError, "World is not initialised");
-    return self->world != NULL;
-}
-
+/* The tick log is safe from any thread at any time (tick_log.c): check_world, not check_ready,
+ * so a recorder thread drains while another thread steps, advances or stops the world. */
 static PyObject *World_drain_ticks(PyObject *obj, PyObject *arg) {
     WorldObject *self = (WorldObject *)obj;
     if (!check_world(self)) return NULL;

@@ -238,7 +238,8 @@ gcStatus gc_world_debug_stall(gcWorld *world, double seconds);
 /* ---- Tick log: one record per tick for recorders (docs/recording-format.md) ----
  * A record is gc_tick_record_size(bodies, fingers) bytes, little-endian, packed: tick u64,
  * time f64, object_time f64, state_hash u64, period_us f32, work_us f32, flags u32 (bit 0:
- * device forces enabled), adopted u32; then per finger hip, god_object, force (the coupling
+ * device forces enabled), adopted u32, log_us f32 (what recording the previous tick cost, real
+ * time); then per finger hip, god_object, force (the coupling
  * spring), device_force (after the safety layer), normal (of the first contact, world; 0
  * when free) as 3 f64 each; per body pose (7 f64),
  * velocity (linear of the body frame origin, angular; 6 f64), residual wrench (6 f64); per

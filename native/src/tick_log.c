@@ -25,11 +25,12 @@ struct gcTickLog {
     _Atomic uint64_t tail;        /* records drained (consumer) */
     _Atomic uint64_t overflow;    /* records dropped on a full ring since the start */
     int64_t prev_now_ns;          /* producer: the previous tick's clock, for its period */
+    float prev_log_us;            /* producer: what recording the previous tick cost (real time) */
     pthread_mutex_t drain_mutex;  /* among drain callers; the producer never takes it */
 };
 
 /* Field offsets inside a record (all little-endian; the f64 arrays first, then the i32). */
-enum { REC_HEADER = 48 };
+enum { REC_HEADER = 52 };
 
 size_t gc_tick_record_size(int num_bodies, int num_fingers) {
     if (num_bodies < 0 || num_fingers < 0) return 0;
@@ -44,7 +45,7 @@ static unsigned char *put(unsigned char *p, const void *v, size_t n) {
 
 /* One record of world `w`: device forces given (NULL: the physics forces, no safety layer). */
 static void fill_record(const gcWorld *w, const double *device_force, uint64_t tick, double object_time,
-                        float period_us, float work_us, uint32_t flags, uint32_t adopted,
+                        float period_us, float work_us, uint32_t flags, uint32_t adopted, float log_us,
                         unsigned char *out) {
     const int nb = w->num_bodies, nf = w->num_fingers;
     uint64_t hash = gc_world_state_hash(w);
@@ -57,6 +58,7 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
     p = put(p, &work_us, 4);
     p = put(p, &flags, 4);
     p = put(p, &adopted, 4);
+    p = put(p, &log_us, 4);
     for (int i = 0; i < nf; ++i) p = put(p, &w->fingers[i].hip, 24);
     for (int i = 0; i < nf; ++i) p = put(p, &w->fingers[i].god_object, 24);
     for (int i = 0; i < nf; ++i) p = put(p, &w->fingers[i].force, 24);
@@ -102,7 +104,7 @@ gcStatus gc_world_tick_record(gcWorld *w, uint64_t tick, void *out, size_t size)
         gc_world_set_error(w, "tick_record: buffer of %zu bytes, a record needs %zu", size, need);
         return GC_ERR_INVALID_ARGUMENT;
     }
-    fill_record(w, NULL, tick, w->time, 0.0f, 0.0f, 1u, 0u, out);
+    fill_record(w, NULL, tick, w->time, 0.0f, 0.0f, 1u, 0u, 0.0f, out);
     return GC_OK;
 }
 
@@ -160,6 +162,7 @@ gcTickLog *gc_tick_log_begin(gcWorld *w, gcStatus *status) {
     atomic_store(&log->tail, 0);
     atomic_store(&log->overflow, 0);
     log->prev_now_ns = INT64_MIN;
+    log->prev_log_us = 0.0f;
     pthread_mutex_unlock(&log->drain_mutex);
     return log;
 }
@@ -172,17 +175,20 @@ void gc_tick_log_free(gcWorld *w) {
     w->tick_log = NULL;
 }
 
+static int64_t monotonic_ns(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
+}
+
 void gc_tick_log_push(gcTickLog *log, const gcWorld *hw, const double *device_force, uint64_t tick,
                       double object_time, int64_t now_ns, int realtime, int forces_enabled,
                       int adopted) {
     float period_us = log->prev_now_ns == INT64_MIN ? 0.0f : (float)((now_ns - log->prev_now_ns) * 1e-3);
     log->prev_now_ns = now_ns;
-    float work_us = 0.0f;
-    if (realtime) { /* from the wake-up to here: this tick's work */
-        struct timespec ts;
-        clock_gettime(CLOCK_MONOTONIC, &ts);
-        work_us = (float)(((int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec - now_ns) * 1e-3);
-    }
+    int64_t t0 = monotonic_ns();
+    /* From the wake-up to here: this tick's work (real-time clock only). */
+    float work_us = realtime ? (float)((t0 - now_ns) * 1e-3) : 0.0f;
     uint64_t head = atomic_load_explicit(&log->head, memory_order_relaxed);
     uint64_t tail = atomic_load_explicit(&log->tail, memory_order_acquire);
     if (head - tail >= (uint64_t)log->capacity) {
@@ -191,8 +197,9 @@ void gc_tick_log_push(gcTickLog *log, const gcWorld *hw, const double *device_fo
     }
     unsigned char *slot = log->records + (head % (uint64_t)log->capacity) * log->record_size;
     fill_record(hw, device_force, tick, object_time, period_us, work_us, forces_enabled ? 1u : 0u,
-                (uint32_t)adopted, slot);
+                (uint32_t)adopted, log->prev_log_us, slot);
     atomic_store_explicit(&log->head, head + 1, memory_order_release);
+    log->prev_log_us = (float)((monotonic_ns() - t0) * 1e-3);
 }
 
 int gc_world_drain_ticks(gcWorld *w, void *out, size_t size, int max_records) {

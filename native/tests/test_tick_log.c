@@ -55,9 +55,9 @@ static gcWorld *pinch_world(void) {
 }
 
 static void test_layout_and_stopped_record(void) {
-    GC_CHECK(gc_tick_record_size(2, 3) == 48 + 8 * (15 * 3 + 19 * 2) + 4 * 2 * 3, "size %zu",
+    GC_CHECK(gc_tick_record_size(2, 3) == 52 + 8 * (15 * 3 + 19 * 2) + 4 * 2 * 3, "size %zu",
              gc_tick_record_size(2, 3));
-    GC_CHECK(gc_tick_record_size(0, 0) == 48, "empty world: the fixed fields only");
+    GC_CHECK(gc_tick_record_size(0, 0) == 52, "empty world: the fixed fields only");
     gcWorld *w = pinch_world();
     double hips[6] = {-0.025, 0, 0.2, 0.025, 0, 0.2};
     gc_world_set_hips(w, hips, 2);
@@ -73,7 +73,7 @@ static void test_layout_and_stopped_record(void) {
     gc_world_body_pose(w, 0, pos, q);
     gc_world_finger_force(w, 1, f);
     gc_world_god_object(w, 1, go);
-    const size_t arrays = 48, nf = 2;
+    const size_t arrays = 52, nf = 2;
     GC_CHECK(rec_f64(r, arrays + 8 * 3 * nf + 24 + 0) == go[0], "god-object of finger 1");       /* god_object[1].x */
     GC_CHECK(rec_f64(r, arrays + 8 * 6 * nf + 24 + 0) == f[0], "force of finger 1");            /* force[1].x */
     GC_CHECK(rec_f64(r, arrays + 8 * 9 * nf + 24 + 0) == f[0], "device force = force when stepped");

@@ -20,7 +20,7 @@ def tick_dtype(num_bodies: int, num_fingers: int) -> np.dtype:
     nb, nf = int(num_bodies), int(num_fingers)
     dtype = np.dtype([
         ("tick", "<u8"), ("time", "<f8"), ("object_time", "<f8"), ("state_hash", "<u8"),
-        ("period_us", "<f4"), ("work_us", "<f4"), ("flags", "<u4"), ("adopted", "<u4"),
+        ("period_us", "<f4"), ("work_us", "<f4"), ("flags", "<u4"), ("adopted", "<u4"), ("log_us", "<f4"),
         ("hip", "<f8", (nf, 3)), ("god_object", "<f8", (nf, 3)), ("force", "<f8", (nf, 3)),
         ("device_force", "<f8", (nf, 3)), ("normal", "<f8", (nf, 3)), ("pose", "<f8", (nb, 7)), ("velocity", "<f8", (nb, 6)),
         ("wrench", "<f8", (nb, 6)), ("state", "<i4", (nf,)), ("contact", "<i4", (nf,)),
