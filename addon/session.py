@@ -375,6 +375,7 @@ def _live_tick():
     except Exception as ex:  # noqa: BLE001 - whatever it was, stop and say so
         traceback.print_exc()
         session.error = f"{type(ex).__name__}: {ex}"
+        session.ended_by = "an error"
         done = True
     if done:
         if not session.error:

@@ -457,6 +457,34 @@ def scenario_interactive():
     check_stopped("esc")
 
 
+def scenario_error():
+    """An exception inside a live session's timer: the session stops cleanly and says why."""
+    setup_scene(duration=0.0)
+    yield from open_grasp_tab()
+    yield from start_by_click()
+    yield 1.0
+    session = active_session()
+    original = session.apply
+
+    def broken_apply(snap, frame):
+        raise RuntimeError("injected by the GUI test")
+    session.apply = broken_apply
+    yield from wait_until(lambda: active_session() is None, 10, "the failing session to stop")
+    check_stopped("error")
+    RESULT["session_error"] = session.error
+    session.apply = original
+    yield 1.0
+    RESULT["overlay_left"] = ext("display").overlay_active()
+    area, win_region, ui = view3d()
+    hover(win_region, 50, 50)                             # the error report closes as the mouse leaves
+    yield 1.5
+    yield from start_by_click()                           # the next session runs
+    yield 1.0
+    yield from press_in_viewport("Escape")
+    yield from wait_until(lambda: active_session() is None, 5, "Esc")
+    check_stopped("esc_after_error")
+
+
 def _final_box():
     res = last_result()
     return [float(v) for v in res.final.poses[res.body_names.index("Box")][:3]]

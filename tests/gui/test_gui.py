@@ -117,6 +117,15 @@ def test_quitting_blender_mid_session(gui):
     assert "Grasp session:" in console and "ended by Blender" in console, console[-3000:]
 
 
+def test_an_error_inside_a_session_stops_it_cleanly_and_says_why(gui):
+    r, console, _ = run(gui, "error")
+    ok(r, console)
+    stopped_cleanly(r)
+    assert r["session_error"] == "RuntimeError: injected by the GUI test"
+    assert r["overlay_left"] is False
+    assert "(ended by an error): RuntimeError: injected by the GUI test" in console
+
+
 def test_moving_a_fingertip_with_g_during_a_session(gui):
     r, console, _ = run(gui, "interactive")
     ok(r, console)
