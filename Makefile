@@ -80,7 +80,7 @@ demo: core extension
 	@echo "== (b) Blender, headless, through the extension: sample_scenes/demo_session.py"
 	GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) sample_scenes/demo_session.py --out $(BUILD)/demo
 
-bench: core
+bench: core extension
 	$(PY) bench/run_bench.py
 
 clean:

@@ -485,6 +485,75 @@ def scenario_error():
     check_stopped("esc_after_error")
 
 
+def _redraw_ms(kind, iterations=10):
+    """Mean ms per redraw of the viewport region ('DRAW') or the whole window + swap."""
+    area, win_region, ui = view3d()
+    with bpy.context.temp_override(window=window(), area=area, region=win_region):
+        t0 = time.perf_counter()
+        bpy.ops.wm.redraw_timer(type=kind, iterations=iterations)
+        return 1e3 * (time.perf_counter() - t0) / iterations
+
+
+def scenario_draw_cost():
+    """Benchmark (bench/bench_gui.py): the viewport's draw cost for 10 fingers + 20 bodies,
+    without and with a live session's display objects and overlay; the session's display
+    rate and main-thread cost per display update."""
+    sys.path.insert(0, os.path.join(ROOT, "tests", "blender"))
+    import grasp_env
+    for obj in list(bpy.data.objects):
+        bpy.data.objects.remove(obj)
+    scene = bpy.context.scene
+    table = grasp_env.add_cube(bpy, "Table", 1.0, (0.2, 0.15, -0.03))
+    table.scale = (0.8, 0.6, 0.04)
+    table.grasp_lab.role = "STATIC"
+    for i in range(20):
+        obj = grasp_env.add_cube(bpy, f"Body {i:02d}", 0.04, ((i % 5) * 0.1, (i // 5) * 0.1, 0.0))
+        obj.grasp_lab.role = "DYNAMIC"
+        obj.grasp_lab.mass = 0.1
+    for j in range(10):
+        f = bpy.data.objects.new(f"Finger {j}", None)
+        scene.collection.objects.link(f)
+        f.empty_display_type = "SPHERE"
+        f.empty_display_size = 0.008
+        f.location = ((j % 5) * 0.1 - 0.027, (j // 5) * 0.1, 0.0)   # 1 mm into body j's side
+        f.grasp_lab.role = "FINGER"
+        f.grasp_lab.channel = j
+    bpy.context.view_layer.update()
+    frame_scene()
+    area, win_region, ui = view3d()
+    area.spaces[0].region_3d.view_location = (0.2, 0.15, 0.0)
+    area.spaces[0].region_3d.view_distance = 0.9
+    yield 1.0
+    RESULT["viewport_px"] = [win_region.width, win_region.height]
+    RESULT["draw_ms_idle"] = _redraw_ms("DRAW")
+    RESULT["window_ms_idle"] = _redraw_ms("DRAW_WIN_SWAP")
+    with bpy.context.temp_override(window=window(), area=area, region=win_region):
+        bpy.ops.grasp_lab.session("INVOKE_DEFAULT")
+    session = active_session()
+    tick_s = []
+    original = session.tick
+
+    def timed_tick(*args, **kwargs):
+        t0 = time.perf_counter()
+        try:
+            return original(*args, **kwargs)
+        finally:
+            tick_s.append(time.perf_counter() - t0)
+    session.tick = timed_tick
+    yield 2.0
+    RESULT["display_objects"] = len(session.display.objects) if session.display else 0
+    RESULT["draw_ms_session"] = _redraw_ms("DRAW")
+    RESULT["window_ms_session"] = _redraw_ms("DRAW_WIN_SWAP")
+    n0, t0 = len(tick_s), time.perf_counter()
+    yield 5.0
+    RESULT["display_rate_session"] = (len(tick_s) - n0) / (time.perf_counter() - t0)
+    RESULT["tick_ms_median"] = 1e3 * float(np.median(tick_s))
+    RESULT["contacts"] = session.snapshot.n_contacts
+    RESULT["stats"] = {k: v for k, v in session.runner.stats().items() if isinstance(v, (int, float))}
+    screenshot("draw_cost")
+    ext("session").stop_active()
+
+
 def _final_box():
     res = last_result()
     return [float(v) for v in res.final.poses[res.body_names.index("Box")][:3]]

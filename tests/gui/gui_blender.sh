@@ -77,6 +77,7 @@ setup() {
     ROOT=$tmp in_chroot blender --version | head -1
     rm -rf "$ROOT"; mv "$tmp" "$ROOT"; mv "$tmp.log" "$ROOT/setup.log"
     touch "$STAMP"
+    echo "$((SECONDS - t0))" > "$ROOT/setup-seconds"
     echo "GUI Blender: set up in $((SECONDS - t0)) s"
 }
 

@@ -4,53 +4,25 @@ Each test starts a GUI Blender under Xvfb (tests/gui/gui_blender.sh: Debian 13's
 4.3 in a cached chroot, or $BLENDER) with tests/gui/driver.py, which clicks, types and
 takes screenshots (kept in build/gui/<scenario>/) and writes what it saw to result.json.
 """
-import json
 import os
-import shutil
-import subprocess
 
 import pytest
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-SCRIPT = os.path.join(ROOT, "tests", "gui", "gui_blender.sh")
-DRIVER = os.path.join(ROOT, "tests", "gui", "driver.py")
-OUT = os.path.join(ROOT, "build", "gui")
-HOW = ("make test builds one as root on Debian (tests/gui/gui_blender.sh setup), or set "
-       "BLENDER=/path/to/blender with xvfb-run, xdotool and ImageMagick installed")
+import gui_run
 
 
 @pytest.fixture(scope="session")
 def gui(tmp_path_factory):
-    check = subprocess.run([SCRIPT, "check"], capture_output=True, text=True)
-    if check.returncode != 0:
-        msg = f"GUI tests need a GUI Blender: {check.stdout.strip()}; {HOW}"
+    reason = gui_run.why_not()
+    if reason:
+        msg = f"GUI tests need a GUI Blender: {reason}; {gui_run.HOW}"
         if os.environ.get("CI") and not os.environ.get("GRASP_LAB_GUI_OPTIONAL"):
             pytest.fail(msg)            # CI has root and Debian: no excuse to skip
         pytest.skip(msg)
-    zip_path = os.environ.get("GRASP_LAB_ZIP")
-    if not zip_path or not os.path.exists(zip_path):
-        pytest.fail("GRASP_LAB_ZIP must name the built extension zip (make extension)")
-    env = dict(os.environ, GRASP_LAB_ZIP=os.path.abspath(zip_path),
-               BLENDER_USER_RESOURCES=str(tmp_path_factory.mktemp("blender_user")))
-    prep = subprocess.run([SCRIPT, "blender", "-b", "--python", os.path.join(ROOT, "tests", "gui", "prep.py")],
-                          env=env, capture_output=True, text=True, timeout=120)
-    assert "grasp-lab-gui-prep: ok" in prep.stdout, prep.stdout + prep.stderr
-    return env
+    return gui_run.prepare(os.environ.get("GRASP_LAB_ZIP", ""), str(tmp_path_factory.mktemp("blender_user")))
 
 
-def run(gui, scenario, timeout=180, background=False):
-    """Run one driver scenario; returns (result.json, console output, exit code)."""
-    out = os.path.join(OUT, scenario)
-    shutil.rmtree(out, ignore_errors=True)
-    args = [SCRIPT, "blender"] + (["-b"] if background else []) + \
-        ["--python", DRIVER, "--", scenario, out]
-    proc = subprocess.run(args, env=gui, capture_output=True, text=True, timeout=timeout)
-    console = proc.stdout + proc.stderr
-    path = os.path.join(out, "result.json")
-    assert os.path.exists(path), f"{scenario}: no result (exit {proc.returncode})\n{console[-3000:]}"
-    with open(path) as fh:
-        result = json.load(fh)
-    return result, console, proc.returncode
+run = gui_run.run
 
 
 def ok(result, console):
