@@ -9,8 +9,8 @@ import bpy
 
 from .engine.recording import RecordingWriter, SessionRecorder, make_header
 
-# The runtime settings RuntimeDriver starts the core with (graspcore.h gc_default_runtime_def):
-# the recorder reads clamping and watchdog events against them.
+# The core's runtime defaults (graspcore.h gc_default_runtime_def) that a session's options
+# leave as they are: the recorder reads clamping and watchdog events against them.
 RUNTIME_DEFAULTS = {"max_force": 10.0, "ramp_time": 0.5, "watchdog_timeout": 0.005, "hip_timeout": 0.1}
 
 
@@ -20,13 +20,13 @@ def default_path(settings) -> str:
     return os.path.join(folder, time.strftime("grasp_%Y%m%d_%H%M%S.mcap"))
 
 
-def session_recorder(session, path, threaded: bool) -> SessionRecorder:
+def session_recorder(session, path, threaded: bool, options: dict) -> SessionRecorder:
     """A recorder for a BlenderSession about to start (path None: the scene's recording folder)."""
     s = session.settings
     path = bpy.path.abspath(path) if path else default_path(s)
     folder = os.path.dirname(os.path.abspath(path))
     os.makedirs(folder, exist_ok=True)
-    runtime = dict(RUNTIME_DEFAULTS, threaded=True) if threaded else {"threaded": False}
+    runtime = dict(RUNTIME_DEFAULTS, **options, threaded=True) if threaded else {"threaded": False}
     header = make_header(
         session.desc, mode="realtime" if threaded else "exec", haptic_rate=s.haptic_rate,
         fps=session.fps, source=bpy.data.filepath,
