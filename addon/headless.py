@@ -67,7 +67,7 @@ def run(args, out, err) -> int:
             t0 = time.perf_counter()
             while True:
                 wall = time.perf_counter() - t0
-                session.tick(wall, max_steps=None)
+                session.tick(wall)
                 if session.runner.time >= session.duration - 1e-9:
                     break
                 time.sleep(max(0.0, period - (time.perf_counter() - t0 - wall)))

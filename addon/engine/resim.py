@@ -202,7 +202,7 @@ def resimulate(recorded: Recording, graspcore, overrides=(), tolerance: float = 
     t_rec = recorded.ticks["time"]
     hip_rec = recorded.ticks["hip"]
     if same_rate:
-        hips = hip_rec
+        hips = np.ascontiguousarray(hip_rec)     # out of the records: one array, rows set_hips takes
     else:   # the HIP stream resampled at the new rate (linear between recorded ticks)
         start = float(t_rec[0]) if int(recorded.ticks["tick"][0]) == 0 else \
             float(t_rec[0]) - 1.0 / recorded.haptic_rate
