@@ -624,8 +624,11 @@ def open_recording(path: str, fps: float | None = None) -> Recording:
                     if ch.topic == TOPIC_HEADER:
                         header = json.loads(bytes(data))
                         _check_version(path, header)
-                        dtype = dtype_of(json.loads(schemas[channels_by_topic(channels, TOPIC_TICKS)
-                                                            .schema_id].data))
+                        schema = schemas[channels_by_topic(channels, TOPIC_TICKS).schema_id]
+                        try:
+                            dtype = dtype_of(json.loads(schema.data))
+                        except ValueError as ex:
+                            raise RecordingError(f"{path}: {ex}") from None
                     elif header is None:
                         raise ValueError(f"{ch.topic} message before the header")
                     elif ch.topic == TOPIC_TICKS:
