@@ -628,6 +628,11 @@ def main(argv=None) -> int:
                                   os.path.join(HERE, "bench_gui.py")], timeout=1200)
         ok &= good
         blender = blender.rstrip() + "\n\n" + gui
+        log("recording (bench/bench_recording.py)")
+        good, rec = run_external([venv_py if os.path.exists(venv_py) else sys.executable,
+                                  os.path.join(HERE, "bench_recording.py")], timeout=900)
+        ok &= good
+        blender = blender.rstrip() + "\n\n" + rec
     jitter_s = 5.0 if args.quick else 60.0
     log(f"haptic-loop jitter (bench/bench_jitter.py, {jitter_s:g} s per run: bare loop and runtime, "
         "SCHED_FIFO and normal)")
