@@ -92,7 +92,7 @@ class GRASPLAB_PG_scene(bpy.types.PropertyGroup):
     torque_scale: FloatProperty(name="Torque Scale", default=1.0, min=0.0, soft_max=10.0,
                                 unit="LENGTH", description="Arrow length per newton-metre")
     record: BoolProperty(name="Record", default=False,
-                         description="Save every session to the recording folder (.npz)")
+                         description="Record every haptic tick of each session to the recording folder (.mcap)")
     recording_folder: StringProperty(name="Recording Folder", default="//grasp_recordings/",
                                      subtype="DIR_PATH",
                                      description="Where session recordings are written")

@@ -161,8 +161,11 @@ def test_run_with_overrides_and_devices(blend, tmp_path):
     r = grasp_lab("run", blend, "--duration", "0.5", "--set", "Box.mass=0.25", "--set", "haptic_rate=500",
                   "--record", rec)
     assert r.returncode == 0, r.stderr
-    h = recording.open_recording(rec).header
+    got = recording.open_recording(rec)
+    h = got.header
     assert h["scene"]["bodies"][0]["mass"] == pytest.approx(0.25) and h["rates"]["haptic_hz"] == 500
+    params = [(e["subject"], e["name"], e["value"]) for e in got.events if e["kind"] == "parameter"]
+    assert params == [("Box", "mass", 0.25), ("scene", "haptic_rate", 500.0)]
     r = grasp_lab("run", blend, "--set", "Mug.mass=1")
     assert r.returncode == 1 and "no Grasp Lab body or finger named 'Mug'" in r.stderr
     r = grasp_lab("run", blend, "--device", "serial:/dev/ttyACM0")

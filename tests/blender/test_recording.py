@@ -268,3 +268,8 @@ def test_reading_only_the_ticks_frames_show(exec_rec):
     assert at24.ticks.tobytes() == full.ticks[full.sample(frames)].tobytes()
     assert at24.ticks[at24.sample(frames)].tobytes() == at24.ticks.tobytes()
 
+
+def test_the_format_layout_is_the_cores(core):
+    for nb, nf in ((0, 0), (2, 2), (20, 10), (1, 7)):
+        assert recording.tick_dtype(nb, nf) == core.tick_dtype(nb, nf)
+

@@ -25,7 +25,8 @@ def tick_dtype(num_bodies: int, num_fingers: int) -> np.dtype:
         ("device_force", "<f8", (nf, 3)), ("normal", "<f8", (nf, 3)), ("pose", "<f8", (nb, 7)), ("velocity", "<f8", (nb, 6)),
         ("wrench", "<f8", (nb, 6)), ("state", "<i4", (nf,)), ("contact", "<i4", (nf,)),
     ])
-    assert dtype.itemsize == _core.tick_record_size(nb, nf)
+    if dtype.itemsize != _core.tick_record_size(nb, nf):
+        raise RuntimeError("graspcore.tick_dtype does not match the core's record layout (rebuild the core)")
     return dtype
 
 
