@@ -81,6 +81,15 @@ def continuous(q: np.ndarray) -> np.ndarray:
     return q * sign[:, None]
 
 
+def _distinct(rows: np.ndarray):
+    """(first rows of each run of equal consecutive rows, index of each row's run): work done once
+    per run and spread back with ``result[index]`` (a body at rest is one row)."""
+    flat = rows.reshape(len(rows), -1)
+    change = np.ones(len(rows), dtype=bool)
+    change[1:] = np.any(flat[1:] != flat[:-1], axis=1)
+    return rows[change], np.cumsum(change) - 1
+
+
 def _quat_matrices(q: np.ndarray) -> np.ndarray:
     w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
     return np.stack([
@@ -110,6 +119,7 @@ def _bake_rigid(obj, frames, poses, start_pos, start_quat) -> int:
     f0 = Quaternion(start_quat).to_matrix().to_4x4()
     f0.translation = start_pos
     frame_to_world = _np(f0.inverted() @ _rest_matrix(obj))
+    poses, run = _distinct(poses)
     n = len(poses)
     world = np.zeros((n, 4, 4))
     world[:, :3, :3] = _quat_matrices(poses[:, 3:])
@@ -121,6 +131,7 @@ def _bake_rigid(obj, frames, poses, start_pos, start_quat) -> int:
     rot = quats_from_matrices(basis[:, :3, :3] / scale[:, None, :])
     obj.rotation_mode = "QUATERNION"
     obj.scale = scale[0]        # rigid motion under a fixed parent: the scale does not change
+    loc, rot = loc[run], rot[run]
     return anim.bake_channels(obj, frames, [("location", i, loc[:, i]) for i in range(3)]
                               + [("rotation_quaternion", i, rot[:, i]) for i in range(4)], reduce=True)
 
@@ -137,6 +148,8 @@ def _bake_points(obj, frames, points, size=None, extra=()) -> int:
 
 def _arrow_channels(origin, vec, scale):
     """loc / quaternion / scale of display arrows (unit arrow along +Z) from origin along vec."""
+    rows, run = _distinct(np.concatenate([origin, vec], axis=1))
+    origin, vec = rows[:, :3], rows[:, 3:]
     length = np.linalg.norm(vec, axis=1)
     u = vec / np.where(length > 1e-12, length, 1.0)[:, None]
     # The rotation taking +Z to u: (1 + uz, -uy, ux, 0) normalised; -Z: a half turn about X.
@@ -145,8 +158,9 @@ def _arrow_channels(origin, vec, scale):
     q[flat] = (0.0, 1.0, 0.0, 0.0)
     q = continuous(q / np.linalg.norm(q, axis=1, keepdims=True))
     visible = length * scale >= 1e-9
-    sx = np.where(visible, display.ARROW_WIDTH, 0.0)
-    sz = np.where(visible, length * scale, 0.0)
+    sx = np.where(visible, display.ARROW_WIDTH, 0.0)[run]
+    sz = np.where(visible, length * scale, 0.0)[run]
+    origin, q = origin[run], q[run]
     return ([("location", i, origin[:, i]) for i in range(3)]
             + [("rotation_quaternion", i, q[:, i]) for i in range(4)]
             + [("scale", 0, sx), ("scale", 1, sx), ("scale", 2, sz)])
@@ -193,6 +207,9 @@ def bake_recording(context, rec: Recording, every_tick: bool = False, force_scal
         raise ValueError(f"{rec.path}: the recording is shorter than one frame")
     frames = frame_start + times * fps
     ticks = rec.ticks[idx]
+    # Each object's samples contiguous (records are kilobytes apart): (objects, frames, k).
+    per = {name: np.ascontiguousarray(np.moveaxis(ticks[name], 1, 0))
+           for name in ("pose", "hip", "god_object", "wrench", "contact")}
     desc = scene_from_dict(rec.header["scene"])
     report = BakeReport(frames=len(frames))
     wm = context.window_manager
@@ -218,32 +235,32 @@ def bake_recording(context, rec: Recording, every_tick: bool = False, force_scal
                 continue
             if b.static:
                 continue
-            keyed(obj, _bake_rigid(obj, frames, ticks["pose"][:, i], b.position, b.orientation))
+            keyed(obj, _bake_rigid(obj, frames, per["pose"][i], b.position, b.orientation))
         for j, f in enumerate(desc.fingers):
             progress()
             obj = bpy.data.objects.get(f.name)
             if obj is None:
                 report.missing.append(f"finger {f.name}")
                 continue
-            keyed(obj, _bake_points(obj, frames, ticks["hip"][:, j]))
+            keyed(obj, _bake_points(obj, frames, per["hip"][j]))
         # The display objects: made if missing, so a scene whose bodies are gone still shows forces.
         shown = display.DisplayObjects(scene, desc)
-        measures = finger_measures(rec, ticks)
+        measures = {k: np.ascontiguousarray(v.T) for k, v in finger_measures(rec, ticks).items()}
         for j, obj in enumerate(shown.god_objects):
-            keyed(obj, _bake_points(obj, frames, ticks["god_object"][:, j], size=shown.radii[j],
-                                    extra=_custom(obj, frames, {k: v[:, j] for k, v in measures.items()})))
+            keyed(obj, _bake_points(obj, frames, per["god_object"][j], size=shown.radii[j],
+                                    extra=_custom(obj, frames, {k: v[j] for k, v in measures.items()})))
         progress()
         grip = np.zeros((len(idx), len(desc.bodies)))
         fn = measures["gl_normal_force"]
         for j in range(len(desc.fingers)):
-            c = ticks["contact"][:, j]
+            c = per["contact"][j]
             on = c >= 0
-            np.add.at(grip, (np.flatnonzero(on), c[on]), fn[on, j])
+            np.add.at(grip, (np.flatnonzero(on), c[on]), fn[j, on])
         for k, i in enumerate(shown.dynamic):
             b = desc.bodies[i]
-            pose = ticks["pose"][:, i]
+            pose = per["pose"][i]
             com = pose[:, :3] + quat_rotate(pose[:, 3:], b.mass_properties.center_of_mass)
-            force, torque = ticks["wrench"][:, i, :3], ticks["wrench"][:, i, 3:]
+            force, torque = per["wrench"][i, :, :3], per["wrench"][i, :, 3:]
             arrow = shown.force_arrows[k]
             arrow.rotation_mode = "QUATERNION"
             props = _custom(arrow, frames, {"gl_grip": grip[:, i], "gl_force": np.linalg.norm(force, axis=1),
