@@ -236,14 +236,18 @@ def main(argv=None):
             recordings.record_exec(p, gc, seconds=6.0, compression=c)
             rows.append((f"file size per second of session, sample scene (2 + 2, real physics), {c}",
                          f"{os.path.getsize(p) / 6.0 / 1e3:.0f} kB/s"))
-        targets.append(("bake a 10-minute session (20 bodies, 10 fingers) at 60 fps < 2 s",
-                        f"{t_open + t_bake:.2f} s", t_open + t_bake < 2.0))
+        targets.append((f"bake a {args.minutes:g}-minute session (20 bodies, 10 fingers) at 60 fps < 2 s: "
+                        f"the keys, from the recording read", f"{t_bake:.2f} s", t_bake < 2.0))
+        targets.append(("the same, reading its ticks from the file first (lz4: decompressing every chunk)",
+                        f"{t_open + t_bake:.2f} s ({t_open:.2f} + {t_bake:.2f})", t_open + t_bake < 2.0))
         targets.append(("open and summarise the same file < 1 s", f"{t_info:.2f} s", t_info < 1.0))
     finally:
         if not args.keep:
             shutil.rmtree(tmp, ignore_errors=True)
     print("## Recording\n")
-    print(f"`bench/bench_recording.py`: bpy {bpy.app.version_string}, mcap, numpy {np.__version__}.\n")
+    import mcap
+    print(f"`bench/bench_recording.py`: bpy {bpy.app.version_string}, mcap {getattr(mcap, '__version__', '')}, "
+          f"numpy {np.__version__}, load average {' '.join(open('/proc/loadavg').read().split()[:3])}.\n")
     print("| target | result | met |")
     print("|---|---|---|")
     for name, value, met in targets:
