@@ -61,6 +61,10 @@ def run(args, out, err) -> int:
     record = os.path.abspath(args.record) if args.record else None
     session = BlenderSession(context, live=args.realtime,
                              duration=args.duration if args.duration else None, record_path=record)
+    if session.duration == float("inf"):
+        session.finish()
+        raise CliError(f"{args.scene}: no fingertip is animated, so a real-time session has no end: "
+                       f"give --duration S")
     if session.recorder is not None:
         for o in args.set:          # in the header's scene already; the events say they were set
             session.recorder.parameter_change(0.0, o.obj or "scene", o.key, o.value)
