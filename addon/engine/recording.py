@@ -356,7 +356,6 @@ class SessionRecorder:
         self.poll = poll
         self.events = EventDetector(writer.header)
         self.overflow = 0
-        self.threaded = False
         self.error = ""
         self._block = np.zeros(max(256, int(rate * writer.flush_interval) + 1), dtype=self.dtype)
         self._n = 0
@@ -371,7 +370,6 @@ class SessionRecorder:
     def begin(self, threaded: bool) -> None:
         """Before the world starts stepping (before ``world.start`` when threaded): tick 0 is
         the state the session starts from."""
-        self.threaded = threaded
         if self._n == 0 and self.writer.ticks == 0:
             self.world._tick_record(self._block[:1], 0)
             self._n = 1
