@@ -54,7 +54,7 @@ test-c-asan: $(addprefix $(BUILD)/c-asan/,$(C_TESTS))
 	@for t in $^; do echo "== $$t (ASan/UBSan)"; ASAN_OPTIONS=detect_leaks=1 $$t || exit 1; done
 
 # The threaded tests under ThreadSanitizer (the runtime's loops, its lock-free channels).
-TSAN_TESTS := $(filter test_runtime test_contacts,$(C_TESTS))
+TSAN_TESTS := $(filter test_runtime test_contacts test_serial_io,$(C_TESTS))
 $(BUILD)/c-tsan/%: native/tests/%.c $(CORE_SRC) $(CORE_HDR) native/tests/gc_test.h
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_COMMON) -O1 -g -fsanitize=thread -o $@ $< $(CORE_SRC) -lm -lpthread

@@ -29,6 +29,7 @@
 #include "runtime.h"
 
 #include "contacts.h"
+#include "serial_io.h"
 
 #include <errno.h>
 #include <pthread.h>
@@ -148,6 +149,8 @@ typedef struct gcRuntime {
     /* Shadows: each thread's own copy of the world's dynamic state. */
     gcWorld hap, obj;
     unsigned char *hap_active, *obj_active;
+
+    struct gcSerialHub *serial; /* the world's devices: fed every haptic tick */
 
     /* Haptic loop only. */
     unsigned char *hstate;
@@ -438,6 +441,7 @@ static gcRuntime *runtime_alloc(const gcWorld *w) {
     size_t nb = (size_t)w->def.max_bodies, nf = (size_t)w->def.max_fingers;
     rt->max_bodies = w->def.max_bodies;
     rt->max_fingers = w->def.max_fingers;
+    rt->serial = w->serial;
     int ok = shadow_alloc(rt, &rt->hap, w, &rt->hap_active, 1);
     ok &= shadow_alloc(rt, &rt->obj, w, &rt->obj_active, w->def.threads);
     rt->hstate = rt_calloc(rt, nb, 1);
@@ -662,6 +666,7 @@ static void haptic_tick(gcRuntime *rt, int64_t now) {
     /* 4. Adoption wishes for the next ticks, device forces, publications. */
     update_adoption(rt);
     int ok = update_safety(rt, now);
+    gc_serial_hub_tick(rt->serial, hw, rt->device_force, ok, now);
     publish_to_object(rt);
     publish_display(rt, now, ok);
     store_double(&rt->haptic_time_bits, hw->time);

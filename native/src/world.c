@@ -1,6 +1,7 @@
 /* World lifetime, bodies and fingers, argument validation, queries. */
 #include "world_internal.h"
 #include "runtime.h"
+#include "serial_io.h"
 
 #include <stdarg.h>
 #include <stdio.h>
@@ -90,7 +91,7 @@ gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world) {
     w->force_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
     w->hip_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
     if (!w->bodies || !w->fingers || !w->parts || !w->pose_array || !w->god_object_array ||
-        !w->force_array || !w->hip_array) {
+        !w->force_array || !w->hip_array || !(w->serial = gc_serial_hub_create(w))) {
         gc_world_destroy(w);
         return GC_ERR_NO_MEMORY;
     }
@@ -105,7 +106,9 @@ gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world) {
 
 void gc_world_destroy(gcWorld *w) {
     if (!w) return;
+    gc_serial_hub_detach_all(w->serial); /* device threads push into the runtime */
     gc_runtime_free(w); /* stops the runtime threads first */
+    gc_serial_hub_destroy(w->serial); /* the haptic loop wrote into it */
     gc_contacts_destroy(w); /* joins the contact thread pool */
     for (int i = 0; i < w->num_parts; ++i) gc_hull_free(&w->parts[i].hull);
     free(w->bodies);
