@@ -64,7 +64,7 @@ test-c-tsan: $(addprefix $(BUILD)/c-tsan/,$(TSAN_TESTS))
 
 # --- Python tests ---------------------------------------------------------------
 test-py: core
-	$(PY) -m pytest -q tests/core
+	$(PY) -m pytest -q tests/core tests/devices
 
 # test-blender (addon.mk) runs tests/blender on bpy 4.5, 4.2 and 5.0.1.
 test: test-c test-c-asan test-c-tsan test-py test-blender

@@ -7,6 +7,7 @@ header and payload. All fields are little-endian. The C core has an identical co
 """
 from __future__ import annotations
 
+import binascii
 import math
 import struct
 from typing import NamedTuple
@@ -88,36 +89,27 @@ class Force(NamedTuple):
 # ---- CRC-16/CCITT-FALSE and COBS ------------------------------------------------------
 
 def crc16(data: bytes, crc: int = 0xFFFF) -> int:
-    """CRC-16/CCITT-FALSE: polynomial 0x1021, initial 0xFFFF, no reflection, no final xor."""
-    for byte in data:
-        crc ^= byte << 8
-        for _ in range(8):
-            crc = ((crc << 1) ^ 0x1021) if crc & 0x8000 else (crc << 1)
-            crc &= 0xFFFF
-    return crc
+    """CRC-16/CCITT-FALSE: polynomial 0x1021, initial 0xFFFF, no reflection, no final xor
+    (binascii's CRC-CCITT started at 0xFFFF)."""
+    return binascii.crc_hqx(data, crc)
 
 
 def cobs_encode(data: bytes) -> bytes:
-    """Consistent Overhead Byte Stuffing: the result has no zero byte."""
+    """Consistent Overhead Byte Stuffing: the result has no zero byte. A block of 254
+    non-zero bytes implies no zero after it, so data ending with one needs no final block."""
     out = bytearray()
-    block = bytearray()
-    full = False  # the data so far ends with a full 254-byte block: no final block needed
-    for byte in data:
+    pieces = bytes(data).split(b"\0")
+    for i, piece in enumerate(pieces):
         full = False
-        if byte == 0:
-            out.append(len(block) + 1)
-            out += block
-            block.clear()
-        else:
-            block.append(byte)
-            if len(block) == 254:
-                out.append(255)
-                out += block
-                block.clear()
-                full = True
-    if not full:
-        out.append(len(block) + 1)
-        out += block
+        while len(piece) >= 254:
+            out.append(255)
+            out += piece[:254]
+            piece = piece[254:]
+            full = True
+        if full and not piece and i == len(pieces) - 1:
+            break
+        out.append(len(piece) + 1)
+        out += piece
     return bytes(out)
 
 
@@ -205,21 +197,19 @@ class StreamDecoder:
 
     def feed(self, data: bytes) -> list:
         out = []
-        for byte in data:
-            if byte != 0:
-                if self._overflow:
-                    continue
-                if len(self._buf) == MAX_WIRE:
-                    self._overflow = True
-                    self.errors["overflow"] += 1
-                    self._buf.clear()
-                    continue
-                self._buf.append(byte)
-                continue
+        pieces = bytes(data).split(b"\0")
+        for k, piece in enumerate(pieces):
+            complete = k < len(pieces) - 1   # a delimiter follows this piece
             if self._overflow:
-                self._overflow = False
+                self._overflow = not complete
                 continue
-            if not self._buf:
+            self._buf += piece
+            if len(self._buf) > MAX_WIRE:
+                self.errors["overflow"] += 1
+                self._buf.clear()
+                self._overflow = not complete
+                continue
+            if not complete or not self._buf:
                 continue
             try:
                 out.append(decode(bytes(self._buf)))
