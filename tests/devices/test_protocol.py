@@ -172,3 +172,17 @@ def test_encoders_reject_bad_values():
         P.hello_device(0, True, 0, 1000, 1.0, 10)
     with pytest.raises(P.ProtocolError, match="fingers outside"):
         P.force(0, 100, [(0, 0, 0)] * 33)
+
+
+def test_protocol_doc_worked_examples_decode():
+    import re
+    doc = open(os.path.join(os.path.dirname(VECTORS), "..", "..", "docs", "protocol.md")).read()
+    wires = re.findall(r"^    wire  ([0-9a-f ]+)$", doc, flags=re.M)
+    bodies = [b.split("(")[0] for b in re.findall(r"^    body  (.+)$", doc, flags=re.M)]
+    assert len(wires) == 2 and len(bodies) == 2
+    for wire, body in zip(wires, bodies):
+        raw = bytes.fromhex(wire.replace(" ", ""))
+        assert raw[-1] == 0
+        assert P.cobs_decode(raw[:-1]) == bytes.fromhex(body.replace("|", "").replace(" ", ""))
+        frame = P.decode(raw[:-1])
+        assert P.encode(*frame) == raw
