@@ -1,0 +1,63 @@
+"""The devices and emulate commands, and --device specs."""
+import json
+import os
+import subprocess
+import sys
+
+import pytest
+
+from addon.engine.devices import cli_commands as C
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+
+def run_cli(*args, timeout=30):
+    return subprocess.run([sys.executable, "-m", "addon.engine.devices.cli_commands", *args], cwd=ROOT,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def test_devices_probe_finds_the_emulator():
+    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.cli_commands", "emulate", "--pty",
+                            "--fingers", "3", "--duration", "0.3", "--force-max", "2.5"],
+                           cwd=ROOT, stdout=subprocess.PIPE, text=True)
+    try:
+        port = emu.stdout.readline().split()[1]
+        out = run_cli("devices", "--json", "--probe", port)
+        assert out.returncode == 0, out.stderr
+        entry = [d for d in json.loads(out.stdout) if d.get("port") == port and "grasp_lab" in d][0]
+        assert entry["grasp_lab"] == {"n_fingers": 3, "renders_forces": True, "units": 0, "rate_hz": 1000,
+                                      "force_max": 2.5, "ttl_max_ms": 50, "name": "grasp-lab-emulator"}
+        report = json.loads([l for l in emu.communicate(timeout=20)[0].splitlines() if l.startswith("REPORT ")][0][7:])
+        assert report["host_hellos"] == 1 and report["force_frames"] == 0 and report["poses_sent"] > 100
+    finally:
+        emu.kill()
+
+
+def test_devices_probe_of_a_silent_port_says_so():
+    master, slave = os.openpty()
+    try:
+        out = run_cli("devices", "--probe", os.ttyname(slave), "--timeout", "0.2")
+        assert out.returncode == 0 and "no Grasp Lab hello within 0.2 s" in out.stdout
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def test_emulate_rejects_bad_arguments():
+    out = run_cli("emulate", "--pty", "--fingers", "40")
+    assert out.returncode != 0 and "--fingers: 40 outside 1..32" in out.stderr
+    out = run_cli("emulate", "--pty", "--motion", "dance")
+    assert out.returncode != 0 and "invalid choice: 'dance'" in out.stderr
+    out = run_cli("emulate", "--pty", "--wait", "0.2")
+    assert out.returncode == 2 and "no hello from the host within 0.2 s" in out.stderr
+
+
+def test_device_specs():
+    assert C.parse_device_spec("serial:/dev/ttyACM0") == {"kind": "serial", "port": "/dev/ttyACM0", "finger_offset": 0}
+    assert C.parse_device_spec("serial:/dev/pts/3@5")["finger_offset"] == 5
+    assert C.parse_device_spec("spacemouse") == {"kind": "spacemouse", "path": None}
+    assert C.parse_device_spec("opengloves:/dev/ttyUSB0")["port"] == "/dev/ttyUSB0"
+    for bad, msg in [("serial:", "needs a port"), ("serial:/dev/x@a", "integer"), ("joystick:1", "unknown kind"),
+                     ("opengloves", "needs a port"), ("serial:/dev/x@-1", ">= 0")]:
+        with pytest.raises(ValueError, match=msg):
+            C.parse_device_spec(bad)
