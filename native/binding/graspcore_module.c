@@ -709,13 +709,13 @@ static PyObject *World_get_running(PyObject *obj, void *closure) {
 static PyObject *World_attach_serial(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
     static char *kwlist[] = {"fd", "finger_offset", "num_fingers", "transform", "force_ttl", "lost_timeout",
-                             "max_force", "ramp_time", "max_position", "stall_timeout", NULL};
+                             "max_force", "ramp_time", "max_position", "stall_timeout", "priority", NULL};
     gcSerialDef def = gc_default_serial_def();
     int fd;
     PyObject *transform = Py_None;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "i|$iiOdddddd", kwlist, &fd, &def.finger_offset,
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "i|$iiOddddddi", kwlist, &fd, &def.finger_offset,
                                      &def.num_fingers, &transform, &def.force_ttl, &def.lost_timeout, &def.max_force,
-                                     &def.ramp_time, &def.max_position, &def.stall_timeout) ||
+                                     &def.ramp_time, &def.max_position, &def.stall_timeout, &def.priority) ||
         !check_world(self))
         return NULL;
     if (transform != Py_None && !parse_vec(transform, 16, "transform (16 numbers, row-major 4x4)", def.transform))
@@ -781,7 +781,7 @@ static PyObject *World_serial_stats(PyObject *obj, PyObject *args) {
                                      s.frame_errors[6], "range", s.frame_errors[7]);
     if (!errors) return NULL;
     return Py_BuildValue(
-        "{s:s,s:N,s:i,s:N,s:i,s:d,s:d,s:d,s:s,s:d,s:d,s:K,s:K,s:K,s:K,s:N,s:K,s:K,s:K,s:K,s:K,s:K,s:d,s:d,s:d,s:d}",
+        "{s:s,s:N,s:i,s:N,s:i,s:d,s:d,s:d,s:s,s:d,s:d,s:K,s:K,s:K,s:K,s:N,s:K,s:K,s:K,s:K,s:K,s:K,s:d,s:d,s:d,s:d,s:N}",
         "state", states[s.state & 3], "enabled", PyBool_FromLong(s.enabled), "device_fingers", s.device_fingers,
         "renders_forces", PyBool_FromLong(s.renders_forces), "units", s.units, "device_rate", s.device_rate,
         "device_force_max", s.device_force_max, "device_ttl_max", s.device_ttl_max, "name", s.name, "pose_rate",
@@ -791,7 +791,7 @@ static PyObject *World_serial_stats(PyObject *obj, PyObject *args) {
         "disconnects", (unsigned long long)s.disconnects, "estops", (unsigned long long)s.estops, "stall_zeroes",
         (unsigned long long)s.stall_zeroes, "write_errors", (unsigned long long)s.write_errors, "push_rejected",
         (unsigned long long)s.push_rejected, "latency_p50_us", s.latency_p50_us, "latency_p99_us", s.latency_p99_us,
-        "latency_max_us", s.latency_max_us, "gain", s.gain);
+        "latency_max_us", s.latency_max_us, "gain", s.gain, "rt_priority", PyBool_FromLong(s.rt_priority));
 }
 
 /* serial_events(device) -> [(time, name, value)], popped oldest first. */
@@ -865,7 +865,8 @@ static PyMethodDef World_methods[] = {
     {"_debug_stall", World_debug_stall, METH_O, "Test hook: stall the haptic loop this many seconds once."},
     {"attach_serial", (PyCFunction)(void (*)(void))World_attach_serial, METH_VARARGS | METH_KEYWORDS,
      "attach_serial(fd, *, finger_offset=0, num_fingers=1, transform=None (row-major 4x4, device metres -> world), "
-     "force_ttl=0.02, lost_timeout=0.1, max_force=10.0, ramp_time=0.5, max_position=10.0, stall_timeout=0.005) "
+     "force_ttl=0.02, lost_timeout=0.1, max_force=10.0, ramp_time=0.5, max_position=10.0, stall_timeout=0.005, "
+     "priority=70) "
      "-> device id: a C thread speaks the Grasp Lab serial protocol on fd (docs/protocol.md)."},
     {"detach_serial", World_detach_serial, METH_VARARGS, "detach_serial(device): stop its thread (fd stays open)."},
     {"serial_enable", World_serial_enable, METH_VARARGS, "serial_enable(device, on): forces to the device on/off."},

@@ -254,6 +254,8 @@ typedef struct gcSerialDef {
     double ramp_time;           /* s, forces ramp in after enable or reconnection, default 0.5 */
     double max_position;        /* m, a pose coordinate beyond this (device metres) is out of range, default 10 */
     double stall_timeout;       /* s, haptic-loop output older than this: zero forces, default 0.005 */
+    int priority;               /* SCHED_FIFO priority tried for the device thread, default 70 (below the
+                                 * haptic loop's 80); 0 = normal. Refused -> normal, said in stats */
 } gcSerialDef;
 gcSerialDef gc_default_serial_def(void);
 
@@ -294,6 +296,7 @@ typedef struct gcSerialStats {
     uint64_t disconnects, estops, stall_zeroes, write_errors, push_rejected;
     double latency_p50_us, latency_p99_us, latency_max_us; /* pose read -> force frame written */
     double gain;                /* current ramp gain 0..1 (0 while disabled) */
+    int rt_priority;            /* 1: the device thread runs at SCHED_FIFO */
 } gcSerialStats;
 
 gcStatus gc_world_attach_serial(gcWorld *world, int fd, const gcSerialDef *def, int32_t *out_device);

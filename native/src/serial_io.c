@@ -17,6 +17,7 @@
 #include <math.h>
 #include <poll.h>
 #include <pthread.h>
+#include <sched.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <time.h>
@@ -540,6 +541,10 @@ static void *device_main(void *arg) {
     gcDeviceRun *r = arg;
     gcSerialDevice *d = r->dev;
     pthread_setname_np(pthread_self(), "gc-serial");
+    if (d->def.priority > 0) { /* as the haptic loop: real-time when the OS allows it */
+        struct sched_param sp = {.sched_priority = d->def.priority};
+        r->s.rt_priority = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) == 0;
+    }
     uint8_t hello[2];
     gc_put16(hello, 0);
     send_frame(r, GC_MSG_HELLO_HOST, hello, 2);
@@ -610,6 +615,7 @@ gcSerialDef gc_default_serial_def(void) {
     d.ramp_time = 0.5;
     d.max_position = 10.0;
     d.stall_timeout = 0.005;
+    d.priority = 70;
     return d;
 }
 
@@ -634,6 +640,7 @@ static const char *check_serial_def(const gcWorld *w, int fd, const gcSerialDef 
     if (!(d->ramp_time >= 0 && isfinite(d->ramp_time))) return "ramp_time: must be a finite number >= 0";
     if (!(d->max_position > 0)) return "max_position: must be > 0";
     if (!(d->stall_timeout > 0 && isfinite(d->stall_timeout))) return "stall_timeout: must be a finite number > 0";
+    if (d->priority < 0 || d->priority > 99) return "priority: must be 0..99";
     return NULL;
 }
 
