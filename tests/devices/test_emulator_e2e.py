@@ -143,3 +143,33 @@ def test_two_emulators_drive_two_hands():
         for d in devs:
             d.disconnect()
         world.stop()
+
+
+def test_device_set_one_of_two_unplugged_the_other_holds_on():
+    from addon.engine.devices.live import DeviceInput, DeviceSet
+    world = make_world([-0.2, 0.2])
+    left, right = Emulator("--fingers", "2", "--motion", "grip"), Emulator("--fingers", "2", "--motion", "grip")
+    devices = DeviceSet(world, retry=0.05)
+    try:
+        devices.add_specs([f"serial:{left.port}", f"serial:{right.port}"], fingers_per_device=[2, 2],
+                          frames=[translation(-0.2), translation(0.2)])
+        assert [d.finger_offset for d in devices.devices] == [0, 2]
+        assert not DeviceInput(4).interactive and DeviceInput(4).script() is None
+        wait_for(lambda: all(d.stats()["poses"] > 800 for d in devices.devices), 15, "both streaming")
+        assert all(s["state"] == "streaming" and s["rate_hz"] > 500 for s in devices.status())
+        devices.enable()
+        np.testing.assert_allclose(springs(world), GRIP_SPRING, rtol=0.05)
+        right.stop()
+        wait_for(lambda: np.all(springs(world)[2:] < 1e-6), 0.25, "the right hand to let go")
+        np.testing.assert_allclose(springs(world)[:2], GRIP_SPRING, rtol=0.05)   # the left hand holds on
+        time.sleep(0.15)
+        devices.poll()     # tries to reopen the vanished pty: fails, stays let go
+        status = devices.status()
+        assert status[0]["state"] == "streaming" and status[1]["state"] in ("hangup", "disconnected"), status
+        labels = {(label, name) for _, label, name, _ in devices.events}
+        assert (right.port, "lost") in labels and (left.port, "enabled") in labels, labels
+    finally:
+        for e in (left, right):
+            e.proc.kill()
+        devices.close()
+        world.stop()

@@ -27,8 +27,9 @@ class SerialDevice:
     """One device on one port, driving world fingers ``finger_offset ..``."""
 
     def __init__(self, world, port: str, finger_offset: int = 0, num_fingers: int = 1, transform=None,
-                 baud: int = DEFAULT_BAUD, **limits):
+                 baud: int = DEFAULT_BAUD, label: str | None = None, **limits):
         self.world = world
+        self.label = label or port
         self.port = port
         self.finger_offset = int(finger_offset)
         self.num_fingers = int(num_fingers)

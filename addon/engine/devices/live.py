@@ -1,0 +1,101 @@
+"""Several serial devices on one running world (docs/devices.md): the bpy-free half of the
+sidebar's device list and of ``grasp-lab run --device``.
+
+Each device drives its own block of fingers through its own workspace frame. While they
+are attached the core's serial threads push the HIPs, so the session's input source must
+not push as well (``DeviceInput``: not interactive, no script). A device that hangs up is
+reopened on its port every ``retry`` seconds; its fingers let go meanwhile (in the core).
+Safety events of every device are collected for the recording.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..inputs import InputSource
+from .cli_commands import parse_device_spec
+from .serial_device import SerialDevice
+
+
+class DeviceInput(InputSource):
+    """The input source of a session whose fingers the serial devices drive."""
+    name = "devices"
+    interactive = False
+
+    def script(self):
+        return None
+
+    def hips_at(self, t):
+        return np.zeros((self.n_fingers, 3))
+
+
+class DeviceSet:
+    def __init__(self, world, retry: float = 0.5):
+        self.world = world
+        self.devices: list = []
+        self.retry = float(retry)
+        self._last_try: dict = {}
+        self.events: list = []          # (time, device label, event, value)
+
+    def add(self, port: str, finger_offset: int, num_fingers: int, transform=None, label: str | None = None,
+            **limits) -> SerialDevice:
+        dev = SerialDevice(self.world, port, finger_offset, num_fingers, transform, label=label, **limits)
+        dev.connect()
+        self.devices.append(dev)
+        return dev
+
+    def add_specs(self, specs, fingers_per_device=None, frames=None, **limits) -> None:
+        """``--device`` specs (serial:PORT[@FIRST]) in order; a spec without @FIRST takes the
+        fingers after the previous device's. ``frames``: optional 4x4 per spec."""
+        n_world = self.world.finger_count
+        next_first = 0
+        for i, spec in enumerate(specs):
+            d = parse_device_spec(spec)
+            if d["kind"] != "serial":
+                raise ValueError(f"--device {spec!r}: only serial devices drive a runtime session from the "
+                                 f"command line (SpaceMouse and OpenGloves are input sources)")
+            first = d["finger_offset"] if "@" in spec else next_first
+            count = fingers_per_device[i] if fingers_per_device else max(1, n_world - first)
+            if first + count > n_world:
+                raise ValueError(f"--device {spec!r}: fingers {first}..{first + count - 1}, the scene has {n_world}")
+            self.add(d["port"], first, count, frames[i] if frames else None, **limits)
+            next_first = first + count
+
+    def enable(self, on: bool = True) -> None:
+        for d in self.devices:
+            d.enable(on)
+
+    def poll(self) -> list:
+        """Collect safety events; reopen hung-up devices. Returns the new events."""
+        new = []
+        now = time.monotonic()
+        for d in self.devices:
+            for t, name, value in d.events():
+                new.append((t, d.label, name, value))
+            state = d.stats().get("state")
+            if state in ("hangup", "disconnected") and now - self._last_try.get(id(d), 0.0) >= self.retry:
+                self._last_try[id(d)] = now
+                try:
+                    d.reconnect()
+                    new.append((now, d.label, "reconnected", 0))
+                except (ConnectionError, ValueError):
+                    pass        # still unplugged: its fingers stay let go; try again later
+        self.events += new
+        return new
+
+    def status(self) -> list:
+        """Per device: what the sidebar and HUD show."""
+        out = []
+        for d in self.devices:
+            s = d.stats()
+            out.append({"label": d.label, "port": d.port, "fingers": (d.finger_offset, d.num_fingers),
+                        "state": s.get("state"), "enabled": s.get("enabled", False),
+                        "rate_hz": s.get("pose_rate", 0.0), "dropped": s.get("dropped", 0),
+                        "latency_p99_us": s.get("latency_p99_us", 0.0), "name": s.get("name", "")})
+        return out
+
+    def close(self) -> None:
+        for d in self.devices:
+            d.disconnect()
+        self.devices = []
