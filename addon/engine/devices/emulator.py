@@ -80,8 +80,16 @@ def motion_from_blend(path):
     from ..inputs import SampledTrajectory
     if not os.path.exists(path):
         raise SystemExit(f"--from {path}: no such file")
-    bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))
-    times, positions = _sample_fingertips(bpy.context.scene)
+    # Blender prints to the C stdout while reading; the first line of ours must be "PORT ...".
+    sys.stdout.flush()
+    saved = os.dup(1)
+    os.dup2(2, 1)
+    try:
+        bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))
+        times, positions = _sample_fingertips(bpy.context.scene)
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
     track = SampledTrajectory(times, positions)
     period = max(track.duration, 1e-9)
     return (lambda t, n: [tuple(p) for p in track.hips_at(t % period)]), track.n_fingers
