@@ -39,3 +39,44 @@ def test_emulator_plays_the_fingertips_of_a_blend(bpy, sample, tmp_path):
     finally:
         emu.kill()
         emu.wait()
+
+
+def test_live_session_with_an_emulated_device(bpy, sample, core):
+    """A device in the scene's list drives the fingertips through its workspace frame; the
+    panel's status and the HUD show it; finishing detaches it and keeps its events."""
+    session = grasp_env.submodule("session")
+    devices_ui = grasp_env.submodule("devices_ui")
+    box = sample.build(bpy)
+    for i in (0, 1):                                   # fingertips without animation: the device has them
+        bpy.data.objects[f"Finger {i}"].animation_data_clear()
+    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--motion", "grip"],
+                           cwd=grasp_env.ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        port = emu.stdout.readline().split()[1]
+        bpy.context.scene.cursor.location = box.matrix_world.translation
+        assert bpy.ops.grasp_lab.device_add(port=port) == {"FINISHED"}
+        entry = bpy.context.scene.grasp_lab_devices[0]
+        assert entry.frame is not None and entry.finger_offset == 0 and entry.num_fingers == 2
+        s = session.BlenderSession(bpy.context, live=True, duration=10.0)
+        session._active = s          # what the operator does: the panel and operators see it
+        try:
+            assert s.devices is not None and not s.source.interactive
+            t0 = time.perf_counter()
+            while time.perf_counter() - t0 < 1.5:
+                s.tick(time.perf_counter() - t0)
+                time.sleep(0.02)
+            assert list(s.snapshot.contacts) == [0, 0], s.snapshot.contacts   # both grip the box
+            assert bpy.ops.grasp_lab.device_forces(on=True) == {"FINISHED"}
+            time.sleep(0.1)
+            lines = devices_ui.status_lines(s.devices)
+            assert lines[0].startswith(f"{port}: streaming, fingers 0..1") and "forces on" in lines[0], lines
+            assert lines[0] in s.hud_text()
+        finally:
+            session._active = None
+            s.finish()
+        events = [e[2] for e in s.result.stats["device_events"]]
+        assert "connected" in events and "enabled" in events, events
+        assert not s.devices.devices                  # detached
+    finally:
+        emu.kill()
+        emu.wait()

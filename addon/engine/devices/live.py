@@ -19,12 +19,18 @@ from .serial_device import SerialDevice
 
 
 class DeviceInput(InputSource):
-    """The input source of a session whose fingers the serial devices drive."""
+    """The input source of a session whose fingers the serial devices drive: nothing is
+    pushed from Python; a scripted track (``script``, as ``TimelineInput.script()``) still
+    drives the fingers it covers."""
     name = "devices"
     interactive = False
 
+    def __init__(self, n_fingers, script=None):
+        super().__init__(n_fingers)
+        self._script = script
+
     def script(self):
-        return None
+        return self._script
 
     def hips_at(self, t):
         return np.zeros((self.n_fingers, 3))
