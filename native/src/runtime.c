@@ -413,6 +413,7 @@ static void runtime_free_memory(gcRuntime *rt) {
     free(rt->last_touch);
     free(rt->chain);
     free(rt->device_force);
+    free(rt->follow);
     free(rt->ostate);
     for (int i = 0; i < 3; ++i) {
         free(rt->input_msg[i].hips);

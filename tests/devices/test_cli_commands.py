@@ -1,5 +1,6 @@
 """The devices and emulate commands, and --device specs."""
 import json
+import math
 import os
 import subprocess
 import sys
@@ -61,3 +62,36 @@ def test_device_specs():
                      ("opengloves", "needs a port"), ("serial:/dev/x@-1", ">= 0")]:
         with pytest.raises(ValueError, match=msg):
             C.parse_device_spec(bad)
+
+
+def test_emulate_on_a_named_port():
+    """PORT instead of --pty: the emulator opens it with pyserial; here the host holds the
+    master of a pty whose slave is that port."""
+    import tty
+    from addon.engine.devices import protocol as P
+    master, slave = os.openpty()
+    tty.setraw(master)
+    tty.setraw(slave)
+    path = os.ttyname(slave)
+    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.cli_commands", "emulate", path,
+                            "--fingers", "1", "--motion", "circle", "--duration", "0.2", "--rate", "200"],
+                           cwd=ROOT, stdout=subprocess.PIPE, text=True)
+    try:
+        assert emu.stdout.readline().strip() == f"PORT {path}"
+        os.write(master, P.encode(P.HELLO_HOST, 0, P.hello_host()))
+        dec, poses = P.StreamDecoder(), []
+        import select
+        import time
+        end = time.monotonic() + 10
+        while len(poses) < 20 and time.monotonic() < end:
+            if select.select([master], [], [], 0.1)[0]:
+                poses += [P.parse_pose(f.payload) for f in dec.feed(os.read(master, 4096)) if f.type == P.POSE]
+        assert len(poses) >= 20 and dec.dropped == 0
+        r = [math.hypot(*p.positions[0][:2]) for p in poses]
+        assert all(0.035 < v < 0.085 for v in r)     # the circle motion: 6 cm ring, 2 cm circle
+        report = json.loads([l for l in emu.communicate(timeout=20)[0].splitlines() if l.startswith("REPORT ")][0][7:])
+        assert report["rate_hz"] == 200 and report["host_hellos"] == 1
+    finally:
+        emu.kill()
+        os.close(master)
+        os.close(slave)
