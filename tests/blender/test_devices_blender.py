@@ -1,4 +1,5 @@
 """The emulator playing a .blend's fingertip animation (``--from``) over a real pty."""
+import json
 import os
 import subprocess
 import sys
@@ -6,6 +7,7 @@ import time
 import tty
 
 import grasp_env
+import pytest
 
 sys.path.insert(0, grasp_env.ROOT)
 from addon.engine.devices import protocol as P  # noqa: E402
@@ -80,3 +82,39 @@ def test_live_session_with_an_emulated_device(bpy, sample, core):
     finally:
         emu.kill()
         emu.wait()
+
+
+def test_headless_realtime_run_with_a_device(bpy, sample, core):
+    devices_ui = grasp_env.submodule("devices_ui")
+    box = sample.build(bpy)
+    for i in (0, 1):
+        bpy.data.objects[f"Finger {i}"].animation_data_clear()
+    emus = [subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--motion", "grip"],
+                             cwd=grasp_env.ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            for _ in range(2)]
+    try:
+        ports = [e.stdout.readline().split()[1] for e in emus]
+        bpy.context.scene.grasp_lab.display_rate = 50.0
+        bpy.context.scene.cursor.location = box.matrix_world.translation     # the workspace frame at the box
+        bpy.ops.grasp_lab.device_add(port=ports[0])
+        live = devices_ui.run_realtime(bpy.context, 1.5, forces=True)
+        assert live.result.stats["runtime_haptic_rate"] > 500
+        events = [e[2] for e in live.result.stats["device_events"]]
+        assert events[:2] == ["connected", "enabled"], events
+        assert list(live.snapshot.contacts) == [0, 0]
+        emus[0].terminate()
+        out = emus[0].communicate(timeout=20)[0]
+        report = json.loads([l for l in out.splitlines() if l.startswith("REPORT ")][0][7:])
+        assert report["max_force_n"] > 1.0 and report["violations"] == dict.fromkeys(report["violations"], 0), report
+
+        # A --device spec is added for the session only (after the list's own devices).
+        bpy.context.scene.grasp_lab_devices.clear()
+        live = devices_ui.run_realtime(bpy.context, 0.5, [f"serial:{ports[1]}"])
+        assert len(bpy.context.scene.grasp_lab_devices) == 0
+        assert [e[2] for e in live.result.stats["device_events"]][:1] == ["connected"]
+        with pytest.raises(ValueError, match="unknown kind"):
+            devices_ui.run_realtime(bpy.context, 0.1, ["tcp:1234"])
+    finally:
+        for e in emus:
+            e.kill()
+            e.wait()
