@@ -231,6 +231,7 @@ class BlenderSession:
         r.stats = self.runner.stats()
         if self.devices is not None:
             r.stats["device_events"] = list(self.devices.events)
+            self.runner.events += self.devices.events
         r.final = self.snapshot
         if self.bake:
             for name, (frames, vals) in self._baked.items():

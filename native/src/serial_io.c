@@ -268,7 +268,11 @@ void gc_serial_hub_tick(gcSerialHub *h, const gcWorld *hap, const double *device
 /* Fingers [offset, offset + n) of the latest tick: forces, god-objects, HIPs (NULL to skip).
  * Returns the tick's clock (0: no tick yet) and whether its forces were enabled. */
 static int64_t hub_read(gcSerialHub *h, int offset, int n, double *force, double *go, double *hip, int *enabled) {
-    for (;;) {
+    for (int attempt = 0;; ++attempt) {
+        if (attempt >= 64) { /* the writer was preempted mid-tick: let it run (we may be real-time) */
+            struct timespec pause = {0, 1000};
+            nanosleep(&pause, NULL);
+        }
         uint64_t s1 = atomic_load_explicit(&h->seq, memory_order_acquire);
         if (s1 & 1) continue;
         for (int k = 3 * offset; k < 3 * (offset + n); ++k) {

@@ -7,6 +7,7 @@ import time
 import tty
 
 import grasp_env
+import numpy as np
 import pytest
 
 sys.path.insert(0, grasp_env.ROOT)
@@ -84,7 +85,7 @@ def test_live_session_with_an_emulated_device(bpy, sample, core):
         emu.wait()
 
 
-def test_headless_realtime_run_with_a_device(bpy, sample, core):
+def test_headless_realtime_run_with_a_device(bpy, sample, core, tmp_path):
     devices_ui = grasp_env.submodule("devices_ui")
     box = sample.build(bpy)
     for i in (0, 1):
@@ -97,7 +98,11 @@ def test_headless_realtime_run_with_a_device(bpy, sample, core):
         bpy.context.scene.grasp_lab.display_rate = 50.0
         bpy.context.scene.cursor.location = box.matrix_world.translation     # the workspace frame at the box
         bpy.ops.grasp_lab.device_add(port=ports[0])
+        bpy.context.scene.grasp_lab.record = True
+        bpy.context.scene.grasp_lab.recording_folder = str(tmp_path)
         live = devices_ui.run_realtime(bpy.context, 1.5, forces=True)
+        rec = np.load(live.result.recording)
+        assert list(rec["event_name"][:2]) == ["connected", "enabled"] and rec["event_source"][0] == ports[0]
         assert live.result.stats["runtime_haptic_rate"] > 500
         events = [e[2] for e in live.result.stats["device_events"]]
         assert events[:2] == ["connected", "enabled"], events
