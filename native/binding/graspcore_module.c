@@ -836,6 +836,31 @@ static PyObject *World_serial_stats(PyObject *obj, PyObject *args) {
         "latency_max_us", s.latency_max_us, "gain", s.gain, "rt_priority", PyBool_FromLong(s.rt_priority));
 }
 
+/* push_device_hips(finger_offset, float64 buffer of xyz rows) -> True if taken, False if rejected. */
+static PyObject *World_push_device_hips(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int offset;
+    PyObject *positions;
+    if (!PyArg_ParseTuple(args, "iO", &offset, &positions) || !check_world(self)) return NULL;
+    Py_buffer b;
+    if (PyObject_GetBuffer(positions, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
+    PyObject *result = NULL;
+    if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0 || b.len == 0) {
+        PyErr_SetString(PyExc_ValueError, "positions: must be a C-contiguous float64 array of xyz rows");
+    } else {
+        gcStatus st = gc_world_push_device_hips(self->world, offset, (int)(b.len / (Py_ssize_t)(3 * sizeof(double))),
+                                                b.buf);
+        if (st == GC_ERR_NOT_RUNNING)
+            PyErr_SetString(PyExc_RuntimeError, "push_device_hips: the runtime is not running (World.start)");
+        else if (st < 0)
+            raise_status(self, st);
+        else
+            result = PyBool_FromLong(st == GC_OK);
+    }
+    PyBuffer_Release(&b);
+    return result;
+}
+
 /* serial_events(device) -> [(time, name, value)], popped oldest first. */
 static PyObject *World_serial_events(PyObject *obj, PyObject *args) {
     WorldObject *self = (WorldObject *)obj;
@@ -916,6 +941,9 @@ static PyMethodDef World_methods[] = {
     {"serial_enable", World_serial_enable, METH_VARARGS, "serial_enable(device, on): forces to the device on/off."},
     {"serial_estop", World_serial_estop, METH_VARARGS, "serial_estop(device): forces off, latched until enabled."},
     {"serial_stats", World_serial_stats, METH_VARARGS, "serial_stats(device) -> dict: state, rate, drops, latency."},
+    {"push_device_hips", World_push_device_hips, METH_VARARGS,
+     "push_device_hips(finger_offset, array (n, 3) float64): HIPs from a device read in Python (SpaceMouse, glove), "
+     "merged with the serial devices' fingers."},
     {"serial_events", World_serial_events, METH_VARARGS, "serial_events(device) -> [(time, event, value)] safety events."},
     {NULL, NULL, 0, NULL},
 };

@@ -325,6 +325,11 @@ gcStatus gc_world_serial_estop(gcWorld *world, int32_t device);
 gcStatus gc_world_serial_stats(gcWorld *world, int32_t device, gcSerialStats *stats);
 /* Pops up to capacity safety events, oldest first; returns how many. */
 int gc_world_serial_events(gcWorld *world, int32_t device, gcSerialEvent *out, int capacity);
+/* HIPs of fingers finger_offset .. finger_offset+count-1 from a device read elsewhere (a
+ * SpaceMouse, a glove), merged with the serial devices' fingers and pushed the same way:
+ * the call to use instead of push_hips while serial devices are attached.
+ * GC_WARN_REJECTED: a NaN/Inf position (nothing pushed). */
+gcStatus gc_world_push_device_hips(gcWorld *world, int finger_offset, int count, const double *positions);
 
 
 #ifdef __cplusplus

@@ -302,6 +302,19 @@ static gcStatus hub_push(gcSerialHub *h, int offset, int n, const double *positi
     return st;
 }
 
+/* The merged HIPs cover fingers 0..end-1 from now on. Fingers without a device keep their
+ * HIPs: the array starts from the latest tick (or the world, before the runtime's first). */
+static void hub_claim_fingers(gcSerialHub *h, const gcWorld *w, int end) {
+    pthread_mutex_lock(&h->hip_mutex);
+    if (!h->hips_ready) {
+        if (!hub_read(h, 0, w->num_fingers, NULL, NULL, h->hips, NULL))
+            memcpy(h->hips, w->hip_array, (size_t)w->num_fingers * 3 * sizeof(double));
+        h->hips_ready = 1;
+    }
+    if (end > h->hip_count) h->hip_count = end;
+    pthread_mutex_unlock(&h->hip_mutex);
+}
+
 /* ---- a device thread ---------------------------------------------------------------------- */
 
 typedef struct gcDeviceRun { /* the thread's own state */
@@ -696,16 +709,7 @@ gcStatus gc_world_attach_serial(gcWorld *w, int fd, const gcSerialDef *def, int3
     r->dev = d;
     r->unit_scale = 1.0;
     gc_decoder_reset(&r->dec);
-    /* Fingers without a device keep their HIPs: start the merged array from the latest tick
-     * (or the world, before the runtime's first tick). */
-    pthread_mutex_lock(&h->hip_mutex);
-    if (!h->hips_ready) {
-        if (!hub_read(h, 0, w->num_fingers, NULL, NULL, h->hips, NULL))
-            memcpy(h->hips, w->hip_array, (size_t)w->num_fingers * 3 * sizeof(double));
-        h->hips_ready = 1;
-    }
-    if (def->finger_offset + def->num_fingers > h->hip_count) h->hip_count = def->finger_offset + def->num_fingers;
-    pthread_mutex_unlock(&h->hip_mutex);
+    hub_claim_fingers(h, w, def->finger_offset + def->num_fingers);
     if (pthread_create(&d->thread, NULL, device_main, r)) {
         pthread_mutex_destroy(&d->stats_mutex);
         free(d);
@@ -779,6 +783,19 @@ gcStatus gc_world_serial_stats(gcWorld *w, int32_t id, gcSerialStats *out) {
     *out = d->published;
     pthread_mutex_unlock(&d->stats_mutex);
     return GC_OK;
+}
+
+gcStatus gc_world_push_device_hips(gcWorld *w, int offset, int count, const double *positions) {
+    if (!w || !positions || !w->serial) return GC_ERR_INVALID_ARGUMENT;
+    if (count < 1 || offset < 0 || offset + count > w->num_fingers) {
+        gc_world_set_error(w, "finger_offset, count: fingers %d..%d are not all fingers of the world", offset,
+                           offset + count - 1);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    for (int i = 0; i < 3 * count; ++i)
+        if (!isfinite(positions[i])) return GC_WARN_REJECTED;
+    hub_claim_fingers(w->serial, w, offset + count);
+    return hub_push(w->serial, offset, count, positions);
 }
 
 int gc_world_serial_events(gcWorld *w, int32_t id, gcSerialEvent *out, int capacity) {

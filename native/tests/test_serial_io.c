@@ -318,6 +318,19 @@ static void test_device_thread(void) {
                1 << GC_SERIAL_EV_RECOVERED | 1 << GC_SERIAL_EV_DROPPED;
     GC_CHECK((seen & want) == want, "events 0x%x, want 0x%x", seen, want);
     GC_CHECK(gc_world_detach_serial(w, id) == GC_OK && gc_world_detach_serial(w, id) == GC_ERR_UNKNOWN_ID, "detach");
+    /* A device read elsewhere pushes through the hub too. */
+    double p[3] = {0, 0, 0.05}, bad[3] = {NAN, 0, 0};
+    GC_CHECK(gc_world_push_device_hips(w, 1, 1, p) == GC_ERR_INVALID_ARGUMENT && strstr(gc_world_last_error(w), "1..1"),
+             "a finger the world does not have: %s", gc_world_last_error(w));
+    GC_CHECK(gc_world_push_device_hips(w, 0, 1, bad) == GC_WARN_REJECTED, "NaN refused");
+    GC_CHECK(gc_world_push_device_hips(w, 0, 1, p) == GC_OK, "pushed");
+    sleep_ms(20);
+    double hip[3];
+    gcSnapshot hs;
+    memset(&hs, 0, sizeof hs);
+    hs.hips = hip;
+    gc_world_snapshot(w, &hs);
+    GC_CHECK(fabs(hip[2] - 0.05) < 1e-12, "HIP from push_device_hips: %g", hip[2]);
     close(sv[0]);
     gc_world_stop(w);
     gc_world_destroy(w);

@@ -48,7 +48,8 @@ def make_world(centres):
         world.add_body(box, position=(cx, 0, 0), static=True)
         world.add_finger(position=(cx + 0.06, 0, 0))
         world.add_finger(position=(cx - 0.06, 0, 0))
-    world.start(priority=0, ramp_time=0.0)
+    # Watchdogs loose enough for a loaded test machine: these tests are about the device path.
+    world.start(priority=0, ramp_time=0.0, watchdog_timeout=0.05)
     return world
 
 
@@ -74,7 +75,7 @@ def wait_for(predicate, timeout, what):
 def test_emulator_end_to_end_unplug_and_reconnect():
     world = make_world([0.0])
     emu = Emulator("--fingers", "2", "--motion", "grip", "--force-max", "5")
-    dev = SerialDevice(world, emu.port, finger_offset=0, num_fingers=2, ramp_time=0.1)
+    dev = SerialDevice(world, emu.port, finger_offset=0, num_fingers=2, ramp_time=0.1, stall_timeout=0.05)
     try:
         dev.connect()
         wait_for(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > 800, 15, "streaming")

@@ -99,3 +99,49 @@ def test_glove_over_a_pseudo_terminal():
         src.close()
         os.close(master)
         os.close(slave)
+
+
+def test_glove_drives_fingers_of_a_running_world_and_feels_the_box():
+    """A glove in a DeviceSet: its five fingertips (through a hand frame) reach the runtime
+    by push_device_hips; the index presses 4 mm into a small box and its brake line says
+    so once forces are enabled (zero before)."""
+    import time
+
+    graspcore = pytest.importorskip("graspcore")
+    from addon.engine.devices.live import DeviceSet
+    frame = np.eye(4)
+    frame[:3, 3] = (0.5, 0.0, 0.0)
+    tips = G.fingertips(np.zeros(5), frame)
+    world = graspcore.World(gravity=(0, 0, 0))
+    h = 0.01
+    box = [(x, y, z) for x in (-h, h) for y in (-h, h) for z in (-h, h)]
+    world.add_body(box, position=tips[1] - (0, 0, h + 0.004), static=True)   # top face 4 mm under the index tip
+    for p in tips:
+        world.add_finger(position=p + (0, 0, 0.05))
+    world.start(priority=0, ramp_time=0.0, watchdog_timeout=0.05)
+    master, slave = os.openpty()
+    tty.setraw(master)
+    devices = DeviceSet(world)
+    try:
+        glove = devices.add_source(G.OpenGlovesSource(os.ttyname(slave), hand_frame=frame, full_scale=4.0), 0, "glove")
+        os.write(master, b"A0B0C0D0E0\n")
+        lines = b""
+        for _ in range(20):
+            time.sleep(0.01)
+            devices.poll()
+        snap = world.snapshot()
+        np.testing.assert_allclose(snap["hips"], tips, atol=1e-12)
+        assert abs(np.linalg.norm(snap["spring_forces"][1]) - 4.0) < 0.05
+        lines = os.read(master, 4096)
+        assert lines.split(b"\n")[-2] == b"A0B0C0D0E0"             # forces off until enabled
+        devices.enable(True)
+        time.sleep(0.01)
+        devices.poll()
+        last = os.read(master, 4096).split(b"\n")[-2]
+        assert last == b"A0B1000C0D0E0", last
+        assert devices.status()[0]["state"] == "streaming" and glove.stats()["poses"] == 1
+    finally:
+        devices.close()
+        world.stop()
+        os.close(master)
+        os.close(slave)

@@ -36,6 +36,58 @@ class DeviceInput(InputSource):
         return np.zeros((self.n_fingers, 3))
 
 
+class SourceDevice:
+    """A device read in Python (SpaceMouse, OpenGloves: tens of Hz) in a DeviceSet. Its
+    fingertips go in through ``push_device_hips`` at every poll, merged with the serial
+    devices' fingers; a source with ``send_forces`` (a glove) gets its fingers' device
+    forces back, zero until enabled."""
+
+    def __init__(self, world, source, finger_offset: int, label: str):
+        self.world, self.source, self.label, self.port = world, source, label, label
+        self.finger_offset, self.num_fingers = int(finger_offset), int(source.n_fingers)
+        self.enabled = False
+        self.connected = False
+        self.polls = 0
+        self.rejected = 0
+        self._t0 = time.monotonic()
+
+    def connect(self) -> None:
+        self.source.open()
+        self.connected = True
+
+    def disconnect(self) -> None:
+        if self.connected:
+            self.source.close()
+        self.connected = False
+
+    def reconnect(self, port=None) -> None:
+        self.disconnect()
+        self.connect()
+
+    def enable(self, on: bool = True) -> None:
+        self.enabled = bool(on)
+
+    def poll(self, forces) -> None:
+        if not self.connected:
+            return
+        hips = np.ascontiguousarray(self.source.hips_at(time.monotonic() - self._t0), dtype=np.float64)
+        if not self.world.push_device_hips(self.finger_offset, hips):
+            self.rejected += 1
+        self.polls += 1
+        if hasattr(self.source, "send_forces") and forces is not None:
+            self.source.send_forces(forces[self.finger_offset:self.finger_offset + self.num_fingers], self.enabled)
+
+    def stats(self) -> dict:
+        state = getattr(self.source, "state", None)
+        return {"state": "streaming" if self.connected else "disconnected", "enabled": self.enabled,
+                "pose_rate": 0.0, "poses": getattr(state, "lines", getattr(state, "reports", self.polls)),
+                "dropped": getattr(state, "rejected", 0) + self.rejected, "latency_p99_us": 0.0,
+                "name": self.source.name}
+
+    def events(self) -> list:
+        return []
+
+
 class DeviceSet:
     def __init__(self, world, retry: float = 0.5):
         self.world = world
@@ -68,14 +120,28 @@ class DeviceSet:
             self.add(d["port"], first, count, frames[i] if frames else None, **limits)
             next_first = first + count
 
+    def add_source(self, source, finger_offset: int, label: str | None = None) -> SourceDevice:
+        """A SpaceMouse or glove input source driving fingers finger_offset.. (opened here)."""
+        dev = SourceDevice(self.world, source, finger_offset, label or source.name)
+        dev.connect()
+        self.devices.append(dev)
+        return dev
+
     def enable(self, on: bool = True) -> None:
         for d in self.devices:
             d.enable(on)
 
     def poll(self) -> list:
-        """Collect safety events; reopen hung-up devices. Returns the new events."""
+        """Feed the Python-read devices; collect safety events; reopen hung-up devices.
+        Returns the new events."""
         new = []
         now = time.monotonic()
+        sources = [d for d in self.devices if isinstance(d, SourceDevice)]
+        if sources:
+            forces = self.world.snapshot()["forces"] if any(hasattr(d.source, "send_forces") for d in sources) \
+                else None
+            for d in sources:
+                d.poll(forces)
         for d in self.devices:
             for t, name, value in d.events():
                 new.append((t, d.label, name, value))
