@@ -4,7 +4,7 @@ status per device. The logic is ``engine.devices`` (bpy-free); this is its sideb
 from __future__ import annotations
 
 import bpy
-from bpy.props import BoolProperty, CollectionProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import BoolProperty, CollectionProperty, EnumProperty, IntProperty, PointerProperty, StringProperty
 
 from . import session
 from .engine.devices.cli_commands import discover
@@ -17,8 +17,17 @@ def _is_empty(self, obj):
     return obj.type == "EMPTY"
 
 
+KIND_ITEMS = (
+    ("SERIAL", "Grasp Lab Serial", "A device speaking the Grasp Lab serial protocol (1 kHz, forces)"),
+    ("SPACEMOUSE", "SpaceMouse", "6-DoF rate control of a hand carrying the fingertips; button 1 closes the grip"),
+    ("OPENGLOVES", "OpenGloves", "An OpenGloves / LucidGloves glove: five curls in, a brake per finger out"),
+)
+
+
 class GRASPLAB_PG_device(bpy.types.PropertyGroup):
-    port: StringProperty(name="Port", description="Serial port of a Grasp Lab device (docs/protocol.md)")
+    kind: EnumProperty(name="Kind", items=KIND_ITEMS, default="SERIAL")
+    port: StringProperty(name="Port", description="Serial port (a SpaceMouse: its HID path, empty = the first)")
+    left_hand: BoolProperty(name="Left Hand", default=False, description="A glove on the left hand (mirrors x)")
     finger_offset: IntProperty(name="First Finger", default=0, min=0, max=63,
                                description="The device drives fingers from this one on (by channel order)")
     num_fingers: IntProperty(name="Fingers", default=2, min=1, max=32,
@@ -34,6 +43,26 @@ def workspace_matrix(entry):
     return [list(row) for row in entry.frame.matrix_world]
 
 
+def _add_entry(devices, world, entry):
+    frame = workspace_matrix(entry)
+    if entry.kind == "SERIAL":
+        devices.add(entry.port, entry.finger_offset, entry.num_fingers, frame, label=entry.port)
+        return
+    first, n = entry.finger_offset, entry.num_fingers
+    if first + n > world.finger_count:
+        raise ValueError(f"fingers {first}..{first + n - 1}: the scene has {world.finger_count}")
+    if entry.kind == "SPACEMOUSE":
+        from .engine.devices.spacemouse import SpaceMouseSource, hand_from_fingertips
+        hand = hand_from_fingertips(world.snapshot()["hips"][first:first + n], frame)
+        source = SpaceMouseSource(hand, path=entry.port.encode() if entry.port else None)
+    else:
+        from .engine.devices.opengloves import OpenGlovesSource
+        if n != 5:
+            raise ValueError("a glove drives 5 fingers (thumb to pinky)")
+        source = OpenGlovesSource(entry.port, hand_frame=frame, left=entry.left_hand)
+    devices.add_source(source, first, entry.port or entry.kind.lower())
+
+
 def connect_scene_devices(scene, world) -> DeviceSet:
     """Attach every device of the scene's list to a running world; entries that fail to
     open are left out (their error is in ``failed``)."""
@@ -41,9 +70,9 @@ def connect_scene_devices(scene, world) -> DeviceSet:
     devices.failed = {}
     for entry in scene.grasp_lab_devices:
         try:
-            devices.add(entry.port, entry.finger_offset, entry.num_fingers, workspace_matrix(entry), label=entry.port)
-        except (ConnectionError, ValueError) as ex:
-            devices.failed[entry.port] = str(ex)
+            _add_entry(devices, world, entry)
+        except (ConnectionError, OSError, ImportError, ValueError) as ex:
+            devices.failed[entry.port or entry.kind.lower()] = str(ex)
     return devices
 
 
@@ -131,12 +160,16 @@ class GRASPLAB_OT_device_add(bpy.types.Operator):
     bl_description = "Add a serial device with a workspace frame (an Empty at the 3D cursor)"
     bl_options = {"REGISTER", "UNDO"}
     port: StringProperty(name="Port")
+    kind: EnumProperty(name="Kind", items=KIND_ITEMS, default="SERIAL")
 
     def execute(self, context):
         scene = context.scene
         entries = scene.grasp_lab_devices
         entry = entries.add()
+        entry.kind = self.kind
         entry.port = self.port
+        if self.kind == "OPENGLOVES":
+            entry.num_fingers = 5
         entry.finger_offset = sum(e.num_fingers for e in list(entries)[:-1])
         frame = bpy.data.objects.new(f"Device Frame {len(entries)}", None)
         frame.empty_display_type = "ARROWS"
@@ -213,13 +246,18 @@ class GRASPLAB_PT_devices(bpy.types.Panel):
             row = layout.row()
             where = d.get("port") or d.get("path")
             row.label(text=f"{d['kind']}: {where} {d.get('description') or ''}")
-            if d["kind"] == "serial":
-                row.operator("grasp_lab.device_add", text="", icon="ADD").port = where
+            if d["kind"] in ("serial", "spacemouse"):
+                op = row.operator("grasp_lab.device_add", text="", icon="ADD")
+                op.port = where
+                op.kind = "SERIAL" if d["kind"] == "serial" else "SPACEMOUSE"
         for i, entry in enumerate(context.scene.grasp_lab_devices):
             box = layout.box()
             row = box.row()
+            row.prop(entry, "kind", text="")
             row.prop(entry, "port", text="")
             row.operator("grasp_lab.device_remove", text="", icon="X").index = i
+            if entry.kind == "OPENGLOVES":
+                box.prop(entry, "left_hand")
             row = box.row(align=True)
             row.prop(entry, "finger_offset")
             row.prop(entry, "num_fingers")

@@ -106,8 +106,10 @@ class BlenderSession:
         options = {}
         if self.threaded:
             # Fingertips moved in the viewport arrive at the display's rate, which under a
-            # software renderer can be 1-2 Hz: that is not stale input (it is for a device).
-            options = {"max_hip_speed": prefs.max_hip_speed, "hip_timeout": 2.0}
+            # software renderer can be 1-2 Hz: that is not stale input (it is for a device;
+            # a serial device's own thread lets its fingers go when it falls silent). A
+            # mouse-dragged fingertip is walked at a bounded speed, a device's as it moves.
+            options = {"max_hip_speed": 0.0 if use_devices else prefs.max_hip_speed, "hip_timeout": 2.0}
         self.runner = SessionRunner(self.handle, self.source, haptic_rate=s.haptic_rate,
                                     use_runtime=self.threaded, record=s.record,
                                     runtime_options=options)

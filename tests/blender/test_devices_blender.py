@@ -124,3 +124,38 @@ def test_headless_realtime_run_with_a_device(bpy, sample, core, tmp_path):
         for e in emus:
             e.kill()
             e.wait()
+
+
+def test_live_session_with_a_glove_in_the_device_list(bpy, core):
+    """A glove (OpenGloves lines over a pty) listed as a device drives five fingertips."""
+    from addon.engine.devices import opengloves as G
+    session = grasp_env.submodule("session")
+    for i in range(5):
+        f = bpy.data.objects.new(f"Tip {i}", None)
+        bpy.context.scene.collection.objects.link(f)
+        f.grasp_lab.role = "FINGER"
+        f.grasp_lab.channel = i
+        f.location = (0.0, 0.3, 0.1 * i)
+    master, slave = os.openpty()
+    tty.setraw(master)
+    try:
+        assert bpy.ops.grasp_lab.device_add(port=os.ttyname(slave), kind="OPENGLOVES") == {"FINISHED"}
+        entry = bpy.context.scene.grasp_lab_devices[0]
+        assert entry.num_fingers == 5
+        entry.frame = None                                   # hand frame = the scene
+        s = session.BlenderSession(bpy.context, live=True, duration=5.0)
+        try:
+            assert not s.devices.failed, s.devices.failed
+            os.write(master, b"A4095B2048C0D0E1000\n")
+            t0 = time.perf_counter()
+            while time.perf_counter() - t0 < 0.3:
+                s.tick(time.perf_counter() - t0)
+                time.sleep(0.02)
+            curls = [1.0, 2048 / 4095, 0.0, 0.0, 1000 / 4095]
+            assert np.allclose(s.snapshot.hips, G.fingertips(curls), atol=1e-9), s.snapshot.hips
+            assert os.read(master, 4096).endswith(b"A0B0C0D0E0\n")     # forces off: a zero brake line
+        finally:
+            s.finish()
+    finally:
+        os.close(master)
+        os.close(slave)

@@ -78,3 +78,46 @@ def test_grip_button_closes_the_fingers():
     for _ in range(100):
         hand.update(s, 0.01)
     np.testing.assert_allclose(hand.tips()[0], (0.04, 0, 0), atol=1e-12)
+
+
+class Replay:
+    """Recorded reports, handed over one per read as hidapi does (then nothing)."""
+
+    def __init__(self, reports):
+        self.reports = list(reports)
+        self.closed = False
+
+    def read(self, n):
+        return list(self.reports.pop(0)) if self.reports else []
+
+    def close(self):
+        self.closed = True
+
+
+def test_spacemouse_drives_fingers_of_a_running_world():
+    import time
+
+    graspcore = pytest.importorskip("graspcore")
+    from addon.engine.devices.live import DeviceSet
+    from addon.engine.devices.spacemouse import SpaceMouseSource, hand_from_fingertips
+    tips = np.array([(0.04, 0.0, 0.1), (-0.04, 0.0, 0.1)])
+    world = graspcore.World(gravity=(0, 0, 0))
+    for p in tips:
+        world.add_finger(position=p)
+    world.start(priority=0, watchdog_timeout=0.05)
+    replay = Replay([bytes.fromhex("0301")])            # grip button held, no motion
+    devices = DeviceSet(world)
+    try:
+        hand = hand_from_fingertips(tips)
+        np.testing.assert_allclose(hand.tips(), tips, atol=1e-12)
+        devices.add_source(SpaceMouseSource(hand, device=replay), 0, "spacemouse")
+        for _ in range(80):                             # > grip_time 0.5 s of polls
+            devices.poll()
+            time.sleep(0.01)
+        time.sleep(0.02)
+        hips = world.snapshot()["hips"]
+        np.testing.assert_allclose(hips, [(0.012, 0, 0.1), (-0.012, 0, 0.1)], atol=1e-9)   # closed: 30 % of 4 cm
+    finally:
+        devices.close()
+        world.stop()
+    assert replay.closed

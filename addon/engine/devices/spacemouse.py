@@ -111,6 +111,21 @@ class SpaceMouseHand:
         return self.position + local @ self.orientation.T
 
 
+def hand_from_fingertips(tips, frame=None, closing=0.7) -> SpaceMouseHand:
+    """A hand carrying fingertips where they are now (world, (n, 3)); ``frame`` (4x4, the
+    workspace frame) is the hand's start pose, its origin by default at their centroid. The
+    grip moves each fingertip ``closing`` of the way towards the hand's origin."""
+    tips = np.asarray(tips, dtype=np.float64).reshape(-1, 3)
+    m = np.eye(4) if frame is None else np.asarray(frame, dtype=np.float64)
+    if frame is None:
+        m[:3, 3] = tips.mean(axis=0)
+    R = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)
+    local = (tips - m[:3, 3]) @ R
+    hand = SpaceMouseHand(local, (1.0 - closing) * local, origin=m[:3, 3])
+    hand.orientation = R
+    return hand
+
+
 def hid_module():
     """hidapi's module for this platform: ``hidraw`` on Linux, ``hid`` elsewhere."""
     if sys.platform.startswith("linux"):
@@ -137,15 +152,21 @@ class SpaceMouseSource(InputSource):
     """HIPs from a SpaceMouse hand (live: ``hips_at`` reads what the device sent)."""
     name = "spacemouse"
 
-    def __init__(self, hand: SpaceMouseHand, path: bytes | None = None):
+    def __init__(self, hand: SpaceMouseHand, path: bytes | None = None, device=None):
+        """``device``: an opened hidapi-like object (``read(n)``, ``close()``), e.g. a
+        replay of recorded reports; by default the first SpaceMouse (or ``path``)."""
         super().__init__(len(hand.open_tips))
         self.hand = hand
         self.path = path
         self.state = SpaceMouseState()
+        self._given = device
         self._dev = None
         self._last_t = None
 
     def open(self) -> None:
+        if self._given is not None:
+            self._dev = self._given
+            return
         hid = hid_module()
         paths = [self.path] if self.path else [d["path"] for d in enumerate_spacemice()]
         if not paths:
