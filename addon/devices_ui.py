@@ -89,36 +89,48 @@ def status_lines(devices) -> list:
     return lines
 
 
-def run_realtime(context, duration: float, device_specs=(), forces: bool = False, fingers_per_device=None):
+def add_device_specs(context, specs) -> list:
+    """``--device`` specs (``serial:PORT[@FIRST]``, ``spacemouse[:PATH]``, ``opengloves:PORT``)
+    appended to the scene's device list; a spec without ``@FIRST`` takes the fingers after
+    the list's last device. Returns the entries' indices (``remove_entries`` takes them out)."""
+    from .engine.devices.cli_commands import parse_device_spec
+    entries = context.scene.grasp_lab_devices
+    n_fingers = sum(1 for o in context.view_layer.objects if o.grasp_lab.role == "FINGER")
+    first = max((e.finger_offset + e.num_fingers for e in entries), default=0)
+    parsed = [(spec, parse_device_spec(spec)) for spec in specs]     # all checked before any is added
+    added = []
+    for spec, d in parsed:
+        entry = entries.add()
+        entry.kind = d["kind"].upper()
+        entry.port = d.get("port") or d.get("path") or ""
+        entry.finger_offset = d["finger_offset"] if "@" in spec else first
+        entry.num_fingers = 5 if entry.kind == "OPENGLOVES" else max(1, n_fingers - entry.finger_offset)
+        first = entry.finger_offset + entry.num_fingers
+        added.append(len(entries) - 1)
+    return added
+
+
+def remove_entries(context, indices) -> None:
+    for i in sorted(indices, reverse=True):
+        context.scene.grasp_lab_devices.remove(i)
+
+
+def run_realtime(context, duration: float, device_specs=(), forces: bool = False):
     """A live session without a window (``grasp-lab run SCENE --realtime --device ...``):
     the threaded runtime in real time for ``duration`` seconds (Ctrl-C ends it early), the
-    devices of ``device_specs`` (``serial:PORT[@FIRST]``) added to the scene's list for the
-    session, forces enabled when ``forces``. Returns the finished BlenderSession."""
+    devices of the scene's list and of ``device_specs`` (added for this session only),
+    forces enabled when ``forces``. Returns the finished BlenderSession."""
     import time
 
-    from .engine.devices.cli_commands import parse_device_spec
-    scene = context.scene
-    entries = scene.grasp_lab_devices
-    added, first = [], sum(e.num_fingers for e in entries)
-    n_fingers = sum(1 for o in context.view_layer.objects if o.grasp_lab.role == "FINGER")
+    added = add_device_specs(context, device_specs)
     try:
-        for i, spec in enumerate(device_specs):
-            d = parse_device_spec(spec)
-            if d["kind"] != "serial":
-                raise ValueError(f"--device {spec!r}: only serial:PORT devices run headless")
-            entry = entries.add()
-            entry.port = d["port"]
-            entry.finger_offset = d["finger_offset"] if "@" in spec else first
-            entry.num_fingers = fingers_per_device[i] if fingers_per_device else max(1, n_fingers - entry.finger_offset)
-            first = entry.finger_offset + entry.num_fingers
-            added.append(entry.port)
         live = session.BlenderSession(context, live=True, duration=duration)
         try:
             if live.devices is not None and live.devices.failed:
                 raise ConnectionError("; ".join(f"{p}: {e}" for p, e in live.devices.failed.items()))
             if forces and live.devices is not None:
                 live.devices.enable(True)
-            interval = 1.0 / max(scene.grasp_lab.display_rate, 1.0)
+            interval = 1.0 / max(context.scene.grasp_lab.display_rate, 1.0)
             t0 = time.perf_counter()
             while True:
                 elapsed = time.perf_counter() - t0
@@ -131,11 +143,7 @@ def run_realtime(context, duration: float, device_specs=(), forces: bool = False
             live.finish()
         return live
     finally:
-        for port in added:
-            for i, e in enumerate(entries):
-                if e.port == port:
-                    entries.remove(i)
-                    break
+        remove_entries(context, added)
 
 
 def _active_devices():

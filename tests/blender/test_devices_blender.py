@@ -119,7 +119,14 @@ def test_headless_realtime_run_with_a_device(bpy, sample, core, tmp_path):
         assert len(bpy.context.scene.grasp_lab_devices) == 0
         assert [e[2] for e in live.result.stats["device_events"]][:1] == ["connected"]
         with pytest.raises(ValueError, match="unknown kind"):
-            devices_ui.run_realtime(bpy.context, 0.1, ["tcp:1234"])
+            devices_ui.run_realtime(bpy.context, 0.1, [f"serial:{ports[1]}", "tcp:1234"])
+        assert len(bpy.context.scene.grasp_lab_devices) == 0      # nothing added when a spec is wrong
+        added = devices_ui.add_device_specs(bpy.context, ["serial:/dev/null@1", "spacemouse", "opengloves:/dev/x"])
+        entries = bpy.context.scene.grasp_lab_devices
+        assert [(e.kind, e.port, e.finger_offset, e.num_fingers) for e in entries] == [
+            ("SERIAL", "/dev/null", 1, 1), ("SPACEMOUSE", "", 2, 1), ("OPENGLOVES", "/dev/x", 3, 5)]
+        devices_ui.remove_entries(bpy.context, added)
+        assert len(entries) == 0
     finally:
         for e in emus:
             e.kill()

@@ -95,3 +95,26 @@ def test_emulate_on_a_named_port():
         emu.kill()
         os.close(master)
         os.close(slave)
+
+
+def test_register_with_the_grasp_lab_dispatcher():
+    """The dispatcher's interface (register_command(name, help, configure, run),
+    register_device_backend(kind, factory)): what gets registered works through argparse."""
+    import argparse
+    import io
+    commands, backends = {}, {}
+    cli = type("Cli", (), {"register_command": staticmethod(lambda n, h, c, r, needs_blender=False: commands.update({n: (c, r)})),
+                           "register_device_backend": staticmethod(lambda k, f: backends.update({k: f}))})
+    C.register_with(cli)
+    assert set(commands) == {"devices", "emulate"} and set(backends) == {"serial", "spacemouse", "opengloves"}
+    parser = argparse.ArgumentParser()
+    sub = parser.add_subparsers(dest="command")
+    for name, (configure, _) in commands.items():
+        configure(sub.add_parser(name))
+    args = parser.parse_args(["devices", "--json"])
+    out = io.StringIO()
+    assert commands["devices"][1](args, out, None) == 0 and isinstance(json.loads(out.getvalue()), list)
+    assert parser.parse_args(["emulate", "--pty", "--fingers", "3"]).fingers == 3
+    assert backends["serial"]("serial:/dev/ttyACM0@2", 5)["finger_offset"] == 2
+    with pytest.raises(ValueError, match="needs a port"):
+        backends["opengloves"]("opengloves", 5)

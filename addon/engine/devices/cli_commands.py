@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
 
 from . import protocol as P
@@ -96,7 +97,8 @@ def parse_device_spec(spec: str) -> dict:
 
 # ---- commands ---------------------------------------------------------------------------
 
-def cmd_devices(args) -> int:
+def cmd_devices(args, out=None) -> int:
+    out = out or sys.stdout
     found = discover(all_hid=args.all_hid)
     if args.probe:
         for port in args.probe:
@@ -107,10 +109,10 @@ def cmd_devices(args) -> int:
                 entry["error"] = str(e)
             found.append(entry)
     if args.json:
-        print(json.dumps(found, indent=1))
+        print(json.dumps(found, indent=1), file=out)
         return 0
     if not found:
-        print("no serial ports or SpaceMice found")
+        print("no serial ports or SpaceMice found", file=out)
     for d in found:
         where = d.get("port") or d.get("path")
         ids = f"{d['vid']:04x}:{d['pid']:04x}" if d.get("vid") is not None else "-"
@@ -121,7 +123,7 @@ def cmd_devices(args) -> int:
                      f"{'forces up to %.3g N' % g['force_max'] if g['renders_forces'] else 'input only'}")
         if "error" in d:
             line += f" ({d['error']})"
-        print(line)
+        print(line, file=out)
     return 0
 
 
@@ -130,19 +132,37 @@ def cmd_emulate(args) -> int:
     return emulator.main(args=args)
 
 
-def add_device_commands(subparsers) -> None:
-    p = subparsers.add_parser("devices", help="list serial ports and SpaceMice (and probe Grasp Lab devices)",
-                              description="List serial ports and HID SpaceMice; --probe says hello on a port.")
+def configure_devices(p) -> None:
     p.add_argument("--probe", action="append", metavar="PORT", help="say hello on PORT and show its capabilities")
     p.add_argument("--timeout", type=float, default=1.0, help="seconds to wait for a probed device's hello")
     p.add_argument("--all-hid", action="store_true", help="list every HID device, not only SpaceMice")
     p.add_argument("--json", action="store_true", help="machine-readable output")
-    p.set_defaults(func=cmd_devices)
+
+
+DEVICES_HELP = "list serial ports and SpaceMice (and probe Grasp Lab devices)"
+EMULATE_HELP = "run the reference device emulator (on a pty or a port)"
+
+
+def add_device_commands(subparsers) -> None:
+    """The two commands on an argparse subparsers object."""
     from .emulator import build_parser
-    e = subparsers.add_parser("emulate", help="run the reference device emulator (on a pty or a port)",
-                              description="The reference Grasp Lab serial device (docs/devices.md).")
+    configure_devices(subparsers.add_parser("devices", help=DEVICES_HELP, description=DEVICES_HELP))
+    subparsers.choices["devices"].set_defaults(func=cmd_devices)
+    e = subparsers.add_parser("emulate", help=EMULATE_HELP, description=EMULATE_HELP)
     build_parser(e)
     e.set_defaults(func=cmd_emulate)
+
+
+def register_with(cli) -> None:
+    """Plug into the grasp-lab dispatcher (addon/engine/cli.py: ``register_command``,
+    ``register_device_backend``): the two commands, and the --device kinds whose specs
+    ``parse_device_spec`` reads (headless runs add them to the scene's device list with
+    ``devices_ui.add_device_specs``)."""
+    from .emulator import build_parser
+    cli.register_command("devices", DEVICES_HELP, configure_devices, lambda args, out, err: cmd_devices(args, out))
+    cli.register_command("emulate", EMULATE_HELP, build_parser, lambda args, out, err: cmd_emulate(args))
+    for kind in ("serial", "spacemouse", "opengloves"):
+        cli.register_device_backend(kind, lambda spec, n_fingers=None: parse_device_spec(spec))
 
 
 def main(argv=None) -> int:
