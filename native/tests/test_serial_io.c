@@ -336,10 +336,77 @@ static void test_device_thread(void) {
     gc_world_destroy(w);
 }
 
+/* Two devices on one world at once (two threads pushing into the hub; TSan): each drives
+ * its own finger through its own frame, and each gets its own finger's force. */
+static void test_two_devices(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    gcFingerDef fd = gc_default_finger_def();
+    int32_t f;
+    for (int i = 0; i < 2; ++i) {
+        fd.position[0] = i ? 1.0 : -1.0;
+        GC_CHECK(gc_world_add_finger(w, &fd, &f) == GC_OK, "finger");
+    }
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start");
+    Dev dev[2];
+    int sv[2][2];
+    int32_t id[2];
+    for (int k = 0; k < 2; ++k) {
+        GC_CHECK(socketpair(AF_UNIX, SOCK_STREAM, 0, sv[k]) == 0, "socketpair");
+        fcntl(sv[k][0], F_SETFL, O_NONBLOCK);
+        memset(&dev[k], 0, sizeof dev[k]);
+        dev[k].fd = sv[k][1];
+        gc_decoder_reset(&dev[k].dec);
+        gcSerialDef sd = gc_default_serial_def();
+        sd.priority = 0;
+        sd.finger_offset = k;
+        sd.transform[3] = k ? 1.0 : -1.0; /* x offset of each device's frame */
+        GC_CHECK(gc_world_attach_serial(w, sv[k][0], &sd, &id[k]) == GC_OK, "attach %d: %s", k, gc_world_last_error(w));
+        uint8_t hello[12] = {1, GC_CAP_FORCES, 0, 0};
+        gc_put16(hello + 4, 1000);
+        gc_putf32(hello + 6, 5.0f);
+        gc_put16(hello + 10, 50);
+        dev_read(&dev[k], 200);
+        dev_send(&dev[k], GC_MSG_HELLO_DEVICE, hello, 12);
+    }
+    int32_t third;
+    gcSerialDef sd = gc_default_serial_def();
+    sd.finger_offset = 1;
+    GC_CHECK(gc_world_attach_serial(w, sv[0][0], &sd, &third) == GC_ERR_INVALID_ARGUMENT &&
+                 strstr(gc_world_last_error(w), "already driven by device 1"),
+             "overlapping fingers refused: %s", gc_world_last_error(w));
+    for (int i = 0; i < 300; ++i) { /* interleaved poses: device k at (0, 0.01 k, 0) in its frame */
+        for (int k = 0; k < 2; ++k) dev_pose(&dev[k], 0, 0.01 * k, 0);
+        for (int k = 0; k < 2; ++k) dev_read(&dev[k], 0);
+        sleep_ms(1);
+    }
+    double hips[6];
+    gcSnapshot s;
+    memset(&s, 0, sizeof s);
+    s.hips = hips;
+    gc_world_snapshot(w, &s);
+    GC_CHECK(hips[0] == -1.0 && hips[1] == 0.0 && hips[3] == 1.0 && fabs(hips[4] - 0.01) < 1e-7,
+             "each device its finger: (%g %g) (%g %g)", hips[0], hips[1], hips[3], hips[4]);
+    for (int k = 0; k < 2; ++k) {
+        gcSerialStats st;
+        gc_world_serial_stats(w, id[k], &st);
+        GC_CHECK(st.poses >= 250 && st.forces_sent == st.poses && st.dropped == 0 && dev[k].forces >= 250,
+                 "device %d: %llu poses, %llu forces, %d received", k, (unsigned long long)st.poses,
+                 (unsigned long long)st.forces_sent, dev[k].forces);
+    }
+    gc_world_stop(w);
+    gc_world_destroy(w); /* detaches both (their threads joined first) */
+    for (int k = 0; k < 2; ++k) close(sv[k][0]), close(sv[k][1]);
+}
+
 int main(void) {
     test_crc_and_cobs();
     test_vectors();
     test_fuzzed_decoder();
     test_device_thread();
+    test_two_devices();
     return gc_test_summary("test_serial_io");
 }
