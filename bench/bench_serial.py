@@ -2,14 +2,18 @@
 
 A C device (bench/serial_device.c, the core's codec) opens a pty, sends a pose frame every
 millisecond and times each pose until the force frame acknowledging it arrives. Two hosts
-answer it, one after the other in the same run, each while Python threads of this process
-burn CPU (bench_jitter.py's load) and the main thread takes runtime snapshots:
-  - the bare C echo loop (serial_device echo): decode, answer with a zero force frame;
+answer it in the same run, in alternating rounds (so that both see the same machine: other
+jobs come and go), each while Python threads of this process burn CPU (bench_jitter.py's
+load) and the main thread takes runtime snapshots:
+  - the bare C echo loop (serial_device echo): decode, answer with a zero force frame (this
+    process runs the same runtime meanwhile, unconnected, so that the load is the same);
   - graspcore: the port opened by pyserial, the runtime running (two fingers gripping a
     box), the core's serial thread pushing HIPs and answering with the haptic loop's forces.
 Target: p99 < 1 ms and no unacknowledged pose.
 
-    .venv/bin/python bench/bench_serial.py [--seconds 60] [--rate 1000] [--load-threads 1] [--json out.json]
+    .venv/bin/python bench/bench_serial.py [--seconds 60] [--rounds 6] [--rate 1000] [--load-threads 1] [--json out.json]
+
+--seconds is per host, split into --rounds rounds; the statistics are over all its rounds.
 """
 from __future__ import annotations
 
@@ -85,12 +89,17 @@ def under_load(proc, world, load_threads):
 
 
 def run_echo(seconds, rate, load_threads):
+    """The same process load as graspcore's run (the runtime running, snapshots, Python
+    threads); only the host that answers the device differs."""
     proc, port = start_device(seconds, rate, 2)
     echo = subprocess.Popen([DEVICE_BIN, "echo", port])
+    world = grip_world()
+    world.start(haptic_rate=rate)
     try:
-        r = under_load(proc, None, load_threads)
+        r = under_load(proc, world, load_threads)
     finally:
         echo.wait(timeout=10)
+        world.stop()
     r["host"] = "bare C echo loop"
     return r
 
@@ -119,26 +128,62 @@ def run_graspcore(seconds, rate, load_threads):
     return r
 
 
+def merge(rounds: list, host: str) -> dict:
+    """One host's rounds as one run: counts added, percentiles from the merged histogram."""
+    hist: dict = {}
+    for r in rounds:
+        for b, n in r["hist"]:
+            hist[b] = hist.get(b, 0) + n
+    total = sum(hist.values())
+    bins = sorted(hist)
+
+    def pct(q):
+        want, seen = q * total, 0
+        for b in bins:
+            seen += hist[b]
+            if seen >= want:
+                return float(b)
+        return 0.0
+    out = {"host": host, "rounds": len(rounds)}
+    for k in ("poses", "acknowledged", "unacknowledged", "late_over_1ms", "frame_errors", "load_iterations"):
+        out[k] = sum(r[k] for r in rounds)
+    out.update(p50_us=pct(0.5), p99_us=pct(0.99), p999_us=pct(0.999), max_us=max(r["max_us"] for r in rounds))
+    steal = [r["steal_pct"] for r in rounds if r.get("steal_pct") is not None]
+    out["steal_pct"] = sum(steal) / len(steal) if steal else None
+    out["round_p99_us"] = [r["p99_us"] for r in rounds]
+    extra = [r for r in rounds if "host_stats" in r]
+    if extra:
+        out["host_stats"] = {k: max(r["host_stats"][k] for r in extra) if k.startswith("latency") else
+                             sum(r["host_stats"][k] for r in extra) for k in extra[0]["host_stats"]}
+        out["haptic"] = {"rt_priority": all(r["haptic"]["rt_priority"] for r in extra),
+                         "jitter_p99_us": max(r["haptic"]["jitter_p99_us"] for r in extra),
+                         "late_periods": sum(r["haptic"]["late_periods"] for r in extra)}
+    return out
+
+
 def table(results, seconds, rate) -> str:
-    lines = [f"Pose in to force out over a pty, {rate:g} Hz for {seconds:g} s each, under Python CPU load "
-             f"({platform.machine()}, {os.cpu_count()} CPUs, Linux {platform.release()}, "
-             f"{time.strftime('%Y-%m-%d', time.gmtime())}). Round trip measured by the C device: pose written to "
-             "its force frame read.", "",
-             "| host | poses | unacknowledged | p50 | p99 | p99.9 | max | > 1 ms | frame errors | host steal | target met |",
-             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
+    rounds = results[0]["rounds"]
+    lines = [f"Pose in to force out over a pty, {rate:g} Hz for {seconds:g} s per host in {rounds} alternating rounds, "
+             f"under Python CPU load ({platform.machine()}, {os.cpu_count()} CPUs, Linux {platform.release()}, "
+             f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, load average at the end "
+             f"{' '.join(open('/proc/loadavg').read().split()[:3])}). Round trip measured by the C device: pose "
+             "written to its force frame read.", "",
+             "| host | poses | unacknowledged | p50 | p99 | p99.9 | max | > 1 ms | frame errors | p99 of each round | host steal | target met |",
+             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|---|"]
     for r in results:
         met = r["p99_us"] < 1000 and r["unacknowledged"] == 0
         steal = "-" if r.get("steal_pct") is None else f"{r['steal_pct']:.1f} %"
+        per_round = " ".join(f"{v:.0f}" for v in r["round_p99_us"])
         lines.append(f"| {r['host']} | {r['poses']} | {r['unacknowledged']} | {r['p50_us']:.0f} us | "
                      f"{r['p99_us']:.0f} us | {r['p999_us']:.0f} us | {r['max_us']:.0f} us | {r['late_over_1ms']} | "
-                     f"{r['frame_errors']} | {steal} | {'yes' if met else 'no'} |")
+                     f"{r['frame_errors']} | {per_round} | {steal} | {'yes' if met else 'no'} |")
     g = next((r for r in results if "host_stats" in r), None)
     if g:
         s = g["host_stats"]
-        lines += ["", f"graspcore's serial thread, its own measure (pose read to force frame written): p50 "
-                      f"{s['latency_p50_us']:.0f} us, p99 {s['latency_p99_us']:.0f} us, max {s['latency_max_us']:.0f} us; "
+        lines += ["", f"graspcore's serial thread, its own measure (pose read to force frame written; the worst "
+                      f"round): p99 {s['latency_p99_us']:.0f} us, max {s['latency_max_us']:.0f} us; "
                       f"{s['dropped']} frames dropped, {s['sequence_gaps']} sequence gaps, {s['write_errors']} write "
-                      f"errors, {s['stall_zeroes']} stall zeroings; haptic loop p99 jitter "
+                      f"errors, {s['stall_zeroes']} stall zeroings; haptic loop p99 jitter (worst round) "
                       f"{g['haptic']['jitter_p99_us']:.0f} us (SCHED_FIFO: {'yes' if g['haptic']['rt_priority'] else 'no'})."]
     return "\n".join(lines)
 
@@ -146,13 +191,18 @@ def table(results, seconds, rate) -> str:
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seconds", type=float, default=60.0)
+    ap.add_argument("--rounds", type=int, default=6)
     ap.add_argument("--rate", type=float, default=1000.0)
     ap.add_argument("--load-threads", type=int, default=1)
     ap.add_argument("--json", help="write the results here")
     args = ap.parse_args(argv)
     build_device()
-    results = [run_echo(args.seconds, args.rate, args.load_threads),
-               run_graspcore(args.seconds, args.rate, args.load_threads)]
+    per_round = args.seconds / args.rounds
+    echo, core = [], []
+    for _ in range(args.rounds):
+        echo.append(run_echo(per_round, args.rate, args.load_threads))
+        core.append(run_graspcore(per_round, args.rate, args.load_threads))
+    results = [merge(echo, "bare C echo loop"), merge(core, "graspcore (runtime + serial thread)")]
     print(table(results, args.seconds, args.rate))
     if args.json:
         with open(args.json, "w") as fh:

@@ -303,7 +303,8 @@ def serial_roundtrip(seconds: float) -> tuple[bool, str, list[str]]:
     os.close(fd)
     try:
         good, md = run_external([venv_py if os.path.exists(venv_py) else sys.executable, script,
-                                 "--seconds", f"{seconds:g}", "--json", js], timeout=2 * seconds + 120)
+                                 "--seconds", f"{seconds:g}", "--rounds", "6" if seconds >= 30 else "2",
+                                 "--json", js], timeout=2 * seconds + 180)
         rows = json.load(open(js)) if good else []
     except (OSError, ValueError) as exc:
         good, md, rows = False, f"bench_serial.py wrote no statistics: {exc}", []
@@ -677,10 +678,11 @@ def main(argv=None) -> int:
         "## Serial device round trip (1 kHz over a pseudo-terminal, under Python CPU load)", "",
         f"`bench/bench_serial.py --seconds {jitter_s:g}` (docs/devices.md): a C device (`bench/serial_device.c`, "
         "SCHED_FIFO as hardware of its own would be) sends a pose every millisecond and times it until the force "
-        "frame acknowledging it comes back. The hosts, one after the other under the same Python load: the bare C "
-        "echo loop (decode, answer at once; SCHED_FIFO 70) and graspcore (pyserial opens the port, the runtime "
-        "grips a box, the core's serial thread at SCHED_FIFO 70 pushes HIPs and answers with the haptic loop's "
-        "forces). Both round trips cross the kernel's pty buffer twice (a worker thread at normal priority). "
+        "frame acknowledging it comes back. The hosts, in alternating rounds under the same load (Python threads "
+        "burning CPU, the runtime running and snapshotted at 100 Hz): the bare C echo loop (decode, answer at once; "
+        "SCHED_FIFO 70) and graspcore (pyserial opens the port, the runtime grips a box, the core's serial thread "
+        "at SCHED_FIFO 70 pushes HIPs and answers with the haptic loop's forces). Both round trips cross the "
+        "kernel's pty buffer twice (a worker thread at normal priority). "
         "Its output:", "",
         serial_md])
     mb_section = mb.report_section(mb_rows, mjinfo, pbinfo, mb_prof, overlaps, xml_mb,

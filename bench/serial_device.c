@@ -182,9 +182,14 @@ static int device(double seconds, double rate, int fingers) {
     uint64_t errors = 0;
     for (int k = 0; k < GC_FRAME_KINDS; ++k) errors += dec.errors[k];
     printf("{\"poses\": %llu, \"acknowledged\": %llu, \"unacknowledged\": %llu, \"late_over_1ms\": %llu, "
-           "\"p50_us\": %.0f, \"p99_us\": %.0f, \"p999_us\": %.0f, \"max_us\": %.1f, \"frame_errors\": %llu}\n",
+           "\"p50_us\": %.0f, \"p99_us\": %.0f, \"p999_us\": %.0f, \"max_us\": %.1f, \"frame_errors\": %llu, "
+           "\"hist\": [",
            (unsigned long long)poses, (unsigned long long)acked, (unsigned long long)(poses - acked),
            (unsigned long long)late_acks, v[0], v[1], v[2], max_us, (unsigned long long)errors);
+    const char *sep = ""; /* 1 us bins that were hit: [upper bound us, count] */
+    for (int i = 0; i < LAT_BINS; ++i)
+        if (hist[i]) printf("%s[%d, %u]", sep, i + 1, hist[i]), sep = ", ";
+    printf("]}\n");
     close(keep);
     close(m);
     return 0;
