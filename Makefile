@@ -60,7 +60,7 @@ test-c-asan: $(addprefix $(BUILD)/c-asan/,$(C_TESTS))
 	@for t in $^; do echo "== $$t (ASan/UBSan)"; ASAN_OPTIONS=detect_leaks=1 $$t || exit 1; done
 
 # The threaded tests under ThreadSanitizer (the runtime's loops, its lock-free channels).
-TSAN_TESTS := $(filter test_runtime test_contacts test_tick_log,$(C_TESTS))
+TSAN_TESTS := $(filter test_runtime test_contacts test_serial_io test_tick_log,$(C_TESTS))
 $(BUILD)/c-tsan/%: native/tests/%.c $(CORE_SRC) $(CORE_HDR) native/tests/gc_test.h
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS_COMMON) -O1 -g -fsanitize=thread -o $@ $< $(CORE_SRC) -lm -lpthread
@@ -70,7 +70,7 @@ test-c-tsan: $(addprefix $(BUILD)/c-tsan/,$(TSAN_TESTS))
 
 # --- Python tests ---------------------------------------------------------------
 test-py: core
-	$(PY) -m pytest -q tests/core
+	$(PY) -m pytest -q tests/core tests/devices
 
 # test-blender (addon.mk) runs tests/blender on bpy 4.5, 4.2 and 5.0.1; test-gui (addon.mk)
 # the extension in a real GUI Blender under Xvfb.

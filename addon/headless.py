@@ -59,6 +59,12 @@ def run(args, out, err) -> int:
     context = bpy.context
     applied = apply_overrides(context, args.set)
     record = os.path.abspath(args.record) if args.record else None
+    if args.device:
+        from .devices_ui import run_realtime
+        if not args.duration:
+            raise CliError("--device: give --duration S (a device session has no end of its own)")
+        live = run_realtime(context, args.duration, device_specs=args.device, record_path=record)
+        return _report(args, live.finish(), live.runner.recording_end, applied, out)
     session = BlenderSession(context, live=args.realtime,
                              duration=args.duration if args.duration else None, record_path=record)
     if session.duration == float("inf"):
@@ -82,13 +88,16 @@ def run(args, out, err) -> int:
             session.run_to_end()
     finally:
         result = session.finish()
+    return _report(args, result, session.runner.recording_end, applied, out)
+
+
+def _report(args, result, end, applied, out) -> int:
     st = result.stats
     print(f"{os.path.abspath(args.scene)}: {st['time']:.3f} s simulated, {st.get('runtime_haptic_ticks', st['steps'])} ticks at "
           f"{st['haptic_rate_target']:g} Hz ({'threaded runtime, real time' if st['threaded'] else 'EXEC'}), "
           f"{len(result.body_names)} bodies, {len(result.finger_names)} fingers"
           + (f"; set {', '.join(applied)}" if applied else ""), file=out)
     if result.recording:
-        end = session.runner.recording_end
         print(f"recording: {result.recording} ({end.get('overflow', 0)} ticks lost to overflow)", file=out)
         if end.get("recorder_error"):
             raise CliError(f"{result.recording}: {end['recorder_error']}")

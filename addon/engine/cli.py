@@ -7,8 +7,8 @@ One implementation, two entry points: ``grasp-lab`` in the development venv (the
 Commands live in ``COMMANDS`` (``register_command``); commands that need Blender (``run``,
 ``bake``) are carried out by the extension's ``headless`` module, so when the launcher
 runs outside Blender it first loads the extension into the ``bpy`` module and hands the
-command line to the extension's own copy of this module. Device backends (``--device``)
-register in ``DEVICE_BACKENDS``.
+command line to the extension's own copy of this module. The device work registers
+``devices``, ``emulate`` and the ``--device`` kinds (``register_device_backend``).
 """
 from __future__ import annotations
 
@@ -48,15 +48,18 @@ def register_device_backend(kind: str, factory: Callable) -> None:
     DEVICE_BACKENDS[kind] = factory
 
 
-def device_factory(spec: str) -> Callable:
-    """The backend for a --device SPEC, or CliError saying that none is available."""
+def check_device(spec: str):
+    """A --device SPEC read by its backend, or CliError saying what is wrong or missing."""
     kind = spec.split(":", 1)[0]
     if kind not in DEVICE_BACKENDS:
         known = ", ".join(sorted(DEVICE_BACKENDS)) or "none yet"
-        raise CliError(f"--device {spec}: device backend {kind!r} is not available yet "
+        raise CliError(f"--device {spec}: device backend {kind!r} is not available "
                        f"(registered backends: {known}); run without --device to use the "
                        f"scene's animated fingertips")
-    return DEVICE_BACKENDS[kind]
+    try:
+        return DEVICE_BACKENDS[kind](spec)
+    except ValueError as ex:
+        raise CliError(str(ex)) from None
 
 
 # ------------------------------------------------------------------------ arguments
@@ -218,7 +221,9 @@ def _run_export(args, out, err):
 def _run_run(args, out, err):
     from .. import headless
     for spec in args.device:
-        device_factory(spec)
+        check_device(spec)
+    if args.device and not args.realtime:
+        raise CliError("--device needs --realtime (devices drive a live session on the threaded runtime)")
     return headless.run(args, out, err)
 
 
@@ -236,6 +241,15 @@ register_command("bake", "bake a recording into a scene as keyframes", _configur
 register_command("resim", "re-simulate a recording (with overrides); 'identical' or the divergence report",
                  _configure_resim, _run_resim)
 register_command("export", "a recording as CSV tables or one .npz", _configure_export, _run_export)
+
+
+def _register_devices():
+    """devices, emulate and the --device kinds (engine/devices, docs/devices.md)."""
+    from .devices import cli_commands
+    cli_commands.register_with(sys.modules[__name__])
+
+
+_register_devices()
 
 
 # ------------------------------------------------------------------------ dispatch

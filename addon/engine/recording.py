@@ -436,9 +436,13 @@ class SessionRecorder:
             self.error = f"recorder stopped: {ex}"
 
     # ---- both
-    def parameter_change(self, t: float, subject: str, name: str, value) -> None:
+    def event(self, t: float, kind: str, subject: str = "", detail: str = "", **extra) -> None:
+        """An event from outside the ticks (devices, parameters), from any thread."""
         with self._lock:
-            self.writer.event(t, "parameter", subject, f"{name} = {value}", name=name, value=value)
+            self.writer.event(t, kind, subject, detail, **extra)
+
+    def parameter_change(self, t: float, subject: str, name: str, value) -> None:
+        self.event(t, "parameter", subject, f"{name} = {value}", name=name, value=value)
 
     def finish(self) -> dict:
         """After the world stopped: write what is left, the end record, close the file."""

@@ -158,6 +158,7 @@ class SessionRunner:
         self.ticks = []             # wall clock of every advance_to (display rate, jitter)
         self.recorder = recorder
         self.recording_end = {}     # what the recorder reported when it closed the file
+        self.events = []    # (time s, source, event, value): safety events of devices, recorded too
         self._body_index = {bid: i for i, bid in enumerate(handle.body_ids)}
         self._coms = np.array([b.mass_properties.center_of_mass if b.mass_properties is not None
                                else np.zeros(3) for b in handle.desc.bodies]).reshape(-1, 3)

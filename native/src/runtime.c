@@ -31,6 +31,7 @@
 
 #include "contacts.h"
 #include "hip_input.h"
+#include "serial_io.h"
 
 #include <errno.h>
 #include <pthread.h>
@@ -150,6 +151,8 @@ typedef struct gcRuntime {
     /* Shadows: each thread's own copy of the world's dynamic state. */
     gcWorld hap, obj;
     unsigned char *hap_active, *obj_active;
+
+    struct gcSerialHub *serial; /* the world's devices: fed every haptic tick */
 
     /* Haptic loop only. */
     unsigned char *hstate;
@@ -446,6 +449,7 @@ static gcRuntime *runtime_alloc(const gcWorld *w) {
     size_t nb = (size_t)w->def.max_bodies, nf = (size_t)w->def.max_fingers;
     rt->max_bodies = w->def.max_bodies;
     rt->max_fingers = w->def.max_fingers;
+    rt->serial = w->serial;
     int ok = shadow_alloc(rt, &rt->hap, w, &rt->hap_active, 1);
     ok &= shadow_alloc(rt, &rt->obj, w, &rt->obj_active, w->def.threads);
     rt->hstate = rt_calloc(rt, nb, 1);
@@ -684,6 +688,7 @@ static void haptic_tick(gcRuntime *rt, int64_t now) {
     /* 4. Adoption wishes for the next ticks, device forces, publications. */
     update_adoption(rt);
     int ok = update_safety(rt, now);
+    gc_serial_hub_tick(rt->serial, hw, rt->device_force, ok, now);
     publish_to_object(rt);
     publish_display(rt, now, ok);
     if (rt->tick_log)

@@ -65,7 +65,7 @@ def test_launcher_help_everywhere():
     for name in ("run", "info", "bake", "resim", "export"):
         code, _, _ = call(name, "--help")
         assert code == 0
-    assert set(cli.COMMANDS) >= {"run", "info", "bake", "resim", "export"}
+    assert set(cli.COMMANDS) >= {"run", "info", "bake", "resim", "export", "devices", "emulate"}
 
 
 @pytest.mark.parametrize("args", [
@@ -168,8 +168,12 @@ def test_run_with_overrides_and_devices(blend, tmp_path):
     assert params == [("Box", "mass", 0.25), ("scene", "haptic_rate", 500.0)]
     r = grasp_lab("run", blend, "--set", "Mug.mass=1")
     assert r.returncode == 1 and "no Grasp Lab body or finger named 'Mug'" in r.stderr
+    r = grasp_lab("run", blend, "--device", "frob:1")
+    assert r.returncode == 1 and "device backend 'frob' is not available" in r.stderr
     r = grasp_lab("run", blend, "--device", "serial:/dev/ttyACM0")
-    assert r.returncode == 1 and "not available yet" in r.stderr
+    assert r.returncode == 1 and "--device needs --realtime" in r.stderr
+    r = grasp_lab("run", blend, "--device", "serial:")
+    assert r.returncode == 1 and "serial needs a port" in r.stderr
     r = grasp_lab("run", tmp_path / "nothing.blend")
     assert r.returncode == 1 and "nothing.blend: no such file" in r.stderr
 

@@ -62,7 +62,7 @@ def test_exit_codes_in_blender(blender, tmp_path):
     assert r.returncode == 2 and "usage:" in r.stderr
     r = blender("info", tmp_path / "missing.mcap")
     assert r.returncode == 1 and "missing.mcap: no such file" in r.stderr
-    r = blender("run", tmp_path / "missing.blend", "--device", "spacemouse")
-    assert r.returncode == 1 and "not available yet" in r.stderr
+    r = blender("run", tmp_path / "missing.blend", "--device", "frob:1")
+    assert r.returncode == 1 and "device backend 'frob' is not available" in r.stderr
     r = blender("--help")
     assert r.returncode == 0 and "usage: blender -c grasp_lab" in r.stdout
