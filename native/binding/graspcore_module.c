@@ -813,6 +813,8 @@ static PyObject *module_tick_record_size(PyObject *mod, PyObject *args) {
         return NULL;
     }
     return PyLong_FromSize_t(gc_tick_record_size(nb, nf));
+}
+
 /* ---- serial devices ---- */
 
 static PyObject *World_attach_serial(PyObject *obj, PyObject *args, PyObject *kwargs) {
