@@ -101,9 +101,10 @@ def test_headless_realtime_run_with_a_device(bpy, sample, core, tmp_path):
         bpy.context.scene.grasp_lab.record = True
         bpy.context.scene.grasp_lab.recording_folder = str(tmp_path)
         live = devices_ui.run_realtime(bpy.context, 1.5, forces=True)
-        rec = np.load(live.result.recording)
+        rec = grasp_env.submodule("engine.recording").open_recording(live.result.recording)
+        dev = [e for e in rec.events if e["kind"].startswith("device_")]   # in the recording too
         # Forces were turned on as the session started, maybe before the device's hello came.
-        assert set(rec["event_name"][:2]) == {"connected", "enabled"} and rec["event_source"][0] == ports[0]
+        assert {e["kind"] for e in dev[:2]} == {"device_connected", "device_enabled"} and dev[0]["subject"] == ports[0]
         assert live.result.stats["runtime_haptic_rate"] > 500
         events = [e[2] for e in live.result.stats["device_events"]]
         assert set(events[:2]) == {"connected", "enabled"}, events
