@@ -28,16 +28,33 @@ static PyObject *World_Type, *View_Type;
 
 /* ---- helpers ------------------------------------------------------------------- */
 
-static PyObject *raise_status(WorldObject *self, gcStatus st) {
-    const char *msg = self->world ? gc_world_last_error(self->world) : "";
-    if (!msg || !msg[0]) msg = gc_status_string(st);
-    if (st == GC_ERR_NO_MEMORY) return PyErr_NoMemory();
-    if (st == GC_ERR_BUSY || st == GC_ERR_NOT_RUNNING) {
-        PyErr_SetString(PyExc_RuntimeError, msg);
-        return NULL;
-    }
-    PyErr_SetString(PyExc_ValueError, msg);
+/* The one map from the core's error statuses to Python exceptions. The message is always
+ * the core's own (gc_world_last_error / gc_world_create_error), which names the argument. */
+static PyObject *exception_for(gcStatus st) {
+    static const struct { gcStatus status; PyObject **type; } table[] = {
+        {GC_ERR_INVALID_ARGUMENT, &PyExc_ValueError}, {GC_ERR_DEGENERATE, &PyExc_ValueError},
+        {GC_ERR_UNKNOWN_ID, &PyExc_ValueError},       {GC_ERR_CAPACITY, &PyExc_ValueError},
+        {GC_ERR_NO_MEMORY, &PyExc_MemoryError},       {GC_ERR_BUSY, &PyExc_RuntimeError},
+        {GC_ERR_NOT_RUNNING, &PyExc_RuntimeError},
+    };
+    for (size_t i = 0; i < sizeof table / sizeof table[0]; ++i)
+        if (table[i].status == st) return *table[i].type;
+    return PyExc_RuntimeError;
+}
+
+static PyObject *raise_message(gcStatus st, const char *msg) {
+    PyErr_SetString(exception_for(st), msg && msg[0] ? msg : gc_status_string(st));
     return NULL;
+}
+
+static PyObject *raise_status(WorldObject *self, gcStatus st) {
+    return raise_message(st, self->world ? gc_world_last_error(self->world) : "");
+}
+
+/* A warning status that still needs saying (a body stopped by the non-finite guard). */
+static int warn_status(WorldObject *self, gcStatus st) {
+    if (st != GC_WARN_STOPPED) return 0;
+    return PyErr_WarnEx(PyExc_RuntimeWarning, gc_world_last_error(self->world), 1);
 }
 
 static int check_ready(WorldObject *self) {
@@ -139,14 +156,8 @@ static int World_init(PyObject *obj, PyObject *args, PyObject *kwargs) {
         return -1;
     }
     gcStatus st = gc_world_create(&def, &self->world);
-    if (st == GC_ERR_NO_MEMORY) {
-        PyErr_NoMemory();
-        return -1;
-    }
     if (st != GC_OK) {
-        PyErr_SetString(PyExc_ValueError,
-                        "gravity/max_bodies/max_fingers/max_parts/threads/max_contacts: gravity must be finite, "
-                        "capacities >= 1 and threads in 1..64");
+        raise_message(st, gc_world_create_error());
         return -1;
     }
     return 0;
@@ -350,6 +361,7 @@ static PyObject *World_step(PyObject *obj, PyObject *args, PyObject *kwargs) {
     Py_END_ALLOW_THREADS
     atomic_store(&self->busy, 0);
     if (st < 0) return raise_status(self, st);
+    if (warn_status(self, st) < 0) return NULL;
     Py_RETURN_NONE;
 }
 
@@ -515,6 +527,12 @@ static PyObject *World_body_chain(PyObject *obj, PyObject *args) {
     return PyLong_FromLong(chain);
 }
 
+static PyObject *World_stopped_bodies(PyObject *obj, PyObject *unused) {
+    WorldObject *self = (WorldObject *)obj;
+    if (!check_ready(self)) return NULL;
+    return PyLong_FromLongLong((long long)gc_world_stopped_bodies(self->world));
+}
+
 static PyObject *World_contact_overflow(PyObject *obj, PyObject *unused) {
     WorldObject *self = (WorldObject *)obj;
     if (!check_ready(self)) return NULL;
@@ -671,7 +689,7 @@ static PyObject *World_stats(PyObject *obj, PyObject *unused) {
     gcStatus st = gc_world_stats(self->world, &s);
     if (st < 0) return raise_status(self, st);
     return Py_BuildValue(
-        "{s:N,s:N,s:N,s:s,s:d,s:d,s:d,s:K,s:K,s:d,s:d,s:d,s:d,s:d,s:K,s:K,s:K,s:i,s:K,s:K,s:K,s:K,s:K,s:N,s:d,s:d}",
+        "{s:N,s:N,s:N,s:s,s:d,s:d,s:d,s:K,s:K,s:d,s:d,s:d,s:d,s:d,s:K,s:K,s:K,s:i,s:K,s:K,s:K,s:K,s:K,s:K,s:N,s:d,s:d}",
         "running", PyBool_FromLong(s.running), "realtime", PyBool_FromLong(s.realtime), "rt_priority",
         PyBool_FromLong(s.rt_priority), "priority_note", s.priority_note, "haptic_rate", s.haptic_rate,
         "object_rate", s.object_rate, "object_speed", s.object_speed, "haptic_ticks",
@@ -681,7 +699,8 @@ static PyObject *World_stats(PyObject *obj, PyObject *unused) {
         (unsigned long long)s.object_overruns, "adopted_bodies", s.adopted_bodies, "accepted_inputs",
         (unsigned long long)s.accepted_inputs, "rejected_inputs", (unsigned long long)s.rejected_inputs,
         "watchdog_trips", (unsigned long long)s.watchdog_trips, "stale_inputs", (unsigned long long)s.stale_inputs,
-        "nonfinite_forces", (unsigned long long)s.nonfinite_forces, "forces_enabled",
+        "nonfinite_forces", (unsigned long long)s.nonfinite_forces, "stopped_bodies",
+        (unsigned long long)s.stopped_bodies, "forces_enabled",
         PyBool_FromLong(s.forces_enabled), "haptic_time", s.haptic_time, "object_time", s.object_time);
 }
 
@@ -734,6 +753,8 @@ static PyMethodDef World_methods[] = {
     {"chain_count", World_chain_count, METH_NOARGS, "chain_count() -> number of collision chains, last step"},
     {"body_chain", World_body_chain, METH_VARARGS,
      "body_chain(body) -> index of the body's collision chain (last step), None for a static body"},
+    {"stopped_bodies", World_stopped_bodies, METH_NOARGS,
+     "stopped_bodies() -> bodies stopped since creation because their state would have become non-finite"},
     {"contact_overflow", World_contact_overflow, METH_NOARGS,
      "contact_overflow() -> contact pairs dropped since creation for want of max_contacts"},
     /* Runtime (docs/runtime.md). */

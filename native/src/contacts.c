@@ -29,16 +29,9 @@
 
 /* ------------------------------------------------------------------ lifetime */
 
-#define GC_DEFAULT_MAX_CONTACTS 2048
-#define GC_MAX_THREADS 64
 
 gcStatus gc_contacts_create(gcWorld *w) {
     int threads = w->def.threads, cap = w->def.max_contacts;
-    if (threads < 0 || threads > GC_MAX_THREADS || cap < 0 || cap > (1 << 22)) {
-        gc_world_set_error(w, "threads/max_contacts: threads must be in 1..%d and max_contacts in 1..%d",
-                           GC_MAX_THREADS, 1 << 22);
-        return GC_ERR_INVALID_ARGUMENT;
-    }
     if (threads == 0) threads = 1;
     if (cap == 0) cap = GC_DEFAULT_MAX_CONTACTS;
     w->def.threads = threads;

@@ -29,6 +29,7 @@
 #include "runtime.h"
 
 #include "contacts.h"
+#include "step.h"
 
 #include <errno.h>
 #include <pthread.h>
@@ -196,6 +197,7 @@ typedef struct gcRuntime {
     /* Statistics: written by one thread each, read by gc_world_stats. */
     _Atomic uint64_t haptic_ticks, object_ticks, overruns, late_periods, object_overruns;
     _Atomic uint64_t accepted_inputs, rejected_inputs, watchdog_trips, stale_inputs, nonfinite_forces;
+    _Atomic uint64_t stopped_bodies;
     _Atomic int adopted, forces_enabled;
     _Atomic int64_t first_tick_ns, last_tick_ns, first_object_ns, last_object_ns, jitter_max_ns;
     _Atomic int64_t tick_max_ns, wake_max_ns; /* haptic tick's work; wake-up after its deadline */
@@ -267,12 +269,9 @@ static int chain_of(const gcWorld *s, int32_t body, int32_t *out, int capacity) 
     return b1 - b0;
 }
 
-/* The body phase of gc_world_step on a shadow: only the bodies of body_active move; the
- * others are immovable in the contact solve (their effective mass is marked invalid). */
-static void step_bodies(gcWorld *s, double dt) {
-    gc_dynamics_velocities(s, dt);
-    gc_contacts_step(s, dt);
-    gc_dynamics_positions(s, dt);
+/* Bodies the non-finite guard stopped in a shadow's step, for gc_world_stats. */
+static void count_stopped(gcRuntime *rt, int stopped) {
+    if (stopped) atomic_fetch_add_explicit(&rt->stopped_bodies, (uint64_t)stopped, memory_order_relaxed);
 }
 
 /* The contact state that lives from one step to the next (manifolds: warm start and
@@ -652,11 +651,7 @@ static void haptic_tick(gcRuntime *rt, int64_t now) {
     }
 
     /* 3. As gc_world_step: god-objects and springs, then the bodies this loop owns. */
-    gc_xfca_update(hw, dt);
-    step_bodies(hw, dt);
-    gc_xfca_outputs(hw);
-    for (int i = 0; i < hw->num_fingers; ++i) hw->fingers[i].hip_prev = hw->fingers[i].hip;
-    hw->time += dt;
+    count_stopped(rt, gc_step(hw, dt));
     rt->tick++;
 
     /* 4. Adoption wishes for the next ticks, device forces, publications. */
@@ -679,7 +674,7 @@ static void object_tick(gcRuntime *rt) {
     for (int32_t b = 0; b < ow->num_bodies; ++b)
         if (rt->ostate[b] == O_RELEASED && h->has_state[b]) body_load(ow, b, &h->body[b]);
     for (int s = 0; s < rt->object_substeps; ++s) {
-        step_bodies(ow, rt->dt_object);
+        count_stopped(rt, gc_step_bodies(ow, rt->dt_object));
         ow->time += rt->dt_object;
     }
     /* Hand-over after stepping: a released body was stepped this tick; a body taken back
@@ -920,7 +915,7 @@ static void reset_stats(gcRuntime *rt) {
     _Atomic uint64_t *counters[] = {&rt->haptic_ticks,    &rt->object_ticks,    &rt->overruns,
                                     &rt->late_periods,    &rt->object_overruns, &rt->accepted_inputs,
                                     &rt->rejected_inputs, &rt->watchdog_trips,  &rt->stale_inputs,
-                                    &rt->nonfinite_forces};
+                                    &rt->nonfinite_forces, &rt->stopped_bodies};
     for (size_t i = 0; i < sizeof counters / sizeof counters[0]; ++i) atomic_store(counters[i], 0);
     atomic_store(&rt->adopted, 0);
     atomic_store(&rt->forces_enabled, 0);
@@ -1088,6 +1083,7 @@ static void merge_into_world(gcRuntime *rt, gcWorld *w) {
     memcpy(w->force_array, hw->force_array, (size_t)w->num_fingers * 3 * sizeof(double));
     memcpy(w->hip_array, hw->hip_array, (size_t)w->num_fingers * 3 * sizeof(double));
     w->time = hw->time;
+    w->stopped_bodies += (int64_t)atomic_load_explicit(&rt->stopped_bodies, memory_order_relaxed);
     contacts_merge(rt, w);
 }
 
@@ -1309,6 +1305,7 @@ gcStatus gc_world_stats(gcWorld *w, gcRuntimeStats *out) {
     out->watchdog_trips = atomic_load_explicit(&rt->watchdog_trips, memory_order_relaxed);
     out->stale_inputs = atomic_load_explicit(&rt->stale_inputs, memory_order_relaxed);
     out->nonfinite_forces = atomic_load_explicit(&rt->nonfinite_forces, memory_order_relaxed);
+    out->stopped_bodies = atomic_load_explicit(&rt->stopped_bodies, memory_order_relaxed);
     out->adopted_bodies = atomic_load_explicit(&rt->adopted, memory_order_relaxed);
     out->forces_enabled = running && atomic_load_explicit(&rt->forces_enabled, memory_order_relaxed);
     out->haptic_time = load_double(&rt->haptic_time_bits);

@@ -1,6 +1,7 @@
 /* World lifetime, bodies and fingers, argument validation, queries. */
 #include "world_internal.h"
 #include "runtime.h"
+#include "step.h"
 
 #include <stdarg.h>
 #include <stdio.h>
@@ -12,6 +13,7 @@ const char *gc_status_string(gcStatus status) {
     case GC_OK: return "ok";
     case GC_WARN_MAX_ITERATIONS: return "iteration cap reached";
     case GC_WARN_REJECTED: return "input rejected";
+    case GC_WARN_STOPPED: return "body stopped (non-finite state)";
     case GC_ERR_INVALID_ARGUMENT: return "invalid argument";
     case GC_ERR_DEGENERATE: return "degenerate geometry";
     case GC_ERR_NO_MEMORY: return "out of memory";
@@ -42,8 +44,8 @@ gcWorldDef gc_default_world_def(void) {
     def.max_bodies = 256;
     def.max_fingers = 32;
     def.max_parts = 4096;
-    def.threads = 1;         /* contacts.c */
-    def.max_contacts = 2048; /* contacts.c */
+    def.threads = 1;
+    def.max_contacts = GC_DEFAULT_MAX_CONTACTS;
     return def;
 }
 
@@ -65,21 +67,58 @@ gcFingerDef gc_default_finger_def(void) {
     return def;
 }
 
+
 static int all_finite(const double *v, int n) {
     for (int i = 0; i < n; ++i)
         if (!isfinite(v[i])) return 0;
     return 1;
 }
 
+/* No world exists yet when gc_world_create fails: its message is kept per thread. */
+static _Thread_local char create_error[256];
+
+const char *gc_world_create_error(void) { return create_error; }
+
+static gcStatus create_failed(gcStatus status, const char *fmt, ...) {
+    va_list args;
+    va_start(args, fmt);
+    vsnprintf(create_error, sizeof create_error, fmt, args);
+    va_end(args);
+    return status;
+}
+
+/* The first argument of gcWorldDef that is out of range, named in the message. */
+static gcStatus check_world_def(const gcWorldDef *def) {
+    if (!all_finite(def->gravity, 3))
+        return create_failed(GC_ERR_INVALID_ARGUMENT, "gravity: must be 3 finite numbers (got %g, %g, %g)",
+                             def->gravity[0], def->gravity[1], def->gravity[2]);
+    if (def->max_bodies < 1 || def->max_bodies > (1 << 24))
+        return create_failed(GC_ERR_INVALID_ARGUMENT, "max_bodies: must be in 1..%d (got %d)", 1 << 24,
+                             def->max_bodies);
+    if (def->max_fingers < 1 || def->max_fingers > (1 << 20))
+        return create_failed(GC_ERR_INVALID_ARGUMENT, "max_fingers: must be in 1..%d (got %d)", 1 << 20,
+                             def->max_fingers);
+    if (def->max_parts < 1 || def->max_parts > (1 << 24))
+        return create_failed(GC_ERR_INVALID_ARGUMENT, "max_parts: must be in 1..%d (got %d)", 1 << 24,
+                             def->max_parts);
+    if (def->threads < 0 || def->threads > GC_MAX_THREADS)
+        return create_failed(GC_ERR_INVALID_ARGUMENT, "threads: must be in 1..%d, 0 for 1 (got %d)",
+                             GC_MAX_THREADS, def->threads);
+    if (def->max_contacts < 0 || def->max_contacts > GC_MAX_CONTACTS_LIMIT)
+        return create_failed(GC_ERR_INVALID_ARGUMENT, "max_contacts: must be in 1..%d, 0 for the default (got %d)",
+                             GC_MAX_CONTACTS_LIMIT, def->max_contacts);
+    return GC_OK;
+}
+
 gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world) {
-    if (!def || !out_world) return GC_ERR_INVALID_ARGUMENT;
+    create_error[0] = 0;
+    if (!out_world) return create_failed(GC_ERR_INVALID_ARGUMENT, "out_world: must not be NULL");
     *out_world = NULL;
-    if (!all_finite(def->gravity, 3) || def->max_bodies < 1 || def->max_fingers < 1 ||
-        def->max_parts < 1 || def->max_bodies > (1 << 24) || def->max_fingers > (1 << 20) ||
-        def->max_parts > (1 << 24))
-        return GC_ERR_INVALID_ARGUMENT;
+    if (!def) return create_failed(GC_ERR_INVALID_ARGUMENT, "def: must not be NULL");
+    gcStatus st = check_world_def(def);
+    if (st) return st;
     gcWorld *w = calloc(1, sizeof *w);
-    if (!w) return GC_ERR_NO_MEMORY;
+    if (!w) return create_failed(GC_ERR_NO_MEMORY, "out of memory for the world");
     w->def = *def;
     w->gravity = gc_v3(def->gravity[0], def->gravity[1], def->gravity[2]);
     w->bodies = calloc((size_t)def->max_bodies, sizeof *w->bodies);
@@ -92,10 +131,12 @@ gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world) {
     if (!w->bodies || !w->fingers || !w->parts || !w->pose_array || !w->god_object_array ||
         !w->force_array || !w->hip_array) {
         gc_world_destroy(w);
-        return GC_ERR_NO_MEMORY;
+        return create_failed(GC_ERR_NO_MEMORY, "out of memory for the capacities (max_bodies %d, max_fingers %d, max_parts %d)",
+                             def->max_bodies, def->max_fingers, def->max_parts);
     }
     gcStatus contacts_status = gc_contacts_create(w); /* contact storage and thread pool */
     if (contacts_status != GC_OK) {
+        create_failed(contacts_status, "%s", w->last_error[0] ? w->last_error : "out of memory for the contacts");
         gc_world_destroy(w);
         return contacts_status;
     }
@@ -486,15 +527,16 @@ gcStatus gc_world_step(gcWorld *w, double dt) {
         gc_world_set_error(w, "dt: must be a finite step in (0, 1] seconds (got %g)", dt);
         return GC_ERR_INVALID_ARGUMENT;
     }
-    gc_xfca_update(w, dt);
-    gc_dynamics_velocities(w, dt);
-    gc_contacts_step(w, dt); /* body-body contacts: chains solved through the effective masses */
-    gc_dynamics_positions(w, dt);
-    gc_xfca_outputs(w);
-    for (int i = 0; i < w->num_fingers; ++i) w->fingers[i].hip_prev = w->fingers[i].hip;
-    w->time += dt;
+    if (gc_step(w, dt)) {
+        gc_world_set_error(w, "body %d%s: its state would have become non-finite at t = %g s; "
+                           "stopped at its pose before the step",
+                           (int)w->first_stopped_body, w->step_stopped_bodies > 1 ? " and others" : "", w->time);
+        return GC_WARN_STOPPED;
+    }
     return GC_OK;
 }
+
+int64_t gc_world_stopped_bodies(const gcWorld *w) { return w ? w->stopped_bodies : 0; }
 
 static void put3(double out[3], gcVec3 v) {
     out[0] = v.x, out[1] = v.y, out[2] = v.z;

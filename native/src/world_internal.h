@@ -7,6 +7,11 @@
 
 #include <stdint.h>
 
+/* gcWorldDef limits (checked by gc_world_create) and the contacts' default capacity. */
+#define GC_MAX_THREADS 64
+#define GC_MAX_CONTACTS_LIMIT (1 << 22)
+#define GC_DEFAULT_MAX_CONTACTS 2048
+
 /* One convex part of a body: its hull in the body frame. */
 typedef struct gcPart {
     gcHull hull;
@@ -41,6 +46,11 @@ typedef struct gcBody {
     int effective_mass_valid;
     /* Momentum at the start of the step: the residual wrench is its rate of change. */
     gcVec3 step_start_momentum, step_start_angular_momentum;
+    /* Pose at the start of the step, where a body whose state would turn non-finite is
+     * stopped (nonfinite: its velocity solve broke down this step). */
+    gcVec3 step_start_com;
+    gcQuat step_start_q;
+    int nonfinite;
 } gcBody;
 
 /* Contact between one finger and one part. The god-object (GO) and the contact plane
@@ -83,6 +93,11 @@ struct gcWorld {
     double *force_array;            /* 3 per finger */
     double *hip_array;              /* 3 per finger */
     char last_error[256];
+    /* Bodies stopped because their state would have become non-finite: since creation, and
+     * in the current step (the first one's id, for the message). */
+    int64_t stopped_bodies;
+    int step_stopped_bodies;
+    int32_t first_stopped_body;
     /* Contacts, chains and their worker pool (contacts.c, islands.c, threadpool.c). */
     struct gcContactSystem *contacts;
     /* Runtime (runtime.c): made on the first gc_world_start, freed by gc_world_destroy. */
