@@ -78,11 +78,21 @@ def test_capacity_is_reported():
         w.add_finger()
 
 
-def test_world_arguments_are_checked():
-    with pytest.raises(ValueError, match="gravity"):
-        graspcore.World(gravity=(0, 0, math.nan))
-    with pytest.raises(ValueError, match="max_bodies"):
-        graspcore.World(max_bodies=0)
+@pytest.mark.parametrize("kwargs, name", [
+    (dict(gravity=(0, 0, math.nan)), "gravity"),
+    (dict(max_bodies=0), "max_bodies"),
+    (dict(max_fingers=-1), "max_fingers"),
+    (dict(max_parts=0), "max_parts"),
+    (dict(threads=65), "threads"),
+    (dict(max_contacts=-5), "max_contacts"),
+])
+def test_world_names_just_the_argument_it_refuses(kwargs, name):
+    names = {"gravity", "max_bodies", "max_fingers", "max_parts", "threads", "max_contacts"}
+    with pytest.raises(ValueError) as info:
+        graspcore.World(**kwargs)
+    message = str(info.value)
+    assert message.startswith(name + ":")
+    assert not any(other in message for other in names - {name})
 
 
 def test_static_body_needs_no_mass_and_refuses_velocity():
