@@ -572,13 +572,14 @@ static int check_world(WorldObject *self) {
 static PyObject *World_start(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
     static char *kwlist[] = {"haptic_rate", "object_rate", "max_adopted_bodies", "max_force", "ramp_time",
-                             "watchdog_timeout", "hip_timeout", "release_delay", "realtime", "priority", NULL};
+                             "watchdog_timeout", "hip_timeout", "release_delay", "realtime", "priority",
+                             "max_hip_speed", NULL};
     gcRuntimeDef def = gc_default_runtime_def();
     int realtime = def.realtime;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|$ddidddddpi", kwlist, &def.haptic_rate, &def.object_rate,
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|$ddidddddpid", kwlist, &def.haptic_rate, &def.object_rate,
                                      &def.max_adopted_bodies, &def.max_force, &def.ramp_time,
                                      &def.watchdog_timeout, &def.hip_timeout, &def.release_delay, &realtime,
-                                     &def.priority) ||
+                                     &def.priority, &def.max_hip_speed) ||
         !check_ready(self))
         return NULL;
     def.realtime = realtime;
@@ -619,6 +620,47 @@ static PyObject *World_advance(PyObject *obj, PyObject *args, PyObject *kwargs) 
 }
 
 /* _push_hips(float64 buffer of xyz rows, t) -> True if taken, False if rejected (counted). */
+/* _set_hip_track(times float64 (n,), positions float64 (n, m, 3), scripted bytes (m) or None). */
+static PyObject *World_set_hip_track(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    PyObject *times_obj, *pos_obj, *scripted_obj;
+    int num_fingers;
+    if (!PyArg_ParseTuple(args, "OOiO", &times_obj, &pos_obj, &num_fingers, &scripted_obj) || !check_ready(self))
+        return NULL;
+    Py_buffer t, p, m = {0};
+    if (PyObject_GetBuffer(times_obj, &t, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
+    if (PyObject_GetBuffer(pos_obj, &p, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
+        PyBuffer_Release(&t);
+        return NULL;
+    }
+    int has_mask = scripted_obj != Py_None;
+    if (has_mask && PyObject_GetBuffer(scripted_obj, &m, PyBUF_C_CONTIGUOUS) < 0) {
+        PyBuffer_Release(&t);
+        PyBuffer_Release(&p);
+        return NULL;
+    }
+    PyObject *result = NULL;
+    Py_ssize_t n = t.len / (Py_ssize_t)sizeof(double);
+    if (!t.format || strcmp(t.format, "d") != 0 || !p.format || strcmp(p.format, "d") != 0)
+        PyErr_SetString(PyExc_ValueError, "set_hip_track: times and positions must be float64 arrays");
+    else if (num_fingers < 1 || p.len != n * num_fingers * 3 * (Py_ssize_t)sizeof(double))
+        PyErr_Format(PyExc_ValueError, "set_hip_track: positions must hold %zd x %d xyz rows", n, num_fingers);
+    else if (has_mask && m.len != num_fingers)
+        PyErr_Format(PyExc_ValueError, "set_hip_track: scripted must have %d entries", num_fingers);
+    else {
+        gcStatus st = gc_world_set_hip_track(self->world, t.buf, p.buf, (int)n, num_fingers,
+                                             has_mask ? (const unsigned char *)m.buf : NULL);
+        if (st < 0)
+            raise_status(self, st);
+        else
+            result = Py_NewRef(Py_None);
+    }
+    if (has_mask) PyBuffer_Release(&m);
+    PyBuffer_Release(&p);
+    PyBuffer_Release(&t);
+    return result;
+}
+
 static PyObject *World_push_hips(PyObject *obj, PyObject *args) {
     WorldObject *self = (WorldObject *)obj;
     PyObject *positions;
@@ -689,12 +731,12 @@ static PyObject *World_stats(PyObject *obj, PyObject *unused) {
     gcStatus st = gc_world_stats(self->world, &s);
     if (st < 0) return raise_status(self, st);
     return Py_BuildValue(
-        "{s:N,s:N,s:N,s:s,s:d,s:d,s:d,s:K,s:K,s:d,s:d,s:d,s:d,s:d,s:K,s:K,s:K,s:i,s:K,s:K,s:K,s:K,s:K,s:K,s:N,s:d,s:d}",
+        "{s:N,s:N,s:N,s:s,s:d,s:d,s:d,s:K,s:K,s:d,s:d,s:d,s:d,s:d,s:d,s:K,s:K,s:K,s:i,s:K,s:K,s:K,s:K,s:K,s:K,s:N,s:d,s:d}",
         "running", PyBool_FromLong(s.running), "realtime", PyBool_FromLong(s.realtime), "rt_priority",
         PyBool_FromLong(s.rt_priority), "priority_note", s.priority_note, "haptic_rate", s.haptic_rate,
         "object_rate", s.object_rate, "object_speed", s.object_speed, "haptic_ticks",
         (unsigned long long)s.haptic_ticks, "object_ticks", (unsigned long long)s.object_ticks, "jitter_p50_us",
-        s.jitter_p50_us, "jitter_p99_us", s.jitter_p99_us, "jitter_max_us", s.jitter_max_us, "tick_max_us", s.tick_max_us, "wake_max_us", s.wake_max_us, "overruns",
+        s.jitter_p50_us, "jitter_p99_us", s.jitter_p99_us, "jitter_max_us", s.jitter_max_us, "tick_max_us", s.tick_max_us, "tick_mean_us", s.tick_mean_us, "wake_max_us", s.wake_max_us, "overruns",
         (unsigned long long)s.overruns, "late_periods", (unsigned long long)s.late_periods, "object_overruns",
         (unsigned long long)s.object_overruns, "adopted_bodies", s.adopted_bodies, "accepted_inputs",
         (unsigned long long)s.accepted_inputs, "rejected_inputs", (unsigned long long)s.rejected_inputs,
@@ -760,11 +802,13 @@ static PyMethodDef World_methods[] = {
     /* Runtime (docs/runtime.md). */
     {"start", (PyCFunction)(void (*)(void))World_start, METH_VARARGS | METH_KEYWORDS,
      "start(*, haptic_rate=1000, object_rate=500, max_adopted_bodies=3, max_force=10, ramp_time=0.5,\n"
-     "      watchdog_timeout=0.005, hip_timeout=0.1, release_delay=0.05, realtime=True, priority=80)\n"
+     "      watchdog_timeout=0.005, hip_timeout=0.1, release_delay=0.05, realtime=True, priority=80,\n"
+     "      max_hip_speed=0.0)\n"
      "Run the world on a haptic loop and an object manager thread (docs/runtime.md)."},
     {"stop", World_stop, METH_NOARGS, "stop(): join the runtime threads; the world steps synchronously again."},
     {"advance", (PyCFunction)(void (*)(void))World_advance, METH_VARARGS | METH_KEYWORDS,
      "advance(ticks, delay=0.0): manual clock (start(realtime=False)) only: run ticks haptic ticks."},
+    {"_set_hip_track", World_set_hip_track, METH_VARARGS, "Low-level set_hip_track; use World.set_hip_track."},
     {"_push_hips", World_push_hips, METH_VARARGS, "Low-level push_hips; use World.push_hips."},
     {"_snapshot", World_snapshot, METH_NOARGS, "Low-level snapshot; use World.snapshot."},
     {"stats", World_stats, METH_NOARGS, "stats() -> dict: rates, jitter, overruns, adoption, inputs, safety."},

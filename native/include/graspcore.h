@@ -186,6 +186,9 @@ typedef struct gcRuntimeDef {
                                  * no threads, ticks run by gc_world_advance (deterministic) */
     int priority;               /* SCHED_FIFO priority tried for the haptic loop, default 80;
                                  * 0 = normal priority. Refused -> normal priority, said in stats */
+    double max_hip_speed;       /* m/s, the fastest a pushed HIP moves towards its sample;
+                                 * default 0 = unbounded (a device's own motion); interactive
+                                 * input (a mouse at display rate) sets a bound */
 } gcRuntimeDef;
 gcRuntimeDef gc_default_runtime_def(void);
 
@@ -196,9 +199,23 @@ int gc_world_running(const gcWorld *world);
 /* Manual clock only: run `ticks` haptic ticks (and the object ticks that fall among them) on
  * the calling thread. `delay` s is added to the clock before the first, as a stalled loop. */
 gcStatus gc_world_advance(gcWorld *world, int ticks, double delay);
-/* Latest HIPs of fingers 0..count-1 (xyz triples) at device time t, from any thread.
+/* HIPs of fingers 0..count-1 (xyz triples) sampled at time t (s, the caller's clock), from any
+ * thread. The haptic loop moves each HIP from where it is to this sample over the interval since
+ * the previous sample (at most 0.25 s), at most max_hip_speed: a caller pushing every haptic tick
+ * gets its HIPs at the next tick exactly, a slow caller (a 5 Hz display) gives a smooth path.
+ * Fingers driven by the scripted track ignore pushed samples.
  * GC_OK: taken; GC_WARN_REJECTED: NaN/Inf or t older than the last push (counted, ignored). */
 gcStatus gc_world_push_hips(gcWorld *world, const double *positions, int count, double t);
+
+/* A scripted HIP track for the runtime (set while stopped): num_samples times (s, strictly
+ * increasing) and num_samples x num_fingers xyz positions for fingers 0..num_fingers-1. At its
+ * tick k (from 1) after gc_world_start the haptic loop puts each scripted finger's HIP at the
+ * track's linear interpolation at times[0] + k / haptic_rate, held past either end: what
+ * gc_world_set_hips before every gc_world_step of 1 / haptic_rate would give, bit for bit.
+ * scripted (NULL = all) says which fingers the track drives; the others follow
+ * gc_world_push_hips. num_samples 0 clears the track. GC_ERR_BUSY while running. */
+gcStatus gc_world_set_hip_track(gcWorld *world, const double *times, const double *positions, int num_samples,
+                                int num_fingers, const unsigned char *scripted);
 
 /* One haptic tick's consistent view. Arrays are the caller's (NULL to skip), sized for
  * gc_world_body_count / gc_world_finger_count. When stopped: the world's state, forces 0. */
@@ -229,6 +246,7 @@ typedef struct gcRuntimeStats {
     uint64_t haptic_ticks, object_ticks;
     double jitter_p50_us, jitter_p99_us, jitter_max_us; /* |haptic period - nominal| */
     double tick_max_us;         /* longest haptic tick (its work, real-time clock) */
+    double tick_mean_us;        /* mean haptic tick (its work) */
     double wake_max_us;         /* latest wake-up of the haptic loop after its deadline */
     uint64_t overruns;          /* haptic ticks that ended past the next deadline */
     uint64_t late_periods;      /* haptic periods late by more than one period */

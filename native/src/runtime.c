@@ -29,6 +29,7 @@
 #include "runtime.h"
 
 #include "contacts.h"
+#include "hip_input.h"
 #include "step.h"
 
 #include <errno.h>
@@ -155,6 +156,9 @@ typedef struct gcRuntime {
     double *last_touch;       /* haptic simulated time of the last touch of the body's chain */
     int32_t *chain;           /* chain_of() scratch */
     double *device_force;     /* 3 per finger */
+    gcHipFollow *follow;      /* per finger: walking towards the last pushed sample */
+    double follow_prev_t;     /* time stamp of the last pushed sample taken */
+    const gcHipTrack *track;  /* the world's scripted track (fixed while running), or NULL */
     double object_time_seen;
     int64_t prev_tick_ns, enabled_since_ns, last_input_ns;
     int was_stale;
@@ -200,6 +204,7 @@ typedef struct gcRuntime {
     _Atomic uint64_t stopped_bodies;
     _Atomic int adopted, forces_enabled;
     _Atomic int64_t first_tick_ns, last_tick_ns, first_object_ns, last_object_ns, jitter_max_ns;
+    _Atomic int64_t tick_sum_ns;
     _Atomic int64_t tick_max_ns, wake_max_ns; /* haptic tick's work; wake-up after its deadline */
     _Atomic uint64_t haptic_time_bits, object_time_bits, object_time0_bits;
     _Atomic uint32_t jitter_hist[GC_JITTER_BINS];
@@ -443,8 +448,9 @@ static gcRuntime *runtime_alloc(const gcWorld *w) {
     rt->last_touch = rt_calloc(rt, nb, sizeof(double));
     rt->chain = rt_calloc(rt, nb, sizeof(int32_t));
     rt->device_force = rt_calloc(rt, nf * 3, sizeof(double));
+    rt->follow = rt_calloc(rt, nf, sizeof(gcHipFollow));
     rt->ostate = rt_calloc(rt, nb, 1);
-    ok &= rt->hstate && rt->last_touch && rt->chain && rt->device_force && rt->ostate;
+    ok &= rt->hstate && rt->last_touch && rt->chain && rt->device_force && rt->follow && rt->ostate;
     for (int i = 0; i < 3; ++i) {
         gcInputMsg *in = &rt->input_msg[i];
         gcHapticMsg *h = &rt->haptic_msg[i];
@@ -614,14 +620,27 @@ static void haptic_tick(gcRuntime *rt, int64_t now) {
     const double dt = rt->dt_haptic;
     int fresh;
 
-    /* 1. The latest HIPs (validated by push_hips). */
+    /* 1. HIPs at this tick's end time: the scripted track, or the walk towards the latest
+     *    pushed samples (validated by push_hips). */
     const gcInputMsg *in = &rt->input_msg[triple_latest(&rt->input, &fresh)];
     if (fresh) {
-        for (int i = 0; i < in->count; ++i) {
-            hw->fingers[i].hip = gc_v3(in->hips[3 * i], in->hips[3 * i + 1], in->hips[3 * i + 2]);
-            memcpy(&hw->hip_array[3 * i], &in->hips[3 * i], 3 * sizeof(double));
-        }
+        double interval = isfinite(rt->follow_prev_t) ? in->t - rt->follow_prev_t : 0.0;
+        rt->follow_prev_t = in->t;
+        for (int i = 0; i < in->count; ++i)
+            if (!gc_hip_track_drives(rt->track, i))
+                gc_hip_follow_retarget(&rt->follow[i], hw->fingers[i].hip,
+                                       gc_v3(in->hips[3 * i], in->hips[3 * i + 1], in->hips[3 * i + 2]), interval, dt);
         rt->last_input_ns = in->receipt_ns;
+    }
+    if (gc_hip_track_covers(rt->track, hw->num_fingers)) rt->last_input_ns = now; /* the track is never stale */
+    const double t_next = (double)(rt->tick + 1) * dt;
+    for (int i = 0; i < hw->num_fingers; ++i) {
+        gcVec3 hip = gc_hip_track_drives(rt->track, i)
+                         ? gc_hip_track_sample(rt->track, i, t_next)
+                         : gc_hip_follow_advance(&rt->follow[i], hw->fingers[i].hip, dt, rt->def.max_hip_speed);
+        hw->fingers[i].hip = hip;
+        double *out = &hw->hip_array[3 * i];
+        out[0] = hip.x, out[1] = hip.y, out[2] = hip.z;
     }
 
     /* 2. The object manager's bodies; bodies it released are adopted before stepping. */
@@ -829,6 +848,7 @@ static void *haptic_main(void *arg) {
         haptic_tick(rt, wake);
         int64_t end = clock_now_ns();
         record_max(&rt->tick_max_ns, end - wake);
+        atomic_fetch_add_explicit(&rt->tick_sum_ns, end - wake, memory_order_relaxed);
         atomic_store_explicit(&rt->last_tick_ns, wake, memory_order_relaxed);
         deadline = next_deadline(deadline, rt->period_ns, end, &rt->overruns);
     }
@@ -875,6 +895,7 @@ gcRuntimeDef gc_default_runtime_def(void) {
     def.hip_timeout = 0.1;
     def.realtime = 1;
     def.priority = 80;
+    def.max_hip_speed = 0.0;
     return def;
 }
 
@@ -902,6 +923,8 @@ static gcStatus check_def(const gcWorld *w, const gcRuntimeDef *d) {
         bad = "watchdog_timeout: must be longer than one haptic period";
     else if (!isfinite(d->hip_timeout) || !(d->hip_timeout > 0.0))
         bad = "hip_timeout: must be a finite number > 0";
+    else if (!isfinite(d->max_hip_speed) || d->max_hip_speed < 0.0)
+        bad = "max_hip_speed: must be a finite number >= 0 (0 = unbounded)";
     else if (d->priority < 0 || d->priority > 99)
         bad = "priority: must be 0 (normal) or a SCHED_FIFO priority 1..99";
     if (bad) {
@@ -925,6 +948,7 @@ static void reset_stats(gcRuntime *rt) {
     atomic_store(&rt->last_object_ns, NEVER);
     atomic_store(&rt->jitter_max_ns, 0);
     atomic_store(&rt->tick_max_ns, 0);
+    atomic_store(&rt->tick_sum_ns, 0);
     atomic_store(&rt->wake_max_ns, 0);
     for (int i = 0; i < GC_JITTER_BINS; ++i) atomic_store_explicit(&rt->jitter_hist[i], 0, memory_order_relaxed);
 }
@@ -943,6 +967,7 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
     }
     gcRuntime *rt = w->runtime;
     pthread_mutex_lock(&rt->api_mutex);
+    w->locked = 1;
     rt->def = *def;
     rt->def.realtime = def->realtime != 0;
     rt->period_ns = seconds_to_ns(1.0 / def->haptic_rate);
@@ -973,6 +998,10 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
     rt->tick = 0;
     rt->object_phase = 0.0;
     rt->input_last_t = -INFINITY;
+    rt->follow_prev_t = -INFINITY;
+    rt->track = w->hip_track;
+    for (int i = 0; i < w->num_fingers; ++i) /* standing still where they are */
+        gc_hip_follow_retarget(&rt->follow[i], w->fingers[i].hip, w->fingers[i].hip, 0.0, rt->dt_haptic);
     atomic_store(&rt->manual_now_ns, 0);
     atomic_store(&rt->debug_stall_ns, 0);
     reset_stats(rt);
@@ -1015,6 +1044,7 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
     if (e != 0) {
         unlock_memory(rt);
         atomic_store_explicit(&rt->state, RT_STOPPED, memory_order_release);
+        w->locked = 0;
         pthread_mutex_unlock(&rt->api_mutex);
         gc_world_set_error(w, "runtime: could not create its threads (error %d)", e);
         return GC_ERR_NO_MEMORY;
@@ -1105,6 +1135,7 @@ gcStatus gc_world_stop(gcWorld *w) {
     rt->stop_ns = clock_now_ns();
     merge_into_world(rt, w);
     atomic_store_explicit(&rt->state, RT_STOPPED, memory_order_release);
+    w->locked = 0;
     pthread_mutex_unlock(&rt->api_mutex);
     return GC_OK;
 }
@@ -1335,6 +1366,8 @@ gcStatus gc_world_stats(gcWorld *w, gcRuntimeStats *out) {
     }
     out->jitter_max_us = (double)atomic_load_explicit(&rt->jitter_max_ns, memory_order_relaxed) * 1e-3;
     out->tick_max_us = (double)atomic_load_explicit(&rt->tick_max_ns, memory_order_relaxed) * 1e-3;
+    uint64_t ticks_done = atomic_load_explicit(&rt->haptic_ticks, memory_order_relaxed);
+    out->tick_mean_us = ticks_done ? (double)atomic_load_explicit(&rt->tick_sum_ns, memory_order_relaxed) * 1e-3 / (double)ticks_done : 0.0;
     out->wake_max_us = (double)atomic_load_explicit(&rt->wake_max_ns, memory_order_relaxed) * 1e-3;
     out->jitter_p50_us = fmin(percentile_us(hist, total, 0.50), out->jitter_max_us);
     out->jitter_p99_us = fmin(percentile_us(hist, total, 0.99), out->jitter_max_us);

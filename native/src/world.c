@@ -1,5 +1,6 @@
 /* World lifetime, bodies and fingers, argument validation, queries. */
 #include "world_internal.h"
+#include "hip_input.h"
 #include "runtime.h"
 #include "step.h"
 
@@ -148,6 +149,7 @@ void gc_world_destroy(gcWorld *w) {
     if (!w) return;
     gc_runtime_free(w); /* stops the runtime threads first */
     gc_contacts_destroy(w); /* joins the contact thread pool */
+    gc_hip_track_free(w->hip_track);
     for (int i = 0; i < w->num_parts; ++i) gc_hull_free(&w->parts[i].hull);
     free(w->bodies);
     free(w->fingers);

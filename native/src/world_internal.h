@@ -106,6 +106,10 @@ struct gcWorld {
      * move; the others are stepped by another runtime thread and are immovable here (their
      * effective mass is marked invalid). Set only in the runtime's per-thread shadows. */
     const unsigned char *body_active;
+    /* Scripted HIP track (hip_input.c), sampled by the runtime's haptic loop. */
+    struct gcHipTrack *hip_track;
+    /* 1 while the runtime owns the dynamic state: calls that would change it are refused. */
+    int locked;
 };
 
 void gc_world_set_error(const gcWorld *world, const char *fmt, ...);

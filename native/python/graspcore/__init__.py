@@ -123,9 +123,29 @@ class World(_core.World):
 
     # ---- Runtime (docs/runtime.md): start / stop / advance / stats come from the core.
 
+    def set_hip_track(self, times, positions, scripted=None) -> None:
+        """A scripted HIP track for the runtime (set while stopped): ``times`` (n,) strictly
+        increasing seconds, ``positions`` (n, m, 3) for fingers 0..m-1. At its tick k the
+        haptic loop samples it at ``times[0] + k / haptic_rate`` (linear, held past either
+        end): the same HIPs as ``set_hips`` before every synchronous step. ``scripted`` (m,)
+        bools says which fingers it drives (default all); the others follow ``push_hips``.
+        ``set_hip_track(None, None)`` clears it."""
+        if times is None:
+            self._set_hip_track(np.zeros(0), np.zeros(0), 1, None)
+            return
+        t = np.ascontiguousarray(times, dtype=np.float64)
+        p = np.ascontiguousarray(positions, dtype=np.float64)
+        if t.ndim != 1 or p.ndim != 3 or p.shape[0] != t.shape[0] or p.shape[2] != 3:
+            raise ValueError(f"set_hip_track: expected times (n,) and positions (n, m, 3), "
+                             f"got {t.shape} and {p.shape}")
+        mask = None if scripted is None else np.ascontiguousarray(scripted, dtype=np.uint8)
+        self._set_hip_track(t, p, int(p.shape[1]), mask)
+
     def push_hips(self, positions, t: float) -> bool:
-        """Latest HIPs of fingers 0..n-1 ((n, 3) array) at device time ``t``, from any thread
-        while the runtime runs. Returns False when the input was rejected (NaN/Inf, or ``t``
+        """HIPs of fingers 0..n-1 ((n, 3) array) sampled at time ``t`` (s), from any thread
+        while the runtime runs. The haptic loop walks each HIP to the sample over the interval
+        since the previous one (at most 0.25 s, at most ``max_hip_speed``), so a slow caller
+        gives a smooth path and a caller pushing every tick gets its HIPs at the next tick. Returns False when the input was rejected (NaN/Inf, or ``t``
         older than the last push): it is counted in ``stats()['rejected_inputs']`` and
         ignored. Raises RuntimeError when the runtime is not running."""
         try:
