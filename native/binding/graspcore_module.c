@@ -850,4 +850,6 @@ static struct PyModuleDef module_def = {
     NULL, NULL, NULL,
 };
 
+PyMODINIT_FUNC PyInit__core(void); /* the one exported symbol */
+
 PyMODINIT_FUNC PyInit__core(void) { return PyModuleDef_Init(&module_def); }

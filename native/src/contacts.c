@@ -262,8 +262,8 @@ static int face_polygon(const gcHull *h, const gcTransform *t, int tri, gcVec3 *
     for (int i = 0; i < count; ++i) { /* pseudo-angle in [0, 4): monotone in the angle, no atan2 */
         gcVec3 d = gc_sub(local[i], c);
         double x = gc_dot(d, u), y = gc_dot(d, v), r = fabs(x) + fabs(y);
-        double t = r > 0.0 ? y / r : 0.0;
-        angle[i] = x >= 0.0 ? (y >= 0.0 ? t : 4.0 + t) : 2.0 - t;
+        double slope = r > 0.0 ? y / r : 0.0;
+        angle[i] = x >= 0.0 ? (y >= 0.0 ? slope : 4.0 + slope) : 2.0 - slope;
     }
     for (int i = 1; i < count; ++i) { /* insertion sort by angle */
         double a = angle[i];
