@@ -139,7 +139,6 @@ class SessionRunner:
         self._body_index = {bid: i for i, bid in enumerate(handle.body_ids)}
         self._coms = np.array([b.mass_properties.center_of_mass if b.mass_properties is not None
                                else np.zeros(3) for b in handle.desc.bodies]).reshape(-1, 3)
-        self.runtime_error = ""
         self._started = False
         self._stopped = False
 
@@ -157,13 +156,9 @@ class SessionRunner:
             self.source.open()
             try:
                 self.driver.start()
-            except (TypeError, AttributeError, RuntimeError) as ex:
-                if not self.driver.threaded:
-                    raise
-                # A runtime whose API does not match: step directly instead.
-                self.runtime_error = str(ex)
-                self.driver = DirectDriver(self.world, self.source, self.dt, self.handle.finger_ids)
-                self.driver.start()
+            except BaseException:
+                self.source.close()  # a runtime that cannot start is an error, never a quiet fallback
+                raise
             self._started = True
             if self.recording is not None:
                 self.recording.append(self.snapshot())

@@ -134,11 +134,6 @@ static void update_part_aabbs(gcWorld *w) {
     }
 }
 
-static int aabb_overlap(gcVec3 amin, gcVec3 amax, gcVec3 bmin, gcVec3 bmax) {
-    return amin.x <= bmax.x && bmin.x <= amax.x && amin.y <= bmax.y && bmin.y <= amax.y && amin.z <= bmax.z &&
-           bmin.z <= amax.z;
-}
-
 static int body_before(const gcWorld *w, int32_t a, int32_t b) {
     double xa = w->bodies[a].aabb_min.x, xb = w->bodies[b].aabb_min.x;
     return xa < xb || (xa == xb && a < b);
@@ -192,12 +187,12 @@ static void broad_phase(gcWorld *w) {
             const gcBody *B = &w->bodies[s[j]];
             if (B->aabb_min.x > hi_x) break;
             if (A->is_static && B->is_static) continue;
-            if (!aabb_overlap(amin, amax, gc_sub(B->aabb_min, hv), gc_add(B->aabb_max, hv))) continue;
+            if (!gc_aabb_overlap(amin, amax, gc_sub(B->aabb_min, hv), gc_add(B->aabb_max, hv))) continue;
             int32_t lo = s[i] < s[j] ? s[i] : s[j], hi = s[i] < s[j] ? s[j] : s[i];
             const gcBody *L = &w->bodies[lo], *H = &w->bodies[hi];
             for (int pa = L->first_part; pa < L->first_part + L->num_parts; ++pa) {
                 for (int pb = H->first_part; pb < H->first_part + H->num_parts; ++pb) {
-                    if (!aabb_overlap(cs->part_min[pa], cs->part_max[pa], cs->part_min[pb], cs->part_max[pb]))
+                    if (!gc_aabb_overlap(cs->part_min[pa], cs->part_max[pa], cs->part_min[pb], cs->part_max[pb]))
                         continue;
                     if (cs->num_candidates >= cs->capacity) {
                         cs->overflow++;

@@ -108,7 +108,6 @@ void gc_pool_destroy(gcPool *p) {
     free(p);
 }
 
-int gc_pool_threads(const gcPool *p) { return p ? p->threads : 1; }
 
 void gc_pool_run(gcPool *p, gcTaskFn task, void *ctx, int count) {
     if (count <= 0) return;

@@ -141,11 +141,6 @@ static int find_entry(const gcFinger *f, const gcHull *h, gcVec3 from, gcVec3 to
     return 0;
 }
 
-static int aabb_overlap(gcVec3 amin, gcVec3 amax, gcVec3 bmin, gcVec3 bmax) {
-    return amin.x <= bmax.x && bmin.x <= amax.x && amin.y <= bmax.y && bmin.y <= amax.y &&
-           amin.z <= bmax.z && bmin.z <= amax.z;
-}
-
 static int has_contact_with(const gcFinger *f, int32_t part) {
     for (int i = 0; i < f->num_contacts; ++i)
         if (f->contacts[i].part == part) return 1;
@@ -173,7 +168,7 @@ static void finger_update(gcWorld *w, gcFinger *f, double dt) {
     hi = gc_add(hi, pad);
     for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < GC_MAX_CONTACTS_PER_FINGER; ++bi) {
         const gcBody *b = &w->bodies[bi];
-        if (!aabb_overlap(lo, hi, b->aabb_min, b->aabb_max)) continue;
+        if (!gc_aabb_overlap(lo, hi, b->aabb_min, b->aabb_max)) continue;
         gcTransform fr = gc_body_transform(b);
         gcVec3 from = gc_inv_transform_point(&fr, f->hip_prev), to = gc_inv_transform_point(&fr, f->hip);
         for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
