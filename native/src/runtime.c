@@ -154,7 +154,7 @@ typedef struct gcRuntime {
     /* Haptic loop only. */
     unsigned char *hstate;
     double *last_touch;       /* haptic simulated time of the last touch of the body's chain */
-    int32_t *chain;           /* chain_of() scratch */
+    int32_t *chain;           /* gc_contacts_chain_of() scratch */
     double *device_force;     /* 3 per finger */
     gcHipFollow *follow;      /* per finger: walking towards the last pushed sample */
     double follow_prev_t;     /* time stamp of the last pushed sample taken */
@@ -258,40 +258,9 @@ static void body_load(gcWorld *s, int32_t i, const gcRtBody *o) {
     memcpy(&s->pose_array[7 * i], o->pose, sizeof o->pose);
 }
 
-/* The collision chain of a body: the dynamic bodies that must be stepped together with it,
- * written to out (up to capacity); returns how many there are. Until collision chains
- * exist, a chain is the body alone. The adoption rule asks only this function, so a chain
- * lookup (islands) plugs in here. */
-static int chain_of(const gcWorld *s, int32_t body, int32_t *out, int capacity) {
-    const struct gcContactSystem *cs = s->contacts;
-    int c = cs && body < cs->num_sorted ? cs->body_chain[body] : -1;
-    if (c < 0 || c >= cs->num_chains) { /* no chains yet: the body alone */
-        if (capacity > 0) out[0] = body;
-        return 1;
-    }
-    int b0 = cs->chain_body_start[c], b1 = cs->chain_body_start[c + 1];
-    for (int i = b0; i < b1 && i - b0 < capacity; ++i) out[i - b0] = cs->chain_bodies[i];
-    return b1 - b0;
-}
-
 /* Bodies the non-finite guard stopped in a shadow's step, for gc_world_stats. */
 static void count_stopped(gcRuntime *rt, int stopped) {
     if (stopped) atomic_fetch_add_explicit(&rt->stopped_bodies, (uint64_t)stopped, memory_order_relaxed);
-}
-
-/* The contact state that lives from one step to the next (manifolds: warm start and
- * friction anchors; the broad phase's order), so that a shadow steps on as the world would. */
-static void contacts_copy_state(gcWorld *dst, const gcWorld *src) {
-    struct gcContactSystem *d = dst->contacts;
-    const struct gcContactSystem *c = src->contacts;
-    if (!d || !c) return;
-    int n = c->num_manifolds < d->capacity ? c->num_manifolds : d->capacity;
-    memcpy(d->manifolds, c->manifolds, (size_t)n * sizeof *c->manifolds);
-    d->num_manifolds = n;
-    memcpy(d->sorted_bodies, c->sorted_bodies, (size_t)c->num_sorted * sizeof *c->sorted_bodies);
-    d->num_sorted = c->num_sorted;
-    d->overflow = c->overflow;
-    gc_chains_build(dst);
 }
 
 /* ---- the runtime's memory ------------------------------------------------------------ */
@@ -395,7 +364,7 @@ static void shadow_load(gcWorld *s, const gcWorld *w) {
     memcpy(s->god_object_array, w->god_object_array, (size_t)w->num_fingers * 3 * sizeof(double));
     memcpy(s->force_array, w->force_array, (size_t)w->num_fingers * 3 * sizeof(double));
     memcpy(s->hip_array, w->hip_array, (size_t)w->num_fingers * 3 * sizeof(double));
-    contacts_copy_state(s, w);
+    gc_contacts_copy_state(s, w);
 }
 
 /* ---- allocation --------------------------------------------------------------------- */
@@ -555,7 +524,7 @@ static void update_adoption(gcRuntime *rt) {
             for (int c = 0; c < f->num_contacts; ++c) {
                 int32_t b = hw->parts[f->contacts[c].part].body;
                 if (hw->bodies[b].is_static) continue;
-                int n = chain_of(hw, b, rt->chain, cap);
+                int n = gc_contacts_chain_of(hw, b, rt->chain, cap);
                 if (n > cap) continue;
                 for (int k = 0; k < n; ++k) rt->last_touch[rt->chain[k]] = now;
             }
@@ -565,7 +534,7 @@ static void update_adoption(gcRuntime *rt) {
     for (int32_t b = 0; b < hw->num_bodies; ++b) {
         if (hw->bodies[b].is_static) continue;
         int want = cap > 0 && now - rt->last_touch[b] <= rt->def.release_delay &&
-                   chain_of(hw, b, rt->chain, cap) <= cap;
+                   gc_contacts_chain_of(hw, b, rt->chain, cap) <= cap;
         /* A request or a return runs to completion before the wish can change again. */
         if (rt->hstate[b] == H_OM && want) {
             rt->hstate[b] = H_REQ;
@@ -1064,39 +1033,7 @@ static int haptic_owns(const gcRuntime *rt, int32_t b) {
     return rt->ostate[b] == O_RELEASED && (rt->hstate[b] == H_HAP || rt->hstate[b] == H_RET);
 }
 
-static int manifold_is_haptic(const gcRuntime *rt, const gcWorld *s, const gcManifold *m) {
-    int32_t b = s->bodies[m->body_a].is_static ? m->body_b : m->body_a;
-    return haptic_owns(rt, b);
-}
-
-/* The world's contact state after a run: each manifold from the thread that owned its
- * chain (both lists are sorted by key; the result is too). */
-static void contacts_merge(const gcRuntime *rt, gcWorld *w) {
-    struct gcContactSystem *cs = w->contacts;
-    const struct gcContactSystem *ch = rt->hap.contacts, *co = rt->obj.contacts;
-    if (!cs || !ch || !co) return;
-    int i = 0, j = 0, n = 0;
-    while ((i < ch->num_manifolds || j < co->num_manifolds) && n < cs->capacity) {
-        const gcManifold *a = i < ch->num_manifolds ? &ch->manifolds[i] : NULL;
-        const gcManifold *b = j < co->num_manifolds ? &co->manifolds[j] : NULL;
-        const gcManifold *pick = NULL;
-        if (a && (!b || a->key <= b->key)) {
-            if (manifold_is_haptic(rt, &rt->hap, a)) pick = a;
-            else if (b && b->key == a->key) pick = b;
-            if (b && b->key == a->key) ++j;
-            ++i;
-        } else {
-            if (!manifold_is_haptic(rt, &rt->obj, b)) pick = b;
-            ++j;
-        }
-        if (pick) cs->manifolds[n++] = *pick;
-    }
-    cs->num_manifolds = n;
-    memcpy(cs->sorted_bodies, co->sorted_bodies, (size_t)co->num_sorted * sizeof *co->sorted_bodies);
-    cs->num_sorted = co->num_sorted;
-    cs->overflow = co->overflow > ch->overflow ? co->overflow : ch->overflow;
-    gc_chains_build(w);
-}
+static int haptic_owns_ctx(const void *rt, int32_t b) { return haptic_owns(rt, b); }
 
 /* After the loops ended: each body from the thread that owned it last, fingers from the
  * haptic loop. */
@@ -1114,7 +1051,7 @@ static void merge_into_world(gcRuntime *rt, gcWorld *w) {
     memcpy(w->hip_array, hw->hip_array, (size_t)w->num_fingers * 3 * sizeof(double));
     w->time = hw->time;
     w->stopped_bodies += (int64_t)atomic_load_explicit(&rt->stopped_bodies, memory_order_relaxed);
-    contacts_merge(rt, w);
+    gc_contacts_merge(w, &rt->hap, &rt->obj, haptic_owns_ctx, rt);
 }
 
 gcStatus gc_world_stop(gcWorld *w) {

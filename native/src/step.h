@@ -3,7 +3,7 @@
 #ifndef GC_STEP_H
 #define GC_STEP_H
 
-#include "world_internal.h"
+#include "contacts.h"
 
 /* The body phase: velocities, contacts, positions. Only the bodies of world->body_active
  * move when it is set (a runtime shadow). Returns how many bodies the non-finite guard

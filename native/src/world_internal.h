@@ -138,16 +138,4 @@ void gc_dynamics_positions(gcWorld *world, double dt);
 void gc_body_inverse_effective_mass(const gcBody *body, double M[36]);
 void gc_body_refresh_derived(gcWorld *world, int32_t body);
 
-/* contacts.c: body-body contacts, collision chains, the contact solver (docs/solver.md).
- * Storage and the thread pool are made once at world creation (sizes from gcWorldDef). */
-gcStatus gc_contacts_create(gcWorld *world);
-void gc_contacts_destroy(gcWorld *world);
-/* Between gc_dynamics_velocities and gc_dynamics_positions: detect, build chains, solve
- * every chain (in parallel). Changes body velocities, and poses for the position correction. */
-void gc_contacts_step(gcWorld *world, double dt);
-/* Its two halves, for a caller that solves some chains itself (gc_contacts_solve_chain
- * in contacts.h solves one). */
-void gc_contacts_detect(gcWorld *world);
-void gc_contacts_solve(gcWorld *world, double dt);
-
 #endif

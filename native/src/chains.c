@@ -7,7 +7,7 @@
  * without contacts is a chain of its own. Chains are numbered by their lowest body id; a
  * chain's bodies and manifolds are listed in increasing id / key order, which fixes the
  * order in which the solver visits them whichever thread solves the chain. */
-#include "contacts.h"
+#include "contacts_internal.h"
 
 static int32_t find_root(int32_t *parent, int32_t i) {
     while (parent[i] != i) {
