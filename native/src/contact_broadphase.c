@@ -17,8 +17,8 @@ static void update_part_aabbs(gcWorld *w) {
         for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
             const gcHull *hull = &w->parts[p].hull;
             if (b->num_parts == 1) {
-                cs->part_min[p] = gc_sub(b->aabb_min, gc_v3(h, h, h));
-                cs->part_max[p] = gc_add(b->aabb_max, gc_v3(h, h, h));
+                cs->part_min[p] = gc_sub(b->state.aabb_min, gc_v3(h, h, h));
+                cs->part_max[p] = gc_add(b->state.aabb_max, gc_v3(h, h, h));
                 continue;
             }
             /* Centre/extent form: |R| e bounds the rotated box. */
@@ -35,7 +35,7 @@ static void update_part_aabbs(gcWorld *w) {
 }
 
 static int body_before(const gcWorld *w, int32_t a, int32_t b) {
-    double xa = w->bodies[a].aabb_min.x, xb = w->bodies[b].aabb_min.x;
+    double xa = w->bodies[a].state.aabb_min.x, xb = w->bodies[b].state.aabb_min.x;
     return xa < xb || (xa == xb && a < b);
 }
 
@@ -81,13 +81,13 @@ void gc_broad_phase(gcWorld *w) {
     cs->num_candidates = 0;
     for (int i = 0; i < cs->num_sorted; ++i) {
         const gcBody *A = &w->bodies[s[i]];
-        double hi_x = A->aabb_max.x + 2.0 * h;
-        gcVec3 amin = gc_sub(A->aabb_min, hv), amax = gc_add(A->aabb_max, hv);
+        double hi_x = A->state.aabb_max.x + 2.0 * h;
+        gcVec3 amin = gc_sub(A->state.aabb_min, hv), amax = gc_add(A->state.aabb_max, hv);
         for (int j = i + 1; j < cs->num_sorted; ++j) {
             const gcBody *B = &w->bodies[s[j]];
-            if (B->aabb_min.x > hi_x) break;
+            if (B->state.aabb_min.x > hi_x) break;
             if (A->is_static && B->is_static) continue;
-            if (!gc_aabb_overlap(amin, amax, gc_sub(B->aabb_min, hv), gc_add(B->aabb_max, hv))) continue;
+            if (!gc_aabb_overlap(amin, amax, gc_sub(B->state.aabb_min, hv), gc_add(B->state.aabb_max, hv))) continue;
             int32_t lo = s[i] < s[j] ? s[i] : s[j], hi = s[i] < s[j] ? s[j] : s[i];
             const gcBody *L = &w->bodies[lo], *H = &w->bodies[hi];
             for (int pa = L->first_part; pa < L->first_part + L->num_parts; ++pa) {

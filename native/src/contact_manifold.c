@@ -268,19 +268,19 @@ static void narrow_pair(gcWorld *w, int i) {
     const gcHull *ha = &w->parts[m->part_a].hull, *hb = &w->parts[m->part_b].hull;
     const gcManifold *old = find_previous(cs, m->key);
     /* B relative to A, in A's COM frame. */
-    gcVec3 rel_p = gc_mat3_tmul_vec(&A->R, gc_sub(B->com, A->com));
-    gcMat3 At = gc_mat3_transpose(&A->R);
-    gcMat3 rel_R = gc_mat3_mul(&At, &B->R);
+    gcVec3 rel_p = gc_mat3_tmul_vec(&A->state.R, gc_sub(B->state.com, A->state.com));
+    gcMat3 At = gc_mat3_transpose(&A->state.R);
+    gcMat3 rel_R = gc_mat3_mul(&At, &B->state.R);
     if (old && reusable(old, rel_p, &rel_R)) {
         /* The pair has hardly moved relative to itself since its manifold was computed:
          * keep the material points, refresh their world positions and separations. */
         *m = *old;
-        m->normal = gc_mat3_mul_vec(&A->R, old->normal_local_a);
+        m->normal = gc_mat3_mul_vec(&A->state.R, old->normal_local_a);
         gc_tangent_basis(m->normal, &m->t1, &m->t2);
         for (int k = 0; k < m->num_points; ++k) {
             gcManifoldPoint *p = &m->points[k];
-            gcVec3 pa = gc_add(A->com, gc_mat3_mul_vec(&A->R, p->local_a));
-            gcVec3 pb = gc_add(B->com, gc_mat3_mul_vec(&B->R, p->local_b));
+            gcVec3 pa = gc_add(A->state.com, gc_mat3_mul_vec(&A->state.R, p->local_a));
+            gcVec3 pb = gc_add(B->state.com, gc_mat3_mul_vec(&B->state.R, p->local_b));
             p->point = gc_scale(gc_add(pa, pb), 0.5);
             p->separation = gc_dot(m->normal, gc_sub(pb, pa));
         }
@@ -301,15 +301,15 @@ static void narrow_pair(gcWorld *w, int i) {
     if (m->mu_d > m->mu_s) m->mu_d = m->mu_s;
     m->ref_position = rel_p;
     m->ref_rotation = rel_R;
-    m->normal_local_a = gc_mat3_tmul_vec(&A->R, normal);
+    m->normal_local_a = gc_mat3_tmul_vec(&A->state.R, normal);
     int used[GC_MANIFOLD_MAX_POINTS] = {0, 0, 0, 0};
     double match = 0.25 * fmin(ha->min_width, hb->min_width);
     if (!(match < 0.002)) match = 0.002;
     for (int k = 0; k < n; ++k) {
         gcManifoldPoint *p = &m->points[k];
         memset(p, 0, sizeof *p);
-        p->local_a = gc_mat3_tmul_vec(&A->R, gc_sub(raw[k].pa, A->com));
-        p->local_b = gc_mat3_tmul_vec(&B->R, gc_sub(raw[k].pb, B->com));
+        p->local_a = gc_mat3_tmul_vec(&A->state.R, gc_sub(raw[k].pa, A->state.com));
+        p->local_b = gc_mat3_tmul_vec(&B->state.R, gc_sub(raw[k].pb, B->state.com));
         p->point = gc_scale(gc_add(raw[k].pa, raw[k].pb), 0.5);
         p->separation = raw[k].separation;
         if (!old) continue;

@@ -72,7 +72,7 @@ static void prepare_manifold(gcWorld *w, gcManifold *m, double dt) {
     for (int k = 0; k < m->num_points; ++k) {
         gcManifoldPoint *p = &m->points[k];
         gcPointScratch *q = &scratch[k];
-        gcVec3 ra = gc_sub(p->point, A->com), rb = gc_sub(p->point, B->com);
+        gcVec3 ra = gc_sub(p->point, A->state.com), rb = gc_sub(p->point, B->state.com);
         for (int d = 0; d < 3; ++d) {
             q->ang_a[d] = gc_cross(ra, dirs[d]);
             q->ang_b[d] = gc_cross(rb, dirs[d]);
@@ -103,20 +103,20 @@ static void prepare_manifold(gcWorld *w, gcManifold *m, double dt) {
         q->target_t[0] = q->target_t[1] = 0.0;
         if (!m->sticking) p->anchored = 0;
         if (m->sticking && p->anchored) {
-            gcVec3 wa = gc_add(A->com, gc_mat3_mul_vec(&A->R, p->anchor_a));
-            gcVec3 wb = gc_add(B->com, gc_mat3_mul_vec(&B->R, p->anchor_b));
+            gcVec3 wa = gc_add(A->state.com, gc_mat3_mul_vec(&A->state.R, p->anchor_a));
+            gcVec3 wb = gc_add(B->state.com, gc_mat3_mul_vec(&B->state.R, p->anchor_b));
             gcVec3 da = gc_sub(wa, p->point), db = gc_sub(wb, p->point);
             da = gc_madd(da, m->normal, -gc_dot(da, m->normal));
             db = gc_madd(db, m->normal, -gc_dot(db, m->normal));
             if (gc_len(da) > GC_ANCHOR_RESET || gc_len(db) > GC_ANCHOR_RESET) p->anchored = 0;
         }
         if (m->sticking && !p->anchored) {
-            p->anchor_a = gc_mat3_tmul_vec(&A->R, gc_sub(p->point, A->com));
-            p->anchor_b = gc_mat3_tmul_vec(&B->R, gc_sub(p->point, B->com));
+            p->anchor_a = gc_mat3_tmul_vec(&A->state.R, gc_sub(p->point, A->state.com));
+            p->anchor_b = gc_mat3_tmul_vec(&B->state.R, gc_sub(p->point, B->state.com));
             p->anchored = 1;
         } else if (m->sticking) {
-            gcVec3 wa = gc_add(A->com, gc_mat3_mul_vec(&A->R, p->anchor_a));
-            gcVec3 wb = gc_add(B->com, gc_mat3_mul_vec(&B->R, p->anchor_b));
+            gcVec3 wa = gc_add(A->state.com, gc_mat3_mul_vec(&A->state.R, p->anchor_a));
+            gcVec3 wb = gc_add(B->state.com, gc_mat3_mul_vec(&B->state.R, p->anchor_b));
             gcVec3 e = gc_sub(wb, wa);
             q->target_t[0] = -GC_ANCHOR_BETA * gc_dot(e, m->t1) / dt;
             q->target_t[1] = -GC_ANCHOR_BETA * gc_dot(e, m->t2) / dt;
@@ -140,10 +140,10 @@ static SolverBodies solver_bodies(gcWorld *w, const gcManifold *m, gcVec3 *lin, 
         s.vb = db ? &lin[m->body_b] : NULL;
         s.wb = db ? &ang[m->body_b] : NULL;
     } else {
-        s.va = da ? &A->v : NULL;
-        s.wa = da ? &A->w : NULL;
-        s.vb = db ? &B->v : NULL;
-        s.wb = db ? &B->w : NULL;
+        s.va = da ? &A->state.v : NULL;
+        s.wa = da ? &A->state.w : NULL;
+        s.vb = db ? &B->state.v : NULL;
+        s.wb = db ? &B->state.w : NULL;
     }
     return s;
 }
@@ -346,9 +346,9 @@ void gc_contacts_solve_chain(gcWorld *w, int chain, double dt) {
         gcBody *b = &w->bodies[id];
         gcVec3 pv = cs->pseudo_v[id], pw = cs->pseudo_w[id];
         if (gc_len2(pv) == 0.0 && gc_len2(pw) == 0.0) continue;
-        b->com = gc_madd(b->com, pv, dt);
-        b->q = gc_quat_normalize(gc_quat_mul(gc_quat_from_rotation_vector(gc_scale(pw, dt)), b->q));
-        b->R = gc_quat_to_mat3(b->q);
+        b->state.com = gc_madd(b->state.com, pv, dt);
+        b->state.q = gc_quat_normalize(gc_quat_mul(gc_quat_from_rotation_vector(gc_scale(pw, dt)), b->state.q));
+        b->state.R = gc_quat_to_mat3(b->state.q);
     }
 }
 

@@ -141,9 +141,9 @@ static gcVec3 rotation_between(gcVec3 u, gcVec3 t) {
  * hair, about the centre of mass, makes the step end on the starting world momentum
  * exactly, so a free body keeps L (vector), |L| and its energy to round-off. */
 static gcVec3 gyroscopic_rotation(gcBody *b, double dt) {
-    gcVec3 L_world = angular_momentum(&b->R, &b->inertia_local, b->w);
-    if (!(gc_len2(L_world) > 0.0)) return b->w;
-    gcVec3 L_body = gc_mat3_tmul_vec(&b->R, L_world);
+    gcVec3 L_world = angular_momentum(&b->state.R, &b->inertia_local, b->state.w);
+    if (!(gc_len2(L_world) > 0.0)) return b->state.w;
+    gcVec3 L_body = gc_mat3_tmul_vec(&b->state.R, L_world);
     gcVec3 L_end = free_rotation(L_body, &b->inv_inertia_local, dt);
     /* Round-off guard: never more |L| or energy than at the start. */
     gcVec3 om_body = gc_mat3_mul_vec(&b->inv_inertia_local, L_body);
@@ -153,28 +153,28 @@ static gcVec3 gyroscopic_rotation(gcBody *b, double dt) {
     if (e1 > e0) shrink = sqrt(e0 / e1);
     if (l1 * shrink * shrink > l0) shrink = sqrt(l0 / l1);
     if (!(shrink == 1.0)) {
-        if (!isfinite(shrink)) return b->w;
+        if (!isfinite(shrink)) return b->state.w;
         L_end = gc_scale(L_end, shrink);
         om_end = gc_scale(om_end, shrink);
     }
-    gcVec3 om_world = gc_mat3_mul_vec(&b->R, om_end);
-    gcMat3 R_end = gc_quat_to_mat3(gc_quat_mul(gc_quat_from_rotation_vector(gc_scale(om_world, dt)), b->q));
+    gcVec3 om_world = gc_mat3_mul_vec(&b->state.R, om_end);
+    gcMat3 R_end = gc_quat_to_mat3(gc_quat_mul(gc_quat_from_rotation_vector(gc_scale(om_world, dt)), b->state.q));
     gcVec3 hair = rotation_between(gc_mat3_mul_vec(&R_end, L_end), L_world);
     if (gc_len2(hair) > 0.0) {
-        b->q = gc_quat_normalize(gc_quat_mul(gc_quat_from_rotation_vector(hair), b->q));
-        b->R = gc_quat_to_mat3(b->q);
+        b->state.q = gc_quat_normalize(gc_quat_mul(gc_quat_from_rotation_vector(hair), b->state.q));
+        b->state.R = gc_quat_to_mat3(b->state.q);
     }
-    return gc_mat3_mul_vec(&b->R, om_end);
+    return gc_mat3_mul_vec(&b->state.R, om_end);
 }
 
 static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
     gcBody *b = &w->bodies[id];
-    b->step_start_com = b->com;
-    b->step_start_q = b->q;
-    b->step_start_momentum = gc_scale(b->v, b->mass);
-    b->step_start_angular_momentum = angular_momentum(&b->R, &b->inertia_local, b->w);
+    b->step_start_com = b->state.com;
+    b->step_start_q = b->state.q;
+    b->step_start_momentum = gc_scale(b->state.v, b->mass);
+    b->step_start_angular_momentum = angular_momentum(&b->state.R, &b->inertia_local, b->state.w);
     gcVec3 L = b->step_start_angular_momentum;
-    if (w->def.gyroscopic) L = angular_momentum(&b->R, &b->inertia_local, gyroscopic_rotation(b, dt));
+    if (w->def.gyroscopic) L = angular_momentum(&b->state.R, &b->inertia_local, gyroscopic_rotation(b, dt));
     gcVec3 force = gc_scale(w->gravity, b->mass);
     gcVec3 torque = gc_v3(0, 0, 0);
     double C[6][6]; /* finger coupling: sum (k dt^2 + c dt) J^T J */
@@ -192,7 +192,7 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
              * while it sticks: the same lever in the torque and in the coupling keeps the
              * implicit model consistent with the explicit force. */
             gcVec3 go = gc_transform_point(&frame, c->go_local);
-            gcVec3 r = gc_sub(go, b->com);
+            gcVec3 r = gc_sub(go, b->state.com);
             gcVec3 spring = gc_scale(gc_sub(f->hip, go), f->stiffness);
             /* Implicit part: the velocity-dependent terms move into the matrix. */
             gcVec3 explicit_part = gc_madd(spring, f->hip_velocity, f->damping);
@@ -208,16 +208,16 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
      * pose has taken its hair (gyroscopic_rotation); the forces act on the inertia there. */
     gcVec3 v, omega;
     b->coupled = coupled;
-    b->inertia_rotation = b->R; /* contacts form R I^-1 R^T from it, for bodies that touch */
+    b->inertia_rotation = b->state.R; /* contacts form R I^-1 R^T from it, for bodies that touch */
     if (!coupled) {
         /* No finger on it: the effective mass is the block-diagonal mass matrix, inverted
          * directly (no 6x6 factor); contacts use the same blocks. */
         v = gc_scale(p, b->inv_mass);
-        omega = gc_mat3_mul_vec(&b->R, gc_mat3_mul_vec(&b->inv_inertia_local, gc_mat3_tmul_vec(&b->R, Lnew)));
+        omega = gc_mat3_mul_vec(&b->state.R, gc_mat3_mul_vec(&b->inv_inertia_local, gc_mat3_tmul_vec(&b->state.R, Lnew)));
         b->effective_mass_valid = 1;
     } else {
         double rhs[6] = {p.x, p.y, p.z, Lnew.x, Lnew.y, Lnew.z}, x[6];
-        gcMat3 inertia_world = to_world(&b->R, &b->inertia_local);
+        gcMat3 inertia_world = to_world(&b->state.R, &b->inertia_local);
         double A[6][6];
         memcpy(A, C, sizeof A);
         for (int i = 0; i < 3; ++i) {
@@ -241,8 +241,8 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
         b->nonfinite = 1;
         return;
     }
-    b->v = v;
-    b->w = om;
+    b->state.v = v;
+    b->state.w = om;
 }
 
 void gc_body_inverse_effective_mass(const gcBody *b, double M[36]) {
@@ -268,8 +268,8 @@ void gc_dynamics_velocities(gcWorld *w, double dt) {
     for (int32_t i = 0; i < w->num_bodies; ++i) {
         gcBody *b = &w->bodies[i];
         if (b->is_static) {
-            b->residual_force = gc_v3(0, 0, 0);
-            b->residual_torque = gc_v3(0, 0, 0);
+            b->state.residual_force = gc_v3(0, 0, 0);
+            b->state.residual_torque = gc_v3(0, 0, 0);
             continue;
         }
         if (w->body_active && !w->body_active[i]) {
@@ -281,8 +281,8 @@ void gc_dynamics_velocities(gcWorld *w, double dt) {
 }
 
 static int body_state_finite(const gcBody *b) {
-    return gc_vec_finite(b->com) && gc_vec_finite(b->v) && gc_vec_finite(b->w) && isfinite(b->q.w) &&
-           isfinite(b->q.x) && isfinite(b->q.y) && isfinite(b->q.z);
+    return gc_vec_finite(b->state.com) && gc_vec_finite(b->state.v) && gc_vec_finite(b->state.w) && isfinite(b->state.q.w) &&
+           isfinite(b->state.q.x) && isfinite(b->state.q.y) && isfinite(b->state.q.z);
 }
 
 /* A body whose step would leave it non-finite (a solve that broke down on extreme input)
@@ -290,14 +290,14 @@ static int body_state_finite(const gcBody *b) {
  * and the fingers only ever see that finite state. */
 static void stop_body(gcWorld *w, int32_t id) {
     gcBody *b = &w->bodies[id];
-    b->com = b->step_start_com;
-    b->q = b->step_start_q;
-    b->v = gc_v3(0, 0, 0);
-    b->w = gc_v3(0, 0, 0);
+    b->state.com = b->step_start_com;
+    b->state.q = b->step_start_q;
+    b->state.v = gc_v3(0, 0, 0);
+    b->state.w = gc_v3(0, 0, 0);
     b->nonfinite = 0;
     gc_body_refresh_derived(w, id);
-    b->residual_force = gc_v3(0, 0, 0);
-    b->residual_torque = gc_v3(0, 0, 0);
+    b->state.residual_force = gc_v3(0, 0, 0);
+    b->state.residual_torque = gc_v3(0, 0, 0);
     if (w->step_stopped_bodies++ == 0) w->first_stopped_body = id;
     w->stopped_bodies++;
 }
@@ -306,8 +306,8 @@ void gc_dynamics_positions(gcWorld *w, double dt) {
     for (int32_t i = 0; i < w->num_bodies; ++i) {
         gcBody *b = &w->bodies[i];
         if (b->is_static || (w->body_active && !w->body_active[i])) continue;
-        b->com = gc_madd(b->com, b->v, dt);
-        b->q = gc_quat_normalize(gc_quat_mul(gc_quat_from_rotation_vector(gc_scale(b->w, dt)), b->q));
+        b->state.com = gc_madd(b->state.com, b->state.v, dt);
+        b->state.q = gc_quat_normalize(gc_quat_mul(gc_quat_from_rotation_vector(gc_scale(b->state.w, dt)), b->state.q));
         if (b->nonfinite || !body_state_finite(b)) {
             stop_body(w, i);
             continue;
@@ -317,8 +317,8 @@ void gc_dynamics_positions(gcWorld *w, double dt) {
          * finger springs at their end-of-step stretch, contacts): the rate of change of
          * momentum. Evaluating the springs at the start of the step instead would be off
          * by k dt v for a body carried at speed v. */
-        gcVec3 L = angular_momentum(&b->R, &b->inertia_local, b->w);
-        b->residual_force = gc_scale(gc_sub(gc_scale(b->v, b->mass), b->step_start_momentum), 1.0 / dt);
-        b->residual_torque = gc_scale(gc_sub(L, b->step_start_angular_momentum), 1.0 / dt);
+        gcVec3 L = angular_momentum(&b->state.R, &b->inertia_local, b->state.w);
+        b->state.residual_force = gc_scale(gc_sub(gc_scale(b->state.v, b->mass), b->step_start_momentum), 1.0 / dt);
+        b->state.residual_torque = gc_scale(gc_sub(L, b->step_start_angular_momentum), 1.0 / dt);
     }
 }

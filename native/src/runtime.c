@@ -98,11 +98,8 @@ static unsigned triple_latest(gcTriple *t, int *fresh) {
 
 /* A body's dynamic state, exactly (no re-derivation), so that a hand-over changes no bit. */
 typedef struct gcRtBody {
-    gcVec3 com;
-    gcQuat q;
-    gcMat3 R;
-    gcVec3 v, w, aabb_min, aabb_max, residual_force, residual_torque;
-    double pose[7];
+    gcBodyState state;
+    double pose[7];          /* the world's pose view of the body */
 } gcRtBody;
 
 typedef struct gcInputMsg { /* push_hips -> haptic loop */
@@ -244,17 +241,13 @@ static int64_t seconds_to_ns(double s) { return (int64_t)(s * 1e9 + 0.5); }
 
 static void body_save(const gcWorld *s, int32_t i, gcRtBody *o) {
     const gcBody *b = &s->bodies[i];
-    o->com = b->com, o->q = b->q, o->R = b->R, o->v = b->v, o->w = b->w;
-    o->aabb_min = b->aabb_min, o->aabb_max = b->aabb_max;
-    o->residual_force = b->residual_force, o->residual_torque = b->residual_torque;
+    o->state = b->state;
     memcpy(o->pose, &s->pose_array[7 * i], sizeof o->pose);
 }
 
 static void body_load(gcWorld *s, int32_t i, const gcRtBody *o) {
     gcBody *b = &s->bodies[i];
-    b->com = o->com, b->q = o->q, b->R = o->R, b->v = o->v, b->w = o->w;
-    b->aabb_min = o->aabb_min, b->aabb_max = o->aabb_max;
-    b->residual_force = o->residual_force, b->residual_torque = o->residual_torque;
+    b->state = o->state;
     memcpy(&s->pose_array[7 * i], o->pose, sizeof o->pose);
 }
 
@@ -1172,7 +1165,7 @@ static void snapshot_from_world(const gcWorld *w, gcSnapshot *s) {
     s->num_bodies = w->num_bodies;
     s->num_fingers = w->num_fingers;
     for (int32_t b = 0; b < w->num_bodies; ++b)
-        put_body(s, b, &w->pose_array[7 * b], w->bodies[b].residual_force, w->bodies[b].residual_torque, 0);
+        put_body(s, b, &w->pose_array[7 * b], w->bodies[b].state.residual_force, w->bodies[b].state.residual_torque, 0);
     for (int32_t i = 0; i < w->num_fingers; ++i) {
         const gcFinger *f = &w->fingers[i];
         put3(s->hips, i, &w->hip_array[3 * i]);
@@ -1212,7 +1205,7 @@ gcStatus gc_world_snapshot(gcWorld *w, gcSnapshot *s) {
     /* The world's queries and views answer from this snapshot while the runtime runs. */
     for (int32_t b = 0; b < w->num_bodies; ++b) {
         const gcRtBody *rb = &d->body[b];
-        put_body(s, b, rb->pose, rb->residual_force, rb->residual_torque, d->adopted[b]);
+        put_body(s, b, rb->pose, rb->state.residual_force, rb->state.residual_torque, d->adopted[b]);
         if (!w->bodies[b].is_static) body_load(w, b, rb);
     }
     for (int32_t i = 0; i < w->num_fingers; ++i) {

@@ -253,13 +253,13 @@ static int inertia_is_physical(const gcMat3 *I) {
 
 void gc_body_refresh_derived(gcWorld *w, int32_t id) {
     gcBody *b = &w->bodies[id];
-    b->q = gc_quat_normalize(b->q);
-    b->R = gc_quat_to_mat3(b->q);
+    b->state.q = gc_quat_normalize(b->state.q);
+    b->state.R = gc_quat_to_mat3(b->state.q);
     gcTransform frame = gc_body_transform(b);
     gcVec3 origin = frame.p;
     double *pose = &w->pose_array[7 * id];
     pose[0] = origin.x, pose[1] = origin.y, pose[2] = origin.z;
-    pose[3] = b->q.w, pose[4] = b->q.x, pose[5] = b->q.y, pose[6] = b->q.z;
+    pose[3] = b->state.q.w, pose[4] = b->state.q.x, pose[5] = b->state.q.y, pose[6] = b->state.q.z;
     /* World AABB of all parts: each part's local box turned into world axes (centre
      * transformed, half extents through |R|), grown by the part's radius. */
     gcVec3 lo = gc_v3(INFINITY, INFINITY, INFINITY), hi = gc_neg(lo);
@@ -269,12 +269,12 @@ void gc_body_refresh_derived(gcWorld *w, int32_t id) {
         gcVec3 half = gc_scale(gc_sub(h->aabb_max, h->aabb_min), 0.5);
         double e[3];
         for (int i = 0; i < 3; ++i)
-            e[i] = fabs(b->R.m[i][0]) * half.x + fabs(b->R.m[i][1]) * half.y + fabs(b->R.m[i][2]) * half.z + h->radius;
+            e[i] = fabs(b->state.R.m[i][0]) * half.x + fabs(b->state.R.m[i][1]) * half.y + fabs(b->state.R.m[i][2]) * half.z + h->radius;
         lo = gc_v3(gc_min(lo.x, centre.x - e[0]), gc_min(lo.y, centre.y - e[1]), gc_min(lo.z, centre.z - e[2]));
         hi = gc_v3(gc_max(hi.x, centre.x + e[0]), gc_max(hi.y, centre.y + e[1]), gc_max(hi.z, centre.z + e[2]));
     }
-    b->aabb_min = lo;
-    b->aabb_max = hi;
+    b->state.aabb_min = lo;
+    b->state.aabb_max = hi;
 }
 
 gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *parts, int num_parts,
@@ -395,15 +395,15 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
     b.viscosity = def->viscosity;
     b.linear_damping = def->linear_damping;
     b.angular_damping = def->angular_damping;
-    b.q = gc_quat_normalize((gcQuat){def->orientation[0], def->orientation[1], def->orientation[2],
+    b.state.q = gc_quat_normalize((gcQuat){def->orientation[0], def->orientation[1], def->orientation[2],
                                      def->orientation[3]});
-    b.R = gc_quat_to_mat3(b.q);
-    b.com = gc_add(gc_v3(def->position[0], def->position[1], def->position[2]),
-                   gc_mat3_mul_vec(&b.R, b.com_local));
+    b.state.R = gc_quat_to_mat3(b.state.q);
+    b.state.com = gc_add(gc_v3(def->position[0], def->position[1], def->position[2]),
+                   gc_mat3_mul_vec(&b.state.R, b.com_local));
     if (!b.is_static) {
-        b.w = gc_v3(def->angular_velocity[0], def->angular_velocity[1], def->angular_velocity[2]);
-        b.v = gc_add(gc_v3(def->linear_velocity[0], def->linear_velocity[1], def->linear_velocity[2]),
-                     gc_cross(b.w, gc_mat3_mul_vec(&b.R, b.com_local))); /* origin -> COM */
+        b.state.w = gc_v3(def->angular_velocity[0], def->angular_velocity[1], def->angular_velocity[2]);
+        b.state.v = gc_add(gc_v3(def->linear_velocity[0], def->linear_velocity[1], def->linear_velocity[2]),
+                     gc_cross(b.state.w, gc_mat3_mul_vec(&b.state.R, b.com_local))); /* origin -> COM */
     }
     int32_t id = w->num_bodies;
     for (int i = 0; i < num_parts; ++i) w->parts[first + i].body = id;
@@ -490,8 +490,8 @@ gcStatus gc_world_set_body_velocity(gcWorld *w, int32_t body, const double lin[3
         return GC_ERR_INVALID_ARGUMENT;
     }
     /* Given for the body frame origin, like body_velocity reports it; stored at the COM. */
-    b->w = gc_v3(ang[0], ang[1], ang[2]);
-    b->v = gc_add(gc_v3(lin[0], lin[1], lin[2]), gc_cross(b->w, gc_mat3_mul_vec(&b->R, b->com_local)));
+    b->state.w = gc_v3(ang[0], ang[1], ang[2]);
+    b->state.v = gc_add(gc_v3(lin[0], lin[1], lin[2]), gc_cross(b->state.w, gc_mat3_mul_vec(&b->state.R, b->com_local)));
     return GC_OK;
 }
 
@@ -506,9 +506,9 @@ gcStatus gc_world_set_body_pose(gcWorld *w, int32_t body, const double pos[3], c
         return GC_ERR_INVALID_ARGUMENT;
     }
     gcBody *b = &w->bodies[body];
-    b->q = gc_quat_normalize((gcQuat){quat[0], quat[1], quat[2], quat[3]});
-    b->R = gc_quat_to_mat3(b->q);
-    b->com = gc_add(gc_v3(pos[0], pos[1], pos[2]), gc_mat3_mul_vec(&b->R, b->com_local));
+    b->state.q = gc_quat_normalize((gcQuat){quat[0], quat[1], quat[2], quat[3]});
+    b->state.R = gc_quat_to_mat3(b->state.q);
+    b->state.com = gc_add(gc_v3(pos[0], pos[1], pos[2]), gc_mat3_mul_vec(&b->state.R, b->com_local));
     gc_body_refresh_derived(w, body);
     return GC_OK;
 }
@@ -557,9 +557,9 @@ gcStatus gc_world_body_velocity(const gcWorld *w, int32_t body, double lin[3], d
     if (st) return st;
     const gcBody *b = &w->bodies[body];
     /* Report the velocity of the body frame origin, consistent with body_pose. */
-    gcVec3 r = gc_mat3_mul_vec(&b->R, gc_neg(b->com_local));
-    put3(lin, gc_add(b->v, gc_cross(b->w, r)));
-    put3(ang, b->w);
+    gcVec3 r = gc_mat3_mul_vec(&b->state.R, gc_neg(b->com_local));
+    put3(lin, gc_add(b->state.v, gc_cross(b->state.w, r)));
+    put3(ang, b->state.w);
     return GC_OK;
 }
 
@@ -576,8 +576,8 @@ gcStatus gc_world_body_mass(const gcWorld *w, int32_t body, double *mass, double
 gcStatus gc_world_residual_wrench(const gcWorld *w, int32_t body, double force[3], double torque[3]) {
     gcStatus st = check_body(w, body);
     if (st) return st;
-    put3(force, w->bodies[body].residual_force);
-    put3(torque, w->bodies[body].residual_torque);
+    put3(force, w->bodies[body].state.residual_force);
+    put3(torque, w->bodies[body].state.residual_torque);
     return GC_OK;
 }
 
@@ -623,10 +623,10 @@ uint64_t gc_world_state_hash(const gcWorld *w) {
     h = hash_bytes(h, &w->time, sizeof w->time);
     for (int i = 0; i < w->num_bodies; ++i) {
         const gcBody *b = &w->bodies[i];
-        h = hash_bytes(h, &b->com, sizeof b->com);
-        h = hash_bytes(h, &b->q, sizeof b->q);
-        h = hash_bytes(h, &b->v, sizeof b->v);
-        h = hash_bytes(h, &b->w, sizeof b->w);
+        h = hash_bytes(h, &b->state.com, sizeof b->state.com);
+        h = hash_bytes(h, &b->state.q, sizeof b->state.q);
+        h = hash_bytes(h, &b->state.v, sizeof b->state.v);
+        h = hash_bytes(h, &b->state.w, sizeof b->state.w);
     }
     for (int i = 0; i < w->num_fingers; ++i) {
         const gcFinger *f = &w->fingers[i];

@@ -18,27 +18,33 @@ typedef struct gcPart {
     int32_t body;
 } gcPart;
 
+/* What a step changes on a body (the "data" beside the body's "model", as MuJoCo splits
+ * mjData from mjModel): a plain value, so the runtime's shadows copy it whole and a
+ * snapshot reads it without touching the world it came from. */
+typedef struct gcBodyState {
+    gcVec3 com;                     /* world; the COM is integrated, the frame origin derived */
+    gcQuat q;                       /* body frame orientation */
+    gcMat3 R;                       /* rotation of q (the world inertia is R I R^T) */
+    gcVec3 v, w;                    /* linear (of the COM) and angular velocity, world */
+    gcVec3 aabb_min, aabb_max;      /* world, of all parts, refreshed each step */
+    gcVec3 residual_force, residual_torque; /* what the last step applied */
+} gcBodyState;
+
 typedef struct gcBody {
+    /* Model: set when the body is added (friction and damping by their setters). */
     int is_static;
     int first_part, num_parts;      /* parts[first_part .. first_part+num_parts) */
     double mass, inv_mass;
     gcVec3 com_local;               /* centre of mass in the body frame */
     gcMat3 inertia_local;           /* about the COM, body axes */
     gcMat3 inv_inertia_local;
-    /* State: the COM is integrated; the frame origin is derived for output. */
-    gcVec3 com;                     /* world */
-    gcQuat q;                       /* body frame orientation */
-    gcMat3 R;                       /* cached rotation of q */
-    gcVec3 v, w;                    /* linear (of the COM) and angular velocity, world */
     double mu_s, mu_d, viscosity;
     double linear_damping, angular_damping;
-    gcVec3 aabb_min, aabb_max;      /* world, of all parts, refreshed each step */
-    /* Outputs of the last step. */
-    gcVec3 residual_force, residual_torque;
+    gcBodyState state;
     /* Step scratch: the effective mass used for this step's velocity, which contact
      * impulses go through. With a finger on the body (coupled) it is the mass matrix plus
      * the implicit finger coupling, kept as a 6x6 Cholesky factor; otherwise it is block
-     * diagonal: inv_mass and the inverse world inertia at the end-of-step orientation
+     * diagonal: inv_mass and the inverse world inertia at the orientation
      * inertia_rotation (formed only for bodies in contact). */
     int coupled;
     double effective_mass_factor[6][6];
@@ -117,8 +123,8 @@ void gc_world_set_error(const gcWorld *world, const char *fmt, ...);
 /* The body frame (the user's origin, not the centre of mass) as a transform. */
 static inline gcTransform gc_body_transform(const gcBody *b) {
     gcTransform t;
-    t.R = b->R;
-    t.p = gc_sub(b->com, gc_mat3_mul_vec(&b->R, b->com_local));
+    t.R = b->state.R;
+    t.p = gc_sub(b->state.com, gc_mat3_mul_vec(&b->state.R, b->com_local));
     return t;
 }
 

@@ -168,7 +168,7 @@ static void finger_update(gcWorld *w, gcFinger *f, double dt) {
     hi = gc_add(hi, pad);
     for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < GC_MAX_CONTACTS_PER_FINGER; ++bi) {
         const gcBody *b = &w->bodies[bi];
-        if (!gc_aabb_overlap(lo, hi, b->aabb_min, b->aabb_max)) continue;
+        if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
         gcTransform fr = gc_body_transform(b);
         gcVec3 from = gc_inv_transform_point(&fr, f->hip_prev), to = gc_inv_transform_point(&fr, f->hip);
         for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
@@ -204,7 +204,7 @@ static void finger_outputs(gcWorld *w, int32_t id) {
         force = gc_madd(force, gc_sub(go, f->hip), f->stiffness);
         if (f->damping > 0.0) {
             /* Damping on the HIP vs the body point at the god-object. */
-            gcVec3 v_point = b->is_static ? gc_v3(0, 0, 0) : gc_add(b->v, gc_cross(b->w, gc_sub(go, b->com)));
+            gcVec3 v_point = b->is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(go, b->state.com)));
             force = gc_madd(force, gc_sub(v_point, f->hip_velocity), f->damping);
         }
         if (c->depth > deepest) {
