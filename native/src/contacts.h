@@ -4,7 +4,7 @@
 #ifndef GC_CONTACTS_H
 #define GC_CONTACTS_H
 
-#include "world_internal.h"
+#include "body.h"
 
 #include <stdint.h>
 

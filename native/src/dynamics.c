@@ -11,41 +11,9 @@
  * from the centre of mass. M is 6x6 block diagonal (m I, R I_body R^T). The pose is
  * then advanced with the new twist: x += v' dt and R <- exp([w' dt]x) R, the world-frame
  * update the chapter prints transposed. */
-#include "world_internal.h"
+#include "dynamics.h"
 
 #include <string.h>
-
-/* Cholesky factor of a 6x6 symmetric positive-definite matrix (lower); 0 on failure. */
-static int cholesky6(const double A[6][6], double L[6][6]) {
-    memset(L, 0, sizeof(double) * 36);
-    for (int i = 0; i < 6; ++i) {
-        for (int j = 0; j <= i; ++j) {
-            double s = A[i][j];
-            for (int k = 0; k < j; ++k) s -= L[i][k] * L[j][k];
-            if (i == j) {
-                if (!(s > 0.0)) return 0;
-                L[i][i] = sqrt(s);
-            } else {
-                L[i][j] = s / L[j][j];
-            }
-        }
-    }
-    return 1;
-}
-
-static void cholesky_solve6(const double L[6][6], const double b[6], double x[6]) {
-    double y[6];
-    for (int i = 0; i < 6; ++i) {
-        double s = b[i];
-        for (int k = 0; k < i; ++k) s -= L[i][k] * y[k];
-        y[i] = s / L[i][i];
-    }
-    for (int i = 5; i >= 0; --i) {
-        double s = y[i];
-        for (int k = i + 1; k < 6; ++k) s -= L[k][i] * x[k];
-        x[i] = s / L[i][i];
-    }
-}
 
 /* A += s * J^T J for J = [I | -[r]x]. */
 static void add_point_coupling(double A[6][6], gcVec3 r, double s) {
@@ -61,13 +29,6 @@ static void add_point_coupling(double A[6][6], gcVec3 r, double s) {
             A[3 + i][3 + j] += s * ((i == j ? r2 : 0.0) - rv[i] * rv[j]); /* -[r]x[r]x */
         }
     }
-}
-
-/* R A R^T: a body-frame tensor in world axes. */
-static gcMat3 to_world(const gcMat3 *R, const gcMat3 *A) {
-    gcMat3 RA = gc_mat3_mul(R, A);
-    gcMat3 Rt = gc_mat3_transpose(R);
-    return gc_mat3_mul(&RA, &Rt);
 }
 
 /* I_world w without forming I_world: R (I_body (R^T w)). */
@@ -217,19 +178,19 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
         b->effective_mass_valid = 1;
     } else {
         double rhs[6] = {p.x, p.y, p.z, Lnew.x, Lnew.y, Lnew.z}, x[6];
-        gcMat3 inertia_world = to_world(&b->state.R, &b->inertia_local);
+        gcMat3 inertia_world = gc_to_world(&b->state.R, &b->inertia_local);
         double A[6][6];
         memcpy(A, C, sizeof A);
         for (int i = 0; i < 3; ++i) {
             A[i][i] += b->mass;
             for (int j = 0; j < 3; ++j) A[3 + i][3 + j] += inertia_world.m[i][j];
         }
-        b->effective_mass_valid = cholesky6(A, b->effective_mass_factor);
+        b->effective_mass_valid = gc_cholesky6(A, b->effective_mass_factor);
         if (!b->effective_mass_valid) { /* only a non-finite input gets here */
             b->nonfinite = 1;
             return;
         }
-        cholesky_solve6(b->effective_mass_factor, rhs, x);
+        gc_cholesky_solve6(b->effective_mass_factor, rhs, x);
         omega = gc_v3(x[3], x[4], x[5]);
         v = gc_v3(x[0], x[1], x[2]);
     }
@@ -243,25 +204,6 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
     }
     b->state.v = v;
     b->state.w = om;
-}
-
-void gc_body_inverse_effective_mass(const gcBody *b, double M[36]) {
-    memset(M, 0, 36 * sizeof(double));
-    if (b->is_static || !b->effective_mass_valid) return;
-    if (!b->coupled) {
-        gcMat3 inv_inertia_world = to_world(&b->inertia_rotation, &b->inv_inertia_local);
-        for (int i = 0; i < 3; ++i) {
-            M[6 * i + i] = b->inv_mass;
-            for (int j = 0; j < 3; ++j) M[6 * (3 + i) + 3 + j] = inv_inertia_world.m[i][j];
-        }
-        return;
-    }
-    for (int j = 0; j < 6; ++j) {
-        double e[6] = {0, 0, 0, 0, 0, 0}, col[6];
-        e[j] = 1.0;
-        cholesky_solve6(b->effective_mass_factor, e, col);
-        for (int r = 0; r < 6; ++r) M[6 * r + j] = col[r];
-    }
 }
 
 void gc_dynamics_velocities(gcWorld *w, double dt) {

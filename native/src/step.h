@@ -4,6 +4,8 @@
 #define GC_STEP_H
 
 #include "contacts.h"
+#include "dynamics.h"
+#include "xfca.h"
 
 /* The body phase: velocities, contacts, positions. Only the bodies of world->body_active
  * move when it is set (a runtime shadow). Returns how many bodies the non-finite guard

@@ -1,4 +1,5 @@
-/* The world's private layout, shared by the core's translation units. */
+/* The world's layout (types only, no functions), shared by every layer of the core; the
+ * layers themselves are listed in docs/architecture.md. */
 #ifndef GC_WORLD_INTERNAL_H
 #define GC_WORLD_INTERNAL_H
 
@@ -118,8 +119,6 @@ struct gcWorld {
     int locked;
 };
 
-void gc_world_set_error(const gcWorld *world, const char *fmt, ...);
-
 /* The body frame (the user's origin, not the centre of mass) as a transform. */
 static inline gcTransform gc_body_transform(const gcBody *b) {
     gcTransform t;
@@ -127,21 +126,5 @@ static inline gcTransform gc_body_transform(const gcBody *b) {
     t.p = gc_sub(b->state.com, gc_mat3_mul_vec(&b->state.R, b->com_local));
     return t;
 }
-
-/* xfca.c: one god-object update for every finger (start of a step, on the current poses). */
-void gc_xfca_update(gcWorld *world, double dt);
-/* Finger forces and reported god-objects, at the end of a step: on the poses the bodies
- * moved to, so a fingertip carrying a body feels the spring the body felt (no one-step
- * lag of k v dt against the motion). */
-void gc_xfca_outputs(gcWorld *world);
-/* dynamics.c, in step order: new velocities of every dynamic body under gravity and the
- * implicit finger coupling (leaves each body's effective-mass factor); then positions. */
-void gc_dynamics_velocities(gcWorld *world, double dt);
-void gc_dynamics_positions(gcWorld *world, double dt);
-/* Between the two: the body's (effective mass)^-1 as a row-major 6x6, (linear, angular)
- * world frame, zero for a static or immovable body. A world impulse p at r from the COM
- * changes the twist by M [p; r x p], so contacts see the finger springs as mass. */
-void gc_body_inverse_effective_mass(const gcBody *body, double M[36]);
-void gc_body_refresh_derived(gcWorld *world, int32_t body);
 
 #endif

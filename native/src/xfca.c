@@ -4,7 +4,7 @@
  * See docs/physics.md for how we read the chapter; the numbered steps below follow it.
  * All positions here are fingertip-sphere centres: the surface the centre sees is the
  * part inflated by the finger radius, so a point finger is radius 0. */
-#include "world_internal.h"
+#include "xfca.h"
 
 #include <string.h>
 

@@ -26,15 +26,6 @@ const char *gc_status_string(gcStatus status) {
     return "unknown status";
 }
 
-void gc_world_set_error(const gcWorld *world, const char *fmt, ...) {
-    /* The error buffer is diagnostic state, not simulation state: writable from const queries. */
-    gcWorld *w = (gcWorld *)world;
-    va_list args;
-    va_start(args, fmt);
-    vsnprintf(w->last_error, sizeof w->last_error, fmt, args);
-    va_end(args);
-}
-
 const char *gc_world_last_error(const gcWorld *world) { return world ? world->last_error : "no world"; }
 
 gcWorldDef gc_default_world_def(void) {
@@ -69,12 +60,6 @@ gcFingerDef gc_default_finger_def(void) {
 }
 
 
-static int all_finite(const double *v, int n) {
-    for (int i = 0; i < n; ++i)
-        if (!isfinite(v[i])) return 0;
-    return 1;
-}
-
 /* No world exists yet when gc_world_create fails: its message is kept per thread. */
 static _Thread_local char create_error[256];
 
@@ -90,7 +75,7 @@ static gcStatus create_failed(gcStatus status, const char *fmt, ...) {
 
 /* The first argument of gcWorldDef that is out of range, named in the message. */
 static gcStatus check_world_def(const gcWorldDef *def) {
-    if (!all_finite(def->gravity, 3))
+    if (!gc_all_finite(def->gravity, 3))
         return create_failed(GC_ERR_INVALID_ARGUMENT, "gravity: must be 3 finite numbers (got %g, %g, %g)",
                              def->gravity[0], def->gravity[1], def->gravity[2]);
     if (def->max_bodies < 1 || def->max_bodies > (1 << 24))
@@ -165,116 +150,13 @@ int gc_world_body_count(const gcWorld *w) { return w->num_bodies; }
 int gc_world_finger_count(const gcWorld *w) { return w->num_fingers; }
 double gc_world_time(const gcWorld *w) { return w->time; }
 
-static gcStatus check_body(const gcWorld *w, int32_t body) {
-    if (body < 0 || body >= w->num_bodies) {
-        gc_world_set_error(w, "body: unknown id %d", (int)body);
-        return GC_ERR_UNKNOWN_ID;
-    }
-    return GC_OK;
-}
-
-static gcStatus check_finger(const gcWorld *w, int32_t finger) {
-    if (finger < 0 || finger >= w->num_fingers) {
-        gc_world_set_error(w, "finger: unknown id %d", (int)finger);
-        return GC_ERR_UNKNOWN_ID;
-    }
-    return GC_OK;
-}
-
-/* While the runtime runs it owns the dynamic state (runtime.c): mutating calls are refused. */
+/* While the runtime runs it owns the dynamic state (it sets `locked`): mutating calls are refused. */
 static gcStatus check_idle(const gcWorld *w) {
-    if (gc_runtime_running(w)) {
+    if (w->locked) {
         gc_world_set_error(w, "the runtime is running: stop it first (World.stop / gc_world_stop)");
         return GC_ERR_BUSY;
     }
     return GC_OK;
-}
-
-static gcStatus check_vec(const gcWorld *w, const double *v, int n, const char *name) {
-    if (!v || !all_finite(v, n)) {
-        gc_world_set_error(w, "%s: must be %d finite numbers", name, n);
-        return GC_ERR_INVALID_ARGUMENT;
-    }
-    return GC_OK;
-}
-
-static gcStatus check_friction(const gcWorld *w, double mu_s, double mu_d, double viscosity) {
-    if (!isfinite(mu_s) || mu_s < 0.0) {
-        gc_world_set_error(w, "mu_s: must be a finite number >= 0 (got %g)", mu_s);
-        return GC_ERR_INVALID_ARGUMENT;
-    }
-    if (!isfinite(mu_d) || mu_d < 0.0 || mu_d > mu_s) {
-        gc_world_set_error(w, "mu_d: must be finite, >= 0 and <= mu_s (got %g, mu_s %g)", mu_d, mu_s);
-        return GC_ERR_INVALID_ARGUMENT;
-    }
-    if (!isfinite(viscosity) || viscosity < 0.0) {
-        gc_world_set_error(w, "viscosity: must be a finite number >= 0 (got %g)", viscosity);
-        return GC_ERR_INVALID_ARGUMENT;
-    }
-    return GC_OK;
-}
-
-/* Inverse of a symmetric positive-definite 3x3 (inertia); 0 when singular. */
-static int invert_mat3(const gcMat3 *a, gcMat3 *out) {
-    const double(*m)[3] = a->m;
-    double c00 = m[1][1] * m[2][2] - m[1][2] * m[2][1];
-    double c01 = m[1][2] * m[2][0] - m[1][0] * m[2][2];
-    double c02 = m[1][0] * m[2][1] - m[1][1] * m[2][0];
-    double det = m[0][0] * c00 + m[0][1] * c01 + m[0][2] * c02;
-    if (!(fabs(det) > 0.0) || !isfinite(det)) return 0;
-    double inv = 1.0 / det;
-    out->m[0][0] = c00 * inv;
-    out->m[0][1] = (m[0][2] * m[2][1] - m[0][1] * m[2][2]) * inv;
-    out->m[0][2] = (m[0][1] * m[1][2] - m[0][2] * m[1][1]) * inv;
-    out->m[1][0] = c01 * inv;
-    out->m[1][1] = (m[0][0] * m[2][2] - m[0][2] * m[2][0]) * inv;
-    out->m[1][2] = (m[0][2] * m[1][0] - m[0][0] * m[1][2]) * inv;
-    out->m[2][0] = c02 * inv;
-    out->m[2][1] = (m[0][1] * m[2][0] - m[0][0] * m[2][1]) * inv;
-    out->m[2][2] = (m[0][0] * m[1][1] - m[0][1] * m[1][0]) * inv;
-    return 1;
-}
-
-/* Inertia of the principal minors must be positive and obey the triangle inequality. */
-static int inertia_is_physical(const gcMat3 *I) {
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-            if (!isfinite(I->m[i][j]) || fabs(I->m[i][j] - I->m[j][i]) > 1e-9 * (fabs(I->m[i][j]) + 1e-30))
-                return 0;
-    double a = I->m[0][0], b = I->m[1][1], c = I->m[2][2];
-    if (!(a > 0 && b > 0 && c > 0)) return 0;
-    double tol = 1e-9 * (a + b + c);
-    if (a + b < c - tol || a + c < b - tol || b + c < a - tol) return 0;
-    /* Positive definite: leading minors. */
-    double m2 = a * b - I->m[0][1] * I->m[1][0];
-    gcMat3 inv;
-    return m2 > 0 && invert_mat3(I, &inv);
-}
-
-void gc_body_refresh_derived(gcWorld *w, int32_t id) {
-    gcBody *b = &w->bodies[id];
-    b->state.q = gc_quat_normalize(b->state.q);
-    b->state.R = gc_quat_to_mat3(b->state.q);
-    gcTransform frame = gc_body_transform(b);
-    gcVec3 origin = frame.p;
-    double *pose = &w->pose_array[7 * id];
-    pose[0] = origin.x, pose[1] = origin.y, pose[2] = origin.z;
-    pose[3] = b->state.q.w, pose[4] = b->state.q.x, pose[5] = b->state.q.y, pose[6] = b->state.q.z;
-    /* World AABB of all parts: each part's local box turned into world axes (centre
-     * transformed, half extents through |R|), grown by the part's radius. */
-    gcVec3 lo = gc_v3(INFINITY, INFINITY, INFINITY), hi = gc_neg(lo);
-    for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
-        const gcHull *h = &w->parts[p].hull;
-        gcVec3 centre = gc_transform_point(&frame, gc_scale(gc_add(h->aabb_min, h->aabb_max), 0.5));
-        gcVec3 half = gc_scale(gc_sub(h->aabb_max, h->aabb_min), 0.5);
-        double e[3];
-        for (int i = 0; i < 3; ++i)
-            e[i] = fabs(b->state.R.m[i][0]) * half.x + fabs(b->state.R.m[i][1]) * half.y + fabs(b->state.R.m[i][2]) * half.z + h->radius;
-        lo = gc_v3(gc_min(lo.x, centre.x - e[0]), gc_min(lo.y, centre.y - e[1]), gc_min(lo.z, centre.z - e[2]));
-        hi = gc_v3(gc_max(hi.x, centre.x + e[0]), gc_max(hi.y, centre.y + e[1]), gc_max(hi.z, centre.z + e[2]));
-    }
-    b->state.aabb_min = lo;
-    b->state.aabb_max = hi;
 }
 
 gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *parts, int num_parts,
@@ -282,11 +164,11 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
     if (!w || !def || !out_body) return GC_ERR_INVALID_ARGUMENT;
     gcStatus st;
     if ((st = check_idle(w))) return st;
-    if ((st = check_vec(w, def->position, 3, "position")) ||
-        (st = check_vec(w, def->orientation, 4, "orientation")) ||
-        (st = check_vec(w, def->linear_velocity, 3, "linear_velocity")) ||
-        (st = check_vec(w, def->angular_velocity, 3, "angular_velocity")) ||
-        (st = check_friction(w, def->mu_s, def->mu_d, def->viscosity)))
+    if ((st = gc_check_vec(w, def->position, 3, "position")) ||
+        (st = gc_check_vec(w, def->orientation, 4, "orientation")) ||
+        (st = gc_check_vec(w, def->linear_velocity, 3, "linear_velocity")) ||
+        (st = gc_check_vec(w, def->angular_velocity, 3, "angular_velocity")) ||
+        (st = gc_check_friction(w, def->mu_s, def->mu_d, def->viscosity)))
         return st;
     double qn = sqrt(def->orientation[0] * def->orientation[0] + def->orientation[1] * def->orientation[1] +
                      def->orientation[2] * def->orientation[2] + def->orientation[3] * def->orientation[3]);
@@ -321,7 +203,7 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
         const gcPartDef *pd = &parts[i];
         const char *what = num_parts > 1 ? "parts" : "points";
         if (!pd->points || pd->num_points < 1 || !isfinite(pd->radius) || pd->radius < 0 ||
-            !all_finite(pd->points, 3 * pd->num_points)) {
+            !gc_all_finite(pd->points, 3 * pd->num_points)) {
             st = GC_ERR_INVALID_ARGUMENT;
             gc_world_set_error(w, "%s: part %d must be finite xyz points with a radius >= 0", what, i);
         } else {
@@ -356,7 +238,7 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
     b.com_local = def->has_center_of_mass ? gc_v3(def->center_of_mass[0], def->center_of_mass[1],
                                                   def->center_of_mass[2])
                                           : centroid;
-    if (def->has_center_of_mass && !all_finite(def->center_of_mass, 3)) {
+    if (def->has_center_of_mass && !gc_all_finite(def->center_of_mass, 3)) {
         st = GC_ERR_INVALID_ARGUMENT;
         gc_world_set_error(w, "center_of_mass: must be 3 finite numbers");
     }
@@ -380,8 +262,8 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
                                                    m * ((r == c ? d2 : 0.0) - dv[r] * dv[c]);
             }
         }
-        if (st == GC_OK && (!inertia_is_physical(&b.inertia_local) ||
-                            !invert_mat3(&b.inertia_local, &b.inv_inertia_local))) {
+        if (st == GC_OK && (!gc_inertia_is_physical(&b.inertia_local) ||
+                            !gc_invert_mat3(&b.inertia_local, &b.inv_inertia_local))) {
             st = GC_ERR_INVALID_ARGUMENT;
             gc_world_set_error(w, "inertia: must be symmetric positive definite and obey the triangle inequality");
         }
@@ -418,7 +300,7 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
 gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_finger) {
     if (!w || !def || !out_finger) return GC_ERR_INVALID_ARGUMENT;
     gcStatus st;
-    if ((st = check_idle(w)) || (st = check_vec(w, def->position, 3, "position"))) return st;
+    if ((st = check_idle(w)) || (st = gc_check_vec(w, def->position, 3, "position"))) return st;
     if (!isfinite(def->radius) || def->radius < 0) {
         gc_world_set_error(w, "radius: must be a finite number >= 0 (got %g)", def->radius);
         return GC_ERR_INVALID_ARGUMENT;
@@ -453,14 +335,14 @@ gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_fi
 
 gcStatus gc_world_set_gravity(gcWorld *w, const double g[3]) {
     gcStatus st = check_idle(w);
-    if (st || (st = check_vec(w, g, 3, "gravity"))) return st;
+    if (st || (st = gc_check_vec(w, g, 3, "gravity"))) return st;
     w->gravity = gc_v3(g[0], g[1], g[2]);
     return GC_OK;
 }
 
 gcStatus gc_world_set_hip(gcWorld *w, int32_t finger, const double p[3]) {
     gcStatus st;
-    if ((st = check_idle(w)) || (st = check_finger(w, finger)) || (st = check_vec(w, p, 3, "position"))) return st;
+    if ((st = check_idle(w)) || (st = gc_check_finger(w, finger)) || (st = gc_check_vec(w, p, 3, "position"))) return st;
     w->fingers[finger].hip = gc_v3(p[0], p[1], p[2]);
     memcpy(&w->hip_array[3 * finger], p, 3 * sizeof(double));
     return GC_OK;
@@ -472,7 +354,7 @@ gcStatus gc_world_set_hips(gcWorld *w, const double *p, int count) {
         gc_world_set_error(w, "positions: %d rows given for %d fingers", count, w->num_fingers);
         return GC_ERR_INVALID_ARGUMENT;
     }
-    gcStatus st = check_vec(w, p, 3 * count, "positions");
+    gcStatus st = gc_check_vec(w, p, 3 * count, "positions");
     if (st) return st;
     for (int i = 0; i < count; ++i) w->fingers[i].hip = gc_v3(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
     memcpy(w->hip_array, p, 3 * (size_t)count * sizeof(double));
@@ -481,8 +363,8 @@ gcStatus gc_world_set_hips(gcWorld *w, const double *p, int count) {
 
 gcStatus gc_world_set_body_velocity(gcWorld *w, int32_t body, const double lin[3], const double ang[3]) {
     gcStatus st;
-    if ((st = check_idle(w)) || (st = check_body(w, body)) || (st = check_vec(w, lin, 3, "linear")) ||
-        (st = check_vec(w, ang, 3, "angular")))
+    if ((st = check_idle(w)) || (st = gc_check_body(w, body)) || (st = gc_check_vec(w, lin, 3, "linear")) ||
+        (st = gc_check_vec(w, ang, 3, "angular")))
         return st;
     gcBody *b = &w->bodies[body];
     if (b->is_static) {
@@ -497,8 +379,8 @@ gcStatus gc_world_set_body_velocity(gcWorld *w, int32_t body, const double lin[3
 
 gcStatus gc_world_set_body_pose(gcWorld *w, int32_t body, const double pos[3], const double quat[4]) {
     gcStatus st;
-    if ((st = check_idle(w)) || (st = check_body(w, body)) || (st = check_vec(w, pos, 3, "position")) ||
-        (st = check_vec(w, quat, 4, "orientation")))
+    if ((st = check_idle(w)) || (st = gc_check_body(w, body)) || (st = gc_check_vec(w, pos, 3, "position")) ||
+        (st = gc_check_vec(w, quat, 4, "orientation")))
         return st;
     double qn = sqrt(quat[0] * quat[0] + quat[1] * quat[1] + quat[2] * quat[2] + quat[3] * quat[3]);
     if (!(qn > 1e-9)) {
@@ -515,7 +397,7 @@ gcStatus gc_world_set_body_pose(gcWorld *w, int32_t body, const double pos[3], c
 
 gcStatus gc_world_set_body_friction(gcWorld *w, int32_t body, double mu_s, double mu_d, double viscosity) {
     gcStatus st;
-    if ((st = check_idle(w)) || (st = check_body(w, body)) || (st = check_friction(w, mu_s, mu_d, viscosity))) return st;
+    if ((st = check_idle(w)) || (st = gc_check_body(w, body)) || (st = gc_check_friction(w, mu_s, mu_d, viscosity))) return st;
     w->bodies[body].mu_s = mu_s;
     w->bodies[body].mu_d = mu_d;
     w->bodies[body].viscosity = viscosity;
@@ -545,7 +427,7 @@ static void put3(double out[3], gcVec3 v) {
 }
 
 gcStatus gc_world_body_pose(const gcWorld *w, int32_t body, double pos[3], double quat[4]) {
-    gcStatus st = check_body(w, body);
+    gcStatus st = gc_check_body(w, body);
     if (st) return st;
     memcpy(pos, &w->pose_array[7 * body], 3 * sizeof(double));
     memcpy(quat, &w->pose_array[7 * body + 3], 4 * sizeof(double));
@@ -553,7 +435,7 @@ gcStatus gc_world_body_pose(const gcWorld *w, int32_t body, double pos[3], doubl
 }
 
 gcStatus gc_world_body_velocity(const gcWorld *w, int32_t body, double lin[3], double ang[3]) {
-    gcStatus st = check_body(w, body);
+    gcStatus st = gc_check_body(w, body);
     if (st) return st;
     const gcBody *b = &w->bodies[body];
     /* Report the velocity of the body frame origin, consistent with body_pose. */
@@ -564,7 +446,7 @@ gcStatus gc_world_body_velocity(const gcWorld *w, int32_t body, double lin[3], d
 }
 
 gcStatus gc_world_body_mass(const gcWorld *w, int32_t body, double *mass, double com[3], double inertia[9]) {
-    gcStatus st = check_body(w, body);
+    gcStatus st = gc_check_body(w, body);
     if (st) return st;
     const gcBody *b = &w->bodies[body];
     *mass = b->is_static ? INFINITY : b->mass;
@@ -574,7 +456,7 @@ gcStatus gc_world_body_mass(const gcWorld *w, int32_t body, double *mass, double
 }
 
 gcStatus gc_world_residual_wrench(const gcWorld *w, int32_t body, double force[3], double torque[3]) {
-    gcStatus st = check_body(w, body);
+    gcStatus st = gc_check_body(w, body);
     if (st) return st;
     put3(force, w->bodies[body].state.residual_force);
     put3(torque, w->bodies[body].state.residual_torque);
@@ -582,21 +464,21 @@ gcStatus gc_world_residual_wrench(const gcWorld *w, int32_t body, double force[3
 }
 
 gcStatus gc_world_finger_force(const gcWorld *w, int32_t finger, double force[3]) {
-    gcStatus st = check_finger(w, finger);
+    gcStatus st = gc_check_finger(w, finger);
     if (st) return st;
     put3(force, w->fingers[finger].force);
     return GC_OK;
 }
 
 gcStatus gc_world_god_object(const gcWorld *w, int32_t finger, double pos[3]) {
-    gcStatus st = check_finger(w, finger);
+    gcStatus st = gc_check_finger(w, finger);
     if (st) return st;
     put3(pos, w->fingers[finger].god_object);
     return GC_OK;
 }
 
 gcStatus gc_world_finger_state(const gcWorld *w, int32_t finger, gcFingerState *state, int32_t *contact_body) {
-    gcStatus st = check_finger(w, finger);
+    gcStatus st = gc_check_finger(w, finger);
     if (st) return st;
     *state = w->fingers[finger].state;
     *contact_body = w->fingers[finger].contact_body;
