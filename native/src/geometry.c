@@ -566,13 +566,15 @@ static int epa_expand(Polytope *P, int f0, SVert w, int stamp, double tol_visibl
         if (P->horizon_of[ha[h]] != -1) ok = 0;
         else P->horizon_of[ha[h]] = h;
     }
-    if (ok) {
+    if (ok && nh >= 3) { /* walk the loop from horizon edge 0 */
         int h = 0, steps = 0;
         do {
             h = P->horizon_of[hb[h]];
             ++steps;
         } while (h > 0 && steps <= nh);
-        ok = nh >= 3 && h == 0 && steps == nh;
+        ok = h == 0 && steps == nh;
+    } else {
+        ok = 0;
     }
     /* Room for the new faces (the visible ones are recycled), non-degenerate ones. */
     if (P->num_free + (EPA_MAX_FACES - P->nf) + num_visible < nh) ok = 0;
