@@ -17,7 +17,7 @@ CFLAGS_COMMON := $(CORE_FLAGS) -Werror -Inative/include -Inative/src
 C_TESTS := $(patsubst native/tests/%.c,%,$(wildcard native/tests/test_*.c))
 CORE_OBJ := $(notdir $(CORE_SRC:.c=.o))
 
-.PHONY: all venv core lib demo test test-c test-c-asan test-c-tsan test-py bench clean
+.PHONY: all venv core lib check-layers demo test test-c test-c-asan test-c-tsan test-py bench clean
 
 all: core
 
@@ -63,6 +63,10 @@ $(foreach v,c c-asan c-tsan,$(eval $(call core_library,$(v))))
 
 lib: $(BUILD)/c/libgraspcore.a
 
+# No file of native/src calls a file above it (the order is docs/architecture.md's table).
+check-layers: $(BUILD)/c/libgraspcore.a native/check_layers.py docs/architecture.md
+	$(PYTHON) native/check_layers.py docs/architecture.md $(BUILD)/c/obj $(CORE_SRC)
+
 test-c: $(addprefix $(BUILD)/c/,$(C_TESTS))
 	@for t in $^; do echo "== $$t"; $$t || exit 1; done
 
@@ -80,7 +84,7 @@ test-py: core
 	$(PY) -m pytest -q tests/core
 
 # test-blender (addon.mk) runs tests/blender on bpy 4.5, 4.2 and 5.0.1.
-test: test-c test-c-asan test-c-tsan test-py test-blender
+test: check-layers test-c test-c-asan test-c-tsan test-py test-blender
 
 # --- The main job -------------------------------------------------------------
 # (a) the core alone, a table in the terminal; (b) the sample scene headless in Blender
