@@ -38,7 +38,8 @@ typedef enum gcFingerState { GC_FINGER_FREE = 0, GC_FINGER_STICK = 1, GC_FINGER_
 
 typedef struct gcWorldDef {
     double gravity[3];      /* m/s^2, default (0, 0, -9.81) */
-    int gyroscopic;         /* 1: keep -w x Jw in Euler's equation (default); 0: drop it as the chapter does */
+    int gyroscopic;         /* 1: keep -w x Jw in Euler's equation (default); 0: drop it as the source
+                             * chapter does (Harwin & Barrow, docs/physics.md) */
     int max_bodies;         /* capacity, default 256 */
     int max_fingers;        /* capacity, default 32 */
     int max_parts;          /* convex parts over all bodies, default 4096 */

@@ -2,15 +2,18 @@
  *
  * Each finger contact is a spring k (and damper c) between the HIP and the body point
  * under the god-object. Stepped explicitly at 1 kHz, a light thin object held by stiff
- * fingers has modes far above the step rate and explodes (DESIGN.md §2), so the springs
+ * fingers has modes far above the step rate and explodes (docs/physics.md), so the springs
  * are integrated with backward Euler, linearised about the current pose:
  *
  *   (M' + sum (k dt^2 + c dt) J^T J) v' = M v + dt (F_ext + sum J^T (f_spring + c v_hip))
  *
  * with J = [I | -[r]x] mapping the body twist to the velocity of the god-object at r
- * from the centre of mass. M is 6x6 block diagonal (m I, R I_body R^T). The pose is
+ * from the centre of mass. M is 6x6 block diagonal (m I, R I_body R^T); with the
+ * gyroscopic term, L = I w has first turned for dt of free rotation (gyroscopic_rotation,
+ * docs/physics.md), which keeps energy and |L| however fast the spin. The pose is
  * then advanced with the new twist: x += v' dt and R <- exp([w' dt]x) R, the world-frame
- * update the chapter prints transposed. */
+ * update the source chapter (Harwin & Barrow, "Multi-finger grasps in a dynamic
+ * environment") prints transposed. */
 #include "dynamics.h"
 
 #include <string.h>
@@ -149,7 +152,7 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
             if (w->parts[c->part].body != id) continue;
             if (!coupled) memset(C, 0, sizeof C);
             coupled = 1;
-            /* The reaction acts at the GO (DESIGN.md §2), which moves rigidly with the body
+            /* The reaction acts at the GO (docs/physics.md), which moves rigidly with the body
              * while it sticks: the same lever in the torque and in the coupling keeps the
              * implicit model consistent with the explicit force. */
             gcVec3 go = gc_transform_point(&frame, c->go_local);

@@ -1,4 +1,5 @@
-/* The real-time runtime (docs/runtime.md, DESIGN.md §2 "Threads").
+/* The real-time runtime (docs/runtime.md: the thread layout of the source chapter, Harwin &
+ * Barrow, "Multi-finger grasps in a dynamic environment").
  *
  * gc_world_start() hands the world's dynamic state to two threads:
  *   - the haptic loop (default 1 kHz, absolute deadlines on CLOCK_MONOTONIC, SCHED_FIFO when
@@ -142,6 +143,7 @@ static void runtime_free_memory(gcRuntime *rt) {
     free(rt->last_touch);
     free(rt->chain);
     free(rt->device_force);
+    free(rt->follow);
     free(rt->ostate);
     for (int i = 0; i < 3; ++i) {
         free(rt->input_msg[i].hips);

@@ -32,7 +32,8 @@
 #endif
 
 #define NS_PER_S 1000000000LL
-/* The object manager's step cap (DESIGN.md §2: the chapter's "0.002 ms" is a typo for 2 ms). */
+/* The object manager's step cap: 2 ms (the source chapter's "0.002 ms" is a typo;
+ * docs/runtime.md). */
 #define GC_OBJECT_MAX_STEP 0.002
 /* Period-error histogram of the haptic loop: 1 us bins, the last one collects the rest. */
 #define GC_JITTER_BINS 20000

@@ -7,7 +7,7 @@
  * late, after the job closed, never touches it, so a descheduled worker never delays the
  * caller. Workers sleep on a condition variable between jobs.
  * Which thread runs which index is not deterministic, so tasks write only to storage owned
- * by their index (DESIGN.md §3: results independent of the thread count). */
+ * by their index: results do not depend on the thread count (docs/solver.md). */
 #define _POSIX_C_SOURCE 200809L
 #include "threadpool.h"
 

@@ -1,5 +1,5 @@
-/* A fixed pool of worker threads, created once with the world (DESIGN.md §2: "solve each
- * chain independently, in parallel on a pool of pre-created threads").
+/* A fixed pool of worker threads, created once with the world: the source chapter solves
+ * each collision chain independently, in parallel on pre-created threads (docs/solver.md).
  * Private to the core. */
 #ifndef GC_THREADPOOL_H
 #define GC_THREADPOOL_H

@@ -1,7 +1,8 @@
 /* Extended friction cone algorithm (xFCA): one god-object (GO) per finger per convex
  * part, kept on the part's surface and inside the friction circle of radius mu*depth
  * around the surface object (SO, the frictionless projection of the HIP).
- * See docs/physics.md for how we read the chapter; the numbered steps below follow it.
+ * The algorithm is the source chapter's (Harwin & Barrow, "Multi-finger grasps in a dynamic
+ * environment"); docs/physics.md says how we read it, and the numbered steps below follow it.
  * All positions here are fingertip-sphere centres: the surface the centre sees is the
  * part inflated by the finger radius, so a point finger is radius 0. */
 #include "xfca.h"
@@ -32,7 +33,7 @@ static double tip_query(const gcHull *h, gcVec3 p, double r, gcVec3 *normal) {
 }
 
 /* Push depth that keeps the GO on a convex surface after a tangential move of dmax:
- * the surface falls rc - sqrt(rc^2 - dmax^2) below its tangent plane (DESIGN.md §2).
+ * the surface falls rc - sqrt(rc^2 - dmax^2) below its tangent plane (docs/physics.md, step 5).
  * The inflated surface of a polyhedron has its tightest curvature, r, at the rounded
  * edges; for a point finger we allow a 45-degree fall. Bounded by the depth (never past
  * the HIP) and by a fraction of the part's thinnest width (never through a plate). */

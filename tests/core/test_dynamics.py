@@ -85,7 +85,8 @@ def test_torque_free_asymmetric_body_conserves_angular_momentum():
     w.step(DT, steps=2000)
     L1 = angular_momentum()
     np.testing.assert_allclose(L1, L0, rtol=0, atol=1e-6 * np.linalg.norm(L0))
-    # Dropping the gyroscopic term (the chapter's simplification) does not conserve it.
+    # Dropping the gyroscopic term (the simplification of the source chapter, Harwin & Barrow,
+    # docs/physics.md) does not conserve it.
     w2 = graspcore.World(gravity=(0, 0, 0), gyroscopic=False)
     b2 = w2.add_body(box_points(0.1, 0.04, 0.01), mass=1.0)
     w2.set_body_velocity(b2, (0, 0, 0), (0.3, 4.0, 0.2))
