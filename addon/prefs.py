@@ -17,9 +17,14 @@ class GRASPLAB_AP_preferences(bpy.types.AddonPreferences):
     mu_d: FloatProperty(name="Dynamic Friction", default=0.6, min=0.0,
                         description="μd given to objects made dynamic or static")
     use_runtime: BoolProperty(name="Threaded Runtime", default=True,
-                              description="Live sessions use the core's haptic thread when the "
-                                          "core provides it (otherwise the core is stepped on "
-                                          "Blender's main thread)")
+                              description="Live sessions run the core on its own haptic thread "
+                                          "(otherwise the core is stepped on Blender's main "
+                                          "thread, within the step budget)")
+    max_hip_speed: FloatProperty(name="Fingertip Speed Limit", default=1.0, min=0.0, soft_max=5.0,
+                                 unit="VELOCITY",
+                                 description="Fastest a fingertip the user moves (G, drag) is "
+                                             "followed by the haptic loop between display "
+                                             "updates, m/s (0: no limit)")
     max_step_ms: FloatProperty(name="Step Budget", default=8.0, min=1.0, max=100.0,
                                description="Main-thread time a live session may spend stepping the "
                                            "core per display update, ms; beyond it the session "
@@ -41,6 +46,7 @@ class GRASPLAB_AP_preferences(bpy.types.AddonPreferences):
         col = layout.column(heading="Live Session")
         col.prop(self, "use_runtime")
         col.prop(self, "max_step_ms")
+        col.prop(self, "max_hip_speed")
         col.prop(self, "show_hud")
         col.prop(self, "show_overlay")
 
@@ -52,6 +58,7 @@ class _Defaults:
     mu_d = 0.6
     use_runtime = True
     max_step_ms = 8.0
+    max_hip_speed = 1.0
     show_hud = True
     show_overlay = True
 

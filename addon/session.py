@@ -5,12 +5,20 @@ after every advance writes body poses back and updates the display. The operator
 ``grasp_lab.session`` drives it:
 
 * EXEC (scripts, headless): a plain loop over the frames, no timers;
-* INVOKE (UI): a modal operator with a window-manager timer at the display rate.
+* INVOKE (UI): a modal operator. The core runs on its own threads at the haptic rate
+  (the scripted fingertips handed to it whole, the others pushed as time-stamped
+  samples); an application timer at the display rate only pushes the fingertips the
+  user moves and shows the latest snapshot, so a slow display changes the picture, not
+  the grasp. The modal handler answers Esc and reports how the session ended. Whatever
+  ends a session (the end, Esc, Stop, an error, loading a file, undo, disabling the
+  extension, quitting) goes through ``stop_session``: threads joined, timers and draw
+  handlers removed.
 """
 from __future__ import annotations
 
 import os
 import time
+import traceback
 from dataclasses import dataclass, field
 
 import bpy
@@ -18,7 +26,7 @@ import numpy as np
 from bpy.props import BoolProperty, FloatProperty
 
 from . import anim, convert, core_loader, display
-from .engine.inputs import SampledTrajectory
+from .engine.inputs import SampledTrajectory, TimelineInput
 from .engine.runner import SessionRunner
 from .engine.scene import SceneError, build_world, prepare
 from .prefs import get_prefs
@@ -82,9 +90,22 @@ class BlenderSession:
         self.n_frames = n_frames
         times, pos = convert.sample_fingers(context, finger_objs, self.frame_start,
                                             min(self.frame_start + n_frames, scene.frame_end))
-        self.source = SampledTrajectory(times, pos)
+        # Fingertips that move on the timeline are scripted; the others follow the user.
+        scripted = (np.ptp(pos, axis=0).max(axis=1) > 1e-9) if len(times) > 1 else \
+            np.zeros(len(finger_objs), dtype=bool)
+        self.source = TimelineInput(SampledTrajectory(times, pos), scripted)
+        self.finger_objects = finger_objs
+        if live and not scripted.any() and s.duration <= 0 and (duration is None or duration < 0):
+            self.duration = float("inf")        # nothing scripted: until Esc or Stop
+        self.threaded = live and prefs.use_runtime
+        options = {}
+        if self.threaded:
+            options = {"max_hip_speed": prefs.max_hip_speed,
+                       # a display-rate sample is not stale input
+                       "hip_timeout": max(0.1, 3.0 / s.display_rate)}
         self.runner = SessionRunner(self.handle, self.source, haptic_rate=s.haptic_rate,
-                                    use_runtime=live and prefs.use_runtime, record=s.record)
+                                    use_runtime=self.threaded, record=s.record,
+                                    runtime_options=options)
         store_rest_poses(context, self.links)
         self.objects = [bpy.data.objects[link.name] for link in self.links]
         self.dynamic = [i for i, link in enumerate(self.links) if not link.static]
@@ -95,6 +116,9 @@ class BlenderSession:
                                     finger_names=[f.name for f in desc.fingers])
         self.snapshot = None
         self.finished = False
+        self.error = ""             # why a live session stopped early
+        self.ended_by = "Stop"      # how it ended, for the report
+        self.timer = None
         self.runner.start()
         self.apply(self.runner.snapshot(), self.frame_start)
 
@@ -132,38 +156,52 @@ class BlenderSession:
             self.advance_frame(self.frame_start + k)
         return self.finish()
 
-    def tick(self, wall_elapsed, max_steps):
-        """Live path: advance toward real time (bounded work) and apply. True when done."""
-        target = min(wall_elapsed - self.runner.dropped_time, self.duration)
-        self.runner.advance_to(target, max_steps=max_steps)
-        frame = self.frame_start + int(round(self.runner.time * self.fps))
+    def tick(self, wall_elapsed, budget=None):
+        """Live path: the fingertips the user moved go in, the latest state comes out.
+        ``budget``: wall seconds the main-thread fallback may step for. True when done."""
+        if self.source.interactive:
+            self.source.set_live([tuple(o.matrix_world.translation) for o in self.finger_objects])
+        self.runner.advance_to(min(wall_elapsed, self.duration), budget=budget)
+        snap = self.runner.snapshot()
+        frame = self.frame_start + int(round(min(self.runner.time, self.duration) * self.fps)) \
+            if self.source.script() is not None else self.scene.frame_current
         if frame != self.scene.frame_current:
             self.scene.frame_current = frame
-        snap = self.runner.snapshot()
         self.apply(snap, frame)
         if display.overlay_active():
             display.set_overlay(snap, self.hud_text())
         return self.settings.loop and self.runner.time >= self.duration - 1e-9
 
     def hud_text(self) -> str:
+        """What the operator needs to trust the picture: the core's own rates and timing,
+        contacts, and why forces may be off."""
         st = self.runner.stats()
         snap = self.snapshot
         n_c = snap.n_contacts if snap is not None else 0
+        end = "until Esc" if self.duration == float("inf") else f"/ {self.duration:.2f} s"
         mode = "threaded runtime" if st["threaded"] else "main thread"
-        text = (f"Grasp Lab  t = {st['time']:.2f} / {self.duration:.2f} s  ({mode})\n"
-                f"haptic {st['haptic_rate']:.0f} Hz (target {st['haptic_rate_target']:.0f})   "
-                f"display {st['display_rate']:.1f} Hz   jitter {st['jitter_ms']:.1f} ms\n"
-                f"contacts {n_c} / {len(self.desc.fingers)}   step {st['step_us']:.0f} µs   "
-                f"behind {st['dropped_s']:.2f} s")
-        if "runtime_jitter_p99_us" in st:
-            # The operator's view of the C haptic loop: its timing, what the OS granted it
-            # (SCHED_FIFO or not), and the safety counters that explain lost forces.
-            text += (f"\nhaptic loop p99 {st['runtime_jitter_p99_us']:.0f} µs   "
-                     f"late {st['runtime_late_periods']}   overruns {st['runtime_overruns']}   "
-                     f"rejected inputs {st['runtime_rejected_inputs']}   "
-                     f"watchdog {st['runtime_watchdog_trips']}   adopted {st['runtime_adopted_bodies']}\n"
-                     f"{st['runtime_priority_note']}")
-        return text
+        lines = [f"Grasp Lab  t = {st['time']:.2f} {end}  ({mode})"]
+        if st["threaded"] and "runtime_haptic_rate" in st:
+            lines.append(f"haptic {st['haptic_rate']:.0f} Hz (target {st['haptic_rate_target']:.0f})   "
+                         f"object {st['runtime_object_rate']:.0f} Hz   step {st['step_us']:.0f} µs   "
+                         f"{st['steps']} steps")
+            lines.append(f"haptic loop p99 {st['runtime_jitter_p99_us']:.0f} µs   "
+                         f"late {st['runtime_late_periods']}   overruns {st['runtime_overruns']}   "
+                         f"adopted {st['runtime_adopted_bodies']}")
+            lines.append(f"contacts {n_c} / {len(self.desc.fingers)}   display {st['display_rate']:.1f} Hz   "
+                         f"forces {'on' if st['runtime_forces_enabled'] else 'off'}")
+            lines.append(f"safety: rejected inputs {st['runtime_rejected_inputs']}   "
+                         f"watchdog {st['runtime_watchdog_trips']}   stale {st['runtime_stale_inputs']}   "
+                         f"non-finite {st['runtime_nonfinite_forces']}")
+            lines.append(st["runtime_priority_note"])
+        else:
+            lines.append(f"haptic {st['haptic_rate']:.0f} Hz (target {st['haptic_rate_target']:.0f})   "
+                         f"step {st['step_us']:.0f} µs   {st['steps']} steps")
+            behind = (f"behind real time by {st['lag_s']:.2f} s (x{st['realtime_factor']:.2f})"
+                      if st["lag_s"] > 2.0 / max(self.settings.display_rate, 1.0) else "real time")
+            lines.append(f"contacts {n_c} / {len(self.desc.fingers)}   display {st['display_rate']:.1f} Hz   "
+                         f"{behind}")
+        return "\n".join(lines)
 
     def finish(self):
         """Stop the runner, bake, save the recording; leave the scene in its final state."""
@@ -202,10 +240,11 @@ class BlenderSession:
             self.objects[i].matrix_world = self.links[i].matrix_world(p[:3], p[3:])
 
     def summary(self) -> str:
-        st = self.result.stats
-        return (f"Grasp session: {self.runner.time:.2f} s, {st.get('steps', 0)} steps, "
-                f"{len(self.desc.bodies)} bodies, {len(self.desc.fingers)} fingers, "
-                f"{st.get('step_us', 0):.0f} µs/step")
+        st = self.result.stats or self.runner.stats()
+        mode = "threaded runtime" if st.get("threaded") else "main thread"
+        return (f"Grasp session: {self.runner.time:.2f} s, {st.get('steps', 0)} steps at "
+                f"{st.get('haptic_rate', 0):.0f} Hz ({mode}), {len(self.desc.bodies)} bodies, "
+                f"{len(self.desc.fingers)} fingers, {st.get('step_us', 0):.0f} µs/step")
 
 
 # --------------------------------------------------------------------------- rest poses
@@ -246,9 +285,7 @@ class GRASPLAB_OT_session(bpy.types.Operator):
     reset: BoolProperty(name="Reset Bodies", default=True,
                         description="Start bodies from where the previous session started them")
 
-    _timer = None
     _session = None
-    _t0 = 0.0
 
     @classmethod
     def poll(cls, context):
@@ -278,61 +315,78 @@ class GRASPLAB_OT_session(bpy.types.Operator):
         session = self._start(context, live=True)
         if session is None:
             return {"CANCELLED"}
-        prefs = get_prefs(context)
+        try:
+            prefs = get_prefs(context)
+            s = context.scene.grasp_lab
+            session.interval = 1.0 / s.display_rate
+            session.budget = prefs.max_step_ms * 1e-3
+            session.wm = context.window_manager
+            # Wakes this handler to notice an end it did not see (timer, Stop button).
+            session.timer = session.wm.event_timer_add(session.interval, window=context.window)
+            _active = session
+            display.add_overlay(prefs.show_overlay, prefs.show_hud)
+            s.running = True
+            session.t0 = time.perf_counter()
+            bpy.app.timers.register(_live_tick, first_interval=0.0)
+        except Exception:
+            stop_session(session)
+            raise
         self._session = session
-        _active = session
-        session.operator_stop = False
-        s = context.scene.grasp_lab
-        wm = context.window_manager
-        self._timer = wm.event_timer_add(1.0 / s.display_rate, window=context.window)
-        session.timer = self._timer
-        session.wm = wm
-        display.add_overlay(prefs.show_overlay, prefs.show_hud)
-        self._max_steps = max(1, int(prefs.max_step_ms * 1e-3 * s.haptic_rate))
-        s.running = True
-        self._t0 = time.perf_counter()
-        wm.modal_handler_add(self)
+        context.window_manager.modal_handler_add(self)
         return {"RUNNING_MODAL"}
 
     def modal(self, context, event):
         session = self._session
-        if session is None or getattr(session, "operator_stop", False) or session.finished:
-            self._cleanup(context)
-            return {"FINISHED"}
-        if event.type == "ESC" and event.value == "PRESS":
-            self._cleanup(context)
-            self.report({"INFO"}, session.summary())
-            return {"FINISHED"}
-        if event.type == "TIMER" and event.timer is self._timer:
-            try:
-                done = session.tick(time.perf_counter() - self._t0, self._max_steps)
-            except Exception as ex:  # keep Blender usable; report what happened
-                self._cleanup(context)
-                self.report({"ERROR"}, f"Grasp Lab session stopped: {ex}")
-                return {"CANCELLED"}
-            display.tag_redraw(context)
-            if done:
-                self._cleanup(context)
-                self.report({"INFO"}, session.summary())
-                return {"FINISHED"}
-        return {"PASS_THROUGH"}
+        if session is None:
+            return {"CANCELLED"}
+        if not session.finished and event.type == "ESC" and event.value == "PRESS":
+            session.ended_by = "Esc"
+            stop_session(session)
+        if not session.finished:
+            return {"PASS_THROUGH"}
+        self._session = None
+        if session.error:
+            self.report({"ERROR"}, f"Grasp Lab session stopped: {session.error}")
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"{session.summary()} (ended by {session.ended_by})")
+        return {"FINISHED"}
 
     def cancel(self, context):
         # Blender calls this when it quits or loads a file with the operator running.
-        self._cleanup(context)
-
-    def _cleanup(self, context):
-        session = self._session
-        self._session = None
+        session, self._session = self._session, None
         if session is not None:
+            session.ended_by = "Blender (quit or file load)"
             stop_session(session)
-        display.tag_redraw(context)
 
 
-def stop_session(session):
-    """Stop a live session now: timer and draw handlers removed, runner stopped."""
+def _live_tick():
+    """The application timer of a live session: one display update. Any exception ends
+    the session cleanly (never half alive) and is reported by the operator."""
+    session = _active
+    if session is None or session.finished:
+        return None
+    t_tick = time.perf_counter()
+    try:
+        done = session.tick(t_tick - session.t0, budget=session.budget)
+        display.tag_redraw()
+    except Exception as ex:  # noqa: BLE001 - whatever it was, stop and say so
+        traceback.print_exc()
+        session.error = f"{type(ex).__name__}: {ex}"
+        done = True
+    if done:
+        if not session.error:
+            session.ended_by = "the end of the animation"
+        stop_session(session, from_timer=True)
+        return None
+    return max(0.0, session.interval - (time.perf_counter() - t_tick))
+
+
+def stop_session(session, from_timer=False):
+    """Stop a live session now: threads joined, timers and draw handlers removed, the
+    scene left in the session's final state. Safe to call more than once."""
     global _active
-    session.operator_stop = True
+    if not from_timer and bpy.app.timers.is_registered(_live_tick):
+        bpy.app.timers.unregister(_live_tick)
     timer = getattr(session, "timer", None)
     if timer is not None:
         try:
@@ -343,14 +397,21 @@ def stop_session(session):
     display.remove_overlay()
     try:
         session.finish()
-    except ReferenceError:
-        pass
+    except ReferenceError:      # its scene is gone (file loaded): the threads still stop
+        session.runner.stop()
+        session.finished = True
+    except Exception as ex:  # noqa: BLE001 - the session must end whatever happened
+        traceback.print_exc()
+        session.runner.stop()
+        session.finished = True
+        session.error = session.error or f"{type(ex).__name__}: {ex}"
     try:
         session.settings.running = False
     except (ReferenceError, AttributeError):
         pass
     if _active is session:
         _active = None
+    display.tag_redraw()
 
 
 def stop_active():
@@ -375,6 +436,16 @@ class GRASPLAB_OT_stop(bpy.types.Operator):
 
 @bpy.app.handlers.persistent
 def _on_load_pre(*_args):
+    if _active is not None:
+        _active.ended_by = "loading a file"
+    stop_active()
+
+
+@bpy.app.handlers.persistent
+def _on_undo_pre(*_args):
+    # Undo replaces the data-blocks a running session writes to: end the session first.
+    if _active is not None:
+        _active.ended_by = "undo"
     stop_active()
 
 
@@ -393,12 +464,16 @@ def register():
         bpy.utils.register_class(c)
     bpy.app.handlers.load_pre.append(_on_load_pre)
     bpy.app.handlers.load_post.append(_on_load_post)
+    bpy.app.handlers.undo_pre.append(_on_undo_pre)
+    bpy.app.handlers.redo_pre.append(_on_undo_pre)
 
 
 def unregister():
     stop_active()
     for lst, fn in ((bpy.app.handlers.load_pre, _on_load_pre),
-                    (bpy.app.handlers.load_post, _on_load_post)):
+                    (bpy.app.handlers.load_post, _on_load_post),
+                    (bpy.app.handlers.undo_pre, _on_undo_pre),
+                    (bpy.app.handlers.redo_pre, _on_undo_pre)):
         while fn in lst:
             lst.remove(fn)
     for c in reversed(CLASSES):

@@ -2,8 +2,14 @@
 
 Every source answers ``hips_at(t)``: an (n_fingers, 3) array of world positions at
 session time ``t`` (seconds). Scripted sources are pure functions of ``t``, which makes
-headless sessions deterministic. Real devices (serial, HID) implement the same
-interface later and simply return their latest sample.
+headless sessions deterministic. Two more questions let the threaded runtime take the input
+at its own tick times, whatever the display rate (docs/blender.md "Live sessions"):
+
+* ``script()``: the scripted part as a whole track ``(times, positions, scripted mask)``,
+  handed to the core once and sampled by the haptic loop at every tick; None if nothing is
+  scripted;
+* ``interactive``: True when some fingers follow live samples (pushed with a time stamp at
+  every display tick, walked by the haptic loop at a bounded speed).
 """
 from __future__ import annotations
 
@@ -18,8 +24,13 @@ class InputSource:
     def __init__(self, n_fingers: int):
         self.n_fingers = int(n_fingers)
 
+    interactive = True      # by default every finger follows pushed samples
+
     def open(self) -> None:
         pass
+
+    def script(self):
+        return None
 
     def hips_at(self, t: float) -> np.ndarray:  # pragma: no cover - interface
         raise NotImplementedError
@@ -63,6 +74,11 @@ class SampledTrajectory(InputSource):
         self.duration = float(times[-1] - times[0])
         self._t0 = float(times[0])
 
+    interactive = False
+
+    def script(self):
+        return self.times, self.positions, None
+
     def hips_at(self, t):
         ts = self.times
         tt = self._t0 + float(t)
@@ -73,6 +89,40 @@ class SampledTrajectory(InputSource):
         i = int(np.searchsorted(ts, tt, side="right")) - 1
         a = (tt - ts[i]) / (ts[i + 1] - ts[i])
         return (1.0 - a) * self.positions[i] + a * self.positions[i + 1]
+
+
+class TimelineInput(InputSource):
+    """Fingertip objects of a Blender scene: the animated ones replay their sampled track,
+    the others are wherever the user puts them (``set_live`` at every display tick: grab a
+    fingertip empty with G and the god-object follows). With nothing animated the session
+    is open-ended."""
+    name = "timeline"
+
+    def __init__(self, track: SampledTrajectory, scripted):
+        super().__init__(track.n_fingers)
+        self.track = track
+        self.scripted = np.asarray(scripted, dtype=bool).reshape(self.n_fingers)
+        self.live = np.array(track.positions[0], dtype=np.float64)
+        self.interactive = bool(not self.scripted.all())
+        self.duration = track.duration if self.scripted.any() else None
+
+    def set_live(self, positions):
+        p = np.asarray(positions, dtype=np.float64).reshape(self.n_fingers, 3)
+        if not np.all(np.isfinite(p)):
+            raise ValueError("fingertip positions: non-finite value")
+        self.live[~self.scripted] = p[~self.scripted]
+
+    def hips_at(self, t):
+        if not self.interactive:
+            return self.track.hips_at(t)
+        out = self.live.copy()
+        out[self.scripted] = self.track.hips_at(t)[self.scripted]
+        return out
+
+    def script(self):
+        if not self.scripted.any():
+            return None
+        return self.track.times, self.track.positions, self.scripted
 
 
 class CallableInput(InputSource):

@@ -6,12 +6,11 @@ EXEC) and then reads ``snapshot()``.
 
 Two drivers share one interface:
 
-* ``DirectDriver`` (today, and always for headless/EXEC runs): sub-steps the core
-  on the calling thread at the haptic rate, HIPs sampled from the input at the end
-  time of every step. Deterministic.
-* ``RuntimeDriver``: the core's own threaded runtime (``world.start`` /
-  ``push_hips`` / ``snapshot`` / ``stop``), used by live sessions when the world
-  has it (``hasattr(world, "start")``). This is the single plug-in point for it.
+* ``DirectDriver`` (headless/EXEC runs, and the live main-thread fallback): sub-steps
+  the core on the calling thread at the haptic rate, HIPs sampled from the input at the
+  end time of every step. Deterministic.
+* ``RuntimeDriver``: the core's own threaded runtime (``set_hip_track`` / ``start`` /
+  ``push_hips`` / ``snapshot`` / ``stop``), used by live sessions.
 """
 from __future__ import annotations
 
@@ -54,7 +53,7 @@ class DirectDriver:
     """Steps the world synchronously on the calling thread."""
     threaded = False
 
-    def __init__(self, world, source, dt, finger_ids):
+    def __init__(self, world, source, dt, finger_ids, options):
         self.world = world
         self.source = source
         self.dt = dt
@@ -86,27 +85,43 @@ class DirectDriver:
 
 
 class RuntimeDriver:
-    """The core's threaded runtime (haptic thread in C). Plug-in point for live sessions."""
+    """The core's threaded runtime: the haptic loop in C at its own rate. The scripted part
+    of the input goes to it whole (``set_hip_track``), sampled at every haptic tick; live
+    fingers are pushed with their time stamp and walked at a bounded speed. The caller's
+    rate (a Blender display) only decides how often the picture is updated."""
     threaded = True
 
-    def __init__(self, world, source, dt, finger_ids):
+    def __init__(self, world, source, dt, finger_ids, options):
+        if list(finger_ids) != list(range(len(finger_ids))):
+            raise ValueError("the threaded runtime needs fingers 0..n-1 in the world")
         self.world = world
         self.source = source
         self.dt = dt
-        self._t = 0.0
+        self.options = dict(options)
+        self._time = 0.0
         self._running = False
 
     def start(self):
-        self.world.start(haptic_rate=1.0 / self.dt)
+        script = self.source.script()
+        if script is not None:
+            self.world.set_hip_track(*script)
+        self.world.start(haptic_rate=1.0 / self.dt, **self.options)
         self._running = True
 
     def push(self, t):
-        self.world.push_hips(np.ascontiguousarray(self.source.hips_at(t), dtype=np.float64), t)
-        self._t = t
+        if self.source.interactive:
+            self.world.push_hips(np.ascontiguousarray(self.source.hips_at(t), dtype=np.float64), t)
+
+    def observe(self, snapshot_time):
+        self._time = snapshot_time
 
     @property
     def time(self):
-        return self._t
+        return self._time
+
+    @property
+    def steps(self):
+        return int(self.world.stats()["haptic_ticks"]) if self._running else 0
 
     def stop(self):
         if self._running:
@@ -115,9 +130,12 @@ class RuntimeDriver:
 
 
 class SessionRunner:
-    """Advance a world from an input source; collect snapshots, stats and a recording."""
+    """Advance a world from an input source; collect snapshots, stats and a recording.
 
-    def __init__(self, handle, source, haptic_rate=1000.0, use_runtime=False, record=False):
+    ``runtime_options`` go to ``World.start`` (max_hip_speed, hip_timeout, ...)."""
+
+    def __init__(self, handle, source, haptic_rate=1000.0, use_runtime=False, record=False,
+                 runtime_options=None):
         if not (haptic_rate > 0):
             raise ValueError(f"haptic_rate must be > 0, got {haptic_rate}")
         if source.n_fingers != len(handle.finger_ids):
@@ -128,19 +146,20 @@ class SessionRunner:
         self.source = source
         self.dt = 1.0 / float(haptic_rate)
         self.haptic_rate = float(haptic_rate)
-        use_runtime = bool(use_runtime) and hasattr(self.world, "start")
         cls = RuntimeDriver if use_runtime else DirectDriver
-        self.driver = cls(self.world, source, self.dt, handle.finger_ids)
-        self.dropped_time = 0.0     # session time given up to stay responsive (live only)
+        self.driver = cls(self.world, source, self.dt, handle.finger_ids, runtime_options or {})
+        self.lag = 0.0              # s the session time is behind the time asked for (live)
         self.step_wall = 0.0        # wall time spent stepping the core on this thread
         self.max_step_wall = 0.0    # longest single advance_to, seconds
-        self.ticks = []             # wall clock of every advance_to (for jitter)
+        self.ticks = []             # wall clock of every advance_to (display rate, jitter)
         self.recording = [] if record else None
         self._body_index = {bid: i for i, bid in enumerate(handle.body_ids)}
         self._coms = np.array([b.mass_properties.center_of_mass if b.mass_properties is not None
                                else np.zeros(3) for b in handle.desc.bodies]).reshape(-1, 3)
         self._started = False
         self._stopped = False
+        self._wall0 = None
+        self._last_runtime_stats = None
 
     # -------------------------------------------------------------- control
     @property
@@ -154,21 +173,19 @@ class SessionRunner:
     def start(self):
         if not self._started:
             self.source.open()
-            try:
-                self.driver.start()
-            except BaseException:
-                self.source.close()  # a runtime that cannot start is an error, never a quiet fallback
-                raise
+            self.driver.start()
             self._started = True
+            self._wall0 = time.perf_counter()
             if self.recording is not None:
                 self.recording.append(self.snapshot())
 
-    def advance_to(self, t: float, max_steps: int | None = None) -> int:
-        """Advance session time to ``t`` (seconds). Returns the number of core steps.
+    def advance_to(self, t: float, budget: float | None = None) -> int:
+        """Advance session time to ``t`` (seconds). Returns the number of core steps taken
+        on this thread (0 on the threaded runtime, which steps by itself).
 
-        With ``max_steps``, at most that many steps are taken; the rest of the interval
-        is added to ``dropped_time``: session time falls behind real time instead of
-        blocking the UI (live callers aim at ``wall_time - dropped_time``).
+        With ``budget`` (seconds of wall time), stepping stops once that much time is spent:
+        the session falls behind (``lag``) instead of blocking the UI, and catches up on
+        later calls when it can.
         """
         if not self._started:
             self.start()
@@ -179,15 +196,13 @@ class SessionRunner:
             self.driver.push(t)
         else:
             target = int(np.floor(t / self.dt + 1e-9))
-            todo = target - self.driver.steps
-            if max_steps is not None and todo > max_steps:
-                # Session time lags real time from now on (callers subtract dropped_time
-                # from the wall clock); the input is not skipped.
-                self.dropped_time += (todo - max_steps) * self.dt
-                todo = max_steps
-            for _ in range(max(todo, 0)):
+            deadline = None if budget is None else w0 + budget
+            while self.driver.steps < target:
                 self.driver.step_once()
                 n += 1
+                if deadline is not None and (n & 7) == 0 and time.perf_counter() > deadline:
+                    break
+            self.lag = max(0.0, t - self.driver.time)
         elapsed = time.perf_counter() - w0
         self.step_wall += elapsed
         self.max_step_wall = max(self.max_step_wall, elapsed)
@@ -197,6 +212,9 @@ class SessionRunner:
 
     def stop(self):
         if not self._stopped:
+            if self.threaded and self._started:
+                self.snapshot()                 # the last tick's time, for the report
+                self._last_runtime_stats = self.world.stats()
             self._stopped = True
             self.driver.stop()
             self.source.close()
@@ -205,8 +223,10 @@ class SessionRunner:
     def snapshot(self) -> Snapshot:
         w = self.world
         h = self.handle
-        if hasattr(w, "snapshot") and self.driver.threaded:
-            return self._snapshot_from_runtime(w.snapshot())
+        if self.driver.threaded and w.running:
+            snap = self._snapshot_from_runtime(w.snapshot())
+            self.driver.observe(snap.time)
+            return snap
         n_b, n_f = len(h.body_ids), len(h.finger_ids)
         poses = np.array(w.body_poses, dtype=np.float64).reshape(-1, 7)[:n_b].copy() if n_b else np.zeros((0, 7))
         if n_b and h.body_ids != list(range(n_b)):
@@ -250,29 +270,37 @@ class SessionRunner:
                         contacts)
 
     def stats(self) -> dict:
+        """What the session did, for the HUD and reports. On the threaded runtime the rates,
+        step time and step count are the C haptic loop's own (``runtime_*`` has all of its
+        statistics); on the main thread they are this runner's."""
         ticks = np.diff(np.array(self.ticks)) if len(self.ticks) > 2 else np.zeros(0)
-        wall = (self.ticks[-1] - self.ticks[0]) if len(self.ticks) > 1 else 0.0
-        steps = getattr(self.driver, "steps", 0)
+        wall_display = (self.ticks[-1] - self.ticks[0]) if len(self.ticks) > 1 else 0.0
+        wall = time.perf_counter() - self._wall0 if self._wall0 is not None else 0.0
         out = {
             "time": self.time,
-            "steps": steps,
             "haptic_rate_target": self.haptic_rate,
-            "step_us": 1e6 * self.step_wall / steps if steps else 0.0,
-            "display_rate": (len(ticks) / wall) if wall > 0 else 0.0,
-            "jitter_ms": float(np.std(ticks) * 1e3) if len(ticks) else 0.0,
+            "display_rate": (len(ticks) / wall_display) if wall_display > 0 else 0.0,
+            "display_jitter_ms": float(np.std(ticks) * 1e3) if len(ticks) else 0.0,
             "max_tick_ms": self.max_step_wall * 1e3,
-            "dropped_s": self.dropped_time,
+            "lag_s": self.lag,
+            "realtime_factor": self.time / wall if wall > 0 else 0.0,
             "threaded": self.threaded,
         }
-        if wall > 0:
-            out["haptic_rate"] = steps / wall
-        elif self.step_wall > 0:
-            out["haptic_rate"] = steps / self.step_wall
+        if self.threaded and self._started and not self._stopped:
+            rt = self.world.stats()
+            self._last_runtime_stats = rt
         else:
-            out["haptic_rate"] = 0.0
-        if hasattr(self.world, "stats") and self.threaded:
-            # The core's own rates and jitter, under a prefix so they do not overwrite ours.
-            out.update({f"runtime_{k}": v for k, v in self.world.stats().items()})
+            rt = self._last_runtime_stats
+        if self.threaded and rt is not None:
+            out.update({f"runtime_{k}": v for k, v in rt.items()})
+            out["steps"] = int(rt["haptic_ticks"])
+            out["haptic_rate"] = float(rt["haptic_rate"])
+            out["step_us"] = float(rt["tick_mean_us"])
+        else:
+            steps = getattr(self.driver, "steps", 0)
+            out["steps"] = steps
+            out["step_us"] = 1e6 * self.step_wall / steps if steps else 0.0
+            out["haptic_rate"] = steps / wall if wall > 0 else 0.0
         return out
 
     def save_recording(self, path: str) -> str:

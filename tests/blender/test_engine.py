@@ -84,19 +84,13 @@ def test_runner_substeps_at_haptic_rate_with_end_of_step_hips():
     np.testing.assert_allclose(snap.force, [[0, 0, -1]])
 
 
-def test_runner_falls_behind_instead_of_blocking():
+def test_runner_falls_behind_within_its_wall_time_budget_then_catches_up():
     w = FakeWorld()
     r = runner.SessionRunner(_handle(w), inputs.StaticInput(np.zeros((2, 3))), haptic_rate=1000.0)
-    assert r.advance_to(1.0, max_steps=10) == 10
-    assert r.dropped_time == pytest.approx(0.99)
-    assert r.time == pytest.approx(0.01)
-
-
-def test_runner_uses_threaded_runtime_only_when_present():
-    src = inputs.StaticInput(np.zeros((2, 3)))
-    assert not runner.SessionRunner(_handle(FakeWorld()), src, use_runtime=True).threaded
-    assert runner.SessionRunner(_handle(FakeWorld(threaded=True)), src, use_runtime=True).threaded
-    assert not runner.SessionRunner(_handle(FakeWorld(threaded=True)), src, use_runtime=False).threaded
+    assert r.advance_to(1.0, budget=0.0) == 8        # the budget is checked every 8 steps
+    assert r.lag == pytest.approx(0.992) and r.time == pytest.approx(0.008)
+    assert r.advance_to(1.0, budget=10.0) == 992     # a generous budget: back on time
+    assert r.lag == 0.0 and r.time == pytest.approx(1.0)
 
 
 def test_runner_checks_finger_count():
@@ -215,34 +209,36 @@ def test_reduce_hull_points_keeps_the_hull():
     assert scene.reduce_hull_points(small) is small
 
 
-def test_runtime_driver_plug_in_point():
-    class RuntimeWorld(FakeWorld):
-        def __init__(self):
-            super().__init__()
-            self.pushed = []
-
-        def start(self, haptic_rate):
-            self.rate = haptic_rate
-
-        def push_hips(self, hips, t):
-            self.pushed.append((t, np.array(hips)))
-
-        def stop(self):
-            self.stopped = True
-
-    w = RuntimeWorld()
-    src = inputs.CallableInput(2, lambda t: [[t, 0, 0], [0, 0, t]])
-    r = runner.SessionRunner(_handle(w), src, haptic_rate=2000.0, use_runtime=True)
-    r.advance_to(0.5)
-    assert r.threaded and w.rate == pytest.approx(2000.0)
-    assert w.pushed[-1][0] == 0.5 and w.dts == []          # the runtime steps, not us
+def test_runtime_driver_hands_the_script_over_whole_and_pushes_only_live_fingers(core):
+    """Two fingers: one animated (its track goes to the core once), one the user moves
+    (pushed at every call with its time stamp). The haptic loop, not the caller, samples
+    the track: after 250 manual ticks finger 0 is where the track is at 0.25 s."""
+    w = core.World()
+    w.add_finger(position=(0.0, 0.0, 0.0))
+    w.add_finger(position=(1.0, 0.0, 0.0))
+    handle = scene.WorldHandle(world=w, desc=scene.SceneDesc(fingers=[scene.FingerDesc("a", (0, 0, 0)),
+                                                                       scene.FingerDesc("b", (1, 0, 0))]),
+                               body_ids=[], finger_ids=[0, 1])
+    times = np.array([0.0, 1.0])
+    pos = np.array([[[0, 0, 0], [1, 0, 0]], [[0, 0, 1.0], [1, 0, 0]]])
+    src = inputs.TimelineInput(inputs.SampledTrajectory(times, pos), scripted=[True, False])
+    assert src.interactive and src.duration == 1.0
+    r = runner.SessionRunner(handle, src, haptic_rate=1000.0, use_runtime=True,
+                             runtime_options={"realtime": False})
+    src.set_live([[9, 9, 9], [1.0, 0.5, 0.0]])      # the user dragged finger b; a is scripted
+    assert r.advance_to(0.0) == 0 and r.threaded
+    w.advance(250)
+    snap = r.snapshot()
+    np.testing.assert_allclose(snap.hips, [[0, 0, 0.25], [1.0, 0.5, 0.0]], atol=1e-12)
+    assert r.time == pytest.approx(0.25)
+    assert r.stats()["steps"] == 250
     r.stop()
-    assert w.stopped
+    assert not w.running and r.stats()["steps"] == 250   # the last run's numbers stay
 
-    class BadRuntime(FakeWorld):
-        def start(self):                                   # unexpected signature
-            pass
 
-    r = runner.SessionRunner(_handle(BadRuntime()), src, use_runtime=True)
-    with pytest.raises(TypeError):                         # said, never a silent switch to direct stepping
-        r.advance_to(0.01)
+def test_timeline_input_with_nothing_animated_is_open_ended():
+    track = inputs.SampledTrajectory([0.0, 1.0], np.zeros((2, 2, 3)))
+    src = inputs.TimelineInput(track, scripted=[False, False])
+    assert src.script() is None and src.duration is None and src.interactive
+    with pytest.raises(ValueError, match="non-finite"):
+        src.set_live([[np.nan, 0, 0], [0, 0, 0]])
