@@ -42,8 +42,21 @@ static int body_before(const gcWorld *w, int32_t a, int32_t b) {
 /* Candidates in key order (the previous step's manifolds are matched by merging): LSD
  * radix sort on the key's bytes, up to the bytes max_parts^2 needs (3 for 4096 parts).
  * glibc's qsort with a comparison callback cost ~10% of a 100-body pile's step. */
+/* Keys are unique (one candidate per part pair), so any sort gives the same order. */
+#define GC_INSERTION_SORT_MAX 32
+
 static void sort_candidates(struct gcContactSystem *cs, int64_t max_key) {
     int n = cs->num_candidates;
+    if (n <= GC_INSERTION_SORT_MAX) { /* a few pairs (a held object): no radix passes over 256 bins */
+        gcCandidate *c = cs->candidates;
+        for (int i = 1; i < n; ++i) {
+            gcCandidate v = c[i];
+            int j = i - 1;
+            for (; j >= 0 && c[j].key > v.key; --j) c[j + 1] = c[j];
+            c[j + 1] = v;
+        }
+        return;
+    }
     gcCandidate *src = cs->candidates, *dst = cs->candidates_scratch;
     int passes = 0;
     for (int64_t k = max_key; k > 0; k >>= 8) ++passes;

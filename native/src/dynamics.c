@@ -104,9 +104,16 @@ static gcVec3 rotation_between(gcVec3 u, gcVec3 t) {
  * (third order in |w| dt) off the one it started with. Turning the start pose by that
  * hair, about the centre of mass, makes the step end on the starting world momentum
  * exactly, so a free body keeps L (vector), |L| and its energy to round-off. */
+/* Below this rotation per step (|w| dt, rad) the term changes w by less than 1e-9 of
+ * itself (w^2 dt against w): a body held or at rest skips it. */
+#define GC_GYRO_NEGLIGIBLE_SPIN 1e-9
+/* Below this, the pose correction (third order in |w| dt) is under double rounding. */
+#define GC_GYRO_NEGLIGIBLE_HAIR 1e-5
+
 static gcVec3 gyroscopic_rotation(gcBody *b, double dt) {
+    double spin = gc_len(b->state.w) * dt;
+    if (!(spin > GC_GYRO_NEGLIGIBLE_SPIN)) return b->state.w;
     gcVec3 L_world = angular_momentum(&b->state.R, &b->inertia_local, b->state.w);
-    if (!(gc_len2(L_world) > 0.0)) return b->state.w;
     gcVec3 L_body = gc_mat3_tmul_vec(&b->state.R, L_world);
     gcVec3 L_end = free_rotation(L_body, &b->inv_inertia_local, dt);
     /* Round-off guard: never more |L| or energy than at the start. */
@@ -122,6 +129,7 @@ static gcVec3 gyroscopic_rotation(gcBody *b, double dt) {
         om_end = gc_scale(om_end, shrink);
     }
     gcVec3 om_world = gc_mat3_mul_vec(&b->state.R, om_end);
+    if (spin < GC_GYRO_NEGLIGIBLE_HAIR) return om_world;
     gcMat3 R_end = gc_quat_to_mat3(gc_quat_mul(gc_quat_from_rotation_vector(gc_scale(om_world, dt)), b->state.q));
     gcVec3 hair = rotation_between(gc_mat3_mul_vec(&R_end, L_end), L_world);
     if (gc_len2(hair) > 0.0) {
