@@ -69,10 +69,12 @@ static gcVec3 free_rotation(gcVec3 L, const gcMat3 *inv_inertia, double dt) {
     if (substeps > GC_GYRO_MAX_SUBSTEPS) substeps = GC_GYRO_MAX_SUBSTEPS;
     double half = 0.5 * dt / substeps;
     for (int s = 0; s < substeps; ++s) {
-        gcVec3 m = L;
+        /* Explicit predictor, then Newton until the residual is at rounding level. */
+        gcVec3 m = gc_madd(L, gc_cross(L, gc_mat3_mul_vec(inv_inertia, L)), half);
         for (int it = 0; it < GC_GYRO_NEWTON_ITERATIONS; ++it) {
             gcVec3 om = gc_mat3_mul_vec(inv_inertia, m);
             gcVec3 residual = gc_sub(gc_sub(m, L), gc_scale(gc_cross(m, om), half));
+            if (!(gc_len2(residual) > 1e-32 * gc_len2(m))) break;
             /* d/dm (m x A m) = [m]x A - [A m]x */
             gcMat3 J;
             for (int j = 0; j < 3; ++j) {
@@ -81,9 +83,7 @@ static gcVec3 free_rotation(gcVec3 L, const gcMat3 *inv_inertia, double dt) {
                 gcVec3 d = gc_sub(gc_cross(m, col), gc_cross(om, e));
                 J.m[0][j] = e.x - half * d.x, J.m[1][j] = e.y - half * d.y, J.m[2][j] = e.z - half * d.z;
             }
-            gcVec3 step = solve3(&J, residual);
-            m = gc_sub(m, step);
-            if (!(gc_len2(step) > 1e-30 * gc_len2(m))) break;
+            m = gc_sub(m, solve3(&J, residual));
         }
         L = gc_sub(gc_scale(m, 2.0), L);
     }
@@ -93,10 +93,17 @@ static gcVec3 free_rotation(gcVec3 L, const gcMat3 *inv_inertia, double dt) {
 /* Rotation vector of the smallest rotation taking direction u onto direction t. */
 static gcVec3 rotation_between(gcVec3 u, gcVec3 t) {
     gcVec3 axis = gc_cross(u, t);
-    double s = gc_len(axis);
+    double s = gc_len(axis), c = gc_dot(u, t);
     if (!(s > 0.0)) return gc_v3(0, 0, 0);
-    return gc_scale(axis, atan2(s, gc_dot(u, t)) / s);
+    if (s < 1e-6 * c) return gc_scale(axis, 1.0 / c); /* tan = angle to 1e-12 of it */
+    return gc_scale(axis, atan2(s, c) / s);
 }
+
+/* Below this rotation per step (|w| dt, rad) the term changes w by less than 1e-9 of
+ * itself (w^2 dt against w): a body held or at rest skips it. */
+#define GC_GYRO_NEGLIGIBLE_SPIN 1e-9
+/* Below this, the pose correction (third order in |w| dt, ~1e-13 rad here) is skipped. */
+#define GC_GYRO_NEGLIGIBLE_HAIR 1e-4
 
 /* The gyroscopic term, before the forces: the body's angular velocity after dt of free
  * rotation (world frame). The body-frame momentum L_b' keeps |L| and the energy; the pose
@@ -104,11 +111,6 @@ static gcVec3 rotation_between(gcVec3 u, gcVec3 t) {
  * (third order in |w| dt) off the one it started with. Turning the start pose by that
  * hair, about the centre of mass, makes the step end on the starting world momentum
  * exactly, so a free body keeps L (vector), |L| and its energy to round-off. */
-/* Below this rotation per step (|w| dt, rad) the term changes w by less than 1e-9 of
- * itself (w^2 dt against w): a body held or at rest skips it. */
-#define GC_GYRO_NEGLIGIBLE_SPIN 1e-9
-/* Below this, the pose correction (third order in |w| dt) is under double rounding. */
-#define GC_GYRO_NEGLIGIBLE_HAIR 1e-5
 
 static gcVec3 gyroscopic_rotation(gcBody *b, double dt) {
     double spin = gc_len(b->state.w) * dt;
