@@ -354,14 +354,17 @@ static PyObject *World_step(PyObject *obj, PyObject *args, PyObject *kwargs) {
         PyErr_SetString(PyExc_ValueError, "steps: must be >= 1");
         return NULL;
     }
-    gcStatus st = GC_OK;
+    gcStatus st = GC_OK, warned = GC_OK; /* a stop in any of the steps is said once */
     atomic_store(&self->busy, 1);
     Py_BEGIN_ALLOW_THREADS
-    for (int i = 0; i < steps && st >= 0; ++i) st = gc_world_step(self->world, dt);
+    for (int i = 0; i < steps && st >= 0; ++i) {
+        st = gc_world_step(self->world, dt);
+        if (st == GC_WARN_STOPPED) warned = st;
+    }
     Py_END_ALLOW_THREADS
     atomic_store(&self->busy, 0);
     if (st < 0) return raise_status(self, st);
-    if (warn_status(self, st) < 0) return NULL;
+    if (warn_status(self, warned) < 0) return NULL;
     Py_RETURN_NONE;
 }
 

@@ -16,6 +16,11 @@ void gc_world_set_error(const gcWorld *world, const char *fmt, ...) {
     va_end(args);
 }
 
+gcStatus gc_null_argument(const gcWorld *w, const char *name) {
+    gc_world_set_error(w, "%s: must not be NULL", name);
+    return GC_ERR_INVALID_ARGUMENT;
+}
+
 int gc_all_finite(const double *v, int n) {
     for (int i = 0; i < n; ++i)
         if (!isfinite(v[i])) return 0;
@@ -23,6 +28,7 @@ int gc_all_finite(const double *v, int n) {
 }
 
 gcStatus gc_check_body(const gcWorld *w, int32_t body) {
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
     if (body < 0 || body >= w->num_bodies) {
         gc_world_set_error(w, "body: unknown id %d", (int)body);
         return GC_ERR_UNKNOWN_ID;
@@ -31,6 +37,7 @@ gcStatus gc_check_body(const gcWorld *w, int32_t body) {
 }
 
 gcStatus gc_check_finger(const gcWorld *w, int32_t finger) {
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
     if (finger < 0 || finger >= w->num_fingers) {
         gc_world_set_error(w, "finger: unknown id %d", (int)finger);
         return GC_ERR_UNKNOWN_ID;

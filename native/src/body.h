@@ -8,6 +8,9 @@
 /* The message gc_world_last_error returns; every error path sets one, naming the argument. */
 void gc_world_set_error(const gcWorld *world, const char *fmt, ...);
 
+/* A NULL pointer argument: sets "<name>: must not be NULL" and returns GC_ERR_INVALID_ARGUMENT. */
+gcStatus gc_null_argument(const gcWorld *world, const char *name);
+
 /* Checks that set the message when they fail. */
 int gc_all_finite(const double *v, int n);
 gcStatus gc_check_body(const gcWorld *world, int32_t body);       /* GC_ERR_UNKNOWN_ID */

@@ -73,7 +73,8 @@ void gc_chains_build(gcWorld *w) {
 int gc_world_chain_count(const gcWorld *w) { return w->contacts ? w->contacts->num_chains : 0; }
 
 gcStatus gc_world_body_chain(const gcWorld *w, int32_t body, int32_t *chain) {
-    if (!w || !chain) return GC_ERR_INVALID_ARGUMENT;
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (!chain) return gc_null_argument(w, "chain");
     if (body < 0 || body >= w->num_bodies) {
         gc_world_set_error(w, "body: unknown id %d", (int)body);
         return GC_ERR_UNKNOWN_ID;

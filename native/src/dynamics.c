@@ -118,6 +118,9 @@ static gcVec3 gyroscopic_rotation(gcBody *b, double dt) {
     gcVec3 L_world = angular_momentum(&b->state.R, &b->inertia_local, b->state.w);
     gcVec3 L_body = gc_mat3_tmul_vec(&b->state.R, L_world);
     gcVec3 L_end = free_rotation(L_body, &b->inv_inertia_local, dt);
+    /* A spin too fast for the sub-step cap can break Newton down: then hold the body-frame
+     * momentum (energy and |L| exactly kept, the precession of this step lost). */
+    if (!gc_vec_finite(L_end)) L_end = L_body;
     /* Round-off guard: never more |L| or energy than at the start. */
     gcVec3 om_body = gc_mat3_mul_vec(&b->inv_inertia_local, L_body);
     gcVec3 om_end = gc_mat3_mul_vec(&b->inv_inertia_local, L_end);

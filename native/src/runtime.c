@@ -297,7 +297,8 @@ static void reset_stats(gcRuntime *rt) {
 }
 
 gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
-    if (!w || !def) return GC_ERR_INVALID_ARGUMENT;
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (!def) return gc_null_argument(w, "def");
     if (gc_runtime_running(w)) {
         gc_world_set_error(w, "the runtime is already running");
         return GC_ERR_BUSY;

@@ -66,10 +66,17 @@ void gc_rt_publish_display(gcRuntime *rt, int64_t now, int forces_enabled) {
 }
 
 gcStatus gc_world_push_hips(gcWorld *w, const double *positions, int count_, double t) {
-    if (!w || !positions) return GC_ERR_INVALID_ARGUMENT;
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (!positions) return gc_null_argument(w, "positions");
     gcRuntime *rt = w->runtime;
-    if (!gc_runtime_running(w)) return GC_ERR_NOT_RUNNING;
-    if (count_ < 1 || count_ > w->num_fingers) return GC_ERR_INVALID_ARGUMENT;
+    if (!gc_runtime_running(w)) {
+        gc_world_set_error(w, "push_hips: the runtime is not running (start it first)");
+        return GC_ERR_NOT_RUNNING;
+    }
+    if (count_ < 1 || count_ > w->num_fingers) {
+        gc_world_set_error(w, "count: must be in 1..%d, the finger count (got %d)", w->num_fingers, count_);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
     int finite = isfinite(t);
     for (int i = 0; i < 3 * count_ && finite; ++i) finite = isfinite(positions[i]);
     if (!finite) {
@@ -129,7 +136,8 @@ static void snapshot_from_world(const gcWorld *w, gcSnapshot *s) {
 }
 
 gcStatus gc_world_snapshot(gcWorld *w, gcSnapshot *s) {
-    if (!w || !s) return GC_ERR_INVALID_ARGUMENT;
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (!s) return gc_null_argument(w, "snapshot");
     gcRuntime *rt = w->runtime;
     if (!rt) {
         snapshot_from_world(w, s);

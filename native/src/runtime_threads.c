@@ -181,7 +181,8 @@ static double percentile_us(const uint32_t *hist, uint64_t total, double q) {
 }
 
 gcStatus gc_world_stats(gcWorld *w, gcRuntimeStats *out) {
-    if (!w || !out) return GC_ERR_INVALID_ARGUMENT;
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (!out) return gc_null_argument(w, "stats");
     memset(out, 0, sizeof *out);
     gcRuntime *rt = w->runtime;
     if (!rt) {
@@ -246,7 +247,10 @@ gcStatus gc_world_stats(gcWorld *w, gcRuntimeStats *out) {
 
 gcStatus gc_world_debug_stall(gcWorld *w, double seconds) {
     if (!w) return GC_ERR_INVALID_ARGUMENT;
-    if (!gc_runtime_running(w)) return GC_ERR_NOT_RUNNING;
+    if (!gc_runtime_running(w)) {
+        gc_world_set_error(w, "debug_stall: the runtime is not running");
+        return GC_ERR_NOT_RUNNING;
+    }
     if (!isfinite(seconds) || seconds < 0.0 || seconds > 10.0) {
         gc_world_set_error(w, "seconds: must be in [0, 10] (got %g)", seconds);
         return GC_ERR_INVALID_ARGUMENT;

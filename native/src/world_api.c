@@ -146,12 +146,13 @@ void gc_world_destroy(gcWorld *w) {
     free(w);
 }
 
-int gc_world_body_count(const gcWorld *w) { return w->num_bodies; }
-int gc_world_finger_count(const gcWorld *w) { return w->num_fingers; }
-double gc_world_time(const gcWorld *w) { return w->time; }
+int gc_world_body_count(const gcWorld *w) { return w ? w->num_bodies : 0; }
+int gc_world_finger_count(const gcWorld *w) { return w ? w->num_fingers : 0; }
+double gc_world_time(const gcWorld *w) { return w ? w->time : 0.0; }
 
 /* While the runtime runs it owns the dynamic state (it sets `locked`): mutating calls are refused. */
 static gcStatus check_idle(const gcWorld *w) {
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
     if (w->locked) {
         gc_world_set_error(w, "the runtime is running: stop it first (World.stop / gc_world_stop)");
         return GC_ERR_BUSY;
@@ -161,7 +162,9 @@ static gcStatus check_idle(const gcWorld *w) {
 
 gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *parts, int num_parts,
                            int32_t *out_body) {
-    if (!w || !def || !out_body) return GC_ERR_INVALID_ARGUMENT;
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (!def) return gc_null_argument(w, "def");
+    if (!out_body) return gc_null_argument(w, "out_body");
     gcStatus st;
     if ((st = check_idle(w))) return st;
     if ((st = gc_check_vec(w, def->position, 3, "position")) ||
@@ -298,7 +301,9 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
 }
 
 gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_finger) {
-    if (!w || !def || !out_finger) return GC_ERR_INVALID_ARGUMENT;
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (!def) return gc_null_argument(w, "def");
+    if (!out_finger) return gc_null_argument(w, "out_finger");
     gcStatus st;
     if ((st = check_idle(w)) || (st = gc_check_vec(w, def->position, 3, "position"))) return st;
     if (!isfinite(def->radius) || def->radius < 0) {
@@ -349,7 +354,8 @@ gcStatus gc_world_set_hip(gcWorld *w, int32_t finger, const double p[3]) {
 }
 
 gcStatus gc_world_set_hips(gcWorld *w, const double *p, int count) {
-    if (check_idle(w)) return GC_ERR_BUSY;
+    gcStatus idle = check_idle(w);
+    if (idle) return idle;
     if (count < 0 || count > w->num_fingers) {
         gc_world_set_error(w, "positions: %d rows given for %d fingers", count, w->num_fingers);
         return GC_ERR_INVALID_ARGUMENT;
@@ -405,8 +411,8 @@ gcStatus gc_world_set_body_friction(gcWorld *w, int32_t body, double mu_s, doubl
 }
 
 gcStatus gc_world_step(gcWorld *w, double dt) {
-    if (!w) return GC_ERR_INVALID_ARGUMENT;
-    if (check_idle(w)) return GC_ERR_BUSY;
+    gcStatus idle = check_idle(w);
+    if (idle) return idle;
     if (!isfinite(dt) || !(dt > 0.0) || dt > 1.0) {
         gc_world_set_error(w, "dt: must be a finite step in (0, 1] seconds (got %g)", dt);
         return GC_ERR_INVALID_ARGUMENT;
@@ -429,6 +435,8 @@ static void put3(double out[3], gcVec3 v) {
 gcStatus gc_world_body_pose(const gcWorld *w, int32_t body, double pos[3], double quat[4]) {
     gcStatus st = gc_check_body(w, body);
     if (st) return st;
+    if (!pos) return gc_null_argument(w, "position");
+    if (!quat) return gc_null_argument(w, "orientation");
     memcpy(pos, &w->pose_array[7 * body], 3 * sizeof(double));
     memcpy(quat, &w->pose_array[7 * body + 3], 4 * sizeof(double));
     return GC_OK;
@@ -437,6 +445,8 @@ gcStatus gc_world_body_pose(const gcWorld *w, int32_t body, double pos[3], doubl
 gcStatus gc_world_body_velocity(const gcWorld *w, int32_t body, double lin[3], double ang[3]) {
     gcStatus st = gc_check_body(w, body);
     if (st) return st;
+    if (!lin) return gc_null_argument(w, "linear");
+    if (!ang) return gc_null_argument(w, "angular");
     const gcBody *b = &w->bodies[body];
     /* Report the velocity of the body frame origin, consistent with body_pose. */
     gcVec3 r = gc_mat3_mul_vec(&b->state.R, gc_neg(b->com_local));
@@ -448,6 +458,9 @@ gcStatus gc_world_body_velocity(const gcWorld *w, int32_t body, double lin[3], d
 gcStatus gc_world_body_mass(const gcWorld *w, int32_t body, double *mass, double com[3], double inertia[9]) {
     gcStatus st = gc_check_body(w, body);
     if (st) return st;
+    if (!mass) return gc_null_argument(w, "mass");
+    if (!com) return gc_null_argument(w, "center_of_mass");
+    if (!inertia) return gc_null_argument(w, "inertia");
     const gcBody *b = &w->bodies[body];
     *mass = b->is_static ? INFINITY : b->mass;
     put3(com, b->com_local);
@@ -458,6 +471,8 @@ gcStatus gc_world_body_mass(const gcWorld *w, int32_t body, double *mass, double
 gcStatus gc_world_residual_wrench(const gcWorld *w, int32_t body, double force[3], double torque[3]) {
     gcStatus st = gc_check_body(w, body);
     if (st) return st;
+    if (!force) return gc_null_argument(w, "force");
+    if (!torque) return gc_null_argument(w, "torque");
     put3(force, w->bodies[body].state.residual_force);
     put3(torque, w->bodies[body].state.residual_torque);
     return GC_OK;
@@ -466,6 +481,7 @@ gcStatus gc_world_residual_wrench(const gcWorld *w, int32_t body, double force[3
 gcStatus gc_world_finger_force(const gcWorld *w, int32_t finger, double force[3]) {
     gcStatus st = gc_check_finger(w, finger);
     if (st) return st;
+    if (!force) return gc_null_argument(w, "force");
     put3(force, w->fingers[finger].force);
     return GC_OK;
 }
@@ -473,6 +489,7 @@ gcStatus gc_world_finger_force(const gcWorld *w, int32_t finger, double force[3]
 gcStatus gc_world_god_object(const gcWorld *w, int32_t finger, double pos[3]) {
     gcStatus st = gc_check_finger(w, finger);
     if (st) return st;
+    if (!pos) return gc_null_argument(w, "position");
     put3(pos, w->fingers[finger].god_object);
     return GC_OK;
 }
@@ -480,6 +497,8 @@ gcStatus gc_world_god_object(const gcWorld *w, int32_t finger, double pos[3]) {
 gcStatus gc_world_finger_state(const gcWorld *w, int32_t finger, gcFingerState *state, int32_t *contact_body) {
     gcStatus st = gc_check_finger(w, finger);
     if (st) return st;
+    if (!state) return gc_null_argument(w, "state");
+    if (!contact_body) return gc_null_argument(w, "contact_body");
     *state = w->fingers[finger].state;
     *contact_body = w->fingers[finger].contact_body;
     return GC_OK;
