@@ -144,6 +144,8 @@ static void runtime_free_memory(gcRuntime *rt) {
     free(rt->chain);
     free(rt->device_force);
     free(rt->follow);
+    free(rt->shown.bodies);
+    free(rt->shown.fingers);
     free(rt->ostate);
     for (int i = 0; i < 3; ++i) {
         free(rt->input_msg[i].hips);
@@ -184,8 +186,11 @@ static gcRuntime *runtime_alloc(const gcWorld *w) {
     rt->chain = rt_calloc(rt, nb, sizeof(int32_t));
     rt->device_force = rt_calloc(rt, nf * 3, sizeof(double));
     rt->follow = rt_calloc(rt, nf, sizeof(gcHipFollow));
+    rt->shown.bodies = rt_calloc(rt, nb, sizeof(gcBodyState));
+    rt->shown.fingers = rt_calloc(rt, nf, sizeof(gcFinger));
     rt->ostate = rt_calloc(rt, nb, 1);
-    ok &= rt->hstate && rt->last_touch && rt->chain && rt->device_force && rt->follow && rt->ostate;
+    ok &= rt->hstate && rt->last_touch && rt->chain && rt->device_force && rt->follow && rt->ostate &&
+          rt->shown.bodies && rt->shown.fingers;
     for (int i = 0; i < 3; ++i) {
         gcInputMsg *in = &rt->input_msg[i];
         gcHapticMsg *h = &rt->haptic_msg[i];
@@ -312,6 +317,11 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
     gcRuntime *rt = w->runtime;
     pthread_mutex_lock(&rt->api_mutex);
     w->locked = 1;
+    /* Until the first snapshot the world's queries show the state it started from. */
+    rt->shown.time = w->time;
+    for (int32_t b = 0; b < w->num_bodies; ++b) rt->shown.bodies[b] = w->bodies[b].state;
+    memcpy(rt->shown.fingers, w->fingers, (size_t)w->num_fingers * sizeof *w->fingers);
+    w->shown = &rt->shown;
     rt->def = *def;
     rt->def.realtime = def->realtime != 0;
     rt->period_ns = seconds_to_ns(1.0 / def->haptic_rate);
@@ -389,6 +399,7 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
         unlock_memory(rt);
         atomic_store_explicit(&rt->state, RT_STOPPED, memory_order_release);
         w->locked = 0;
+    w->shown = NULL;
         pthread_mutex_unlock(&rt->api_mutex);
         gc_world_set_error(w, "runtime: could not create its threads (error %d)", e);
         return GC_ERR_NO_MEMORY;
@@ -423,6 +434,7 @@ gcStatus gc_world_stop(gcWorld *w) {
     gc_rt_merge_into_world(rt, w);
     atomic_store_explicit(&rt->state, RT_STOPPED, memory_order_release);
     w->locked = 0;
+    w->shown = NULL;
     pthread_mutex_unlock(&rt->api_mutex);
     return GC_OK;
 }

@@ -165,7 +165,10 @@ gcStatus gc_world_snapshot(gcWorld *w, gcSnapshot *s) {
     for (int32_t b = 0; b < w->num_bodies; ++b) {
         const gcRtBody *rb = &d->body[b];
         put_body(s, b, rb->pose, rb->state.residual_force, rb->state.residual_torque, d->adopted[b]);
-        if (!w->bodies[b].is_static) gc_rt_body_load(w, b, rb);
+        if (!w->bodies[b].is_static) {
+            rt->shown.bodies[b] = rb->state;
+            memcpy(&w->pose_array[7 * b], rb->pose, sizeof rb->pose); /* the pose view */
+        }
     }
     for (int32_t i = 0; i < w->num_fingers; ++i) {
         put3(s->hips, i, &d->hip[3 * i]);
@@ -174,7 +177,7 @@ gcStatus gc_world_snapshot(gcWorld *w, gcSnapshot *s) {
         put3(s->forces, i, enabled ? &d->device_force[3 * i] : zero);
         if (s->finger_states) s->finger_states[i] = d->state[i];
         if (s->contact_bodies) s->contact_bodies[i] = d->contact_body[i];
-        gcFinger *f = &w->fingers[i];
+        gcFinger *f = &rt->shown.fingers[i];
         f->hip = gc_v3(d->hip[3 * i], d->hip[3 * i + 1], d->hip[3 * i + 2]);
         f->god_object = gc_v3(d->god_object[3 * i], d->god_object[3 * i + 1], d->god_object[3 * i + 2]);
         f->force = gc_v3(d->spring_force[3 * i], d->spring_force[3 * i + 1], d->spring_force[3 * i + 2]);
@@ -184,7 +187,7 @@ gcStatus gc_world_snapshot(gcWorld *w, gcSnapshot *s) {
         memcpy(&w->god_object_array[3 * i], &d->god_object[3 * i], 3 * sizeof(double));
         memcpy(&w->force_array[3 * i], &d->spring_force[3 * i], 3 * sizeof(double));
     }
-    w->time = d->time;
+    rt->shown.time = d->time;
     pthread_mutex_unlock(&rt->api_mutex);
     return GC_OK;
 }

@@ -138,6 +138,7 @@ typedef struct gcRuntime {
     int32_t *chain;           /* gc_contacts_chain_of() scratch */
     double *device_force;     /* 3 per finger */
     gcHipFollow *follow;      /* per finger: walking towards the last pushed sample */
+    gcShown shown;            /* the last snapshot, for the world's queries (world->shown) */
     double follow_prev_t;     /* time stamp of the last pushed sample taken */
     const gcHipTrack *track;  /* the world's scripted track (fixed while running), or NULL */
     double object_time_seen;

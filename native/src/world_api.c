@@ -148,7 +148,7 @@ void gc_world_destroy(gcWorld *w) {
 
 int gc_world_body_count(const gcWorld *w) { return w ? w->num_bodies : 0; }
 int gc_world_finger_count(const gcWorld *w) { return w ? w->num_fingers : 0; }
-double gc_world_time(const gcWorld *w) { return w ? w->time : 0.0; }
+double gc_world_time(const gcWorld *w) { return w ? (w->shown ? w->shown->time : w->time) : 0.0; }
 
 /* While the runtime runs it owns the dynamic state (it sets `locked`): mutating calls are refused. */
 static gcStatus check_idle(const gcWorld *w) {
@@ -428,6 +428,15 @@ gcStatus gc_world_step(gcWorld *w, double dt) {
 
 int64_t gc_world_stopped_bodies(const gcWorld *w) { return w ? w->stopped_bodies : 0; }
 
+/* While the runtime runs, queries answer from its last snapshot (world->shown). */
+static const gcBodyState *shown_body(const gcWorld *w, int32_t body) {
+    return w->shown ? &w->shown->bodies[body] : &w->bodies[body].state;
+}
+
+static const gcFinger *shown_finger(const gcWorld *w, int32_t finger) {
+    return w->shown ? &w->shown->fingers[finger] : &w->fingers[finger];
+}
+
 static void put3(double out[3], gcVec3 v) {
     out[0] = v.x, out[1] = v.y, out[2] = v.z;
 }
@@ -447,11 +456,11 @@ gcStatus gc_world_body_velocity(const gcWorld *w, int32_t body, double lin[3], d
     if (st) return st;
     if (!lin) return gc_null_argument(w, "linear");
     if (!ang) return gc_null_argument(w, "angular");
-    const gcBody *b = &w->bodies[body];
+    const gcBodyState *s = shown_body(w, body);
     /* Report the velocity of the body frame origin, consistent with body_pose. */
-    gcVec3 r = gc_mat3_mul_vec(&b->state.R, gc_neg(b->com_local));
-    put3(lin, gc_add(b->state.v, gc_cross(b->state.w, r)));
-    put3(ang, b->state.w);
+    gcVec3 r = gc_mat3_mul_vec(&s->R, gc_neg(w->bodies[body].com_local));
+    put3(lin, gc_add(s->v, gc_cross(s->w, r)));
+    put3(ang, s->w);
     return GC_OK;
 }
 
@@ -473,8 +482,8 @@ gcStatus gc_world_residual_wrench(const gcWorld *w, int32_t body, double force[3
     if (st) return st;
     if (!force) return gc_null_argument(w, "force");
     if (!torque) return gc_null_argument(w, "torque");
-    put3(force, w->bodies[body].state.residual_force);
-    put3(torque, w->bodies[body].state.residual_torque);
+    put3(force, shown_body(w, body)->residual_force);
+    put3(torque, shown_body(w, body)->residual_torque);
     return GC_OK;
 }
 
@@ -482,7 +491,7 @@ gcStatus gc_world_finger_force(const gcWorld *w, int32_t finger, double force[3]
     gcStatus st = gc_check_finger(w, finger);
     if (st) return st;
     if (!force) return gc_null_argument(w, "force");
-    put3(force, w->fingers[finger].force);
+    put3(force, shown_finger(w, finger)->force);
     return GC_OK;
 }
 
@@ -490,7 +499,7 @@ gcStatus gc_world_god_object(const gcWorld *w, int32_t finger, double pos[3]) {
     gcStatus st = gc_check_finger(w, finger);
     if (st) return st;
     if (!pos) return gc_null_argument(w, "position");
-    put3(pos, w->fingers[finger].god_object);
+    put3(pos, shown_finger(w, finger)->god_object);
     return GC_OK;
 }
 
@@ -499,8 +508,8 @@ gcStatus gc_world_finger_state(const gcWorld *w, int32_t finger, gcFingerState *
     if (st) return st;
     if (!state) return gc_null_argument(w, "state");
     if (!contact_body) return gc_null_argument(w, "contact_body");
-    *state = w->fingers[finger].state;
-    *contact_body = w->fingers[finger].contact_body;
+    *state = shown_finger(w, finger)->state;
+    *contact_body = shown_finger(w, finger)->contact_body;
     return GC_OK;
 }
 
@@ -521,18 +530,19 @@ static uint64_t hash_bytes(uint64_t h, const void *data, size_t n) {
 
 uint64_t gc_world_state_hash(const gcWorld *w) {
     uint64_t h = 14695981039346656037ull;
-    h = hash_bytes(h, &w->time, sizeof w->time);
+    double time = gc_world_time(w);
+    h = hash_bytes(h, &time, sizeof time);
     for (int i = 0; i < w->num_bodies; ++i) {
-        const gcBody *b = &w->bodies[i];
-        h = hash_bytes(h, &b->state.com, sizeof b->state.com);
-        h = hash_bytes(h, &b->state.q, sizeof b->state.q);
-        h = hash_bytes(h, &b->state.v, sizeof b->state.v);
-        h = hash_bytes(h, &b->state.w, sizeof b->state.w);
+        const gcBodyState *s = shown_body(w, i);
+        h = hash_bytes(h, &s->com, sizeof s->com);
+        h = hash_bytes(h, &s->q, sizeof s->q);
+        h = hash_bytes(h, &s->v, sizeof s->v);
+        h = hash_bytes(h, &s->w, sizeof s->w);
     }
     for (int i = 0; i < w->num_fingers; ++i) {
-        const gcFinger *f = &w->fingers[i];
-        h = hash_bytes(h, &f->hip, sizeof f->hip);
-        h = hash_bytes(h, &f->force, sizeof f->force);
+        const gcFinger *f = &w->fingers[i], *shown = shown_finger(w, i);
+        h = hash_bytes(h, &shown->hip, sizeof shown->hip);
+        h = hash_bytes(h, &shown->force, sizeof shown->force);
         for (int c = 0; c < f->num_contacts; ++c) {
             const gcFingerContact *k = &f->contacts[c];
             h = hash_bytes(h, &k->part, sizeof k->part);

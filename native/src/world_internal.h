@@ -86,6 +86,14 @@ typedef struct gcFinger {
     gcFingerState state;
 } gcFinger;
 
+/* While the runtime runs: what the last gc_world_snapshot showed. The world's queries
+ * answer from it, so a snapshot never writes into the simulation state of the world. */
+typedef struct gcShown {
+    double time;
+    gcBodyState *bodies;            /* per body */
+    gcFinger *fingers;              /* per finger: hip, god_object, force, state, contact_body */
+} gcShown;
+
 struct gcWorld {
     gcWorldDef def;
     gcVec3 gravity;
@@ -117,6 +125,8 @@ struct gcWorld {
     struct gcHipTrack *hip_track;
     /* 1 while the runtime owns the dynamic state: calls that would change it are refused. */
     int locked;
+    /* The runtime's gcShown while it runs, NULL otherwise. */
+    const gcShown *shown;
 };
 
 /* The body frame (the user's origin, not the centre of mass) as a transform. */
