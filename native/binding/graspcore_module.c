@@ -771,7 +771,7 @@ static PyObject *World_get_running(PyObject *obj, void *closure) {
 static PyMethodDef World_methods[] = {
     {"_add_body", World_add_body, METH_VARARGS, "Low-level add_body; use World.add_body."},
     {"add_finger", (PyCFunction)(void (*)(void))World_add_finger, METH_VARARGS | METH_KEYWORDS,
-     "add_finger(radius=0.008, stiffness=1000.0, damping=0.0, position=(0,0,0)) -> finger id"},
+     "add_finger(radius, stiffness, damping, position=(0,0,0)) -> finger id; defaults: FINGER_DEFAULTS"},
     {"set_hip", World_set_hip, METH_VARARGS, "set_hip(finger, (x, y, z)): the device (haptic interface) point."},
     {"set_hips", World_set_hips, METH_O, "set_hips(array (n, 3) float64): HIPs of fingers 0..n-1."},
     {"set_gravity", World_set_gravity, METH_O, "set_gravity((gx, gy, gz))"},
@@ -838,7 +838,25 @@ static PyType_Slot World_slots[] = {
 static PyType_Spec World_spec = {"graspcore._core.World", sizeof(WorldObject), 0,
                                  Py_TPFLAGS_DEFAULT | Py_TPFLAGS_BASETYPE, World_slots};
 
+/* The core's defaults (gc_default_body_def, gc_default_finger_def), the one place they are
+ * written: graspcore's Python signatures take theirs from these. */
+static int add_defaults(PyObject *m) {
+    gcBodyDef b = gc_default_body_def();
+    gcFingerDef f = gc_default_finger_def();
+    PyObject *body = Py_BuildValue("{s:d,s:d,s:d,s:d,s:d,s:d}", "mass", b.mass, "mu_s", b.mu_s, "mu_d", b.mu_d,
+                                   "viscosity", b.viscosity, "linear_damping", b.linear_damping,
+                                   "angular_damping", b.angular_damping);
+    PyObject *finger = Py_BuildValue("{s:d,s:d,s:d}", "radius", f.radius, "stiffness", f.stiffness, "damping",
+                                     f.damping);
+    int ok = body && finger && PyModule_AddObjectRef(m, "BODY_DEFAULTS", body) == 0 &&
+             PyModule_AddObjectRef(m, "FINGER_DEFAULTS", finger) == 0;
+    Py_XDECREF(body);
+    Py_XDECREF(finger);
+    return ok ? 0 : -1;
+}
+
 static int module_exec(PyObject *m) {
+    if (add_defaults(m) < 0) return -1;
     World_Type = PyType_FromSpec(&World_spec);
     if (!World_Type || PyModule_AddObjectRef(m, "World", World_Type) < 0) return -1;
     View_Type = PyType_FromSpec(&View_spec);
