@@ -3,18 +3,9 @@ import numpy as np
 import pytest
 
 import graspcore
-from scenes import box_points, prism_points
+from scenes import box_points, prism_points, quat_to_matrix
 
 DT = 1e-3
-
-
-def quat_to_matrix(q):
-    w, x, y, z = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
 
 
 def test_free_fall_matches_semi_implicit_euler_and_closed_form():

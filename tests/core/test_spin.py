@@ -8,19 +8,10 @@ import numpy as np
 import pytest
 
 import graspcore
-from scenes import box_points
+from scenes import box_points, quat_to_matrix
 
 ROD = dict(half=(0.075, 0.003, 0.003), mass=0.010)
 PLATE = dict(half=(0.05, 0.05, 0.0025), mass=0.200)
-
-
-def quat_to_matrix(q):
-    w, x, y, z = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
 
 
 def spin_direction(seed):
