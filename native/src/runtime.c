@@ -389,6 +389,9 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
     atomic_store_explicit(&rt->state, RT_RUNNING, memory_order_release);
     int e = pthread_create(&rt->object_thread, NULL, gc_rt_object_main, rt);
     if (e == 0) {
+#ifdef __linux__
+        pthread_setname_np(rt->object_thread, "gc-object"); /* as top -H, perf and ftrace show it */
+#endif
         e = pthread_create(&rt->haptic_thread, NULL, gc_rt_haptic_main, rt);
         if (e != 0) {
             atomic_store_explicit(&rt->run, 0, memory_order_release);

@@ -150,10 +150,7 @@ void *gc_rt_haptic_main(void *arg) {
 }
 
 void *gc_rt_object_main(void *arg) {
-    gcRuntime *rt = arg;
-#ifdef __linux__
-    pthread_setname_np(pthread_self(), "gc-object");
-#endif
+    gcRuntime *rt = arg; /* named "gc-object" by gc_world_start, before it returns */
     int64_t deadline = clock_now_ns() + rt->object_period_ns;
     int first = 1;
     while (atomic_load_explicit(&rt->run, memory_order_acquire)) {
