@@ -83,8 +83,9 @@ test-c-tsan: $(addprefix $(BUILD)/c-tsan/,$(TSAN_TESTS))
 test-py: core
 	$(PY) -m pytest -q tests/core
 
-# test-blender (addon.mk) runs tests/blender on bpy 4.5, 4.2 and 5.0.1.
-test: check-layers test-c test-c-asan test-c-tsan test-py test-blender
+# test-blender (addon.mk) runs tests/blender on bpy 4.5, 4.2 and 5.0.1; test-gui (addon.mk)
+# the extension in a real GUI Blender under Xvfb.
+test: check-layers test-c test-c-asan test-c-tsan test-py test-blender test-gui
 
 # --- The main job -------------------------------------------------------------
 # (a) the core alone, a table in the terminal; (b) the sample scene headless in Blender
@@ -96,7 +97,7 @@ demo: core extension
 	@echo "== (b) Blender, headless, through the extension: sample_scenes/demo_session.py"
 	GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) sample_scenes/demo_session.py --out $(BUILD)/demo
 
-bench: core
+bench: core extension
 	$(PY) bench/run_bench.py
 
 clean:

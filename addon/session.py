@@ -95,14 +95,14 @@ class BlenderSession:
             np.zeros(len(finger_objs), dtype=bool)
         self.source = TimelineInput(SampledTrajectory(times, pos), scripted)
         self.finger_objects = finger_objs
-        if live and not scripted.any() and s.duration <= 0 and (duration is None or duration < 0):
-            self.duration = float("inf")        # nothing scripted: until Esc or Stop
+        if live and not scripted.any() and not duration > 0:
+            self.duration = float("inf")        # nothing scripted, no length asked: until Esc or Stop
         self.threaded = live and prefs.use_runtime
         options = {}
         if self.threaded:
-            options = {"max_hip_speed": prefs.max_hip_speed,
-                       # a display-rate sample is not stale input
-                       "hip_timeout": max(0.1, 3.0 / s.display_rate)}
+            # Fingertips moved in the viewport arrive at the display's rate, which under a
+            # software renderer can be 1-2 Hz: that is not stale input (it is for a device).
+            options = {"max_hip_speed": prefs.max_hip_speed, "hip_timeout": 2.0}
         self.runner = SessionRunner(self.handle, self.source, haptic_rate=s.haptic_rate,
                                     use_runtime=self.threaded, record=s.record,
                                     runtime_options=options)
@@ -312,6 +312,9 @@ class GRASPLAB_OT_session(bpy.types.Operator):
         global _active
         if bpy.app.background or context.window is None:
             return self.execute(context)
+        # An undo step for the scene as it was: Ctrl+Z during the session (which ends it)
+        # or after it comes back here.
+        bpy.ops.ed.undo_push(message="Before Grasp Session")
         session = self._start(context, live=True)
         if session is None:
             return {"CANCELLED"}
@@ -372,6 +375,7 @@ def _live_tick():
     except Exception as ex:  # noqa: BLE001 - whatever it was, stop and say so
         traceback.print_exc()
         session.error = f"{type(ex).__name__}: {ex}"
+        session.ended_by = "an error"
         done = True
     if done:
         if not session.error:
@@ -385,6 +389,7 @@ def stop_session(session, from_timer=False):
     """Stop a live session now: threads joined, timers and draw handlers removed, the
     scene left in the session's final state. Safe to call more than once."""
     global _active
+    session.stopped_at = time.perf_counter()
     if not from_timer and bpy.app.timers.is_registered(_live_tick):
         bpy.app.timers.unregister(_live_tick)
     timer = getattr(session, "timer", None)
@@ -411,6 +416,8 @@ def stop_session(session, from_timer=False):
         pass
     if _active is session:
         _active = None
+        print(f"{session.summary()} (ended by {session.ended_by})"
+              + (f": {session.error}" if session.error else ""), flush=True)
     display.tag_redraw()
 
 

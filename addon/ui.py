@@ -77,10 +77,13 @@ class GRASPLAB_PT_session(_GraspPanel, bpy.types.Panel):
         layout = self.layout
         s = context.scene.grasp_lab
         active = session.active_session()
+        # The panel's one primary action, drawn highlighted (depress) and large.
+        row = layout.row()
+        row.scale_y = 1.5
         if active is None:
-            layout.operator("grasp_lab.session", text="Start Session", icon="PLAY")
+            row.operator("grasp_lab.session", text="Start Session", icon="PLAY", depress=True)
         else:
-            layout.operator("grasp_lab.stop_session", text="Stop Session", icon="PAUSE")
+            row.operator("grasp_lab.stop_session", text="Stop Session", icon="PAUSE", depress=True)
             box = layout.box()
             for line in active.hud_text().split("\n"):
                 box.label(text=line)

@@ -629,6 +629,11 @@ def main(argv=None) -> int:
             ok &= good
         else:
             blender = "`bench/bench_blender.py` does not exist yet: no Blender numbers in this run."
+        log("GUI Blender (bench/bench_gui.py)")
+        good, gui = run_external([venv_py if os.path.exists(venv_py) else sys.executable,
+                                  os.path.join(HERE, "bench_gui.py")], timeout=1200)
+        ok &= good
+        blender = blender.rstrip() + "\n\n" + gui
     jitter_s = 5.0 if args.quick else 60.0
     log(f"haptic-loop jitter (bench/bench_jitter.py, {jitter_s:g} s per run: bare loop and runtime, "
         "SCHED_FIFO and normal)")

@@ -1,0 +1,647 @@
+"""Runs inside a real GUI Blender and uses it as a person does (docs/gui-tests.md).
+
+    blender --python tests/gui/driver.py -- SCENARIO OUT_DIR
+
+Clicks and keys are real X events sent with xdotool; screenshots are taken with
+ImageMagick's ``import -window root``. A scenario is a generator run from a
+``bpy.app.timers`` timer: it yields the seconds to wait before its next step, so that
+Blender's event loop runs (and handles the clicks) in between. What it saw goes to
+OUT_DIR/result.json, which tests/gui/test_gui.py checks; then Blender quits.
+"""
+import glob
+import importlib
+import importlib.util
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+import traceback
+
+import bpy
+import numpy as np
+
+ARGS = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else []
+SCENARIO, OUT = ARGS[0], os.path.abspath(ARGS[1])
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+RESULT = {"scenario": SCENARIO, "python": sys.version.split()[0],
+          "blender": bpy.app.version_string, "log": []}
+os.makedirs(OUT, exist_ok=True)
+
+
+def log(msg):
+    RESULT["log"].append(f"{time.monotonic():.3f} {msg}")
+    print(f"[gui-driver] {msg}", flush=True)
+
+
+# --------------------------------------------------------------------------- the extension
+
+def ext_name():
+    for mod in bpy.context.preferences.addons.keys():
+        if mod.endswith(".grasp_lab"):
+            return mod
+    raise RuntimeError("the grasp_lab extension is not enabled")
+
+
+def ext(name):
+    return importlib.import_module(f"{ext_name()}.{name}")
+
+
+def active_session():
+    try:
+        return ext("session").active_session()
+    except RuntimeError:          # extension disabled
+        return None
+
+
+def core_threads():
+    """Names of this process's threads made by the core (gc-haptic, gc-object, ...)."""
+    names = []
+    for path in glob.glob("/proc/self/task/*/comm"):
+        try:
+            with open(path) as fh:
+                name = fh.read().strip()
+        except OSError:
+            continue
+        if name.startswith("gc-"):
+            names.append(name)
+    return sorted(names)
+
+
+def sample():
+    spec = importlib.util.spec_from_file_location(
+        "build_pinch_and_lift", os.path.join(ROOT, "sample_scenes", "build_pinch_and_lift.py"))
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+# --------------------------------------------------------------------------- the screen
+
+def window():
+    return bpy.context.window_manager.windows[0]
+
+
+def view3d():
+    """The largest 3D viewport: (area, its WINDOW region, its UI (sidebar) region)."""
+    areas = [a for a in window().screen.areas if a.type == "VIEW_3D"]
+    area = max(areas, key=lambda a: a.width * a.height)
+    regions = {r.type: r for r in area.regions}
+    return area, regions["WINDOW"], regions["UI"]
+
+
+_geometry = {}
+
+
+def window_origin():
+    """Top-left corner of the Blender window on the X screen (xdotool's coordinates)."""
+    if "origin" not in _geometry:
+        out = subprocess.run(["xdotool", "search", "--onlyvisible", "--name", "Blender",
+                              "getwindowgeometry", "--shell"], capture_output=True, text=True).stdout
+        vals = dict(line.split("=", 1) for line in out.split() if "=" in line)
+        _geometry["origin"] = (int(vals.get("X", 0)), int(vals.get("Y", 0)))
+    return _geometry["origin"]
+
+
+def to_screen(region, x, y):
+    """Region coordinates (origin bottom-left) to X screen coordinates (origin top-left)."""
+    ox, oy = window_origin()
+    return ox + region.x + int(x), oy + window().height - (region.y + int(y))
+
+
+def xdo(*args):
+    subprocess.run(["xdotool", *map(str, args)], check=True)
+
+
+def hover(region, x=None, y=None):
+    x = region.width / 2 if x is None else x
+    y = region.height / 2 if y is None else y
+    xdo("mousemove", *to_screen(region, x, y))
+
+
+def screenshot(name):
+    path = os.path.join(OUT, f"{name}.png")
+    subprocess.run(["import", "-window", "root", path], check=True)
+    RESULT.setdefault("screenshots", []).append(path)
+    return path
+
+
+def pixels(path):
+    """A PNG as (rows from the top, columns, RGBA) floats in 0..1."""
+    img = bpy.data.images.load(path, check_existing=False)
+    try:
+        w, h = img.size
+        px = np.empty(w * h * 4, dtype=np.float32)
+        img.pixels.foreach_get(px)
+    finally:
+        bpy.data.images.remove(img)
+    return px.reshape(h, w, 4)[::-1]
+
+
+def region_pixels(px, region):
+    """The part of a screenshot that a region covers (rows from the top)."""
+    x0, y0 = to_screen(region, 0, region.height)
+    return px[y0:y0 + region.height, x0:x0 + region.width]
+
+
+def find_primary_button(region):
+    """Centre (region coordinates) of the highlighted (depressed) wide button in a region:
+    the Grasp panel draws its Start/Stop Session button so."""
+    theme = bpy.context.preferences.themes[0].user_interface
+    color = np.array(theme.wcol_tool.inner_sel[:3])
+    px = region_pixels(pixels(screenshot("find_button")), region)[..., :3]
+    match = np.all(np.abs(px - color) < 6 / 255, axis=2)
+    rows = np.nonzero(match.sum(axis=1) > 0.5 * region.width)[0]
+    if len(rows) == 0:
+        raise AssertionError(f"no highlighted button in the sidebar (colour {color})")
+    band = rows[rows <= rows[0] + 60]         # the first button from the top
+    cols = np.nonzero(match[band].any(axis=0))[0]
+    cy = (band[0] + band[-1]) / 2
+    return (cols[0] + cols[-1]) / 2, region.height - cy
+
+
+def colour_counts(px, region, sidebar):
+    """Pixels in the viewport (left of its sidebar, below its header) that are god-object
+    blue, force red, or HUD white."""
+    p = region_pixels(px, region)[40:, :sidebar.x - region.x, :3]
+    r, g, b = p[..., 0], p[..., 1], p[..., 2]
+    blue = (b > 0.45) & (b > r + 0.25) & (b > g + 0.08)
+    red = (r > 0.45) & (r > g + 0.3) & (r > b + 0.3)
+    hud = p[-(60 + 6 * 20):-40, 10:700]                   # where the HUD is drawn
+    white = (hud.min(axis=2) > 0.8)
+    return {"blue": int(blue.sum()), "red": int(red.sum()), "hud_white": int(white.sum())}
+
+
+# --------------------------------------------------------------------------- steps a person takes
+
+def wait_until(cond, timeout, what, poll=0.05):
+    t0 = time.monotonic()
+    while not cond():
+        if time.monotonic() - t0 > timeout:
+            raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+        yield poll
+    return time.monotonic() - t0
+
+
+def open_grasp_tab():
+    """Sidebar (N) open on the Grasp tab: Ctrl+wheel over the tabs, as a person would."""
+    area, win_region, ui = view3d()
+    area.spaces[0].show_region_ui = True
+    yield 0.5
+    area, win_region, ui = view3d()
+    for _ in range(12):
+        if ui.active_panel_category == "Grasp":
+            yield 0.5               # let it redraw
+            return
+        hover(ui, ui.width - 8, ui.height - 40)          # over the tabs, not a field
+        xdo("keydown", "ctrl", "click", "5", "keyup", "ctrl")
+        yield 0.4
+        area, win_region, ui = view3d()
+    raise AssertionError(f"the Grasp tab never came up (at {ui.active_panel_category!r})")
+
+
+def frame_scene():
+    if bpy.app.background:
+        return
+    area, win_region, ui = view3d()
+    space = area.spaces[0]
+    space.shading.type = "SOLID"
+    space.shading.color_type = "MATERIAL"
+    space.overlay.show_floor = False
+    space.overlay.show_axis_x = space.overlay.show_axis_y = False
+    rv3d = space.region_3d
+    rv3d.view_perspective = "PERSP"
+    from mathutils import Euler
+    rv3d.view_rotation = Euler((math.radians(70), 0, math.radians(20))).to_quaternion()
+    rv3d.view_location = (0.0, 0.05, 0.06)
+    rv3d.view_distance = 0.45
+
+
+def click_primary_button(timeout=8.0):
+    t0 = time.monotonic()
+    while True:                     # the display may be slow to show it (llvmpipe, ~1-5 Hz)
+        area, win_region, ui = view3d()
+        try:
+            x, y = find_primary_button(ui)
+            break
+        except AssertionError:
+            if time.monotonic() - t0 > timeout:
+                raise
+            yield 0.5
+    hover(ui, x, y)
+    yield 0.2
+    xdo("click", "1")
+    yield 0.1
+
+
+def start_by_click(timeout=10.0):
+    yield from click_primary_button()
+    yield from wait_until(lambda: active_session() is not None, timeout, "the session to start")
+    log("session started by a click on Start Session")
+
+
+def press_in_viewport(*keys):
+    area, win_region, ui = view3d()
+    hover(win_region)
+    yield 0.1
+    xdo("key", *keys)
+
+
+def check_stopped(tag):
+    threads = core_threads()
+    RESULT.setdefault("threads_after", {})[tag] = threads
+    RESULT.setdefault("running_after", {})[tag] = active_session() is not None
+    log(f"{tag}: core threads {threads}")
+
+
+def setup_scene(duration=0.0, display_rate=30.0, animated=True):
+    for obj in list(bpy.data.objects):                     # the start-up cube, camera, light
+        bpy.data.objects.remove(obj)
+    box = sample().build(bpy)
+    s = bpy.context.scene.grasp_lab
+    s.duration = duration
+    s.display_rate = display_rate
+    if not animated:
+        for i, obj in enumerate(o for o in bpy.context.scene.objects if o.grasp_lab.role == "FINGER"):
+            obj.animation_data_clear()
+    bpy.context.view_layer.update()
+    frame_scene()
+    return box
+
+
+def last_result():
+    return ext("session").last_result
+
+
+# --------------------------------------------------------------------------- scenarios
+
+def scenario_start_esc_stop():
+    """Start Session (click), pictures of a running session, Esc; start again, Stop (click)."""
+    setup_scene(duration=0.0)
+    yield from open_grasp_tab()
+    yield 1.0
+    area, win_region, ui = view3d()
+    before = colour_counts(pixels(screenshot("before")), win_region, ui)
+    yield from start_by_click()
+    RESULT["threads_running"] = core_threads()
+    yield 1.5                                             # closing on the box, squeezing
+    yield from wait_until(lambda: active_session().runner.time > 1.2, 10, "t > 1.2 s")
+    area, win_region, ui = view3d()
+    during = colour_counts(pixels(screenshot("running")), win_region, ui)
+    RESULT["pixels"] = {"before": before, "during": during}
+    s = active_session()
+    RESULT["hud"] = s.hud_text()
+    RESULT["display_rate"] = s.runner.stats()["display_rate"]
+    RESULT["interval"] = s.interval
+    area, win_region, ui = view3d()
+    hover(win_region)
+    yield 0.5
+    t_key = time.perf_counter()
+    xdo("key", "Escape")
+    yield from wait_until(lambda: active_session() is None, 5, "Esc to stop the session", poll=0.01)
+    RESULT["esc_latency_s"] = s.stopped_at - t_key          # key sent -> session stopped
+    check_stopped("esc")
+    yield 0.5
+    yield from start_by_click()
+    yield 1.0
+    yield from click_primary_button()                     # now Stop Session
+    yield from wait_until(lambda: active_session() is None, 5, "Stop to stop the session")
+    check_stopped("stop_button")
+    RESULT["last_time"] = last_result().stats["time"]
+
+
+def scenario_undo():
+    """A session that lifts the box, then Ctrl+Z puts it back; Ctrl+Z during a session ends it."""
+    box = setup_scene(duration=1.5)
+    bpy.context.scene.frame_start = 25                    # squeeze, then lift
+    bpy.ops.ed.undo_push(message="Grasp scene set up")    # as building it by hand would
+    yield from open_grasp_tab()
+    z0 = box.matrix_world.translation.z
+    yield from start_by_click()
+    yield from wait_until(lambda: active_session() is None, 15, "the session to reach its end")
+    check_stopped("end")
+    RESULT["z_rest"], RESULT["z_after_session"] = z0, bpy.data.objects["Box"].matrix_world.translation.z
+    yield 0.5
+    yield from press_in_viewport("ctrl+z")
+    yield 1.0
+    bpy.context.view_layer.update()          # the undone file's matrices, evaluated
+    RESULT["z_after_undo"] = bpy.data.objects["Box"].matrix_world.translation.z
+    yield from start_by_click()
+    yield 1.0
+    yield from press_in_viewport("ctrl+z")                # undo while running
+    yield from wait_until(lambda: active_session() is None, 5, "undo to end the session")
+    check_stopped("undo_mid_session")
+    yield 1.0
+    box = bpy.data.objects.get("Box")
+    RESULT["z_after_undo_mid_session"] = box.matrix_world.translation.z if box else None
+    yield 0.5
+    yield from start_by_click()                           # and it starts again
+    yield 0.5
+    yield from press_in_viewport("Escape")
+    yield from wait_until(lambda: active_session() is None, 5, "Esc")
+    check_stopped("esc_after_undo")
+
+
+def scenario_load_file():
+    """Open a file while a session runs: the session ends first; the loaded file works."""
+    setup_scene(duration=0.0)
+    yield from open_grasp_tab()
+    path = os.path.join(OUT, "scene.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    yield from start_by_click()
+    yield 1.0
+    with bpy.context.temp_override(window=window()):
+        bpy.ops.wm.open_mainfile(filepath=path)
+    yield 1.0
+    check_stopped("load")
+    RESULT["running_flag_after_load"] = bpy.context.scene.grasp_lab.running
+    yield from open_grasp_tab()
+    yield from start_by_click()
+    yield 1.0
+    yield from press_in_viewport("Escape")
+    yield from wait_until(lambda: active_session() is None, 5, "Esc")
+    check_stopped("esc_after_load")
+
+
+def scenario_disable():
+    """Disable the extension while a session runs; enable it and start again."""
+    setup_scene(duration=0.0)
+    yield from open_grasp_tab()
+    yield from start_by_click()
+    yield 1.0
+    name = ext_name()
+    bpy.ops.preferences.addon_disable(module=name)
+    yield 0.5
+    check_stopped("disable")
+    bpy.ops.preferences.addon_enable(module=name)
+    yield 0.5
+    yield from open_grasp_tab()
+    yield from start_by_click()
+    yield 1.0
+    yield from press_in_viewport("Escape")
+    yield from wait_until(lambda: active_session() is None, 5, "Esc")
+    check_stopped("esc_after_enable")
+
+
+def scenario_quit():
+    """Quit Blender while a session runs (the host checks the exit and the console)."""
+    setup_scene(duration=0.0)
+    yield from open_grasp_tab()
+    yield from start_by_click()
+    yield 1.0
+    RESULT["threads_running"] = core_threads()
+    write_result()
+    log("quitting with the session running")
+    with bpy.context.temp_override(window=window()):
+        bpy.ops.wm.quit_blender()
+    yield 5.0
+
+
+def scenario_interactive():
+    """Nothing animated: the session runs until Esc; G moves a fingertip into the box and out."""
+    box = setup_scene(duration=0.0, animated=False)
+    # Fingertips open around the box, at its height.
+    fingers = sorted((o for o in bpy.context.scene.objects if o.grasp_lab.role == "FINGER"),
+                     key=lambda o: o.name)
+    fingers[0].location.x = -0.032          # resting against the box's -x face, 1 mm deep
+    bpy.context.view_layer.update()
+    yield from open_grasp_tab()
+    yield from start_by_click()
+    yield 1.0
+    s = active_session()
+    RESULT["open_ended"] = s.duration == float("inf") and "until Esc" in s.hud_text()
+    RESULT["contacts_before"] = [int(c) for c in s.snapshot.contacts]
+    # Select fingertip 1 (+x side) and move it 2 cm towards the box with G, X, -0.02, Enter.
+    for o in bpy.context.scene.objects:
+        o.select_set(o is fingers[1])
+    bpy.context.view_layer.objects.active = fingers[1]
+    x0 = fingers[1].matrix_world.translation.x
+    yield 0.3
+    yield from press_in_viewport("g")
+    yield 0.3
+    xdo("key", "x")
+    yield 0.2
+    xdo("key", "minus", "0", "period", "0", "2")
+    yield 0.3
+    xdo("key", "Return")
+    # The next display updates push the new place; the haptic loop walks the HIP there.
+    yield from wait_until(lambda: abs(active_session().snapshot.hips[1][0] - (x0 - 0.02)) < 1e-6, 20,
+                          "the HIP to follow the moved fingertip")
+    yield from wait_until(lambda: active_session().snapshot.contacts[1] == 0, 10, "contact")
+    s = active_session()
+    snap = s.snapshot
+    RESULT["moved_by"] = x0 - fingers[1].matrix_world.translation.x
+    RESULT["contact_after_move"] = int(snap.contacts[1])
+    RESULT["force_after_move"] = float(np.linalg.norm(snap.finger_forces[1]))
+    RESULT["go_hip_gap"] = float(np.linalg.norm(snap.god_objects[1] - snap.hips[1]))
+    RESULT["hip_x_after_move"] = float(snap.hips[1][0])
+    yield from press_in_viewport("g")
+    yield 0.3
+    xdo("key", "x")
+    yield 0.2
+    xdo("key", "0", "period", "0", "2")
+    yield 0.3
+    xdo("key", "Return")
+    yield from wait_until(lambda: abs(active_session().snapshot.hips[1][0] - x0) < 1e-6, 20,
+                          "the HIP to follow the fingertip back")
+    yield from wait_until(lambda: active_session().snapshot.contacts[1] == -1, 10, "release")
+    snap = active_session().snapshot
+    RESULT["contact_after_back"] = int(snap.contacts[1])
+    RESULT["hip_x_after_back"] = float(snap.hips[1][0])
+    RESULT["finger_x_after_back"] = fingers[1].matrix_world.translation.x
+    screenshot("interactive_back")
+    RESULT["still_running"] = active_session() is not None
+    yield from press_in_viewport("Escape")
+    yield from wait_until(lambda: active_session() is None, 5, "Esc")
+    check_stopped("esc")
+
+
+def scenario_error():
+    """An exception inside a live session's timer: the session stops cleanly and says why."""
+    setup_scene(duration=0.0)
+    yield from open_grasp_tab()
+    yield from start_by_click()
+    yield 1.0
+    session = active_session()
+    original = session.apply
+
+    def broken_apply(snap, frame):
+        raise RuntimeError("injected by the GUI test")
+    session.apply = broken_apply
+    yield from wait_until(lambda: active_session() is None, 10, "the failing session to stop")
+    check_stopped("error")
+    RESULT["session_error"] = session.error
+    session.apply = original
+    yield 1.0
+    RESULT["overlay_left"] = ext("display").overlay_active()
+    area, win_region, ui = view3d()
+    hover(win_region, 50, 50)                             # the error report closes as the mouse leaves
+    yield 1.5
+    yield from start_by_click()                           # the next session runs
+    yield 1.0
+    yield from press_in_viewport("Escape")
+    yield from wait_until(lambda: active_session() is None, 5, "Esc")
+    check_stopped("esc_after_error")
+
+
+def _redraw_ms(kind, iterations=10):
+    """Mean ms per redraw of the viewport region ('DRAW') or the whole window + swap."""
+    area, win_region, ui = view3d()
+    with bpy.context.temp_override(window=window(), area=area, region=win_region):
+        t0 = time.perf_counter()
+        bpy.ops.wm.redraw_timer(type=kind, iterations=iterations)
+        return 1e3 * (time.perf_counter() - t0) / iterations
+
+
+def scenario_draw_cost():
+    """Benchmark (bench/bench_gui.py): the viewport's draw cost for 10 fingers + 20 bodies,
+    without and with a live session's display objects and overlay; the session's display
+    rate and main-thread cost per display update."""
+    sys.path.insert(0, os.path.join(ROOT, "tests", "blender"))
+    import grasp_env
+    for obj in list(bpy.data.objects):
+        bpy.data.objects.remove(obj)
+    scene = bpy.context.scene
+    table = grasp_env.add_cube(bpy, "Table", 1.0, (0.2, 0.15, -0.03))
+    table.scale = (0.8, 0.6, 0.04)
+    table.grasp_lab.role = "STATIC"
+    for i in range(20):
+        obj = grasp_env.add_cube(bpy, f"Body {i:02d}", 0.04, ((i % 5) * 0.1, (i // 5) * 0.1, 0.0))
+        obj.grasp_lab.role = "DYNAMIC"
+        obj.grasp_lab.mass = 0.1
+    for j in range(10):
+        f = bpy.data.objects.new(f"Finger {j}", None)
+        scene.collection.objects.link(f)
+        f.empty_display_type = "SPHERE"
+        f.empty_display_size = 0.008
+        f.location = ((j % 5) * 0.1 - 0.027, (j // 5) * 0.1, 0.0)   # 1 mm into body j's side
+        f.grasp_lab.role = "FINGER"
+        f.grasp_lab.channel = j
+    bpy.context.view_layer.update()
+    frame_scene()
+    area, win_region, ui = view3d()
+    area.spaces[0].region_3d.view_location = (0.2, 0.15, 0.0)
+    area.spaces[0].region_3d.view_distance = 0.9
+    yield 1.0
+    RESULT["viewport_px"] = [win_region.width, win_region.height]
+    RESULT["draw_ms_idle"] = _redraw_ms("DRAW")
+    RESULT["window_ms_idle"] = _redraw_ms("DRAW_WIN_SWAP")
+    with bpy.context.temp_override(window=window(), area=area, region=win_region):
+        bpy.ops.grasp_lab.session("INVOKE_DEFAULT")
+    session = active_session()
+    tick_s = []
+    original = session.tick
+
+    def timed_tick(*args, **kwargs):
+        t0 = time.perf_counter()
+        try:
+            return original(*args, **kwargs)
+        finally:
+            tick_s.append(time.perf_counter() - t0)
+    session.tick = timed_tick
+    yield 2.0
+    RESULT["display_objects"] = len(session.display.objects) if session.display else 0
+    RESULT["draw_ms_session"] = _redraw_ms("DRAW")
+    RESULT["window_ms_session"] = _redraw_ms("DRAW_WIN_SWAP")
+    n0, t0 = len(tick_s), time.perf_counter()
+    yield 5.0
+    RESULT["display_rate_session"] = (len(tick_s) - n0) / (time.perf_counter() - t0)
+    RESULT["tick_ms_median"] = 1e3 * float(np.median(tick_s))
+    RESULT["contacts"] = session.snapshot.n_contacts
+    RESULT["stats"] = {k: v for k, v in session.runner.stats().items() if isinstance(v, (int, float))}
+    screenshot("draw_cost")
+    ext("session").stop_active()
+
+
+def _final_box():
+    res = last_result()
+    return [float(v) for v in res.final.poses[res.body_names.index("Box")][:3]]
+
+
+def scenario_display_rates():
+    """The scripted scene live at display rates of 5, 10, 30 and 60 Hz, and EXEC."""
+    setup_scene(duration=0.0)
+    yield from open_grasp_tab()
+    runs = {}
+    for rate in (5.0, 10.0, 30.0, 60.0):
+        bpy.context.scene.grasp_lab.display_rate = rate
+        yield 0.3
+        yield from start_by_click()
+        t0 = time.monotonic()
+        yield from wait_until(lambda: active_session() is None, 30, f"the {rate} Hz session to end")
+        res = last_result()
+        runs[str(int(rate))] = {"box": _final_box(), "achieved_display_rate": res.stats["display_rate"],
+                                "wall_s": time.monotonic() - t0, "time": res.stats["time"],
+                                "steps": res.stats["steps"], "haptic_rate": res.stats["haptic_rate"],
+                                "threaded": res.stats["threaded"]}
+        log(f"{rate} Hz: {runs[str(int(rate))]}")
+        check_stopped(f"rate_{int(rate)}")
+        yield 0.3
+    with bpy.context.temp_override(window=window()):
+        bpy.ops.grasp_lab.session("EXEC_DEFAULT")
+    RESULT["exec_box"] = _final_box()
+    RESULT["runs"] = runs
+
+
+def scenario_exec_headless():
+    """The same scene run headless (blender -b): the reference for the live runs."""
+    setup_scene(duration=0.0)
+    bpy.ops.grasp_lab.session("EXEC_DEFAULT")
+    RESULT["exec_box"] = _final_box()
+    yield 0.0
+
+
+SCENARIOS = {name[len("scenario_"):]: fn for name, fn in globals().items() if name.startswith("scenario_")}
+
+
+# --------------------------------------------------------------------------- the run
+
+def write_result():
+    with open(os.path.join(OUT, "result.json"), "w") as fh:
+        json.dump(RESULT, fh, indent=1, default=str)
+
+
+def finish():
+    write_result()
+    log("done")
+    if bpy.app.background:
+        return
+    with bpy.context.temp_override(window=window()):
+        bpy.ops.wm.quit_blender()
+
+
+def main():
+    try:
+        core = ext("core_loader").load()
+        RESULT["graspcore"] = os.path.basename(core._core.__file__)
+        import hid  # noqa: F401 - the bundled hidapi wheel for this Python
+        RESULT["hidapi"] = os.path.basename(hid.__file__)
+    except Exception:  # noqa: BLE001
+        RESULT["import_error"] = traceback.format_exc()
+    gen = SCENARIOS[SCENARIO]()
+
+    def step():
+        try:
+            return next(gen)
+        except StopIteration:
+            RESULT["ok"] = True
+        except Exception:  # noqa: BLE001 - reported to the test
+            RESULT["ok"] = False
+            RESULT["error"] = traceback.format_exc()
+            log(RESULT["error"])
+            try:
+                screenshot("error")
+            except Exception:  # noqa: BLE001
+                pass
+        finish()
+        return None
+
+    if bpy.app.background:          # no event loop: run the (wait-free) scenario now
+        while step() is not None:
+            pass
+        return
+    bpy.app.timers.register(step, first_interval=2.0, persistent=True)
+
+
+main()
