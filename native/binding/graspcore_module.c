@@ -142,7 +142,7 @@ static PyType_Spec View_spec = {"graspcore._core.View", sizeof(ViewObject), 0, P
 static int World_init(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
     static char *kwlist[] = {"gravity", "gyroscopic", "max_bodies", "max_fingers", "max_parts",
-                             "threads", "max_contacts", NULL}; /* threads, max_contacts: contacts.c */
+                             "threads", "max_contacts", NULL}; /* threads, max_contacts: docs/solver.md */
     gcWorldDef def = gc_default_world_def();
     PyObject *gravity = NULL;
     int gyroscopic = 1;
@@ -484,7 +484,7 @@ static PyObject *World_state_hash(PyObject *obj, PyObject *unused) {
     return PyLong_FromUnsignedLongLong(gc_world_state_hash(self->world));
 }
 
-/* ---- Body-body contacts and collision chains (contacts.c, islands.c) ---------------- */
+/* ---- Body-body contacts and collision chains (contacts.c, chains.c) ---------------- */
 
 /* contacts() -> list of dicts, one per contact point of the last step. */
 static PyObject *World_contacts(PyObject *obj, PyObject *unused) {
@@ -560,7 +560,7 @@ static PyObject *World_get_finger_count(PyObject *obj, void *closure) {
     return PyLong_FromLong(gc_world_finger_count(self->world));
 }
 
-/* ---- Runtime: haptic loop and object manager threads (runtime.c, docs/runtime.md) ----
+/* ---- Runtime: haptic loop and object manager threads (runtime*.c, docs/runtime.md) ----
  * push_hips, _snapshot and stats may run while another thread is inside advance/stop: the
  * core serialises them itself. */
 

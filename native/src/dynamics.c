@@ -111,7 +111,6 @@ static gcVec3 rotation_between(gcVec3 u, gcVec3 t) {
  * (third order in |w| dt) off the one it started with. Turning the start pose by that
  * hair, about the centre of mass, makes the step end on the starting world momentum
  * exactly, so a free body keeps L (vector), |L| and its energy to round-off. */
-
 static gcVec3 gyroscopic_rotation(gcBody *b, double dt) {
     double spin = gc_len(b->state.w) * dt;
     if (!(spin > GC_GYRO_NEGLIGIBLE_SPIN)) return b->state.w;
