@@ -677,11 +677,8 @@ static PyObject *World_push_hips(PyObject *obj, PyObject *args) {
     } else {
         int rows = (int)(b.len / (Py_ssize_t)(3 * sizeof(double)));
         gcStatus st = gc_world_push_hips(self->world, b.buf, rows, t);
-        if (st == GC_ERR_NOT_RUNNING)
-            PyErr_SetString(PyExc_RuntimeError, "push_hips: the runtime is not running (World.start)");
-        else if (st == GC_ERR_INVALID_ARGUMENT)
-            PyErr_Format(PyExc_ValueError, "positions: %d rows given for %d fingers", rows,
-                         gc_world_finger_count(self->world));
+        if (st < 0)
+            raise_status(self, st);
         else
             result = PyBool_FromLong(st == GC_OK);
     }
@@ -754,10 +751,6 @@ static PyObject *World_debug_stall(PyObject *obj, PyObject *arg) {
     double seconds = PyFloat_AsDouble(arg);
     if ((seconds == -1.0 && PyErr_Occurred()) || !check_world(self)) return NULL;
     gcStatus st = gc_world_debug_stall(self->world, seconds);
-    if (st == GC_ERR_NOT_RUNNING) {
-        PyErr_SetString(PyExc_RuntimeError, "the runtime is not running");
-        return NULL;
-    }
     if (st < 0) return raise_status(self, st);
     Py_RETURN_NONE;
 }

@@ -70,11 +70,11 @@ gcStatus gc_world_push_hips(gcWorld *w, const double *positions, int count_, dou
     if (!positions) return gc_null_argument(w, "positions");
     gcRuntime *rt = w->runtime;
     if (!gc_runtime_running(w)) {
-        gc_world_set_error(w, "push_hips: the runtime is not running (start it first)");
+        gc_world_set_error(w, "push_hips: the runtime is not running (World.start / gc_world_start)");
         return GC_ERR_NOT_RUNNING;
     }
     if (count_ < 1 || count_ > w->num_fingers) {
-        gc_world_set_error(w, "count: must be in 1..%d, the finger count (got %d)", w->num_fingers, count_);
+        gc_world_set_error(w, "positions: %d rows given for %d fingers", count_, w->num_fingers);
         return GC_ERR_INVALID_ARGUMENT;
     }
     int finite = isfinite(t);

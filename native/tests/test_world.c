@@ -170,6 +170,7 @@ static void test_every_error_names_its_argument(void) {
     expect_error(w, gc_world_god_object(w, id, NULL), GC_ERR_INVALID_ARGUMENT, "position:");
     expect_error(w, gc_world_finger_force(w, 7, p), GC_ERR_UNKNOWN_ID, "finger:");
     expect_error(w, gc_world_push_hips(w, p, 1, 0.0), GC_ERR_NOT_RUNNING, "push_hips:");
+    expect_error(w, gc_world_debug_stall(w, 0.0), GC_ERR_NOT_RUNNING, "debug_stall:");
     expect_error(w, gc_world_snapshot(w, NULL), GC_ERR_INVALID_ARGUMENT, "snapshot:");
     expect_error(w, gc_world_stats(w, NULL), GC_ERR_INVALID_ARGUMENT, "stats:");
     expect_error(w, gc_world_start(w, NULL), GC_ERR_INVALID_ARGUMENT, "def:");

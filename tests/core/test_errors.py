@@ -115,3 +115,19 @@ def test_spheres_and_capsules_from_one_or_two_points():
     assert inertia[0][0] < inertia[1][1] == pytest.approx(inertia[2][2])
     with pytest.raises(ValueError, match="points"):
         w.add_body([[0, 0, 0]], radius=0.0, mass=1.0)
+
+
+def test_runtime_errors_carry_the_cores_message():
+    """The binding raises with the core's message, never one of its own."""
+    w = graspcore.World()
+    w.add_finger()
+    with pytest.raises(RuntimeError, match=r"^push_hips: the runtime is not running"):
+        w.push_hips(np.zeros((1, 3)), 0.0)
+    w.start(realtime=False)
+    with pytest.raises(ValueError, match=r"^positions: 2 rows given for 1 fingers"):
+        w.push_hips(np.zeros((2, 3)), 0.0)
+    with pytest.raises(ValueError, match=r"^haptic_rate:"):
+        w.stop()
+        w.start(haptic_rate=-1.0)
+    with pytest.raises(RuntimeError, match=r"^advance: the runtime is not running"):
+        w.advance(1)
