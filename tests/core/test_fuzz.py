@@ -79,7 +79,7 @@ def build_scene(rng):
 
 def random_call(rng, w, bodies, fingers, stopped):
     r = rng.random()
-    dynamic = [b for b in bodies]
+    dynamic = list(bodies)
     if r < 0.35 and fingers:
         f = int(rng.choice(fingers))
         here = np.array(w.body_pose(int(rng.choice(bodies)))[0])
@@ -92,8 +92,12 @@ def random_call(rng, w, bodies, fingers, stopped):
                             tuple(rng.uniform(-2000, 2000, 3)))
     elif r < 0.6:
         w.set_body_pose(int(rng.choice(dynamic)), tuple(rng.uniform(-0.2, 0.2, 3)), random_unit_quaternion(rng))
-    elif r < 0.63:
+    elif r < 0.62:
         w.set_gravity(tuple(rng.uniform(-30, 30, 3)))
+    elif r < 0.65:
+        mu_s = float(rng.uniform(0.0, 2.0))
+        w.set_body_friction(int(rng.choice(dynamic)), mu_s, float(rng.uniform(0.0, mu_s)),
+                            float(rng.choice([0.0, log_uniform(rng, 1e-4, 1.0)])))
     else:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -109,6 +113,8 @@ def test_random_scene_and_calls_stay_finite(seed):
     for call in range(CALLS):
         random_call(rng, w, bodies, fingers, stopped)
         assert_finite(w, f"call {call}")
+        chains = [w.body_chain(b) for b in bodies]
+        assert all(c is None or 0 <= c < w.chain_count() for c in chains)
     assert w.stopped_bodies() >= len(stopped)  # every warning counted; a count without one is impossible
     assert (w.stopped_bodies() > 0) == (len(stopped) > 0)
     for message in stopped:
