@@ -74,14 +74,14 @@ test-c-asan: $(addprefix $(BUILD)/c-asan/,$(C_TESTS))
 	@for t in $^; do echo "== $$t (ASan/UBSan)"; ASAN_OPTIONS=detect_leaks=1 $$t || exit 1; done
 
 # The threaded tests under ThreadSanitizer (the runtime's loops, its lock-free channels).
-TSAN_TESTS := $(filter test_runtime test_contacts,$(C_TESTS))
+TSAN_TESTS := $(filter test_runtime test_contacts test_serial_io,$(C_TESTS))
 
 test-c-tsan: $(addprefix $(BUILD)/c-tsan/,$(TSAN_TESTS))
 	@for t in $^; do echo "== $$t (TSan)"; TSAN_OPTIONS=halt_on_error=1 $$t || exit 1; done
 
 # --- Python tests ---------------------------------------------------------------
 test-py: core
-	$(PY) -m pytest -q tests/core
+	$(PY) -m pytest -q tests/core tests/devices
 
 # test-blender (addon.mk) runs tests/blender on bpy 4.5, 4.2 and 5.0.1; test-gui (addon.mk)
 # the extension in a real GUI Blender under Xvfb.

@@ -26,6 +26,7 @@ import numpy as np
 from bpy.props import BoolProperty, FloatProperty
 
 from . import anim, convert, core_loader, display
+from .engine.devices.live import DeviceInput
 from .engine.inputs import SampledTrajectory, TimelineInput
 from .engine.runner import SessionRunner
 from .engine.scene import SceneError, build_world, prepare
@@ -98,11 +99,17 @@ class BlenderSession:
         if live and not scripted.any() and not duration > 0:
             self.duration = float("inf")        # nothing scripted, no length asked: until Esc or Stop
         self.threaded = live and prefs.use_runtime
+        # Serial devices drive their fingers from the core's own threads (docs/devices.md).
+        use_devices = self.threaded and len(getattr(scene, "grasp_lab_devices", ())) > 0
+        if use_devices:
+            self.source = DeviceInput(len(finger_objs), self.source.script())
         options = {}
         if self.threaded:
             # Fingertips moved in the viewport arrive at the display's rate, which under a
-            # software renderer can be 1-2 Hz: that is not stale input (it is for a device).
-            options = {"max_hip_speed": prefs.max_hip_speed, "hip_timeout": 2.0}
+            # software renderer can be 1-2 Hz: that is not stale input (it is for a device;
+            # a serial device's own thread lets its fingers go when it falls silent). A
+            # mouse-dragged fingertip is walked at a bounded speed, a device's as it moves.
+            options = {"max_hip_speed": 0.0 if use_devices else prefs.max_hip_speed, "hip_timeout": 2.0}
         self.runner = SessionRunner(self.handle, self.source, haptic_rate=s.haptic_rate,
                                     use_runtime=self.threaded, record=s.record,
                                     runtime_options=options)
@@ -120,6 +127,10 @@ class BlenderSession:
         self.ended_by = "Stop"      # how it ended, for the report
         self.timer = None
         self.runner.start()
+        self.devices = None
+        if use_devices:
+            from .devices_ui import connect_scene_devices
+            self.devices = connect_scene_devices(scene, self.handle.world)
         self.apply(self.runner.snapshot(), self.frame_start)
 
     # ------------------------------------------------------------- per update
@@ -161,6 +172,8 @@ class BlenderSession:
         ``budget``: wall seconds the main-thread fallback may step for. True when done."""
         if self.source.interactive:
             self.source.set_live([tuple(o.matrix_world.translation) for o in self.finger_objects])
+        if self.devices is not None:
+            self.devices.poll()
         self.runner.advance_to(min(wall_elapsed, self.duration), budget=budget)
         snap = self.runner.snapshot()
         frame = self.frame_start + int(round(min(self.runner.time, self.duration) * self.fps)) \
@@ -194,6 +207,9 @@ class BlenderSession:
                          f"watchdog {st['runtime_watchdog_trips']}   stale {st['runtime_stale_inputs']}   "
                          f"non-finite {st['runtime_nonfinite_forces']}")
             lines.append(st["runtime_priority_note"])
+            if self.devices is not None:
+                from .devices_ui import status_lines
+                lines += status_lines(self.devices)
         else:
             lines.append(f"haptic {st['haptic_rate']:.0f} Hz (target {st['haptic_rate_target']:.0f})   "
                          f"step {st['step_us']:.0f} µs   {st['steps']} steps")
@@ -209,9 +225,15 @@ class BlenderSession:
         if self.finished:
             return self.result
         self.finished = True
+        if self.devices is not None:
+            self.devices.poll()
+            self.devices.close()
         self.runner.stop()
         r = self.result
         r.stats = self.runner.stats()
+        if self.devices is not None:
+            r.stats["device_events"] = list(self.devices.events)
+            self.runner.events += self.devices.events
         r.final = self.snapshot
         if self.bake:
             for name, (frames, vals) in self._baked.items():

@@ -153,6 +153,7 @@ class SessionRunner:
         self.max_step_wall = 0.0    # longest single advance_to, seconds
         self.ticks = []             # wall clock of every advance_to (display rate, jitter)
         self.recording = [] if record else None
+        self.events = []    # (time s, source, event, value): safety events of devices, recorded too
         self._body_index = {bid: i for i, bid in enumerate(handle.body_ids)}
         self._coms = np.array([b.mass_properties.center_of_mass if b.mass_properties is not None
                                else np.zeros(3) for b in handle.desc.bodies]).reshape(-1, 3)
@@ -322,5 +323,9 @@ class SessionRunner:
             residual_force=np.stack([s.force for s in r]),
             residual_torque=np.stack([s.torque for s in r]),
             haptic_rate=self.haptic_rate,
+            event_time=np.array([e[0] for e in self.events], dtype=np.float64),
+            event_source=np.array([str(e[1]) for e in self.events], dtype=str),
+            event_name=np.array([str(e[2]) for e in self.events], dtype=str),
+            event_value=np.array([int(e[3]) for e in self.events], dtype=np.int64),
         )
         return path

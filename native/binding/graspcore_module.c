@@ -761,6 +761,146 @@ static PyObject *World_get_running(PyObject *obj, void *closure) {
     return PyBool_FromLong(gc_world_running(self->world));
 }
 
+/* ---- serial devices ---- */
+
+static PyObject *World_attach_serial(PyObject *obj, PyObject *args, PyObject *kwargs) {
+    WorldObject *self = (WorldObject *)obj;
+    static char *kwlist[] = {"fd", "finger_offset", "num_fingers", "transform", "force_ttl", "lost_timeout",
+                             "max_force", "ramp_time", "max_position", "stall_timeout", "priority", NULL};
+    gcSerialDef def = gc_default_serial_def();
+    int fd;
+    PyObject *transform = Py_None;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "i|$iiOddddddi", kwlist, &fd, &def.finger_offset,
+                                     &def.num_fingers, &transform, &def.force_ttl, &def.lost_timeout, &def.max_force,
+                                     &def.ramp_time, &def.max_position, &def.stall_timeout, &def.priority) ||
+        !check_world(self))
+        return NULL;
+    if (transform != Py_None && !parse_vec(transform, 16, "transform (16 numbers, row-major 4x4)", def.transform))
+        return NULL;
+    int32_t id;
+    gcStatus st = gc_world_attach_serial(self->world, fd, &def, &id);
+    if (st < 0) return raise_status(self, st);
+    return PyLong_FromLong(id);
+}
+
+static int serial_id(WorldObject *self, PyObject *args, int32_t *id, int *flag) {
+    int ok = flag ? PyArg_ParseTuple(args, "ip", id, flag) : PyArg_ParseTuple(args, "i", id);
+    return ok && check_world(self);
+}
+
+static PyObject *serial_result(WorldObject *self, int32_t id, gcStatus st) {
+    if (st == GC_ERR_UNKNOWN_ID) {
+        PyErr_Format(PyExc_ValueError, "device %d: no such serial device", (int)id);
+        return NULL;
+    }
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+}
+
+/* detach_serial(device): joins the device's thread with the GIL released. */
+static PyObject *World_detach_serial(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int32_t id;
+    if (!serial_id(self, args, &id, NULL)) return NULL;
+    gcStatus st;
+    Py_BEGIN_ALLOW_THREADS
+    st = gc_world_detach_serial(self->world, id);
+    Py_END_ALLOW_THREADS
+    return serial_result(self, id, st);
+}
+
+static PyObject *World_serial_enable(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int32_t id;
+    int on;
+    if (!serial_id(self, args, &id, &on)) return NULL;
+    return serial_result(self, id, gc_world_serial_enable(self->world, id, on));
+}
+
+static PyObject *World_serial_estop(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int32_t id;
+    if (!serial_id(self, args, &id, NULL)) return NULL;
+    return serial_result(self, id, gc_world_serial_estop(self->world, id));
+}
+
+static PyObject *World_serial_stats(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int32_t id;
+    if (!serial_id(self, args, &id, NULL)) return NULL;
+    gcSerialStats s;
+    gcStatus st = gc_world_serial_stats(self->world, id, &s);
+    if (st < 0) return serial_result(self, id, st);
+    static const char *states[] = {"waiting", "streaming", "lost", "hangup"};
+    PyObject *errors = Py_BuildValue("{s:K,s:K,s:K,s:K,s:K,s:K,s:K,s:K}", "cobs", s.frame_errors[0], "short",
+                                     s.frame_errors[1], "crc", s.frame_errors[2], "version", s.frame_errors[3],
+                                     "type", s.frame_errors[4], "length", s.frame_errors[5], "overflow",
+                                     s.frame_errors[6], "range", s.frame_errors[7]);
+    if (!errors) return NULL;
+    return Py_BuildValue(
+        "{s:s,s:N,s:i,s:N,s:i,s:d,s:d,s:d,s:s,s:d,s:d,s:K,s:K,s:K,s:K,s:N,s:K,s:K,s:K,s:K,s:K,s:K,s:d,s:d,s:d,s:d,s:N}",
+        "state", states[s.state & 3], "enabled", PyBool_FromLong(s.enabled), "device_fingers", s.device_fingers,
+        "renders_forces", PyBool_FromLong(s.renders_forces), "units", s.units, "device_rate", s.device_rate,
+        "device_force_max", s.device_force_max, "device_ttl_max", s.device_ttl_max, "name", s.name, "pose_rate",
+        s.pose_rate, "last_pose_age", s.last_pose_age, "poses", (unsigned long long)s.poses, "forces_sent",
+        (unsigned long long)s.forces_sent, "heartbeats", (unsigned long long)s.heartbeats, "dropped",
+        (unsigned long long)s.dropped, "frame_errors", errors, "sequence_gaps", (unsigned long long)s.sequence_gaps,
+        "disconnects", (unsigned long long)s.disconnects, "estops", (unsigned long long)s.estops, "stall_zeroes",
+        (unsigned long long)s.stall_zeroes, "write_errors", (unsigned long long)s.write_errors, "push_rejected",
+        (unsigned long long)s.push_rejected, "latency_p50_us", s.latency_p50_us, "latency_p99_us", s.latency_p99_us,
+        "latency_max_us", s.latency_max_us, "gain", s.gain, "rt_priority", PyBool_FromLong(s.rt_priority));
+}
+
+/* push_device_hips(finger_offset, float64 buffer of xyz rows) -> True if taken, False if rejected. */
+static PyObject *World_push_device_hips(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int offset;
+    PyObject *positions;
+    if (!PyArg_ParseTuple(args, "iO", &offset, &positions) || !check_world(self)) return NULL;
+    Py_buffer b;
+    if (PyObject_GetBuffer(positions, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
+    PyObject *result = NULL;
+    if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0 || b.len == 0) {
+        PyErr_SetString(PyExc_ValueError, "positions: must be a C-contiguous float64 array of xyz rows");
+    } else {
+        gcStatus st = gc_world_push_device_hips(self->world, offset, (int)(b.len / (Py_ssize_t)(3 * sizeof(double))),
+                                                b.buf);
+        if (st == GC_ERR_NOT_RUNNING)
+            PyErr_SetString(PyExc_RuntimeError, "push_device_hips: the runtime is not running (World.start)");
+        else if (st < 0)
+            raise_status(self, st);
+        else
+            result = PyBool_FromLong(st == GC_OK);
+    }
+    PyBuffer_Release(&b);
+    return result;
+}
+
+/* serial_events(device) -> [(time, name, value)], popped oldest first. */
+static PyObject *World_serial_events(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int32_t id;
+    if (!serial_id(self, args, &id, NULL)) return NULL;
+    gcSerialStats probe;
+    if (gc_world_serial_stats(self->world, id, &probe) < 0) return serial_result(self, id, GC_ERR_UNKNOWN_ID);
+    static const char *names[] = {"?", "connected", "lost", "recovered", "enabled", "estop", "stall", "dropped"};
+    PyObject *list = PyList_New(0);
+    gcSerialEvent ev[64];
+    int n;
+    while (list && (n = gc_world_serial_events(self->world, id, ev, 64)) > 0) {
+        for (int i = 0; i < n; ++i) {
+            PyObject *item = Py_BuildValue("(dsi)", ev[i].time, names[ev[i].code & 7], (int)ev[i].value);
+            if (!item || PyList_Append(list, item) < 0) {
+                Py_XDECREF(item);
+                Py_DECREF(list);
+                return NULL;
+            }
+            Py_DECREF(item);
+        }
+    }
+    return list;
+}
+
 static PyMethodDef World_methods[] = {
     {"_add_body", World_add_body, METH_VARARGS, "Low-level add_body; use World.add_body."},
     {"add_finger", (PyCFunction)(void (*)(void))World_add_finger, METH_VARARGS | METH_KEYWORDS,
@@ -809,6 +949,19 @@ static PyMethodDef World_methods[] = {
     {"_snapshot", World_snapshot, METH_NOARGS, "Low-level snapshot; use World.snapshot."},
     {"stats", World_stats, METH_NOARGS, "stats() -> dict: rates, jitter, overruns, adoption, inputs, safety."},
     {"_debug_stall", World_debug_stall, METH_O, "Test hook: stall the haptic loop this many seconds once."},
+    {"attach_serial", (PyCFunction)(void (*)(void))World_attach_serial, METH_VARARGS | METH_KEYWORDS,
+     "attach_serial(fd, *, finger_offset=0, num_fingers=1, transform=None (row-major 4x4, device metres -> world), "
+     "force_ttl=0.02, lost_timeout=0.1, max_force=10.0, ramp_time=0.5, max_position=10.0, stall_timeout=0.005, "
+     "priority=70) "
+     "-> device id: a C thread speaks the Grasp Lab serial protocol on fd (docs/protocol.md)."},
+    {"detach_serial", World_detach_serial, METH_VARARGS, "detach_serial(device): stop its thread (fd stays open)."},
+    {"serial_enable", World_serial_enable, METH_VARARGS, "serial_enable(device, on): forces to the device on/off."},
+    {"serial_estop", World_serial_estop, METH_VARARGS, "serial_estop(device): forces off, latched until enabled."},
+    {"serial_stats", World_serial_stats, METH_VARARGS, "serial_stats(device) -> dict: state, rate, drops, latency."},
+    {"push_device_hips", World_push_device_hips, METH_VARARGS,
+     "push_device_hips(finger_offset, array (n, 3) float64): HIPs from a device read in Python (SpaceMouse, glove), "
+     "merged with the serial devices' fingers."},
+    {"serial_events", World_serial_events, METH_VARARGS, "serial_events(device) -> [(time, event, value)] safety events."},
     {NULL, NULL, 0, NULL},
 };
 

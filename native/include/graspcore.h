@@ -263,6 +263,86 @@ gcStatus gc_world_stats(gcWorld *world, gcRuntimeStats *stats);
 /* Test hook: the haptic loop sleeps this long before its next tick, as a stalled loop. */
 gcStatus gc_world_debug_stall(gcWorld *world, double seconds);
 
+/* ---- Serial haptic devices (docs/protocol.md, docs/devices.md) ----
+ * A device speaks the Grasp Lab serial protocol on a file descriptor the caller opened and
+ * configured (pyserial: raw mode, the baud rate) and keeps open until detach. A C thread per
+ * device owns the descriptor's I/O: it says hello, turns pose frames into HIPs of fingers
+ * finger_offset.. (through transform) pushed into the runtime, and answers every pose with a
+ * force frame from the haptic loop's latest device forces. Forces stay zero until
+ * gc_world_serial_enable; they ramp in, are clamped per finger, and are zeroed when the
+ * haptic loop stalls. A device silent for lost_timeout is lost: its fingers let go (their
+ * HIPs follow their god-objects, so no force on bodies or device) until poses come again.
+ * With devices attached, the hub is the HIP producer: do not call push_hips as well. */
+typedef struct gcSerialDef {
+    int finger_offset;          /* first world finger the device drives */
+    int num_fingers;            /* world fingers it drives, >= 1 (a device with fewer drives fewer) */
+    double transform[16];       /* row-major 4x4, device metres -> world; default identity */
+    double force_ttl;           /* s, time to live of each force frame, default 0.02 */
+    double lost_timeout;        /* s without a valid pose before the fingers let go, default 0.1 */
+    double max_force;           /* N per finger (norm); the device's own limit applies too; default 10 */
+    double ramp_time;           /* s, forces ramp in after enable or reconnection, default 0.5 */
+    double max_position;        /* m, a pose coordinate beyond this (device metres) is out of range, default 10 */
+    double stall_timeout;       /* s, haptic-loop output older than this: zero forces, default 0.005 */
+    int priority;               /* SCHED_FIFO priority tried for the device thread, default 70 (below the
+                                 * haptic loop's 80); 0 = normal. Refused -> normal, said in stats */
+} gcSerialDef;
+gcSerialDef gc_default_serial_def(void);
+
+typedef enum gcSerialState {
+    GC_SERIAL_WAITING = 0,      /* hello sent, no capabilities yet */
+    GC_SERIAL_STREAMING = 1,
+    GC_SERIAL_LOST = 2,         /* no valid pose for lost_timeout: fingers let go */
+    GC_SERIAL_HANGUP = 3        /* the descriptor hung up or failed: fingers let go */
+} gcSerialState;
+
+typedef enum gcSerialEventCode {
+    GC_SERIAL_EV_CONNECTED = 1, /* capabilities received (value: device finger count) */
+    GC_SERIAL_EV_LOST = 2,      /* value: 1 hang-up, 0 silence */
+    GC_SERIAL_EV_RECOVERED = 3, /* poses again after a loss */
+    GC_SERIAL_EV_ENABLED = 4,   /* value: 1 on, 0 off */
+    GC_SERIAL_EV_ESTOP = 5,     /* value: reason (0 host, 1 device button, 2 device fault) */
+    GC_SERIAL_EV_STALL = 6,     /* value: 1 forces zeroed for a stalled haptic loop, 0 resumed */
+    GC_SERIAL_EV_DROPPED = 7    /* value: frames dropped since the previous such event (at most 10 Hz) */
+} gcSerialEventCode;
+typedef struct gcSerialEvent {
+    double time;                /* s, CLOCK_MONOTONIC */
+    int32_t code;               /* gcSerialEventCode */
+    int32_t value;
+} gcSerialEvent;
+
+typedef struct gcSerialStats {
+    int state;                  /* gcSerialState */
+    int enabled;                /* forces enabled by the caller (and not e-stopped since) */
+    int device_fingers, renders_forces, units;
+    double device_rate, device_force_max, device_ttl_max;
+    char name[33];
+    double pose_rate;           /* Hz over the last 0.25 s window */
+    double last_pose_age;       /* s since the last valid pose (-1: none yet) */
+    uint64_t poses, forces_sent, heartbeats;
+    uint64_t dropped;           /* frames dropped, the sum of the errors below */
+    uint64_t frame_errors[8];   /* cobs, short, crc, version, type, length, overflow, range */
+    uint64_t sequence_gaps;     /* pose frames missing from the sequence numbers */
+    uint64_t disconnects, estops, stall_zeroes, write_errors, push_rejected;
+    double latency_p50_us, latency_p99_us, latency_max_us; /* pose read -> force frame written */
+    double gain;                /* current ramp gain 0..1 (0 while disabled) */
+    int rt_priority;            /* 1: the device thread runs at SCHED_FIFO */
+} gcSerialStats;
+
+gcStatus gc_world_attach_serial(gcWorld *world, int fd, const gcSerialDef *def, int32_t *out_device);
+/* Joins the device's thread (the descriptor stays open); its fingers keep their last HIPs. */
+gcStatus gc_world_detach_serial(gcWorld *world, int32_t device);
+gcStatus gc_world_serial_enable(gcWorld *world, int32_t device, int enable);
+gcStatus gc_world_serial_estop(gcWorld *world, int32_t device);
+gcStatus gc_world_serial_stats(gcWorld *world, int32_t device, gcSerialStats *stats);
+/* Pops up to capacity safety events, oldest first; returns how many. */
+int gc_world_serial_events(gcWorld *world, int32_t device, gcSerialEvent *out, int capacity);
+/* HIPs of fingers finger_offset .. finger_offset+count-1 from a device read elsewhere (a
+ * SpaceMouse, a glove), merged with the serial devices' fingers and pushed the same way:
+ * the call to use instead of push_hips while serial devices are attached.
+ * GC_WARN_REJECTED: a NaN/Inf position (nothing pushed). */
+gcStatus gc_world_push_device_hips(gcWorld *world, int finger_offset, int count, const double *positions);
+
+
 #ifdef __cplusplus
 }
 #endif

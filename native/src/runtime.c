@@ -179,6 +179,7 @@ static gcRuntime *runtime_alloc(const gcWorld *w) {
     size_t nb = (size_t)w->def.max_bodies, nf = (size_t)w->def.max_fingers;
     rt->max_bodies = w->def.max_bodies;
     rt->max_fingers = w->def.max_fingers;
+    rt->serial = w->serial;
     int ok = shadow_alloc(rt, &rt->hap, w, &rt->hap_active, 1);
     ok &= shadow_alloc(rt, &rt->obj, w, &rt->obj_active, w->def.threads);
     rt->hstate = rt_calloc(rt, nb, 1);

@@ -143,6 +143,7 @@ void gc_rt_haptic_tick(gcRuntime *rt, int64_t now) {
     /* 4. Adoption wishes for the next ticks, device forces, publications. */
     update_adoption(rt);
     int ok = update_safety(rt, now);
+    gc_serial_hub_tick(rt->serial, hw, rt->device_force, ok, now);
     gc_rt_publish_to_object(rt);
     gc_rt_publish_display(rt, now, ok);
     store_double(&rt->haptic_time_bits, hw->time);

@@ -13,6 +13,7 @@
 
 #include "contacts.h"
 #include "hip_input.h"
+#include "serial_io.h"
 #include "step.h"
 
 #include <errno.h>
@@ -131,6 +132,8 @@ typedef struct gcRuntime {
     /* Shadows: each thread's own copy of the world's dynamic state. */
     gcWorld hap, obj;
     unsigned char *hap_active, *obj_active;
+
+    struct gcSerialHub *serial; /* the world's devices: fed every haptic tick */
 
     /* Haptic loop only. */
     unsigned char *hstate;

@@ -117,6 +117,8 @@ struct gcWorld {
     struct gcContactSystem *contacts;
     /* Runtime (runtime.c): made on the first gc_world_start, freed by gc_world_destroy. */
     struct gcRuntime *runtime;
+    /* Serial devices (serial_io.c): made with the world, freed before the runtime. */
+    struct gcSerialHub *serial;
     /* NULL: a step moves every dynamic body. Otherwise only bodies with body_active[i] != 0
      * move; the others are stepped by another runtime thread and are immovable here (their
      * effective mass is marked invalid). Set only in the runtime's per-thread shadows. */

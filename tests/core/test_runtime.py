@@ -267,7 +267,14 @@ def test_haptic_thread_reports_its_setup():
         assert w.stats()["rt_priority"] == note.startswith("haptic loop at SCHED_FIFO")
         tasks = pathlib.Path("/proc/self/task")
         if tasks.is_dir():
-            names = {(t / "comm").read_text().strip() for t in tasks.iterdir()}
+            # start() waits for the haptic thread's set-up only; the object manager names
+            # itself as it starts, a moment later.
+            deadline = time.monotonic() + 2.0
+            while True:
+                names = {(t / "comm").read_text().strip() for t in tasks.iterdir()}
+                if {"gc-haptic", "gc-object"} <= names or time.monotonic() > deadline:
+                    break
+                time.sleep(0.001)
             assert {"gc-haptic", "gc-object"} <= names, names
         w.stop()
 

@@ -592,6 +592,35 @@ def scenario_exec_headless():
     yield 0.0
 
 
+def scenario_device():
+    """A live session driven by an emulated serial device (started by the test, its pty in
+    GRASP_LAB_GUI_DEVICE_PORT): its fingertips grip the box through a workspace frame at the
+    box, forces on, the HUD shows the device; Esc stops it and no core thread is left."""
+    port = os.environ["GRASP_LAB_GUI_DEVICE_PORT"]
+    box = setup_scene(animated=False)
+    bpy.context.scene.cursor.location = box.matrix_world.translation
+    bpy.ops.grasp_lab.device_add(port=port)
+    yield from open_grasp_tab()
+    yield 1.0
+    yield from start_by_click()
+    s = active_session()
+    yield from wait_until(lambda: s.devices is not None and s.devices.devices
+                          and s.devices.devices[0].stats().get("poses", 0) > 800, 15, "the device to stream")
+    bpy.ops.grasp_lab.device_forces(on=True)
+    yield 1.0
+    RESULT["threads_running"] = core_threads()
+    RESULT["contacts"] = [int(c) for c in s.snapshot.contacts]
+    RESULT["hud"] = s.hud_text()
+    screenshot("device")
+    area, win_region, ui = view3d()
+    hover(win_region)
+    yield 0.3
+    xdo("key", "Escape")
+    yield from wait_until(lambda: active_session() is None, 5, "Esc to stop the session")
+    check_stopped("esc")
+    RESULT["device_events"] = [e[2] for e in last_result().stats["device_events"]]
+
+
 SCENARIOS = {name[len("scenario_"):]: fn for name, fn in globals().items() if name.startswith("scenario_")}
 
 

@@ -122,3 +122,27 @@ def test_live_sessions_end_like_the_headless_run_at_every_display_rate(gui):
     for rate, run_ in r["runs"].items():
         assert run_["threaded"], rate
         assert run_["box"] == pytest.approx(headless, abs=1e-3), (rate, run_, headless)
+
+
+def test_a_live_session_driven_by_an_emulated_device(gui):
+    import json
+    import subprocess
+    import sys
+    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--motion", "grip"],
+                           cwd=gui_run.ROOT, stdout=subprocess.PIPE, text=True)
+    try:
+        port = emu.stdout.readline().split()[1]
+        r, console, _ = run(dict(gui, GRASP_LAB_GUI_DEVICE_PORT=port), "device")
+        emu.terminate()
+        out = emu.communicate(timeout=20)[0]
+    finally:
+        emu.kill()
+    ok(r, console)
+    stopped_cleanly(r)
+    assert r["threads_running"] == ["gc-haptic", "gc-object", "gc-serial"]
+    assert r["contacts"] == [0, 0]                          # the device's fingertips grip the box
+    assert f"{port}: streaming, fingers 0..1" in r["hud"] and "forces on" in r["hud"], r["hud"]
+    assert r["device_events"][:2] == ["connected", "enabled"], r["device_events"]
+    report = json.loads([line for line in out.splitlines() if line.startswith("REPORT ")][0][7:])
+    assert report["max_force_n"] > 1.0, report             # forces reached the device once enabled
+    assert report["violations"] == dict.fromkeys(report["violations"], 0), report

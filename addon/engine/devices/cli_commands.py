@@ -1,0 +1,177 @@
+"""The ``devices`` and ``emulate`` commands of ``grasp-lab``, and ``--device`` specs for
+``run`` (docs/devices.md). The CLI dispatcher adds them with ``add_device_commands``;
+the Blender sidebar calls the same functions (``discover``)."""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+from . import protocol as P
+
+
+# ---- discovery ---------------------------------------------------------------------------
+
+def serial_ports() -> list:
+    """Serial ports pyserial sees: dicts with port, description, hwid, vid, pid."""
+    try:
+        from serial.tools import list_ports
+    except ImportError:
+        return []
+    return [{"kind": "serial", "port": p.device, "description": p.description, "hwid": p.hwid,
+             "vid": p.vid, "pid": p.pid} for p in sorted(list_ports.comports(), key=lambda p: p.device)]
+
+
+def hid_devices(spacemice_only: bool = True) -> list:
+    from .spacemouse import VENDORS, enumerate_spacemice, hid_module
+    if spacemice_only:
+        found = enumerate_spacemice()
+    else:
+        try:
+            found = hid_module().enumerate()
+        except ImportError:
+            found = []
+    out = []
+    for d in found:
+        path = d.get("path", b"")
+        out.append({"kind": "spacemouse" if d.get("vendor_id") in VENDORS else "hid",
+                    "path": path.decode("utf-8", "replace") if isinstance(path, bytes) else str(path),
+                    "vid": d.get("vendor_id"), "pid": d.get("product_id"),
+                    "description": d.get("product_string") or "", "usage_page": d.get("usage_page"),
+                    "usage": d.get("usage")})
+    return out
+
+
+def probe(port: str, timeout: float = 1.0) -> dict:
+    """Say hello on a port and return the device's capabilities (a Grasp Lab device), or
+    raise ConnectionError. Python-side and slow: for discovery, never for streaming."""
+    import serial
+    try:
+        s = serial.Serial(port, 1_000_000, timeout=0)
+    except (serial.SerialException, OSError) as e:
+        raise ConnectionError(f"{port}: cannot open ({e})") from e
+    try:
+        s.write(b"\x00" + P.encode(P.HELLO_HOST, 0, P.hello_host(0)))
+        dec, end = P.StreamDecoder(), time.monotonic() + timeout
+        while time.monotonic() < end:
+            for frame in dec.feed(s.read(4096)):
+                if frame.type == P.HELLO_DEVICE:
+                    return P.parse_hello_device(frame.payload)._asdict()
+            time.sleep(0.005)
+        raise ConnectionError(f"{port}: no Grasp Lab hello within {timeout} s "
+                              f"({dec.frames} frames, {dec.dropped} dropped)")
+    finally:
+        s.close()
+
+
+def discover(all_hid: bool = False) -> list:
+    return serial_ports() + hid_devices(spacemice_only=not all_hid)
+
+
+# ---- --device specs -----------------------------------------------------------------------
+
+def parse_device_spec(spec: str) -> dict:
+    """``serial:PORT[@FIRST]`` (a Grasp Lab device driving fingers FIRST.., default 0),
+    ``spacemouse[:PATH]``, ``opengloves:PORT``. Returns a dict; ValueError names what is wrong."""
+    kind, _, rest = spec.partition(":")
+    if kind == "serial":
+        port, _, first = rest.partition("@")
+        if not port:
+            raise ValueError(f"--device {spec!r}: serial needs a port, e.g. serial:/dev/ttyACM0")
+        try:
+            offset = int(first) if first else 0
+        except ValueError:
+            raise ValueError(f"--device {spec!r}: the first finger after '@' must be an integer") from None
+        if offset < 0:
+            raise ValueError(f"--device {spec!r}: the first finger must be >= 0")
+        return {"kind": "serial", "port": port, "finger_offset": offset}
+    if kind == "spacemouse":
+        return {"kind": "spacemouse", "path": rest or None}
+    if kind == "opengloves":
+        if not rest:
+            raise ValueError(f"--device {spec!r}: opengloves needs a port")
+        return {"kind": "opengloves", "port": rest}
+    raise ValueError(f"--device {spec!r}: unknown kind {kind!r} (serial:PORT, spacemouse[:PATH], opengloves:PORT)")
+
+
+# ---- commands ---------------------------------------------------------------------------
+
+def cmd_devices(args, out=None) -> int:
+    out = out or sys.stdout
+    found = discover(all_hid=args.all_hid)
+    if args.probe:
+        for port in args.probe:
+            entry = {"kind": "serial", "port": port}
+            try:
+                entry["grasp_lab"] = probe(port, args.timeout)
+            except ConnectionError as e:
+                entry["error"] = str(e)
+            found.append(entry)
+    if args.json:
+        print(json.dumps(found, indent=1), file=out)
+        return 0
+    if not found:
+        print("no serial ports or SpaceMice found", file=out)
+    for d in found:
+        where = d.get("port") or d.get("path")
+        ids = f"{d['vid']:04x}:{d['pid']:04x}" if d.get("vid") is not None else "-"
+        line = f"{d['kind']:<10} {where:<28} {ids:<10} {d.get('description', '')}"
+        if "grasp_lab" in d:
+            g = d["grasp_lab"]
+            line += (f" Grasp Lab device '{g['name']}': {g['n_fingers']} fingers, {g['rate_hz']} Hz, "
+                     f"{'forces up to %.3g N' % g['force_max'] if g['renders_forces'] else 'input only'}")
+        if "error" in d:
+            line += f" ({d['error']})"
+        print(line, file=out)
+    return 0
+
+
+def cmd_emulate(args) -> int:
+    from . import emulator
+    return emulator.main(args=args)
+
+
+def configure_devices(p) -> None:
+    p.add_argument("--probe", action="append", metavar="PORT", help="say hello on PORT and show its capabilities")
+    p.add_argument("--timeout", type=float, default=1.0, help="seconds to wait for a probed device's hello")
+    p.add_argument("--all-hid", action="store_true", help="list every HID device, not only SpaceMice")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+
+
+DEVICES_HELP = "list serial ports and SpaceMice (and probe Grasp Lab devices)"
+EMULATE_HELP = "run the reference device emulator (on a pty or a port)"
+
+
+def add_device_commands(subparsers) -> None:
+    """The two commands on an argparse subparsers object."""
+    from .emulator import build_parser
+    configure_devices(subparsers.add_parser("devices", help=DEVICES_HELP, description=DEVICES_HELP))
+    subparsers.choices["devices"].set_defaults(func=cmd_devices)
+    e = subparsers.add_parser("emulate", help=EMULATE_HELP, description=EMULATE_HELP)
+    build_parser(e)
+    e.set_defaults(func=cmd_emulate)
+
+
+def register_with(cli) -> None:
+    """Plug into the grasp-lab dispatcher (addon/engine/cli.py: ``register_command``,
+    ``register_device_backend``): the two commands, and the --device kinds whose specs
+    ``parse_device_spec`` reads (headless runs add them to the scene's device list with
+    ``devices_ui.add_device_specs``)."""
+    from .emulator import build_parser
+    cli.register_command("devices", DEVICES_HELP, configure_devices, lambda args, out, err: cmd_devices(args, out))
+    cli.register_command("emulate", EMULATE_HELP, build_parser, lambda args, out, err: cmd_emulate(args))
+    for kind in ("serial", "spacemouse", "opengloves"):
+        cli.register_device_backend(kind, lambda spec, n_fingers=None: parse_device_spec(spec))
+
+
+def main(argv=None) -> int:
+    """Stand-alone entry (until the grasp-lab dispatcher carries these commands)."""
+    parser = argparse.ArgumentParser(prog="grasp-lab")
+    add_device_commands(parser.add_subparsers(dest="command", required=True))
+    args = parser.parse_args(argv)
+    return args.func(args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,365 @@
+"""The reference device emulator: a Grasp Lab serial device (docs/protocol.md) in software.
+
+    python -m addon.engine.devices.emulator (--pty | PORT) [--fingers N]
+        [--motion NAME | --from SCENE.blend] [--rate HZ] [--duration S]
+
+With ``--pty`` it opens a pseudo-terminal in raw mode and prints ``PORT /dev/pts/N`` as its
+first line; the host opens that path. After the host's hello it answers with its
+capabilities and streams pose frames at the rate, playing a named motion (``MOTIONS``)
+or the fingertip animation of a .blend. It behaves as firmware must: forces stay off
+until ENABLE(1), each force frame lives for its TTL, an e-stop latches. It checks every
+force frame it gets (finger count, NaN, the force limit, the TTL limit, forces while
+disabled), measures pose-to-force latency by the acknowledged sequence number, and prints
+a report (``REPORT {json}``) when it ends (duration, SIGTERM or SIGINT).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import select
+import signal
+import sys
+import time
+import tty
+
+if __package__ in (None, ""):
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))))
+    from addon.engine.devices import protocol as P  # noqa: E402
+else:
+    from . import protocol as P
+
+
+# ---- motions: fingertip positions (device metres) of n fingers at time t ---------------
+
+def _ring(n, radius, z):
+    if n == 1:
+        return [(radius, 0.0, z)]
+    return [(radius * math.cos(2 * math.pi * i / n), radius * math.sin(2 * math.pi * i / n), z) for i in range(n)]
+
+
+def motion_static(t, n):
+    return _ring(n, 0.06, 0.0)
+
+
+def motion_grip(t, n):
+    """Close from 6 cm to 3 cm from the centre over 0.5 s, then hold."""
+    return _ring(n, 0.06 - 0.03 * min(1.0, t / 0.5), 0.0)
+
+
+def motion_pinch(t, n):
+    """Close and open every 4 s (3 to 6 cm from the centre)."""
+    return _ring(n, 0.045 + 0.015 * math.cos(2 * math.pi * t / 4.0), 0.0)
+
+
+def motion_circle(t, n):
+    """The whole hand circles 2 cm around the centre every 2 s, 6 cm open."""
+    cx, cy = 0.02 * math.cos(math.pi * t), 0.02 * math.sin(math.pi * t)
+    return [(x + cx, y + cy, z) for x, y, z in _ring(n, 0.06, 0.0)]
+
+
+def motion_lift(t, n):
+    """Grip (0.5 s), then lift 5 cm over 1 s and hold."""
+    z = 0.05 * min(1.0, max(0.0, t - 0.5))
+    return _ring(n, 0.06 - 0.03 * min(1.0, t / 0.5), z)
+
+
+MOTIONS = {"static": motion_static, "grip": motion_grip, "pinch": motion_pinch, "circle": motion_circle,
+           "lift": motion_lift}
+
+
+def motion_from_blend(path):
+    """The fingertip animation of a Grasp Lab .blend, looped, as (motion, finger count).
+    Positions are the fingertips' world coordinates: with an identity workspace frame the
+    device replays the scene's own animation. Needs the bpy module."""
+    try:
+        import bpy
+    except ImportError as e:
+        raise SystemExit(f"--from {path}: reading a .blend needs the bpy module ({e})")
+    from ..inputs import SampledTrajectory
+    if not os.path.exists(path):
+        raise SystemExit(f"--from {path}: no such file")
+    # Blender prints to the C stdout while reading; the first line of ours must be "PORT ...".
+    sys.stdout.flush()
+    saved = os.dup(1)
+    os.dup2(2, 1)
+    try:
+        bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))
+        times, positions = _sample_fingertips(bpy.context.scene)
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+    track = SampledTrajectory(times, positions)
+    period = max(track.duration, 1e-9)
+    return (lambda t, n: [tuple(p) for p in track.hips_at(t % period)]), track.n_fingers
+
+
+def _finger_channel(obj):
+    """The device channel of a fingertip object, None for other objects. Reads the add-on's
+    properties, or their stored values when the add-on is not registered (role FINGER = 3)."""
+    gl = getattr(obj, "grasp_lab", None)
+    if gl is not None and hasattr(gl, "role"):
+        return gl.channel if gl.role == "FINGER" else None
+    raw = obj.get("grasp_lab")
+    if raw is None or raw.get("role", 0) != 3:
+        return None
+    return raw.get("channel", 0)
+
+
+def _sample_fingertips(scene):
+    tips = sorted((o for o in scene.objects if _finger_channel(o) is not None),
+                  key=lambda o: (_finger_channel(o), o.name))
+    if not tips:
+        raise SystemExit("--from: the .blend has no fingertip objects (role Finger)")
+    fps = scene.render.fps / scene.render.fps_base
+    times, positions = [], []
+    for frame in range(scene.frame_start, max(scene.frame_end, scene.frame_start + 1) + 1):
+        scene.frame_set(frame)
+        times.append((frame - scene.frame_start) / fps)
+        positions.append([tuple(o.matrix_world.translation) for o in tips])
+    return times, positions
+
+
+# ---- the device -------------------------------------------------------------------------
+
+class ForceChecker:
+    """Every force frame against the device's rules; counts what broke them."""
+
+    def __init__(self, n_fingers, force_max, ttl_max_ms):
+        self.n, self.force_max, self.ttl_max_us = n_fingers, force_max, ttl_max_ms * 1000
+        self.frames = 0
+        self.violations = dict.fromkeys(("fingers", "nan", "over_limit", "ttl", "while_disabled"), 0)
+        self.max_norm = 0.0
+        self.last_ttl_us = 0
+
+    def check(self, force: "P.Force", enabled: bool) -> list:
+        """The forces the device renders (clamped; zero when disabled), noting violations."""
+        self.frames += 1
+        self.last_ttl_us = force.ttl_us
+        if len(force.forces) != self.n:
+            self.violations["fingers"] += 1
+            return [(0.0, 0.0, 0.0)] * self.n
+        if force.ttl_us > self.ttl_max_us or force.ttl_us == 0:
+            self.violations["ttl"] += 1
+        out = []
+        for f in force.forces:
+            norm = math.sqrt(sum(c * c for c in f))
+            if norm != norm:
+                self.violations["nan"] += 1
+                f, norm = (0.0, 0.0, 0.0), 0.0
+            if norm > self.force_max * (1 + 1e-6) + 1e-6:
+                self.violations["over_limit"] += 1
+                f = tuple(c * self.force_max / norm for c in f)
+            if norm > 0 and not enabled:
+                self.violations["while_disabled"] += 1
+                f = (0.0, 0.0, 0.0)
+            self.max_norm = max(self.max_norm, min(norm, self.force_max))
+            out.append(f)
+        return out
+
+
+def _percentile(sorted_values, q):
+    if not sorted_values:
+        return None
+    return sorted_values[min(len(sorted_values) - 1, int(math.ceil(q * len(sorted_values))) - 1)]
+
+
+class Emulator:
+    def __init__(self, fd, n_fingers=2, motion=motion_grip, rate=1000.0, force_max=5.0, ttl_max_ms=50,
+                 renders_forces=True, name="grasp-lab-emulator", corrupt_every=0):
+        self.fd = fd
+        self.n = int(n_fingers)
+        self.motion = motion
+        self.rate = float(rate)
+        self.hello = P.hello_device(self.n, renders_forces, P.UNITS_METRE, int(rate), force_max, ttl_max_ms, name)
+        self.decoder = P.StreamDecoder()
+        self.checker = ForceChecker(self.n, force_max, ttl_max_ms)
+        self.corrupt_every = int(corrupt_every)
+        self.seq = 0
+        self.enabled = False
+        self.estopped = False
+        self.host_hellos = 0
+        self.sent_at = {}          # pose seq -> send time, until acknowledged
+        self.latencies = []        # s, pose sent -> its force frame received
+        self.force_expiry = 0.0    # the applied force lives until then
+        self.ttl_expiries = 0
+        self.rendered = [(0.0, 0.0, 0.0)] * self.n
+        self.poses_sent = 0
+        self.write_errors = 0
+        self.stop = False
+        self.started = None
+
+    def _send(self, type_, payload):
+        frame = P.encode(type_, self.seq, payload)
+        if self.corrupt_every and type_ == P.POSE and self.seq % self.corrupt_every == 0:
+            frame = frame[:2] + bytes([frame[2] ^ 0x40 or 1]) + frame[3:]   # a CRC error, still framed
+        self.seq = (self.seq + 1) & 0xFFFF
+        try:
+            os.write(self.fd, frame)
+        except (BlockingIOError, OSError):
+            self.write_errors += 1
+
+    def _on_frame(self, frame, now):
+        if frame.type == P.HELLO_HOST:
+            self.host_hellos += 1
+            self._send(P.HELLO_DEVICE, self.hello)
+            if self.started is None:
+                self.started = now
+        elif frame.type == P.ENABLE:
+            self.enabled = bool(P.parse_u8(frame.payload))   # ENABLE(1) also clears a latched e-stop
+            self.estopped = self.estopped and not self.enabled
+        elif frame.type == P.ESTOP:
+            self.enabled, self.estopped = False, True
+        elif frame.type == P.FORCE:
+            try:
+                force = P.parse_force(frame.payload)
+            except P.ProtocolError:
+                self.checker.violations["nan"] += 1
+                return
+            self.rendered = self.checker.check(force, self.enabled)
+            self.force_expiry = now + force.ttl_us * 1e-6
+            sent = self.sent_at.pop(force.ack_seq, None)
+            if sent is not None:
+                self.latencies.append(now - sent)
+
+    def _read(self, timeout):
+        r, _, _ = select.select([self.fd], [], [], max(0.0, timeout))
+        if not r:
+            return
+        try:
+            data = os.read(self.fd, 65536)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError:       # the host side is gone (EIO on a pty)
+            time.sleep(max(0.0, timeout))
+            return
+        now = time.perf_counter()
+        for frame in self.decoder.feed(data):
+            self._on_frame(frame, now)
+
+    def run(self, duration=None, wait_hello=30.0):
+        t_open = time.perf_counter()
+        while self.started is None and not self.stop:
+            if time.perf_counter() - t_open > wait_hello:
+                raise TimeoutError(f"no hello from the host within {wait_hello} s")
+            self._read(0.05)
+        period = 1.0 / self.rate
+        next_t = time.perf_counter()
+        while not self.stop:
+            now = time.perf_counter()
+            t = now - self.started
+            if duration is not None and t >= duration:
+                break
+            if self.force_expiry and now > self.force_expiry and any(any(f) for f in self.rendered):
+                self.ttl_expiries += 1        # the host went quiet: the device lets go by itself
+                self.rendered = [(0.0, 0.0, 0.0)] * self.n
+            status = (P.STATUS_FORCES_ON if self.enabled else 0) | (P.STATUS_ESTOPPED if self.estopped else 0)
+            positions = self.motion(t, self.n)
+            self._send(P.POSE, P.pose(int(t * 1e6), positions, status))
+            self.sent_at[(self.seq - 1) & 0xFFFF] = now
+            if len(self.sent_at) > 4096:     # never acknowledged: forget the oldest
+                for k in list(self.sent_at)[:2048]:
+                    del self.sent_at[k]
+            self.poses_sent += 1
+            next_t += period
+            if next_t < time.perf_counter() - 0.1:     # far behind (suspended): do not burst
+                next_t = time.perf_counter()
+            while not self.stop:
+                remaining = next_t - time.perf_counter()
+                if remaining <= 0:
+                    break
+                self._read(remaining)
+        return self.report(time.perf_counter() - (self.started or t_open))
+
+    def report(self, elapsed):
+        lat = sorted(self.latencies)
+        c = self.checker
+        return {
+            "fingers": self.n, "rate_hz": self.rate, "elapsed_s": round(elapsed, 3),
+            "host_hellos": self.host_hellos, "poses_sent": self.poses_sent,
+            "force_frames": c.frames, "force_rate_hz": round(c.frames / elapsed, 1) if elapsed > 0 else 0.0,
+            "enabled": self.enabled, "estopped": self.estopped,
+            "violations": c.violations, "ttl_expiries": self.ttl_expiries, "last_ttl_us": c.last_ttl_us,
+            "max_force_n": round(c.max_norm, 6), "rendered": [list(f) for f in self.rendered],
+            "latency_p50_ms": _ms(_percentile(lat, 0.50)), "latency_p99_ms": _ms(_percentile(lat, 0.99)),
+            "latency_max_ms": _ms(lat[-1] if lat else None), "unacknowledged": self.poses_sent - len(lat),
+            "host_frames_dropped": self.decoder.errors, "write_errors": self.write_errors,
+        }
+
+
+def _ms(v):
+    return None if v is None else round(v * 1e3, 4)
+
+
+def open_pty():
+    """A raw-mode pseudo-terminal: (master fd the emulator uses, slave fd kept open, slave path)."""
+    master, slave = os.openpty()
+    tty.setraw(slave)          # no echo, no line discipline: bytes pass unchanged
+    tty.setraw(master)
+    os.set_blocking(master, False)
+    return master, slave, os.ttyname(slave)
+
+
+def build_parser(parser=None):
+    p = parser or argparse.ArgumentParser(prog="grasp-lab emulate", description=__doc__.split("\n\n")[0])
+    where = p.add_mutually_exclusive_group(required=True)
+    where.add_argument("--pty", action="store_true", help="open a pseudo-terminal and print its path")
+    where.add_argument("port", nargs="?", help="a serial port to speak on (e.g. one end of a null-modem pair)")
+    what = p.add_mutually_exclusive_group()
+    what.add_argument("--motion", default="grip", choices=sorted(MOTIONS), help="named demo motion (default grip)")
+    what.add_argument("--from", dest="from_blend", metavar="SCENE.blend", help="play the fingertip animation of a .blend")
+    p.add_argument("--fingers", type=int, default=2, help="fingertips (default 2)")
+    p.add_argument("--rate", type=float, default=1000.0, help="pose rate, Hz (default 1000)")
+    p.add_argument("--duration", type=float, default=None, help="stop after this many seconds of streaming")
+    p.add_argument("--force-max", type=float, default=5.0, help="the device's force limit, N per finger (default 5)")
+    p.add_argument("--ttl-max", type=int, default=50, help="longest force TTL the device accepts, ms (default 50)")
+    p.add_argument("--corrupt-every", type=int, default=0, help="break the CRC of every Kth pose frame (tests)")
+    p.add_argument("--wait", type=float, default=30.0, help="seconds to wait for the host's hello (default 30)")
+    p.add_argument("--report", metavar="PATH", help="also write the report as JSON here")
+    return p
+
+
+def main(argv=None, args=None):
+    args = args or build_parser().parse_args(argv)
+    if not 1 <= args.fingers <= P.MAX_FINGERS:
+        raise SystemExit(f"--fingers: {args.fingers} outside 1..{P.MAX_FINGERS}")
+    if not 1.0 <= args.rate <= 10000.0:
+        raise SystemExit(f"--rate: {args.rate} Hz outside 1..10000")
+    motion, n = MOTIONS[args.motion], args.fingers
+    if args.from_blend:
+        motion, n = motion_from_blend(args.from_blend)
+    serial_port = slave = None
+    if args.pty:
+        fd, slave, path = open_pty()
+    else:
+        import serial
+        serial_port = serial.Serial(args.port, 115200, timeout=0)
+        fd, path = serial_port.fileno(), args.port
+    print(f"PORT {path}", flush=True)
+    emu = Emulator(fd, n, motion, args.rate, args.force_max, args.ttl_max, corrupt_every=args.corrupt_every)
+
+    def stop(signum, frame):
+        emu.stop = True
+    signal.signal(signal.SIGTERM, stop)
+    signal.signal(signal.SIGINT, stop)
+    try:
+        report = emu.run(args.duration, args.wait)
+    except TimeoutError as e:
+        print(f"error: {e}", file=sys.stderr, flush=True)
+        return 2
+    finally:
+        if serial_port is not None:
+            serial_port.close()
+    print("REPORT " + json.dumps(report), flush=True)
+    if args.report:
+        with open(args.report, "w") as fh:
+            json.dump(report, fh, indent=1)
+    if slave is not None:
+        os.close(slave)
+        os.close(fd)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

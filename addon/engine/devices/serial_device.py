@@ -1,0 +1,103 @@
+"""A Grasp Lab serial device attached to a running world (docs/devices.md).
+
+pyserial opens and configures the port (raw, 8N1, the baud rate; a pseudo-terminal
+ignores the rate); the C core's device thread then owns its I/O at the haptic rate. This
+class only holds the port open and talks to the core's API: it never reads the port.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+DEFAULT_BAUD = 1_000_000
+
+
+def workspace_matrix(transform) -> list:
+    """A workspace frame (4x4, device metres -> world) as 16 row-major numbers, checked."""
+    m = np.eye(4) if transform is None else np.asarray(transform, dtype=np.float64)
+    if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+        raise ValueError(f"transform: need a finite 4x4 matrix, got shape {m.shape}")
+    if not np.allclose(m[3], (0, 0, 0, 1)):
+        raise ValueError("transform: the last row must be (0, 0, 0, 1)")
+    if abs(np.linalg.det(m[:3, :3])) < 1e-12:
+        raise ValueError("transform: singular (a workspace frame must keep three dimensions)")
+    return [float(v) for v in m.reshape(-1)]
+
+
+class SerialDevice:
+    """One device on one port, driving world fingers ``finger_offset ..``."""
+
+    def __init__(self, world, port: str, finger_offset: int = 0, num_fingers: int = 1, transform=None,
+                 baud: int = DEFAULT_BAUD, label: str | None = None, **limits):
+        self.world = world
+        self.label = label or port
+        self.port = port
+        self.finger_offset = int(finger_offset)
+        self.num_fingers = int(num_fingers)
+        self.transform = workspace_matrix(transform)
+        self.baud = int(baud)
+        self.limits = limits        # force_ttl, lost_timeout, max_force, ramp_time, max_position, stall_timeout
+        self.serial = None
+        self.device_id = None
+        self.enabled = False
+
+    def connect(self) -> None:
+        import serial
+        try:
+            self.serial = serial.Serial(self.port, self.baud, timeout=0, write_timeout=0, exclusive=True)
+        except (serial.SerialException, OSError) as e:
+            raise ConnectionError(f"{self.port}: cannot open the port ({e})") from e
+        try:
+            self.device_id = self.world.attach_serial(
+                self.serial.fileno(), finger_offset=self.finger_offset, num_fingers=self.num_fingers,
+                transform=self.transform, **self.limits)
+        except Exception:
+            self.serial.close()
+            self.serial = None
+            raise
+        if self.enabled:
+            self.world.serial_enable(self.device_id, True)
+
+    def disconnect(self) -> None:
+        if self.device_id is not None:
+            self.world.detach_serial(self.device_id)
+            self.device_id = None
+        if self.serial is not None:
+            self.serial.close()
+            self.serial = None
+
+    def reconnect(self, port: str | None = None) -> None:
+        """After an unplug (state 'hangup'): reopen the port (or a new one), same fingers."""
+        self.disconnect()
+        if port:
+            self.port = port
+        self.connect()
+
+    @property
+    def connected(self) -> bool:
+        return self.device_id is not None
+
+    def enable(self, on: bool = True) -> None:
+        """Forces to the device on or off (they ramp in from zero when turned on)."""
+        self.enabled = bool(on)
+        if self.device_id is not None:
+            self.world.serial_enable(self.device_id, self.enabled)
+
+    def estop(self) -> None:
+        self.enabled = False
+        if self.device_id is not None:
+            self.world.serial_estop(self.device_id)
+
+    def stats(self) -> dict:
+        if self.device_id is None:
+            return {"state": "disconnected", "enabled": False}
+        return self.world.serial_stats(self.device_id)
+
+    def events(self) -> list:
+        return [] if self.device_id is None else self.world.serial_events(self.device_id)
+
+    def __enter__(self):
+        self.connect()
+        return self
+
+    def __exit__(self, *exc):
+        self.disconnect()

@@ -1,0 +1,412 @@
+/* Serial devices (serial_io.c): the codec against tests/devices/protocol_vectors.txt (the
+ * same file the Python codec is checked against), a fuzzed stream decoder, and a device
+ * thread on a socket pair with the runtime running: hello, poses in, forces out (zero until
+ * enabled, ramped, clamped to the device's limit), malformed and NaN frames dropped and
+ * counted, and a device that falls silent or hangs up letting go of the body. */
+#define _GNU_SOURCE
+#include "gc_test.h"
+#include "graspcore.h"
+#include "serial_io.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <poll.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <time.h>
+#include <unistd.h>
+
+#define VECTORS "tests/devices/protocol_vectors.txt"
+
+static int unhex(const char *s, uint8_t *out, size_t cap) {
+    if (!strcmp(s, "-")) return 0;
+    size_t n = strlen(s);
+    if (n % 2 || n / 2 > cap) return -1;
+    for (size_t i = 0; i < n / 2; ++i) {
+        unsigned v;
+        if (sscanf(s + 2 * i, "%2x", &v) != 1) return -1;
+        out[i] = (uint8_t)v;
+    }
+    return (int)(n / 2);
+}
+
+static const char *kind_names[] = {"cobs", "short", "crc", "version", "type", "length", "overflow", "range"};
+
+static void test_crc_and_cobs(void) {
+    GC_CHECK(gc_crc16((const uint8_t *)"123456789", 9) == 0x29B1, "CRC check value 0x%04X", gc_crc16((const uint8_t *)"123456789", 9));
+    uint8_t in[300], enc[400], dec[400];
+    for (int i = 0; i < 255; ++i) in[i] = (uint8_t)(i + 1);
+    size_t n = gc_cobs_encode(in, 254, enc), m = 0;
+    GC_CHECK(n == 255 && enc[0] == 0xFF, "254 non-zero bytes: %zu bytes, code 0x%02X", n, enc[0]);
+    GC_CHECK(gc_cobs_decode(enc, n, dec, sizeof dec, &m) == 0 && m == 254 && !memcmp(dec, in, 254), "round trip");
+    const uint8_t z[1] = {0};
+    n = gc_cobs_encode(z, 1, enc);
+    GC_CHECK(n == 2 && enc[0] == 1 && enc[1] == 1, "one zero -> 01 01");
+    const uint8_t past[2] = {0x05, 0x11};
+    GC_CHECK(gc_cobs_decode(past, 2, dec, sizeof dec, &m) == -1, "a block running past the end is refused");
+}
+
+static void test_vectors(void) {
+    FILE *f = fopen(VECTORS, "r");
+    GC_CHECK(f != NULL, "cannot open %s (run from the repository root)", VECTORS);
+    if (!f) return;
+    char line[8192];
+    int ok_count = 0, bad_count = 0;
+    while (fgets(line, sizeof line, f)) {
+        if (line[0] == '#' || line[0] == '\n') continue;
+        char kind[8], name[64], a[32], b[32], payload_hex[4096], wire_hex[4096];
+        uint8_t payload[2048], wire[2048], out[GC_PROTO_WIRE_MAX + 1];
+        if (sscanf(line, "%7s", kind) != 1) continue;
+        if (!strcmp(kind, "ok")) {
+            GC_CHECK(sscanf(line, "%*s %63s %31s %31s %4095s %4095s", name, a, b, payload_hex, wire_hex) == 5, "line: %s", line);
+            int np = unhex(payload_hex, payload, sizeof payload), nw = unhex(wire_hex, wire, sizeof wire);
+            int type = atoi(a), seq = atoi(b);
+            size_t len = gc_frame_encode((uint8_t)type, (uint16_t)seq, payload, (size_t)np, out);
+            GC_CHECK(len == (size_t)nw && !memcmp(out, wire, len), "%s: encoding differs", name);
+            gcFrame fr;
+            gcFrameError e = gc_frame_decode(wire, (size_t)nw - 1, &fr);
+            GC_CHECK(e == GC_FRAME_OK && fr.type == type && fr.seq == seq && fr.len == (size_t)np &&
+                         !memcmp(fr.payload, payload, (size_t)np),
+                     "%s: decode (error %d)", name, e);
+            ++ok_count;
+        } else {
+            char want[16];
+            GC_CHECK(sscanf(line, "%*s %63s %15s %4095s", name, want, wire_hex) == 3, "line: %s", line);
+            int nw = unhex(wire_hex, wire, sizeof wire);
+            gcFrame fr;
+            gcFrameError e = gc_frame_decode(wire, (size_t)nw - 1, &fr);
+            if (!strcmp(want, "range")) /* a valid frame whose payload the device thread refuses */
+                GC_CHECK(e == GC_FRAME_OK && fr.type == GC_MSG_POSE && gc_lef32(fr.payload + 6) != gc_lef32(fr.payload + 6),
+                         "%s: a pose frame with a NaN", name);
+            else
+                GC_CHECK(e >= 0 && !strcmp(kind_names[e], want), "%s: error %s, want %s", name, e >= 0 ? kind_names[e] : "ok", want);
+            ++bad_count;
+        }
+    }
+    fclose(f);
+    GC_CHECK(ok_count >= 10 && bad_count >= 8, "vectors read: %d ok, %d bad", ok_count, bad_count);
+}
+
+static uint32_t rng_state = 12345;
+static uint32_t rng(void) {
+    rng_state ^= rng_state << 13;
+    rng_state ^= rng_state >> 17;
+    rng_state ^= rng_state << 5;
+    return rng_state;
+}
+
+static void test_fuzzed_decoder(void) {
+    uint8_t frame[GC_PROTO_WIRE_MAX + 1], payload[64];
+    for (int i = 0; i < 64; ++i) payload[i] = (uint8_t)(i * 37);
+    payload[4] = 1; /* a one-finger pose */
+    size_t flen = gc_frame_encode(GC_MSG_POSE, 77, payload, 18, frame);
+    gcFrameDecoder *d = malloc(sizeof *d);
+    gcFrame fr;
+    int resynced = 0, trials = 2000;
+    for (int t = 0; t < trials; ++t) {
+        gc_decoder_reset(d);
+        int n = 1 + (int)(rng() % 1500);
+        for (int i = 0; i < n; ++i) (void)gc_decoder_push(d, (uint8_t)(rng() & 0xFF), &fr);
+        (void)gc_decoder_push(d, 0, &fr);
+        int got = 0;
+        for (size_t i = 0; i < flen; ++i) got += gc_decoder_push(d, frame[i], &fr);
+        resynced += got == 1 && fr.type == GC_MSG_POSE && fr.seq == 77 && fr.len == 18;
+    }
+    GC_CHECK(resynced == trials, "resynchronised after noise in %d of %d trials", resynced, trials);
+    free(d);
+}
+
+/* ---- a device on a socket pair ------------------------------------------------------- */
+
+typedef struct Dev {
+    int fd;
+    uint16_t seq;
+    gcFrameDecoder dec;
+    gcFrame last_force;
+    int forces, enables, hellos;
+    int last_enable;
+} Dev;
+
+static void dev_send(Dev *d, uint8_t type, const uint8_t *p, size_t n) {
+    uint8_t wire[GC_PROTO_WIRE_MAX + 1];
+    size_t len = gc_frame_encode(type, d->seq++, p, n, wire);
+    GC_CHECK(write(d->fd, wire, len) == (ssize_t)len, "device write");
+}
+
+static void dev_pose(Dev *d, double x, double y, double z) {
+    uint8_t p[18];
+    gc_put32(p, d->seq * 1000u);
+    p[4] = 1;
+    p[5] = 0;
+    gc_putf32(p + 6, (float)x), gc_putf32(p + 10, (float)y), gc_putf32(p + 14, (float)z);
+    dev_send(d, GC_MSG_POSE, p, 18);
+}
+
+static void dev_read(Dev *d, int timeout_ms) {
+    struct pollfd pfd = {.fd = d->fd, .events = POLLIN};
+    uint8_t buf[4096];
+    while (poll(&pfd, 1, timeout_ms) > 0) {
+        ssize_t k = read(d->fd, buf, sizeof buf);
+        if (k <= 0) return;
+        gcFrame fr;
+        for (ssize_t i = 0; i < k; ++i) {
+            if (!gc_decoder_push(&d->dec, buf[i], &fr)) continue;
+            if (fr.type == GC_MSG_FORCE) d->last_force = fr, d->forces++;
+            if (fr.type == GC_MSG_HELLO_HOST) d->hellos++;
+            if (fr.type == GC_MSG_ENABLE) d->enables++, d->last_enable = fr.payload[0];
+        }
+        timeout_ms = 0;
+    }
+}
+
+static double force_z(const Dev *d) { return d->forces ? gc_lef32(d->last_force.payload + 6 + 8) : NAN; }
+
+static void sleep_ms(int ms) {
+    struct timespec ts = {ms / 1000, (long)(ms % 1000) * 1000000L};
+    nanosleep(&ts, NULL);
+}
+
+/* Poses for `ms` milliseconds, one a millisecond, reading what comes back in between. */
+static void stream(Dev *d, int ms, double z) {
+    struct timespec next;
+    clock_gettime(CLOCK_MONOTONIC, &next);
+    for (int i = 0; i < ms; ++i) {
+        dev_pose(d, 0, 0, z);
+        dev_read(d, 0);
+        next.tv_nsec += 1000000;
+        if (next.tv_nsec >= 1000000000L) next.tv_nsec -= 1000000000L, next.tv_sec++;
+        clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, NULL);
+        dev_read(d, 0);
+    }
+}
+
+static void spring(gcWorld *w, double out[3]) {
+    gcSnapshot s;
+    memset(&s, 0, sizeof s);
+    s.spring_forces = out;
+    gc_world_snapshot(w, &s);
+}
+
+static void test_device_thread(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    double pts[24];
+    for (int i = 0; i < 8; ++i) {
+        pts[3 * i] = (i & 1) ? 0.1 : -0.1;
+        pts[3 * i + 1] = (i & 2) ? 0.1 : -0.1;
+        pts[3 * i + 2] = (i & 4) ? 0.0 : -0.2; /* top face at z = 0 */
+    }
+    gcPartDef part = {pts, 8, 0.0};
+    gcBodyDef bd = gc_default_body_def();
+    bd.is_static = 1;
+    int32_t ground;
+    GC_CHECK(gc_world_add_body(w, &bd, &part, 1, &ground) == GC_OK, "ground");
+    gcFingerDef fd = gc_default_finger_def(); /* radius 8 mm, 1000 N/m */
+    fd.position[2] = 0.05;
+    int32_t finger;
+    GC_CHECK(gc_world_add_finger(w, &fd, &finger) == GC_OK, "finger");
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    rd.ramp_time = 0.0;
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start: %s", gc_world_last_error(w));
+
+    int sv[2];
+    GC_CHECK(socketpair(AF_UNIX, SOCK_STREAM, 0, sv) == 0, "socketpair");
+    fcntl(sv[0], F_SETFL, O_NONBLOCK);
+    Dev dev = {.fd = sv[1]};
+    gc_decoder_reset(&dev.dec);
+
+    gcSerialDef sd = gc_default_serial_def();
+    sd.num_fingers = 1;
+    sd.transform[11] = -0.1; /* world z = device z - 0.1 */
+    sd.ramp_time = 0.05;
+    sd.max_force = 10.0;
+    int32_t id = -1;
+    sd.finger_offset = 1;
+    GC_CHECK(gc_world_attach_serial(w, sv[0], &sd, &id) == GC_ERR_INVALID_ARGUMENT &&
+                 strstr(gc_world_last_error(w), "finger_offset"),
+             "a finger the world does not have is refused: %s", gc_world_last_error(w));
+    sd.finger_offset = 0;
+    GC_CHECK(gc_world_attach_serial(w, sv[0], &sd, &id) == GC_OK, "attach: %s", gc_world_last_error(w));
+
+    dev_read(&dev, 200);
+    GC_CHECK(dev.hellos >= 1, "the host says hello first");
+    uint8_t hello[12 + 4];
+    memset(hello, 0, sizeof hello);
+    hello[0] = 1, hello[1] = GC_CAP_FORCES, hello[2] = 0;
+    gc_put16(hello + 4, 1000);
+    gc_putf32(hello + 6, 3.0f); /* the device's own limit: 3 N */
+    gc_put16(hello + 10, 50);
+    memcpy(hello + 12, "test", 4);
+    dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, sizeof hello);
+
+    /* Pressing 2 mm into the ground (HIP z = -0.002, GO at the radius): 10 N of spring,
+     * but nothing reaches the device before enable. */
+    stream(&dev, 150, 0.098);
+    double sp[3];
+    spring(w, sp);
+    GC_CHECK(fabs(sp[2] - 10.0) < 0.5, "spring force %.3f N, expected k * 10 mm = 10 N", sp[2]);
+    GC_CHECK(dev.forces > 100 && force_z(&dev) == 0.0, "%d force frames, z %.3f before enable", dev.forces, force_z(&dev));
+    GC_CHECK(dev.enables >= 1 && dev.last_enable == 0, "the host tells the device forces are off");
+
+    gc_world_serial_enable(w, id, 1);
+    stream(&dev, 5, 0.098);
+    double ramping = force_z(&dev);
+    stream(&dev, 150, 0.098);
+    GC_CHECK(ramping > 0.0 && ramping < 3.0, "ramping in: %.3f N", ramping);
+    GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-5, "clamped to the device's 3 N: %.4f", force_z(&dev));
+    GC_CHECK(dev.last_enable == 1, "ENABLE(1) sent");
+    GC_CHECK(gc_le16(dev.last_force.payload + 2) == 20000, "TTL %u us", gc_le16(dev.last_force.payload + 2));
+
+    /* Garbage, a NaN pose, a pose out of the workspace: dropped and counted; poses go on. */
+    uint8_t junk[] = {0x33, 0x44, 0x00, 0x05, 0x01, 0x00};
+    GC_CHECK(write(dev.fd, junk, sizeof junk) == sizeof junk, "junk");
+    dev_pose(&dev, NAN, 0, 0.098);
+    dev_pose(&dev, 0, 0, 50.0);
+    stream(&dev, 50, 0.098);
+    gcSerialStats st;
+    sleep_ms(20);
+    gc_world_serial_stats(w, id, &st);
+    GC_CHECK(st.state == GC_SERIAL_STREAMING && st.frame_errors[GC_FRAME_RANGE] == 2 && st.dropped >= 4,
+             "state %d, range %llu, dropped %llu", st.state, (unsigned long long)st.frame_errors[GC_FRAME_RANGE],
+             (unsigned long long)st.dropped);
+    GC_CHECK(st.device_fingers == 1 && !strcmp(st.name, "test") && st.enabled == 1, "capabilities: %d '%s'",
+             st.device_fingers, st.name);
+    GC_CHECK(st.pose_rate > 400 && st.latency_p99_us > 0 && st.latency_p99_us < 5000, "rate %.0f Hz, p99 %.0f us",
+             st.pose_rate, st.latency_p99_us);
+
+    /* Random bytes between poses: never a crash (ASan), dropped and counted, poses go on. */
+    uint64_t dropped_before = st.dropped, poses_before = st.poses;
+    for (int burst = 0; burst < 40; ++burst) {
+        uint8_t noise[512];
+        for (size_t i = 0; i < sizeof noise; ++i) noise[i] = (uint8_t)rng();
+        GC_CHECK(write(dev.fd, noise, sizeof noise) == sizeof noise, "noise");
+        uint8_t zero = 0;
+        GC_CHECK(write(dev.fd, &zero, 1) == 1, "delimiter");
+        stream(&dev, 2, 0.098);
+    }
+    sleep_ms(20);
+    gc_world_serial_stats(w, id, &st);
+    GC_CHECK(st.state == GC_SERIAL_STREAMING && st.dropped > dropped_before + 40 && st.poses >= poses_before + 75,
+             "after noise: state %d, dropped %llu (was %llu), poses %llu (was %llu)", st.state,
+             (unsigned long long)st.dropped, (unsigned long long)dropped_before, (unsigned long long)st.poses,
+             (unsigned long long)poses_before);
+    GC_CHECK(st.device_fingers == 1 && !strcmp(st.name, "test"), "the capabilities survive the noise");
+
+    /* Silence: within 0.25 s the finger lets go (no spring force), the device is lost. */
+    sleep_ms(250);
+    spring(w, sp);
+    gc_world_serial_stats(w, id, &st);
+    GC_CHECK(st.state == GC_SERIAL_LOST && fabs(sp[2]) < 1e-6, "silent: state %d, spring %.6f N", st.state, sp[2]);
+    /* Poses again: it holds again. */
+    stream(&dev, 100, 0.098);
+    spring(w, sp);
+    GC_CHECK(fabs(sp[2] - 10.0) < 0.5, "recovered: spring %.3f N", sp[2]);
+    /* Hang-up: let go again. */
+    close(dev.fd);
+    sleep_ms(250);
+    spring(w, sp);
+    gc_world_serial_stats(w, id, &st);
+    GC_CHECK(st.state == GC_SERIAL_HANGUP && fabs(sp[2]) < 1e-6 && st.disconnects == 2, "hang-up: state %d, spring %.6f, %llu",
+             st.state, sp[2], (unsigned long long)st.disconnects);
+    gcSerialEvent ev[64];
+    int n = gc_world_serial_events(w, id, ev, 64), seen = 0;
+    for (int i = 0; i < n; ++i) seen |= 1 << ev[i].code;
+    int want = 1 << GC_SERIAL_EV_CONNECTED | 1 << GC_SERIAL_EV_ENABLED | 1 << GC_SERIAL_EV_LOST |
+               1 << GC_SERIAL_EV_RECOVERED | 1 << GC_SERIAL_EV_DROPPED;
+    GC_CHECK((seen & want) == want, "events 0x%x, want 0x%x", seen, want);
+    GC_CHECK(gc_world_detach_serial(w, id) == GC_OK && gc_world_detach_serial(w, id) == GC_ERR_UNKNOWN_ID, "detach");
+    /* A device read elsewhere pushes through the hub too. */
+    double p[3] = {0, 0, 0.05}, bad[3] = {NAN, 0, 0};
+    GC_CHECK(gc_world_push_device_hips(w, 1, 1, p) == GC_ERR_INVALID_ARGUMENT && strstr(gc_world_last_error(w), "1..1"),
+             "a finger the world does not have: %s", gc_world_last_error(w));
+    GC_CHECK(gc_world_push_device_hips(w, 0, 1, bad) == GC_WARN_REJECTED, "NaN refused");
+    GC_CHECK(gc_world_push_device_hips(w, 0, 1, p) == GC_OK, "pushed");
+    sleep_ms(20);
+    double hip[3];
+    gcSnapshot hs;
+    memset(&hs, 0, sizeof hs);
+    hs.hips = hip;
+    gc_world_snapshot(w, &hs);
+    GC_CHECK(fabs(hip[2] - 0.05) < 1e-12, "HIP from push_device_hips: %g", hip[2]);
+    close(sv[0]);
+    gc_world_stop(w);
+    gc_world_destroy(w);
+}
+
+/* Two devices on one world at once (two threads pushing into the hub; TSan): each drives
+ * its own finger through its own frame, and each gets its own finger's force. */
+static void test_two_devices(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    gcFingerDef fd = gc_default_finger_def();
+    int32_t f;
+    for (int i = 0; i < 2; ++i) {
+        fd.position[0] = i ? 1.0 : -1.0;
+        GC_CHECK(gc_world_add_finger(w, &fd, &f) == GC_OK, "finger");
+    }
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start");
+    Dev dev[2];
+    int sv[2][2];
+    int32_t id[2];
+    for (int k = 0; k < 2; ++k) {
+        GC_CHECK(socketpair(AF_UNIX, SOCK_STREAM, 0, sv[k]) == 0, "socketpair");
+        fcntl(sv[k][0], F_SETFL, O_NONBLOCK);
+        memset(&dev[k], 0, sizeof dev[k]);
+        dev[k].fd = sv[k][1];
+        gc_decoder_reset(&dev[k].dec);
+        gcSerialDef sd = gc_default_serial_def();
+        sd.priority = 0;
+        sd.finger_offset = k;
+        sd.transform[3] = k ? 1.0 : -1.0; /* x offset of each device's frame */
+        GC_CHECK(gc_world_attach_serial(w, sv[k][0], &sd, &id[k]) == GC_OK, "attach %d: %s", k, gc_world_last_error(w));
+        uint8_t hello[12] = {1, GC_CAP_FORCES, 0, 0};
+        gc_put16(hello + 4, 1000);
+        gc_putf32(hello + 6, 5.0f);
+        gc_put16(hello + 10, 50);
+        dev_read(&dev[k], 200);
+        dev_send(&dev[k], GC_MSG_HELLO_DEVICE, hello, 12);
+    }
+    int32_t third;
+    gcSerialDef sd = gc_default_serial_def();
+    sd.finger_offset = 1;
+    GC_CHECK(gc_world_attach_serial(w, sv[0][0], &sd, &third) == GC_ERR_INVALID_ARGUMENT &&
+                 strstr(gc_world_last_error(w), "already driven by device 1"),
+             "overlapping fingers refused: %s", gc_world_last_error(w));
+    for (int i = 0; i < 300; ++i) { /* interleaved poses: device k at (0, 0.01 k, 0) in its frame */
+        for (int k = 0; k < 2; ++k) dev_pose(&dev[k], 0, 0.01 * k, 0);
+        for (int k = 0; k < 2; ++k) dev_read(&dev[k], 0);
+        sleep_ms(1);
+    }
+    double hips[6];
+    gcSnapshot s;
+    memset(&s, 0, sizeof s);
+    s.hips = hips;
+    gc_world_snapshot(w, &s);
+    GC_CHECK(hips[0] == -1.0 && hips[1] == 0.0 && hips[3] == 1.0 && fabs(hips[4] - 0.01) < 1e-7,
+             "each device its finger: (%g %g) (%g %g)", hips[0], hips[1], hips[3], hips[4]);
+    for (int k = 0; k < 2; ++k) {
+        gcSerialStats st;
+        gc_world_serial_stats(w, id[k], &st);
+        GC_CHECK(st.poses >= 250 && st.forces_sent == st.poses && st.dropped == 0 && dev[k].forces >= 250,
+                 "device %d: %llu poses, %llu forces, %d received", k, (unsigned long long)st.poses,
+                 (unsigned long long)st.forces_sent, dev[k].forces);
+    }
+    gc_world_stop(w);
+    gc_world_destroy(w); /* detaches both (their threads joined first) */
+    for (int k = 0; k < 2; ++k) close(sv[k][0]), close(sv[k][1]);
+}
+
+int main(void) {
+    test_crc_and_cobs();
+    test_vectors();
+    test_fuzzed_decoder();
+    test_device_thread();
+    test_two_devices();
+    return gc_test_summary("test_serial_io");
+}

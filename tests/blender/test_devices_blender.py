@@ -1,0 +1,168 @@
+"""The emulator playing a .blend's fingertip animation (``--from``) over a real pty."""
+import json
+import os
+import subprocess
+import sys
+import time
+import tty
+
+import grasp_env
+import numpy as np
+import pytest
+
+sys.path.insert(0, grasp_env.ROOT)
+from addon.engine.devices import protocol as P  # noqa: E402
+
+
+def test_emulator_plays_the_fingertips_of_a_blend(bpy, sample, tmp_path):
+    sample.build(bpy)
+    scene = bpy.context.scene
+    scene.frame_set(scene.frame_start)
+    expected = [tuple(bpy.data.objects[f"Finger {i}"].matrix_world.translation) for i in (0, 1)]
+    path = str(tmp_path / "pinch.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--from", path,
+                            "--duration", "0.3"], cwd=grasp_env.ROOT, stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True)
+    try:
+        line = emu.stdout.readline()
+        assert line.startswith("PORT "), emu.stderr.read()
+        fd = os.open(line.split()[1], os.O_RDWR | os.O_NOCTTY)
+        tty.setraw(fd)
+        os.write(fd, P.encode(P.HELLO_HOST, 0, P.hello_host()))
+        dec, frames, end = P.StreamDecoder(), [], time.monotonic() + 10
+        while time.monotonic() < end and not any(f.type == P.POSE for f in frames):
+            frames += dec.feed(os.read(fd, 4096))
+        hello = P.parse_hello_device([f for f in frames if f.type == P.HELLO_DEVICE][0].payload)
+        assert hello.n_fingers == 2
+        first = P.parse_pose([f for f in frames if f.type == P.POSE][0].payload)
+        for got, want in zip(first.positions, expected):
+            assert max(abs(g - w) for g, w in zip(got, want)) < 1e-3, (first.positions, expected)
+        os.close(fd)
+    finally:
+        emu.kill()
+        emu.wait()
+
+
+def test_live_session_with_an_emulated_device(bpy, sample, core):
+    """A device in the scene's list drives the fingertips through its workspace frame; the
+    panel's status and the HUD show it; finishing detaches it and keeps its events."""
+    session = grasp_env.submodule("session")
+    devices_ui = grasp_env.submodule("devices_ui")
+    box = sample.build(bpy)
+    for i in (0, 1):                                   # fingertips without animation: the device has them
+        bpy.data.objects[f"Finger {i}"].animation_data_clear()
+    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--motion", "grip"],
+                           cwd=grasp_env.ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        port = emu.stdout.readline().split()[1]
+        bpy.context.scene.cursor.location = box.matrix_world.translation
+        assert bpy.ops.grasp_lab.device_add(port=port) == {"FINISHED"}
+        entry = bpy.context.scene.grasp_lab_devices[0]
+        assert entry.frame is not None and entry.finger_offset == 0 and entry.num_fingers == 2
+        s = session.BlenderSession(bpy.context, live=True, duration=10.0)
+        session._active = s          # what the operator does: the panel and operators see it
+        try:
+            assert s.devices is not None and not s.source.interactive
+            t0 = time.perf_counter()
+            while time.perf_counter() - t0 < 1.5:
+                s.tick(time.perf_counter() - t0)
+                time.sleep(0.02)
+            assert list(s.snapshot.contacts) == [0, 0], s.snapshot.contacts   # both grip the box
+            assert bpy.ops.grasp_lab.device_forces(on=True) == {"FINISHED"}
+            time.sleep(0.1)
+            lines = devices_ui.status_lines(s.devices)
+            assert lines[0].startswith(f"{port}: streaming, fingers 0..1") and "forces on" in lines[0], lines
+            assert lines[0] in s.hud_text()
+        finally:
+            session._active = None
+            s.finish()
+        events = [e[2] for e in s.result.stats["device_events"]]
+        assert "connected" in events and "enabled" in events, events
+        assert not s.devices.devices                  # detached
+    finally:
+        emu.kill()
+        emu.wait()
+
+
+def test_headless_realtime_run_with_a_device(bpy, sample, core, tmp_path):
+    devices_ui = grasp_env.submodule("devices_ui")
+    box = sample.build(bpy)
+    for i in (0, 1):
+        bpy.data.objects[f"Finger {i}"].animation_data_clear()
+    emus = [subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--motion", "grip"],
+                             cwd=grasp_env.ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            for _ in range(2)]
+    try:
+        ports = [e.stdout.readline().split()[1] for e in emus]
+        bpy.context.scene.grasp_lab.display_rate = 50.0
+        bpy.context.scene.cursor.location = box.matrix_world.translation     # the workspace frame at the box
+        bpy.ops.grasp_lab.device_add(port=ports[0])
+        bpy.context.scene.grasp_lab.record = True
+        bpy.context.scene.grasp_lab.recording_folder = str(tmp_path)
+        live = devices_ui.run_realtime(bpy.context, 1.5, forces=True)
+        rec = np.load(live.result.recording)
+        # Forces were turned on as the session started, maybe before the device's hello came.
+        assert set(rec["event_name"][:2]) == {"connected", "enabled"} and rec["event_source"][0] == ports[0]
+        assert live.result.stats["runtime_haptic_rate"] > 500
+        events = [e[2] for e in live.result.stats["device_events"]]
+        assert set(events[:2]) == {"connected", "enabled"}, events
+        assert list(live.snapshot.contacts) == [0, 0]
+        emus[0].terminate()
+        out = emus[0].communicate(timeout=20)[0]
+        report = json.loads([l for l in out.splitlines() if l.startswith("REPORT ")][0][7:])
+        assert report["max_force_n"] > 1.0 and report["violations"] == dict.fromkeys(report["violations"], 0), report
+
+        # A --device spec is added for the session only (after the list's own devices).
+        bpy.context.scene.grasp_lab_devices.clear()
+        live = devices_ui.run_realtime(bpy.context, 0.5, [f"serial:{ports[1]}"])
+        assert len(bpy.context.scene.grasp_lab_devices) == 0
+        assert [e[2] for e in live.result.stats["device_events"]][:1] == ["connected"]
+        with pytest.raises(ValueError, match="unknown kind"):
+            devices_ui.run_realtime(bpy.context, 0.1, [f"serial:{ports[1]}", "tcp:1234"])
+        assert len(bpy.context.scene.grasp_lab_devices) == 0      # nothing added when a spec is wrong
+        added = devices_ui.add_device_specs(bpy.context, ["serial:/dev/null@1", "spacemouse", "opengloves:/dev/x"])
+        entries = bpy.context.scene.grasp_lab_devices
+        assert [(e.kind, e.port, e.finger_offset, e.num_fingers) for e in entries] == [
+            ("SERIAL", "/dev/null", 1, 1), ("SPACEMOUSE", "", 2, 1), ("OPENGLOVES", "/dev/x", 3, 5)]
+        devices_ui.remove_entries(bpy.context, added)
+        assert len(entries) == 0
+    finally:
+        for e in emus:
+            e.kill()
+            e.wait()
+
+
+def test_live_session_with_a_glove_in_the_device_list(bpy, core):
+    """A glove (OpenGloves lines over a pty) listed as a device drives five fingertips."""
+    from addon.engine.devices import opengloves as G
+    session = grasp_env.submodule("session")
+    for i in range(5):
+        f = bpy.data.objects.new(f"Tip {i}", None)
+        bpy.context.scene.collection.objects.link(f)
+        f.grasp_lab.role = "FINGER"
+        f.grasp_lab.channel = i
+        f.location = (0.0, 0.3, 0.1 * i)
+    master, slave = os.openpty()
+    tty.setraw(master)
+    try:
+        assert bpy.ops.grasp_lab.device_add(port=os.ttyname(slave), kind="OPENGLOVES") == {"FINISHED"}
+        entry = bpy.context.scene.grasp_lab_devices[0]
+        assert entry.num_fingers == 5
+        entry.frame = None                                   # hand frame = the scene
+        s = session.BlenderSession(bpy.context, live=True, duration=5.0)
+        try:
+            assert not s.devices.failed, s.devices.failed
+            os.write(master, b"A4095B2048C0D0E1000\n")
+            t0 = time.perf_counter()
+            while time.perf_counter() - t0 < 0.3:
+                s.tick(time.perf_counter() - t0)
+                time.sleep(0.02)
+            curls = [1.0, 2048 / 4095, 0.0, 0.0, 1000 / 4095]
+            assert np.allclose(s.snapshot.hips, G.fingertips(curls), atol=1e-9), s.snapshot.hips
+            assert os.read(master, 4096).endswith(b"A0B0C0D0E0\n")     # forces off: a zero brake line
+        finally:
+            s.finish()
+    finally:
+        os.close(master)
+        os.close(slave)

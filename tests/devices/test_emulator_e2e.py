@@ -1,0 +1,176 @@
+"""The reference emulator over a real pseudo-terminal, end to end with the runtime: the
+emulator process streams poses, the core's serial thread (port opened by pyserial) pushes
+HIPs and answers with force frames; the emulator checks them and reports. Then unplug
+(the emulator exits) and reconnect, and two emulators driving two hands."""
+import json
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+
+graspcore = pytest.importorskip("graspcore")
+pytest.importorskip("serial")
+
+from addon.engine.devices.serial_device import SerialDevice  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+BOX = 0.03          # half-width of the static boxes the fingers grip
+RADIUS = 0.008      # fingertip radius (graspcore default), stiffness 1000 N/m
+GRIP_SPRING = 1000.0 * (BOX + RADIUS - 0.03)    # the grip motion closes to 3 cm from the centre: 8 N
+
+
+class Emulator:
+    def __init__(self, *args):
+        self.proc = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", *args],
+                                     cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        line = self.proc.stdout.readline()
+        assert line.startswith("PORT /dev/"), (line, self.proc.stderr.read() if self.proc.poll() is not None else "")
+        self.port = line.split()[1]
+
+    def stop(self) -> dict:
+        """Unplug: SIGTERM, the emulator reports and closes its side of the pty."""
+        if self.proc.poll() is None:
+            self.proc.terminate()
+        out, err = self.proc.communicate(timeout=20)
+        reports = [json.loads(line[7:]) for line in out.splitlines() if line.startswith("REPORT ")]
+        assert reports, f"no report; stderr: {err}"
+        return reports[-1]
+
+
+def make_world(centres):
+    """Static boxes at the given x positions, two fingers per box, 6 cm apart, open."""
+    world = graspcore.World(gravity=(0, 0, 0))
+    box = [(sx * BOX, sy * BOX, sz * BOX) for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+    for cx in centres:
+        world.add_body(box, position=(cx, 0, 0), static=True)
+        world.add_finger(position=(cx + 0.06, 0, 0))
+        world.add_finger(position=(cx - 0.06, 0, 0))
+    # Watchdogs loose enough for a loaded test machine: these tests are about the device path.
+    world.start(priority=0, ramp_time=0.0, watchdog_timeout=0.05)
+    return world
+
+
+def translation(x):
+    m = np.eye(4)
+    m[0, 3] = x
+    return m
+
+
+def springs(world):
+    return np.linalg.norm(world.snapshot()["spring_forces"], axis=1)
+
+
+def wait_for(predicate, timeout, what):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return
+        time.sleep(0.005)
+    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+
+
+def test_emulator_end_to_end_unplug_and_reconnect():
+    world = make_world([0.0])
+    emu = Emulator("--fingers", "2", "--motion", "grip", "--force-max", "5")
+    dev = SerialDevice(world, emu.port, finger_offset=0, num_fingers=2, ramp_time=0.1, stall_timeout=0.05)
+    try:
+        dev.connect()
+        wait_for(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > 800, 15, "streaming")
+        np.testing.assert_allclose(springs(world), GRIP_SPRING, rtol=0.05)
+        time.sleep(0.2)
+        dev.enable()
+        time.sleep(0.8)
+        st = dev.stats()
+        assert st["name"] == "grasp-lab-emulator" and st["device_fingers"] == 2 and st["enabled"]
+        assert st["pose_rate"] > 500, st
+        assert st["dropped"] == 0 and st["gain"] == 1.0, st
+
+        # Unplug: within 0.25 s of the hang-up the fingers have let go; the session runs on.
+        report = emu.stop()
+        t_unplug = time.monotonic()
+        wait_for(lambda: np.all(springs(world) < 1e-6), 0.25, "the fingers to let go")
+        assert time.monotonic() - t_unplug < 0.25
+        assert world.running
+        wait_for(lambda: dev.stats()["state"] == "hangup", 0.25, "the hang-up to show")
+        events = [name for _, name, _ in dev.events()]
+        assert events[:2] == ["connected", "enabled"] and "lost" in events, events
+
+        # What the device saw: force frames answering poses, clamped to its 5 N, none while
+        # disabled, within its TTL limit.
+        assert report["violations"] == dict.fromkeys(report["violations"], 0), report
+        assert report["max_force_n"] == pytest.approx(5.0, abs=1e-5), report
+        assert report["force_frames"] > 0.9 * report["poses_sent"] - 50, report
+        assert report["last_ttl_us"] == 20000
+        assert report["latency_p50_ms"] < 5.0, report
+
+        # Reconnect: a new device on a new port picks the same fingers up again.
+        emu = Emulator("--fingers", "2", "--motion", "grip")
+        dev.reconnect(emu.port)
+        wait_for(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > 700, 15, "streaming again")
+        np.testing.assert_allclose(springs(world), GRIP_SPRING, rtol=0.05)
+        assert dev.stats()["enabled"]
+        report = emu.stop()
+        assert report["host_hellos"] == 1 and report["max_force_n"] > 4.9, report
+    finally:
+        emu.proc.kill()
+        dev.disconnect()
+        world.stop()
+
+
+def test_two_emulators_drive_two_hands():
+    world = make_world([-0.2, 0.2])
+    left, right = Emulator("--fingers", "2", "--motion", "grip"), Emulator("--fingers", "2", "--motion", "static")
+    devs = [SerialDevice(world, left.port, 0, 2, translation(-0.2)),
+            SerialDevice(world, right.port, 2, 2, translation(0.2))]
+    try:
+        for d in devs:
+            d.connect()
+        wait_for(lambda: all(d.stats()["poses"] > 800 for d in devs), 15, "both streaming")
+        s = springs(world)
+        np.testing.assert_allclose(s[:2], GRIP_SPRING, rtol=0.05)   # the left hand grips its box
+        np.testing.assert_allclose(s[2:], 0.0, atol=1e-9)           # the right hand stays open
+        hips = world.snapshot()["hips"]
+        np.testing.assert_allclose(hips[2:, 0], [0.26, 0.14], atol=1e-6)  # right hand, its own frame
+        with pytest.raises(ValueError, match="already driven"):
+            world.attach_serial(devs[0].serial.fileno(), finger_offset=1, num_fingers=2)
+        reports = [left.stop(), right.stop()]
+        assert all(r["violations"] == dict.fromkeys(r["violations"], 0) for r in reports)
+    finally:
+        for e in (left, right):
+            e.proc.kill()
+        for d in devs:
+            d.disconnect()
+        world.stop()
+
+
+def test_device_set_one_of_two_unplugged_the_other_holds_on():
+    from addon.engine.devices.live import DeviceInput, DeviceSet
+    world = make_world([-0.2, 0.2])
+    left, right = Emulator("--fingers", "2", "--motion", "grip"), Emulator("--fingers", "2", "--motion", "grip")
+    devices = DeviceSet(world, retry=0.05)
+    try:
+        devices.add_specs([f"serial:{left.port}", f"serial:{right.port}"], fingers_per_device=[2, 2],
+                          frames=[translation(-0.2), translation(0.2)])
+        assert [d.finger_offset for d in devices.devices] == [0, 2]
+        assert not DeviceInput(4).interactive and DeviceInput(4).script() is None
+        wait_for(lambda: all(d.stats()["poses"] > 800 for d in devices.devices), 15, "both streaming")
+        assert all(s["state"] == "streaming" and s["rate_hz"] > 500 for s in devices.status())
+        devices.enable()
+        np.testing.assert_allclose(springs(world), GRIP_SPRING, rtol=0.05)
+        right.stop()
+        wait_for(lambda: np.all(springs(world)[2:] < 1e-6), 0.25, "the right hand to let go")
+        np.testing.assert_allclose(springs(world)[:2], GRIP_SPRING, rtol=0.05)   # the left hand holds on
+        time.sleep(0.15)
+        devices.poll()     # tries to reopen the vanished pty: fails, stays let go
+        status = devices.status()
+        assert status[0]["state"] == "streaming" and status[1]["state"] in ("hangup", "disconnected"), status
+        labels = {(label, name) for _, label, name, _ in devices.events}
+        assert (right.port, "lost") in labels and (left.port, "enabled") in labels, labels
+    finally:
+        for e in (left, right):
+            e.proc.kill()
+        devices.close()
+        world.stop()
