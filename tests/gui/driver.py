@@ -301,6 +301,8 @@ def scenario_start_esc_stop():
     xdo("key", "Escape")
     yield from wait_until(lambda: active_session() is None, 5, "Esc to stop the session", poll=0.01)
     RESULT["esc_latency_s"] = s.stopped_at - t_key          # key sent -> session stopped
+    recent = np.diff(np.array(s.runner.ticks[-12:]))
+    RESULT["frame_max_s"] = float(recent.max()) if len(recent) else s.interval
     check_stopped("esc")
     yield 0.5
     yield from start_by_click()

@@ -53,8 +53,10 @@ def test_start_session_then_esc_then_the_stop_button(gui):
     hud = r["hud"]
     assert "threaded runtime" in hud and "contacts 2 / 2" in hud
     assert "haptic 0 Hz" not in hud and "step 0 µs" not in hud and " 0 steps" not in hud
-    # Esc ends it within one display frame (the time between two display updates).
-    assert r["esc_latency_s"] < max(1.0 / r["display_rate"], r["interval"]) + 0.25, r
+    # Esc ends it within one display frame: no later than the longest of the last display
+    # updates (Blender answers the key once the frame it is drawing is done), plus the
+    # time xdotool takes to send it.
+    assert r["esc_latency_s"] < max(r["frame_max_s"], r["interval"]) + 0.1, r
     assert r["last_time"] > 0.5
 
 
