@@ -11,10 +11,13 @@ CORE_SRC := $(wildcard native/src/*.c)
 CORE_HDR := $(wildcard native/src/*.h native/include/*.h)
 BINDING := native/binding/graspcore_module.c
 PY_SRC := $(wildcard native/python/graspcore/*.py)
-CFLAGS_COMMON := -std=c11 -Inative/include -Inative/src -Wall -Wextra -Wno-unused-parameter -ffp-contract=off
+# One list of compiler flags, shared with native/setup.py; warnings are errors here.
+CORE_FLAGS := $(shell cat native/cflags.txt)
+CFLAGS_COMMON := $(CORE_FLAGS) -Werror -Inative/include -Inative/src
 C_TESTS := $(patsubst native/tests/%.c,%,$(wildcard native/tests/test_*.c))
+CORE_OBJ := $(notdir $(CORE_SRC:.c=.o))
 
-.PHONY: all venv core demo test test-c test-c-asan test-c-tsan test-py bench clean
+.PHONY: all venv core lib check-layers demo test test-c test-c-asan test-c-tsan test-py bench clean
 
 all: core
 
@@ -28,9 +31,9 @@ $(VENV)/.deps: requirements.txt
 venv: $(VENV)/.deps
 
 # The core is built as a cp311-abi3 wheel and installed into the venv.
-$(VENV)/.core: $(VENV)/.deps $(CORE_SRC) $(CORE_HDR) $(BINDING) $(PY_SRC) native/setup.py
+$(VENV)/.core: $(VENV)/.deps $(CORE_SRC) $(CORE_HDR) $(BINDING) $(PY_SRC) native/setup.py native/cflags.txt
 	rm -rf native/build native/*.egg-info $(BUILD)/wheel
-	$(PY) -m pip wheel --no-deps --no-build-isolation -q -w $(BUILD)/wheel ./native
+	GRASPCORE_WERROR=1 $(PY) -m pip wheel --no-deps --no-build-isolation -q -w $(BUILD)/wheel ./native
 	$(PIP) install --force-reinstall --no-deps $(BUILD)/wheel/graspcore-*.whl
 	rm -rf native/build native/*.egg-info
 	touch $@
@@ -43,15 +46,32 @@ $(VENV)/bin/grasp-lab: $(VENV)/.deps
 
 core: $(VENV)/.core $(VENV)/bin/grasp-lab
 
-# --- C tests (plain, then ASan/UBSan) -----------------------------------------
-$(BUILD)/c/%: native/tests/%.c $(CORE_SRC) $(CORE_HDR) native/tests/gc_test.h
-	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_COMMON) -O2 -g -o $@ $< $(CORE_SRC) -lm -lpthread
+# --- The core as a static library, and the C tests linked with it ------------------
+# Three builds of the library: plain (tests, benches), ASan/UBSan, TSan. Each source is
+# compiled once per build; the tests and bench/bench_gjk.sh link the archive.
+VARIANT_c := -O2 -g
+VARIANT_c-asan := -O1 -g -fsanitize=address,undefined -fno-sanitize-recover=all -fno-omit-frame-pointer
+VARIANT_c-tsan := -O1 -g -fsanitize=thread
 
-$(BUILD)/c-asan/%: native/tests/%.c $(CORE_SRC) $(CORE_HDR) native/tests/gc_test.h
-	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_COMMON) -O1 -g -fsanitize=address,undefined -fno-sanitize-recover=all \
-	  -fno-omit-frame-pointer -o $@ $< $(CORE_SRC) -lm -lpthread
+define core_library
+$(BUILD)/$(1)/obj/%.o: native/src/%.c $(CORE_HDR) native/cflags.txt
+	@mkdir -p $$(dir $$@)
+	$$(CC) $$(CFLAGS_COMMON) $$(VARIANT_$(1)) -c -o $$@ $$<
+
+$(BUILD)/$(1)/libgraspcore.a: $(addprefix $(BUILD)/$(1)/obj/,$(CORE_OBJ))
+	rm -f $$@
+	$$(AR) rcs $$@ $$^
+
+$(BUILD)/$(1)/test_%: native/tests/test_%.c $(BUILD)/$(1)/libgraspcore.a $(CORE_HDR) native/tests/gc_test.h
+	$$(CC) $$(CFLAGS_COMMON) $$(VARIANT_$(1)) -o $$@ $$< $(BUILD)/$(1)/libgraspcore.a -lm -lpthread
+endef
+$(foreach v,c c-asan c-tsan,$(eval $(call core_library,$(v))))
+
+lib: $(BUILD)/c/libgraspcore.a
+
+# No file of native/src calls a file above it (the order is docs/architecture.md's table).
+check-layers: $(BUILD)/c/libgraspcore.a native/check_layers.py docs/architecture.md
+	$(PYTHON) native/check_layers.py docs/architecture.md $(BUILD)/c/obj $(CORE_SRC)
 
 test-c: $(addprefix $(BUILD)/c/,$(C_TESTS))
 	@for t in $^; do echo "== $$t"; $$t || exit 1; done
@@ -61,9 +81,6 @@ test-c-asan: $(addprefix $(BUILD)/c-asan/,$(C_TESTS))
 
 # The threaded tests under ThreadSanitizer (the runtime's loops, its lock-free channels).
 TSAN_TESTS := $(filter test_runtime test_contacts test_serial_io test_tick_log,$(C_TESTS))
-$(BUILD)/c-tsan/%: native/tests/%.c $(CORE_SRC) $(CORE_HDR) native/tests/gc_test.h
-	@mkdir -p $(dir $@)
-	$(CC) $(CFLAGS_COMMON) -O1 -g -fsanitize=thread -o $@ $< $(CORE_SRC) -lm -lpthread
 
 test-c-tsan: $(addprefix $(BUILD)/c-tsan/,$(TSAN_TESTS))
 	@for t in $^; do echo "== $$t (TSan)"; TSAN_OPTIONS=halt_on_error=1 $$t || exit 1; done
@@ -74,7 +91,7 @@ test-py: core
 
 # test-blender (addon.mk) runs tests/blender on bpy 4.5, 4.2 and 5.0.1; test-gui (addon.mk)
 # the extension in a real GUI Blender under Xvfb.
-test: test-c test-c-asan test-c-tsan test-py test-blender test-gui
+test: check-layers test-c test-c-asan test-c-tsan test-py test-blender test-gui
 
 # --- The main job -------------------------------------------------------------
 # (a) the core alone, a table in the terminal; (b) the sample scene headless in Blender

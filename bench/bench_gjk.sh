@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # GJK+EPA benchmark against libccd (bench-only dependency). Run from anywhere:
 #   bash bench/bench_gjk.sh
-# Installs libccd-dev with apt-get when missing, builds with the project's C flags,
-# prints a Markdown table on stdout.
+# Installs libccd-dev with apt-get when missing, links the core's static library (make lib,
+# the project's C flags), prints a Markdown table on stdout.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -16,6 +16,7 @@ fi
 
 CCD_FLAGS="$(pkg-config --cflags --libs ccd 2>/dev/null || echo -lccd)"
 mkdir -p build/bench
-${CC:-cc} -std=c11 -O2 -ffp-contract=off -Wall -Wextra -Inative/include -Inative/src \
-    bench/bench_gjk.c native/src/geometry.c native/src/hull.c $CCD_FLAGS -lm -o build/bench/bench_gjk
+make -s lib >&2
+${CC:-cc} $(cat native/cflags.txt) -O2 -Inative/include -Inative/src \
+    bench/bench_gjk.c build/c/libgraspcore.a $CCD_FLAGS -lm -lpthread -o build/bench/bench_gjk
 exec build/bench/bench_gjk

@@ -1,7 +1,7 @@
 /* The bare-loop baseline of bench/bench_jitter.py: the haptic loop's wait and nothing else.
  *
  * One thread sleeps to absolute CLOCK_MONOTONIC deadlines (clock_nanosleep TIMER_ABSTIME) at
- * the haptic rate, set up as the runtime's haptic thread sets itself up (native/src/runtime.c,
+ * the haptic rate, set up as the runtime's haptic thread sets itself up (native/src/runtime_threads.c,
  * haptic_thread_setup: SCHED_FIFO at the given priority, else normal priority with a 0.1 ms
  * time slice; timer slack 1 ns; its stack pre-faulted and locked), does no work, and measures
  * its periods exactly as the runtime does: period

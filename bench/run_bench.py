@@ -32,6 +32,7 @@ ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
 
 import bench_core_scenes as core  # noqa: E402
+import bench_held  # noqa: E402
 import bench_multibody as mb  # noqa: E402
 import bench_scenes  # noqa: E402
 
@@ -621,6 +622,11 @@ def main(argv=None) -> int:
 
     log("grasp step time (graspcore and MuJoCo interleaved)")
     grasps = grasp_timing(mj, (2, 3, 5), steps, repeats)
+    held_section = ""
+    if mj:
+        log("held box against mocap-sphere fingertips (bench/bench_held.py)")
+        held_repeats = max(5, repeats * 2 // 3)
+        held_section = bench_held.section(bench_held.measure(mj, steps, held_repeats), steps, held_repeats)
     log("creep")
     creep = creep_all(mj)
     log("multi-body scenes (graspcore 1 and 2 threads, MuJoCo, PyBullet interleaved)")
@@ -707,7 +713,7 @@ def main(argv=None) -> int:
     meta["wall_s"] = time.perf_counter() - t_start
     md = report(info, mjinfo, grasps, creep, profile, gjk, blender, xml3, meta, pbinfo=pbinfo,
                 extra_targets=mb.target_rows(mb_rows, mjinfo is not None) + jitter_targets + serial_targets,
-                sections=[mb_section, jitter_section, serial_section])
+                sections=[s for s in (held_section, mb_section, jitter_section, serial_section) if s])
     if args.quick:
         md = md.replace("# Benchmarks\n", "# Benchmarks (--quick run: too few repeats to quote)\n", 1)
     os.makedirs(os.path.dirname(args.out), exist_ok=True)

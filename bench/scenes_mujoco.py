@@ -48,6 +48,10 @@ DEFAULT_FINGER_MASS = 0.01   # kg
 CONFIGS = {
     "recommended": {"noslip_iterations": 0},
     "recommended+noslip": {"noslip_iterations": 10},
+    # Fingertips as mocap spheres at the HIPs (kinematic, no DOF, no actuator): the box is
+    # the only body MuJoCo integrates, as in graspcore; the grip comes from MuJoCo's own
+    # soft contact on the 3 mm overlap instead of the finger springs.
+    "mocap": {"noslip_iterations": 0, "mocap": True},
 }
 
 
@@ -56,6 +60,7 @@ def config(name_or_dict) -> dict:
     c.setdefault("noslip_iterations", 0)
     c.setdefault("solref", DEFAULT_SOLREF)
     c.setdefault("finger_mass", DEFAULT_FINGER_MASS)
+    c.setdefault("mocap", False)
     return c
 
 
@@ -80,7 +85,14 @@ def model_xml(spec: dict, variant) -> str:
     h = spec["half"]
     g = " ".join(f"{x:.9g}" for x in spec["gravity"])
     fingers, actuators = [], []
-    for i, _ in enumerate(spec["hips"]):
+    for i, hip in enumerate(spec["hips"]):
+        if v["mocap"]:
+            pos = " ".join(f"{x:.9g}" for x in hip)
+            fingers.append(f"""
+    <body name="finger{i}" mocap="true" pos="{pos}">
+      <geom name="tip{i}" type="sphere" size="{spec['tip']}" contype="2" conaffinity="1"/>
+    </body>""")
+            continue
         fingers.append(f"""
     <body name="finger{i}" gravcomp="1">
       <joint name="f{i}x" type="slide" axis="1 0 0"/>
@@ -105,9 +117,7 @@ def model_xml(spec: dict, variant) -> str:
             contype="1" conaffinity="1"/>
     </body>{''.join(fingers)}
   </worldbody>
-  <actuator>
-    {(chr(10) + '    ').join(actuators)}
-  </actuator>
+  {"<actuator>" + chr(10) + "    " + (chr(10) + "    ").join(actuators) + chr(10) + "  </actuator>" if actuators else ""}
 </mujoco>
 """
 
@@ -120,6 +130,8 @@ class Scene:
         pts = contact_points(spec)
         box_qadr = self.m.jnt_qposadr[0]
         self.box_q = slice(box_qadr, box_qadr + 3)
+        if config(variant)["mocap"]:
+            pts = []                                        # the tips sit at the HIPs (model_xml)
         for i, (touch, hip) in enumerate(pts):
             for k in range(3):
                 j = 1 + 3 * i + k                           # joint 0 is the box's freejoint

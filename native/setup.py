@@ -7,6 +7,13 @@ from setuptools import Extension, setup
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 
+# The compiler flags the Makefile builds the C tests with (one flag a line); make adds
+# -Werror through GRASPCORE_WERROR=1.
+with open(os.path.join(HERE, "cflags.txt")) as f:
+    core_flags = f.read().split()
+if os.environ.get("GRASPCORE_WERROR") == "1":
+    core_flags.append("-Werror")
+
 core_sources = sorted(glob.glob("src/*.c"))
 setup(
     name="graspcore",
@@ -21,8 +28,7 @@ setup(
             include_dirs=["include", "src"],
             define_macros=[("Py_LIMITED_API", "0x030B0000")],
             py_limited_api=True,
-            extra_compile_args=["-std=c11", "-O2", "-fno-strict-aliasing", "-Wall", "-Wextra",
-                                "-Wno-unused-parameter", "-ffp-contract=off"],
+            extra_compile_args=["-O2", "-fno-strict-aliasing"] + core_flags,
             extra_link_args=["-lm", "-lpthread"],
         )
     ],

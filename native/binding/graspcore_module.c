@@ -28,16 +28,33 @@ static PyObject *World_Type, *View_Type;
 
 /* ---- helpers ------------------------------------------------------------------- */
 
-static PyObject *raise_status(WorldObject *self, gcStatus st) {
-    const char *msg = self->world ? gc_world_last_error(self->world) : "";
-    if (!msg || !msg[0]) msg = gc_status_string(st);
-    if (st == GC_ERR_NO_MEMORY) return PyErr_NoMemory();
-    if (st == GC_ERR_BUSY || st == GC_ERR_NOT_RUNNING) {
-        PyErr_SetString(PyExc_RuntimeError, msg);
-        return NULL;
-    }
-    PyErr_SetString(PyExc_ValueError, msg);
+/* The one map from the core's error statuses to Python exceptions. The message is always
+ * the core's own (gc_world_last_error / gc_world_create_error), which names the argument. */
+static PyObject *exception_for(gcStatus st) {
+    static const struct { gcStatus status; PyObject **type; } table[] = {
+        {GC_ERR_INVALID_ARGUMENT, &PyExc_ValueError}, {GC_ERR_DEGENERATE, &PyExc_ValueError},
+        {GC_ERR_UNKNOWN_ID, &PyExc_ValueError},       {GC_ERR_CAPACITY, &PyExc_ValueError},
+        {GC_ERR_NO_MEMORY, &PyExc_MemoryError},       {GC_ERR_BUSY, &PyExc_RuntimeError},
+        {GC_ERR_NOT_RUNNING, &PyExc_RuntimeError},
+    };
+    for (size_t i = 0; i < sizeof table / sizeof table[0]; ++i)
+        if (table[i].status == st) return *table[i].type;
+    return PyExc_RuntimeError;
+}
+
+static PyObject *raise_message(gcStatus st, const char *msg) {
+    PyErr_SetString(exception_for(st), msg && msg[0] ? msg : gc_status_string(st));
     return NULL;
+}
+
+static PyObject *raise_status(WorldObject *self, gcStatus st) {
+    return raise_message(st, self->world ? gc_world_last_error(self->world) : "");
+}
+
+/* A warning status that still needs saying (a body stopped by the non-finite guard). */
+static int warn_status(WorldObject *self, gcStatus st) {
+    if (st != GC_WARN_STOPPED) return 0;
+    return PyErr_WarnEx(PyExc_RuntimeWarning, gc_world_last_error(self->world), 1);
 }
 
 static int check_ready(WorldObject *self) {
@@ -125,7 +142,7 @@ static PyType_Spec View_spec = {"graspcore._core.View", sizeof(ViewObject), 0, P
 static int World_init(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
     static char *kwlist[] = {"gravity", "gyroscopic", "max_bodies", "max_fingers", "max_parts",
-                             "threads", "max_contacts", NULL}; /* threads, max_contacts: contacts.c */
+                             "threads", "max_contacts", NULL}; /* threads, max_contacts: docs/solver.md */
     gcWorldDef def = gc_default_world_def();
     PyObject *gravity = NULL;
     int gyroscopic = 1;
@@ -139,14 +156,8 @@ static int World_init(PyObject *obj, PyObject *args, PyObject *kwargs) {
         return -1;
     }
     gcStatus st = gc_world_create(&def, &self->world);
-    if (st == GC_ERR_NO_MEMORY) {
-        PyErr_NoMemory();
-        return -1;
-    }
     if (st != GC_OK) {
-        PyErr_SetString(PyExc_ValueError,
-                        "gravity/max_bodies/max_fingers/max_parts/threads/max_contacts: gravity must be finite, "
-                        "capacities >= 1 and threads in 1..64");
+        raise_message(st, gc_world_create_error());
         return -1;
     }
     return 0;
@@ -343,13 +354,17 @@ static PyObject *World_step(PyObject *obj, PyObject *args, PyObject *kwargs) {
         PyErr_SetString(PyExc_ValueError, "steps: must be >= 1");
         return NULL;
     }
-    gcStatus st = GC_OK;
+    gcStatus st = GC_OK, warned = GC_OK; /* a stop in any of the steps is said once */
     atomic_store(&self->busy, 1);
     Py_BEGIN_ALLOW_THREADS
-    for (int i = 0; i < steps && st >= 0; ++i) st = gc_world_step(self->world, dt);
+    for (int i = 0; i < steps && st >= 0; ++i) {
+        st = gc_world_step(self->world, dt);
+        if (st == GC_WARN_STOPPED) warned = st;
+    }
     Py_END_ALLOW_THREADS
     atomic_store(&self->busy, 0);
     if (st < 0) return raise_status(self, st);
+    if (warn_status(self, warned) < 0) return NULL;
     Py_RETURN_NONE;
 }
 
@@ -469,7 +484,7 @@ static PyObject *World_state_hash(PyObject *obj, PyObject *unused) {
     return PyLong_FromUnsignedLongLong(gc_world_state_hash(self->world));
 }
 
-/* ---- Body-body contacts and collision chains (contacts.c, islands.c) ---------------- */
+/* ---- Body-body contacts and collision chains (contacts.c, chains.c) ---------------- */
 
 /* contacts() -> list of dicts, one per contact point of the last step. */
 static PyObject *World_contacts(PyObject *obj, PyObject *unused) {
@@ -515,6 +530,12 @@ static PyObject *World_body_chain(PyObject *obj, PyObject *args) {
     return PyLong_FromLong(chain);
 }
 
+static PyObject *World_stopped_bodies(PyObject *obj, PyObject *unused) {
+    WorldObject *self = (WorldObject *)obj;
+    if (!check_ready(self)) return NULL;
+    return PyLong_FromLongLong((long long)gc_world_stopped_bodies(self->world));
+}
+
 static PyObject *World_contact_overflow(PyObject *obj, PyObject *unused) {
     WorldObject *self = (WorldObject *)obj;
     if (!check_ready(self)) return NULL;
@@ -539,7 +560,7 @@ static PyObject *World_get_finger_count(PyObject *obj, void *closure) {
     return PyLong_FromLong(gc_world_finger_count(self->world));
 }
 
-/* ---- Runtime: haptic loop and object manager threads (runtime.c, docs/runtime.md) ----
+/* ---- Runtime: haptic loop and object manager threads (runtime*.c, docs/runtime.md) ----
  * push_hips, _snapshot and stats may run while another thread is inside advance/stop: the
  * core serialises them itself. */
 
@@ -656,11 +677,8 @@ static PyObject *World_push_hips(PyObject *obj, PyObject *args) {
     } else {
         int rows = (int)(b.len / (Py_ssize_t)(3 * sizeof(double)));
         gcStatus st = gc_world_push_hips(self->world, b.buf, rows, t);
-        if (st == GC_ERR_NOT_RUNNING)
-            PyErr_SetString(PyExc_RuntimeError, "push_hips: the runtime is not running (World.start)");
-        else if (st == GC_ERR_INVALID_ARGUMENT)
-            PyErr_Format(PyExc_ValueError, "positions: %d rows given for %d fingers", rows,
-                         gc_world_finger_count(self->world));
+        if (st < 0)
+            raise_status(self, st);
         else
             result = PyBool_FromLong(st == GC_OK);
     }
@@ -713,7 +731,7 @@ static PyObject *World_stats(PyObject *obj, PyObject *unused) {
     gcStatus st = gc_world_stats(self->world, &s);
     if (st < 0) return raise_status(self, st);
     return Py_BuildValue(
-        "{s:N,s:N,s:N,s:s,s:d,s:d,s:d,s:K,s:K,s:d,s:d,s:d,s:d,s:d,s:d,s:K,s:K,s:K,s:i,s:K,s:K,s:K,s:K,s:K,s:N,s:d,s:d}",
+        "{s:N,s:N,s:N,s:s,s:d,s:d,s:d,s:K,s:K,s:d,s:d,s:d,s:d,s:d,s:d,s:K,s:K,s:K,s:i,s:K,s:K,s:K,s:K,s:K,s:K,s:N,s:d,s:d}",
         "running", PyBool_FromLong(s.running), "realtime", PyBool_FromLong(s.realtime), "rt_priority",
         PyBool_FromLong(s.rt_priority), "priority_note", s.priority_note, "haptic_rate", s.haptic_rate,
         "object_rate", s.object_rate, "object_speed", s.object_speed, "haptic_ticks",
@@ -723,7 +741,8 @@ static PyObject *World_stats(PyObject *obj, PyObject *unused) {
         (unsigned long long)s.object_overruns, "adopted_bodies", s.adopted_bodies, "accepted_inputs",
         (unsigned long long)s.accepted_inputs, "rejected_inputs", (unsigned long long)s.rejected_inputs,
         "watchdog_trips", (unsigned long long)s.watchdog_trips, "stale_inputs", (unsigned long long)s.stale_inputs,
-        "nonfinite_forces", (unsigned long long)s.nonfinite_forces, "forces_enabled",
+        "nonfinite_forces", (unsigned long long)s.nonfinite_forces, "stopped_bodies",
+        (unsigned long long)s.stopped_bodies, "forces_enabled",
         PyBool_FromLong(s.forces_enabled), "haptic_time", s.haptic_time, "object_time", s.object_time);
 }
 
@@ -732,10 +751,6 @@ static PyObject *World_debug_stall(PyObject *obj, PyObject *arg) {
     double seconds = PyFloat_AsDouble(arg);
     if ((seconds == -1.0 && PyErr_Occurred()) || !check_world(self)) return NULL;
     gcStatus st = gc_world_debug_stall(self->world, seconds);
-    if (st == GC_ERR_NOT_RUNNING) {
-        PyErr_SetString(PyExc_RuntimeError, "the runtime is not running");
-        return NULL;
-    }
     if (st < 0) return raise_status(self, st);
     Py_RETURN_NONE;
 }
@@ -958,7 +973,7 @@ static PyObject *World_serial_events(PyObject *obj, PyObject *args) {
 static PyMethodDef World_methods[] = {
     {"_add_body", World_add_body, METH_VARARGS, "Low-level add_body; use World.add_body."},
     {"add_finger", (PyCFunction)(void (*)(void))World_add_finger, METH_VARARGS | METH_KEYWORDS,
-     "add_finger(radius=0.008, stiffness=1000.0, damping=0.0, position=(0,0,0)) -> finger id"},
+     "add_finger(radius, stiffness, damping, position=(0,0,0)) -> finger id; defaults: FINGER_DEFAULTS"},
     {"set_hip", World_set_hip, METH_VARARGS, "set_hip(finger, (x, y, z)): the device (haptic interface) point."},
     {"set_hips", World_set_hips, METH_O, "set_hips(array (n, 3) float64): HIPs of fingers 0..n-1."},
     {"set_gravity", World_set_gravity, METH_O, "set_gravity((gx, gy, gz))"},
@@ -985,6 +1000,8 @@ static PyMethodDef World_methods[] = {
     {"chain_count", World_chain_count, METH_NOARGS, "chain_count() -> number of collision chains, last step"},
     {"body_chain", World_body_chain, METH_VARARGS,
      "body_chain(body) -> index of the body's collision chain (last step), None for a static body"},
+    {"stopped_bodies", World_stopped_bodies, METH_NOARGS,
+     "stopped_bodies() -> bodies stopped since creation because their state would have become non-finite"},
     {"contact_overflow", World_contact_overflow, METH_NOARGS,
      "contact_overflow() -> contact pairs dropped since creation for want of max_contacts"},
     /* Runtime (docs/runtime.md). */
@@ -1041,7 +1058,25 @@ static PyType_Slot World_slots[] = {
 static PyType_Spec World_spec = {"graspcore._core.World", sizeof(WorldObject), 0,
                                  Py_TPFLAGS_DEFAULT | Py_TPFLAGS_BASETYPE, World_slots};
 
+/* The core's defaults (gc_default_body_def, gc_default_finger_def), the one place they are
+ * written: graspcore's Python signatures take theirs from these. */
+static int add_defaults(PyObject *m) {
+    gcBodyDef b = gc_default_body_def();
+    gcFingerDef f = gc_default_finger_def();
+    PyObject *body = Py_BuildValue("{s:d,s:d,s:d,s:d,s:d,s:d}", "mass", b.mass, "mu_s", b.mu_s, "mu_d", b.mu_d,
+                                   "viscosity", b.viscosity, "linear_damping", b.linear_damping,
+                                   "angular_damping", b.angular_damping);
+    PyObject *finger = Py_BuildValue("{s:d,s:d,s:d}", "radius", f.radius, "stiffness", f.stiffness, "damping",
+                                     f.damping);
+    int ok = body && finger && PyModule_AddObjectRef(m, "BODY_DEFAULTS", body) == 0 &&
+             PyModule_AddObjectRef(m, "FINGER_DEFAULTS", finger) == 0;
+    Py_XDECREF(body);
+    Py_XDECREF(finger);
+    return ok ? 0 : -1;
+}
+
 static int module_exec(PyObject *m) {
+    if (add_defaults(m) < 0) return -1;
     World_Type = PyType_FromSpec(&World_spec);
     if (!World_Type || PyModule_AddObjectRef(m, "World", World_Type) < 0) return -1;
     View_Type = PyType_FromSpec(&View_spec);
@@ -1061,5 +1096,7 @@ static struct PyModuleDef module_def = {
     PyModuleDef_HEAD_INIT, "graspcore._core", "C core of graspcore (stable ABI).", 0, module_methods, module_slots,
     NULL, NULL, NULL,
 };
+
+PyMODINIT_FUNC PyInit__core(void); /* the one exported symbol */
 
 PyMODINIT_FUNC PyInit__core(void) { return PyModuleDef_Init(&module_def); }

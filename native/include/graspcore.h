@@ -20,6 +20,8 @@ typedef enum gcStatus {
     GC_OK = 0,
     GC_WARN_MAX_ITERATIONS = 1,     /* answer usable, iteration cap reached */
     GC_WARN_REJECTED = 2,           /* runtime input refused (NaN/Inf, time going back) and counted */
+    GC_WARN_STOPPED = 3,            /* a body whose state would have become non-finite was put back
+                                     * at its pose before the step, at rest, and counted */
     GC_ERR_INVALID_ARGUMENT = -1,
     GC_ERR_DEGENERATE = -2,         /* degenerate hull: coplanar, collinear, coincident points */
     GC_ERR_NO_MEMORY = -3,
@@ -37,7 +39,8 @@ typedef enum gcFingerState { GC_FINGER_FREE = 0, GC_FINGER_STICK = 1, GC_FINGER_
 
 typedef struct gcWorldDef {
     double gravity[3];      /* m/s^2, default (0, 0, -9.81) */
-    int gyroscopic;         /* 1: keep -w x Jw in Euler's equation (default); 0: drop it as the chapter does */
+    int gyroscopic;         /* 1: keep -w x Jw in Euler's equation (default); 0: drop it as the source
+                             * chapter does (Harwin & Barrow, docs/physics.md) */
     int max_bodies;         /* capacity, default 256 */
     int max_fingers;        /* capacity, default 32 */
     int max_parts;          /* convex parts over all bodies, default 4096 */
@@ -82,6 +85,9 @@ typedef struct gcFingerDef {
 gcFingerDef gc_default_finger_def(void);
 
 gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world);
+/* Message for the last failed gc_world_create on the calling thread, naming the gcWorldDef
+ * field it refused (no world exists to hold it); empty after a success. */
+const char *gc_world_create_error(void);
 void gc_world_destroy(gcWorld *world);
 /* Message for the last failed call on this world (empty when none). */
 const char *gc_world_last_error(const gcWorld *world);
@@ -150,6 +156,10 @@ int64_t gc_world_contact_overflow(const gcWorld *world);
  * of its own. Chains are numbered 0..count-1 by their lowest body id; static bodies get -1. */
 int gc_world_chain_count(const gcWorld *world);
 gcStatus gc_world_body_chain(const gcWorld *world, int32_t body, int32_t *chain);
+
+/* Bodies stopped since creation because their state would have become non-finite
+ * (gc_world_step answers GC_WARN_STOPPED for the step that stopped them). */
+int64_t gc_world_stopped_bodies(const gcWorld *world);
 
 /* 64-bit hash of the full dynamic state (bit-exact), for determinism checks. */
 uint64_t gc_world_state_hash(const gcWorld *world);
@@ -246,6 +256,7 @@ typedef struct gcRuntimeStats {
     int adopted_bodies;
     uint64_t accepted_inputs, rejected_inputs;
     uint64_t watchdog_trips, stale_inputs, nonfinite_forces;
+    uint64_t stopped_bodies;    /* bodies stopped by either loop: their state would have become non-finite */
     int forces_enabled;
     double haptic_time, object_time;
 } gcRuntimeStats;

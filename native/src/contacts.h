@@ -1,106 +1,34 @@
-/* Body-body contacts, collision chains and the contact solver: private layout shared by
- * contacts.c (detection, manifolds, solver) and islands.c (chains). See docs/solver.md. */
+/* Body-body contacts, collision chains and the contact solver (docs/solver.md): what the
+ * layers above (the step, the runtime, the world API) may use. The contact system itself,
+ * struct gcContactSystem, is private to the contact files (contacts_internal.h). */
 #ifndef GC_CONTACTS_H
 #define GC_CONTACTS_H
 
-#include "threadpool.h"
-#include "world_internal.h"
+#include "body.h"
 
 #include <stdint.h>
 
-/* Tuning, SI units (docs/solver.md says why each value). */
-#define GC_MANIFOLD_MAX_POINTS 4
-#define GC_CONTACT_MARGIN 0.002        /* m: pairs closer than this get (speculative) points */
-#define GC_CONTACT_SLOP 1e-5           /* m: penetration left alone by the position pass */
-#define GC_POSITION_BETA 0.2           /* fraction of the penetration beyond slop removed per step */
-#define GC_MAX_CORRECTION_SPEED 0.2    /* m/s: cap on the position pass's pseudo-velocity */
-#define GC_ANCHOR_BETA 0.3             /* fraction of the friction-anchor error removed per step */
-#define GC_ANCHOR_RESET 1e-4           /* m: an anchor this far from its contact point is renewed */
-#define GC_SLIP_SPEED 1e-4             /* m/s: a saturated patch slower than this still sticks */
-#define GC_VELOCITY_ITERATIONS 12      /* cap; the solve stops earlier once converged */
-#define GC_SOLVER_TOLERANCE 1e-8       /* m/s: velocity error at which a chain's solve stops */
-#define GC_POSITION_ITERATIONS 4
-#define GC_FACE_CONTACT_COS 0.996      /* face clipping when a face normal is within ~5 deg of the normal */
-#define GC_REUSE_DISTANCE 2e-5         /* m: a manifold is reused while the pair moved less than this */
-#define GC_REUSE_ANGLE 2e-4            /* rad: ... and turned less than this relative to each other */
+/* Storage and the thread pool, made once at world creation (sizes from gcWorldDef). */
+gcStatus gc_contacts_create(gcWorld *world);
+void gc_contacts_destroy(gcWorld *world);
+/* Between gc_dynamics_velocities and gc_dynamics_positions: detect, build chains, solve
+ * every chain (in parallel). Changes body velocities, and poses for the position correction. */
+void gc_contacts_step(gcWorld *world, double dt);
+/* Its two halves. */
+void gc_contacts_detect(gcWorld *world);
+void gc_contacts_solve(gcWorld *world, double dt);
 
-typedef struct gcManifoldPoint {
-    gcVec3 local_a, local_b;     /* the contact on each surface, COM-relative body axes */
-    gcVec3 anchor_a, anchor_b;   /* friction anchors (same frames) while anchored */
-    gcVec3 point;                /* world, midway between the surfaces */
-    double separation;           /* m, < 0 penetrating */
-    double normal_impulse;       /* accumulated this step (warm start for the next) */
-    gcVec3 friction_impulse;     /* accumulated, world */
-    int anchored;                /* anchors valid (the manifold sticks and this point is pressed) */
-} gcManifoldPoint;
-
-/* Solver scratch of one manifold point, rebuilt every step (not copied between steps). */
-typedef struct gcPointScratch {
-    gcVec3 ang_a[3], ang_b[3];   /* r x d for d = n, t1, t2 */
-    double wa[3][6], wb[3][6];   /* (effective mass)^-1 [d; r x d] per body (0 for static) */
-    double inv_kn;               /* 1 / normal effective mass */
-    double inv_kt[2][2];         /* inverse of the 2x2 tangential effective mass */
-    double inv_kt_max;           /* 1 / its largest eigenvalue (isotropic step for sliding) */
-    double lambda_t[2];          /* friction impulse on t1, t2 */
-    double target_n, target_t[2];
-    double position_impulse;
-    int saturated;               /* friction was on the cone at its last update */
-} gcPointScratch;
-
-typedef struct gcManifold {
-    int64_t key;                 /* part_a * max_parts + part_b, part_a < part_b */
-    int32_t part_a, part_b, body_a, body_b;
-    int num_points;
-    gcVec3 normal;               /* world, from A towards B */
-    gcVec3 t1, t2;
-    double mu_s, mu_d;           /* combined: geometric means */
-    int sticking;                /* 1: static friction (mu_s, anchors), 0: sliding (mu_d) */
-    gcManifoldPoint points[GC_MANIFOLD_MAX_POINTS];
-    /* Where the pair was when the manifold was last computed (for reuse): B's COM and axes
-     * in A's COM frame, and the normal in A's axes. */
-    gcVec3 ref_position;
-    gcMat3 ref_rotation;
-    gcVec3 normal_local_a;
-    int reused;                  /* this step's points were refreshed, not recomputed */
-} gcManifold;
-
-typedef struct gcCandidate {
-    int64_t key;
-    int32_t part_a, part_b;
-} gcCandidate;
-
-struct gcContactSystem {
-    int capacity;                /* max_contacts: manifolds (part pairs) */
-    int num_manifolds, num_previous;
-    gcManifold *manifolds, *previous; /* this step's and the last step's, sorted by key */
-    int num_candidates;
-    gcCandidate *candidates, *candidates_scratch; /* the second: radix-sort buffer */
-    int32_t *sorted_bodies;      /* broad-phase order, kept between steps (insertion sort) */
-    int num_sorted;
-    gcVec3 *part_min, *part_max; /* world AABBs of the parts, inflated by the margin */
-    int64_t overflow;            /* candidate pairs dropped for want of max_contacts */
-    int full_pairs;              /* pairs computed in full (not reused) last step: pool heuristic */
-    /* Chains (islands.c). */
-    int32_t *parent;             /* union-find over bodies */
-    int32_t *body_chain;         /* chain index per body, -1 for static bodies */
-    int num_chains;
-    int32_t *chain_body_start;   /* num_chains + 1 */
-    int32_t *chain_bodies;
-    int32_t *chain_manifold_start;
-    int32_t *chain_manifolds;
-    int32_t *cursor;             /* scratch for the counting sorts */
-    /* Solver. */
-    gcVec3 *pseudo_v, *pseudo_w; /* split-impulse position pass */
-    double (*inv_mass)[36];      /* per body: (effective mass)^-1, row-major 6x6, this step */
-    gcPointScratch *scratch;     /* GC_MANIFOLD_MAX_POINTS per manifold slot */
-    double dt;
-    gcPool *pool;
-};
-
-/* islands.c */
-void gc_chains_build(gcWorld *world);
-
-/* contacts.c: a chain's solve (prepare, warm start, velocity and position passes). */
-void gc_contacts_solve_chain(gcWorld *world, int chain, double dt);
+/* For the runtime's shadow worlds. The collision chain of a body (the dynamic bodies that
+ * must be stepped with it) written to out (up to capacity); returns how many there are (the
+ * body alone before the first step). */
+int gc_contacts_chain_of(const gcWorld *world, int32_t body, int32_t *out, int capacity);
+/* The contact state that lives from one step to the next (manifolds: warm start and
+ * friction anchors; the broad phase's order), so that dst steps on as src would. */
+void gc_contacts_copy_state(gcWorld *dst, const gcWorld *src);
+/* dst's contact state from two worlds that stepped disjoint bodies: each manifold from
+ * `first` when from_first(ctx, body) says `first` stepped its dynamic body, else from
+ * `second` (the broad-phase order too). */
+void gc_contacts_merge(gcWorld *dst, const gcWorld *first, const gcWorld *second,
+                       int (*from_first)(const void *ctx, int32_t body), const void *ctx);
 
 #endif

@@ -34,6 +34,11 @@ static inline gcVec3 gc_normalize(gcVec3 a) {
 }
 static inline int gc_vec_finite(gcVec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
 
+/* Closed boxes: touching counts as overlapping. */
+static inline int gc_aabb_overlap(gcVec3 amin, gcVec3 amax, gcVec3 bmin, gcVec3 bmax) {
+    return amin.x <= bmax.x && bmin.x <= amax.x && amin.y <= bmax.y && bmin.y <= amax.y && amin.z <= bmax.z &&
+           bmin.z <= amax.z;
+}
 static inline gcMat3 gc_mat3_identity(void) {
     gcMat3 r = {{{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}};
     return r;

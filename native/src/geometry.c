@@ -566,13 +566,15 @@ static int epa_expand(Polytope *P, int f0, SVert w, int stamp, double tol_visibl
         if (P->horizon_of[ha[h]] != -1) ok = 0;
         else P->horizon_of[ha[h]] = h;
     }
-    if (ok) {
+    if (ok && nh >= 3) { /* walk the loop from horizon edge 0 */
         int h = 0, steps = 0;
         do {
             h = P->horizon_of[hb[h]];
             ++steps;
         } while (h > 0 && steps <= nh);
-        ok = nh >= 3 && h == 0 && steps == nh;
+        ok = h == 0 && steps == nh;
+    } else {
+        ok = 0;
     }
     /* Room for the new faces (the visible ones are recycled), non-degenerate ones. */
     if (P->num_free + (EPA_MAX_FACES - P->nf) + num_visible < nh) ok = 0;
@@ -812,6 +814,16 @@ static int core_closest_point(const gcHull *h, gcVec3 p, gcVec3 *closest) {
     return r.capped;
 }
 
+/* Whether p, outside the plane of face `face` by s, projects onto the face itself: the
+ * projection is then inside every other face plane, and so (the hull lies in the face's
+ * half-space) the closest point of the hull. */
+static int projects_into_face(const gcHull *h, gcVec3 p, int face, double s) {
+    gcVec3 q = gc_madd(p, h->plane_normals[face], -s);
+    for (int i = 0; i < h->num_planes; ++i)
+        if (i != face && gc_dot(h->plane_normals[i], q) - h->plane_offsets[i] > 0.0) return 0;
+    return 1;
+}
+
 gcStatus gc_point_query(const gcHull *hull, gcVec3 p, double *signed_distance,
                         gcVec3 *surface_point, gcVec3 *normal) {
     if (!hull_ok(hull) || !gc_vec_finite(p)) return GC_ERR_INVALID_ARGUMENT;
@@ -840,6 +852,11 @@ gcStatus gc_point_query(const gcHull *hull, gcVec3 p, double *signed_distance,
         }
         n = hull->plane_normals[best];
         if (best_s <= 0.0) {
+            core_dist = best_s;
+            core = gc_madd(p, n, -best_s);
+        } else if (projects_into_face(hull, p, best, best_s)) {
+            /* Outside the one face's plane only, over the face: the closest point is the
+             * projection (a sphere finger resting on a face needs no GJK). */
             core_dist = best_s;
             core = gc_madd(p, n, -best_s);
         } else {

@@ -11,6 +11,7 @@
 #include "serial_io.h"
 
 #include "graspcore.h"
+#include "body.h"
 #include "runtime.h"
 
 #include <errno.h>

@@ -7,7 +7,7 @@
  * late, after the job closed, never touches it, so a descheduled worker never delays the
  * caller. Workers sleep on a condition variable between jobs.
  * Which thread runs which index is not deterministic, so tasks write only to storage owned
- * by their index (DESIGN.md §3: results independent of the thread count). */
+ * by their index: results do not depend on the thread count (docs/solver.md). */
 #define _POSIX_C_SOURCE 200809L
 #include "threadpool.h"
 
@@ -108,7 +108,6 @@ void gc_pool_destroy(gcPool *p) {
     free(p);
 }
 
-int gc_pool_threads(const gcPool *p) { return p ? p->threads : 1; }
 
 void gc_pool_run(gcPool *p, gcTaskFn task, void *ctx, int count) {
     if (count <= 0) return;

@@ -1,5 +1,5 @@
-/* A fixed pool of worker threads, created once with the world (DESIGN.md §2: "solve each
- * chain independently, in parallel on a pool of pre-created threads").
+/* A fixed pool of worker threads, created once with the world: the source chapter solves
+ * each collision chain independently, in parallel on pre-created threads (docs/solver.md).
  * Private to the core. */
 #ifndef GC_THREADPOOL_H
 #define GC_THREADPOOL_H
@@ -15,7 +15,6 @@ typedef struct gcPool gcPool;
  * started here (none for 1). Workers sleep on a condition variable between runs. */
 gcStatus gc_pool_create(int threads, gcPool **out_pool);
 void gc_pool_destroy(gcPool *pool);
-int gc_pool_threads(const gcPool *pool);
 
 /* Runs task(ctx, i) for every i in [0, count) and returns when all are done. The caller
  * works too. With a NULL pool, one thread, count <= 1, or while another thread is already

@@ -13,6 +13,7 @@
 #include <string.h>
 #include <time.h>
 
+#include "body.h"
 #include "gc_math.h"
 #include "graspcore.h"
 
@@ -38,6 +39,56 @@ size_t gc_tick_record_size(int num_bodies, int num_fingers) {
            sizeof(int32_t) * 2 * (size_t)num_fingers;
 }
 
+/* FNV-1a over the state variables, in id order, eight bytes a step (the tail byte by byte):
+ * each step is a bijection of h, so states differing in one word always hash apart; a
+ * fifth of the cost of FNV-1a byte by byte (recordings hash every haptic tick). */
+static uint64_t hash_bytes(uint64_t h, const void *data, size_t n) {
+    const unsigned char *p = data;
+    for (; n >= 8; p += 8, n -= 8) {
+        uint64_t v;
+        memcpy(&v, p, 8);
+        h = (h ^ v) * 1099511628211ull;
+    }
+    for (; n > 0; ++p, --n) {
+        h ^= *p;
+        h *= 1099511628211ull;
+    }
+    return h;
+}
+
+uint64_t gc_tick_state_hash(const gcWorld *w) {
+    /* While the runtime runs, what the last snapshot showed (as the world's queries answer). */
+    uint64_t h = 14695981039346656037ull;
+    double time = w->shown ? w->shown->time : w->time;
+    h = hash_bytes(h, &time, sizeof time);
+    /* Bodies in four lanes (body i in lane i % 4): four independent multiply chains, folded in
+     * lane order; a word that differs still changes its lane, and so the hash. */
+    uint64_t lane[4] = {h, h + 1, h + 2, h + 3};
+    for (int i = 0; i < w->num_bodies; ++i) {
+        const gcBodyState *s = w->shown ? &w->shown->bodies[i] : &w->bodies[i].state;
+        uint64_t l = lane[i & 3];
+        l = hash_bytes(l, &s->com, sizeof s->com);
+        l = hash_bytes(l, &s->q, sizeof s->q);
+        l = hash_bytes(l, &s->v, sizeof s->v);
+        l = hash_bytes(l, &s->w, sizeof s->w);
+        lane[i & 3] = l;
+    }
+    h = hash_bytes(h, lane, sizeof lane);
+    for (int i = 0; i < w->num_fingers; ++i) {
+        const gcFinger *f = &w->fingers[i], *shown = w->shown ? &w->shown->fingers[i] : f;
+        h = hash_bytes(h, &shown->hip, sizeof shown->hip);
+        h = hash_bytes(h, &shown->force, sizeof shown->force);
+        for (int c = 0; c < f->num_contacts; ++c) {
+            const gcFingerContact *k = &f->contacts[c];
+            h = hash_bytes(h, &k->part, sizeof k->part);
+            h = hash_bytes(h, &k->state, sizeof k->state);
+            h = hash_bytes(h, &k->go_local, sizeof k->go_local);
+            h = hash_bytes(h, &k->normal_local, sizeof k->normal_local);
+        }
+    }
+    return h;
+}
+
 static unsigned char *put(unsigned char *p, const void *v, size_t n) {
     memcpy(p, v, n);
     return p + n;
@@ -48,7 +99,7 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
                         float period_us, float work_us, uint32_t flags, uint32_t adopted, float log_us,
                         unsigned char *out) {
     const int nb = w->num_bodies, nf = w->num_fingers;
-    uint64_t hash = gc_world_state_hash(w);
+    uint64_t hash = gc_tick_state_hash(w);
     unsigned char *p = out;
     p = put(p, &tick, 8);
     p = put(p, &w->time, 8);
@@ -71,20 +122,21 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
         gcVec3 n = gc_v3(0, 0, 0);
         if (f->num_contacts > 0 && f->contacts[0].part >= 0) {
             const gcBody *b = &w->bodies[w->parts[f->contacts[0].part].body];
-            n = gc_mat3_mul_vec(&b->R, f->contacts[0].normal_local);
+            n = gc_mat3_mul_vec(&b->state.R, f->contacts[0].normal_local);
         }
         p = put(p, &n, 24);
     }
     p = put(p, w->pose_array, 56 * (size_t)nb);
     for (int b = 0; b < nb; ++b) { /* of the body frame origin, as gc_world_body_velocity */
         const gcBody *body = &w->bodies[b];
-        gcVec3 v = gc_add(body->v, gc_cross(body->w, gc_mat3_mul_vec(&body->R, gc_neg(body->com_local))));
+        const gcBodyState *st = &body->state;
+        gcVec3 v = gc_add(st->v, gc_cross(st->w, gc_mat3_mul_vec(&st->R, gc_neg(body->com_local))));
         p = put(p, &v, 24);
-        p = put(p, &body->w, 24);
+        p = put(p, &st->w, 24);
     }
     for (int b = 0; b < nb; ++b) {
-        p = put(p, &w->bodies[b].residual_force, 24);
-        p = put(p, &w->bodies[b].residual_torque, 24);
+        p = put(p, &w->bodies[b].state.residual_force, 24);
+        p = put(p, &w->bodies[b].state.residual_torque, 24);
     }
     for (int i = 0; i < nf; ++i) {
         int32_t s = (int32_t)w->fingers[i].state;
@@ -95,7 +147,7 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
 
 gcStatus gc_world_tick_record(gcWorld *w, uint64_t tick, void *out, size_t size) {
     if (!w || !out) return GC_ERR_INVALID_ARGUMENT;
-    if (gc_world_running(w)) {
+    if (w->locked) {
         gc_world_set_error(w, "tick_record: the runtime is running (its ticks are in the tick log)");
         return GC_ERR_BUSY;
     }
@@ -110,7 +162,7 @@ gcStatus gc_world_tick_record(gcWorld *w, uint64_t tick, void *out, size_t size)
 
 gcStatus gc_world_set_tick_log(gcWorld *w, int capacity) {
     if (!w) return GC_ERR_INVALID_ARGUMENT;
-    if (gc_world_running(w)) {
+    if (w->locked) {
         gc_world_set_error(w, "set_tick_log: the runtime is running: stop it first");
         return GC_ERR_BUSY;
     }

@@ -8,6 +8,9 @@
 
 typedef struct gcTickLog gcTickLog;
 
+/* gc_world_state_hash (world_api.c): the bit-exact state hash, here because every recorded
+ * tick carries it. */
+uint64_t gc_tick_state_hash(const gcWorld *world);
 /* gc_world_start: (re)size the world's ring for its current bodies and fingers and empty it.
  * Returns the ring (NULL when the log is off) or sets *status on failure. */
 gcTickLog *gc_tick_log_begin(gcWorld *world, gcStatus *status);

@@ -1,4 +1,5 @@
-/* The world's private layout, shared by the core's translation units. */
+/* The world's layout (types only, no functions), shared by every layer of the core; the
+ * layers themselves are listed in docs/architecture.md. */
 #ifndef GC_WORLD_INTERNAL_H
 #define GC_WORLD_INTERNAL_H
 
@@ -7,33 +8,44 @@
 
 #include <stdint.h>
 
+/* gcWorldDef limits (checked by gc_world_create) and the contacts' default capacity. */
+#define GC_MAX_THREADS 64
+#define GC_MAX_CONTACTS_LIMIT (1 << 22)
+#define GC_DEFAULT_MAX_CONTACTS 2048
+
 /* One convex part of a body: its hull in the body frame. */
 typedef struct gcPart {
     gcHull hull;
     int32_t body;
 } gcPart;
 
+/* What a step changes on a body (the "data" beside the body's "model", as MuJoCo splits
+ * mjData from mjModel): a plain value, so the runtime's shadows copy it whole and a
+ * snapshot reads it without touching the world it came from. */
+typedef struct gcBodyState {
+    gcVec3 com;                     /* world; the COM is integrated, the frame origin derived */
+    gcQuat q;                       /* body frame orientation */
+    gcMat3 R;                       /* rotation of q (the world inertia is R I R^T) */
+    gcVec3 v, w;                    /* linear (of the COM) and angular velocity, world */
+    gcVec3 aabb_min, aabb_max;      /* world, of all parts, refreshed each step */
+    gcVec3 residual_force, residual_torque; /* what the last step applied */
+} gcBodyState;
+
 typedef struct gcBody {
+    /* Model: set when the body is added (friction and damping by their setters). */
     int is_static;
     int first_part, num_parts;      /* parts[first_part .. first_part+num_parts) */
     double mass, inv_mass;
     gcVec3 com_local;               /* centre of mass in the body frame */
     gcMat3 inertia_local;           /* about the COM, body axes */
     gcMat3 inv_inertia_local;
-    /* State: the COM is integrated; the frame origin is derived for output. */
-    gcVec3 com;                     /* world */
-    gcQuat q;                       /* body frame orientation */
-    gcMat3 R;                       /* cached rotation of q */
-    gcVec3 v, w;                    /* linear (of the COM) and angular velocity, world */
     double mu_s, mu_d, viscosity;
     double linear_damping, angular_damping;
-    gcVec3 aabb_min, aabb_max;      /* world, of all parts, refreshed each step */
-    /* Outputs of the last step. */
-    gcVec3 residual_force, residual_torque;
+    gcBodyState state;
     /* Step scratch: the effective mass used for this step's velocity, which contact
      * impulses go through. With a finger on the body (coupled) it is the mass matrix plus
      * the implicit finger coupling, kept as a 6x6 Cholesky factor; otherwise it is block
-     * diagonal: inv_mass and the inverse world inertia at the end-of-step orientation
+     * diagonal: inv_mass and the inverse world inertia at the orientation
      * inertia_rotation (formed only for bodies in contact). */
     int coupled;
     double effective_mass_factor[6][6];
@@ -41,6 +53,11 @@ typedef struct gcBody {
     int effective_mass_valid;
     /* Momentum at the start of the step: the residual wrench is its rate of change. */
     gcVec3 step_start_momentum, step_start_angular_momentum;
+    /* Pose at the start of the step, where a body whose state would turn non-finite is
+     * stopped (nonfinite: its velocity solve broke down this step). */
+    gcVec3 step_start_com;
+    gcQuat step_start_q;
+    int nonfinite;
 } gcBody;
 
 /* Contact between one finger and one part. The god-object (GO) and the contact plane
@@ -69,6 +86,14 @@ typedef struct gcFinger {
     gcFingerState state;
 } gcFinger;
 
+/* While the runtime runs: what the last gc_world_snapshot showed. The world's queries
+ * answer from it, so a snapshot never writes into the simulation state of the world. */
+typedef struct gcShown {
+    double time;
+    gcBodyState *bodies;            /* per body */
+    gcFinger *fingers;              /* per finger: hip, god_object, force, state, contact_body */
+} gcShown;
+
 struct gcWorld {
     gcWorldDef def;
     gcVec3 gravity;
@@ -83,6 +108,11 @@ struct gcWorld {
     double *force_array;            /* 3 per finger */
     double *hip_array;              /* 3 per finger */
     char last_error[256];
+    /* Bodies stopped because their state would have become non-finite: since creation, and
+     * in the current step (the first one's id, for the message). */
+    int64_t stopped_bodies;
+    int step_stopped_bodies;
+    int32_t first_stopped_body;
     /* Contacts, chains and their worker pool (contacts.c, islands.c, threadpool.c). */
     struct gcContactSystem *contacts;
     /* Runtime (runtime.c): made on the first gc_world_start, freed by gc_world_destroy. */
@@ -99,44 +129,16 @@ struct gcWorld {
     struct gcHipTrack *hip_track;
     /* 1 while the runtime owns the dynamic state: calls that would change it are refused. */
     int locked;
+    /* The runtime's gcShown while it runs, NULL otherwise. */
+    const gcShown *shown;
 };
-
-void gc_world_set_error(const gcWorld *world, const char *fmt, ...);
 
 /* The body frame (the user's origin, not the centre of mass) as a transform. */
 static inline gcTransform gc_body_transform(const gcBody *b) {
     gcTransform t;
-    t.R = b->R;
-    t.p = gc_sub(b->com, gc_mat3_mul_vec(&b->R, b->com_local));
+    t.R = b->state.R;
+    t.p = gc_sub(b->state.com, gc_mat3_mul_vec(&b->state.R, b->com_local));
     return t;
 }
-
-/* xfca.c: one god-object update for every finger (start of a step, on the current poses). */
-void gc_xfca_update(gcWorld *world, double dt);
-/* Finger forces and reported god-objects, at the end of a step: on the poses the bodies
- * moved to, so a fingertip carrying a body feels the spring the body felt (no one-step
- * lag of k v dt against the motion). */
-void gc_xfca_outputs(gcWorld *world);
-/* dynamics.c, in step order: new velocities of every dynamic body under gravity and the
- * implicit finger coupling (leaves each body's effective-mass factor); then positions. */
-void gc_dynamics_velocities(gcWorld *world, double dt);
-void gc_dynamics_positions(gcWorld *world, double dt);
-/* Between the two: the body's (effective mass)^-1 as a row-major 6x6, (linear, angular)
- * world frame, zero for a static or immovable body. A world impulse p at r from the COM
- * changes the twist by M [p; r x p], so contacts see the finger springs as mass. */
-void gc_body_inverse_effective_mass(const gcBody *body, double M[36]);
-void gc_body_refresh_derived(gcWorld *world, int32_t body);
-
-/* contacts.c: body-body contacts, collision chains, the contact solver (docs/solver.md).
- * Storage and the thread pool are made once at world creation (sizes from gcWorldDef). */
-gcStatus gc_contacts_create(gcWorld *world);
-void gc_contacts_destroy(gcWorld *world);
-/* Between gc_dynamics_velocities and gc_dynamics_positions: detect, build chains, solve
- * every chain (in parallel). Changes body velocities, and poses for the position correction. */
-void gc_contacts_step(gcWorld *world, double dt);
-/* Its two halves, for a caller that solves some chains itself (gc_contacts_solve_chain
- * in contacts.h solves one). */
-void gc_contacts_detect(gcWorld *world);
-void gc_contacts_solve(gcWorld *world, double dt);
 
 #endif

@@ -1,10 +1,11 @@
 /* Extended friction cone algorithm (xFCA): one god-object (GO) per finger per convex
  * part, kept on the part's surface and inside the friction circle of radius mu*depth
  * around the surface object (SO, the frictionless projection of the HIP).
- * See docs/physics.md for how we read the chapter; the numbered steps below follow it.
+ * The algorithm is the source chapter's (Harwin & Barrow, "Multi-finger grasps in a dynamic
+ * environment"); docs/physics.md says how we read it, and the numbered steps below follow it.
  * All positions here are fingertip-sphere centres: the surface the centre sees is the
  * part inflated by the finger radius, so a point finger is radius 0. */
-#include "world_internal.h"
+#include "xfca.h"
 
 #include <string.h>
 
@@ -32,7 +33,7 @@ static double tip_query(const gcHull *h, gcVec3 p, double r, gcVec3 *normal) {
 }
 
 /* Push depth that keeps the GO on a convex surface after a tangential move of dmax:
- * the surface falls rc - sqrt(rc^2 - dmax^2) below its tangent plane (DESIGN.md §2).
+ * the surface falls rc - sqrt(rc^2 - dmax^2) below its tangent plane (docs/physics.md, step 5).
  * The inflated surface of a polyhedron has its tightest curvature, r, at the rounded
  * edges; for a point finger we allow a 45-degree fall. Bounded by the depth (never past
  * the HIP) and by a fraction of the part's thinnest width (never through a plate). */
@@ -141,11 +142,6 @@ static int find_entry(const gcFinger *f, const gcHull *h, gcVec3 from, gcVec3 to
     return 0;
 }
 
-static int aabb_overlap(gcVec3 amin, gcVec3 amax, gcVec3 bmin, gcVec3 bmax) {
-    return amin.x <= bmax.x && bmin.x <= amax.x && amin.y <= bmax.y && bmin.y <= amax.y &&
-           amin.z <= bmax.z && bmin.z <= amax.z;
-}
-
 static int has_contact_with(const gcFinger *f, int32_t part) {
     for (int i = 0; i < f->num_contacts; ++i)
         if (f->contacts[i].part == part) return 1;
@@ -173,7 +169,7 @@ static void finger_update(gcWorld *w, gcFinger *f, double dt) {
     hi = gc_add(hi, pad);
     for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < GC_MAX_CONTACTS_PER_FINGER; ++bi) {
         const gcBody *b = &w->bodies[bi];
-        if (!aabb_overlap(lo, hi, b->aabb_min, b->aabb_max)) continue;
+        if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
         gcTransform fr = gc_body_transform(b);
         gcVec3 from = gc_inv_transform_point(&fr, f->hip_prev), to = gc_inv_transform_point(&fr, f->hip);
         for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
@@ -209,7 +205,7 @@ static void finger_outputs(gcWorld *w, int32_t id) {
         force = gc_madd(force, gc_sub(go, f->hip), f->stiffness);
         if (f->damping > 0.0) {
             /* Damping on the HIP vs the body point at the god-object. */
-            gcVec3 v_point = b->is_static ? gc_v3(0, 0, 0) : gc_add(b->v, gc_cross(b->w, gc_sub(go, b->com)));
+            gcVec3 v_point = b->is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(go, b->state.com)));
             force = gc_madd(force, gc_sub(v_point, f->hip_velocity), f->damping);
         }
         if (c->depth > deepest) {

@@ -145,7 +145,41 @@ static void test_shapes_and_compounds(void) {
     gc_world_destroy(w);
 }
 
+/* Every error path names what was wrong: NULL pointers, runtime calls while stopped, and
+ * gc_world_create, which has no world to hold the message. */
+static void expect_error(gcWorld *w, gcStatus got, gcStatus want, const char *prefix) {
+    const char *msg = gc_world_last_error(w);
+    GC_CHECK(got == want && strncmp(msg, prefix, strlen(prefix)) == 0, "status %d (want %d), message '%s' (want '%s...')",
+             (int)got, (int)want, msg, prefix);
+}
+
+static void test_every_error_names_its_argument(void) {
+    gcWorld *w = NULL;
+    gcWorldDef def = gc_default_world_def();
+    def.max_parts = 0;
+    GC_CHECK(gc_world_create(&def, &w) == GC_ERR_INVALID_ARGUMENT && !w, "max_parts 0 refused");
+    GC_CHECK(strncmp(gc_world_create_error(), "max_parts:", 10) == 0, "create error: '%s'", gc_world_create_error());
+    def = gc_default_world_def();
+    GC_CHECK(gc_world_create(&def, &w) == GC_OK && gc_world_create_error()[0] == 0, "created, no message left");
+    int32_t id;
+    gcFingerDef fd = gc_default_finger_def();
+    expect_error(w, gc_world_add_body(w, NULL, NULL, 0, &id), GC_ERR_INVALID_ARGUMENT, "def:");
+    expect_error(w, gc_world_add_finger(w, &fd, NULL), GC_ERR_INVALID_ARGUMENT, "out_finger:");
+    GC_CHECK(gc_world_add_finger(w, &fd, &id) == GC_OK, "finger added");
+    double p[3];
+    expect_error(w, gc_world_god_object(w, id, NULL), GC_ERR_INVALID_ARGUMENT, "position:");
+    expect_error(w, gc_world_finger_force(w, 7, p), GC_ERR_UNKNOWN_ID, "finger:");
+    expect_error(w, gc_world_push_hips(w, p, 1, 0.0), GC_ERR_NOT_RUNNING, "push_hips:");
+    expect_error(w, gc_world_debug_stall(w, 0.0), GC_ERR_NOT_RUNNING, "debug_stall:");
+    expect_error(w, gc_world_snapshot(w, NULL), GC_ERR_INVALID_ARGUMENT, "snapshot:");
+    expect_error(w, gc_world_stats(w, NULL), GC_ERR_INVALID_ARGUMENT, "stats:");
+    expect_error(w, gc_world_start(w, NULL), GC_ERR_INVALID_ARGUMENT, "def:");
+    expect_error(w, gc_world_step(w, -1.0), GC_ERR_INVALID_ARGUMENT, "dt:");
+    gc_world_destroy(w);
+}
+
 int main(void) {
+    test_every_error_names_its_argument();
     test_pinch_and_determinism();
     test_bad_input_leaves_world_unchanged();
     test_shapes_and_compounds();

@@ -3,18 +3,9 @@ import numpy as np
 import pytest
 
 import graspcore
-from scenes import box_points, prism_points
+from scenes import box_points, prism_points, quat_to_matrix
 
 DT = 1e-3
-
-
-def quat_to_matrix(q):
-    w, x, y, z = q
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
 
 
 def test_free_fall_matches_semi_implicit_euler_and_closed_form():
@@ -85,7 +76,8 @@ def test_torque_free_asymmetric_body_conserves_angular_momentum():
     w.step(DT, steps=2000)
     L1 = angular_momentum()
     np.testing.assert_allclose(L1, L0, rtol=0, atol=1e-6 * np.linalg.norm(L0))
-    # Dropping the gyroscopic term (the chapter's simplification) does not conserve it.
+    # Dropping the gyroscopic term (the simplification of the source chapter, Harwin & Barrow,
+    # docs/physics.md) does not conserve it.
     w2 = graspcore.World(gravity=(0, 0, 0), gyroscopic=False)
     b2 = w2.add_body(box_points(0.1, 0.04, 0.01), mass=1.0)
     w2.set_body_velocity(b2, (0, 0, 0), (0.3, 4.0, 0.2))

@@ -78,11 +78,21 @@ def test_capacity_is_reported():
         w.add_finger()
 
 
-def test_world_arguments_are_checked():
-    with pytest.raises(ValueError, match="gravity"):
-        graspcore.World(gravity=(0, 0, math.nan))
-    with pytest.raises(ValueError, match="max_bodies"):
-        graspcore.World(max_bodies=0)
+@pytest.mark.parametrize("kwargs, name", [
+    (dict(gravity=(0, 0, math.nan)), "gravity"),
+    (dict(max_bodies=0), "max_bodies"),
+    (dict(max_fingers=-1), "max_fingers"),
+    (dict(max_parts=0), "max_parts"),
+    (dict(threads=65), "threads"),
+    (dict(max_contacts=-5), "max_contacts"),
+])
+def test_world_names_just_the_argument_it_refuses(kwargs, name):
+    names = {"gravity", "max_bodies", "max_fingers", "max_parts", "threads", "max_contacts"}
+    with pytest.raises(ValueError) as info:
+        graspcore.World(**kwargs)
+    message = str(info.value)
+    assert message.startswith(name + ":")
+    assert not any(other in message for other in names - {name})
 
 
 def test_static_body_needs_no_mass_and_refuses_velocity():
@@ -105,3 +115,19 @@ def test_spheres_and_capsules_from_one_or_two_points():
     assert inertia[0][0] < inertia[1][1] == pytest.approx(inertia[2][2])
     with pytest.raises(ValueError, match="points"):
         w.add_body([[0, 0, 0]], radius=0.0, mass=1.0)
+
+
+def test_runtime_errors_carry_the_cores_message():
+    """The binding raises with the core's message, never one of its own."""
+    w = graspcore.World()
+    w.add_finger()
+    with pytest.raises(RuntimeError, match=r"^push_hips: the runtime is not running"):
+        w.push_hips(np.zeros((1, 3)), 0.0)
+    w.start(realtime=False)
+    with pytest.raises(ValueError, match=r"^positions: 2 rows given for 1 fingers"):
+        w.push_hips(np.zeros((2, 3)), 0.0)
+    with pytest.raises(ValueError, match=r"^haptic_rate:"):
+        w.stop()
+        w.start(haptic_rate=-1.0)
+    with pytest.raises(RuntimeError, match=r"^advance: the runtime is not running"):
+        w.advance(1)

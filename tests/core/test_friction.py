@@ -96,8 +96,9 @@ def trailing_slope(speed, viscosity, depth=0.002):
 
 
 def test_viscous_friction_rises_with_sliding_speed():
-    # The GO may slide at most depth / viscosity per second (the chapter's viscous radius
-    # depth*dt/viscosity per step); faster, it trails, and the force grows at
+    # The GO may slide at most depth / viscosity per second (the viscous radius of the
+    # source chapter, Harwin & Barrow, docs/physics.md: depth*dt/viscosity per step);
+    # faster, it trails, and the force grows at
     # K * (speed - depth / viscosity).
     viscosity, depth = 0.05, 0.002
     v_limit = depth / viscosity  # 0.04 m/s

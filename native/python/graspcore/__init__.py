@@ -10,7 +10,12 @@ import numpy as np
 
 from . import _core
 
-__all__ = ["World", "FINGER_STATES", "tick_dtype"]
+__all__ = ["World", "FINGER_STATES", "BODY_DEFAULTS", "FINGER_DEFAULTS", "tick_dtype"]
+
+# The core's own defaults (gc_default_body_def / gc_default_finger_def), not copies.
+BODY_DEFAULTS = dict(_core.BODY_DEFAULTS)
+FINGER_DEFAULTS = dict(_core.FINGER_DEFAULTS)
+_B = BODY_DEFAULTS
 
 FINGER_STATES = ("free", "stick", "slip")
 
@@ -71,21 +76,21 @@ class World(_core.World):
     def add_body(
         self,
         points=None,
-        mass: float = 1.0,
+        mass: float = _B["mass"],
         position=(0.0, 0.0, 0.0),
         orientation=(1.0, 0.0, 0.0, 0.0),
         static: bool = False,
-        mu_s: float = 0.8,
-        mu_d: float = 0.6,
-        viscosity: float = 0.0,
+        mu_s: float = _B["mu_s"],
+        mu_d: float = _B["mu_d"],
+        viscosity: float = _B["viscosity"],
         inertia=None,
         parts=None,
         center_of_mass=None,
         radius: float = 0.0,
         linear_velocity=(0.0, 0.0, 0.0),
         angular_velocity=(0.0, 0.0, 0.0),
-        linear_damping: float = 0.0,
-        angular_damping: float = 0.0,
+        linear_damping: float = _B["linear_damping"],
+        angular_damping: float = _B["angular_damping"],
     ) -> int:
         """Add a rigid body; returns its id.
 

@@ -4,6 +4,7 @@
 #include "runtime.h"
 #include "tick_log.h"
 #include "serial_io.h"
+#include "step.h"
 
 #include <stdarg.h>
 #include <stdio.h>
@@ -15,6 +16,7 @@ const char *gc_status_string(gcStatus status) {
     case GC_OK: return "ok";
     case GC_WARN_MAX_ITERATIONS: return "iteration cap reached";
     case GC_WARN_REJECTED: return "input rejected";
+    case GC_WARN_STOPPED: return "body stopped (non-finite state)";
     case GC_ERR_INVALID_ARGUMENT: return "invalid argument";
     case GC_ERR_DEGENERATE: return "degenerate geometry";
     case GC_ERR_NO_MEMORY: return "out of memory";
@@ -24,15 +26,6 @@ const char *gc_status_string(gcStatus status) {
     case GC_ERR_NOT_RUNNING: return "runtime not running";
     }
     return "unknown status";
-}
-
-void gc_world_set_error(const gcWorld *world, const char *fmt, ...) {
-    /* The error buffer is diagnostic state, not simulation state: writable from const queries. */
-    gcWorld *w = (gcWorld *)world;
-    va_list args;
-    va_start(args, fmt);
-    vsnprintf(w->last_error, sizeof w->last_error, fmt, args);
-    va_end(args);
 }
 
 const char *gc_world_last_error(const gcWorld *world) { return world ? world->last_error : "no world"; }
@@ -45,8 +38,8 @@ gcWorldDef gc_default_world_def(void) {
     def.max_bodies = 256;
     def.max_fingers = 32;
     def.max_parts = 4096;
-    def.threads = 1;         /* contacts.c */
-    def.max_contacts = 2048; /* contacts.c */
+    def.threads = 1;
+    def.max_contacts = GC_DEFAULT_MAX_CONTACTS;
     return def;
 }
 
@@ -68,21 +61,52 @@ gcFingerDef gc_default_finger_def(void) {
     return def;
 }
 
-static int all_finite(const double *v, int n) {
-    for (int i = 0; i < n; ++i)
-        if (!isfinite(v[i])) return 0;
-    return 1;
+
+/* No world exists yet when gc_world_create fails: its message is kept per thread. */
+static _Thread_local char create_error[256];
+
+const char *gc_world_create_error(void) { return create_error; }
+
+static gcStatus create_failed(gcStatus status, const char *fmt, ...) {
+    va_list args;
+    va_start(args, fmt);
+    vsnprintf(create_error, sizeof create_error, fmt, args);
+    va_end(args);
+    return status;
+}
+
+/* The first argument of gcWorldDef that is out of range, named in the message. */
+static gcStatus check_world_def(const gcWorldDef *def) {
+    if (!gc_all_finite(def->gravity, 3))
+        return create_failed(GC_ERR_INVALID_ARGUMENT, "gravity: must be 3 finite numbers (got %g, %g, %g)",
+                             def->gravity[0], def->gravity[1], def->gravity[2]);
+    if (def->max_bodies < 1 || def->max_bodies > (1 << 24))
+        return create_failed(GC_ERR_INVALID_ARGUMENT, "max_bodies: must be in 1..%d (got %d)", 1 << 24,
+                             def->max_bodies);
+    if (def->max_fingers < 1 || def->max_fingers > (1 << 20))
+        return create_failed(GC_ERR_INVALID_ARGUMENT, "max_fingers: must be in 1..%d (got %d)", 1 << 20,
+                             def->max_fingers);
+    if (def->max_parts < 1 || def->max_parts > (1 << 24))
+        return create_failed(GC_ERR_INVALID_ARGUMENT, "max_parts: must be in 1..%d (got %d)", 1 << 24,
+                             def->max_parts);
+    if (def->threads < 0 || def->threads > GC_MAX_THREADS)
+        return create_failed(GC_ERR_INVALID_ARGUMENT, "threads: must be in 1..%d, 0 for 1 (got %d)",
+                             GC_MAX_THREADS, def->threads);
+    if (def->max_contacts < 0 || def->max_contacts > GC_MAX_CONTACTS_LIMIT)
+        return create_failed(GC_ERR_INVALID_ARGUMENT, "max_contacts: must be in 1..%d, 0 for the default (got %d)",
+                             GC_MAX_CONTACTS_LIMIT, def->max_contacts);
+    return GC_OK;
 }
 
 gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world) {
-    if (!def || !out_world) return GC_ERR_INVALID_ARGUMENT;
+    create_error[0] = 0;
+    if (!out_world) return create_failed(GC_ERR_INVALID_ARGUMENT, "out_world: must not be NULL");
     *out_world = NULL;
-    if (!all_finite(def->gravity, 3) || def->max_bodies < 1 || def->max_fingers < 1 ||
-        def->max_parts < 1 || def->max_bodies > (1 << 24) || def->max_fingers > (1 << 20) ||
-        def->max_parts > (1 << 24))
-        return GC_ERR_INVALID_ARGUMENT;
+    if (!def) return create_failed(GC_ERR_INVALID_ARGUMENT, "def: must not be NULL");
+    gcStatus st = check_world_def(def);
+    if (st) return st;
     gcWorld *w = calloc(1, sizeof *w);
-    if (!w) return GC_ERR_NO_MEMORY;
+    if (!w) return create_failed(GC_ERR_NO_MEMORY, "out of memory for the world");
     w->def = *def;
     w->gravity = gc_v3(def->gravity[0], def->gravity[1], def->gravity[2]);
     w->bodies = calloc((size_t)def->max_bodies, sizeof *w->bodies);
@@ -95,10 +119,12 @@ gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world) {
     if (!w->bodies || !w->fingers || !w->parts || !w->pose_array || !w->god_object_array ||
         !w->force_array || !w->hip_array || !(w->serial = gc_serial_hub_create(w))) {
         gc_world_destroy(w);
-        return GC_ERR_NO_MEMORY;
+        return create_failed(GC_ERR_NO_MEMORY, "out of memory for the capacities (max_bodies %d, max_fingers %d, max_parts %d)",
+                             def->max_bodies, def->max_fingers, def->max_parts);
     }
     gcStatus contacts_status = gc_contacts_create(w); /* contact storage and thread pool */
     if (contacts_status != GC_OK) {
+        create_failed(contacts_status, "%s", w->last_error[0] ? w->last_error : "out of memory for the contacts");
         gc_world_destroy(w);
         return contacts_status;
     }
@@ -125,132 +151,32 @@ void gc_world_destroy(gcWorld *w) {
     free(w);
 }
 
-int gc_world_body_count(const gcWorld *w) { return w->num_bodies; }
-int gc_world_finger_count(const gcWorld *w) { return w->num_fingers; }
-double gc_world_time(const gcWorld *w) { return w->time; }
+int gc_world_body_count(const gcWorld *w) { return w ? w->num_bodies : 0; }
+int gc_world_finger_count(const gcWorld *w) { return w ? w->num_fingers : 0; }
+double gc_world_time(const gcWorld *w) { return w ? (w->shown ? w->shown->time : w->time) : 0.0; }
 
-static gcStatus check_body(const gcWorld *w, int32_t body) {
-    if (body < 0 || body >= w->num_bodies) {
-        gc_world_set_error(w, "body: unknown id %d", (int)body);
-        return GC_ERR_UNKNOWN_ID;
-    }
-    return GC_OK;
-}
-
-static gcStatus check_finger(const gcWorld *w, int32_t finger) {
-    if (finger < 0 || finger >= w->num_fingers) {
-        gc_world_set_error(w, "finger: unknown id %d", (int)finger);
-        return GC_ERR_UNKNOWN_ID;
-    }
-    return GC_OK;
-}
-
-/* While the runtime runs it owns the dynamic state (runtime.c): mutating calls are refused. */
+/* While the runtime runs it owns the dynamic state (it sets `locked`): mutating calls are refused. */
 static gcStatus check_idle(const gcWorld *w) {
-    if (gc_runtime_running(w)) {
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (w->locked) {
         gc_world_set_error(w, "the runtime is running: stop it first (World.stop / gc_world_stop)");
         return GC_ERR_BUSY;
     }
     return GC_OK;
 }
 
-static gcStatus check_vec(const gcWorld *w, const double *v, int n, const char *name) {
-    if (!v || !all_finite(v, n)) {
-        gc_world_set_error(w, "%s: must be %d finite numbers", name, n);
-        return GC_ERR_INVALID_ARGUMENT;
-    }
-    return GC_OK;
-}
-
-static gcStatus check_friction(const gcWorld *w, double mu_s, double mu_d, double viscosity) {
-    if (!isfinite(mu_s) || mu_s < 0.0) {
-        gc_world_set_error(w, "mu_s: must be a finite number >= 0 (got %g)", mu_s);
-        return GC_ERR_INVALID_ARGUMENT;
-    }
-    if (!isfinite(mu_d) || mu_d < 0.0 || mu_d > mu_s) {
-        gc_world_set_error(w, "mu_d: must be finite, >= 0 and <= mu_s (got %g, mu_s %g)", mu_d, mu_s);
-        return GC_ERR_INVALID_ARGUMENT;
-    }
-    if (!isfinite(viscosity) || viscosity < 0.0) {
-        gc_world_set_error(w, "viscosity: must be a finite number >= 0 (got %g)", viscosity);
-        return GC_ERR_INVALID_ARGUMENT;
-    }
-    return GC_OK;
-}
-
-/* Inverse of a symmetric positive-definite 3x3 (inertia); 0 when singular. */
-static int invert_mat3(const gcMat3 *a, gcMat3 *out) {
-    const double(*m)[3] = a->m;
-    double c00 = m[1][1] * m[2][2] - m[1][2] * m[2][1];
-    double c01 = m[1][2] * m[2][0] - m[1][0] * m[2][2];
-    double c02 = m[1][0] * m[2][1] - m[1][1] * m[2][0];
-    double det = m[0][0] * c00 + m[0][1] * c01 + m[0][2] * c02;
-    if (!(fabs(det) > 0.0) || !isfinite(det)) return 0;
-    double inv = 1.0 / det;
-    out->m[0][0] = c00 * inv;
-    out->m[0][1] = (m[0][2] * m[2][1] - m[0][1] * m[2][2]) * inv;
-    out->m[0][2] = (m[0][1] * m[1][2] - m[0][2] * m[1][1]) * inv;
-    out->m[1][0] = c01 * inv;
-    out->m[1][1] = (m[0][0] * m[2][2] - m[0][2] * m[2][0]) * inv;
-    out->m[1][2] = (m[0][2] * m[1][0] - m[0][0] * m[1][2]) * inv;
-    out->m[2][0] = c02 * inv;
-    out->m[2][1] = (m[0][1] * m[2][0] - m[0][0] * m[2][1]) * inv;
-    out->m[2][2] = (m[0][0] * m[1][1] - m[0][1] * m[1][0]) * inv;
-    return 1;
-}
-
-/* Inertia of the principal minors must be positive and obey the triangle inequality. */
-static int inertia_is_physical(const gcMat3 *I) {
-    for (int i = 0; i < 3; ++i)
-        for (int j = 0; j < 3; ++j)
-            if (!isfinite(I->m[i][j]) || fabs(I->m[i][j] - I->m[j][i]) > 1e-9 * (fabs(I->m[i][j]) + 1e-30))
-                return 0;
-    double a = I->m[0][0], b = I->m[1][1], c = I->m[2][2];
-    if (!(a > 0 && b > 0 && c > 0)) return 0;
-    double tol = 1e-9 * (a + b + c);
-    if (a + b < c - tol || a + c < b - tol || b + c < a - tol) return 0;
-    /* Positive definite: leading minors. */
-    double m2 = a * b - I->m[0][1] * I->m[1][0];
-    gcMat3 inv;
-    return m2 > 0 && invert_mat3(I, &inv);
-}
-
-void gc_body_refresh_derived(gcWorld *w, int32_t id) {
-    gcBody *b = &w->bodies[id];
-    b->q = gc_quat_normalize(b->q);
-    b->R = gc_quat_to_mat3(b->q);
-    gcTransform frame = gc_body_transform(b);
-    gcVec3 origin = frame.p;
-    double *pose = &w->pose_array[7 * id];
-    pose[0] = origin.x, pose[1] = origin.y, pose[2] = origin.z;
-    pose[3] = b->q.w, pose[4] = b->q.x, pose[5] = b->q.y, pose[6] = b->q.z;
-    /* World AABB of all parts: each part's local box turned into world axes (centre
-     * transformed, half extents through |R|), grown by the part's radius. */
-    gcVec3 lo = gc_v3(INFINITY, INFINITY, INFINITY), hi = gc_neg(lo);
-    for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
-        const gcHull *h = &w->parts[p].hull;
-        gcVec3 centre = gc_transform_point(&frame, gc_scale(gc_add(h->aabb_min, h->aabb_max), 0.5));
-        gcVec3 half = gc_scale(gc_sub(h->aabb_max, h->aabb_min), 0.5);
-        double e[3];
-        for (int i = 0; i < 3; ++i)
-            e[i] = fabs(b->R.m[i][0]) * half.x + fabs(b->R.m[i][1]) * half.y + fabs(b->R.m[i][2]) * half.z + h->radius;
-        lo = gc_v3(gc_min(lo.x, centre.x - e[0]), gc_min(lo.y, centre.y - e[1]), gc_min(lo.z, centre.z - e[2]));
-        hi = gc_v3(gc_max(hi.x, centre.x + e[0]), gc_max(hi.y, centre.y + e[1]), gc_max(hi.z, centre.z + e[2]));
-    }
-    b->aabb_min = lo;
-    b->aabb_max = hi;
-}
-
 gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *parts, int num_parts,
                            int32_t *out_body) {
-    if (!w || !def || !out_body) return GC_ERR_INVALID_ARGUMENT;
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (!def) return gc_null_argument(w, "def");
+    if (!out_body) return gc_null_argument(w, "out_body");
     gcStatus st;
     if ((st = check_idle(w))) return st;
-    if ((st = check_vec(w, def->position, 3, "position")) ||
-        (st = check_vec(w, def->orientation, 4, "orientation")) ||
-        (st = check_vec(w, def->linear_velocity, 3, "linear_velocity")) ||
-        (st = check_vec(w, def->angular_velocity, 3, "angular_velocity")) ||
-        (st = check_friction(w, def->mu_s, def->mu_d, def->viscosity)))
+    if ((st = gc_check_vec(w, def->position, 3, "position")) ||
+        (st = gc_check_vec(w, def->orientation, 4, "orientation")) ||
+        (st = gc_check_vec(w, def->linear_velocity, 3, "linear_velocity")) ||
+        (st = gc_check_vec(w, def->angular_velocity, 3, "angular_velocity")) ||
+        (st = gc_check_friction(w, def->mu_s, def->mu_d, def->viscosity)))
         return st;
     double qn = sqrt(def->orientation[0] * def->orientation[0] + def->orientation[1] * def->orientation[1] +
                      def->orientation[2] * def->orientation[2] + def->orientation[3] * def->orientation[3]);
@@ -285,7 +211,7 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
         const gcPartDef *pd = &parts[i];
         const char *what = num_parts > 1 ? "parts" : "points";
         if (!pd->points || pd->num_points < 1 || !isfinite(pd->radius) || pd->radius < 0 ||
-            !all_finite(pd->points, 3 * pd->num_points)) {
+            !gc_all_finite(pd->points, 3 * pd->num_points)) {
             st = GC_ERR_INVALID_ARGUMENT;
             gc_world_set_error(w, "%s: part %d must be finite xyz points with a radius >= 0", what, i);
         } else {
@@ -320,7 +246,7 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
     b.com_local = def->has_center_of_mass ? gc_v3(def->center_of_mass[0], def->center_of_mass[1],
                                                   def->center_of_mass[2])
                                           : centroid;
-    if (def->has_center_of_mass && !all_finite(def->center_of_mass, 3)) {
+    if (def->has_center_of_mass && !gc_all_finite(def->center_of_mass, 3)) {
         st = GC_ERR_INVALID_ARGUMENT;
         gc_world_set_error(w, "center_of_mass: must be 3 finite numbers");
     }
@@ -344,8 +270,8 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
                                                    m * ((r == c ? d2 : 0.0) - dv[r] * dv[c]);
             }
         }
-        if (st == GC_OK && (!inertia_is_physical(&b.inertia_local) ||
-                            !invert_mat3(&b.inertia_local, &b.inv_inertia_local))) {
+        if (st == GC_OK && (!gc_inertia_is_physical(&b.inertia_local) ||
+                            !gc_invert_mat3(&b.inertia_local, &b.inv_inertia_local))) {
             st = GC_ERR_INVALID_ARGUMENT;
             gc_world_set_error(w, "inertia: must be symmetric positive definite and obey the triangle inequality");
         }
@@ -359,15 +285,15 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
     b.viscosity = def->viscosity;
     b.linear_damping = def->linear_damping;
     b.angular_damping = def->angular_damping;
-    b.q = gc_quat_normalize((gcQuat){def->orientation[0], def->orientation[1], def->orientation[2],
+    b.state.q = gc_quat_normalize((gcQuat){def->orientation[0], def->orientation[1], def->orientation[2],
                                      def->orientation[3]});
-    b.R = gc_quat_to_mat3(b.q);
-    b.com = gc_add(gc_v3(def->position[0], def->position[1], def->position[2]),
-                   gc_mat3_mul_vec(&b.R, b.com_local));
+    b.state.R = gc_quat_to_mat3(b.state.q);
+    b.state.com = gc_add(gc_v3(def->position[0], def->position[1], def->position[2]),
+                   gc_mat3_mul_vec(&b.state.R, b.com_local));
     if (!b.is_static) {
-        b.w = gc_v3(def->angular_velocity[0], def->angular_velocity[1], def->angular_velocity[2]);
-        b.v = gc_add(gc_v3(def->linear_velocity[0], def->linear_velocity[1], def->linear_velocity[2]),
-                     gc_cross(b.w, gc_mat3_mul_vec(&b.R, b.com_local))); /* origin -> COM */
+        b.state.w = gc_v3(def->angular_velocity[0], def->angular_velocity[1], def->angular_velocity[2]);
+        b.state.v = gc_add(gc_v3(def->linear_velocity[0], def->linear_velocity[1], def->linear_velocity[2]),
+                     gc_cross(b.state.w, gc_mat3_mul_vec(&b.state.R, b.com_local))); /* origin -> COM */
     }
     int32_t id = w->num_bodies;
     for (int i = 0; i < num_parts; ++i) w->parts[first + i].body = id;
@@ -380,9 +306,11 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
 }
 
 gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_finger) {
-    if (!w || !def || !out_finger) return GC_ERR_INVALID_ARGUMENT;
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (!def) return gc_null_argument(w, "def");
+    if (!out_finger) return gc_null_argument(w, "out_finger");
     gcStatus st;
-    if ((st = check_idle(w)) || (st = check_vec(w, def->position, 3, "position"))) return st;
+    if ((st = check_idle(w)) || (st = gc_check_vec(w, def->position, 3, "position"))) return st;
     if (!isfinite(def->radius) || def->radius < 0) {
         gc_world_set_error(w, "radius: must be a finite number >= 0 (got %g)", def->radius);
         return GC_ERR_INVALID_ARGUMENT;
@@ -417,26 +345,27 @@ gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_fi
 
 gcStatus gc_world_set_gravity(gcWorld *w, const double g[3]) {
     gcStatus st = check_idle(w);
-    if (st || (st = check_vec(w, g, 3, "gravity"))) return st;
+    if (st || (st = gc_check_vec(w, g, 3, "gravity"))) return st;
     w->gravity = gc_v3(g[0], g[1], g[2]);
     return GC_OK;
 }
 
 gcStatus gc_world_set_hip(gcWorld *w, int32_t finger, const double p[3]) {
     gcStatus st;
-    if ((st = check_idle(w)) || (st = check_finger(w, finger)) || (st = check_vec(w, p, 3, "position"))) return st;
+    if ((st = check_idle(w)) || (st = gc_check_finger(w, finger)) || (st = gc_check_vec(w, p, 3, "position"))) return st;
     w->fingers[finger].hip = gc_v3(p[0], p[1], p[2]);
     memcpy(&w->hip_array[3 * finger], p, 3 * sizeof(double));
     return GC_OK;
 }
 
 gcStatus gc_world_set_hips(gcWorld *w, const double *p, int count) {
-    if (check_idle(w)) return GC_ERR_BUSY;
+    gcStatus idle = check_idle(w);
+    if (idle) return idle;
     if (count < 0 || count > w->num_fingers) {
         gc_world_set_error(w, "positions: %d rows given for %d fingers", count, w->num_fingers);
         return GC_ERR_INVALID_ARGUMENT;
     }
-    gcStatus st = check_vec(w, p, 3 * count, "positions");
+    gcStatus st = gc_check_vec(w, p, 3 * count, "positions");
     if (st) return st;
     for (int i = 0; i < count; ++i) w->fingers[i].hip = gc_v3(p[3 * i], p[3 * i + 1], p[3 * i + 2]);
     memcpy(w->hip_array, p, 3 * (size_t)count * sizeof(double));
@@ -445,8 +374,8 @@ gcStatus gc_world_set_hips(gcWorld *w, const double *p, int count) {
 
 gcStatus gc_world_set_body_velocity(gcWorld *w, int32_t body, const double lin[3], const double ang[3]) {
     gcStatus st;
-    if ((st = check_idle(w)) || (st = check_body(w, body)) || (st = check_vec(w, lin, 3, "linear")) ||
-        (st = check_vec(w, ang, 3, "angular")))
+    if ((st = check_idle(w)) || (st = gc_check_body(w, body)) || (st = gc_check_vec(w, lin, 3, "linear")) ||
+        (st = gc_check_vec(w, ang, 3, "angular")))
         return st;
     gcBody *b = &w->bodies[body];
     if (b->is_static) {
@@ -454,15 +383,15 @@ gcStatus gc_world_set_body_velocity(gcWorld *w, int32_t body, const double lin[3
         return GC_ERR_INVALID_ARGUMENT;
     }
     /* Given for the body frame origin, like body_velocity reports it; stored at the COM. */
-    b->w = gc_v3(ang[0], ang[1], ang[2]);
-    b->v = gc_add(gc_v3(lin[0], lin[1], lin[2]), gc_cross(b->w, gc_mat3_mul_vec(&b->R, b->com_local)));
+    b->state.w = gc_v3(ang[0], ang[1], ang[2]);
+    b->state.v = gc_add(gc_v3(lin[0], lin[1], lin[2]), gc_cross(b->state.w, gc_mat3_mul_vec(&b->state.R, b->com_local)));
     return GC_OK;
 }
 
 gcStatus gc_world_set_body_pose(gcWorld *w, int32_t body, const double pos[3], const double quat[4]) {
     gcStatus st;
-    if ((st = check_idle(w)) || (st = check_body(w, body)) || (st = check_vec(w, pos, 3, "position")) ||
-        (st = check_vec(w, quat, 4, "orientation")))
+    if ((st = check_idle(w)) || (st = gc_check_body(w, body)) || (st = gc_check_vec(w, pos, 3, "position")) ||
+        (st = gc_check_vec(w, quat, 4, "orientation")))
         return st;
     double qn = sqrt(quat[0] * quat[0] + quat[1] * quat[1] + quat[2] * quat[2] + quat[3] * quat[3]);
     if (!(qn > 1e-9)) {
@@ -470,16 +399,16 @@ gcStatus gc_world_set_body_pose(gcWorld *w, int32_t body, const double pos[3], c
         return GC_ERR_INVALID_ARGUMENT;
     }
     gcBody *b = &w->bodies[body];
-    b->q = gc_quat_normalize((gcQuat){quat[0], quat[1], quat[2], quat[3]});
-    b->R = gc_quat_to_mat3(b->q);
-    b->com = gc_add(gc_v3(pos[0], pos[1], pos[2]), gc_mat3_mul_vec(&b->R, b->com_local));
+    b->state.q = gc_quat_normalize((gcQuat){quat[0], quat[1], quat[2], quat[3]});
+    b->state.R = gc_quat_to_mat3(b->state.q);
+    b->state.com = gc_add(gc_v3(pos[0], pos[1], pos[2]), gc_mat3_mul_vec(&b->state.R, b->com_local));
     gc_body_refresh_derived(w, body);
     return GC_OK;
 }
 
 gcStatus gc_world_set_body_friction(gcWorld *w, int32_t body, double mu_s, double mu_d, double viscosity) {
     gcStatus st;
-    if ((st = check_idle(w)) || (st = check_body(w, body)) || (st = check_friction(w, mu_s, mu_d, viscosity))) return st;
+    if ((st = check_idle(w)) || (st = gc_check_body(w, body)) || (st = gc_check_friction(w, mu_s, mu_d, viscosity))) return st;
     w->bodies[body].mu_s = mu_s;
     w->bodies[body].mu_d = mu_d;
     w->bodies[body].viscosity = viscosity;
@@ -487,20 +416,30 @@ gcStatus gc_world_set_body_friction(gcWorld *w, int32_t body, double mu_s, doubl
 }
 
 gcStatus gc_world_step(gcWorld *w, double dt) {
-    if (!w) return GC_ERR_INVALID_ARGUMENT;
-    if (check_idle(w)) return GC_ERR_BUSY;
+    gcStatus idle = check_idle(w);
+    if (idle) return idle;
     if (!isfinite(dt) || !(dt > 0.0) || dt > 1.0) {
         gc_world_set_error(w, "dt: must be a finite step in (0, 1] seconds (got %g)", dt);
         return GC_ERR_INVALID_ARGUMENT;
     }
-    gc_xfca_update(w, dt);
-    gc_dynamics_velocities(w, dt);
-    gc_contacts_step(w, dt); /* body-body contacts: chains solved through the effective masses */
-    gc_dynamics_positions(w, dt);
-    gc_xfca_outputs(w);
-    for (int i = 0; i < w->num_fingers; ++i) w->fingers[i].hip_prev = w->fingers[i].hip;
-    w->time += dt;
+    if (gc_step(w, dt)) {
+        gc_world_set_error(w, "body %d%s: its state would have become non-finite at t = %g s; "
+                           "stopped at its pose before the step",
+                           (int)w->first_stopped_body, w->step_stopped_bodies > 1 ? " and others" : "", w->time);
+        return GC_WARN_STOPPED;
+    }
     return GC_OK;
+}
+
+int64_t gc_world_stopped_bodies(const gcWorld *w) { return w ? w->stopped_bodies : 0; }
+
+/* While the runtime runs, queries answer from its last snapshot (world->shown). */
+static const gcBodyState *shown_body(const gcWorld *w, int32_t body) {
+    return w->shown ? &w->shown->bodies[body] : &w->bodies[body].state;
+}
+
+static const gcFinger *shown_finger(const gcWorld *w, int32_t finger) {
+    return w->shown ? &w->shown->fingers[finger] : &w->fingers[finger];
 }
 
 static void put3(double out[3], gcVec3 v) {
@@ -508,27 +447,34 @@ static void put3(double out[3], gcVec3 v) {
 }
 
 gcStatus gc_world_body_pose(const gcWorld *w, int32_t body, double pos[3], double quat[4]) {
-    gcStatus st = check_body(w, body);
+    gcStatus st = gc_check_body(w, body);
     if (st) return st;
+    if (!pos) return gc_null_argument(w, "position");
+    if (!quat) return gc_null_argument(w, "orientation");
     memcpy(pos, &w->pose_array[7 * body], 3 * sizeof(double));
     memcpy(quat, &w->pose_array[7 * body + 3], 4 * sizeof(double));
     return GC_OK;
 }
 
 gcStatus gc_world_body_velocity(const gcWorld *w, int32_t body, double lin[3], double ang[3]) {
-    gcStatus st = check_body(w, body);
+    gcStatus st = gc_check_body(w, body);
     if (st) return st;
-    const gcBody *b = &w->bodies[body];
+    if (!lin) return gc_null_argument(w, "linear");
+    if (!ang) return gc_null_argument(w, "angular");
+    const gcBodyState *s = shown_body(w, body);
     /* Report the velocity of the body frame origin, consistent with body_pose. */
-    gcVec3 r = gc_mat3_mul_vec(&b->R, gc_neg(b->com_local));
-    put3(lin, gc_add(b->v, gc_cross(b->w, r)));
-    put3(ang, b->w);
+    gcVec3 r = gc_mat3_mul_vec(&s->R, gc_neg(w->bodies[body].com_local));
+    put3(lin, gc_add(s->v, gc_cross(s->w, r)));
+    put3(ang, s->w);
     return GC_OK;
 }
 
 gcStatus gc_world_body_mass(const gcWorld *w, int32_t body, double *mass, double com[3], double inertia[9]) {
-    gcStatus st = check_body(w, body);
+    gcStatus st = gc_check_body(w, body);
     if (st) return st;
+    if (!mass) return gc_null_argument(w, "mass");
+    if (!com) return gc_null_argument(w, "center_of_mass");
+    if (!inertia) return gc_null_argument(w, "inertia");
     const gcBody *b = &w->bodies[body];
     *mass = b->is_static ? INFINITY : b->mass;
     put3(com, b->com_local);
@@ -537,32 +483,38 @@ gcStatus gc_world_body_mass(const gcWorld *w, int32_t body, double *mass, double
 }
 
 gcStatus gc_world_residual_wrench(const gcWorld *w, int32_t body, double force[3], double torque[3]) {
-    gcStatus st = check_body(w, body);
+    gcStatus st = gc_check_body(w, body);
     if (st) return st;
-    put3(force, w->bodies[body].residual_force);
-    put3(torque, w->bodies[body].residual_torque);
+    if (!force) return gc_null_argument(w, "force");
+    if (!torque) return gc_null_argument(w, "torque");
+    put3(force, shown_body(w, body)->residual_force);
+    put3(torque, shown_body(w, body)->residual_torque);
     return GC_OK;
 }
 
 gcStatus gc_world_finger_force(const gcWorld *w, int32_t finger, double force[3]) {
-    gcStatus st = check_finger(w, finger);
+    gcStatus st = gc_check_finger(w, finger);
     if (st) return st;
-    put3(force, w->fingers[finger].force);
+    if (!force) return gc_null_argument(w, "force");
+    put3(force, shown_finger(w, finger)->force);
     return GC_OK;
 }
 
 gcStatus gc_world_god_object(const gcWorld *w, int32_t finger, double pos[3]) {
-    gcStatus st = check_finger(w, finger);
+    gcStatus st = gc_check_finger(w, finger);
     if (st) return st;
-    put3(pos, w->fingers[finger].god_object);
+    if (!pos) return gc_null_argument(w, "position");
+    put3(pos, shown_finger(w, finger)->god_object);
     return GC_OK;
 }
 
 gcStatus gc_world_finger_state(const gcWorld *w, int32_t finger, gcFingerState *state, int32_t *contact_body) {
-    gcStatus st = check_finger(w, finger);
+    gcStatus st = gc_check_finger(w, finger);
     if (st) return st;
-    *state = w->fingers[finger].state;
-    *contact_body = w->fingers[finger].contact_body;
+    if (!state) return gc_null_argument(w, "state");
+    if (!contact_body) return gc_null_argument(w, "contact_body");
+    *state = shown_finger(w, finger)->state;
+    *contact_body = shown_finger(w, finger)->contact_body;
     return GC_OK;
 }
 
@@ -571,50 +523,4 @@ const double *gc_world_god_object_array(const gcWorld *w) { return w->god_object
 const double *gc_world_finger_force_array(const gcWorld *w) { return w->force_array; }
 const double *gc_world_hip_array(const gcWorld *w) { return w->hip_array; }
 
-/* FNV-1a over the state variables, in id order, eight bytes a step (the tail byte by byte):
- * each step is a bijection of h, so states differing in one word always hash apart; a
- * fifth of the cost of FNV-1a byte by byte (session recordings hash every haptic tick). */
-static uint64_t hash_bytes(uint64_t h, const void *data, size_t n) {
-    const unsigned char *p = data;
-    for (; n >= 8; p += 8, n -= 8) {
-        uint64_t v;
-        memcpy(&v, p, 8);
-        h = (h ^ v) * 1099511628211ull;
-    }
-    for (; n > 0; ++p, --n) {
-        h ^= *p;
-        h *= 1099511628211ull;
-    }
-    return h;
-}
-
-uint64_t gc_world_state_hash(const gcWorld *w) {
-    uint64_t h = 14695981039346656037ull;
-    h = hash_bytes(h, &w->time, sizeof w->time);
-    /* Bodies in four lanes (body i in lane i % 4): four independent multiply chains, folded in
-     * lane order; a word that differs still changes its lane, and so the hash. */
-    uint64_t lane[4] = {h, h + 1, h + 2, h + 3};
-    for (int i = 0; i < w->num_bodies; ++i) {
-        const gcBody *b = &w->bodies[i];
-        uint64_t l = lane[i & 3];
-        l = hash_bytes(l, &b->com, sizeof b->com);
-        l = hash_bytes(l, &b->q, sizeof b->q);
-        l = hash_bytes(l, &b->v, sizeof b->v);
-        l = hash_bytes(l, &b->w, sizeof b->w);
-        lane[i & 3] = l;
-    }
-    h = hash_bytes(h, lane, sizeof lane);
-    for (int i = 0; i < w->num_fingers; ++i) {
-        const gcFinger *f = &w->fingers[i];
-        h = hash_bytes(h, &f->hip, sizeof f->hip);
-        h = hash_bytes(h, &f->force, sizeof f->force);
-        for (int c = 0; c < f->num_contacts; ++c) {
-            const gcFingerContact *k = &f->contacts[c];
-            h = hash_bytes(h, &k->part, sizeof k->part);
-            h = hash_bytes(h, &k->state, sizeof k->state);
-            h = hash_bytes(h, &k->go_local, sizeof k->go_local);
-            h = hash_bytes(h, &k->normal_local, sizeof k->normal_local);
-        }
-    }
-    return h;
-}
+uint64_t gc_world_state_hash(const gcWorld *w) { return gc_tick_state_hash(w); }

@@ -7,7 +7,7 @@
  * without contacts is a chain of its own. Chains are numbered by their lowest body id; a
  * chain's bodies and manifolds are listed in increasing id / key order, which fixes the
  * order in which the solver visits them whichever thread solves the chain. */
-#include "contacts.h"
+#include "contacts_internal.h"
 
 static int32_t find_root(int32_t *parent, int32_t i) {
     while (parent[i] != i) {
@@ -73,7 +73,8 @@ void gc_chains_build(gcWorld *w) {
 int gc_world_chain_count(const gcWorld *w) { return w->contacts ? w->contacts->num_chains : 0; }
 
 gcStatus gc_world_body_chain(const gcWorld *w, int32_t body, int32_t *chain) {
-    if (!w || !chain) return GC_ERR_INVALID_ARGUMENT;
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (!chain) return gc_null_argument(w, "chain");
     if (body < 0 || body >= w->num_bodies) {
         gc_world_set_error(w, "body: unknown id %d", (int)body);
         return GC_ERR_UNKNOWN_ID;

@@ -1,0 +1,194 @@
+/* The runtime's channels (runtime_internal.h): copies of body state into and out of the
+ * shadows, the publications each thread makes every tick, push_hips and snapshots. */
+#define _GNU_SOURCE
+#include "runtime_internal.h"
+
+static void body_save(const gcWorld *s, int32_t i, gcRtBody *o) {
+    const gcBody *b = &s->bodies[i];
+    o->state = b->state;
+    memcpy(o->pose, &s->pose_array[7 * i], sizeof o->pose);
+}
+
+void gc_rt_body_load(gcWorld *s, int32_t i, const gcRtBody *o) {
+    gcBody *b = &s->bodies[i];
+    b->state = o->state;
+    memcpy(&s->pose_array[7 * i], o->pose, sizeof o->pose);
+}
+
+/* ---- publications ------------------------------------------------------------------- */
+
+void gc_rt_publish_to_object(gcRuntime *rt) {
+    const gcWorld *hw = &rt->hap;
+    gcHapticMsg *m = &rt->haptic_msg[rt->to_object.back];
+    for (int32_t b = 0; b < hw->num_bodies; ++b) {
+        unsigned char s = rt->hstate[b];
+        m->want[b] = s == H_REQ || s == H_HAP;
+        m->has_state[b] = s == H_HAP || s == H_RET;
+        if (m->has_state[b]) body_save(hw, b, &m->body[b]);
+    }
+    memcpy(m->fingers, hw->fingers, (size_t)hw->num_fingers * sizeof *hw->fingers);
+    triple_publish(&rt->to_object);
+}
+
+void gc_rt_publish_to_haptic(gcRuntime *rt) {
+    const gcWorld *ow = &rt->obj;
+    gcObjectMsg *m = &rt->object_msg[rt->to_haptic.back];
+    m->time = ow->time;
+    for (int32_t b = 0; b < ow->num_bodies; ++b) {
+        m->released[b] = rt->ostate[b] == O_RELEASED;
+        body_save(ow, b, &m->body[b]);
+    }
+    triple_publish(&rt->to_haptic);
+}
+
+void gc_rt_publish_display(gcRuntime *rt, int64_t now, int forces_enabled) {
+    const gcWorld *hw = &rt->hap;
+    gcDisplayMsg *d = &rt->display_msg[rt->display.back];
+    d->tick = rt->tick;
+    d->time = hw->time;
+    d->object_time = rt->object_time_seen;
+    d->clock_ns = now;
+    d->forces_enabled = forces_enabled;
+    for (int32_t b = 0; b < hw->num_bodies; ++b) {
+        body_save(hw, b, &d->body[b]);
+        d->adopted[b] = rt->hstate[b] == H_HAP;
+    }
+    for (int32_t i = 0; i < hw->num_fingers; ++i) {
+        const gcFinger *f = &hw->fingers[i];
+        memcpy(&d->hip[3 * i], &f->hip, 3 * sizeof(double));
+        memcpy(&d->god_object[3 * i], &f->god_object, 3 * sizeof(double));
+        memcpy(&d->spring_force[3 * i], &f->force, 3 * sizeof(double));
+        memcpy(&d->device_force[3 * i], &rt->device_force[3 * i], 3 * sizeof(double));
+        d->state[i] = (int32_t)f->state;
+        d->contact_body[i] = f->contact_body;
+    }
+    triple_publish(&rt->display);
+}
+
+gcStatus gc_world_push_hips(gcWorld *w, const double *positions, int count_, double t) {
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (!positions) return gc_null_argument(w, "positions");
+    gcRuntime *rt = w->runtime;
+    if (!gc_runtime_running(w)) {
+        gc_world_set_error(w, "push_hips: the runtime is not running (World.start / gc_world_start)");
+        return GC_ERR_NOT_RUNNING;
+    }
+    if (count_ < 1 || count_ > w->num_fingers) {
+        gc_world_set_error(w, "positions: %d rows given for %d fingers", count_, w->num_fingers);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    int finite = isfinite(t);
+    for (int i = 0; i < 3 * count_ && finite; ++i) finite = isfinite(positions[i]);
+    if (!finite) {
+        count(&rt->rejected_inputs);
+        return GC_WARN_REJECTED;
+    }
+    pthread_mutex_lock(&rt->input_mutex);
+    if (t < rt->input_last_t) { /* older than what the loop already has */
+        pthread_mutex_unlock(&rt->input_mutex);
+        count(&rt->rejected_inputs);
+        return GC_WARN_REJECTED;
+    }
+    rt->input_last_t = t;
+    gcInputMsg *m = &rt->input_msg[rt->input.back];
+    m->count = count_;
+    m->t = t;
+    m->receipt_ns = rt->def.realtime ? clock_now_ns() : atomic_load_explicit(&rt->manual_now_ns, memory_order_relaxed);
+    memcpy(m->hips, positions, 3 * (size_t)count_ * sizeof(double));
+    triple_publish(&rt->input);
+    pthread_mutex_unlock(&rt->input_mutex);
+    count(&rt->accepted_inputs);
+    return GC_OK;
+}
+
+static void put_body(const gcSnapshot *s, int32_t b, const double pose[7], gcVec3 force, gcVec3 torque, int adopted) {
+    if (s->poses) memcpy(&s->poses[7 * b], pose, 7 * sizeof(double));
+    if (s->residual_wrenches) {
+        double *r = &s->residual_wrenches[6 * b];
+        r[0] = force.x, r[1] = force.y, r[2] = force.z, r[3] = torque.x, r[4] = torque.y, r[5] = torque.z;
+    }
+    if (s->adopted) s->adopted[b] = (uint8_t)adopted;
+}
+
+static void put3(double *array, int32_t i, const double *v) {
+    if (array) memcpy(&array[3 * i], v, 3 * sizeof(double));
+}
+
+/* Stopped: the world's own state; nothing is rendered to a device. */
+static void snapshot_from_world(const gcWorld *w, gcSnapshot *s) {
+    static const double zero[3] = {0, 0, 0};
+    s->time = s->object_time = w->time;
+    s->tick = 0;
+    s->forces_enabled = 0;
+    s->num_bodies = w->num_bodies;
+    s->num_fingers = w->num_fingers;
+    for (int32_t b = 0; b < w->num_bodies; ++b)
+        put_body(s, b, &w->pose_array[7 * b], w->bodies[b].state.residual_force, w->bodies[b].state.residual_torque, 0);
+    for (int32_t i = 0; i < w->num_fingers; ++i) {
+        const gcFinger *f = &w->fingers[i];
+        put3(s->hips, i, &w->hip_array[3 * i]);
+        put3(s->god_objects, i, &w->god_object_array[3 * i]);
+        put3(s->spring_forces, i, &w->force_array[3 * i]);
+        put3(s->forces, i, zero);
+        if (s->finger_states) s->finger_states[i] = (int32_t)f->state;
+        if (s->contact_bodies) s->contact_bodies[i] = f->contact_body;
+    }
+}
+
+gcStatus gc_world_snapshot(gcWorld *w, gcSnapshot *s) {
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (!s) return gc_null_argument(w, "snapshot");
+    gcRuntime *rt = w->runtime;
+    if (!rt) {
+        snapshot_from_world(w, s);
+        return GC_OK;
+    }
+    pthread_mutex_lock(&rt->api_mutex);
+    if (atomic_load_explicit(&rt->state, memory_order_acquire) != RT_RUNNING) {
+        snapshot_from_world(w, s);
+        pthread_mutex_unlock(&rt->api_mutex);
+        return GC_OK;
+    }
+    int fresh;
+    const gcDisplayMsg *d = &rt->display_msg[triple_latest(&rt->display, &fresh)];
+    /* Reader-side watchdog: a loop that stalled cannot zero its own output. */
+    int enabled = d->forces_enabled;
+    if (rt->def.realtime && clock_now_ns() - d->clock_ns > rt->watchdog_ns) enabled = 0;
+    static const double zero[3] = {0, 0, 0};
+    s->time = d->time;
+    s->object_time = d->object_time;
+    s->tick = d->tick;
+    s->forces_enabled = enabled;
+    s->num_bodies = w->num_bodies;
+    s->num_fingers = w->num_fingers;
+    /* The world's queries and views answer from this snapshot while the runtime runs. */
+    for (int32_t b = 0; b < w->num_bodies; ++b) {
+        const gcRtBody *rb = &d->body[b];
+        put_body(s, b, rb->pose, rb->state.residual_force, rb->state.residual_torque, d->adopted[b]);
+        if (!w->bodies[b].is_static) {
+            rt->shown.bodies[b] = rb->state;
+            memcpy(&w->pose_array[7 * b], rb->pose, sizeof rb->pose); /* the pose view */
+        }
+    }
+    for (int32_t i = 0; i < w->num_fingers; ++i) {
+        put3(s->hips, i, &d->hip[3 * i]);
+        put3(s->god_objects, i, &d->god_object[3 * i]);
+        put3(s->spring_forces, i, &d->spring_force[3 * i]);
+        put3(s->forces, i, enabled ? &d->device_force[3 * i] : zero);
+        if (s->finger_states) s->finger_states[i] = d->state[i];
+        if (s->contact_bodies) s->contact_bodies[i] = d->contact_body[i];
+        gcFinger *f = &rt->shown.fingers[i];
+        f->hip = gc_v3(d->hip[3 * i], d->hip[3 * i + 1], d->hip[3 * i + 2]);
+        f->god_object = gc_v3(d->god_object[3 * i], d->god_object[3 * i + 1], d->god_object[3 * i + 2]);
+        f->force = gc_v3(d->spring_force[3 * i], d->spring_force[3 * i + 1], d->spring_force[3 * i + 2]);
+        f->state = (gcFingerState)d->state[i];
+        f->contact_body = d->contact_body[i];
+        memcpy(&w->hip_array[3 * i], &d->hip[3 * i], 3 * sizeof(double));
+        memcpy(&w->god_object_array[3 * i], &d->god_object[3 * i], 3 * sizeof(double));
+        memcpy(&w->force_array[3 * i], &d->spring_force[3 * i], 3 * sizeof(double));
+    }
+    rt->shown.time = d->time;
+    pthread_mutex_unlock(&rt->api_mutex);
+    return GC_OK;
+}
+

@@ -1,0 +1,213 @@
+/* The runtime's ticks and the hand-over of bodies between its two loops
+ * (runtime_internal.h; the protocol is described in runtime.c). */
+#define _GNU_SOURCE
+#include "runtime_internal.h"
+#include "tick_log.h"
+
+/* Bodies the non-finite guard stopped in a shadow's step, for gc_world_stats. */
+static void count_stopped(gcRuntime *rt, int stopped) {
+    if (stopped) atomic_fetch_add_explicit(&rt->stopped_bodies, (uint64_t)stopped, memory_order_relaxed);
+}
+
+/* ---- the haptic tick ---------------------------------------------------------------- */
+
+/* Which chains the haptic loop wants, after this tick's god-object update: those touched by
+ * a finger within release_delay, while they have at most max_adopted_bodies bodies. */
+static void update_adoption(gcRuntime *rt) {
+    gcWorld *hw = &rt->hap;
+    const int cap = rt->def.max_adopted_bodies;
+    const double now = hw->time;
+    if (cap > 0) {
+        for (int32_t fi = 0; fi < hw->num_fingers; ++fi) {
+            const gcFinger *f = &hw->fingers[fi];
+            for (int c = 0; c < f->num_contacts; ++c) {
+                int32_t b = hw->parts[f->contacts[c].part].body;
+                if (hw->bodies[b].is_static) continue;
+                int n = gc_contacts_chain_of(hw, b, rt->chain, cap);
+                if (n > cap) continue;
+                for (int k = 0; k < n; ++k) rt->last_touch[rt->chain[k]] = now;
+            }
+        }
+    }
+    int adopted = 0;
+    for (int32_t b = 0; b < hw->num_bodies; ++b) {
+        if (hw->bodies[b].is_static) continue;
+        int want = cap > 0 && now - rt->last_touch[b] <= rt->def.release_delay &&
+                   gc_contacts_chain_of(hw, b, rt->chain, cap) <= cap;
+        /* A request or a return runs to completion before the wish can change again. */
+        if (rt->hstate[b] == H_OM && want) {
+            rt->hstate[b] = H_REQ;
+        } else if (rt->hstate[b] == H_HAP && !want) {
+            rt->hstate[b] = H_RET; /* stepped this tick; the object manager continues from here */
+            rt->hap_active[b] = 0;
+        }
+        adopted += rt->hstate[b] == H_HAP;
+    }
+    atomic_store_explicit(&rt->adopted, adopted, memory_order_relaxed);
+}
+
+/* Device forces: the spring, ramped in, clamped, and zero while the watchdog holds them. */
+static int update_safety(gcRuntime *rt, int64_t now) {
+    const gcWorld *hw = &rt->hap;
+    int64_t period = rt->prev_tick_ns == NEVER ? rt->period_ns : now - rt->prev_tick_ns;
+    rt->prev_tick_ns = now;
+    int ok = 1;
+    if (period > rt->watchdog_ns) {
+        ok = 0; /* the loop missed its deadlines: zero, then ramp in again */
+        count(&rt->watchdog_trips);
+    }
+    int stale = rt->last_input_ns == NEVER || now - rt->last_input_ns > rt->hip_timeout_ns;
+    if (stale) {
+        ok = 0;
+        if (!rt->was_stale) count(&rt->stale_inputs);
+    }
+    rt->was_stale = stale;
+    if (!ok)
+        rt->enabled_since_ns = NEVER;
+    else if (rt->enabled_since_ns == NEVER)
+        rt->enabled_since_ns = now;
+    double gain = 0.0;
+    if (ok) gain = rt->ramp_ns > 0 ? fmin(1.0, (double)(now - rt->enabled_since_ns) / (double)rt->ramp_ns) : 1.0;
+    for (int32_t i = 0; i < hw->num_fingers; ++i) {
+        gcVec3 f = gc_scale(hw->fingers[i].force, gain);
+        if (!gc_vec_finite(f)) {
+            count(&rt->nonfinite_forces);
+            f = gc_v3(0, 0, 0);
+        }
+        double norm = gc_len(f);
+        if (norm > rt->def.max_force) f = gc_scale(f, rt->def.max_force / norm);
+        double *out = &rt->device_force[3 * i];
+        out[0] = f.x, out[1] = f.y, out[2] = f.z;
+    }
+    atomic_store_explicit(&rt->forces_enabled, ok, memory_order_relaxed);
+    return ok;
+}
+
+void gc_rt_haptic_tick(gcRuntime *rt, int64_t now) {
+    gcWorld *hw = &rt->hap;
+    const double dt = rt->dt_haptic;
+    int fresh;
+
+    /* 1. HIPs at this tick's end time: the scripted track, or the walk towards the latest
+     *    pushed samples (validated by push_hips). */
+    const gcInputMsg *in = &rt->input_msg[triple_latest(&rt->input, &fresh)];
+    if (fresh) {
+        double interval = isfinite(rt->follow_prev_t) ? in->t - rt->follow_prev_t : 0.0;
+        rt->follow_prev_t = in->t;
+        for (int i = 0; i < in->count; ++i)
+            if (!gc_hip_track_drives(rt->track, i))
+                gc_hip_follow_retarget(&rt->follow[i], hw->fingers[i].hip,
+                                       gc_v3(in->hips[3 * i], in->hips[3 * i + 1], in->hips[3 * i + 2]), interval, dt);
+        rt->last_input_ns = in->receipt_ns;
+    }
+    if (gc_hip_track_covers(rt->track, hw->num_fingers)) rt->last_input_ns = now; /* the track is never stale */
+    const double t_next = (double)(rt->tick + 1) * dt;
+    for (int i = 0; i < hw->num_fingers; ++i) {
+        gcVec3 hip = gc_hip_track_drives(rt->track, i)
+                         ? gc_hip_track_sample(rt->track, i, t_next)
+                         : gc_hip_follow_advance(&rt->follow[i], hw->fingers[i].hip, dt, rt->def.max_hip_speed);
+        hw->fingers[i].hip = hip;
+        double *out = &hw->hip_array[3 * i];
+        out[0] = hip.x, out[1] = hip.y, out[2] = hip.z;
+    }
+
+    /* 2. The object manager's bodies; bodies it released are adopted before stepping. */
+    const gcObjectMsg *om = &rt->object_msg[triple_latest(&rt->to_haptic, &fresh)];
+    if (fresh) {
+        rt->object_time_seen = om->time;
+        for (int32_t b = 0; b < hw->num_bodies; ++b) {
+            if (hw->bodies[b].is_static) continue;
+            switch (rt->hstate[b]) {
+            case H_OM: gc_rt_body_load(hw, b, &om->body[b]); break;
+            case H_REQ:
+                gc_rt_body_load(hw, b, &om->body[b]);
+                if (om->released[b]) {
+                    rt->hstate[b] = H_HAP;
+                    rt->hap_active[b] = 1;
+                }
+                break;
+            case H_RET:
+                if (!om->released[b]) {
+                    gc_rt_body_load(hw, b, &om->body[b]);
+                    rt->hstate[b] = H_OM;
+                }
+                break;
+            default: break;
+            }
+        }
+    }
+
+    /* 3. As gc_world_step: god-objects and springs, then the bodies this loop owns. */
+    count_stopped(rt, gc_step(hw, dt));
+    rt->tick++;
+
+    /* 4. Adoption wishes for the next ticks, device forces, publications. */
+    update_adoption(rt);
+    int ok = update_safety(rt, now);
+    gc_serial_hub_tick(rt->serial, hw, rt->device_force, ok, now);
+    gc_rt_publish_to_object(rt);
+    gc_rt_publish_display(rt, now, ok);
+    if (rt->tick_log)
+        gc_tick_log_push(rt->tick_log, hw, rt->device_force, rt->tick, rt->object_time_seen, now,
+                         rt->def.realtime, ok, atomic_load_explicit(&rt->adopted, memory_order_relaxed));
+    store_double(&rt->haptic_time_bits, hw->time);
+    count(&rt->haptic_ticks);
+}
+
+/* ---- the object tick ---------------------------------------------------------------- */
+
+void gc_rt_object_tick(gcRuntime *rt) {
+    gcWorld *ow = &rt->obj;
+    int fresh;
+    const gcHapticMsg *h = &rt->haptic_msg[triple_latest(&rt->to_object, &fresh)];
+    memcpy(ow->fingers, h->fingers, (size_t)ow->num_fingers * sizeof *ow->fingers);
+    /* Bodies the haptic loop steps, where it has them now: obstacles for the contacts here. */
+    for (int32_t b = 0; b < ow->num_bodies; ++b)
+        if (rt->ostate[b] == O_RELEASED && h->has_state[b]) gc_rt_body_load(ow, b, &h->body[b]);
+    for (int s = 0; s < rt->object_substeps; ++s) {
+        count_stopped(rt, gc_step_bodies(ow, rt->dt_object));
+        ow->time += rt->dt_object;
+    }
+    /* Hand-over after stepping: a released body was stepped this tick; a body taken back
+     * was stepped by the haptic loop and moves from the next tick. */
+    for (int32_t b = 0; b < ow->num_bodies; ++b) {
+        if (ow->bodies[b].is_static) continue;
+        if (rt->ostate[b] == O_OWN && h->want[b]) {
+            rt->ostate[b] = O_RELEASED;
+            rt->obj_active[b] = 0;
+        } else if (rt->ostate[b] == O_RELEASED && !h->want[b] && h->has_state[b]) {
+            gc_rt_body_load(ow, b, &h->body[b]);
+            rt->ostate[b] = O_OWN;
+            rt->obj_active[b] = 1;
+        }
+    }
+    gc_rt_publish_to_haptic(rt);
+    store_double(&rt->object_time_bits, ow->time);
+    count(&rt->object_ticks);
+}
+
+static int haptic_owns(const gcRuntime *rt, int32_t b) {
+    return rt->ostate[b] == O_RELEASED && (rt->hstate[b] == H_HAP || rt->hstate[b] == H_RET);
+}
+
+static int haptic_owns_ctx(const void *rt, int32_t b) { return haptic_owns(rt, b); }
+
+/* After the loops ended: each body from the thread that owned it last, fingers from the
+ * haptic loop. */
+void gc_rt_merge_into_world(gcRuntime *rt, gcWorld *w) {
+    const gcWorld *hw = &rt->hap, *ow = &rt->obj;
+    for (int32_t b = 0; b < w->num_bodies; ++b) {
+        if (w->bodies[b].is_static) continue;
+        const gcWorld *src = haptic_owns(rt, b) ? hw : ow;
+        w->bodies[b] = src->bodies[b];
+        memcpy(&w->pose_array[7 * b], &src->pose_array[7 * b], 7 * sizeof(double));
+    }
+    memcpy(w->fingers, hw->fingers, (size_t)w->num_fingers * sizeof *w->fingers);
+    memcpy(w->god_object_array, hw->god_object_array, (size_t)w->num_fingers * 3 * sizeof(double));
+    memcpy(w->force_array, hw->force_array, (size_t)w->num_fingers * 3 * sizeof(double));
+    memcpy(w->hip_array, hw->hip_array, (size_t)w->num_fingers * 3 * sizeof(double));
+    w->time = hw->time;
+    w->stopped_bodies += (int64_t)atomic_load_explicit(&rt->stopped_bodies, memory_order_relaxed);
+    gc_contacts_merge(w, &rt->hap, &rt->obj, haptic_owns_ctx, rt);
+}
+
