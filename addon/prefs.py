@@ -4,17 +4,19 @@ from __future__ import annotations
 import bpy
 from bpy.props import BoolProperty, FloatProperty
 
+from .engine import defaults
+
 
 class GRASPLAB_AP_preferences(bpy.types.AddonPreferences):
     bl_idname = __package__
 
-    finger_radius: FloatProperty(name="Finger Radius", default=0.008, min=0.0, unit="LENGTH",
+    finger_radius: FloatProperty(name="Finger Radius", default=defaults.finger("radius"), min=0.0, unit="LENGTH",
                                  precision=4, description="Radius of new fingers")
-    finger_stiffness: FloatProperty(name="Finger Stiffness", default=1000.0, min=1.0,
+    finger_stiffness: FloatProperty(name="Finger Stiffness", default=defaults.finger("stiffness"), min=1.0,
                                     description="Coupling stiffness of new fingers, N/m")
-    mu_s: FloatProperty(name="Static Friction", default=0.8, min=0.0,
+    mu_s: FloatProperty(name="Static Friction", default=defaults.body("mu_s"), min=0.0,
                         description="μs given to objects made dynamic or static")
-    mu_d: FloatProperty(name="Dynamic Friction", default=0.6, min=0.0,
+    mu_d: FloatProperty(name="Dynamic Friction", default=defaults.body("mu_d"), min=0.0,
                         description="μd given to objects made dynamic or static")
     use_runtime: BoolProperty(name="Threaded Runtime", default=True,
                               description="Live sessions run the core on its own haptic thread "
@@ -52,10 +54,10 @@ class GRASPLAB_AP_preferences(bpy.types.AddonPreferences):
 
 
 class _Defaults:
-    finger_radius = 0.008
-    finger_stiffness = 1000.0
-    mu_s = 0.8
-    mu_d = 0.6
+    finger_radius = defaults.finger("radius")
+    finger_stiffness = defaults.finger("stiffness")
+    mu_s = defaults.body("mu_s")
+    mu_d = defaults.body("mu_d")
     use_runtime = True
     max_step_ms = 8.0
     max_hip_speed = 1.0

@@ -6,6 +6,8 @@ import bpy
 from bpy.props import (BoolProperty, EnumProperty, FloatProperty, FloatVectorProperty,
                        IntProperty, PointerProperty, StringProperty)
 
+from .engine import defaults
+
 ROLE_ITEMS = (
     ("NONE", "None", "Not part of the grasp simulation"),
     ("DYNAMIC", "Dynamic", "A rigid body moved by the fingers and gravity"),
@@ -42,21 +44,21 @@ class GRASPLAB_PG_object(bpy.types.PropertyGroup):
                         precision=4, description="Total mass of the body, kg")
     density: FloatProperty(name="Density", default=1000.0, min=1e-3, soft_max=20000.0,
                            description="Density, kg/m³ (water = 1000)")
-    mu_s: FloatProperty(name="Static Friction", default=0.8, min=0.0, soft_max=2.0,
+    mu_s: FloatProperty(name="Static Friction", default=defaults.body("mu_s"), min=0.0, soft_max=2.0,
                         description="Static friction coefficient μs (friction cone half angle atan μs)")
-    mu_d: FloatProperty(name="Dynamic Friction", default=0.6, min=0.0, soft_max=2.0,
+    mu_d: FloatProperty(name="Dynamic Friction", default=defaults.body("mu_d"), min=0.0, soft_max=2.0,
                         description="Dynamic (sliding) friction coefficient μd, at most μs")
-    viscosity: FloatProperty(name="Viscosity", default=0.0, min=0.0, soft_max=1.0, unit="TIME",
+    viscosity: FloatProperty(name="Viscosity", default=defaults.body("viscosity"), min=0.0, soft_max=1.0, unit="TIME",
                              description="Viscous friction: slip speed is limited to depth / viscosity "
                                          "(0 = pure Coulomb friction)")
     shape: EnumProperty(name="Collision Shape", items=SHAPE_ITEMS, default="HULL",
                         description="How the body's collision shape is made from its mesh")
     # --- fingers
-    radius: FloatProperty(name="Radius", default=0.008, min=0.0, soft_max=0.05, unit="LENGTH",
+    radius: FloatProperty(name="Radius", default=defaults.finger("radius"), min=0.0, soft_max=0.05, unit="LENGTH",
                           precision=4, description="Fingertip sphere radius (0 = a point)")
-    stiffness: FloatProperty(name="Stiffness", default=1000.0, min=1.0, soft_max=10000.0,
+    stiffness: FloatProperty(name="Stiffness", default=defaults.finger("stiffness"), min=1.0, soft_max=10000.0,
                              description="Coupling spring between HIP and god-object, N/m")
-    damping: FloatProperty(name="Damping", default=0.0, min=0.0, soft_max=50.0,
+    damping: FloatProperty(name="Damping", default=defaults.finger("damping"), min=0.0, soft_max=50.0,
                            description="Coupling damping, N·s/m")
     channel: IntProperty(name="Device Channel", default=0, min=0, max=63,
                          description="Which fingertip of the input device drives this finger; "
@@ -70,8 +72,9 @@ class GRASPLAB_PG_scene(bpy.types.PropertyGroup):
     gravity: FloatVectorProperty(name="Gravity", default=(0.0, 0.0, -9.81), subtype="ACCELERATION",
                                  unit="ACCELERATION", size=3, description="Gravity, m/s²")
     gyroscopic: BoolProperty(name="Gyroscopic Term", default=True,
-                             description="Keep the −ω×Jω term in Euler's equation "
-                                         "(the chapter drops it)")
+                             description="Keep the −ω×Jω term in Euler's equation (Harwin & "
+                                         "Barrow, \"Multi-finger grasps in a dynamic environment\", "
+                                         "drop it)")
     haptic_rate: FloatProperty(name="Haptic Rate", default=1000.0, min=100.0, max=10000.0,
                                description="Core step rate, Hz")
     display_rate: FloatProperty(name="Display Rate", default=30.0, min=1.0, max=240.0,

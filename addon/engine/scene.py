@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import defaults
+
 # Limits for the "absurd scale" check, in metres (largest bounding-box extent).
 MIN_SIZE = 1e-4     # 0.1 mm
 MAX_SIZE = 100.0    # 100 m
@@ -56,9 +58,9 @@ class BodyDesc:
     orientation: np.ndarray         # (4,) w, x, y, z
     mass: float | None = None       # kg; None: use density
     density: float = 1000.0         # kg/m^3
-    mu_s: float = 0.8
-    mu_d: float = 0.6
-    viscosity: float = 0.0
+    mu_s: float = field(default_factory=lambda: defaults.body("mu_s"))
+    mu_d: float = field(default_factory=lambda: defaults.body("mu_d"))
+    viscosity: float = field(default_factory=lambda: defaults.body("viscosity"))
     mass_properties: MassProperties | None = None
 
 
@@ -66,9 +68,9 @@ class BodyDesc:
 class FingerDesc:
     name: str
     position: np.ndarray            # (3,) world, initial HIP
-    radius: float = 0.008
-    stiffness: float = 1000.0
-    damping: float = 0.0
+    radius: float = field(default_factory=lambda: defaults.finger("radius"))
+    stiffness: float = field(default_factory=lambda: defaults.finger("stiffness"))
+    damping: float = field(default_factory=lambda: defaults.finger("damping"))
     channel: int = 0
 
 
