@@ -58,14 +58,14 @@ def main(argv=None) -> int:
         if not r.get("ok"):
             print(f"A scenario failed: {r.get('scenario')}\n\n```\n{r.get('error')}\n```")
             return 1
-    print(f"Blender {draws(draw)} with Python {draw['python']} (the core `{draw['graspcore']}`), "
+    print(f"Blender {draw['blender']} with Python {draw['python']} (the core `{draw['graspcore']}`), "
           f"under Xvfb with Mesa llvmpipe (software OpenGL), 1600 x 900, on the machine above.\n")
     head = ref["exec_box"]
     print("| display rate asked | achieved | box at the end, x / y / z (mm) | off the headless run | "
           "haptic ticks | target | met |")
     print("|---|---|---|---|---|---|---|")
     print(f"| headless (`blender -b`, EXEC) | - | {head[0]*1e3:.3f} / {head[1]*1e3:.3f} / {head[2]*1e3:.3f} "
-          f"| - | {6000} steps | | |")
+          f"| - | {ref['exec_steps']} steps | | |")
     for rate, run in rates["runs"].items():
         off = max(abs(a - b) for a, b in zip(run["box"], head))
         print(f"| {rate} Hz | {run['achieved_display_rate']:.1f} Hz | "
@@ -103,10 +103,6 @@ def main(argv=None) -> int:
         print(f"| GUI test suite (`pytest tests/gui`: {tail}) | {wall:.0f} s | < 300 s | "
               f"{'yes' if wall < 300 and proc.returncode == 0 else 'no'} |")
     return 0
-
-
-def draws(r):
-    return r["blender"]
 
 
 if __name__ == "__main__":

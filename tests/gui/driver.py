@@ -591,6 +591,7 @@ def scenario_exec_headless():
     setup_scene(duration=0.0)
     bpy.ops.grasp_lab.session("EXEC_DEFAULT")
     RESULT["exec_box"] = _final_box()
+    RESULT["exec_steps"] = last_result().stats["steps"]
     yield 0.0
 
 
