@@ -255,6 +255,8 @@ static void test_device_thread(void) {
     stream(&dev, 5, 0.098);
     double ramping = force_z(&dev);
     stream(&dev, 150, 0.098);
+    /* The 50 ms ramp is over by now; on a loaded machine the frames that say so can come late. */
+    for (int k = 0; k < 40 && fabs(force_z(&dev) - 3.0) >= 1e-5; ++k) stream(&dev, 50, 0.098);
     GC_CHECK(ramping > 0.0 && ramping < 3.0, "ramping in: %.3f N", ramping);
     GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-5, "clamped to the device's 3 N: %.4f", force_z(&dev));
     GC_CHECK(dev.last_enable == 1, "ENABLE(1) sent");

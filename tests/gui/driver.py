@@ -248,6 +248,15 @@ def press_in_viewport(*keys):
     xdo("key", *keys)
 
 
+def start_then_esc(tag, run_for=1.0):
+    """The next session starts (a click), runs a while, and Esc stops it cleanly."""
+    yield from start_by_click()
+    yield run_for
+    yield from press_in_viewport("Escape")
+    yield from wait_until(lambda: active_session() is None, 5, "Esc")
+    check_stopped(tag)
+
+
 def check_stopped(tag):
     threads = core_threads()
     RESULT.setdefault("threads_after", {})[tag] = threads
@@ -338,11 +347,7 @@ def scenario_undo():
     box = bpy.data.objects.get("Box")
     RESULT["z_after_undo_mid_session"] = box.matrix_world.translation.z if box else None
     yield 0.5
-    yield from start_by_click()                           # and it starts again
-    yield 0.5
-    yield from press_in_viewport("Escape")
-    yield from wait_until(lambda: active_session() is None, 5, "Esc")
-    check_stopped("esc_after_undo")
+    yield from start_then_esc("esc_after_undo", 0.5)
 
 
 def scenario_load_file():
@@ -359,11 +364,7 @@ def scenario_load_file():
     check_stopped("load")
     RESULT["running_flag_after_load"] = bpy.context.scene.grasp_lab.running
     yield from open_grasp_tab()
-    yield from start_by_click()
-    yield 1.0
-    yield from press_in_viewport("Escape")
-    yield from wait_until(lambda: active_session() is None, 5, "Esc")
-    check_stopped("esc_after_load")
+    yield from start_then_esc("esc_after_load", 1.0)
 
 
 def scenario_disable():
@@ -379,11 +380,7 @@ def scenario_disable():
     bpy.ops.preferences.addon_enable(module=name)
     yield 0.5
     yield from open_grasp_tab()
-    yield from start_by_click()
-    yield 1.0
-    yield from press_in_viewport("Escape")
-    yield from wait_until(lambda: active_session() is None, 5, "Esc")
-    check_stopped("esc_after_enable")
+    yield from start_then_esc("esc_after_enable", 1.0)
 
 
 def scenario_quit():
@@ -480,11 +477,7 @@ def scenario_error():
     area, win_region, ui = view3d()
     hover(win_region, 50, 50)                             # the error report closes as the mouse leaves
     yield 1.5
-    yield from start_by_click()                           # the next session runs
-    yield 1.0
-    yield from press_in_viewport("Escape")
-    yield from wait_until(lambda: active_session() is None, 5, "Esc")
-    check_stopped("esc_after_error")
+    yield from start_then_esc("esc_after_error", 1.0)
 
 
 def _redraw_ms(kind, iterations=10):

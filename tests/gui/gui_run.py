@@ -36,6 +36,19 @@ def prepare(zip_path: str, user_dir: str | None = None) -> dict:
     return env
 
 
+def environment(user_dir: str, what: str = "GUI tests need a GUI Blender") -> dict:
+    """For a pytest fixture: the prepared environment, or a skip saying why and how to get
+    one (a failure under CI=true, where there is no excuse)."""
+    import pytest
+    reason = why_not()
+    if reason:
+        msg = f"{what}: {reason}; {HOW}"
+        if os.environ.get("CI") and not os.environ.get("GRASP_LAB_GUI_OPTIONAL"):
+            pytest.fail(msg)
+        pytest.skip(msg)
+    return prepare(os.environ.get("GRASP_LAB_ZIP", ""), user_dir)
+
+
 def run(env: dict, scenario: str, timeout: float = 180, background: bool = False):
     """Run one driver scenario; returns (result.json as a dict, console output, exit code)."""
     out = os.path.join(OUT, scenario)

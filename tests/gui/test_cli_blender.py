@@ -15,13 +15,7 @@ LAUNCHER = os.path.join(ROOT, ".venv", "bin", "grasp-lab")
 
 @pytest.fixture(scope="module")
 def blender(tmp_path_factory):
-    reason = gui_run.why_not()
-    if reason:
-        msg = f"needs a Blender executable: {reason}; {gui_run.HOW}"
-        if os.environ.get("CI") and not os.environ.get("GRASP_LAB_GUI_OPTIONAL"):
-            pytest.fail(msg)
-        pytest.skip(msg)
-    env = gui_run.prepare(os.environ.get("GRASP_LAB_ZIP", ""), str(tmp_path_factory.mktemp("blender_user")))
+    env = gui_run.environment(str(tmp_path_factory.mktemp("blender_user")), "needs a Blender executable")
 
     def grasp_lab(*args):
         return subprocess.run([gui_run.SCRIPT, "blender", "-c", "grasp_lab", *map(str, args)], env=env,
