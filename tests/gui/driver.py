@@ -295,7 +295,12 @@ def scenario_start_esc_stop():
     yield from start_by_click()
     RESULT["threads_running"] = core_threads()
     yield 1.5                                             # closing on the box, squeezing
-    yield from wait_until(lambda: active_session().runner.time > 1.2, 10, "t > 1.2 s")
+    yield from wait_until(lambda: active_session().runner.time > 1.6, 10, "t > 1.6 s: squeezing")
+    # The picture lags the session by a display update or two (1-5 Hz under llvmpipe):
+    # let two more updates draw the squeeze before the screenshot.
+    shown = len(active_session().runner.ticks)
+    yield from wait_until(lambda: len(active_session().runner.ticks) >= shown + 2, 10, "two display updates")
+    yield 0.3
     area, win_region, ui = view3d()
     during = colour_counts(pixels(screenshot("running")), win_region, ui)
     RESULT["pixels"] = {"before": before, "during": during}
