@@ -296,10 +296,17 @@ def scenario_start_esc_stop():
     RESULT["threads_running"] = core_threads()
     yield 1.5                                             # closing on the box, squeezing
     yield from wait_until(lambda: active_session().runner.time > 1.6, 10, "t > 1.6 s: squeezing")
-    # The picture lags the session by a display update or two (1-5 Hz under llvmpipe):
-    # let two more updates draw the squeeze before the screenshot.
-    shown = len(active_session().runner.ticks)
-    yield from wait_until(lambda: len(active_session().runner.ticks) >= shown + 2, 10, "two display updates")
+    # The arrows are the forces sent to the device, which the watchdog holds at zero while the
+    # haptic loop runs late (a loaded VM): wait for two display updates drawn with forces on,
+    # the watchdog quiet in between (the picture lags a slow display by an update or two).
+    for _ in range(20):
+        s = active_session()
+        trips, shown = s.runner.stats()["runtime_watchdog_trips"], len(s.runner.ticks)
+        yield from wait_until(lambda: len(active_session().runner.ticks) >= shown + 2, 10, "two display updates")
+        s = active_session()
+        if s.runner.stats()["runtime_watchdog_trips"] == trips and \
+                np.linalg.norm(s.snapshot.finger_forces, axis=1).min() > 1.0:
+            break
     yield 0.3
     area, win_region, ui = view3d()
     during = colour_counts(pixels(screenshot("running")), win_region, ui)
