@@ -122,10 +122,6 @@ class RuntimeDriver:
     def time(self):
         return self._time
 
-    @property
-    def steps(self):
-        return int(self.world.stats()["haptic_ticks"]) if self._running else 0
-
     def stop(self):
         if self._running:
             self._running = False
