@@ -111,12 +111,16 @@ def test_spacemouse_drives_fingers_of_a_running_world():
         hand = hand_from_fingertips(tips)
         np.testing.assert_allclose(hand.tips(), tips, atol=1e-12)
         devices.add_source(SpaceMouseSource(hand, device=replay), 0, "spacemouse")
-        for _ in range(80):                             # > grip_time 0.5 s of polls
+        closed = np.array([(0.012, 0, 0.1), (-0.012, 0, 0.1)])   # 30 % of 4 cm
+        started = time.monotonic()
+        while True:                                     # grip_time 0.5 s, then the haptic loop's tick
             devices.poll()
             time.sleep(0.01)
-        time.sleep(0.02)
-        hips = world.snapshot()["hips"]
-        np.testing.assert_allclose(hips, [(0.012, 0, 0.1), (-0.012, 0, 0.1)], atol=1e-9)   # closed: 30 % of 4 cm
+            hips = world.snapshot()["hips"]
+            if time.monotonic() - started > 0.8 and np.allclose(hips, closed, atol=1e-9) \
+                    or time.monotonic() - started > 5.0:
+                break
+        np.testing.assert_allclose(hips, closed, atol=1e-9)
     finally:
         devices.close()
         world.stop()
