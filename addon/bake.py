@@ -11,6 +11,7 @@ on "GL God-object <finger>": ``gl_state`` (0 free, 1 stick, 2 slip), ``gl_force`
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 
 import bpy
 import numpy as np
@@ -76,17 +77,36 @@ def continuous(q: np.ndarray) -> np.ndarray:
     """Flip quaternions so that each is on the same side (dot >= 0) as the one before."""
     if len(q) < 2:
         return q
-    flips = np.sum(q[1:] * q[:-1], axis=1) < 0
-    sign = np.concatenate([[1.0], np.where(np.cumsum(flips) % 2 == 1, -1.0, 1.0)])
+    flips = np.einsum("ij,ij->i", q[1:], q[:-1]) < 0
+    if not flips.any():
+        return q
+    sign = np.ones(len(q))
+    sign[1:] = np.where(np.cumsum(flips) % 2 == 1, -1.0, 1.0)
     return q * sign[:, None]
 
 
-def _distinct(rows: np.ndarray):
-    """(first rows of each run of equal consecutive rows, index of each row's run): work done once
-    per run and spread back with ``result[index]`` (a body at rest is one row)."""
-    flat = rows.reshape(len(rows), -1)
+def _norms(v: np.ndarray) -> np.ndarray:
+    """Euclidean norms of the rows of v (n, k) (einsum: a third of np.linalg.norm's time)."""
+    return np.sqrt(np.einsum("ij,ij->i", v, v))
+
+
+def _changes(rows: np.ndarray) -> np.ndarray:
+    """Mask of the rows (n, k) that differ from the row before (the first always): rows
+    compared as bytes (one comparison a row; rows may be strided, each row contiguous)."""
     change = np.ones(len(rows), dtype=bool)
-    change[1:] = np.any(flat[1:] != flat[:-1], axis=1)
+    if len(rows) > 1:
+        packed = np.ascontiguousarray(rows) if rows.strides[-1] != rows.itemsize else rows
+        whole = packed.view(np.dtype((np.void, packed.shape[-1] * packed.itemsize)))[:, 0]
+        change[1:] = whole[1:] != whole[:-1]
+    return change
+
+
+def _distinct(rows: np.ndarray, change: np.ndarray | None = None):
+    """(first rows of each run of equal consecutive rows, index of each row's run): work done once
+    per run and spread back with ``result[index]`` (a body at rest is one row). ``change``:
+    where runs start, if not the rows' own changes."""
+    if change is None:
+        change = _changes(rows)
     return rows[change], np.cumsum(change) - 1
 
 
@@ -113,75 +133,79 @@ def _rest_matrix(obj) -> Matrix:
     return obj.matrix_world.copy()
 
 
-def _bake_rigid(obj, frames, poses, start_pos, start_quat) -> int:
-    """Keys for ``obj`` following body frame poses (n, 7): the object keeps its offset from the
-    body frame at the start of the recording (its rest matrix), its scale and its parent."""
-    f0 = Quaternion(start_quat).to_matrix().to_4x4()
-    f0.translation = start_pos
-    frame_to_world = _np(f0.inverted() @ _rest_matrix(obj))
+def _rigid_channels(poses, frame_to_world, parent):
+    """Channels (location, quaternion) of an object following body frame poses (n, 7), keeping
+    its offset ``frame_to_world`` from the body frame and its parent (``parent``: world -> the
+    object's basis), and the object's scale. No bpy (runs off the main thread)."""
     poses, run = _distinct(poses)
-    n = len(poses)
-    world = np.zeros((n, 4, 4))
-    world[:, :3, :3] = _quat_matrices(poses[:, 3:])
-    world[:, :3, 3] = poses[:, :3]
-    world[:, 3, 3] = 1.0
-    basis = _parent_inverse(obj) @ world @ frame_to_world
-    loc = basis[:, :3, 3]
-    scale = np.linalg.norm(basis[:, :3, :3], axis=1)           # column norms
-    rot = quats_from_matrices(basis[:, :3, :3] / scale[:, None, :])
-    obj.rotation_mode = "QUATERNION"
-    obj.scale = scale[0]        # rigid motion under a fixed parent: the scale does not change
-    loc, rot = loc[run], rot[run]
-    return anim.bake_channels(obj, frames, [("location", i, loc[:, i]) for i in range(3)]
-                              + [("rotation_quaternion", i, rot[:, i]) for i in range(4)], reduce=True)
+    pos, quat = poses[:, :3], poses[:, 3:]
+    fr, ft = frame_to_world[:3, :3], frame_to_world[:3, 3]
+    scale = np.linalg.norm(fr, axis=0)                   # column norms: the object's scale
+    if np.array_equal(parent, np.eye(4)) and np.allclose(fr / scale, np.eye(3), rtol=0, atol=1e-12):
+        # No parent and the object's axes along the body frame's (the usual case): the keys
+        # are the body poses themselves (the general path's matrices give them back to 1e-16).
+        loc = pos + quat_rotate(quat, ft) if np.any(ft) else pos
+        rot = continuous(quat / _norms(quat)[:, None])
+    else:
+        rw = _quat_matrices(quat)
+        # parent @ [rw | pos] @ frame_to_world, as (m*3, 3) products (one BLAS call each).
+        basis_r = (rw.reshape(-1, 3) @ fr).reshape(-1, 3, 3)
+        basis_t = (rw.reshape(-1, 3) @ ft).reshape(-1, 3) + pos
+        pr, pt = parent[:3, :3], parent[:3, 3]
+        basis_r = np.swapaxes((np.swapaxes(basis_r, 1, 2).reshape(-1, 3) @ pr.T).reshape(-1, 3, 3), 1, 2)
+        loc = basis_t @ pr.T + pt
+        scale = np.linalg.norm(basis_r[0], axis=0)
+        rot = quats_from_matrices(basis_r / np.linalg.norm(basis_r, axis=1)[:, None, :])
+    return ([("location", i, loc[:, i], run) for i in range(3)]
+            + [("rotation_quaternion", i, rot[:, i], run) for i in range(4)]), scale
 
 
-def _bake_points(obj, frames, points, size=None, extra=()) -> int:
-    """Keys for an object whose origin follows world points (n, 3), and ``extra`` channels."""
-    inv = _parent_inverse(obj)
-    loc = points @ inv[:3, :3].T + inv[:3, 3]
-    if size is not None:
-        obj.scale = (size, size, size)
-    return anim.bake_channels(obj, frames, [("location", i, loc[:, i]) for i in range(3)] + list(extra),
-                              reduce=True)
+def _point_channels(points, parent):
+    """Location channels of an object whose origin follows world points (n, 3). No bpy."""
+    points, run = _distinct(points)
+    loc = points if np.array_equal(parent, np.eye(4)) else points @ parent[:3, :3].T + parent[:3, 3]
+    return [("location", i, loc[:, i], run) for i in range(3)]
 
 
-def _arrow_channels(origin, vec, scale):
-    """loc / quaternion / scale of display arrows (unit arrow along +Z) from origin along vec."""
-    rows, run = _distinct(np.concatenate([origin, vec], axis=1))
-    origin, vec = rows[:, :3], rows[:, 3:]
-    length = np.linalg.norm(vec, axis=1)
+def _arrow_channels(origin, vec, scale, run):
+    """loc / quaternion / scale channels of display arrows (unit arrow along +Z) from origin
+    along vec, given per run of frames (``run``)."""
+    length = _norms(vec)
     u = vec / np.where(length > 1e-12, length, 1.0)[:, None]
     # The rotation taking +Z to u: (1 + uz, -uy, ux, 0) normalised; -Z: a half turn about X.
-    q = np.stack([1.0 + u[:, 2], -u[:, 1], u[:, 0], np.zeros(len(u))], axis=1)
-    flat = np.linalg.norm(q, axis=1) < 1e-9
-    q[flat] = (0.0, 1.0, 0.0, 0.0)
-    q = continuous(q / np.linalg.norm(q, axis=1, keepdims=True))
+    q = np.zeros((len(u), 4))
+    q[:, 0], q[:, 1], q[:, 2] = 1.0 + u[:, 2], -u[:, 1], u[:, 0]
+    size = _norms(q)
+    flat = size < 1e-9
+    q[flat], size[flat] = (0.0, 1.0, 0.0, 0.0), 1.0
+    q = continuous(q / size[:, None])
     visible = length * scale >= 1e-9
-    sx = np.where(visible, display.ARROW_WIDTH, 0.0)[run]
-    sz = np.where(visible, length * scale, 0.0)[run]
-    origin, q = origin[run], q[run]
-    return ([("location", i, origin[:, i]) for i in range(3)]
-            + [("rotation_quaternion", i, q[:, i]) for i in range(4)]
-            + [("scale", 0, sx), ("scale", 1, sx), ("scale", 2, sz)])
+    sx = np.where(visible, display.ARROW_WIDTH, 0.0)
+    sz = np.where(visible, length * scale, 0.0)
+    return ([("location", i, origin[:, i], run) for i in range(3)]
+            + [("rotation_quaternion", i, q[:, i], run) for i in range(4)]
+            + [("scale", 0, sx, run), ("scale", 1, sx, run), ("scale", 2, sz, run)])
 
 
-def _custom(obj, frames, props: dict) -> list:
+def _custom(obj, props: dict, run=None) -> list:
+    """Channels of animated custom properties (made here), values per frame or per ``run``."""
     for name in props:
         obj[name] = 0.0
-    return [(f'["{name}"]', 0, values) for name, values in props.items()]
+    return [(f'["{name}"]', 0, values) + ((run,) if run is not None else ()) for name, values in props.items()]
 
 
 def finger_measures(rec: Recording, ticks) -> dict:
     """Per finger (n, nf): |F|, |Fn|, |Ft|, friction use |Ft| / (mu_s |Fn|), state."""
-    f, n = ticks["force"], ticks["normal"]
-    fn = np.sum(f * n, axis=2)
-    ft = np.linalg.norm(f - fn[:, :, None] * n, axis=2)
+    f, n = np.ascontiguousarray(ticks["force"]), np.ascontiguousarray(ticks["normal"])
+    fn = np.einsum("ijk,ijk->ij", f, n)
+    tangential = f - fn[:, :, None] * n
+    ft = np.sqrt(np.einsum("ijk,ijk->ij", tangential, tangential))
+    contact = ticks["contact"]
     mu = np.array([b["mu_s"] for b in rec.header["scene"]["bodies"]] + [np.nan])
-    mu_c = mu[np.where(ticks["contact"] >= 0, ticks["contact"], len(mu) - 1)]
+    mu_c = mu[np.where(contact >= 0, contact, len(mu) - 1)]
     with np.errstate(divide="ignore", invalid="ignore"):
-        use = np.where((ticks["contact"] >= 0) & (np.abs(fn) > 1e-12), ft / (mu_c * np.abs(fn)), 0.0)
-    return {"gl_state": ticks["state"].astype(np.float64), "gl_force": np.linalg.norm(f, axis=2),
+        use = np.where((contact >= 0) & (np.abs(fn) > 1e-12), ft / (mu_c * np.abs(fn)), 0.0)
+    return {"gl_state": ticks["state"].astype(np.float64), "gl_force": np.sqrt(np.einsum("ijk,ijk->ij", f, f)),
             "gl_normal_force": np.abs(fn), "gl_tangential_force": ft, "gl_friction_use": use}
 
 
@@ -206,75 +230,94 @@ def bake_recording(context, rec: Recording, every_tick: bool = False, force_scal
     if len(idx) == 0:
         raise ValueError(f"{rec.path}: the recording is shorter than one frame")
     frames = frame_start + times * fps
-    ticks = rec.ticks[idx]
-    # Each object's samples contiguous (records are kilobytes apart): (objects, frames, k).
+    if np.array_equal(idx, np.arange(len(rec.ticks))):
+        ticks = rec.ticks               # read at the frame rate already: every tick is a frame's
+    else:                               # rows of bytes: numpy's structured take is far slower
+        width = rec.ticks.dtype.itemsize
+        ticks = rec.ticks.view(np.uint8).reshape(-1, width)[idx].view(rec.ticks.dtype)[:, 0]
+    # Each object's samples contiguous, in one pass over the records (kilobytes apart: reading
+    # them object by object misses the cache and the TLB on every row): (objects, frames, k).
     per = {name: np.ascontiguousarray(np.moveaxis(ticks[name], 1, 0))
            for name in ("pose", "hip", "god_object", "wrench", "contact")}
     desc = scene_from_dict(rec.header["scene"])
     report = BakeReport(frames=len(frames))
+    # First the objects and what bpy says of them; then each job's keys (numpy only), written.
+    jobs = []           # () -> [(object, channels, scale to set or None)]
+    for i, b in enumerate(desc.bodies):
+        obj = bpy.data.objects.get(b.name)
+        if obj is None:
+            report.missing.append(f"body {b.name}")
+        elif not b.static:
+            f0 = Quaternion(b.orientation).to_matrix().to_4x4()
+            f0.translation = b.position
+            obj.rotation_mode = "QUATERNION"
+            jobs.append(partial(_rigid_job, obj, per["pose"][i], _np(f0.inverted() @ _rest_matrix(obj)),
+                                _parent_inverse(obj)))
+    for j, f in enumerate(desc.fingers):
+        obj = bpy.data.objects.get(f.name)
+        if obj is None:
+            report.missing.append(f"finger {f.name}")
+        else:
+            jobs.append(partial(_point_job, obj, per["hip"][j], _parent_inverse(obj), []))
+    # The display objects: made if missing, so a scene whose bodies are gone still shows forces.
+    shown = display.DisplayObjects(scene, desc)
+    measures = {k: np.ascontiguousarray(v.T) for k, v in finger_measures(rec, ticks).items()}
+    for j, obj in enumerate(shown.god_objects):
+        size = shown.radii[j]
+        obj.scale = (size, size, size)
+        props = _custom(obj, {k: v[j] for k, v in measures.items()})
+        jobs.append(partial(_point_job, obj, per["god_object"][j], _parent_inverse(obj), props))
+    grip = np.zeros((len(idx), len(desc.bodies)))
+    fn = measures["gl_normal_force"]
+    for j in range(len(desc.fingers)):
+        c = per["contact"][j]
+        on = c >= 0
+        np.add.at(grip, (np.flatnonzero(on), c[on]), fn[j, on])
+    for k, i in enumerate(shown.dynamic):
+        force_arrow, torque_arrow = shown.force_arrows[k], shown.torque_arrows[k]
+        for arrow in (force_arrow, torque_arrow):
+            arrow.rotation_mode = "QUATERNION"
+        for name in ("gl_grip", "gl_force", "gl_torque"):
+            force_arrow[name] = 0.0
+        jobs.append(partial(_arrows_job, force_arrow, torque_arrow, per["pose"][i], per["wrench"][i],
+                            desc.bodies[i].mass_properties.center_of_mass, grip[:, i], force_scale, torque_scale))
+
     wm = context.window_manager
-    steps = len(desc.bodies) + len(desc.fingers) + 2
-    wm.progress_begin(0, steps)
-    done = 0
-
-    def progress():
-        nonlocal done
-        done += 1
-        wm.progress_update(done)
-
-    def keyed(obj, keys):
-        report.baked.append(obj.name)
-        report.keys += keys
-
+    wm.progress_begin(0, len(jobs))
     try:
-        for i, b in enumerate(desc.bodies):
-            progress()
-            obj = bpy.data.objects.get(b.name)
-            if obj is None:
-                report.missing.append(f"body {b.name}")
-                continue
-            if b.static:
-                continue
-            keyed(obj, _bake_rigid(obj, frames, per["pose"][i], b.position, b.orientation))
-        for j, f in enumerate(desc.fingers):
-            progress()
-            obj = bpy.data.objects.get(f.name)
-            if obj is None:
-                report.missing.append(f"finger {f.name}")
-                continue
-            keyed(obj, _bake_points(obj, frames, per["hip"][j]))
-        # The display objects: made if missing, so a scene whose bodies are gone still shows forces.
-        shown = display.DisplayObjects(scene, desc)
-        measures = {k: np.ascontiguousarray(v.T) for k, v in finger_measures(rec, ticks).items()}
-        for j, obj in enumerate(shown.god_objects):
-            keyed(obj, _bake_points(obj, frames, per["god_object"][j], size=shown.radii[j],
-                                    extra=_custom(obj, frames, {k: v[j] for k, v in measures.items()})))
-        progress()
-        grip = np.zeros((len(idx), len(desc.bodies)))
-        fn = measures["gl_normal_force"]
-        for j in range(len(desc.fingers)):
-            c = per["contact"][j]
-            on = c >= 0
-            np.add.at(grip, (np.flatnonzero(on), c[on]), fn[j, on])
-        for k, i in enumerate(shown.dynamic):
-            b = desc.bodies[i]
-            pose = per["pose"][i]
-            com = pose[:, :3] + quat_rotate(pose[:, 3:], b.mass_properties.center_of_mass)
-            force, torque = per["wrench"][i, :, :3], per["wrench"][i, :, 3:]
-            arrow = shown.force_arrows[k]
-            arrow.rotation_mode = "QUATERNION"
-            props = _custom(arrow, frames, {"gl_grip": grip[:, i], "gl_force": np.linalg.norm(force, axis=1),
-                                            "gl_torque": np.linalg.norm(torque, axis=1)})
-            keyed(arrow, anim.bake_channels(arrow, frames, _arrow_channels(com, force, force_scale) + props,
-                                            reduce=True))
-            arrow = shown.torque_arrows[k]
-            arrow.rotation_mode = "QUATERNION"
-            keyed(arrow, anim.bake_channels(arrow, frames, _arrow_channels(com, torque, torque_scale),
-                                            reduce=True))
-        progress()
+        for n, job in enumerate(jobs):
+            for obj, channels, scale in job():
+                if scale is not None:
+                    obj.scale = scale       # rigid motion under a fixed parent: the scale is constant
+                report.baked.append(obj.name)
+                report.keys += anim.write_keys(obj, float(frames[0]), anim.key_arrays(frames, channels, reduce=True))
+            wm.progress_update(n + 1)
     finally:
         wm.progress_end()
     last = int(np.ceil(frames[-1]))
     if scene.frame_end < last:
         scene.frame_end = last
     return report
+
+
+def _rigid_job(obj, poses, frame_to_world, parent):
+    channels, scale = _rigid_channels(poses, frame_to_world, parent)
+    return [(obj, channels, scale)]
+
+
+def _point_job(obj, points, parent, extra):
+    return [(obj, _point_channels(points, parent) + extra, None)]
+
+
+def _arrows_job(force_arrow, torque_arrow, pose, wrench, com_local, grip, force_scale, torque_scale):
+    """A body's force and torque arrows, once per run of equal poses and wrenches (a body at
+    rest: once), and the arrow's measures (grip, |force|, |torque|)."""
+    change = _changes(pose) | _changes(wrench)
+    pose, run = _distinct(pose, change)
+    wrench = wrench[change]
+    com = pose[:, :3] + quat_rotate(pose[:, 3:], com_local)
+    force, torque = wrench[:, :3], wrench[:, 3:]
+    props = [('["gl_grip"]', 0, grip), ('["gl_force"]', 0, _norms(force), run),
+             ('["gl_torque"]', 0, _norms(torque), run)]
+    return [(force_arrow, _arrow_channels(com, force, force_scale, run) + props, None),
+            (torque_arrow, _arrow_channels(com, torque, torque_scale, run), None)]
