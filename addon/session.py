@@ -175,7 +175,7 @@ class BlenderSession:
         if self.source.interactive:
             self.source.set_live([tuple(o.matrix_world.translation) for o in self.finger_objects])
         if self.devices is not None:
-            self.devices.poll()
+            self._record_device_events(self.devices.poll())
         self.runner.advance_to(min(wall_elapsed, self.duration), budget=budget)
         snap = self.runner.snapshot()
         frame = self.frame_start + int(round(min(self.runner.time, self.duration) * self.fps)) \
@@ -186,6 +186,17 @@ class BlenderSession:
         if display.overlay_active():
             display.set_overlay(snap, self.hud_text())
         return self.settings.loop and self.runner.time >= self.duration - 1e-9
+
+    def _record_device_events(self, events) -> None:
+        """Device events (connected, lost, enabled, ...) into the recording as they come, at
+        session time: their stamps are the monotonic clock's, the session's time now is the
+        runner's."""
+        if self.recorder is None or not events:
+            return
+        now, session_now = time.monotonic(), self.runner.time
+        for t, source, event, value in events:
+            at = max(0.0, session_now - (now - t))
+            self.recorder.event(at, f"device_{event}", str(source), f"value {value}", value=value)
 
     def hud_text(self) -> str:
         """What the operator needs to trust the picture: the core's own rates and timing,
@@ -228,11 +239,8 @@ class BlenderSession:
             return self.result
         self.finished = True
         if self.devices is not None:
-            self.devices.poll()
+            self._record_device_events(self.devices.poll())   # before the runner stops and the file closes
             self.devices.close()
-            if self.recorder is not None:       # before the runner stops and the file closes
-                for t, source, event, value in self.devices.events:
-                    self.recorder.event(t, f"device_{event}", str(source), f"value {value}", value=value)
         self.runner.stop()
         r = self.result
         r.stats = self.runner.stats()

@@ -97,8 +97,9 @@ def realtime_work(graspcore, make, seconds=2.0):
             float(np.percentile(log, 99)), int(w.tick_log_overflow()))
 
 
-def synthetic_session(path, minutes, compression, n_bodies=20, n_fingers=10, block=6000):
-    """A recording of a 1 kHz session: 4 bodies and the fingers moving, the rest at rest."""
+def synthetic_session(path, minutes, compression, n_bodies=20, n_fingers=10, block=100):
+    """A recording of a 1 kHz session: 4 bodies and the fingers moving, the rest at rest, in
+    chunks of 100 ticks (the live recorder closes one every 100 ms)."""
     from addon.engine import recording, scene
     desc = scene.SceneDesc()
     for i in range(n_bodies):

@@ -105,6 +105,9 @@ def test_headless_realtime_run_with_a_device(bpy, sample, core, tmp_path):
         dev = [e for e in rec.events if e["kind"].startswith("device_")]   # in the recording too
         # Forces were turned on as the session started, maybe before the device's hello came.
         assert {e["kind"] for e in dev[:2]} == {"device_connected", "device_enabled"} and dev[0]["subject"] == ports[0]
+        # At session time, as they came (not the monotonic clock's stamps, not all at the end).
+        assert all(0.0 <= e["time"] <= 1.5 for e in dev), [e["time"] for e in dev]
+        assert dev[0]["time"] < 1.0, dev
         assert live.result.stats["runtime_haptic_rate"] > 500
         events = [e[2] for e in live.result.stats["device_events"]]
         assert set(events[:2]) == {"connected", "enabled"}, events
