@@ -108,7 +108,7 @@ def test_headless_realtime_run_with_a_device(bpy, sample, core, tmp_path):
         # At session time, as they came (not the monotonic clock's stamps, not all at the end).
         assert all(0.0 <= e["time"] <= 1.5 for e in dev), [e["time"] for e in dev]
         assert dev[0]["time"] < 1.0, dev
-        assert live.result.stats["runtime_haptic_rate"] > 500
+        assert live.result.stats["runtime_haptic_rate"] > 250     # real-time order (benchmarked elsewhere)
         events = [e[2] for e in live.result.stats["device_events"]]
         assert set(events[:2]) == {"connected", "enabled"}, events
         assert list(live.snapshot.contacts) == [0, 0]

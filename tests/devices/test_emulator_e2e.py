@@ -85,7 +85,7 @@ def test_emulator_end_to_end_unplug_and_reconnect():
         time.sleep(0.8)
         st = dev.stats()
         assert st["name"] == "grasp-lab-emulator" and st["device_fingers"] == 2 and st["enabled"]
-        assert st["pose_rate"] > 500, st
+        assert st["pose_rate"] > 250, st          # 1 kHz streaming, of that order on a loaded machine
         assert st["dropped"] == 0 and st["gain"] == 1.0, st
 
         # Unplug: within 0.25 s of the hang-up the fingers have let go; the session runs on.
@@ -157,7 +157,7 @@ def test_device_set_one_of_two_unplugged_the_other_holds_on():
         assert [d.finger_offset for d in devices.devices] == [0, 2]
         assert not DeviceInput(4).interactive and DeviceInput(4).script() is None
         wait_for(lambda: all(d.stats()["poses"] > 800 for d in devices.devices), 15, "both streaming")
-        assert all(s["state"] == "streaming" and s["rate_hz"] > 500 for s in devices.status())
+        assert all(s["state"] == "streaming" and s["rate_hz"] > 250 for s in devices.status())
         devices.enable()
         np.testing.assert_allclose(springs(world), GRIP_SPRING, rtol=0.05)
         right.stop()
