@@ -273,3 +273,37 @@ def test_the_format_layout_is_the_cores(core):
     for nb, nf in ((0, 0), (2, 2), (20, 10), (1, 7)):
         assert recording.tick_dtype(nb, nf) == core.tick_dtype(nb, nf)
 
+
+
+def test_a_whole_file_with_a_bad_chunk_is_read_again_checked(exec_rec, tmp_path):
+    """A file with its footer, summary and data-section CRC is first read without checking
+    each chunk; a byte flipped inside a chunk's data must still be caught (the data section
+    CRC does not match: read again, chunk by chunk), keeping the ticks before that chunk."""
+    from mcap.reader import make_reader
+    full = recording.open_recording(exec_rec[0])
+    data = bytearray(exec_rec[0].read_bytes())
+    with open(exec_rec[0], "rb") as fh:
+        chunks = make_reader(fh).get_summary().chunk_indexes
+    middle = chunks[len(chunks) // 2]
+    data[middle.chunk_start_offset + middle.chunk_length - 20] ^= 0x40      # inside its compressed records
+    bad = tmp_path / "bad_chunk.mcap"
+    bad.write_bytes(bytes(data))
+    for fps in (None, 24):
+        rec = recording.open_recording(bad, fps=fps)
+        assert rec.damage and "damaged near byte" in rec.damage[0], rec.damage
+        kept = full if fps is None else recording.open_recording(exec_rec[0], fps=fps)
+        assert 0 < len(rec.ticks) < len(kept.ticks)
+        assert rec.ticks.tobytes() == kept.ticks[:len(rec.ticks)].tobytes()
+
+
+def test_frame_rows_by_arithmetic_equal_the_frame_mask():
+    """The reader picks a block's frame ticks by arithmetic (consecutive ticks) or by a mask
+    (ticks missing): both must keep the same ticks, at any rate and frame rate."""
+    rng = np.random.default_rng(3)
+    for rate, fps in [(1000, 60), (1000, 24), (1000, 30000 / 1001), (500, 60), (1000, 1000),
+                      (1000, 2000), (2000, 59.94), (1000, 7), (1000, 999.9)]:
+        for _ in range(200):
+            first, count = int(rng.integers(0, 10 ** 7)), int(rng.integers(1, 300))
+            ticks = np.arange(first, first + count, dtype=np.uint64)
+            assert recording._frame_rows(first, count, rate, fps) == \
+                list(np.flatnonzero(recording._frame_ticks(ticks, rate, fps))), (rate, fps, first, count)
