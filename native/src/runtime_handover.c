@@ -87,6 +87,7 @@ void gc_rt_haptic_tick(gcRuntime *rt, int64_t now) {
     gcWorld *hw = &rt->hap;
     const double dt = rt->dt_haptic;
     int fresh;
+    if (rt->tick_log) gc_tick_log_prefetch(rt->tick_log); /* its misses overlap steps 1-4 */
 
     /* 1. HIPs at this tick's end time: the scripted track, or the walk towards the latest
      *    pushed samples (validated by push_hips). */

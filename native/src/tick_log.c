@@ -8,10 +8,15 @@
 #include "tick_log.h"
 
 #include <pthread.h>
+#include <stddef.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+#ifdef __linux__
+#include <sys/mman.h>
+#include <sys/resource.h>
+#endif
 
 #include "body.h"
 #include "gc_math.h"
@@ -22,6 +27,7 @@ struct gcTickLog {
     int num_bodies, num_fingers;  /* the layout the ring was sized for */
     size_t record_size;
     unsigned char *records;       /* capacity * record_size */
+    size_t locked_bytes;          /* of records, locked in RAM (mlock); 0 when not */
     _Atomic uint64_t head;        /* records written (producer) */
     _Atomic uint64_t tail;        /* records drained (consumer) */
     _Atomic uint64_t overflow;    /* records dropped on a full ring since the start */
@@ -39,6 +45,9 @@ size_t gc_tick_record_size(int num_bodies, int num_fingers) {
            sizeof(int32_t) * 2 * (size_t)num_fingers;
 }
 
+#define FNV_PRIME 1099511628211ull
+#define FNV_PRIME4 (FNV_PRIME * FNV_PRIME * FNV_PRIME * FNV_PRIME)
+
 /* FNV-1a over the state variables, in id order, eight bytes a step (the tail byte by byte):
  * each step is a bijection of h, so states differing in one word always hash apart; a
  * fifth of the cost of FNV-1a byte by byte (recordings hash every haptic tick). */
@@ -47,102 +56,145 @@ static uint64_t hash_bytes(uint64_t h, const void *data, size_t n) {
     for (; n >= 8; p += 8, n -= 8) {
         uint64_t v;
         memcpy(&v, p, 8);
-        h = (h ^ v) * 1099511628211ull;
+        h = (h ^ v) * FNV_PRIME;
     }
     for (; n > 0; ++p, --n) {
         h ^= *p;
-        h *= 1099511628211ull;
+        h *= FNV_PRIME;
+    }
+    return h;
+}
+
+/* hash_bytes of a 4-byte field (a part id, a finger state): byte by byte, but when its last
+ * three bytes are zero, as for small ids and enums, each of their steps is (h ^ 0) * P, so
+ * the four steps are ((h ^ byte 0) * P) * P^3 = (h ^ byte 0) * P^4 (mod 2^64): the same value
+ * with a quarter of the dependent multiplies (the fingers' chain is serial). */
+static uint64_t hash_4(uint64_t h, const void *data) {
+    unsigned char b[4];
+    memcpy(b, data, 4);
+    if ((b[1] | b[2] | b[3]) == 0) return (h ^ b[0]) * FNV_PRIME4;
+    return hash_bytes(h, b, 4);
+}
+
+/* While the runtime runs, what the last snapshot showed (as the world's queries answer). */
+static const gcBodyState *hashed_state(const gcWorld *w, int i) {
+    return w->shown ? &w->shown->bodies[i] : &w->bodies[i].state;
+}
+
+/* One body's lane step: its state variables. */
+static uint64_t hash_body(uint64_t l, const gcBodyState *s) {
+    l = hash_bytes(l, &s->com, sizeof s->com);
+    l = hash_bytes(l, &s->q, sizeof s->q);
+    l = hash_bytes(l, &s->v, sizeof s->v);
+    return hash_bytes(l, &s->w, sizeof s->w);
+}
+
+/* Word j (0..12) of a body's hashed state: com, q, v, w (R between q and v is derived). */
+static uint64_t state_word(const gcBodyState *s, int j) {
+    size_t off = j < 3 ? offsetof(gcBodyState, com) + 8 * (size_t)j
+                 : j < 7 ? offsetof(gcBodyState, q) + 8 * (size_t)(j - 3)
+                 : j < 10 ? offsetof(gcBodyState, v) + 8 * (size_t)(j - 7)
+                          : offsetof(gcBodyState, w) + 8 * (size_t)(j - 10);
+    uint64_t v;
+    memcpy(&v, (const unsigned char *)s + off, 8);
+    return v;
+}
+
+/* The time and the bodies. Bodies in four lanes (body i in lane i % 4): four independent
+ * multiply chains, folded in lane order; a word that differs still changes its lane, and so
+ * the hash. Four bodies at a time, word by word, so that the four chains run side by side. */
+static uint64_t hash_time_bodies(const gcWorld *w) {
+    uint64_t h = 14695981039346656037ull;
+    double time = w->shown ? w->shown->time : w->time;
+    h = hash_bytes(h, &time, sizeof time);
+    uint64_t l0 = h, l1 = h + 1, l2 = h + 2, l3 = h + 3;
+    const int nb = w->num_bodies;
+    int i = 0;
+    for (; i + 4 <= nb; i += 4) {
+        const gcBodyState *s0 = hashed_state(w, i), *s1 = hashed_state(w, i + 1);
+        const gcBodyState *s2 = hashed_state(w, i + 2), *s3 = hashed_state(w, i + 3);
+        for (int j = 0; j < 13; ++j) {
+            l0 = (l0 ^ state_word(s0, j)) * FNV_PRIME;
+            l1 = (l1 ^ state_word(s1, j)) * FNV_PRIME;
+            l2 = (l2 ^ state_word(s2, j)) * FNV_PRIME;
+            l3 = (l3 ^ state_word(s3, j)) * FNV_PRIME;
+        }
+    }
+    uint64_t lane[4] = {l0, l1, l2, l3};
+    for (; i < nb; ++i)
+        lane[i & 3] = hash_body(lane[i & 3], hashed_state(w, i));
+    return hash_bytes(h, lane, sizeof lane);
+}
+
+/* Then each finger in id order (a serial chain): its HIP and force (as shown), its contacts. */
+static uint64_t hash_finger(uint64_t h, const gcWorld *w, int i) {
+    const gcFinger *f = &w->fingers[i], *shown = w->shown ? &w->shown->fingers[i] : f;
+    h = hash_bytes(h, &shown->hip, sizeof shown->hip);
+    h = hash_bytes(h, &shown->force, sizeof shown->force);
+    for (int c = 0; c < f->num_contacts; ++c) {
+        const gcFingerContact *k = &f->contacts[c];
+        h = hash_4(h, &k->part);
+        h = hash_4(h, &k->state);
+        h = hash_bytes(h, &k->go_local, sizeof k->go_local);
+        h = hash_bytes(h, &k->normal_local, sizeof k->normal_local);
     }
     return h;
 }
 
 uint64_t gc_tick_state_hash(const gcWorld *w) {
-    /* While the runtime runs, what the last snapshot showed (as the world's queries answer). */
-    uint64_t h = 14695981039346656037ull;
-    double time = w->shown ? w->shown->time : w->time;
-    h = hash_bytes(h, &time, sizeof time);
-    /* Bodies in four lanes (body i in lane i % 4): four independent multiply chains, folded in
-     * lane order; a word that differs still changes its lane, and so the hash. */
-    uint64_t lane[4] = {h, h + 1, h + 2, h + 3};
-    for (int i = 0; i < w->num_bodies; ++i) {
-        const gcBodyState *s = w->shown ? &w->shown->bodies[i] : &w->bodies[i].state;
-        uint64_t l = lane[i & 3];
-        l = hash_bytes(l, &s->com, sizeof s->com);
-        l = hash_bytes(l, &s->q, sizeof s->q);
-        l = hash_bytes(l, &s->v, sizeof s->v);
-        l = hash_bytes(l, &s->w, sizeof s->w);
-        lane[i & 3] = l;
-    }
-    h = hash_bytes(h, lane, sizeof lane);
-    for (int i = 0; i < w->num_fingers; ++i) {
-        const gcFinger *f = &w->fingers[i], *shown = w->shown ? &w->shown->fingers[i] : f;
-        h = hash_bytes(h, &shown->hip, sizeof shown->hip);
-        h = hash_bytes(h, &shown->force, sizeof shown->force);
-        for (int c = 0; c < f->num_contacts; ++c) {
-            const gcFingerContact *k = &f->contacts[c];
-            h = hash_bytes(h, &k->part, sizeof k->part);
-            h = hash_bytes(h, &k->state, sizeof k->state);
-            h = hash_bytes(h, &k->go_local, sizeof k->go_local);
-            h = hash_bytes(h, &k->normal_local, sizeof k->normal_local);
-        }
-    }
+    uint64_t h = hash_time_bodies(w);
+    for (int i = 0; i < w->num_fingers; ++i) h = hash_finger(h, w, i);
     return h;
 }
 
-static unsigned char *put(unsigned char *p, const void *v, size_t n) {
-    memcpy(p, v, n);
-    return p + n;
-}
-
-/* One record of world `w`: device forces given (NULL: the physics forces, no safety layer). */
+/* One record of world `w`: device forces given (NULL: the physics forces, no safety layer).
+ * The layout is docs/recording-format.md's, field by field; the state hash is
+ * gc_tick_state_hash's, computed here finger by finger beside the fingers' fields so that its
+ * dependent multiply chain overlaps the copies. */
 static void fill_record(const gcWorld *w, const double *device_force, uint64_t tick, double object_time,
                         float period_us, float work_us, uint32_t flags, uint32_t adopted, float log_us,
                         unsigned char *out) {
-    const int nb = w->num_bodies, nf = w->num_fingers;
-    uint64_t hash = gc_tick_state_hash(w);
-    unsigned char *p = out;
-    p = put(p, &tick, 8);
-    p = put(p, &w->time, 8);
-    p = put(p, &object_time, 8);
-    p = put(p, &hash, 8);
-    p = put(p, &period_us, 4);
-    p = put(p, &work_us, 4);
-    p = put(p, &flags, 4);
-    p = put(p, &adopted, 4);
-    p = put(p, &log_us, 4);
-    for (int i = 0; i < nf; ++i) p = put(p, &w->fingers[i].hip, 24);
-    for (int i = 0; i < nf; ++i) p = put(p, &w->fingers[i].god_object, 24);
-    for (int i = 0; i < nf; ++i) p = put(p, &w->fingers[i].force, 24);
-    if (device_force)
-        p = put(p, device_force, 24 * (size_t)nf);
-    else
-        for (int i = 0; i < nf; ++i) p = put(p, &w->fingers[i].force, 24);
-    for (int i = 0; i < nf; ++i) { /* the first contact's plane normal, world (0 when free) */
+    const size_t nb = (size_t)w->num_bodies, nf = (size_t)w->num_fingers;
+    unsigned char *hip = out + REC_HEADER, *go = hip + 24 * nf, *force = go + 24 * nf, *dev = force + 24 * nf;
+    unsigned char *normal = dev + 24 * nf, *pose = normal + 24 * nf, *vel = pose + 56 * nb;
+    unsigned char *wrench = vel + 48 * nb, *state = wrench + 48 * nb, *contact = state + 4 * nf;
+    uint64_t hash = hash_time_bodies(w);
+    memcpy(out, &tick, 8);
+    memcpy(out + 8, &w->time, 8);
+    memcpy(out + 16, &object_time, 8);
+    memcpy(out + 32, &period_us, 4);
+    memcpy(out + 36, &work_us, 4);
+    memcpy(out + 40, &flags, 4);
+    memcpy(out + 44, &adopted, 4);
+    memcpy(out + 48, &log_us, 4);
+    for (size_t i = 0; i < nf; ++i) {
         const gcFinger *f = &w->fingers[i];
-        gcVec3 n = gc_v3(0, 0, 0);
+        hash = hash_finger(hash, w, (int)i);
+        memcpy(hip + 24 * i, &f->hip, 24);
+        memcpy(go + 24 * i, &f->god_object, 24);
+        memcpy(force + 24 * i, &f->force, 24);
+        memcpy(dev + 24 * i, device_force ? (const void *)&device_force[3 * i] : (const void *)&f->force, 24);
+        gcVec3 n = gc_v3(0, 0, 0); /* the first contact's plane normal, world (0 when free) */
         if (f->num_contacts > 0 && f->contacts[0].part >= 0) {
             const gcBody *b = &w->bodies[w->parts[f->contacts[0].part].body];
             n = gc_mat3_mul_vec(&b->state.R, f->contacts[0].normal_local);
         }
-        p = put(p, &n, 24);
+        memcpy(normal + 24 * i, &n, 24);
+        int32_t s = (int32_t)f->state;
+        memcpy(state + 4 * i, &s, 4);
+        memcpy(contact + 4 * i, &f->contact_body, 4);
     }
-    p = put(p, w->pose_array, 56 * (size_t)nb);
-    for (int b = 0; b < nb; ++b) { /* of the body frame origin, as gc_world_body_velocity */
+    memcpy(pose, w->pose_array, 56 * nb);
+    for (size_t b = 0; b < nb; ++b) { /* of the body frame origin, as gc_world_body_velocity */
         const gcBody *body = &w->bodies[b];
         const gcBodyState *st = &body->state;
         gcVec3 v = gc_add(st->v, gc_cross(st->w, gc_mat3_mul_vec(&st->R, gc_neg(body->com_local))));
-        p = put(p, &v, 24);
-        p = put(p, &st->w, 24);
+        memcpy(vel + 48 * b, &v, 24);
+        memcpy(vel + 48 * b + 24, &st->w, 24);
+        memcpy(wrench + 48 * b, &st->residual_force, 24);
+        memcpy(wrench + 48 * b + 24, &st->residual_torque, 24);
     }
-    for (int b = 0; b < nb; ++b) {
-        p = put(p, &w->bodies[b].state.residual_force, 24);
-        p = put(p, &w->bodies[b].state.residual_torque, 24);
-    }
-    for (int i = 0; i < nf; ++i) {
-        int32_t s = (int32_t)w->fingers[i].state;
-        p = put(p, &s, 4);
-    }
-    for (int i = 0; i < nf; ++i) p = put(p, &w->fingers[i].contact_body, 4);
+    memcpy(out + 24, &hash, 8);
 }
 
 gcStatus gc_world_tick_record(gcWorld *w, uint64_t tick, void *out, size_t size) {
@@ -158,6 +210,32 @@ gcStatus gc_world_tick_record(gcWorld *w, uint64_t tick, void *out, size_t size)
     }
     fill_record(w, NULL, tick, w->time, 0.0f, 0.0f, 1u, 0u, 0.0f, out);
     return GC_OK;
+}
+
+/* The ring is written every tick and read by the recorder, megabytes cycled every couple of
+ * seconds: lock it in RAM so that memory pressure never swaps a page out from under the
+ * haptic loop (memset at allocation has faulted every page in). Only when it leaves at least
+ * half of RLIMIT_MEMLOCK to the runtime's own blocks, locked after it (runtime.c); refused or
+ * too large, the ring is simply not locked. */
+static void lock_records(gcTickLog *log, size_t bytes) {
+    log->locked_bytes = 0;
+#ifdef __linux__
+    struct rlimit lim;
+    if (getrlimit(RLIMIT_MEMLOCK, &lim) != 0) return;
+    if (lim.rlim_cur != RLIM_INFINITY && bytes > lim.rlim_cur / 2) return;
+    if (mlock(log->records, bytes) == 0) log->locked_bytes = bytes;
+#else
+    (void)bytes;
+#endif
+}
+
+static void free_records(gcTickLog *log) {
+#ifdef __linux__
+    if (log->locked_bytes) munlock(log->records, log->locked_bytes);
+#endif
+    log->locked_bytes = 0;
+    free(log->records);
+    log->records = NULL;
 }
 
 gcStatus gc_world_set_tick_log(gcWorld *w, int capacity) {
@@ -181,8 +259,7 @@ gcStatus gc_world_set_tick_log(gcWorld *w, int capacity) {
         w->tick_log = log;
     }
     if (w->tick_log->capacity != capacity) {
-        free(w->tick_log->records);
-        w->tick_log->records = NULL;
+        free_records(w->tick_log);
         w->tick_log->record_size = 0;
         w->tick_log->capacity = capacity;
     }
@@ -196,7 +273,7 @@ gcTickLog *gc_tick_log_begin(gcWorld *w, gcStatus *status) {
     pthread_mutex_lock(&log->drain_mutex); /* a drain from another thread waits for the new ring */
     size_t size = gc_tick_record_size(w->num_bodies, w->num_fingers);
     if (!log->records || size != log->record_size) {
-        free(log->records);
+        free_records(log);
         log->records = malloc((size_t)log->capacity * size);
         log->record_size = log->records ? size : 0;
         if (!log->records) {
@@ -207,6 +284,7 @@ gcTickLog *gc_tick_log_begin(gcWorld *w, gcStatus *status) {
         }
         /* Touch every page now: the haptic loop must not take page faults on its first lap. */
         memset(log->records, 0, (size_t)log->capacity * size);
+        lock_records(log, (size_t)log->capacity * size);
     }
     log->num_bodies = w->num_bodies;
     log->num_fingers = w->num_fingers;
@@ -222,7 +300,7 @@ gcTickLog *gc_tick_log_begin(gcWorld *w, gcStatus *status) {
 void gc_tick_log_free(gcWorld *w) {
     if (!w->tick_log) return;
     pthread_mutex_destroy(&w->tick_log->drain_mutex);
-    free(w->tick_log->records);
+    free_records(w->tick_log);
     free(w->tick_log);
     w->tick_log = NULL;
 }
@@ -231,6 +309,20 @@ static int64_t monotonic_ns(void) {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
     return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
+}
+
+void gc_tick_log_prefetch(const gcTickLog *log) {
+    /* The slot the coming push fills: a ring laps in seconds, so its lines are in no cache
+     * of this core; fetched now, they arrive while the tick computes (a full ring: a slot the
+     * recorder may be reading, fetched for nothing, harmlessly). With write intent where the
+     * target has PREFETCHW, else a plain T0 prefetch (the line still arrives exclusive when no
+     * other core holds it). Not the world's state: the tick reads it itself just before the
+     * push (the display publication), and prefetching it too measured no better. */
+    uint64_t head = atomic_load_explicit(&log->head, memory_order_relaxed);
+    const unsigned char *slot = log->records + (head % (uint64_t)log->capacity) * log->record_size;
+    const uintptr_t end = (uintptr_t)slot + log->record_size;
+    for (uintptr_t a = (uintptr_t)slot & ~(uintptr_t)63; a < end; a += 64)
+        __builtin_prefetch((const void *)a, 1, 3);
 }
 
 void gc_tick_log_push(gcTickLog *log, const gcWorld *hw, const double *device_force, uint64_t tick,

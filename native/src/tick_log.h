@@ -16,6 +16,9 @@ uint64_t gc_tick_state_hash(const gcWorld *world);
 gcTickLog *gc_tick_log_begin(gcWorld *world, gcStatus *status);
 /* gc_world_destroy. */
 void gc_tick_log_free(gcWorld *world);
+/* The haptic loop, at the start of a tick: fetch the ring slot gc_tick_log_push will fill,
+ * so that its cache misses overlap the tick's work instead of stalling the push. */
+void gc_tick_log_prefetch(const gcTickLog *log);
 /* The haptic loop, once a tick: one record of the shadow world `hw` and the device forces.
  * Never blocks, never allocates; a full ring drops the record and counts it. */
 void gc_tick_log_push(gcTickLog *log, const gcWorld *hw, const double *device_force, uint64_t tick,

@@ -1,10 +1,12 @@
-/* The tick log (tick_log.c): record layout and contents, one record per haptic tick on the
+/* The tick log (tick_log.c): record layout and contents, the state hash against its reference
+ * definition, one record per haptic tick on the
  * manual clock, a full ring drops and counts (never waits), a consumer thread draining while
  * the real-time haptic loop fills it sees every tick once and in order, restart empties it,
  * calls refused while running. Built plain, with ASan/UBSan and with TSan. */
 #define _POSIX_C_SOURCE 200809L
 #include "graspcore.h"
 #include "gc_test.h"
+#include "world_internal.h" /* the reference state hash reads the state it hashes */
 
 #include <pthread.h>
 #include <stdatomic.h>
@@ -87,6 +89,95 @@ static void test_layout_and_stopped_record(void) {
     GC_CHECK(rs == (int32_t)st && rb == body && body == 0, "finger 1 touches the box: state %d body %d", rs, rb);
     double normal_x = rec_f64(r, arrays + 8 * 12 * nf + 24);                                    /* normal[1].x */
     GC_CHECK(normal_x > 0.99, "finger 1's contact normal is +x (%g)", normal_x);
+    free(r);
+    gc_world_destroy(w);
+}
+
+/* The state hash as first defined (recordings carry it; re-simulation compares against it):
+ * FNV-1a eight bytes a step, the tail byte by byte; time, bodies in four lanes, the lanes,
+ * then each finger's HIP, force and contacts. tick_log.c computes it faster; never another value. */
+static uint64_t ref_bytes(uint64_t h, const void *data, size_t n) {
+    const unsigned char *p = data;
+    for (; n >= 8; p += 8, n -= 8) {
+        uint64_t v;
+        memcpy(&v, p, 8);
+        h = (h ^ v) * 1099511628211ull;
+    }
+    for (; n > 0; ++p, --n) h = (h ^ *p) * 1099511628211ull;
+    return h;
+}
+
+static uint64_t ref_state_hash(const gcWorld *w) {
+    uint64_t h = ref_bytes(14695981039346656037ull, &w->time, 8);
+    uint64_t lane[4] = {h, h + 1, h + 2, h + 3};
+    for (int i = 0; i < w->num_bodies; ++i) {
+        const gcBodyState *s = &w->bodies[i].state;
+        uint64_t l = lane[i & 3];
+        l = ref_bytes(l, &s->com, sizeof s->com);
+        l = ref_bytes(l, &s->q, sizeof s->q);
+        l = ref_bytes(l, &s->v, sizeof s->v);
+        lane[i & 3] = ref_bytes(l, &s->w, sizeof s->w);
+    }
+    h = ref_bytes(h, lane, sizeof lane);
+    for (int i = 0; i < w->num_fingers; ++i) {
+        const gcFinger *f = &w->fingers[i];
+        h = ref_bytes(h, &f->hip, sizeof f->hip);
+        h = ref_bytes(h, &f->force, sizeof f->force);
+        for (int c = 0; c < f->num_contacts; ++c) {
+            const gcFingerContact *k = &f->contacts[c];
+            h = ref_bytes(h, &k->part, sizeof k->part);
+            h = ref_bytes(h, &k->state, sizeof k->state);
+            h = ref_bytes(h, &k->go_local, sizeof k->go_local);
+            h = ref_bytes(h, &k->normal_local, sizeof k->normal_local);
+        }
+    }
+    return h;
+}
+
+/* Bodies 0..6 (four at a time and a tail of three), fingers pinching the first box and
+ * standing on another: the fast hash equals the reference, in the world and in its record,
+ * also for a 4-byte field whose upper bytes are not zero (the byte-by-byte path). */
+static void test_state_hash_reference(void) {
+    gcWorld *w = pinch_world();
+    double pts[24];
+    for (int i = 0; i < 8; ++i) {
+        pts[3 * i] = (i & 1) ? 0.02 : -0.02;
+        pts[3 * i + 1] = (i & 2) ? 0.02 : -0.02;
+        pts[3 * i + 2] = (i & 4) ? 0.02 : -0.02;
+    }
+    gcPartDef part = {pts, 8, 0.0};
+    int32_t id;
+    for (int b = 0; b < 6; ++b) {
+        gcBodyDef bd = gc_default_body_def();
+        bd.mass = 0.05 + 0.01 * b;
+        bd.position[0] = 0.2 + 0.1 * b, bd.position[2] = 0.1 + 0.01 * b;
+        bd.angular_velocity[1] = 0.3 * b;
+        GC_CHECK(gc_world_add_body(w, &bd, &part, 1, &id) == GC_OK, "box %d", b);
+    }
+    gcFingerDef fd = gc_default_finger_def();
+    fd.position[0] = 0.2, fd.position[2] = 0.13;
+    GC_CHECK(gc_world_add_finger(w, &fd, &id) == GC_OK, "finger on box 1");
+    double hips[9] = {-0.025, 0, 0.2, 0.025, 0, 0.2, 0.2, 0, 0.115};
+    int touching = 0;
+    for (int s = 0; s < 50; ++s) {
+        gc_world_set_hips(w, hips, 3);
+        gc_world_step(w, 1e-3);
+        GC_CHECK(gc_world_state_hash(w) == ref_state_hash(w), "step %d: hash as the reference", s);
+        for (int i = 0; i < w->num_fingers; ++i) touching += w->fingers[i].num_contacts > 0;
+    }
+    GC_CHECK(touching > 0, "fingers in contact: their contacts hashed");
+    size_t size = gc_tick_record_size(w->num_bodies, w->num_fingers);
+    unsigned char *r = calloc(1, size);
+    GC_CHECK(gc_world_tick_record(w, 3, r, size) == GC_OK, "record");
+    GC_CHECK(rec_u64(r, OFF_HASH) == ref_state_hash(w), "record's hash as the reference");
+    int f = 0;
+    while (f < w->num_fingers && w->fingers[f].num_contacts == 0) ++f;
+    if (f < w->num_fingers) { /* only hashed, never stepped: a value no step writes */
+        w->fingers[f].contacts[0].state = (gcFingerState)0x10203;
+        GC_CHECK(gc_world_state_hash(w) == ref_state_hash(w), "4-byte field of three non-zero bytes");
+        w->fingers[f].contacts[0].part += 256;
+        GC_CHECK(gc_world_state_hash(w) == ref_state_hash(w), "part id over 255");
+    }
     free(r);
     gc_world_destroy(w);
 }
@@ -180,6 +271,7 @@ static void test_threads(void) {
 
 int main(void) {
     test_layout_and_stopped_record();
+    test_state_hash_reference();
     test_manual_clock_and_overflow();
     test_threads();
     return gc_test_summary("test_tick_log");
