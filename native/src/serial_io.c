@@ -19,6 +19,7 @@
 #include <poll.h>
 #include <pthread.h>
 #include <sched.h>
+#include <signal.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <time.h>
@@ -559,6 +560,13 @@ static void *device_main(void *arg) {
     gcDeviceRun *r = arg;
     gcSerialDevice *d = r->dev;
     pthread_setname_np(pthread_self(), "gc-serial");
+    /* A peer that hangs up must not kill the host process: writing to it raises SIGPIPE, whose
+     * default action ends the process (Python ignores it; a C host or an embedding may not).
+     * Blocked in this thread, the write fails with EPIPE and the hang-up is handled as such. */
+    sigset_t pipe_signal;
+    sigemptyset(&pipe_signal);
+    sigaddset(&pipe_signal, SIGPIPE);
+    pthread_sigmask(SIG_BLOCK, &pipe_signal, NULL);
     if (d->def.priority > 0) { /* as the haptic loop: real-time when the OS allows it */
         struct sched_param sp = {.sched_priority = d->def.priority};
         r->s.rt_priority = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp) == 0;

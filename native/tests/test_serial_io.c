@@ -11,6 +11,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <poll.h>
+#include <signal.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
@@ -338,6 +339,41 @@ static void test_device_thread(void) {
     gc_world_destroy(w);
 }
 
+/* A device whose peer has already hung up: the thread's first write (its hello) fails with
+ * EPIPE instead of SIGPIPE ending this process (SIGPIPE at its default action here, as in a
+ * C host), and the device reports the hang-up. */
+static void test_peer_gone_before_hello(void) {
+    signal(SIGPIPE, SIG_DFL);
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    gcFingerDef fd = gc_default_finger_def();
+    int32_t f;
+    GC_CHECK(gc_world_add_finger(w, &fd, &f) == GC_OK, "finger");
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start");
+    int sv[2];
+    GC_CHECK(socketpair(AF_UNIX, SOCK_STREAM, 0, sv) == 0, "socketpair");
+    close(sv[1]);
+    gcSerialDef sd = gc_default_serial_def();
+    sd.priority = 0;
+    int32_t id = -1;
+    GC_CHECK(gc_world_attach_serial(w, sv[0], &sd, &id) == GC_OK, "attach: %s", gc_world_last_error(w));
+    gcSerialStats st;
+    memset(&st, 0, sizeof st);
+    for (int k = 0; k < 100 && st.state != GC_SERIAL_HANGUP; ++k) {
+        sleep_ms(5);
+        gc_world_serial_stats(w, id, &st);
+    }
+    GC_CHECK(st.state == GC_SERIAL_HANGUP && st.write_errors >= 1, "state %d, write errors %llu", st.state,
+             (unsigned long long)st.write_errors);
+    GC_CHECK(gc_world_detach_serial(w, id) == GC_OK, "detach");
+    close(sv[0]);
+    gc_world_stop(w);
+    gc_world_destroy(w);
+}
+
 /* Two devices on one world at once (two threads pushing into the hub; TSan): each drives
  * its own finger through its own frame, and each gets its own finger's force. */
 static void test_two_devices(void) {
@@ -410,5 +446,6 @@ int main(void) {
     test_fuzzed_decoder();
     test_device_thread();
     test_two_devices();
+    test_peer_gone_before_hello();
     return gc_test_summary("test_serial_io");
 }
