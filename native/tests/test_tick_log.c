@@ -32,16 +32,21 @@ static double rec_f64(const unsigned char *r, size_t off) {
     return v;
 }
 
+/* The 8 corners of a cube of half-size h. */
+static void box_points(double pts[24], double h) {
+    for (int i = 0; i < 8; ++i) {
+        pts[3 * i] = (i & 1) ? h : -h;
+        pts[3 * i + 1] = (i & 2) ? h : -h;
+        pts[3 * i + 2] = (i & 4) ? h : -h;
+    }
+}
+
 static gcWorld *pinch_world(void) {
     gcWorldDef wd = gc_default_world_def();
     gcWorld *w = NULL;
     GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
     double pts[24];
-    for (int i = 0; i < 8; ++i) {
-        pts[3 * i] = (i & 1) ? 0.03 : -0.03;
-        pts[3 * i + 1] = (i & 2) ? 0.03 : -0.03;
-        pts[3 * i + 2] = (i & 4) ? 0.03 : -0.03;
-    }
+    box_points(pts, 0.03);
     gcPartDef part = {pts, 8, 0.0};
     gcBodyDef bd = gc_default_body_def();
     bd.mass = 0.1;
@@ -140,11 +145,7 @@ static uint64_t ref_state_hash(const gcWorld *w) {
 static void test_state_hash_reference(void) {
     gcWorld *w = pinch_world();
     double pts[24];
-    for (int i = 0; i < 8; ++i) {
-        pts[3 * i] = (i & 1) ? 0.02 : -0.02;
-        pts[3 * i + 1] = (i & 2) ? 0.02 : -0.02;
-        pts[3 * i + 2] = (i & 4) ? 0.02 : -0.02;
-    }
+    box_points(pts, 0.02);
     gcPartDef part = {pts, 8, 0.0};
     int32_t id;
     for (int b = 0; b < 6; ++b) {
