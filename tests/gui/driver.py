@@ -286,33 +286,44 @@ def last_result():
 # --------------------------------------------------------------------------- scenarios
 
 def scenario_start_esc_stop():
-    """Start Session (click), pictures of a running session, Esc; start again, Stop (click)."""
-    setup_scene(duration=0.0)
+    """Start Session (click), pictures of a running session, Esc; start again, Stop (click).
+    The fingertips are not animated but placed squeezing the box (3 mm into its x faces): a
+    steady squeeze that lasts until Esc, however slow the display (the animated path is in
+    the other scenarios)."""
+    setup_scene(duration=0.0, animated=False)
+    fingers = sorted((o for o in bpy.context.scene.objects if o.grasp_lab.role == "FINGER"),
+                     key=lambda o: o.name)
+    fingers[0].location.x, fingers[1].location.x = -0.030, 0.030
+    bpy.context.view_layer.update()
     yield from open_grasp_tab()
     yield 1.0
     area, win_region, ui = view3d()
     before = colour_counts(pixels(screenshot("before")), win_region, ui)
     yield from start_by_click()
     RESULT["threads_running"] = core_threads()
-    yield 1.5                                             # closing on the box, squeezing
-    yield from wait_until(lambda: active_session().runner.time > 1.6, 10, "t > 1.6 s: squeezing")
-    # The arrows are the forces sent to the device, which the watchdog holds at zero while the
-    # haptic loop runs late (a loaded VM): wait for two display updates drawn with forces on,
-    # the watchdog quiet in between (the picture lags a slow display by an update or two).
-    for _ in range(20):
-        s = active_session()
-        trips, shown = s.runner.stats()["runtime_watchdog_trips"], len(s.runner.ticks)
-        yield from wait_until(lambda: len(active_session().runner.ticks) >= shown + 2, 10, "two display updates")
-        s = active_session()
-        if s.runner.stats()["runtime_watchdog_trips"] == trips and \
-                np.linalg.norm(s.snapshot.finger_forces, axis=1).min() > 1.0:
-            break
-    yield 0.3
-    area, win_region, ui = view3d()
-    during = colour_counts(pixels(screenshot("running")), win_region, ui)
-    RESULT["pixels"] = {"before": before, "during": during}
+    yield from wait_until(lambda: active_session() is not None and list(active_session().snapshot.contacts) == [0, 0]
+                          and active_session().runner.time > 1.0, 10, "both fingertips on the box")
+    # The arrows are the forces sent to the device, which the watchdog holds at zero (and then
+    # ramps in again) while the haptic loop runs late (a loaded VM), and the picture lags a
+    # slow display by an update or two: pictures are taken, one a display update, until one
+    # shows the god-objects, the arrows and the HUD; the last one taken is what the test judges.
     s = active_session()
-    RESULT["hud"] = s.hud_text()
+    for attempt in range(20):
+        area, win_region, ui = view3d()
+        during = colour_counts(pixels(screenshot("running")), win_region, ui)
+        RESULT["hud"] = s.hud_text()                      # what the picture shows
+        if during["red"] > before["red"] + 100 and during["blue"] > before["blue"] + 200 \
+                and during["hud_white"] > 1000:
+            break
+        shown = len(s.runner.ticks)
+        yield from wait_until(lambda: active_session() is None or len(s.runner.ticks) >= shown + 1, 10,
+                              "a display update")
+        if active_session() is None:
+            break
+    RESULT["pixels"] = {"before": before, "during": during}
+    RESULT["pictures_taken"] = attempt + 1
+    if active_session() is None:
+        raise AssertionError(f"the session ended before its picture showed its forces: {RESULT['pixels']}")
     RESULT["display_rate"] = s.runner.stats()["display_rate"]
     RESULT["interval"] = s.interval
     area, win_region, ui = view3d()
