@@ -560,10 +560,8 @@ def _records(fh, validate: bool, cursor: _Cursor):
     slab at a time into one reused buffer (fresh memory for every chunk costs more in page
     faults than decompressing it). A record running past the end raises EndOfFile (a file cut
     short); anything malformed raises ValueError."""
-    from mcap.data_stream import ReadDataStream
     from mcap.exceptions import EndOfFile
     from mcap.opcode import Opcode
-    from mcap.records import Channel, Schema
     unpack_u64 = struct.Struct("<Q").unpack_from
     buffer = bytearray(SLAB)
     view = memoryview(buffer)
@@ -611,13 +609,8 @@ def _records(fh, validate: bool, cursor: _Cursor):
         pos += 9 + length
         if opcode == Opcode.CHUNK:
             yield from _chunk_records(body, validate)
-        elif opcode == Opcode.MESSAGE:        # outside chunks (other writers): copied out
-            if length < 22:
-                raise ValueError("message record too short")
-            yield struct.unpack_from("<H", body, 0)[0], bytes(body[22:])
-        elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
-            cls = Schema if opcode == Opcode.SCHEMA else Channel
-            yield cls.read(ReadDataStream(io.BytesIO(bytes(body))))
+        elif opcode in (Opcode.MESSAGE, Opcode.SCHEMA, Opcode.CHANNEL):
+            yield _parse_record(opcode, body, copy=True)   # outside chunks (other writers)
         elif opcode == Opcode.FOOTER:
             if have - pos < len(MCAP_MAGIC):
                 refill(len(MCAP_MAGIC))
@@ -628,14 +621,11 @@ def _records(fh, validate: bool, cursor: _Cursor):
                 raise ValueError("no magic bytes after the footer")
             yield True
             return
-        del body
 
 
 def _chunk_records(body: memoryview, validate: bool):
     """The records of one MCAP chunk record's body (decompressed, CRC checked when ``validate``)."""
-    from mcap.data_stream import ReadDataStream
     from mcap.opcode import Opcode
-    from mcap.records import Channel, Schema
     if len(body) < 32:
         raise ValueError("chunk record too short")
     size, crc, name_len = struct.unpack_from("<QII", body, 16)
@@ -657,13 +647,22 @@ def _chunk_records(body: memoryview, validate: bool):
         if len(rec) != length:
             raise ValueError("a record overruns its chunk")
         pos += 9 + length
-        if opcode == Opcode.MESSAGE:
-            if length < 22:
-                raise ValueError("message record too short")
-            yield struct.unpack_from("<H", rec, 0)[0], rec[22:]
-        elif opcode in (Opcode.SCHEMA, Opcode.CHANNEL):
-            cls = Schema if opcode == Opcode.SCHEMA else Channel
-            yield cls.read(ReadDataStream(io.BytesIO(bytes(rec))))
+        if opcode in (Opcode.MESSAGE, Opcode.SCHEMA, Opcode.CHANNEL):
+            yield _parse_record(opcode, rec, copy=False)
+
+
+def _parse_record(opcode: int, body: memoryview, copy: bool):
+    """A Message record as (channel id, data: a view, or bytes when ``copy``), a Schema or
+    Channel record as mcap's record."""
+    from mcap.data_stream import ReadDataStream
+    from mcap.opcode import Opcode
+    from mcap.records import Channel, Schema
+    if opcode == Opcode.MESSAGE:
+        if len(body) < 22:
+            raise ValueError("message record too short")
+        return struct.unpack_from("<H", body, 0)[0], bytes(body[22:]) if copy else body[22:]
+    cls = Schema if opcode == Opcode.SCHEMA else Channel
+    return cls.read(ReadDataStream(io.BytesIO(bytes(body))))
 
 
 def _frame_ticks(ticks: np.ndarray, rate: float, fps: float) -> np.ndarray:

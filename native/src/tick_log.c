@@ -81,14 +81,6 @@ static const gcBodyState *hashed_state(const gcWorld *w, int i) {
     return w->shown ? &w->shown->bodies[i] : &w->bodies[i].state;
 }
 
-/* One body's lane step: its state variables. */
-static uint64_t hash_body(uint64_t l, const gcBodyState *s) {
-    l = hash_bytes(l, &s->com, sizeof s->com);
-    l = hash_bytes(l, &s->q, sizeof s->q);
-    l = hash_bytes(l, &s->v, sizeof s->v);
-    return hash_bytes(l, &s->w, sizeof s->w);
-}
-
 /* Word j (0..12) of a body's hashed state: com, q, v, w (R between q and v is derived). */
 static uint64_t state_word(const gcBodyState *s, int j) {
     size_t off = j < 3 ? offsetof(gcBodyState, com) + 8 * (size_t)j
@@ -122,7 +114,7 @@ static uint64_t hash_time_bodies(const gcWorld *w) {
     }
     uint64_t lane[4] = {l0, l1, l2, l3};
     for (; i < nb; ++i)
-        lane[i & 3] = hash_body(lane[i & 3], hashed_state(w, i));
+        for (int j = 0; j < 13; ++j) lane[i & 3] = (lane[i & 3] ^ state_word(hashed_state(w, i), j)) * FNV_PRIME;
     return hash_bytes(h, lane, sizeof lane);
 }
 
