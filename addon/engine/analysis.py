@@ -171,7 +171,29 @@ class GraspTable:
     state: np.ndarray
 
 
-def _friction_use(ft, mu, fn):
+def contact_forces(forces, normals):
+    """(fn, ft) of the force each finger's contact puts on its body: the reaction -force of the
+    coupling force split along the inward normal -normal (recorded normals: outward, world;
+    any leading shape). fn > 0 pushes into the body; a zero normal gives fn 0, ft = |force|."""
+    forces = np.asarray(forces, dtype=np.float64)
+    normals = np.asarray(normals, dtype=np.float64)
+    length = np.sqrt(np.einsum("...k,...k->...", normals, normals))
+    unit = normals / np.where(length > _TINY, length, np.inf)[..., None]
+    fn = np.einsum("...k,...k->...", forces, unit)          # (-force) . (-normal)
+    tangential = forces - fn[..., None] * unit
+    return fn, np.sqrt(np.einsum("...k,...k->...", tangential, tangential))
+
+
+def cone_mu(models, states, bodies):
+    """The friction coefficient of each contact's current cone: mu_d while it slips, mu_s
+    otherwise (0 where ``bodies`` is not a body index)."""
+    mu_s = np.array([m.mu_s for m in models] + [0.0])
+    mu_d = np.array([m.mu_d for m in models] + [0.0])
+    bodies = np.where((bodies >= 0) & (bodies < len(models)), bodies, len(models))
+    return np.where(np.asarray(states) == SLIP, mu_d[bodies], mu_s[bodies])
+
+
+def friction_use(ft, mu, fn):
     """|Ft| / (mu |Fn|) where the cone is open (mu fn > 0); else inf for any tangential force
     (a finger pulling, or a frictionless one, holds none), 0 for none."""
     cone = mu * fn
@@ -212,15 +234,10 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
     t_idx, f_idx, b_idx = t_idx[order], f_idx[order], b_idx[order]
     n_in = -normals[t_idx, f_idx] / n_len[t_idx, f_idx][:, None]
     point = god_objects[t_idx, f_idx] + finger_radii[f_idx][:, None] * n_in
-    on_body = -forces[t_idx, f_idx]
-    fn = np.einsum("ij,ij->i", on_body, n_in)
-    tangential = on_body - fn[:, None] * n_in
-    ft = np.sqrt(np.einsum("ij,ij->i", tangential, tangential))
+    fn, ft = contact_forces(forces[t_idx, f_idx], normals[t_idx, f_idx])
     state = states[t_idx, f_idx].astype(np.int32)
-    mu_s = np.array([m.mu_s for m in models] + [0.0])
-    mu_d = np.array([m.mu_d for m in models] + [0.0])
-    mu = np.where(state == SLIP, mu_d[b_idx], mu_s[b_idx])
-    use = _friction_use(ft, mu, fn)
+    mu = cone_mu(models, state, b_idx)
+    use = friction_use(ft, mu, fn)
     margin = mu * fn - ft
     with np.errstate(divide="ignore", invalid="ignore"):
         needed = np.where(fn > 0, ft / np.where(fn > 0, fn, 1.0), np.where(ft > 0, np.inf, 0.0))
@@ -298,17 +315,23 @@ def analyse(models, poses, god_objects, forces, normals, states, contact_bodies,
     return body_grasps(table)
 
 
-def analyse_recording(rec, every: int = 1, edges: int = 8, chunk: int = 4096) -> GraspTable:
+def analyse_recording(rec, every: int = 1, edges: int = 8, rows=None, chunk: int = 4096) -> GraspTable:
     """The measures at the tick records of a Recording whose tick number is a multiple of
-    ``every`` (all of them for 1), with the centres of mass's accelerations from the recorded
-    velocities (each tick against the record before it: read with ``open_recording(path,
-    every=every)``, that is the tick before). Snapshot indices in the answer are rows of
-    ``rec.ticks``. Raises ValueError for a recording without contact normals."""
+    ``every`` (all of them for 1), or at its records ``rows``, with the centres of mass's
+    accelerations from the recorded velocities (each tick against the record before it: read
+    with ``open_recording(path, every=every)`` or ``previous=True``, that is the tick before).
+    Snapshot indices in the answer are rows of ``rec.ticks``. Raises ValueError for a
+    recording without contact normals."""
     check_recording(rec)
     models = body_models(rec.header["scene"])
     radii = np.array([f["radius"] for f in rec.header["scene"]["fingers"]], dtype=np.float64)
     gravity = tuple(rec.header["scene"]["gravity"])
-    rows = np.flatnonzero(rec.ticks["tick"] % every == 0) if every > 1 else np.arange(len(rec.ticks))
+    if rows is not None:
+        rows = np.asarray(rows, dtype=np.int64)
+    elif every > 1:
+        rows = np.flatnonzero(rec.ticks["tick"] % every == 0)
+    else:
+        rows = np.arange(len(rec.ticks))
     parts = []
     for lo in range(0, len(rows), chunk):
         r = rows[lo:lo + chunk]
@@ -338,6 +361,38 @@ def _concatenate(parts) -> GraspTable:
             arrays = [a + o for a, o in zip(arrays, offsets)]
         merged[name] = np.concatenate(arrays)
     return GraspTable(**merged)
+
+
+# Animated custom properties of a bake, per dynamic body (docs/analysis.md): name -> (the value
+# of a GraspTable row, the value while no finger holds the body: the measure of no contacts).
+# A value with no finite answer (mu_min when no friction up to MU_MAX closes the grasp,
+# grip/load at zero load) is keyed NONE.
+NONE = -1.0
+BAKED = {
+    "gl_held": (lambda t: np.ones(len(t.body)), 0.0),
+    "gl_closure": (lambda t: t.quality["force_closure"].astype(np.float64), 0.0),
+    "gl_epsilon": (lambda t: t.quality["epsilon"], 0.0),
+    "gl_mu_min": (lambda t: t.mu_min, NONE),
+    "gl_slip_margin": (lambda t: t.min_slip_margin, 0.0),
+    "gl_grip_load": (lambda t: t.grip_ratio, 0.0),
+}
+
+
+def body_series(table: GraspTable, rows, num_bodies: int) -> dict:
+    """BAKED's measures per body at the records ``rows`` (in order) of the recording the table
+    was made of: name -> (len(rows), num_bodies)."""
+    rows = np.asarray(rows, dtype=np.int64)
+    if np.any(rows[1:] < rows[:-1]):
+        raise ValueError("rows: expected the records in order")
+    where = np.searchsorted(rows, table.snapshot)
+    first = np.searchsorted(rows, rows)     # a repeated row (two frames on one tick) takes the first's
+    out = {}
+    for name, (value, idle) in BAKED.items():
+        series = np.full((len(rows), num_bodies), idle)
+        v = np.asarray(value(table), dtype=np.float64)
+        series[where, table.body] = np.where(np.isfinite(v), v, NONE)
+        out[name] = series[first]
+    return out
 
 
 def check_recording(rec) -> None:
