@@ -208,15 +208,21 @@ def test_three_finger_grasp_in_closure(three):
     points = t["god_object"] - R * t["normal"]        # the fingertip sphere's touching point
     normals = -t["normal"]
     np.testing.assert_allclose([c.point for c in g.contacts], points, rtol=0, atol=1e-15)
-    q = graspcore.grasp_quality(points, normals, 0.8, t["pose"][0, :3], HALF * math.sqrt(3))
+    np.testing.assert_allclose(g.center, t["pose"][0, :3], rtol=0, atol=1e-15)    # the box origin: its COM
+    center = g.center       # (bit for bit: facets at the same distance tie, and rounding picks one)
+    q = graspcore.grasp_quality(points, normals, 0.8, center, HALF * math.sqrt(3))
     assert q["force_closure"] and g.force_closure and g.epsilon > 0
     assert g.epsilon == pytest.approx(q["epsilon"], rel=1e-12)
     assert g.volume == pytest.approx(q["volume"], rel=1e-12)
-    # The grasp is mirror-symmetric in y: two facets are nearest, either is the weakest push.
-    np.testing.assert_allclose(np.abs(g.weakest), np.abs(q["weakest"]), rtol=0, atol=1e-9)
+    # Several facets are nearest (the grasp is symmetric in y) and rounding picks one: on the
+    # contacts exactly as the analysis passed them, the same one.
+    same = graspcore.grasp_quality(np.array([c.point for c in g.contacts]), np.array([c.normal for c in g.contacts]),
+                                   [c.mu for c in g.contacts], g.center, g.radius)
+    np.testing.assert_array_equal(g.weakest, same["weakest"])
+    assert np.linalg.norm(g.weakest) == pytest.approx(1.0, rel=1e-12)
     assert np.linalg.norm(g.weakest) == pytest.approx(1.0, rel=1e-12)
     assert g.resisted_force == pytest.approx(g.epsilon * g.grip_force, rel=1e-12)
-    mu_min = graspcore.grasp_mu_min(points, normals, t["pose"][0, :3], HALF * math.sqrt(3))
+    mu_min = graspcore.grasp_mu_min(points, normals, center, HALF * math.sqrt(3))
     assert g.mu_min == pytest.approx(mu_min, abs=1e-12) and 0 < g.mu_min < 0.8
 
 
