@@ -236,6 +236,10 @@ typedef struct gcSnapshot {
     double *spring_forces;      /* 3 per finger: the physics spring force, unclamped */
     int32_t *finger_states;     /* gcFingerState per finger */
     int32_t *contact_bodies;    /* per finger, -1 when free */
+    double *normals;            /* 3 per finger: first contact's plane normal, world, pointing out
+                                 * of the body touched (as in the tick record); 0 when free */
+    double *velocities;         /* 6 per body: linear velocity of the body frame origin, angular
+                                 * (world), as gc_world_body_velocity */
 } gcSnapshot;
 gcStatus gc_world_snapshot(gcWorld *world, gcSnapshot *snapshot);
 
