@@ -50,6 +50,7 @@ typedef struct Facet {
     double cdist;       /* signed distance of the interior point c (< 0) */
     double vol;         /* volume of the simplex (c, facet) */
     double fdist;       /* distance of the furthest outside point */
+    uint64_t key[2];    /* sums of the vertices' random words (ridge keys, see link_new_facets) */
     int outside;        /* head of the outside-point list, -1 when empty */
     int furthest;       /* furthest outside point, -1 when the set is empty */
     int alive;
@@ -432,6 +433,9 @@ static GC_ALWAYS_INLINE void make_cone_facet(Hull *h, int d, int fi, int i, int 
     }
     N->v[i] = p;
     N->nb[i] = gi;
+    const uint64_t *vh = ws->vertex_hash;
+    N->key[0] = F->key[0] - vh[2 * F->v[i]] + vh[2 * p];
+    N->key[1] = F->key[1] - vh[2 * F->v[i] + 1] + vh[2 * p + 1];
 
     double dF = F->pdist, dG = G->pdist;
     double len2 = 0.0;
@@ -483,8 +487,7 @@ static GC_ALWAYS_INLINE int link_new_facets(Hull *h, int d, int nc) {
     for (int c = 0; c < nc; ++c) {
         int nf = ws->created[c], apex = ws->created_apex[c];
         Facet *N = &fs[nf];
-        uint64_t sum0 = 0, sum1 = 0;
-        for (int k = 0; k < d; ++k) sum0 += vh[2 * N->v[k]], sum1 += vh[2 * N->v[k] + 1];
+        uint64_t sum0 = N->key[0], sum1 = N->key[1];
         for (int j = 0; j < d; ++j) {
             if (j == apex || N->nb[j] >= 0) continue;
             uint64_t k0 = sum0 - vh[2 * N->v[j]], k1 = sum1 - vh[2 * N->v[j] + 1];
@@ -632,6 +635,17 @@ gcStatus gc_hull_nd(gcGraspWorkspace *ws, const double *points, int n, int d, do
     if (st != GC_OK) return st;
     ws->high_water = 0;
     ws->num_free = 0;
+    for (int i = 0; i < n; ++i) {
+        ws->next[i] = -1;
+        uint64_t z = (uint64_t)(i + 1) * 0x9E3779B97F4A7C15ull;   /* splitmix64 */
+        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+        ws->vertex_hash[2 * i] = z ^ (z >> 31);
+        z = (uint64_t)(i + 1) * 0xD1B54A32D192ED03ull;
+        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+        ws->vertex_hash[2 * i + 1] = z ^ (z >> 31);
+    }
     /* Facet m of the simplex leaves out chosen[m]; its ridge without chosen[k] faces facet k. */
     for (int m = 0; m <= d; ++m) {
         int f = new_facet(&h);
@@ -645,17 +659,8 @@ gcStatus gc_hull_nd(gcGraspWorkspace *ws, const double *points, int n, int d, do
         }
         exact_plane(&h, F);
         F->vol = exact_volume(&h, F);
-    }
-    for (int i = 0; i < n; ++i) {
-        ws->next[i] = -1;
-        uint64_t z = (uint64_t)(i + 1) * 0x9E3779B97F4A7C15ull;   /* splitmix64 */
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        ws->vertex_hash[2 * i] = z ^ (z >> 31);
-        z = (uint64_t)(i + 1) * 0xD1B54A32D192ED03ull;
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        ws->vertex_hash[2 * i + 1] = z ^ (z >> 31);
+        F->key[0] = F->key[1] = 0;
+        for (int k = 0; k < d; ++k) F->key[0] += ws->vertex_hash[2 * F->v[k]], F->key[1] += ws->vertex_hash[2 * F->v[k] + 1];
     }
     for (int i = 0; i < n; ++i) {
         if (index_of(chosen, d + 1, i) >= 0) continue;
