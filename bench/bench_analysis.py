@@ -200,6 +200,9 @@ def main(argv=None) -> int:
     print(f"Held: " + ", ".join(f"{n} {held[n]} samples, {closure[n]} in force closure" for n in rec.body_names)
           + f". Largest relative difference of epsilon from qhull's on the sample: {worst:.1e}.\n")
     print("The command's summary:\n\n```\n" + command_out.strip() + "\n```")
+    # For run_bench.py's targets table.
+    print(f"<!-- target analyze_s={statistics.median(walls):.3f} mu_min_s={t_mu:.3f} "
+          f"minutes={args.minutes:g} snapshot_ms={1e3 * per_snapshot:.3f} -->")
     if not args.keep:
         shutil.rmtree(tmp, ignore_errors=True)
     return 0
