@@ -104,7 +104,8 @@ class Key:
 class Held:
     """The body rises with the fingers and stays in them: from ``grasp_frame`` to the end its
     displacement relative to the fingers' centroid stays below ``max_slip`` (the finger springs'
-    give included), no finger slips during the ``hold`` phases, and it ends ``rise`` higher."""
+    give included), no finger slips during the ``hold`` phases, and it is ``rise`` higher when
+    the first hold starts."""
     body: str
     rise: float
     max_slip: float
@@ -156,7 +157,7 @@ class Scene:
     fingers: list
     keys: list
     claim: object
-    notes: str = ""
+    interpolation: str = "BEZIER"           # of the fingertip keys: BEZIER eases in and out
 
     @property
     def frame_end(self) -> int:
@@ -205,6 +206,31 @@ def _lift_keys(lift, clearance, squeeze_end=25, hold_frames=36, carry=None):
         up = moved
     keys.append(Key(end, "end", 0.0, up))
     return keys
+
+
+def _pinch_and_lift_module():
+    import importlib.util
+    name = "grasp_lab_build_pinch_and_lift"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, os.path.join(HERE, "build_pinch_and_lift.py"))
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[name] = mod
+        spec.loader.exec_module(mod)
+    return sys.modules[name]
+
+
+def pinch_and_lift() -> Scene:
+    # The first sample scene; its numbers and timeline are build_pinch_and_lift.py's (the demo).
+    p = _pinch_and_lift_module()
+    fingers = [Finger(f"Finger {i}", (s * p.CLOSED_X, 0.0, p.BOX_Z), (s, 0.0, 0.0), radius=p.FINGER_RADIUS,
+                      stiffness=p.STIFFNESS, damping=p.DAMPING) for i, s in enumerate((-1.0, 1.0))]
+    keys = [Key(f, phase, x - p.CLOSED_X, (0.0, y, z - p.BOX_Z)) for f, phase, x, y, z in p.KEYS]
+    return Scene("pinch_and_lift", "Pinch: two fingertips pick a box off the table, lift it, carry it "
+                 "and put it back down",
+                 [Body("Table", Box(p.TABLE_SIZE), p.TABLE_CENTER, static=True, mu=p.TABLE_MU),
+                  Body("Box", Box((p.BOX_SIZE,) * 3), (0.0, 0.0, p.BOX_Z), mass=p.BOX_MASS, mu=p.BOX_MU)],
+                 fingers, keys, Held("Box", rise=p.LIFT, max_slip=0.001, grasp_frame=31, max_tilt_deg=1.0),
+                 interpolation="LINEAR")
 
 
 def key_pinch() -> Scene:
@@ -371,7 +397,7 @@ def two_people_box() -> Scene:
                  Held("Box", rise=0.10, max_slip=0.002, grasp_frame=25, max_tilt_deg=2.0))
 
 
-SCENES = {f.__name__: f for f in (key_pinch, tripod_pencil, weak_grip_slide, can_power, mug_hook,
+SCENES = {f.__name__: f for f in (pinch_and_lift, key_pinch, tripod_pencil, weak_grip_slide, can_power, mug_hook,
                                   tray_two_hands, two_people_box)}
 
 
@@ -444,7 +470,6 @@ def build(bpy, name):
     """Create scene ``name`` in the current (empty) file. Returns the Scene description."""
     sc = scene(name)
     bscene = bpy.context.scene
-    bscene.name = sc.name
     bscene[DESCRIPTION_KEY] = sc.description
     bscene.render.fps, bscene.render.fps_base = FPS, 1.0
     bscene.frame_start, bscene.frame_end = sc.keys[0].frame, sc.frame_end
@@ -477,13 +502,14 @@ def build(bpy, name):
         for key in sc.keys:
             obj.location = finger_position(sc, f, key)
             obj.keyframe_insert("location", frame=key.frame)
-        _ease(bpy, obj)
+        _set_interpolation(bpy, obj, sc.interpolation)
     bscene.frame_set(bscene.frame_start)
     return sc
 
 
-def _ease(bpy, obj):
-    """Bézier keys with flat (auto-clamped) handles: ease in and out of every key, no overshoot."""
+def _set_interpolation(bpy, obj, interpolation):
+    """LINEAR, or BEZIER with flat (auto-clamped) handles: ease in and out of every key, no
+    overshoot."""
     ad = obj.animation_data
     if bpy.app.version >= (4, 4, 0):
         from bpy_extras import anim_utils
@@ -492,8 +518,9 @@ def _ease(bpy, obj):
         fcurves = ad.action.fcurves
     for fc in fcurves:
         for kp in fc.keyframe_points:
-            kp.interpolation = "BEZIER"
-            kp.handle_left_type = kp.handle_right_type = "AUTO_CLAMPED"
+            kp.interpolation = interpolation
+            if interpolation == "BEZIER":
+                kp.handle_left_type = kp.handle_right_type = "AUTO_CLAMPED"
         fc.update()
 
 
@@ -566,7 +593,8 @@ def measure(sc: Scene, r: Result) -> dict:
         g = fr.index(c.grasp_frame)
         centroid = r.hips.mean(axis=1)
         rel = (r.com[:, i] - centroid) - (r.com[g, i] - centroid[g])
-        out["rise"] = float(r.com[-1, i, 2] - r.com[0, i, 2])
+        lifted = fr.index(sc.frames_of("hold")[0])         # the first hold: lifted
+        out["rise"] = float(r.com[lifted, i, 2] - r.com[0, i, 2])
         out["slip"] = float(np.linalg.norm(rel[g:], axis=1).max())
         out["tilt_deg"] = max(_angle_deg(r.poses[g, i, 3:], q) for q in r.poses[g:, i, 3:])
         hold = [fr.index(f) for f in sc.frames_of("hold")]
