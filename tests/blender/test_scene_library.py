@@ -223,3 +223,32 @@ def test_make_scenes_files_play_on_the_emulator(bpy, tmp_path):
             got = np.array(motion((key.frame - sc.keys[0].frame) / lib.FPS, n))
             want = np.array([lib.finger_position(sc, f, key) for f in sc.fingers])
             np.testing.assert_allclose(got, want, atol=1e-6, err_msg=f"{name} frame {key.frame}")
+
+
+def test_emulator_plays_a_scene_that_holds_live(bpy, core, tmp_path):
+    """The device emulator plays key_pinch's .blend (`--from`) over a pty as a serial device
+    driving the scene's fingertips in a real-time session: the card is drawn out of its slot
+    and held, as in the headless run."""
+    import subprocess
+    devices_ui = grasp_env.submodule("devices_ui")
+    sc = lib.build(bpy, "key_pinch")
+    path = str(tmp_path / "key_pinch.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    for f in sc.fingers:                                      # the device has the fingertips now
+        bpy.data.objects[f.name].animation_data_clear()
+    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--from", path],
+                           cwd=grasp_env.ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        line = emu.stdout.readline()
+        assert line.startswith("PORT "), emu.stderr.read()
+        # half a second into the hold, well before the emulator loops the animation
+        held_at = (sc.frames_of("hold")[0] - sc.keys[0].frame) / lib.FPS + 0.5
+        live = devices_ui.run_realtime(bpy.context, held_at, [f"serial:{line.split()[1]}"])
+        res = live.result
+        i = res.body_names.index("Card")
+        z = res.trajectory("Card")[:, 2]
+        assert z[-1] - z[0] > sc.claim.rise - 0.01, (z[0], z[-1])
+        assert list(live.snapshot.contacts) == [i] * len(sc.fingers)
+    finally:
+        emu.kill()
+        emu.wait()
