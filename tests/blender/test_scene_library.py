@@ -227,7 +227,7 @@ def test_make_scenes_files_play_on_the_emulator(bpy, tmp_path):
         assert n == len(sc.fingers)
         for key in sc.keys[:-1]:                              # the last key wraps to the first
             got = np.array(motion((key.frame - sc.keys[0].frame) / lib.FPS, n))
-            want = np.array([lib.finger_position(sc, f, key) for f in sc.fingers])
+            want = np.array([lib.finger_position(f, key) for f in sc.fingers])
             np.testing.assert_allclose(got, want, atol=1e-6, err_msg=f"{name} frame {key.frame}")
 
 
