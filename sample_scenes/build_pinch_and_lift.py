@@ -115,24 +115,13 @@ def _material(bpy, name, color):
 
 
 def add_render_setup(bpy):
-    """Camera, sun, materials (Workbench shows the material colour) and visible fingertip
-    spheres (role None, parented to the finger empties: the HIPs)."""
-    import math
+    """The docs' camera position (on the library's camera, its target and sun), materials
+    (Workbench shows the material colour) and visible fingertip spheres (role None, parented
+    to the finger empties: the HIPs)."""
     import bmesh
     scene = bpy.context.scene
-    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    cam.data.lens = 60
-    scene.collection.objects.link(cam)
-    cam.location = (0.17, -0.42, 0.16)
-    target = bpy.data.objects.new("Camera Target", None)
-    target.location = (0.0, 0.035, 0.055)
-    scene.collection.objects.link(target)
-    track = cam.constraints.new("TRACK_TO")
-    track.target = target
-    scene.camera = cam
-    light = bpy.data.objects.new("Light", bpy.data.lights.new("Light", "SUN"))
-    light.rotation_euler = (math.radians(40), math.radians(10), math.radians(30))
-    scene.collection.objects.link(light)
+    bpy.data.objects["Camera"].location = (0.17, -0.42, 0.16)
+    bpy.data.objects["Camera Target"].location = (0.0, 0.035, 0.055)
     bpy.data.objects["Table"].data.materials.append(_material(bpy, "Table", (0.78, 0.66, 0.50, 1.0)))
     bpy.data.objects["Box"].data.materials.append(_material(bpy, "Box", (0.93, 0.90, 0.80, 1.0)))
     tip_mat = _material(bpy, "Fingertip", (0.30, 0.30, 0.33, 1.0))

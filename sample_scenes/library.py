@@ -504,8 +504,58 @@ def build(bpy, name):
             obj.location = finger_position(f, key)
             obj.keyframe_insert("location", frame=key.frame)
         _set_interpolation(bpy, obj, sc.interpolation)
+    _add_view(bpy, sc)
     bscene.frame_set(bscene.frame_start)
     return sc
+
+
+def extent(sc: Scene):
+    """(centre, radius) of what the scene is about: its moving bodies where they start and where
+    the hand carries them, and the fingertips at every key (the tables left out)."""
+    import numpy as np
+    pts = [finger_position(f, k) for f in sc.fingers for k in sc.keys]
+    carried = np.array([k.offset for k in sc.keys])
+    for b in sc.bodies:
+        if not b.static:
+            verts = np.array(_shape_geometry(b.shape)[0]) + np.array(b.location)
+            pts.extend((verts[None, :, :] + carried[:, None, :]).reshape(-1, 3))
+    pts = np.array(pts)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    return (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
+
+
+VIEW_DIRECTION = (0.17, -0.455, 0.105)      # from what is shown toward the camera (the demo's)
+CAMERA_LENS = 60.0
+
+
+def _add_view(bpy, sc: Scene):
+    """A camera (aimed by a TRACK_TO at "Camera Target"), a sun, and every 3D viewport of the
+    file framed on the scene, clipping set for millimetre objects."""
+    from mathutils import Vector
+    bscene = bpy.context.scene
+    centre, radius = extent(sc)
+    bscene.render.resolution_x, bscene.render.resolution_y = 960, 600
+    half_fov = math.atan(18.0 * 600 / 960 / CAMERA_LENS)   # vertical, 36 mm sensor across
+    distance = 1.1 * radius / math.sin(half_fov)
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    cam.data.lens = CAMERA_LENS
+    cam.location = Vector(centre) + Vector(VIEW_DIRECTION).normalized() * distance
+    target = bpy.data.objects.new("Camera Target", None)
+    target.location = centre
+    for obj in (cam, target):
+        bscene.collection.objects.link(obj)
+    cam.constraints.new("TRACK_TO").target = target
+    bscene.camera = cam
+    light = bpy.data.objects.new("Light", bpy.data.lights.new("Light", "SUN"))
+    light.rotation_euler = (math.radians(40), math.radians(10), math.radians(30))
+    bscene.collection.objects.link(light)
+    for screen in bpy.data.screens:
+        for area in screen.areas:
+            if area.type == "VIEW_3D":
+                space = area.spaces[0]
+                space.clip_start, space.clip_end = distance / 1000, distance * 100
+                space.region_3d.view_location = centre
+                space.region_3d.view_distance = distance
 
 
 def _set_interpolation(bpy, obj, interpolation):
@@ -723,6 +773,8 @@ def main(argv=None):
         if not args.no_save:
             os.makedirs(args.out, exist_ok=True)
             path = os.path.abspath(os.path.join(args.out, f"{name}.blend"))
+            if os.path.exists(path):
+                os.remove(path)              # written anew, not kept as a .blend1 backup
             bpy.ops.wm.save_as_mainfile(filepath=path, compress=True)
             print(f"{path} ({os.path.getsize(path) / 1024:.0f} kB): {sc.description}")
         if args.run:

@@ -258,3 +258,33 @@ def test_emulator_plays_a_scene_that_holds_live(bpy, core, tmp_path):
     finally:
         emu.kill()
         emu.wait()
+
+
+@pytest.mark.parametrize("name", list(lib.SCENES))
+def test_camera_and_viewports_frame_the_scene(bpy, name):
+    """The file opens on the grasp: the camera sees the fingertips at every key and the moving
+    bodies where they start and where they are carried, and the 3D viewports look at it."""
+    from bpy_extras.object_utils import world_to_camera_view
+    from mathutils import Vector
+    sc = lib.build(bpy, name)
+    scene = bpy.context.scene
+    tips = [bpy.data.objects[f.name] for f in sc.fingers]
+    points = []
+    for key in sc.keys:
+        scene.frame_set(key.frame)
+        points += [o.matrix_world.translation.copy() for o in tips]
+    shift = Vector(sc.keys[-1].offset)                      # where the hand has carried them
+    scene.frame_set(scene.frame_start)
+    for b in sc.bodies:
+        if not b.static:
+            obj = bpy.data.objects[b.name]
+            corners = [obj.matrix_world @ Vector(c) for c in obj.bound_box]
+            points += corners + [c + shift for c in corners]
+    cam = scene.camera
+    for p in points:
+        x, y, depth = world_to_camera_view(scene, cam, p)
+        assert 0.0 < x < 1.0 and 0.0 < y < 1.0 and cam.data.clip_start < depth < cam.data.clip_end, (p, x, y)
+    centre, radius = lib.extent(sc)
+    views = [a.spaces[0].region_3d for s in bpy.data.screens for a in s.areas if a.type == "VIEW_3D"]
+    assert views and all((Vector(v.view_location) - Vector(centre)).length < 1e-6 for v in views)
+    assert all(v.view_distance < 20 * radius for v in views)
