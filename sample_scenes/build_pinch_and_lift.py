@@ -236,9 +236,9 @@ def main(argv):
         scene.grasp_lab.record = True
         scene.grasp_lab.recording_folder = grasp_env.isolate()
         bpy.ops.grasp_lab.session(duration=(args.frame - scene.frame_start) / FPS)
-        import numpy as np
-        rec = np.load(scene.grasp_lab.last_recording)
-        add_finger_force_arrows(bpy, None, rec["god_objects"][-1:], rec["finger_forces"][-1:],
+        rec = _extension_module("engine.recording").open_recording(scene.grasp_lab.last_recording)
+        last = rec.ticks[-1:]
+        add_finger_force_arrows(bpy, None, last["god_object"], last["device_force"],
                                 args.force_scale, bake=False)
         print(render(bpy, args.render))
     elif args.run:
