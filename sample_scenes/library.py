@@ -529,8 +529,10 @@ CAMERA_LENS = 60.0
 
 
 def _add_view(bpy, sc: Scene):
-    """A camera (aimed by a TRACK_TO at "Camera Target"), a sun, and every 3D viewport of the
-    file framed on the scene, clipping set for millimetre objects."""
+    """A camera (aimed by a TRACK_TO at "Camera Target") and a sun, hidden in the viewports (they
+    would cross the grasp), and, when building files (in the background), every 3D viewport of
+    the file framed on the scene with clipping for millimetre objects; a Blender with a window
+    keeps the view its user has."""
     from mathutils import Vector
     bscene = bpy.context.scene
     centre, radius = extent(sc)
@@ -549,6 +551,11 @@ def _add_view(bpy, sc: Scene):
     light = bpy.data.objects.new("Light", bpy.data.lights.new("Light", "SUN"))
     light.rotation_euler = (math.radians(40), math.radians(10), math.radians(30))
     bscene.collection.objects.link(light)
+    target.empty_display_size = radius / 10
+    for obj in (cam, target, light):
+        obj.hide_viewport = True
+    if not bpy.app.background:
+        return
     for screen in bpy.data.screens:
         for area in screen.areas:
             if area.type == "VIEW_3D":
