@@ -289,3 +289,21 @@ def test_camera_and_viewports_frame_the_scene(bpy, name):
     views = [a.spaces[0].region_3d for s in bpy.data.screens for a in s.areas if a.type == "VIEW_3D"]
     assert views and all((Vector(v.view_location) - Vector(centre)).length < 1e-6 for v in views)
     assert all(v.view_distance < 20 * radius for v in views)
+
+
+def test_tray_frictionless_cups_stay_behind(bpy, core):
+    """The cups ride because of friction: made frictionless, they are left behind as the tray
+    is carried 10 cm from under them (and one slides off its edge)."""
+    sc = lib.build(bpy, "tray_two_hands")
+    for name in sc.claim.riders:
+        gl = bpy.data.objects[name].grasp_lab
+        gl.mu_s = gl.mu_d = 0.0
+    r = lib.run(bpy)
+    tray = r.body("Tray")
+    k = _frame(r, sc.frames_of("carry")[-1] + 1)          # the carry has ended
+    assert r.com[k, tray, 1] - r.com[0, tray, 1] == pytest.approx(0.10, abs=0.001)
+    for name in sc.claim.riders:
+        j = r.body(name)
+        rel = (r.com[k, j] - r.com[k, tray]) - (r.com[0, j] - r.com[0, tray])
+        assert rel[1] < -0.08, (name, rel)                   # left behind by most of the carry
+    assert min(r.com[-1, r.body(n), 2] for n in sc.claim.riders) < r.com[-1, tray, 2]
