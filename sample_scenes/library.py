@@ -332,17 +332,17 @@ def can_power() -> Scene:
 
 
 def mug_hook() -> Scene:
-    # A full mug (solid 80 x 90 mm cylinder, 350 g) with a ring handle on its +x side; the
-    # mesh is one object, Collision Shape Automatic: the decomposition cuts the ring into
-    # convex pieces. One fingertip goes through the handle and lifts: the mug tips until its
-    # centre of mass hangs below the finger.
+    # A full mug (solid 80 x 90 mm cylinder, 350 g) with a ring handle on its +x side, its top
+    # at the rim: the centre of mass is below the handle. The mesh is one object, Collision
+    # Shape Automatic: the decomposition cuts the ring into convex pieces. One fingertip goes
+    # through the handle and lifts: the mug tips until its centre of mass hangs below the finger.
     rad, h = 0.04, 0.09
     ring = Ring(major=0.024, minor=0.006)
-    ring_x = rad + 0.010
-    mug = Body("Mug", Union(((Prism(rad, h, 32), (0.0, 0.0, 0.0)), (ring, (ring_x, 0.0, 0.005)))),
+    ring_x, ring_z = rad + 0.010, h / 2 - 0.030              # ring top level with the rim
+    mug = Body("Mug", Union(((Prism(rad, h, 32), (0.0, 0.0, 0.0)), (ring, (ring_x, 0.0, ring_z)))),
                (0.0, 0.0, h / 2), mass=0.35, mu=(0.6, 0.5), collision="AUTO")
     r = 0.007
-    inside = (rad + 0.010 + 0.006, 0.0, h / 2 + 0.005)     # in the handle's hole, near its outer side
+    inside = (ring_x + 0.006, 0.0, h / 2 + ring_z)          # in the handle's hole, near its outer side
     finger = Finger("Index", inside, (0.0, -1.0, 0.0), radius=r, stiffness=1500.0, damping=3.0)
     keys = [Key(1, "rest", 0.04), Key(7, "reach in", 0.04), Key(25, "lift", 0.0),
             Key(73, "hold", 0.0, (0.0, 0.0, 0.12)), Key(145, "end", 0.0, (0.0, 0.0, 0.12))]
