@@ -21,7 +21,13 @@
  * Coplanar points (the k edge wrenches of one contact all lie on a 2-flat) are "not visible"
  * within the tolerance, so coplanar facets stay as adjacent simplices; the answers (the
  * hyperplanes, the volume) do not depend on how a flat face is cut into simplices.
- * All storage is in the workspace and grows only when a larger problem comes. */
+ * All storage is in the workspace and grows only when a larger problem comes.
+ *
+ * The fast path (gcGraspDef.volume = 0) builds no full hull: a small linear program decides
+ * closure (certified against the hull's rule both ways, lp_decide), and the support-function
+ * search (nearest_run) grows a hull of a few points until its nearest facet supports the whole
+ * set, which gives epsilon and the weakest direction exactly. mu_min uses the LP alone, and the
+ * fast path's rule for its answer. */
 #include "grasp_quality.h"
 
 #include <math.h>
@@ -766,19 +772,25 @@ static GC_ALWAYS_INLINE gcStatus nearest_run(Hull *h, int d, gcHullSummary *out)
             if (F->alive && F->off > best) best = F->off, fb = f;
         }
         Facet *F = &ws->facets[fb];
-        exact_plane(h, F);
         int p = -1;
-        double support = -INFINITY;
-        for (int i = 0; i < n; ++i) {
-            double s = dotd(F->n, point(h, i, d), d);
-            if (s > support) support = s, p = i;
-        }
-        double gap = support + F->off;    /* how far the support point is beyond F's plane */
-        if (!(gap > h->tol)) {
-            out->result = GC_HULL_FULL;
-            out->offset_max = F->off;
-            memcpy(out->nearest_normal, F->n, sizeof(double) * (size_t)d);
-            return GC_OK;
+        double gap;
+        /* The answer is read off a plane solved from the facet's vertices (the pencil planes are
+         * good to rounding, not exact): solved when the support query first finds it supporting. */
+        for (int exact = 0;; exact = 1) {
+            double support = -INFINITY;
+            for (int i = 0; i < n; ++i) {
+                double s = dotd(F->n, point(h, i, d), d);
+                if (s > support) support = s, p = i;
+            }
+            gap = support + F->off;    /* how far the support point is beyond F's plane */
+            if (gap > h->tol) break;
+            if (exact) {
+                out->result = GC_HULL_FULL;
+                out->offset_max = F->off;
+                memcpy(out->nearest_normal, F->n, sizeof(double) * (size_t)d);
+                return GC_OK;
+            }
+            exact_plane(h, F);
         }
         int nv = 0, nc = 0;
         gcStatus st = add_apex(h, d, fb, p, gap, iter, &nv, &nc);
