@@ -1125,18 +1125,22 @@ static gcStatus quality_fast(gcGraspWorkspace *ws, const gcGraspDef *def, int ro
     out->facets = -1;
     int closed, rank;
     gcHullSummary s;
-    gcStatus st = closure_fast(ws, def, ws->force, rows, 3, 0, &closed, NULL, &s);
+    gcStatus st = closure_fast(ws, def, ws->wrench, rows, 6, 1, &closed, &rank, &s);
     if (st != GC_OK) return st;
-    out->force_only_closure = closed;
-    if ((st = closure_fast(ws, def, ws->torque, rows, 3, 0, &closed, NULL, &s)) != GC_OK) return st;
-    out->torque_closure = closed;
-    if ((st = closure_fast(ws, def, ws->wrench, rows, 6, 1, &closed, &rank, &s)) != GC_OK) return st;
     out->rank = rank;
     out->force_closure = closed;
     if (closed) {
         out->epsilon = -s.offset_max;
         memcpy(out->weakest, s.nearest_normal, sizeof out->weakest);
+        /* The force and torque parts of a ball of radius epsilon about the origin are balls of
+         * that radius in the projections, and their scales are no larger: both 3-D conditions hold. */
+        out->force_only_closure = out->torque_closure = 1;
+        return GC_OK;
     }
+    if ((st = closure_fast(ws, def, ws->force, rows, 3, 0, &closed, NULL, &s)) != GC_OK) return st;
+    out->force_only_closure = closed;
+    if ((st = closure_fast(ws, def, ws->torque, rows, 3, 0, &closed, NULL, &s)) != GC_OK) return st;
+    out->torque_closure = closed;
     return GC_OK;
 }
 

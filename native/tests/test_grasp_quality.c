@@ -361,12 +361,15 @@ static void test_degenerate_but_valid(gcGraspWorkspace *ws) {
     double p[12] = {1, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1, 0}, n[12] = {-1, 0, 0, -1, 0, 0, 1, 0, 0, 0, -1, 0};
     double mu[4] = {0.5, 0.5, 0.0, 0.3}, c[3] = {0, 0, 0};
     gcGraspDef def = gc_default_grasp_def();
-    for (int edges = 3; edges <= 64; edges *= 2) {
-        def.edges = edges;
-        gcGraspQuality q;
-        gcStatus st = gc_grasp_quality(ws, &def, p, n, mu, 4, c, 1.0, &q);
-        GC_CHECK(st == GC_OK && all_finite(&q), "coincident contacts, %d edges: status %d", edges, st);
-    }
+    for (int volume = 0; volume <= 1; ++volume)
+        for (int edges = 3; edges <= 64; edges *= 2) {
+            def.edges = edges;
+            def.volume = volume;
+            gcGraspQuality q;
+            gcStatus st = gc_grasp_quality(ws, &def, p, n, mu, 4, c, 1.0, &q);
+            GC_CHECK(st == GC_OK && all_finite(&q), "coincident contacts, %d edges, volume %d: status %d", edges,
+                     volume, st);
+        }
     gcGraspQuality q;
     GC_CHECK(gc_grasp_quality(ws, NULL, NULL, NULL, NULL, 0, c, 1.0, &q) == GC_OK && q.rank == 0 && !q.force_closure,
              "no contacts: rank 0, not in closure");
