@@ -16,6 +16,7 @@ contact); ``analyse`` is it for one snapshot, as objects.
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -197,6 +198,14 @@ def friction_use(ft, mu, fn):
         return np.where(cone > 0, ft / np.where(cone > 0, cone, 1.0), np.where(ft > 0, np.inf, 0.0))
 
 
+class GraspAnalysisError(ValueError):
+    """The core refused a contact set; ``snapshot`` is its snapshot index (None if unknown)."""
+
+    def __init__(self, message: str, snapshot=None):
+        super().__init__(message)
+        self.snapshot = snapshot
+
+
 def _mu_min(core, point, normal, starts, count, centers, radii, edges) -> np.ndarray:
     """graspcore.grasp_mu_min of each set (a bisection: tens of hulls), once per distinct set:
     a body at rest in a still hand gives the same set, bit for bit, tick after tick."""
@@ -205,8 +214,12 @@ def _mu_min(core, point, normal, starts, count, centers, radii, edges) -> np.nda
     for i, (s, c) in enumerate(zip(starts, count)):
         key = (point[s:s + c].tobytes(), normal[s:s + c].tobytes(), centers[i].tobytes(), float(radii[i]))
         if key not in seen:
-            seen[key] = core.grasp_mu_min(point[s:s + c], normal[s:s + c], centers[i], radii[i], edges=edges,
-                                          mu_max=MU_MAX)
+            try:
+                seen[key] = core.grasp_mu_min(point[s:s + c], normal[s:s + c], centers[i], radii[i], edges=edges,
+                                              mu_max=MU_MAX)
+            except ValueError as ex:
+                ex.set_index = i
+                raise
         out[i] = seen[key]
     return out
 
@@ -260,8 +273,20 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
     set_of = np.repeat(np.arange(len(starts)), count)
     centers = centres_of_mass(models, poses[set_t])[np.arange(len(starts)), set_b]
     radii = np.array([m.radius for m in models] + [1.0])[set_b]
-    quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges)
-    mu_min = _mu_min(core, point, n_in, starts, count, centers, radii, edges)
+    try:
+        quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges)
+        mu_min = _mu_min(core, point, n_in, starts, count, centers, radii, edges)
+    except ValueError as ex:
+        # Name the snapshot and body whose contacts the core refused (the batch's message starts
+        # with the set: "set 3: points: ...").
+        message, i = str(ex), getattr(ex, "set_index", None)
+        numbered = re.match(r"set (\d+): (.*)", message, re.S)
+        if i is None and numbered:
+            i, message = int(numbered.group(1)), numbered.group(2)
+        if i is None or not 0 <= i < len(set_t):
+            raise
+        raise GraspAnalysisError(f"snapshot {int(set_t[i])}, body {models[set_b[i]].name}: {message}",
+                                 int(set_t[i])) from None
     if len(starts):
         grip = np.add.reduceat(fn, starts)
         friction_needed = np.maximum.reduceat(needed, starts)
@@ -344,8 +369,15 @@ def analyse_recording(rec, every: int = 1, edges: int = 8, rows=None, chunk: int
         r = rows[lo:lo + chunk]
         t = rec.ticks[r]
         acc = recorded_accelerations(models, rec.ticks, r)
-        table = analyse_arrays(models, t["pose"], t["god_object"], t["force"], t["normal"], t["state"],
-                               t["contact"], radii, acc, gravity, edges)
+        try:
+            table = analyse_arrays(models, t["pose"], t["god_object"], t["force"], t["normal"], t["state"],
+                                   t["contact"], radii, acc, gravity, edges)
+        except GraspAnalysisError as ex:
+            if ex.snapshot is None:
+                raise
+            row = int(r[ex.snapshot])
+            raise GraspAnalysisError(f"tick {int(rec.ticks['tick'][row])} (t = {rec.ticks['time'][row]:.6g} s), "
+                                     f"{str(ex).split(', ', 1)[1]}", row) from None
         table.snapshot = r[table.snapshot]
         parts.append(table)
     if not parts:

@@ -319,3 +319,20 @@ def test_cone_edges(three):
     eight = row_of(analysis.analyse_recording(three, every=500), three, 1500)
     sixteen = row_of(analysis.analyse_recording(three, every=500, edges=16), three, 1500)
     assert sixteen.epsilon > eight.epsilon         # a finer cone spans more of the true one
+
+
+def test_a_contact_set_the_core_refuses_is_located(pinch):
+    """Bad numbers in a snapshot (a NaN god-object) come back as an error naming the snapshot
+    and the body, and in a recording the tick and its time."""
+    models = analysis.body_models(pinch.header["scene"])
+    t = pinch.ticks[1000].copy()
+    t["god_object"][1, 0] = np.nan
+    radii = [f["radius"] for f in pinch.header["scene"]["fingers"]]
+    with pytest.raises(analysis.GraspAnalysisError, match=r"snapshot 0, body Box: points: .*not finite") as err:
+        analysis.analyse(models, t["pose"], t["god_object"], t["force"], t["normal"], t["state"], t["contact"],
+                         radii)
+    assert err.value.snapshot == 0
+    broken = recording.Recording(pinch.path, pinch.header, pinch.dtype, pinch.ticks.copy())
+    broken.ticks["god_object"][1000, 1, 0] = np.nan
+    with pytest.raises(ValueError, match=r"tick 1000 \(t = 1 s\), body Box: points"):
+        analysis.analyse_recording(broken, every=100)
