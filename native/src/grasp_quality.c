@@ -84,6 +84,7 @@ struct gcGraspWorkspace {
     int *pending;       /* stack of facets that had outside points when made */
     uint64_t *vertex_hash; /* cap_points x 2: two random 64-bit words per point */
     int cap_ridges;     /* the ridge table of one iteration (open addressing) */
+    int ridge_slots;    /* the part of it this iteration uses (a power of two) */
     uint64_t *ridge_key;    /* two words per slot */
     int *ridge_facet;   /* facet << 3 | slot; -1 after its match */
     int *ridge_stamp;
@@ -184,9 +185,10 @@ static gcStatus ensure_facets(gcGraspWorkspace *ws, int n, int max_facets) {
     return GC_OK;
 }
 
-/* A ridge table of at least 2 x need slots (a power of two), emptied. */
+/* A ridge table of at least 2 x need slots (a power of two), emptied; only those slots are used,
+ * so a small step touches few cache lines even after a large hull grew the table. */
 static gcStatus ensure_ridges(gcGraspWorkspace *ws, int need) {
-    int cap = 1024;
+    int cap = 64;
     while (cap < 2 * need) cap *= 2;
     if (cap > ws->cap_ridges) {
         if (!grow((void **)&ws->ridge_key, (size_t)cap * 2, sizeof(uint64_t)) ||
@@ -196,6 +198,7 @@ static gcStatus ensure_ridges(gcGraspWorkspace *ws, int need) {
         for (int i = ws->cap_ridges; i < cap; ++i) ws->ridge_stamp[i] = 0;
         ws->cap_ridges = cap;
     }
+    ws->ridge_slots = cap;
     if (++ws->ridge_gen == 0x7fffffff) {
         memset(ws->ridge_stamp, 0, sizeof(int) * (size_t)ws->cap_ridges);
         ws->ridge_gen = 1;
@@ -499,7 +502,7 @@ static GC_ALWAYS_INLINE int link_new_facets(Hull *h, int d, int nc) {
     const uint64_t *vh = ws->vertex_hash;
     uint64_t *keys = ws->ridge_key;
     int *vals = ws->ridge_facet, *stamps = ws->ridge_stamp, gen = ws->ridge_gen;
-    unsigned mask = (unsigned)ws->cap_ridges - 1u;
+    unsigned mask = (unsigned)ws->ridge_slots - 1u;
     int unmatched = 0;
     for (int c = 0; c < nc; ++c) {
         int nf = ws->created[c], apex = ws->created_apex[c];
