@@ -90,6 +90,8 @@ struct gcGraspWorkspace {
     int *ridge_stamp;
     int ridge_gen;
     int *created_apex;  /* cap_facets: where the apex sits in each new facet */
+    double *facet_off;  /* cap_facets: the support search's copy of each live facet's off (-inf
+                         * when dead), scanned without touching the facets */
     int cap_lp;
     double *lp;         /* the closure LP's tableau */
     int *lp_basis;
@@ -137,6 +139,7 @@ void gc_grasp_workspace_destroy(gcGraspWorkspace *ws) {
     free(ws->ridge_facet);
     free(ws->ridge_stamp);
     free(ws->created_apex);
+    free(ws->facet_off);
     free(ws->lp);
     free(ws->lp_basis);
     free(ws);
@@ -179,7 +182,8 @@ static gcStatus ensure_facets(gcGraspWorkspace *ws, int n, int max_facets) {
         !grow((void **)&ws->free_list, (size_t)cap, sizeof(int)) ||
         !grow((void **)&ws->visible, (size_t)cap, sizeof(int)) ||
         !grow((void **)&ws->created, (size_t)cap, sizeof(int)) ||
-        !grow((void **)&ws->created_apex, (size_t)cap, sizeof(int)))
+        !grow((void **)&ws->created_apex, (size_t)cap, sizeof(int)) ||
+        !grow((void **)&ws->facet_off, (size_t)cap, sizeof(double)))
         return set_error(ws, GC_ERR_NO_MEMORY, "workspace: out of memory for %d facets", n);
     ws->cap_facets = cap;
     return GC_OK;
@@ -765,15 +769,15 @@ gcStatus gc_hull_nd(gcGraspWorkspace *ws, const double *points, int n, int d, do
 static GC_ALWAYS_INLINE gcStatus nearest_run(Hull *h, int d, gcHullSummary *out) {
     gcGraspWorkspace *ws = h->ws;
     int n = h->n;
+    for (int f = 0; f < ws->high_water; ++f) ws->facet_off[f] = ws->facets[f].alive ? ws->facets[f].off : -INFINITY;
     for (int iter = 1;; ++iter) {
         if (iter > n + 1)
             return set_error(ws, GC_ERR_DEGENERATE, "points: the support search did not converge in %d steps", n);
         int fb = -1;
         double best = -INFINITY;
-        for (int f = 0; f < ws->high_water; ++f) {
-            const Facet *F = &ws->facets[f];
-            if (F->alive && F->off > best) best = F->off, fb = f;
-        }
+        const double *offs = ws->facet_off;
+        for (int f = 0; f < ws->high_water; ++f)
+            if (offs[f] > best) best = offs[f], fb = f;
         Facet *F = &ws->facets[fb];
         int p = -1;
         double gap;
@@ -794,14 +798,17 @@ static GC_ALWAYS_INLINE gcStatus nearest_run(Hull *h, int d, gcHullSummary *out)
                 return GC_OK;
             }
             exact_plane(h, F);
+            ws->facet_off[fb] = F->off;
         }
         int nv = 0, nc = 0;
         gcStatus st = add_apex(h, d, fb, p, gap, iter, &nv, &nc);
         if (st != GC_OK) return st;
         for (int s = 0; s < nv; ++s) {
             ws->facets[ws->visible[s]].alive = 0;
+            ws->facet_off[ws->visible[s]] = -INFINITY;
             ws->free_list[ws->num_free++] = ws->visible[s];
         }
+        for (int c = 0; c < nc; ++c) ws->facet_off[ws->created[c]] = ws->facets[ws->created[c]].off;
     }
 }
 
