@@ -1331,7 +1331,7 @@ gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const doub
      * the bracket ends within 0.8e-6 around the root. b is the latest point, c the other end of
      * the bracket (g of the opposite sign), a the point before b. */
     const double step_min = 0.4e-6;
-    double a = lo, b = b_start, c = lo, fa = glo, fb = ghi, fc = glo, d = b - a, e = b - a;
+    double a = lo, b = b_start, c = lo, fa = glo, fb = ghi, fc = glo, d = b - a, e = b - a, g_closed = ghi;
     for (int it = 0; it < 200; ++it) {
         if ((fb > 0.0) == (fc > 0.0)) {
             c = a;
@@ -1369,6 +1369,13 @@ gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const doub
         fa = fb;
         b += fabs(d) > step_min ? d : copysign(step_min, half);
         MARGIN_AT(b, fb);
+        /* t* exactly 0 over a range of mu (the origin on a face of the hull, e.g. two contacts
+         * that balance each other): no slope to follow, and a zero that is not the root. Minus
+         * the last closed margin stands in for it, which sends the next step about halfway. */
+        if (fb > 0.0)
+            g_closed = fb;
+        else if (fabs(t) <= 1e-12)
+            fb = -g_closed;
     }
     /* The root is in (open end, open end + 0.8e-6]: answer open end + 1e-6, closed as well and
      * far enough from the root (about 0.2e-6 at least) for the LP's certificate to settle it
