@@ -167,6 +167,17 @@ static gcStatus ensure_points(gcGraspWorkspace *ws, int n) {
         !grow((void **)&ws->next, (size_t)cap, sizeof(int)) ||
         !grow((void **)&ws->vertex_hash, (size_t)cap * 2, sizeof(uint64_t)))
         return set_error(ws, GC_ERR_NO_MEMORY, "workspace: out of memory for %d wrenches", n);
+    /* Two random words per point index (splitmix64), made once: the ridge keys sum them. */
+    for (int i = ws->cap_points; i < cap; ++i) {
+        uint64_t z = (uint64_t)(i + 1) * 0x9E3779B97F4A7C15ull;
+        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+        ws->vertex_hash[2 * i] = z ^ (z >> 31);
+        z = (uint64_t)(i + 1) * 0xD1B54A32D192ED03ull;
+        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+        ws->vertex_hash[2 * i + 1] = z ^ (z >> 31);
+    }
     ws->cap_points = cap;
     return GC_OK;
 }
@@ -671,17 +682,7 @@ static gcStatus hull_begin(Hull *h, gcGraspWorkspace *ws, const double *points, 
     if (st != GC_OK) return st;
     ws->high_water = 0;
     ws->num_free = 0;
-    for (int i = 0; i < n; ++i) {
-        ws->next[i] = -1;
-        uint64_t z = (uint64_t)(i + 1) * 0x9E3779B97F4A7C15ull;   /* splitmix64 */
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        ws->vertex_hash[2 * i] = z ^ (z >> 31);
-        z = (uint64_t)(i + 1) * 0xD1B54A32D192ED03ull;
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        ws->vertex_hash[2 * i + 1] = z ^ (z >> 31);
-    }
+    for (int i = 0; i < n; ++i) ws->next[i] = -1;
     /* Facet m of the simplex leaves out chosen[m]; its ridge without chosen[k] faces facet k. */
     for (int m = 0; m <= d; ++m) {
         int f = new_facet(h);
@@ -1153,13 +1154,17 @@ static gcStatus lp_decide(gcGraspWorkspace *ws, const gcGraspDef *def, const dou
 
 /* closure_of without the hull: the LP decides (lp_decide); the support search finds the nearest
  * facet when nearest is set or the LP left it undecided, and then decides with the hull's rule,
- * so the two paths answer alike. rank may be NULL. */
+ * so the two paths answer alike. When the nearest facet is wanted from 32 points up the search
+ * goes alone: it decides closure itself, and such sets are mostly closed, where the LP would be
+ * spent for nothing (10 contacts x 8 edges: 65 instead of 73 µs; 3 x 8, mostly open: the LP
+ * first, 6.7 instead of 8.4 µs). rank may be NULL. */
 static gcStatus closure_fast(gcGraspWorkspace *ws, const gcGraspDef *def, const double *pts, int rows, int d,
                              int nearest, int *closed, int *rank, gcHullSummary *summary) {
     memset(summary, 0, sizeof *summary);
     *closed = 0;
-    int answer;
-    gcStatus st = lp_decide(ws, def, pts, rows, d, &answer);
+    int answer = -1;
+    gcStatus st = GC_OK;
+    if (!nearest || rows < 32) st = lp_decide(ws, def, pts, rows, d, &answer);
     if (st != GC_OK) return st;
     if (answer != 0 && (nearest || answer < 0)) {
         if ((st = gc_hull_nearest(ws, pts, rows, d, def->tolerance, def->max_facets, summary)) != GC_OK) return st;
