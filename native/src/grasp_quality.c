@@ -1,18 +1,24 @@
 /* Grasp quality: the grasp wrench space of point contacts with linearised friction cones
- * (graspcore.h), built as an exact convex hull in 6 dimensions (3 for the force-only and
- * torque-only conditions), and the measures read off it: closure, epsilon, volume, the
- * weakest direction.
+ * (graspcore.h) and the measures read off it: closure (6-D, and the force-only and torque-only
+ * conditions in 3-D), epsilon, the weakest direction, the volume, mu_min.
  *
- * The hull is quickhull with simplicial facets: an initial simplex of well-spread points,
- * an outside set per facet, the furthest outside point added next, the facets it sees
- * replaced by a cone of new facets over the horizon. What makes it fast on these inputs:
+ * Closure, epsilon and the weakest direction never need the whole hull:
+ *  - A small linear program (gc_closure_lp: the largest t with sum lambda_i w_i = 0,
+ *    sum lambda_i = 1, lambda_i >= t) decides closure, its answer certified against the hull's
+ *    rule both ways (lp_decide); a hair from the boundary it leaves the decision to
+ *  - the support-function search (nearest_run): a hull of a few of the points grows by the
+ *    point furthest along its nearest facet's normal until that facet supports the whole set;
+ *    its plane is then a facet plane of the full hull and none is nearer: epsilon exactly.
+ * The volume (gcGraspDef.volume = 1, the default) needs every facet: the whole 6-D hull, built
+ * by quickhull with simplicial facets (an initial simplex of well-spread points, an outside set
+ * per facet, the furthest outside point added next, the facets it sees replaced by a cone of new
+ * facets over the horizon). What makes both hulls fast on these inputs:
  *  - A new facet's hyperplane comes from the pencil of its two horizon facets (the visible F
  *    and the hidden G share the ridge, and the apex p must lie on the new plane:
  *    N = dist(p,F) G - dist(p,G) F), O(d) instead of solving a (d-1) x d system. A pencil
  *    that cancels is solved from the vertices instead. At the end every facet is checked
- *    against all its vertices (solved again if one is off by more than 1e-12 of the scale),
- *    and the facets that decide closure and epsilon (the one the origin is nearest to or
- *    furthest outside of, and any within 1e-9 of it) are solved from their vertices.
+ *    against all its vertices (solved again if one is off by more than 1e-12 of the scale);
+ *    the search solves the facet it answers with from its vertices.
  *  - New facets are linked to each other through a table of their ridges, keyed by sums of
  *    random words of the ridge's vertices (each facet carries its sums, updated in O(1)).
  *  - The volume of the simplex (c, N) (c a fixed interior point) follows from (c, F) by the
@@ -21,13 +27,9 @@
  * Coplanar points (the k edge wrenches of one contact all lie on a 2-flat) are "not visible"
  * within the tolerance, so coplanar facets stay as adjacent simplices; the answers (the
  * hyperplanes, the volume) do not depend on how a flat face is cut into simplices.
- * All storage is in the workspace and grows only when a larger problem comes.
- *
- * The fast path (gcGraspDef.volume = 0) builds no full hull: a small linear program decides
- * closure (certified against the hull's rule both ways, lp_decide), and the support-function
- * search (nearest_run) grows a hull of a few points until its nearest facet supports the whole
- * set, which gives epsilon and the weakest direction exactly. mu_min uses the LP alone, and the
- * fast path's rule for its answer. */
+ * mu_min follows the LP's margin as mu changes (Brent's method) and checks its answer with the
+ * rule grasp_quality uses. All storage is in the workspace and grows only when a larger problem
+ * comes. */
 #include "grasp_quality.h"
 
 #include <math.h>
@@ -1092,22 +1094,6 @@ static gcStatus build_wrenches(gcGraspWorkspace *ws, int edges, const double *po
     return GC_OK;
 }
 
-/* Strictly inside a d-dimensional point set's hull (rank d first); *rank its linear rank. */
-static gcStatus closure_of(gcGraspWorkspace *ws, const gcGraspDef *def, const double *pts, int rows, int d,
-                           int *closed, int *rank, gcHullSummary *summary) {
-    *closed = 0;
-    memset(summary, 0, sizeof *summary);
-    gcStatus st = gc_span_rank(ws, pts, rows, d, def->tolerance, rank);
-    if (st != GC_OK || *rank < d) return st;
-    st = gc_hull_nd(ws, pts, rows, d, def->tolerance, def->max_facets, summary);
-    if (st != GC_OK) return st;
-    if (summary->result != GC_HULL_FULL) return GC_OK;
-    double scale = 0.0;
-    for (int i = 0; i < rows; ++i) scale = fmax(scale, dotd(pts + (size_t)i * d, pts + (size_t)i * d, d));
-    *closed = summary->offset_max < -def->tolerance * sqrt(scale);
-    return GC_OK;
-}
-
 /* The LP's answer, checked both ways against the hull's rule (closed: the origin more than
  * tolerance x scale inside, scale the largest point norm). With t* the LP's optimum:
  *  - t* <= tolerance / (2 rows): not closed. A hull holding the ball of radius e > tolerance x
@@ -1152,9 +1138,9 @@ static gcStatus lp_decide(gcGraspWorkspace *ws, const gcGraspDef *def, const dou
     return GC_OK;
 }
 
-/* closure_of without the hull: the LP decides (lp_decide); the support search finds the nearest
+/* Closure without the full hull: the LP decides (lp_decide); the support search finds the nearest
  * facet when nearest is set or the LP left it undecided, and then decides with the hull's rule,
- * so the two paths answer alike. When the nearest facet is wanted from 32 points up the search
+ * so it answers as the hull would. When the nearest facet is wanted from 32 points up the search
  * goes alone: it decides closure itself, and such sets are mostly closed, where the LP would be
  * spent for nothing (10 contacts x 8 edges: 65 instead of 73 µs; 3 x 8, mostly open: the LP
  * first, 6.7 instead of 8.4 µs). rank may be NULL. */
@@ -1180,7 +1166,7 @@ static gcStatus closure_fast(gcGraspWorkspace *ws, const gcGraspDef *def, const 
     return st;
 }
 
-/* def->volume 0: no full hull; volume and facets are -1 (not computed). */
+/* The measures without the full hull; volume and facets are -1 (not computed). */
 static gcStatus quality_fast(gcGraspWorkspace *ws, const gcGraspDef *def, int rows, gcGraspQuality *out) {
     memset(out, 0, sizeof *out);
     out->volume = -1.0;
@@ -1206,25 +1192,24 @@ static gcStatus quality_fast(gcGraspWorkspace *ws, const gcGraspDef *def, int ro
     return GC_OK;
 }
 
+/* def->volume 1 adds the whole 6-D hull, for its volume and facet count. Closure, epsilon and the
+ * weakest direction stay the fast path's, which support queries certify: the hull's own nearest
+ * facet can be wrong where facets are thin. Two antipodal contacts and mu = 1e-5 make facets whose
+ * vertices lie in two clusters 1e-5 wide; a plane fixed by such vertices to within the tolerance
+ * can tilt by tolerance / 1e-5, and miss the origin by more than epsilon (the hull alone said "not
+ * closed" up to mu = 1.8e-5 where qhull and the search find epsilon = 0.045 mu). The volume, a sum
+ * over all facets, is not sensitive to it (1e-9 of qhull's there). */
 static gcStatus quality_of_built(gcGraspWorkspace *ws, const gcGraspDef *def, int rows, gcGraspQuality *out) {
-    if (!def->volume) return quality_fast(ws, def, rows, out);
-    memset(out, 0, sizeof *out);
-    int closed, rank;
+    gcStatus st = quality_fast(ws, def, rows, out);
+    if (st != GC_OK || !def->volume) return st;
+    out->volume = 0.0;
+    out->facets = 0;
+    if (out->rank < 6) return GC_OK;
     gcHullSummary s;
-    gcStatus st = closure_of(ws, def, ws->force, rows, 3, &closed, &rank, &s);
-    if (st != GC_OK) return st;
-    out->force_only_closure = closed;
-    if ((st = closure_of(ws, def, ws->torque, rows, 3, &closed, &rank, &s)) != GC_OK) return st;
-    out->torque_closure = closed;
-    if ((st = closure_of(ws, def, ws->wrench, rows, 6, &closed, &rank, &s)) != GC_OK) return st;
-    out->rank = rank;
-    if (s.result != GC_HULL_FULL) return GC_OK;
-    out->facets = s.facets;
-    out->volume = s.volume;
-    out->force_closure = closed;
-    if (closed) {
-        out->epsilon = -s.offset_max;
-        memcpy(out->weakest, s.nearest_normal, sizeof out->weakest);
+    if ((st = gc_hull_nd(ws, ws->wrench, rows, 6, def->tolerance, def->max_facets, &s)) != GC_OK) return st;
+    if (s.result == GC_HULL_FULL) {
+        out->volume = s.volume;
+        out->facets = s.facets;
     }
     return GC_OK;
 }
