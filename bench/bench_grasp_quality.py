@@ -3,7 +3,11 @@
 graspcore.grasp_quality beside scipy's ConvexHull (qhull, what grasp-analysis code calls) on
 the same seeded contact sets in the same run: 3, 5 and 10 contacts x 8 and 16 cone edges,
 random mu in [0.1, 1.5]. Each repeat times all four below, one after the other, so all see
-the same machine load.
+the same machine load; each timing is a burst of back-to-back calls of about 0.3 ms or one
+call (whichever is longer), divided by the count (timeit's way: a single call of a few µs
+right after a few ms of qhull runs several times slower, on this VM even an empty Python
+call does, and that measures the switch, not the work). The fast path's first call after
+scipy is reported beside it.
 
 - scipy: ``ConvexHull(W)`` on the 6-D edge wrenches, built beforehand (not timed): the hull
   alone, which is what the closure test, epsilon and volume need.
@@ -77,9 +81,23 @@ def time_once(fn) -> float:
     return time.perf_counter() - t0
 
 
+def burst_size(fn, budget: float = 3e-4) -> int:
+    """Calls of fn that take about budget seconds (at least 1), from a warm estimate."""
+    fn()
+    return max(1, int(budget / max(min(time_once(fn) for _ in range(3)), 1e-7)))
+
+
+def time_burst(fn, count: int) -> float:
+    """Seconds per call over count back-to-back calls."""
+    t0 = time.perf_counter()
+    for _ in range(count):
+        fn()
+    return (time.perf_counter() - t0) / count
+
+
 def compare(contacts: int, edges: int, sets: int, repeats: int, seed: int) -> dict:
     rng = np.random.default_rng(seed)
-    full, fast, theirs, mu_mins, facets, closed = [], [], [], [], [], 0
+    full, fast, theirs, mu_mins, cold, facets, closed = [], [], [], [], [], [], 0
     for _ in range(sets):
         p, n, mu, c, r = random_grasp(rng, contacts)
         w = edge_wrenches(p, n, mu, c, r, edges)
@@ -89,20 +107,27 @@ def compare(contacts: int, edges: int, sets: int, repeats: int, seed: int) -> di
             raise SystemExit(f"fast path differs from the full path: {quick} vs {res}")
         facets.append(res["facets"])
         closed += res["force_closure"]
-        a, b, f, m = [], [], [], []
+        run_scipy = lambda: ConvexHull(w)
+        run_full = lambda: graspcore.grasp_quality(p, n, mu, c, r, edges)
+        run_fast = lambda: graspcore.grasp_quality(p, n, mu, c, r, edges, volume=False)
+        run_mu_min = lambda: graspcore.grasp_mu_min(p, n, c, r, edges)
+        counts = [burst_size(fn) for fn in (run_scipy, run_full, run_fast, run_mu_min)]
+        a, b, f, m, cf = [], [], [], [], []
         for _ in range(repeats):
-            b.append(time_once(lambda: ConvexHull(w)))
-            a.append(time_once(lambda: graspcore.grasp_quality(p, n, mu, c, r, edges)))
-            f.append(time_once(lambda: graspcore.grasp_quality(p, n, mu, c, r, edges, volume=False)))
-            m.append(time_once(lambda: graspcore.grasp_mu_min(p, n, c, r, edges)))
+            b.append(time_burst(run_scipy, counts[0]))
+            cf.append(time_once(run_fast))
+            a.append(time_burst(run_full, counts[1]))
+            f.append(time_burst(run_fast, counts[2]))
+            m.append(time_burst(run_mu_min, counts[3]))
         full.append(statistics.median(a))
         fast.append(statistics.median(f))
         theirs.append(statistics.median(b))
         mu_mins.append(statistics.median(m))
+        cold.append(statistics.median(cf))
     o, q, t = statistics.median(full), statistics.median(fast), statistics.median(theirs)
     return dict(contacts=contacts, edges=edges, sets=sets, repeats=repeats, full_us=o * 1e6, fast_us=q * 1e6,
                 scipy_us=t * 1e6, ratio_full=t / o, ratio=t / q, mu_min_us=statistics.median(mu_mins) * 1e6,
-                facets=statistics.median(facets), closed=closed)
+                fast_cold_us=statistics.median(cold) * 1e6, facets=statistics.median(facets), closed=closed)
 
 
 def pytest_approx(x: float):
@@ -186,16 +211,17 @@ def main(argv=None) -> int:
         "the whole `grasp_quality` call with the volume (checks, cones, rank, the 6-D hull with epsilon, volume "
         "and weakest direction, and the force-only and torque-only 3-D hulls); fast: `grasp_quality(..., "
         "volume=False)`, every answer but the volume, no hull (closure LP, support-function search); mu_min: "
-        "`grasp_mu_min` of the same contacts. The four alternate within each repeat. Median over the sets of "
-        "each set's median.", "",
+        "`grasp_mu_min` of the same contacts. The four alternate within each repeat, each timed over a burst "
+        "of back-to-back calls of about 0.3 ms (one scipy call is longer); *fast, first call* is one call "
+        "right after scipy's (below). Median over the sets of each set's median.", "",
         "| contacts x edges | sets in closure | hull facets (median) | full µs | fast µs | scipy µs | "
-        "scipy / full | scipy / fast | mu_min µs |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "scipy / full | scipy / fast | mu_min µs | fast, first call after scipy µs |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         out.append(f"| {r['contacts']} x {r['edges']} | {r['closed']} of {r['sets']} | {r['facets']:.0f} | "
                    f"{r['full_us']:.0f} | {r['fast_us']:.1f} | {r['scipy_us']:.0f} | {r['ratio_full']:.0f}× | "
-                   f"**{r['ratio']:.0f}×** | {r['mu_min_us']:.0f} |")
+                   f"**{r['ratio']:.0f}×** | {r['mu_min_us']:.0f} | {r['fast_cold_us']:.0f} |")
     out += ["", f"Live analysis, the core's part of one display update: 2 held bodies × 5 contacts, each "
             f"`grasp_quality(volume=False)` and `grasp_mu_min` from Python, {live['snapshots']} random "
             f"snapshots: median {live['median_us']:.0f} µs, 99th percentile {live['p99_us']:.0f} µs, "

@@ -145,6 +145,57 @@ def test_fast_path_near_the_boundary():
     assert answers == {True, False}
 
 
+def antipodal_grasp(rng, contacts):
+    """random_grasp with contacts 0 and 1 opposite each other, normals through the centre: their
+    normal wrenches cancel, so at small mu the GWS has facets whose vertices sit in two tiny
+    clusters (thin facets), and the origin lies on the hull's boundary below mu_min."""
+    points, normals, mu, _, radius = random_grasp(rng, contacts)
+    points[1] = -points[0]
+    normals[0] = -points[0] / np.linalg.norm(points[0])
+    normals[1] = -normals[0]
+    return points, normals, mu, np.zeros(3), radius
+
+
+@pytest.mark.parametrize("volume", [True, False])
+@pytest.mark.parametrize("mu", [1e-7, 1e-5, 1e-3])
+def test_thin_facets_against_qhull(volume, mu):
+    """An antipodal pair and small mu: closure and epsilon as qhull finds them (the hull alone,
+    before the support search decided for both paths, called these not closed up to mu ~ 2e-5)."""
+    rng = np.random.default_rng(55)
+    seen = 0
+    for _ in range(8):
+        points, normals, _, center, radius = antipodal_grasp(rng, int(rng.integers(4, 6)))
+        got = graspcore.grasp_quality(points, normals, mu, center, radius, 8, volume=volume)
+        want = reference(points, normals, mu, center, radius, 8)
+        assert got["force_closure"] == want["force_closure"]
+        assert got["epsilon"] == pytest.approx(want["epsilon"], rel=1e-6, abs=0.0)
+        if volume:
+            assert got["volume"] == pytest.approx(want["volume"], rel=1e-6)
+        seen += want["force_closure"]
+    assert seen > 0
+
+
+def test_mu_min_on_a_plateau_against_qhull():
+    """Below mu_min the origin of an antipodal grasp is on the hull's boundary (the LP's margin
+    exactly 0 over a range of mu): mu_min still lands within 1e-6 of qhull's closure threshold."""
+    rng = np.random.default_rng(77)
+    compared = 0
+    for _ in range(6):
+        points, normals, _, center, radius = antipodal_grasp(rng, 4)
+        got = graspcore.grasp_mu_min(points, normals, center, radius, 8, mu_max=10.0)
+        if not closed_at(points, normals, center, radius, 10.0):
+            assert got == math.inf
+            continue
+        lo, hi = 0.0, 10.0
+        while hi - lo > 1e-7:
+            mid = 0.5 * (lo + hi)
+            lo, hi = (lo, mid) if closed_at(points, normals, center, radius, mid) else (mid, hi)
+        assert got == pytest.approx(hi, abs=2e-6)
+        assert closed_at(points, normals, center, radius, got)
+        compared += 1
+    assert compared >= 3
+
+
 def test_random_cases_include_both_answers():
     """The seeded sets above are not all in closure, nor all out of it."""
     answers = set()
