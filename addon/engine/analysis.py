@@ -21,7 +21,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .runner import quat_rotate
 
 SLIP = 2                # gcFingerState
 MU_MAX = 10.0           # mu_min searches friction up to this; above: inf (no friction closes it)
@@ -107,14 +106,28 @@ def body_models(scene) -> list:
 def centres_of_mass(models, poses) -> np.ndarray:
     """World centres of mass (..., nb, 3) of body frame poses (..., nb, 7)."""
     com = np.array([m.com for m in models], dtype=np.float64)
-    return poses[..., :3] + quat_rotate(poses[..., 3:], com)
+    return poses[..., :3] + _rotate(poses[..., 3:], com)
+
+
+def _cross(a, b):
+    """a x b over the last axis (np.cross, without its axis handling: this runs per snapshot)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def _rotate(q, v):
+    """runner.quat_rotate's rotation of v by unit quaternions q (w, x, y, z), with _cross."""
+    u = q[..., 1:]
+    t = 2.0 * _cross(u, np.broadcast_to(v, u.shape))
+    return v + q[..., :1] * t + _cross(u, t)
 
 
 def com_velocities(models, poses, velocities) -> np.ndarray:
     """Velocities of the centres of mass (..., nb, 3) from the recorded velocities of the body
     frame origins and angular velocities (..., nb, 6): v_com = v_origin + w x (R com)."""
     com = np.array([m.com for m in models], dtype=np.float64)
-    return velocities[..., :3] + np.cross(velocities[..., 3:], quat_rotate(poses[..., 3:], com))
+    return velocities[..., :3] + _cross(velocities[..., 3:], _rotate(poses[..., 3:], com))
 
 
 def recorded_accelerations(models, ticks, rows) -> np.ndarray:
@@ -225,10 +238,11 @@ def _mu_min(core, point, normal, starts, count, centers, radii, edges) -> np.nda
 
 
 def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_bodies, finger_radii,
-                   accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8) -> GraspTable:
+                   accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True) -> GraspTable:
     """The measures for T snapshots at once: poses (T, nb, 7), god_objects / forces / normals
     (T, nf, 3), states / contact_bodies (T, nf), finger_radii (nf,), accelerations (T, nb, 3)
-    of the centres of mass or None (0: the load is the weight)."""
+    of the centres of mass or None (0: the load is the weight). ``volume=False``: the core's
+    fast path, without the 6-D hull (volume -1: not computed; every other measure the same)."""
     core = _core()
     poses = np.asarray(poses, dtype=np.float64)
     god_objects = np.asarray(god_objects, dtype=np.float64)
@@ -274,7 +288,7 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
     centers = centres_of_mass(models, poses[set_t])[np.arange(len(starts)), set_b]
     radii = np.array([m.radius for m in models] + [1.0])[set_b]
     try:
-        quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges)
+        quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges, volume=volume)
         mu_min = _mu_min(core, point, n_in, starts, count, centers, radii, edges)
     except ValueError as ex:
         # Name the snapshot and body whose contacts the core refused (the batch's message starts
@@ -335,15 +349,16 @@ def body_grasps(table: GraspTable, sets=None) -> list:
 
 
 def analyse(models, poses, god_objects, forces, normals, states, contact_bodies, finger_radii,
-            accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8) -> list:
+            accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True) -> list:
     """The measures of one snapshot: one BodyGrasp per dynamic body with at least one finger in
     contact. Arrays as in the tick record: poses (nb, 7), god_objects, forces (the coupling
     spring force the finger exerts), normals (nf, 3), states, contact_bodies (nf,), finger_radii
-    (nf,); accelerations (nb, 3) of the centres of mass, or None (0: the load is the weight)."""
+    (nf,); accelerations (nb, 3) of the centres of mass, or None (0: the load is the weight).
+    ``volume=False`` skips the grasp wrench space's volume (-1), the live view's choice."""
     one = lambda a, dtype=np.float64: np.asarray(a, dtype=dtype)[None]  # noqa: E731
     table = analyse_arrays(models, one(poses), one(god_objects), one(forces), one(normals),
                            one(states, np.int32), one(contact_bodies, np.int32), finger_radii,
-                           None if accelerations is None else one(accelerations), gravity, edges)
+                           None if accelerations is None else one(accelerations), gravity, edges, volume)
     return body_grasps(table)
 
 

@@ -336,3 +336,23 @@ def test_a_contact_set_the_core_refuses_is_located(pinch):
     broken.ticks["god_object"][1000, 1, 0] = np.nan
     with pytest.raises(ValueError, match=r"tick 1000 \(t = 1 s\), body Box: points"):
         analysis.analyse_recording(broken, every=100)
+
+
+def test_live_options_and_rotation(three):
+    """volume=False (the live view's fast path): the same measures but the volume (-1, not
+    computed); the centres of mass rotate as the runner's quat_rotate does."""
+    from addon.engine.runner import quat_rotate
+    models = analysis.body_models(three.header["scene"])
+    t = three.ticks[1500]
+    radii = [f["radius"] for f in three.header["scene"]["fingers"]]
+    args = (models, t["pose"], t["god_object"], t["force"], t["normal"], t["state"], t["contact"], radii)
+    (full,) = analysis.analyse(*args)
+    (fast,) = analysis.analyse(*args, volume=False)
+    assert full.volume > 0 and fast.volume == -1.0
+    assert (fast.force_closure, fast.epsilon, fast.mu_min) == (full.force_closure, full.epsilon, full.mu_min)
+    np.testing.assert_allclose(fast.weakest, full.weakest, rtol=0, atol=1e-12)
+    rng = np.random.default_rng(1)
+    q = rng.normal(size=(50, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    v = rng.normal(size=3)
+    np.testing.assert_allclose(analysis._rotate(q, v), quat_rotate(q, v), rtol=0, atol=1e-15)
