@@ -9,7 +9,7 @@ up and down and side to side so that every tick's contacts differ. Then, timed:
    analysis (graspcore.grasp_quality_batch and grasp_mu_min), the CSV tables. Target < 10 s.
 2. Beside it in the same run: the same ticks through ``analysis.analyse`` one snapshot at a
    time (the live HUD's call: also the per-snapshot cost, target < 0.5 ms for 2 bodies and 5
-   fingers), and the contact sets' quality through scipy's ConvexHull (qhull, the usual way),
+   fingers; with the volume and without, ``volume=False``), and the contact sets' quality through scipy's ConvexHull (qhull, the usual way),
    on a sample of them.
 
 Usage: .venv/bin/python bench/bench_analysis.py [--minutes 10] [--keep DIR]
@@ -176,6 +176,17 @@ def main(argv=None) -> int:
             continue
         per.append(time.perf_counter() - a)
     per_snapshot = statistics.median(per)
+    per_fast = []
+    for k, r in enumerate(rows[:1000]):
+        t = rec.ticks[r]
+        a = time.perf_counter()
+        try:
+            analysis.analyse(models, t["pose"], t["god_object"], t["force"], t["normal"], t["state"],
+                             t["contact"], radii, accelerations=acc[k], volume=False)
+        except analysis.GraspAnalysisError:
+            continue
+        per_fast.append(time.perf_counter() - a)
+    per_snapshot_fast = statistics.median(per_fast)
     analysis._mu_min = lambda core, point, normal, starts, *rest: np.zeros(len(starts))
     per_rest = []
     try:
@@ -238,6 +249,8 @@ def main(argv=None) -> int:
           f"{'yes' if without < 10 else 'no'} |")
     print(f"| `analysis.analyse`, one snapshot (2 bodies, 5 fingers; the live call), median of "
           f"{len(per)} | {1e3 * per_snapshot:.3f} ms | < 0.5 ms | {'yes' if per_snapshot < 5e-4 else 'no'} |")
+    print(f"| the same with `volume=False` (the core's fast path: no 6-D hull, the volume not computed) | "
+          f"{1e3 * per_snapshot_fast:.3f} ms | < 0.5 ms | {'yes' if per_snapshot_fast < 5e-4 else 'no'} |")
     print(f"| the same with `grasp_mu_min` left out (bench only) | {1e3 * per_snapshot_rest:.3f} ms | | |")
     print(f"| peer: scipy `ConvexHull` (qhull) quality of a set, {len(sample)} of the same sets | "
           f"{1e6 * t_scipy_set:.0f} µs a set: {t_scipy_set / t_batch_set:.0f}x the batch's | | |")
@@ -252,7 +265,7 @@ def main(argv=None) -> int:
         print("The command's summary:\n\n```\n" + command_out.strip() + "\n```")
     # For run_bench.py's targets table.
     print(f"<!-- target analyze_s={total:.3f} mu_min_s={t_mu:.3f} failed={1 if command_error else 0} "
-          f"minutes={args.minutes:g} snapshot_ms={1e3 * per_snapshot:.3f} -->")
+          f"minutes={args.minutes:g} snapshot_ms={1e3 * per_snapshot:.3f} fast_ms={1e3 * per_snapshot_fast:.3f} -->")
     if not args.keep:
         shutil.rmtree(tmp, ignore_errors=True)
     return 0
