@@ -4,6 +4,7 @@ from __future__ import annotations
 import csv
 import io
 import os
+import zipfile
 
 import numpy as np
 
@@ -71,19 +72,21 @@ def _write_csv(rec, ticks, bodies, fingers, events):
 
 
 def export_npz(rec: Recording, path: str, every: int = 1) -> int:
-    """Every tick field as an array (time first), names and events. Returns the ticks written."""
+    """Every tick field as an array (time first), names and events, in one .npz written
+    beside ``path`` (the exact name given) and renamed into place. Returns the ticks written."""
     ticks = _rows(rec.ticks, every)
-    arrays = {name: np.ascontiguousarray(ticks[name]) for name in ticks.dtype.names}
-    with AtomicFile(path) as out:       # the exact name given (numpy would append .npz to a name)
-        _savez(out.file, rec, arrays)
+    arrays = {"body_names": np.array(rec.body_names), "finger_names": np.array(rec.finger_names),
+              "haptic_rate": np.array(rec.haptic_rate),
+              "event_time": np.array([e.get("time", 0.0) for e in rec.events], dtype=np.float64),
+              "event_kind": np.array([e.get("kind", "") for e in rec.events]),
+              "event_subject": np.array([e.get("subject", "") for e in rec.events]),
+              "event_detail": np.array([e.get("detail", "") for e in rec.events])}
+    arrays.update({name: np.ascontiguousarray(ticks[name]) for name in ticks.dtype.names})
+    with AtomicFile(path) as out:
+        # np.savez_compressed's layout, with the archive closed on any error (a full disk)
+        # before the file is discarded.
+        with zipfile.ZipFile(out.file, "w", zipfile.ZIP_DEFLATED, allowZip64=True) as archive:
+            for name, array in arrays.items():
+                with archive.open(f"{name}.npy", "w", force_zip64=True) as member:
+                    np.lib.format.write_array(member, array, allow_pickle=False)
     return len(ticks)
-
-
-def _savez(fh, rec, arrays):
-    np.savez_compressed(
-        fh, body_names=np.array(rec.body_names), finger_names=np.array(rec.finger_names),
-        haptic_rate=rec.haptic_rate,
-        event_time=np.array([e.get("time", 0.0) for e in rec.events], dtype=np.float64),
-        event_kind=np.array([e.get("kind", "") for e in rec.events]),
-        event_subject=np.array([e.get("subject", "") for e in rec.events]),
-        event_detail=np.array([e.get("detail", "") for e in rec.events]), **arrays)

@@ -51,7 +51,10 @@ def parse_size(text: str) -> float:
     scale = {"K": 1e3, "M": 1e6, "G": 1e9, "T": 1e12}.get(t[-1:], 1.0)
     if scale != 1.0:
         t = t[:-1]
-    value = float(t) * scale
+    try:
+        value = float(t) * scale
+    except ValueError:
+        value = math.nan
     if not math.isfinite(value) or value <= 0:
         raise ValueError(f"expected a size > 0 such as 500M or 2G, got {text!r}")
     return value
