@@ -264,6 +264,7 @@ def test_a_signal_finishes_the_recording(files, tmp_path, sig, code, name, realt
     assert proc.returncode == code, err
     lines = [line for line in err.splitlines() if line.strip()]
     assert lines == [f"grasp-lab run: stopped by {name}; finished {out}"], err
+    print(f"\n{name} {'real time' if realtime else 'EXEC'}: exited {answered:.3f} s after the signal")
     assert answered < 5.0           # sanity only: docs/reliability.md has the measured times
     rec = recording.open_recording(out)
     assert rec.damage == [] and rec.end["clean"] is False and rec.end["ended_by"] == name
