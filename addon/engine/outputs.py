@@ -131,10 +131,10 @@ def check_paths(inputs: dict, outputs: dict, folders: tuple = ()) -> None:
 class AtomicFile:
     """A file written as ``PATH.partial`` (locked) and renamed to ``PATH`` by ``commit``.
 
-    ``keep_partial``: the partial file is worth keeping after a crash (a recording): a
-    non-empty one left by a process that died is refused rather than overwritten."""
+    ``keep_partial``: says whether a partial file left by a process that died holds
+    something worth keeping (a recording with ticks): then it is refused, not overwritten."""
 
-    def __init__(self, path: str, keep_partial: bool = False):
+    def __init__(self, path: str, keep_partial=None):
         self.path = os.path.abspath(path)
         self.partial = self.path + PARTIAL
         if os.path.isdir(self.path):
@@ -150,7 +150,7 @@ class AtomicFile:
             who = _locker(self.partial)
             raise OutputError(f"{path}: another Grasp Lab process{f' ({who})' if who else ''} is "
                               f"writing it ({self.partial})") from None
-        if keep_partial and os.fstat(fd).st_size > 0:
+        if keep_partial is not None and os.fstat(fd).st_size > 0 and keep_partial(self.partial):
             os.close(fd)
             raise OutputError(f"{path}: {self.partial} is left by a session that did not finish "
                               f"(`grasp-lab info` reads what it holds): move or delete it first")

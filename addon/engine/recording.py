@@ -203,7 +203,7 @@ class RecordingWriter:
         self.dtype = tick_dtype(len(header["body_names"]), len(header["finger_names"]))
         self.flush_interval = float(flush_interval)
         # Written as PATH.partial (a readable prefix at every flush), renamed to PATH when closed.
-        self._out = AtomicFile(path, keep_partial=True)
+        self._out = AtomicFile(path, keep_partial=_holds_ticks)
         self.path = self._out.path
         self.partial = self._out.partial
         self._file = self._out.file
@@ -312,6 +312,14 @@ class RecordingWriter:
         the partial file removed, the target as it was."""
         self.closed = True
         self._out.discard()
+
+
+def _holds_ticks(path: str) -> bool:
+    """A partial recording left by a crash holds ticks (worth keeping); a header cut short does not."""
+    try:
+        return len(open_recording(path).ticks) > 0
+    except (RecordingError, OSError):
+        return False
 
 
 # --------------------------------------------------------------------------- events

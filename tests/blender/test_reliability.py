@@ -24,7 +24,7 @@ sys.path.insert(0, grasp_env.ROOT)
 from addon.engine import recording  # noqa: E402
 
 LAUNCHER = os.path.join(grasp_env.ROOT, ".venv", "bin", "grasp-lab")
-COUNTS = {"targets": 0, "lost": 0}
+COUNTS = {"targets": 0, "lost": 0, "replaced": 0, "partials": 0}
 
 
 def grasp_lab(*args, env=None, timeout=300):
@@ -82,13 +82,17 @@ class Guard:
             ok = now == before or (path in may_write and now is not None and complete(path))
             if not ok:
                 COUNTS["lost"] += 1
+            elif now != before:
+                COUNTS["replaced"] += 1
             assert ok, f"{path}: changed and not a complete output"
 
 
 @pytest.fixture(scope="module", autouse=True)
 def report_counts():
     yield
-    print(f"\nfault suite: {COUNTS['targets']} target checks, {COUNTS['lost']} files lost or half-written")
+    print(f"\nfault suite: {COUNTS['targets']} target checks ({COUNTS['replaced']} by a complete new file), "
+          f"{COUNTS['lost']} files lost or half-written; {COUNTS['partials']} recordings' partial files "
+          f"left by kill -9, all readable")
 
 
 @pytest.fixture(scope="module")
@@ -293,27 +297,38 @@ def test_kill_9_at_random_moments_leaves_targets_untouched_or_complete(files, tm
     old_blend = tmp_path / "old.blend"
     assert grasp_lab("bake", rec, scene, "--save", old_blend).returncode == 0
     commands = {
-        "run": lambda out: ("run", scene, "--record", out, "--save", out.with_suffix(".blend")),
+        "run": lambda out: ("run", scene, "--duration", "120", "--record", out, "--save", out.with_suffix(".blend")),
         "bake": lambda out: ("bake", rec, scene, "--save", out.with_suffix(".blend")),
         "resim": lambda out: ("resim", rec, "--set", "Box.mass=0.2", "--record", out),
         "export": lambda out: ("export", rec, "--npz", out.with_suffix(".npz")),
     }
     for name, make in commands.items():
-        for k in range(4):
+        t0 = time.monotonic()
+        full = make(tmp_path / f"{name}_whole.mcap")
+        assert grasp_lab(*full).returncode == 0
+        whole = time.monotonic() - t0          # the moments: over the command's own run time
+        for k in range(5):
             out = tmp_path / f"{name}{k}.mcap"
             targets = [out, out.with_suffix(".blend"), out.with_suffix(".npz")]
             copy(rec, targets[0])
             copy(old_blend, targets[1])
             copy(npz, targets[2])
             g = Guard(*targets, scene, rec)
-            _kill_at(make(out), rng.uniform(0.2, 2.5))
+            _kill_at(make(out), rng.uniform(0.3, 1.0) * whole)
             g.check(may_write=targets)
             partial = str(out) + ".partial"
-            if os.path.exists(partial):           # a recording's prefix: readable, kept
-                recording.open_recording(partial)
+            if os.path.exists(partial):
+                try:
+                    left = len(recording.open_recording(partial).ticks)
+                except recording.RecordingError:        # killed before its header was out
+                    left = 0
                 r = grasp_lab("run", scene, "--record", out)
-                one_line_error(r, 1, "left by a session that did not finish")
-                os.unlink(partial)
+                if left:                # a recording's prefix: readable, and kept
+                    COUNTS["partials"] += 1
+                    one_line_error(r, 1, "left by a session that did not finish")
+                    os.unlink(partial)
+                else:                   # nothing in it: the next run writes over it
+                    assert r.returncode == 0 and complete(out), r.stderr
 
 
 # ----------------------------------------------------------------- full disk, read-only folder
