@@ -145,8 +145,9 @@ class Divergence:
 
 
 def _check_size(ticks: int, bytes_per_tick: int, record_path, max_size) -> None:
-    """The new run's records and HIPs in memory; its recording under max_size and the free space."""
-    check_memory("resim", ticks, bytes_per_tick)
+    """The new run in memory (its records, the comparison's and the writer's working copies:
+    3 x, bench/bench_memory.py); its recording under max_size and the free space."""
+    check_memory("resim", ticks, bytes_per_tick, copies=3)
     if record_path:
         check_recording_size("--record", record_path, ticks, bytes_per_tick, max_size)
 
