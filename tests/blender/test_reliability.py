@@ -423,3 +423,43 @@ def test_disk_full_during_an_export(files, small_disk):
     one_line_error(r, 1, "No space left on device")
     g.check()
     assert os.listdir(disk) == ["r.npz"]
+
+
+# ----------------------------------------------------------------- scenes that cannot run
+
+def _spoiled_scene(files, tmp_path, spoil):
+    import bpy
+    bpy.ops.wm.open_mainfile(filepath=str(files["scene"]))
+    spoil(bpy)
+    path = tmp_path / "spoiled.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(path))
+    return path
+
+
+def test_a_nan_fingertip_key_names_the_finger_and_the_frame(files, tmp_path):
+    def spoil(bpy):
+        action = bpy.data.objects["Finger 0"].animation_data.action
+        key = action.fcurves[0].keyframe_points[2]
+        key.co[1] = float("nan")
+    scene = _spoiled_scene(files, tmp_path, spoil)
+    r = grasp_lab("run", scene, "--record", tmp_path / "r.mcap")
+    one_line_error(r, 1, "Finger 0", "fingertip position at frame", "not finite")
+    assert sorted(os.listdir(tmp_path)) == ["spoiled.blend"]
+
+
+def test_a_body_far_from_the_origin_says_so(files, tmp_path):
+    def spoil(bpy):
+        bpy.data.objects["Box"].location.x = 1e30
+    scene = _spoiled_scene(files, tmp_path, spoil)
+    r = grasp_lab("run", scene)
+    one_line_error(r, 1, "Box", "m from the origin (at most 10000 m)")
+
+
+def test_a_zero_length_session_is_refused(files, tmp_path):
+    def spoil(bpy):
+        bpy.context.scene.frame_end = bpy.context.scene.frame_start
+        bpy.context.scene.grasp_lab.duration = 0.0
+    scene = _spoiled_scene(files, tmp_path, spoil)
+    r = grasp_lab("run", scene, "--record", tmp_path / "r.mcap")
+    one_line_error(r, 1, "nothing to run", "0 frames long")
+    assert sorted(os.listdir(tmp_path)) == ["spoiled.blend"]
