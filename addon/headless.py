@@ -55,6 +55,17 @@ def check_run_size(context, args) -> None:
                                 args.max_size)
 
 
+def check_channels(context) -> None:
+    """Fingers a device drives: one a channel (two on one would move together, silently)."""
+    by_channel = {}
+    for o in sorted(context.scene.objects, key=lambda o: o.name):
+        if o.grasp_lab.role == "FINGER":
+            other = by_channel.setdefault(o.grasp_lab.channel, o.name)
+            if other != o.name:
+                raise CliError(f"--device: fingers {other!r} and {o.name!r} are both on device channel "
+                               f"{o.grasp_lab.channel}: give each finger its own channel")
+
+
 def apply_overrides(context, overrides) -> list:
     """--set on the open scene's objects and settings. Returns what was set, as text."""
     s = context.scene.grasp_lab
@@ -86,6 +97,8 @@ def run(args, out, err) -> int:
     context = bpy.context
     applied = apply_overrides(context, args.set)
     check_run_size(context, args)
+    if args.device:
+        check_channels(context)
     record = os.path.abspath(args.record) if args.record else None
     if args.device:
         from .devices_ui import run_realtime

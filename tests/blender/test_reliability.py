@@ -463,3 +463,18 @@ def test_a_zero_length_session_is_refused(files, tmp_path):
     r = grasp_lab("run", scene, "--record", tmp_path / "r.mcap")
     one_line_error(r, 1, "nothing to run", "0 frames long")
     assert sorted(os.listdir(tmp_path)) == ["spoiled.blend"]
+
+
+def test_two_fingers_on_one_device_channel_are_refused(files, tmp_path):
+    def spoil(bpy):
+        bpy.data.objects["Finger 1"].grasp_lab.channel = 0
+    scene = _spoiled_scene(files, tmp_path, spoil)
+    master, slave = os.openpty()              # a port that opens and can be configured
+    try:
+        r = grasp_lab("run", scene, "--realtime", "--duration", "1", "--device",
+                      f"serial:{os.ttyname(slave)}", "--record", tmp_path / "r.mcap")
+    finally:
+        os.close(master)
+        os.close(slave)
+    one_line_error(r, 1, "'Finger 0' and 'Finger 1' are both on device channel 0")
+    assert sorted(os.listdir(tmp_path)) == ["spoiled.blend"]
