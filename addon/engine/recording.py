@@ -1092,8 +1092,35 @@ def summarize(path: str) -> dict:
                     duration=rec.duration, damage=rec.damage, chunks=None)
 
 
+def _disagreements(header: dict, events: list) -> list:
+    """Parameters set at the start (``parameter`` events at time 0, from --set) that the
+    header's scene does not hold: the file contradicts itself."""
+    scene = header.get("scene") or {}
+    objects = {o["name"]: o for o in scene.get("bodies", []) + scene.get("fingers", [])}
+    found = []
+    for e in events:
+        if e.get("kind") != "parameter" or e.get("time", 0.0) != 0.0 or "name" not in e:
+            continue
+        name, value, subject = e["name"], e.get("value"), e.get("subject", "")
+        if subject == "scene":
+            held = header["rates"]["haptic_hz"] if name == "haptic_rate" else scene.get(name)
+        else:
+            held = objects.get(subject, {}).get(name)
+        if held is None:
+            continue
+        if isinstance(held, list) and isinstance(value, list):
+            same = len(held) == len(value) and all(float(a) == float(b) for a, b in zip(held, value))
+        else:
+            same = float(held) == float(value)
+        if not same:
+            found.append(f"header and events disagree: the header's scene has {subject}.{name} = {held}, "
+                         f"its parameter event says {value}")
+    return found
+
+
 def _summary(path, header, events, end, ticks, duration, damage, chunks) -> dict:
     rate = float(header["rates"]["haptic_hz"])
+    damage = list(damage) + _disagreements(header, events)
     kinds = {}
     for e in events:
         kinds[e.get("kind", "?")] = kinds.get(e.get("kind", "?"), 0) + 1

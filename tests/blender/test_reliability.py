@@ -478,3 +478,15 @@ def test_two_fingers_on_one_device_channel_are_refused(files, tmp_path):
         os.close(slave)
     one_line_error(r, 1, "'Finger 0' and 'Finger 1' are both on device channel 0")
     assert sorted(os.listdir(tmp_path)) == ["spoiled.blend"]
+
+
+def test_info_reports_a_header_that_disagrees_with_its_events(files, tmp_path):
+    header = recording.open_recording(files["rec"]).header
+    path = tmp_path / "contradicts.mcap"
+    w = recording.RecordingWriter(str(path), header)
+    w.event(0.0, "parameter", "scene", "haptic_rate = 100.0", name="haptic_rate", value=100.0)
+    w.event(0.0, "parameter", "Box", "mass = 0.1", name="mass", value=header["scene"]["bodies"][0]["mass"])
+    w.close()
+    r = grasp_lab("info", path)
+    assert r.returncode == 0 and r.stdout.count("disagree") == 1, r.stdout
+    assert "scene.haptic_rate = 1000.0, its parameter event says 100.0" in r.stdout
