@@ -490,3 +490,25 @@ def test_info_reports_a_header_that_disagrees_with_its_events(files, tmp_path):
     r = grasp_lab("info", path)
     assert r.returncode == 0 and r.stdout.count("disagree") == 1, r.stdout
     assert "scene.haptic_rate = 1000.0, its parameter event says 100.0" in r.stdout
+
+
+def test_warnings_are_printed_once_with_a_count():
+    """540 identical warnings (what Tip0.stiffness=1e30 used to print) are two lines."""
+    import io
+    import warnings
+    from addon.engine import cli
+
+    def noisy(args, out, err):
+        for _ in range(540):
+            warnings.warn("overflow encountered in multiply", RuntimeWarning)
+        warnings.warn("another one", UserWarning)
+    cli.register_command("noisy-test", "emits warnings", lambda p: None, noisy)
+    try:
+        out, err = io.StringIO(), io.StringIO()
+        assert cli.main(["noisy-test"], out=out, err=err) == 0
+    finally:
+        del cli.COMMANDS["noisy-test"]
+    assert err.getvalue().splitlines() == [
+        "grasp-lab noisy-test: warning: RuntimeWarning: overflow encountered in multiply",
+        "grasp-lab noisy-test: warning: UserWarning: another one",
+        "grasp-lab noisy-test: warning: RuntimeWarning: overflow encountered in multiply (539 more times)"]
