@@ -502,7 +502,9 @@ def boot_extension() -> str:
 
 
 def launch() -> int:
-    """``grasp-lab`` in the venv."""
+    """``grasp-lab`` in the venv. Outside a command (loading, exiting) SIGTERM exits through
+    ``sys.exit``, so the temporary folders are removed then too."""
+    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
     return main(sys.argv[1:])
 
 

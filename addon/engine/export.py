@@ -30,10 +30,12 @@ def export_csv(rec: Recording, folder: str, every: int = 1) -> dict:
     """bodies.csv, fingers.csv, events.csv in ``folder``; one row per tick (every ``every``-th)
     per body or finger. The three are written beside their targets and renamed into place
     together when all are written. Returns {name: rows written}."""
+    made = not os.path.isdir(folder)
     os.makedirs(folder, exist_ok=True)
     names = ("bodies.csv", "fingers.csv", "events.csv")
-    outs = [AtomicFile(os.path.join(folder, name)) for name in names]
+    outs = []
     try:
+        outs = [AtomicFile(os.path.join(folder, name)) for name in names]
         texts = [io.TextIOWrapper(o.file, newline="", encoding="utf-8") for o in outs]
         counts = dict(zip(names, _write_csv(rec, _rows(rec.ticks, every), *map(csv.writer, texts))))
         for t in texts:
@@ -44,6 +46,11 @@ def export_csv(rec: Recording, folder: str, every: int = 1) -> dict:
     except BaseException:
         for o in outs:
             o.discard()
+        if made:
+            try:
+                os.rmdir(folder)        # made here, for nothing
+            except OSError:
+                pass
         raise
     return counts
 

@@ -301,7 +301,10 @@ def test_kill_9_at_random_moments_leaves_targets_untouched_or_complete(files, tm
         "bake": lambda out: ("bake", rec, scene, "--save", out.with_suffix(".blend")),
         "resim": lambda out: ("resim", rec, "--set", "Box.mass=0.2", "--record", out),
         "export": lambda out: ("export", rec, "--npz", out.with_suffix(".npz")),
+        "csv": lambda out: ("export", rec, "--csv", out.with_suffix("")),
     }
+    old_csv = tmp_path / "old_csv"
+    assert grasp_lab("export", rec, "--csv", old_csv, "--every", "7").returncode == 0
     for name, make in commands.items():
         t0 = time.monotonic()
         full = make(tmp_path / f"{name}_whole.mcap")
@@ -309,10 +312,14 @@ def test_kill_9_at_random_moments_leaves_targets_untouched_or_complete(files, tm
         whole = time.monotonic() - t0          # the moments: over the command's own run time
         for k in range(5):
             out = tmp_path / f"{name}{k}.mcap"
-            targets = [out, out.with_suffix(".blend"), out.with_suffix(".npz")]
+            out.with_suffix("").mkdir()
+            csvs = [out.with_suffix("") / name for name in ("bodies.csv", "fingers.csv", "events.csv")]
+            targets = [out, out.with_suffix(".blend"), out.with_suffix(".npz"), *csvs]
             copy(rec, targets[0])
             copy(old_blend, targets[1])
             copy(npz, targets[2])
+            for c in csvs:
+                copy(old_csv / c.name, c)
             g = Guard(*targets, scene, rec)
             _kill_at(make(out), rng.uniform(0.3, 1.0) * whole)
             g.check(may_write=targets)
