@@ -519,3 +519,29 @@ def test_warnings_are_printed_once_with_a_count():
         "grasp-lab noisy-test: warning: RuntimeWarning: overflow encountered in multiply",
         "grasp-lab noisy-test: warning: UserWarning: another one",
         "grasp-lab noisy-test: warning: RuntimeWarning: overflow encountered in multiply (539 more times)"]
+
+
+@pytest.mark.parametrize("command", ["resim", "export-csv", "export-npz"])
+def test_a_signal_stops_resim_and_export_leaving_the_targets(files, tmp_path, command):
+    long = files["tmp"] / "long.mcap"
+    if not long.exists():
+        assert grasp_lab("run", files["scene"], "--duration", "100", "--record", long).returncode == 0
+    target = {"resim": tmp_path / "new.mcap", "export-csv": tmp_path / "csv" / "bodies.csv",
+              "export-npz": tmp_path / "new.npz"}[command]
+    target.parent.mkdir(exist_ok=True)
+    copy(files["rec"], target)                      # an older file of that name
+    g = Guard(target)
+    args = {"resim": ("resim", long, "--set", "Box.mass=0.2", "--record", target),
+            "export-csv": ("export", long, "--csv", target.parent),
+            "export-npz": ("export", long, "--npz", target)}[command]
+    proc = start(*args)
+    time.sleep(0.8)                                 # reading done, replaying / writing
+    assert proc.poll() is None
+    t0 = time.monotonic()
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=30)
+    print(f"\n{command}: exited {time.monotonic() - t0:.3f} s after SIGTERM")
+    assert proc.returncode == 143, err
+    assert err.strip() == f"grasp-lab {command.split('-')[0]}: stopped by SIGTERM; nothing was written"
+    g.check()
+    assert not [n for n in os.listdir(target.parent) if n.endswith(".partial")]
