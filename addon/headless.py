@@ -32,7 +32,10 @@ def save_blend(path: str) -> str:
     out = AtomicFile(path)
     with out:
         os.unlink(out.partial)      # Blender writes the file itself (and would back up an old one)
-        bpy.ops.wm.save_as_mainfile(filepath=out.partial, copy=True)
+        try:
+            bpy.ops.wm.save_as_mainfile(filepath=out.partial, copy=True)
+        except RuntimeError as ex:  # Blender's report (a full disk, ...); the target is as it was
+            raise CliError(f"{out.path}: could not save ({str(ex).strip()}); it is as it was") from None
     return out.path
 
 

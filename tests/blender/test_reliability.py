@@ -545,3 +545,13 @@ def test_a_signal_stops_resim_and_export_leaving_the_targets(files, tmp_path, co
     assert err.strip() == f"grasp-lab {command.split('-')[0]}: stopped by SIGTERM; nothing was written"
     g.check()
     assert not [n for n in os.listdir(target.parent) if n.endswith(".partial")]
+
+
+def test_disk_full_while_saving_a_scene(files, small_disk):
+    disk = small_disk("600k")                                       # the baked scene is larger
+    old = copy(files["scene"], disk / "baked.blend")                 # 400 kB: an older save
+    g = Guard(old)
+    r = grasp_lab("bake", files["rec"], files["scene"], "--save", old)
+    line = one_line_error(r, 1, f"{old}: could not save", "it is as it was")
+    g.check()
+    assert os.listdir(disk) == ["baked.blend"], line
