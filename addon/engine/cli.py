@@ -78,13 +78,13 @@ def _override(text):
         raise argparse.ArgumentTypeError(str(ex)) from None
 
 
-def _positive_int(text, high=limits.MAX_EVERY):
+def _positive_int(text):
     try:
         v = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if not 1 <= v <= high:
-        raise argparse.ArgumentTypeError(f"must be in 1 .. {high}, got {v}")
+    if not 1 <= v <= limits.MAX_EVERY:
+        raise argparse.ArgumentTypeError(f"must be in 1 .. {limits.MAX_EVERY}, got {v}")
     return v
 
 
@@ -313,7 +313,9 @@ def build_parser(prog=PROG) -> argparse.ArgumentParser:
     parser.add_argument("--debug", action="store_true", help="a traceback with an error")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for cmd in COMMANDS.values():
-        cmd.configure(sub.add_parser(cmd.name, help=cmd.help, description=cmd.help))
+        p = sub.add_parser(cmd.name, help=cmd.help, description=cmd.help)
+        p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="a traceback with an error")
+        cmd.configure(p)
     return parser
 
 
@@ -364,7 +366,7 @@ def _run_command(cmd, args, prog, out, err) -> int:
         if isinstance(ex, OSError) and getattr(ex, "filename", None) and str(ex.filename) not in msg:
             msg = f"{ex.filename}: {msg}"
         if _stop_signal:
-            return _stopped(prog, cmd.name, err, f"{msg}")
+            return _stopped(prog, cmd.name, err, msg)
         print(f"{prog} {cmd.name}: error: {msg}", file=err)
         return EXIT_FAILED
     except Exception as ex:  # noqa: BLE001 - one line, not a traceback, unless asked
