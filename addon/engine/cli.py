@@ -415,7 +415,9 @@ def _stopped(prog, name, err, detail="") -> int:
 def _signals_stop():
     """SIGINT and SIGTERM handled by _on_signal for the command (main thread only)."""
     global _stop_signal
+    from .recording import set_stop_reason
     _stop_signal = 0
+    set_stop_reason("")
     try:
         old = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
     except ValueError:          # not the main thread: signals are the host's business
@@ -425,6 +427,7 @@ def _signals_stop():
     finally:
         for sig, handler in old.items():
             signal.signal(sig, handler)
+        set_stop_reason("")     # a later session in this process (Blender) ends as it ends
 
 
 @contextlib.contextmanager

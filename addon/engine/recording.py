@@ -440,7 +440,6 @@ class SessionRecorder:
         self._stop = threading.Event()
         self._lock = threading.Lock()       # writer: recorder thread vs parameter events
         self.finished = False
-        self.ended_by = ""          # why the session stopped early, if it did (finish() records it)
 
     # ---- setup
     def begin(self, threaded: bool) -> None:
@@ -539,10 +538,10 @@ class SessionRecorder:
     def parameter_change(self, t: float, subject: str, name: str, value) -> None:
         self.event(t, "parameter", subject, f"{name} = {value}", name=name, value=value)
 
-    def finish(self, ended_by: str = "") -> dict:
-        """After the world stopped: write what is left, the end record, close the file.
-        ``ended_by``: why the session stopped before its end (a signal, an error, a lost
-        device); the end record then says ``clean: false`` and that."""
+    def finish(self) -> dict:
+        """After the world stopped: write what is left, the end record, close the file. A
+        session stopped before its end (a signal, the exception a ``finally`` finishes it for,
+        a failed write) gets ``clean: false`` and ``ended_by`` saying which."""
         if self.finished:
             return {}
         self.finished = True
@@ -553,7 +552,7 @@ class SessionRecorder:
         else:
             self._write_block()
         end = {"overflow": self.overflow, "recorder_error": self.error}
-        why = ended_by or self.ended_by or stop_reason() or _in_flight() or self.error
+        why = stop_reason() or _in_flight() or self.error
         if why:
             end.update(clean=False, ended_by=why)
         if not self.writer.closed:
