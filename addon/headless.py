@@ -8,13 +8,17 @@ import time
 import bpy
 
 from . import bake as baking
+from .engine import limits
 from .engine.cli import CliError
-from .engine.recording import open_recording
+from .engine.outputs import AtomicFile
+from .engine.recording import open_recording, tick_dtype
 from .engine.resim import BODY_KEYS, FINGER_KEYS
 
 
 def open_blend(path: str) -> None:
     path = os.path.abspath(path)
+    if os.path.isdir(path):
+        raise CliError(f"{path}: is a folder, not a .blend file")
     if not os.path.isfile(path):
         raise CliError(f"{path}: no such file")
     try:
@@ -24,10 +28,45 @@ def open_blend(path: str) -> None:
 
 
 def save_blend(path: str) -> str:
-    path = os.path.abspath(path)
-    os.makedirs(os.path.dirname(path), exist_ok=True)
-    bpy.ops.wm.save_as_mainfile(filepath=path)
-    return path
+    """Saved beside its target (a copy: the open file keeps its name) and renamed into place."""
+    out = AtomicFile(path)
+    with out:
+        os.unlink(out.partial)      # Blender writes the file itself (and would back up an old one)
+        try:
+            bpy.ops.wm.save_as_mainfile(filepath=out.partial, copy=True)
+        except RuntimeError as ex:  # Blender's report (a full disk, ...); the target is as it was
+            raise CliError(f"{out.path}: could not save ({str(ex).strip()}); it is as it was") from None
+    return out.path
+
+
+def check_run_size(context, args) -> None:
+    """The session's length, tick count and recording size, before any file is touched."""
+    s = context.scene.grasp_lab
+    scene = context.scene
+    fps = scene.render.fps / scene.render.fps_base
+    duration = args.duration or s.duration or (scene.frame_end - scene.frame_start) / fps
+    if duration <= 0 and not args.realtime:
+        raise CliError(f"{args.scene}: nothing to run: the animation is {scene.frame_end - scene.frame_start} "
+                       f"frames long and neither the scene nor --duration gives a duration")
+    if not args.record or duration <= 0:
+        return
+    roles = [o.grasp_lab.role for o in scene.objects]
+    n_fingers = roles.count("FINGER")
+    n_bodies = len(roles) - n_fingers - roles.count("NONE")
+    ticks = duration * s.haptic_rate + 1
+    limits.check_recording_size("--record", args.record, ticks, tick_dtype(n_bodies, n_fingers).itemsize,
+                                args.max_size)
+
+
+def check_channels(context) -> None:
+    """Fingers a device drives: one a channel (two on one would move together, silently)."""
+    by_channel = {}
+    for o in sorted(context.scene.objects, key=lambda o: o.name):
+        if o.grasp_lab.role == "FINGER":
+            other = by_channel.setdefault(o.grasp_lab.channel, o.name)
+            if other != o.name:
+                raise CliError(f"--device: fingers {other!r} and {o.name!r} are both on device channel "
+                               f"{o.grasp_lab.channel}: give each finger its own channel")
 
 
 def apply_overrides(context, overrides) -> list:
@@ -47,6 +86,8 @@ def apply_overrides(context, overrides) -> list:
                 raise CliError(f"--set {o}: {o.obj!r} is a {gl.role.lower()} object; {o.key} is not one "
                                f"of its properties ({', '.join(allowed)})")
             if o.key == "mass":
+                if gl.role == "STATIC":
+                    raise CliError(f"--set {o}: {o.obj!r} is static (it has no mass to set)")
                 gl.mass_mode = "MASS"
             setattr(gl, o.key, o.value)
         done.append(str(o))
@@ -58,6 +99,9 @@ def run(args, out, err) -> int:
     open_blend(args.scene)
     context = bpy.context
     applied = apply_overrides(context, args.set)
+    check_run_size(context, args)
+    if args.device:
+        check_channels(context)
     record = os.path.abspath(args.record) if args.record else None
     if args.device:
         from .devices_ui import run_realtime
@@ -112,6 +156,8 @@ def bake(args, out, err) -> int:
     rec = open_recording(args.recording, fps=None if args.every_tick else render.fps / render.fps_base)
     for w in rec.warnings():
         print(f"warning: {w}", file=err)
+    if len(rec.ticks) == 0:
+        raise CliError(f"{args.recording}: no tick was recorded: nothing to bake")
     report = baking.bake_recording(bpy.context, rec, every_tick=args.every_tick)
     for name in report.missing:
         print(f"warning: {args.scene}: {name} is not in the scene (renamed or deleted): not baked", file=err)
