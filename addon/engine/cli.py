@@ -135,6 +135,8 @@ def _configure_export(p):
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--csv", metavar="DIR", help="write DIR/bodies.csv, fingers.csv, events.csv")
     g.add_argument("--npz", metavar="FILE", help="write one .npz with every field")
+    g.add_argument("--foxglove", metavar="OUT.mcap", help="a copy Foxglove shows: 3-D scene, transforms, "
+                                                          "plot channels, events, at the display rate")
     p.add_argument("--every", type=_positive_int, default=1, metavar="N", help="every N-th tick (default 1)")
 
 
@@ -208,7 +210,15 @@ def _run_resim(args, out, err):
 def _run_export(args, out, err):
     from .export import export_csv, export_npz
     rec = _open(args.recording, err)
-    if args.csv:
+    if args.foxglove:
+        from .viewer import export_foxglove
+        try:
+            done = export_foxglove(rec, args.foxglove)
+        except ImportError as ex:
+            raise CliError(str(ex)) from None
+        print(f"{args.foxglove}: {done['frames']} frames at {done['rate']:g} Hz, {done['events']} events, "
+              f"{done['bytes'] / 1e6:.2f} MB", file=out)
+    elif args.csv:
         counts = export_csv(rec, args.csv, args.every)
         for name, n in counts.items():
             print(f"{os.path.join(args.csv, name)}: {n} rows", file=out)

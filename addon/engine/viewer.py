@@ -1,0 +1,413 @@
+"""Viewer channels: a session as Foxglove shows it (docs/viewers.md).
+
+``grasp-lab export REC.mcap --foxglove OUT.mcap`` writes, at the recording's display rate,
+the channels a robotics viewer (Foxglove, Lichtblick) draws and plots without any Grasp Lab
+code: ``foxglove.SceneUpdate`` (bodies as triangle meshes of their convex parts,
+fingertips, god-objects, HIP-god-object springs coloured by stick/slip, finger force and
+residual force/torque arrows), ``foxglove.FrameTransforms`` (body frames), JSON channels of
+numbers per finger and per body for plots, and the events as ``foxglove.Log``.
+
+bpy-free. The geometry and the numbers are plain numpy (``ViewerFrame``); only writing
+needs ``foxglove-sdk``, imported when a copy is written, so nothing else depends on it.
+"""
+from __future__ import annotations
+
+import os
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from .measures import body_grip, finger_measures
+from .recording import STATE_NAMES, Recording
+from .runner import quat_rotate
+
+WORLD_FRAME = "world"
+TOPIC_SCENE = "/grasp_lab/scene"            # fingertips, god-objects, springs, arrows: every frame
+TOPIC_BODIES = "/grasp_lab/bodies"          # body meshes, locked to their frames: at the start, then every second
+TOPIC_TRANSFORMS = "/grasp_lab/transforms"  # world -> body frames: every frame
+TOPIC_LOG = "/grasp_lab/log"                # events
+FINGER_TOPIC = "/grasp_lab/finger/"         # + topic-safe finger name: numbers for plots
+BODY_TOPIC = "/grasp_lab/body/"             # + topic-safe body name
+BODIES_REPEAT = 1.0         # s: body meshes again, so a viewer that seeks or joins late has them
+FORCE_SCALE = 0.02          # m per N (the extension's default Force Scale)
+TORQUE_SCALE = 1.0          # m per N m (its default Torque Scale)
+ARROW_DIAMETER = 0.008      # m, arrow shaft (Blender's arrows: 4 mm radius)
+HIP_DIAMETER = 0.006        # m, the fingertip (HIP) marker
+SPRING_WIDTH = 0.002        # m
+MIN_GO_RADIUS = 0.002       # m: god-objects of point fingers are still visible
+# RGBA. Stick/slip as the HUD shows them; force red, torque green, god-objects blue as in Blender.
+STATE_COLORS = {0: (0.6, 0.6, 0.6, 1.0), 1: (0.1, 0.8, 0.2, 1.0), 2: (1.0, 0.45, 0.0, 1.0)}
+GO_COLOR = (0.10, 0.45, 1.00, 1.0)
+HIP_COLOR = (0.9, 0.9, 0.9, 0.8)
+FINGER_FORCE_COLOR = (1.0, 0.85, 0.1, 1.0)
+FORCE_COLOR = (1.0, 0.15, 0.10, 1.0)
+TORQUE_COLOR = (0.10, 0.85, 0.25, 1.0)
+BODY_COLOR = (0.55, 0.6, 0.7, 0.6)
+STATIC_BODY_COLOR = (0.35, 0.35, 0.38, 0.8)
+SDK_HINT = "pip install foxglove-sdk (the version in requirements.txt)"
+
+
+# --------------------------------------------------------------------------- geometry
+
+def hull_triangles(points: np.ndarray) -> np.ndarray:
+    """The convex hull of ``points`` (N, 3) as outward-wound triangles (T, 3, 3): incremental,
+    every point either inside the hull so far or joined to the edges around what it sees.
+    ValueError for fewer than 4 points or points that span no volume."""
+    pts = np.unique(np.asarray(points, dtype=np.float64).reshape(-1, 3), axis=0)
+    if len(pts) < 4 or not np.all(np.isfinite(pts)):
+        raise ValueError(f"a convex hull needs at least 4 finite points, got {len(pts)}")
+    eps = 1e-12 * max(1.0, float(np.abs(pts).max())) + 1e-9 * float(np.ptp(pts, axis=0).max())
+    a = int(np.argmin(pts[:, 0]))
+    b = int(np.argmax(np.linalg.norm(pts - pts[a], axis=1)))
+    ab = pts[b] - pts[a]
+    c = int(np.argmax(np.linalg.norm(np.cross(pts - pts[a], ab), axis=1)))
+    normal = np.cross(ab, pts[c] - pts[a])
+    d = int(np.argmax(np.abs((pts - pts[a]) @ normal)))
+    if abs((pts[d] - pts[a]) @ normal) <= eps * np.linalg.norm(normal) or np.linalg.norm(normal) <= eps * eps:
+        raise ValueError("the points span no volume (coplanar or collinear)")
+    inside = pts[[a, b, c, d]].mean(axis=0)
+    faces = []
+
+    def add(i, j, k):
+        n = np.cross(pts[j] - pts[i], pts[k] - pts[i])
+        if n @ (pts[i] - inside) < 0:
+            i, j = j, i
+            n = -n
+        faces.append((i, j, k, n / np.linalg.norm(n)))
+
+    for i, j, k in ((a, b, c), (a, b, d), (a, c, d), (b, c, d)):
+        add(i, j, k)
+    tri = np.array([f[:3] for f in faces])
+    normals = np.array([f[3] for f in faces])
+    for p in range(len(pts)):
+        if p in (a, b, c, d):
+            continue
+        seen = np.einsum("ij,ij->i", normals, pts[p] - pts[tri[:, 0]]) > eps
+        if not seen.any():
+            continue
+        edges = {(int(u), int(v)) for t in tri[seen] for u, v in ((t[0], t[1]), (t[1], t[2]), (t[2], t[0]))}
+        horizon = [(u, v) for u, v in edges if (v, u) not in edges]
+        new = np.array([(u, v, p) for u, v in horizon])
+        n = np.cross(pts[new[:, 1]] - pts[new[:, 0]], pts[new[:, 2]] - pts[new[:, 0]])
+        keep = np.linalg.norm(n, axis=1) > 0
+        tri = np.concatenate([tri[~seen], new[keep]])
+        normals = np.concatenate([normals[~seen], n[keep] / np.linalg.norm(n[keep], axis=1)[:, None]])
+    return pts[tri]
+
+
+def arrow_quaternion(direction: np.ndarray) -> np.ndarray:
+    """(x, y, z, w) turning +x onto the unit ``direction`` (a Foxglove arrow points along +x)."""
+    d = np.asarray(direction, dtype=np.float64)
+    if d[0] < -1.0 + 1e-12:
+        return np.array([0.0, 0.0, 1.0, 0.0])       # half a turn about z
+    q = np.array([0.0, -d[2], d[1], 1.0 + d[0]])
+    return q / np.linalg.norm(q)
+
+
+def topic_name(name: str, taken: set) -> str:
+    """``name`` as a topic segment a plot path can name (letters, digits, _), unique in ``taken``."""
+    base = re.sub(r"[^A-Za-z0-9_]", "_", name) or "_"
+    out, k = base, 2
+    while out in taken:
+        out, k = f"{base}_{k}", k + 1
+    taken.add(out)
+    return out
+
+
+# --------------------------------------------------------------------------- what a frame shows
+
+@dataclass
+class ViewerFrame:
+    """One display frame of a session, as numbers (world frame, SI)."""
+    time: float
+    pose: np.ndarray            # (nb, 7) x y z qw qx qy qz
+    com: np.ndarray             # (nb, 3) centre of mass, world
+    wrench: np.ndarray          # (nb, 6) residual force, torque
+    hip: np.ndarray             # (nf, 3)
+    god_object: np.ndarray      # (nf, 3)
+    force: np.ndarray           # (nf, 3) coupling force (the body gets -force)
+    state: np.ndarray           # (nf,) 0 free, 1 stick, 2 slip
+    contact: np.ndarray         # (nf,) body index or -1
+    measures: dict              # finger: gl_* (nf,); body: grip (nb,)
+
+
+class SceneModel:
+    """What the viewer channels show of a recording's scene: names, topics, hull meshes, radii."""
+
+    def __init__(self, header: dict, force_scale: float = FORCE_SCALE, torque_scale: float = TORQUE_SCALE):
+        scene = header["scene"]
+        self.header = header
+        self.body_names = list(header["body_names"])
+        self.finger_names = list(header["finger_names"])
+        self.static = [bool(b["static"]) for b in scene["bodies"]]
+        self.com_local = np.array([b["center_of_mass"] if b.get("center_of_mass") is not None else [0.0] * 3
+                                   for b in scene["bodies"]], dtype=np.float64).reshape(-1, 3)
+        self.radii = np.array([max(float(f["radius"]), MIN_GO_RADIUS) for f in scene["fingers"]])
+        self.meshes = [[hull_triangles(np.asarray(p, dtype=np.float64).reshape(-1, 3)) for p in b["parts"]]
+                       for b in scene["bodies"]]
+        self.display_rate = float(header["rates"].get("display_hz") or scene.get("display_rate") or 30.0)
+        self.force_scale, self.torque_scale = float(force_scale), float(torque_scale)
+        taken = set()
+        self.body_frames = [n if n != WORLD_FRAME else f"{n} (body)" for n in self.body_names]
+        self.body_topics = [BODY_TOPIC + topic_name(n, taken) for n in self.body_names]
+        taken = set()
+        self.finger_topics = [FINGER_TOPIC + topic_name(n, taken) for n in self.finger_names]
+
+    def frames(self, rec: Recording, rate: float | None = None) -> list:
+        """The recording at ``rate`` (default: its display rate), one ViewerFrame a display update."""
+        rate = float(rate or self.display_rate)
+        t = rec.ticks["time"]
+        first, last = int(np.ceil(t[0] * rate - 1e-9)), int(np.floor(t[-1] * rate + 1e-9))
+        times = np.arange(first, last + 1) / rate
+        idx = rec.sample(times)
+        return frames_of(self, rec, rec.ticks[idx], times)
+
+
+def frames_of(model: SceneModel, rec, ticks: np.ndarray, times) -> list:
+    """ViewerFrames of tick records (one per frame time)."""
+    m = finger_measures(rec, ticks)
+    grip = body_grip(ticks["contact"], m["gl_normal_force"], len(model.body_names))
+    pose = ticks["pose"]
+    com = pose[..., :3] + quat_rotate(pose[..., 3:], model.com_local[None])
+    out = []
+    for k, time_s in enumerate(times):
+        out.append(ViewerFrame(
+            time=float(time_s), pose=pose[k], com=com[k], wrench=ticks["wrench"][k], hip=ticks["hip"][k],
+            god_object=ticks["god_object"][k], force=ticks["force"][k], state=ticks["state"][k],
+            contact=ticks["contact"][k],
+            measures={**{key: v[k] for key, v in m.items()}, "grip": grip[k]}))
+    return out
+
+
+def finger_numbers(model: SceneModel, fr: ViewerFrame, j: int) -> dict:
+    """The plot channel of finger ``j`` at a frame."""
+    f = fr.force[j]
+    s, c = int(fr.state[j]), int(fr.contact[j])
+    m = fr.measures
+    return {"time": fr.time,
+            "force": {"x": float(f[0]), "y": float(f[1]), "z": float(f[2])},
+            "force_norm": float(m["gl_force"][j]), "normal_force": float(m["gl_normal_force"][j]),
+            "tangential_force": float(m["gl_tangential_force"][j]),
+            "friction_use": float(m["gl_friction_use"][j]),
+            "state": s, "state_name": STATE_NAMES[s] if 0 <= s < 3 else str(s),
+            "contact": model.body_names[c] if 0 <= c < len(model.body_names) else "",
+            "penetration": float(np.linalg.norm(fr.god_object[j] - fr.hip[j]))}
+
+
+def body_numbers(model: SceneModel, fr: ViewerFrame, i: int) -> dict:
+    """The plot channel of body ``i`` at a frame."""
+    p, w = fr.pose[i], fr.wrench[i]
+    on = fr.contact == i
+    return {"time": fr.time,
+            "position": {"x": float(p[0]), "y": float(p[1]), "z": float(p[2])},
+            "grip": float(fr.measures["grip"][i]),
+            "residual_force": float(np.linalg.norm(w[:3])), "residual_torque": float(np.linalg.norm(w[3:])),
+            "fingers_in_contact": int(on.sum()),
+            "fingers_slipping": int((on & (fr.state == 2)).sum())}
+
+
+# --------------------------------------------------------------------------- Foxglove messages
+
+def _sdk():
+    try:
+        import foxglove
+        import foxglove.messages
+    except ImportError as ex:
+        raise ImportError(f"the Foxglove channels need foxglove-sdk ({SDK_HINT}): {ex}") from None
+    return foxglove
+
+
+def _stamp(fm, t: float):
+    ns = max(0, int(round(t * 1e9)))
+    return fm.Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
+
+
+class FoxgloveChannels:
+    """The viewer channels on one foxglove-sdk context (an MCAP file or a live server)."""
+
+    def __init__(self, model: SceneModel, context):
+        foxglove = _sdk()
+        from foxglove import channels as ch
+        self.fm = foxglove.messages
+        self.model = model
+        meta = {"grasp_lab_fingerprint": str(model.header.get("fingerprint", ""))}
+        self.scene = ch.SceneUpdateChannel(TOPIC_SCENE, context=context, metadata=meta)
+        self.bodies = ch.SceneUpdateChannel(TOPIC_BODIES, context=context, metadata=meta)
+        self.transforms = ch.FrameTransformsChannel(TOPIC_TRANSFORMS, context=context, metadata=meta)
+        self.log = ch.LogChannel(TOPIC_LOG, context=context, metadata=meta)
+        self.fingers = [foxglove.Channel(t, schema=FINGER_SCHEMA, context=context) for t in model.finger_topics]
+        self.body_plots = [foxglove.Channel(t, schema=BODY_SCHEMA, context=context) for t in model.body_topics]
+        self._bodies_at = None
+        self._body_entities = None
+
+    # ---- building blocks
+    def _color(self, rgba):
+        return self.fm.Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
+
+    def _point(self, p):
+        return self.fm.Point3(x=float(p[0]), y=float(p[1]), z=float(p[2]))
+
+    def _pose(self, p, q_xyzw=(0.0, 0.0, 0.0, 1.0)):
+        fm = self.fm
+        return fm.Pose(position=fm.Vector3(x=float(p[0]), y=float(p[1]), z=float(p[2])),
+                       orientation=fm.Quaternion(x=float(q_xyzw[0]), y=float(q_xyzw[1]), z=float(q_xyzw[2]),
+                                                 w=float(q_xyzw[3])))
+
+    def _arrow(self, tail, vec, scale, rgba):
+        """An arrow from ``tail`` along ``vec`` * ``scale`` (m); None when shorter than 1e-6 m."""
+        length = float(np.linalg.norm(vec)) * scale
+        if not length > 1e-6:
+            return None
+        head = min(0.25 * length, 4 * ARROW_DIAMETER)
+        return self.fm.ArrowPrimitive(pose=self._pose(tail, arrow_quaternion(vec / np.linalg.norm(vec))),
+                                      shaft_length=length - head, shaft_diameter=ARROW_DIAMETER,
+                                      head_length=head, head_diameter=2.5 * ARROW_DIAMETER,
+                                      color=self._color(rgba))
+
+    def _body_entities_of(self, stamp):
+        fm, model = self.fm, self.model
+        if self._body_entities is None:
+            self._body_entities = []
+            for i, parts in enumerate(model.meshes):
+                rgba = STATIC_BODY_COLOR if model.static[i] else BODY_COLOR
+                triangles = [fm.TriangleListPrimitive(
+                    pose=self._pose((0.0, 0.0, 0.0)), points=[self._point(v) for v in tri.reshape(-1, 3)],
+                    color=self._color(rgba)) for tri in parts]
+                self._body_entities.append((model.body_frames[i], f"body/{model.body_names[i]}", triangles))
+        return [fm.SceneEntity(timestamp=stamp, frame_id=frame, id=eid, frame_locked=True, triangles=tris,
+                               metadata=[fm.KeyValuePair(key="kind", value="body")])
+                for frame, eid, tris in self._body_entities]
+
+    # ---- messages of a frame
+    def scene_update(self, fr: ViewerFrame):
+        fm, model = self.fm, self.model
+        stamp = _stamp(fm, fr.time)
+        entities = []
+        for j, name in enumerate(model.finger_names):
+            s = int(fr.state[j])
+            rgba = STATE_COLORS.get(s, STATE_COLORS[0])
+            go, hip = fr.god_object[j], fr.hip[j]
+            d = 2.0 * model.radii[j]
+            arrows = []
+            arrow = self._arrow(go + fr.force[j] * model.force_scale, -fr.force[j], model.force_scale,
+                                FINGER_FORCE_COLOR)         # the push on the body, its head at the god-object
+            if arrow is not None:
+                arrows.append(arrow)
+            entities.append(fm.SceneEntity(
+                timestamp=stamp, frame_id=WORLD_FRAME, id=f"finger/{name}",
+                metadata=[fm.KeyValuePair(key="state", value=STATE_NAMES[s] if 0 <= s < 3 else str(s))],
+                spheres=[fm.SpherePrimitive(pose=self._pose(go), size=fm.Vector3(x=d, y=d, z=d),
+                                            color=self._color(GO_COLOR)),
+                         fm.SpherePrimitive(pose=self._pose(hip),
+                                            size=fm.Vector3(x=HIP_DIAMETER, y=HIP_DIAMETER, z=HIP_DIAMETER),
+                                            color=self._color(HIP_COLOR))],
+                lines=[fm.LinePrimitive(type=fm.LinePrimitiveLineType.LineStrip, pose=self._pose((0, 0, 0)),
+                                        thickness=SPRING_WIDTH, points=[self._point(hip), self._point(go)],
+                                        color=self._color(rgba))],
+                arrows=arrows))
+        for i, name in enumerate(model.body_names):
+            if model.static[i]:
+                continue
+            arrows = [a for a in (self._arrow(fr.com[i], fr.wrench[i, :3], model.force_scale, FORCE_COLOR),
+                                  self._arrow(fr.com[i], fr.wrench[i, 3:], model.torque_scale, TORQUE_COLOR))
+                      if a is not None]
+            entities.append(fm.SceneEntity(timestamp=stamp, frame_id=WORLD_FRAME, id=f"residual/{name}",
+                                           arrows=arrows))
+        return fm.SceneUpdate(entities=entities)
+
+    def frame_transforms(self, fr: ViewerFrame):
+        fm = self.fm
+        stamp = _stamp(fm, fr.time)
+        return fm.FrameTransforms(transforms=[
+            fm.FrameTransform(timestamp=stamp, parent_frame_id=WORLD_FRAME, child_frame_id=frame,
+                              translation=fm.Vector3(x=float(p[0]), y=float(p[1]), z=float(p[2])),
+                              rotation=fm.Quaternion(x=float(p[4]), y=float(p[5]), z=float(p[6]), w=float(p[3])))
+            for frame, p in zip(self.model.body_frames, fr.pose)])
+
+    def log_frame(self, fr: ViewerFrame) -> None:
+        """Everything a display update shows, stamped with its session time."""
+        ns = max(0, int(round(fr.time * 1e9)))
+        if self._bodies_at is None or fr.time >= self._bodies_at + BODIES_REPEAT - 1e-9:
+            self.bodies.log(self.fm.SceneUpdate(entities=self._body_entities_of(_stamp(self.fm, fr.time))),
+                            log_time=ns)
+            self._bodies_at = fr.time
+        self.transforms.log(self.frame_transforms(fr), log_time=ns)
+        self.scene.log(self.scene_update(fr), log_time=ns)
+        for j, channel in enumerate(self.fingers):
+            channel.log(finger_numbers(self.model, fr, j), log_time=ns)
+        for i, channel in enumerate(self.body_plots):
+            channel.log(body_numbers(self.model, fr, i), log_time=ns)
+
+    def log_event(self, e: dict) -> None:
+        fm = self.fm
+        t = float(e.get("time", 0.0))
+        kind = str(e.get("kind", ""))
+        level = (fm.LogLevel.Warning if kind in WARNING_EVENTS else
+                 fm.LogLevel.Error if kind in ERROR_EVENTS else fm.LogLevel.Info)
+        text = " ".join(str(x) for x in (kind, e.get("subject", ""), e.get("detail", "")) if x != "")
+        self.log.log(fm.Log(timestamp=_stamp(fm, t), level=level, message=text, name="grasp_lab",
+                            file=self.model.header.get("source", "") or "", line=max(0, int(e.get("tick", 0)))),
+                     log_time=max(0, int(round(t * 1e9))))
+
+
+WARNING_EVENTS = {"slip", "forces_off", "clamp_begin", "device_lost", "device_stall", "device_dropped"}
+ERROR_EVENTS = {"overflow", "device_estop"}
+_XYZ = {"type": "object", "properties": {k: {"type": "number"} for k in "xyz"}}
+FINGER_SCHEMA = {"type": "object", "title": "grasp_lab.FingerNumbers", "properties": {
+    "time": {"type": "number", "description": "session time, s"},
+    "force": {**_XYZ, "description": "coupling force k (GO - HIP) + damping, N, world"},
+    "force_norm": {"type": "number", "description": "|force|, N"},
+    "normal_force": {"type": "number", "description": "|Fn| along the contact normal, N"},
+    "tangential_force": {"type": "number", "description": "|Ft|, N"},
+    "friction_use": {"type": "number", "description": "|Ft| / (mu_s |Fn|): 1 at the edge of the cone"},
+    "state": {"type": "integer", "description": "0 free, 1 stick, 2 slip"},
+    "state_name": {"type": "string"},
+    "contact": {"type": "string", "description": "the body touched, empty when free"},
+    "penetration": {"type": "number", "description": "|GO - HIP|, m"}}}
+BODY_SCHEMA = {"type": "object", "title": "grasp_lab.BodyNumbers", "properties": {
+    "time": {"type": "number", "description": "session time, s"},
+    "position": {**_XYZ, "description": "body frame origin, m, world"},
+    "grip": {"type": "number", "description": "sum of |Fn| of the fingers touching it, N"},
+    "residual_force": {"type": "number", "description": "|residual force|, N"},
+    "residual_torque": {"type": "number", "description": "|residual torque| about the centre of mass, N m"},
+    "fingers_in_contact": {"type": "integer"},
+    "fingers_slipping": {"type": "integer"}}}
+
+
+# --------------------------------------------------------------------------- export
+
+def export_foxglove(rec: Recording, path: str, rate: float | None = None, force_scale: float = FORCE_SCALE,
+                    torque_scale: float = TORQUE_SCALE) -> dict:
+    """A viewer-ready copy of ``rec`` at ``path`` (MCAP, Foxglove's schemas): written to a
+    temporary file beside it, renamed when complete. Returns {"frames", "events", "bytes"}."""
+    foxglove = _sdk()
+    from foxglove.mcap import MCAPWriteOptions
+    model = SceneModel(rec.header, force_scale, torque_scale)
+    frames = model.frames(rec, rate)
+    if not frames:
+        raise ValueError(f"{rec.path}: the recording is shorter than one display frame")
+    tmp = f"{path}.partial"
+    context = foxglove.Context()
+    writer = foxglove.open_mcap(tmp, allow_overwrite=True, context=context,
+                                writer_options=MCAPWriteOptions(profile=""))
+    try:
+        channels = FoxgloveChannels(model, context)
+        events = sorted(rec.events, key=lambda e: float(e.get("time", 0.0)))
+        k = 0
+        for fr in frames:           # events interleaved in time, so the file is written in log-time order
+            while k < len(events) and float(events[k].get("time", 0.0)) <= fr.time:
+                channels.log_event(events[k])
+                k += 1
+            channels.log_frame(fr)
+        for e in events[k:]:
+            channels.log_event(e)
+        writer.close()
+    except BaseException:
+        writer.close()
+        if os.path.exists(tmp):
+            os.remove(tmp)
+        raise
+    os.replace(tmp, path)
+    return {"frames": len(frames), "events": len(events), "bytes": os.path.getsize(path),
+            "rate": float(rate or model.display_rate)}
