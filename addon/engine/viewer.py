@@ -389,9 +389,9 @@ def export_foxglove(rec: Recording, path: str, rate: float | None = None, force_
         raise ValueError(f"{rec.path}: the recording is shorter than one display frame")
     tmp = f"{path}.partial"
     context = foxglove.Context()
-    writer = foxglove.open_mcap(tmp, allow_overwrite=True, context=context,
-                                writer_options=MCAPWriteOptions(profile=""))
+    fh = open(tmp, "wb")        # ours, so a path that cannot be written fails naming it
     try:
+        writer = foxglove.open_mcap(fh, context=context, writer_options=MCAPWriteOptions(profile=""))
         channels = FoxgloveChannels(model, context)
         events = sorted(rec.events, key=lambda e: float(e.get("time", 0.0)))
         k = 0
@@ -403,10 +403,10 @@ def export_foxglove(rec: Recording, path: str, rate: float | None = None, force_
         for e in events[k:]:
             channels.log_event(e)
         writer.close()
+        fh.close()
     except BaseException:
-        writer.close()
-        if os.path.exists(tmp):
-            os.remove(tmp)
+        fh.close()
+        os.remove(tmp)
         raise
     os.replace(tmp, path)
     return {"frames": len(frames), "events": len(events), "bytes": os.path.getsize(path),
