@@ -96,13 +96,18 @@ def hull_triangles(points: np.ndarray) -> np.ndarray:
     return pts[tri]
 
 
-def arrow_quaternion(direction: np.ndarray) -> np.ndarray:
-    """(x, y, z, w) turning +x onto the unit ``direction`` (a Foxglove arrow points along +x)."""
-    d = np.asarray(direction, dtype=np.float64)
-    if d[0] < -1.0 + 1e-12:
-        return np.array([0.0, 0.0, 1.0, 0.0])       # half a turn about z
-    q = np.array([0.0, -d[2], d[1], 1.0 + d[0]])
-    return q / np.linalg.norm(q)
+def arrows(tails: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """Foxglove arrows (a Foxglove arrow points along +x of its pose) from tails and vectors
+    (..., 3): (..., 8) tail x y z, orientation x y z w turning +x onto the vector, length
+    (0 for a vector shorter than 1e-6 m: not drawn)."""
+    length = np.sqrt(np.einsum("...k,...k->...", vectors, vectors))
+    shown = length > 1e-6
+    d = vectors / np.where(shown, length, 1.0)[..., None]
+    q = np.stack([np.zeros_like(length), -d[..., 2], d[..., 1], 1.0 + d[..., 0]], axis=-1)
+    back = d[..., 0] < -1.0 + 1e-12                 # half a turn about z
+    q[back] = (0.0, 0.0, 1.0, 0.0)
+    q /= np.linalg.norm(q, axis=-1)[..., None]
+    return np.concatenate([tails, q, np.where(shown, length, 0.0)[..., None]], axis=-1)
 
 
 def topic_name(name: str, taken: set) -> str:
@@ -119,17 +124,18 @@ def topic_name(name: str, taken: set) -> str:
 
 @dataclass
 class ViewerFrame:
-    """One display frame of a session, as numbers (world frame, SI)."""
+    """One display frame of a session, as plain Python numbers (world frame, SI), ready for
+    messages: lists, not arrays (building a message from numpy scalars costs several times more)."""
     time: float
-    pose: np.ndarray            # (nb, 7) x y z qw qx qy qz
-    com: np.ndarray             # (nb, 3) centre of mass, world
-    wrench: np.ndarray          # (nb, 6) residual force, torque
-    hip: np.ndarray             # (nf, 3)
-    god_object: np.ndarray      # (nf, 3)
-    force: np.ndarray           # (nf, 3) coupling force (the body gets -force)
-    state: np.ndarray           # (nf,) 0 free, 1 stick, 2 slip
-    contact: np.ndarray         # (nf,) body index or -1
-    measures: dict              # finger: gl_* (nf,); body: grip (nb,)
+    pose: list                  # nb x [x y z qw qx qy qz]
+    hip: list                   # nf x [x y z]
+    god_object: list            # nf x [x y z]
+    state: list                 # nf: 0 free, 1 stick, 2 slip
+    finger_arrow: list          # nf x [tail xyz, quat xyzw, length]: the push on the body, head at the god-object
+    force_arrow: list           # nb x [...]: residual force at the centre of mass
+    torque_arrow: list          # nb x [...]: residual torque
+    fingers: list               # nf plot dicts
+    bodies: list                # nb plot dicts
 
 
 class SceneModel:
@@ -165,46 +171,43 @@ class SceneModel:
 
 
 def frames_of(model: SceneModel, rec, ticks: np.ndarray, times) -> list:
-    """ViewerFrames of tick records (one per frame time)."""
+    """ViewerFrames of tick records (one per frame time), computed for all of them at once."""
     m = finger_measures(rec, ticks)
     grip = body_grip(ticks["contact"], m["gl_normal_force"], len(model.body_names))
-    pose = ticks["pose"]
+    pose, force, go, wrench = ticks["pose"], ticks["force"], ticks["god_object"], ticks["wrench"]
     com = pose[..., :3] + quat_rotate(pose[..., 3:], model.com_local[None])
+    push = -force * model.force_scale
+    finger_arrow = arrows(go - push, push)
+    force_arrow = arrows(com, wrench[..., :3] * model.force_scale)
+    torque_arrow = arrows(com, wrench[..., 3:] * model.torque_scale)
+    contact, state = ticks["contact"], ticks["state"]
+    names = np.array(model.body_names + [""], dtype=object)
+    contact_name = names[np.where(contact >= 0, contact, len(model.body_names))]
+    on = contact[:, None, :] == np.arange(len(model.body_names))[None, :, None]       # (n, nb, nf)
+    in_contact, slipping = on.sum(axis=2), (on & (state[:, None, :] == 2)).sum(axis=2)
+    res_force = np.linalg.norm(wrench[..., :3], axis=-1)
+    res_torque = np.linalg.norm(wrench[..., 3:], axis=-1)
+    penetration = np.linalg.norm(go - ticks["hip"], axis=-1)
+    per_finger = {"force_norm": m["gl_force"], "normal_force": m["gl_normal_force"],
+                  "tangential_force": m["gl_tangential_force"], "friction_use": m["gl_friction_use"]}
     out = []
-    for k, time_s in enumerate(times):
-        out.append(ViewerFrame(
-            time=float(time_s), pose=pose[k], com=com[k], wrench=ticks["wrench"][k], hip=ticks["hip"][k],
-            god_object=ticks["god_object"][k], force=ticks["force"][k], state=ticks["state"][k],
-            contact=ticks["contact"][k],
-            measures={**{key: v[k] for key, v in m.items()}, "grip": grip[k]}))
+    for k, t in enumerate(np.asarray(times, dtype=np.float64).tolist()):
+        f, st, cn = force[k].tolist(), state[k].tolist(), contact_name[k].tolist()
+        meas = {key: v[k].tolist() for key, v in per_finger.items()}
+        pen = penetration[k].tolist()
+        fingers = [{"time": t, "force": {"x": f[j][0], "y": f[j][1], "z": f[j][2]},
+                    **{key: v[j] for key, v in meas.items()},
+                    "state": st[j], "state_name": STATE_NAMES[st[j]] if 0 <= st[j] < 3 else str(st[j]),
+                    "contact": cn[j], "penetration": pen[j]} for j in range(len(st))]
+        p, g, rf, rt = pose[k].tolist(), grip[k].tolist(), res_force[k].tolist(), res_torque[k].tolist()
+        ic, sl = in_contact[k].tolist(), slipping[k].tolist()
+        bodies = [{"time": t, "position": {"x": p[i][0], "y": p[i][1], "z": p[i][2]}, "grip": g[i],
+                   "residual_force": rf[i], "residual_torque": rt[i], "fingers_in_contact": ic[i],
+                   "fingers_slipping": sl[i]} for i in range(len(p))]
+        out.append(ViewerFrame(time=t, pose=p, hip=ticks["hip"][k].tolist(), god_object=go[k].tolist(),
+                               state=st, finger_arrow=finger_arrow[k].tolist(), force_arrow=force_arrow[k].tolist(),
+                               torque_arrow=torque_arrow[k].tolist(), fingers=fingers, bodies=bodies))
     return out
-
-
-def finger_numbers(model: SceneModel, fr: ViewerFrame, j: int) -> dict:
-    """The plot channel of finger ``j`` at a frame."""
-    f = fr.force[j]
-    s, c = int(fr.state[j]), int(fr.contact[j])
-    m = fr.measures
-    return {"time": fr.time,
-            "force": {"x": float(f[0]), "y": float(f[1]), "z": float(f[2])},
-            "force_norm": float(m["gl_force"][j]), "normal_force": float(m["gl_normal_force"][j]),
-            "tangential_force": float(m["gl_tangential_force"][j]),
-            "friction_use": float(m["gl_friction_use"][j]),
-            "state": s, "state_name": STATE_NAMES[s] if 0 <= s < 3 else str(s),
-            "contact": model.body_names[c] if 0 <= c < len(model.body_names) else "",
-            "penetration": float(np.linalg.norm(fr.god_object[j] - fr.hip[j]))}
-
-
-def body_numbers(model: SceneModel, fr: ViewerFrame, i: int) -> dict:
-    """The plot channel of body ``i`` at a frame."""
-    p, w = fr.pose[i], fr.wrench[i]
-    on = fr.contact == i
-    return {"time": fr.time,
-            "position": {"x": float(p[0]), "y": float(p[1]), "z": float(p[2])},
-            "grip": float(fr.measures["grip"][i]),
-            "residual_force": float(np.linalg.norm(w[:3])), "residual_torque": float(np.linalg.norm(w[3:])),
-            "fingers_in_contact": int(on.sum()),
-            "fingers_slipping": int((on & (fr.state == 2)).sum())}
 
 
 # --------------------------------------------------------------------------- Foxglove messages
@@ -240,40 +243,45 @@ class FoxgloveChannels:
         self.body_plots = [foxglove.Channel(t, schema=BODY_SCHEMA, context=context) for t in model.body_topics]
         self._bodies_at = None
         self._body_entities = None
+        fm = self.fm
+        c = lambda rgba: fm.Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])  # noqa: E731
+        self._state_colors = {k: c(v) for k, v in STATE_COLORS.items()}
+        self._colors = {name: c(v) for name, v in (("go", GO_COLOR), ("hip", HIP_COLOR), ("push", FINGER_FORCE_COLOR),
+                                                   ("force", FORCE_COLOR), ("torque", TORQUE_COLOR),
+                                                   ("body", BODY_COLOR), ("static", STATIC_BODY_COLOR))}
+        self._origin = self._pose((0.0, 0.0, 0.0))
+        self._go_size = [fm.Vector3(x=2 * r, y=2 * r, z=2 * r) for r in model.radii.tolist()]
+        self._hip_size = fm.Vector3(x=HIP_DIAMETER, y=HIP_DIAMETER, z=HIP_DIAMETER)
+        self._strip = fm.LinePrimitiveLineType.LineStrip
 
     # ---- building blocks
-    def _color(self, rgba):
-        return self.fm.Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
-
     def _point(self, p):
-        return self.fm.Point3(x=float(p[0]), y=float(p[1]), z=float(p[2]))
+        return self.fm.Point3(x=p[0], y=p[1], z=p[2])
 
     def _pose(self, p, q_xyzw=(0.0, 0.0, 0.0, 1.0)):
         fm = self.fm
-        return fm.Pose(position=fm.Vector3(x=float(p[0]), y=float(p[1]), z=float(p[2])),
-                       orientation=fm.Quaternion(x=float(q_xyzw[0]), y=float(q_xyzw[1]), z=float(q_xyzw[2]),
-                                                 w=float(q_xyzw[3])))
+        return fm.Pose(position=fm.Vector3(x=p[0], y=p[1], z=p[2]),
+                       orientation=fm.Quaternion(x=q_xyzw[0], y=q_xyzw[1], z=q_xyzw[2], w=q_xyzw[3]))
 
-    def _arrow(self, tail, vec, scale, rgba):
-        """An arrow from ``tail`` along ``vec`` * ``scale`` (m); None when shorter than 1e-6 m."""
-        length = float(np.linalg.norm(vec)) * scale
-        if not length > 1e-6:
-            return None
+    def _arrow(self, a, color):
+        """An ``arrows`` row (tail, orientation, length) as a primitive; [] when not drawn."""
+        length = a[7]
+        if length <= 0.0:
+            return []
         head = min(0.25 * length, 4 * ARROW_DIAMETER)
-        return self.fm.ArrowPrimitive(pose=self._pose(tail, arrow_quaternion(vec / np.linalg.norm(vec))),
-                                      shaft_length=length - head, shaft_diameter=ARROW_DIAMETER,
-                                      head_length=head, head_diameter=2.5 * ARROW_DIAMETER,
-                                      color=self._color(rgba))
+        return [self.fm.ArrowPrimitive(pose=self._pose(a[:3], a[3:7]), shaft_length=length - head,
+                                       shaft_diameter=ARROW_DIAMETER, head_length=head,
+                                       head_diameter=2.5 * ARROW_DIAMETER, color=color)]
 
     def _body_entities_of(self, stamp):
         fm, model = self.fm, self.model
         if self._body_entities is None:
             self._body_entities = []
             for i, parts in enumerate(model.meshes):
-                rgba = STATIC_BODY_COLOR if model.static[i] else BODY_COLOR
+                color = self._colors["static" if model.static[i] else "body"]
                 triangles = [fm.TriangleListPrimitive(
-                    pose=self._pose((0.0, 0.0, 0.0)), points=[self._point(v) for v in tri.reshape(-1, 3)],
-                    color=self._color(rgba)) for tri in parts]
+                    pose=self._origin, points=[self._point(v) for v in tri.reshape(-1, 3).tolist()],
+                    color=color) for tri in parts]
                 self._body_entities.append((model.body_frames[i], f"body/{model.body_names[i]}", triangles))
         return [fm.SceneEntity(timestamp=stamp, frame_id=frame, id=eid, frame_locked=True, triangles=tris,
                                metadata=[fm.KeyValuePair(key="kind", value="body")])
@@ -281,39 +289,28 @@ class FoxgloveChannels:
 
     # ---- messages of a frame
     def scene_update(self, fr: ViewerFrame):
-        fm, model = self.fm, self.model
+        fm, model, colors = self.fm, self.model, self._colors
         stamp = _stamp(fm, fr.time)
         entities = []
         for j, name in enumerate(model.finger_names):
-            s = int(fr.state[j])
-            rgba = STATE_COLORS.get(s, STATE_COLORS[0])
+            s = fr.state[j]
             go, hip = fr.god_object[j], fr.hip[j]
-            d = 2.0 * model.radii[j]
-            arrows = []
-            arrow = self._arrow(go + fr.force[j] * model.force_scale, -fr.force[j], model.force_scale,
-                                FINGER_FORCE_COLOR)         # the push on the body, its head at the god-object
-            if arrow is not None:
-                arrows.append(arrow)
             entities.append(fm.SceneEntity(
                 timestamp=stamp, frame_id=WORLD_FRAME, id=f"finger/{name}",
                 metadata=[fm.KeyValuePair(key="state", value=STATE_NAMES[s] if 0 <= s < 3 else str(s))],
-                spheres=[fm.SpherePrimitive(pose=self._pose(go), size=fm.Vector3(x=d, y=d, z=d),
-                                            color=self._color(GO_COLOR)),
-                         fm.SpherePrimitive(pose=self._pose(hip),
-                                            size=fm.Vector3(x=HIP_DIAMETER, y=HIP_DIAMETER, z=HIP_DIAMETER),
-                                            color=self._color(HIP_COLOR))],
-                lines=[fm.LinePrimitive(type=fm.LinePrimitiveLineType.LineStrip, pose=self._pose((0, 0, 0)),
-                                        thickness=SPRING_WIDTH, points=[self._point(hip), self._point(go)],
-                                        color=self._color(rgba))],
-                arrows=arrows))
+                spheres=[fm.SpherePrimitive(pose=self._pose(go), size=self._go_size[j], color=colors["go"]),
+                         fm.SpherePrimitive(pose=self._pose(hip), size=self._hip_size, color=colors["hip"])],
+                lines=[fm.LinePrimitive(type=self._strip, pose=self._origin, thickness=SPRING_WIDTH,
+                                        points=[self._point(hip), self._point(go)],
+                                        color=self._state_colors.get(s, self._state_colors[0]))],
+                arrows=self._arrow(fr.finger_arrow[j], colors["push"])))
         for i, name in enumerate(model.body_names):
             if model.static[i]:
                 continue
-            arrows = [a for a in (self._arrow(fr.com[i], fr.wrench[i, :3], model.force_scale, FORCE_COLOR),
-                                  self._arrow(fr.com[i], fr.wrench[i, 3:], model.torque_scale, TORQUE_COLOR))
-                      if a is not None]
-            entities.append(fm.SceneEntity(timestamp=stamp, frame_id=WORLD_FRAME, id=f"residual/{name}",
-                                           arrows=arrows))
+            entities.append(fm.SceneEntity(
+                timestamp=stamp, frame_id=WORLD_FRAME, id=f"residual/{name}",
+                arrows=self._arrow(fr.force_arrow[i], colors["force"]) + self._arrow(fr.torque_arrow[i],
+                                                                                    colors["torque"])))
         return fm.SceneUpdate(entities=entities)
 
     def frame_transforms(self, fr: ViewerFrame):
@@ -321,8 +318,8 @@ class FoxgloveChannels:
         stamp = _stamp(fm, fr.time)
         return fm.FrameTransforms(transforms=[
             fm.FrameTransform(timestamp=stamp, parent_frame_id=WORLD_FRAME, child_frame_id=frame,
-                              translation=fm.Vector3(x=float(p[0]), y=float(p[1]), z=float(p[2])),
-                              rotation=fm.Quaternion(x=float(p[4]), y=float(p[5]), z=float(p[6]), w=float(p[3])))
+                              translation=fm.Vector3(x=p[0], y=p[1], z=p[2]),
+                              rotation=fm.Quaternion(x=p[4], y=p[5], z=p[6], w=p[3]))
             for frame, p in zip(self.model.body_frames, fr.pose)])
 
     def log_frame(self, fr: ViewerFrame) -> None:
@@ -334,10 +331,10 @@ class FoxgloveChannels:
             self._bodies_at = fr.time
         self.transforms.log(self.frame_transforms(fr), log_time=ns)
         self.scene.log(self.scene_update(fr), log_time=ns)
-        for j, channel in enumerate(self.fingers):
-            channel.log(finger_numbers(self.model, fr, j), log_time=ns)
-        for i, channel in enumerate(self.body_plots):
-            channel.log(body_numbers(self.model, fr, i), log_time=ns)
+        for channel, numbers in zip(self.fingers, fr.fingers):
+            channel.log(numbers, log_time=ns)
+        for channel, numbers in zip(self.body_plots, fr.bodies):
+            channel.log(numbers, log_time=ns)
 
     def log_event(self, e: dict) -> None:
         fm = self.fm
