@@ -217,7 +217,7 @@ def _run_export(args, out, err):
         except ImportError as ex:
             raise CliError(str(ex)) from None
         print(f"{args.foxglove}: {done['frames']} frames at {done['rate']:g} Hz, {done['events']} events, "
-              f"{done['bytes'] / 1e6:.2f} MB", file=out)
+              f"{done['bytes'] / 1e6:.2f} MB; layout {done['layout']}", file=out)
     elif args.csv:
         counts = export_csv(rec, args.csv, args.every)
         for name, n in counts.items():

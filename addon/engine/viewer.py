@@ -12,6 +12,7 @@ needs ``foxglove-sdk``, imported when a copy is written, so nothing else depends
 """
 from __future__ import annotations
 
+import json
 import os
 import re
 from dataclasses import dataclass
@@ -372,12 +373,60 @@ BODY_SCHEMA = {"type": "object", "title": "grasp_lab.BodyNumbers", "properties":
     "fingers_slipping": {"type": "integer"}}}
 
 
+# --------------------------------------------------------------------------- layout
+
+def layout_json(model: SceneModel) -> str:
+    """A Foxglove layout for the copy of a recording of this scene: the 3-D scene beside force,
+    friction-use and grip plots, the fingers' stick/slip states and the event log."""
+    foxglove = _sdk()   # noqa: F841 (its layouts module, below)
+    import foxglove.layouts as fl
+    fingers = list(zip(model.finger_names, model.finger_topics))
+    bodies = [(n, t) for n, t, static in zip(model.body_names, model.body_topics, model.static) if not static]
+
+    def plot(title, series, y_min=None):
+        return fl.PlotPanel(title=title, config=fl.PlotConfig(
+            paths=[fl.PlotSeries(value=v, label=label, enabled=True) for label, v in series],
+            show_legend=True, legend_display="top", min_y_value=y_min, is_synced=True))
+
+    # The camera on the first moving body, far enough back to see a hand around it.
+    scene = model.header["scene"]["bodies"]
+    moving = [b for b in scene if not b["static"]] or scene
+    target = tuple(round(float(x), 4) for x in moving[0]["position"]) if moving else (0.0, 0.0, 0.0)
+    size = max((float(np.ptp(np.asarray(p, dtype=np.float64).reshape(-1, 3), axis=0).max())
+                for p in (moving[0]["parts"] if moving else [])), default=0.1)
+    distance = round(max(0.3, 8.0 * size), 3)
+    three_d = fl.ThreeDeePanel(title="Grasp", config=fl.ThreeDeeConfig(
+        follow_tf=WORLD_FRAME, fixed_frame=WORLD_FRAME,
+        camera_state=fl.ThreeDeeCameraState(distance=distance, perspective=True, phi=60.0, theta_offset=45.0,
+                                            target=target),
+        topics={TOPIC_SCENE: fl.BaseRendererSceneUpdateTopicSettings(visible=True),
+                TOPIC_BODIES: fl.BaseRendererSceneUpdateTopicSettings(visible=True)}))
+    forces = plot("Finger forces (N): normal, tangential",
+                  [(f"{n} |Fn|", f"{t}.normal_force") for n, t in fingers]
+                  + [(f"{n} |Ft|", f"{t}.tangential_force") for n, t in fingers], y_min=0)
+    use = plot("Friction use |Ft| / (mu_s |Fn|): slip at 1", [(n, f"{t}.friction_use") for n, t in fingers], y_min=0)
+    grip = plot("Bodies: grip (N) and residual force (N)",
+                [(f"{n} grip", f"{t}.grip") for n, t in bodies]
+                + [(f"{n} residual", f"{t}.residual_force") for n, t in bodies], y_min=0)
+    states = fl.StateTransitionsPanel(title="Finger states", config=fl.StateTransitionsConfig(
+        paths=[fl.StateTransitionsSeries(value=f"{t}.state_name", label=n) for n, t in fingers], is_synced=True))
+    log = fl.LogPanel(title="Events", config=fl.LogConfig(topic_to_render=TOPIC_LOG, show_time=True))
+    item = fl.SplitItem
+    content = fl.SplitContainer(direction="row", items=[
+        item(proportion=3, content=fl.SplitContainer(direction="column", items=[
+            item(proportion=3, content=three_d), item(proportion=1, content=log)])),
+        item(proportion=2, content=fl.SplitContainer(direction="column", items=[
+            item(content=forces), item(content=use), item(content=grip), item(content=states)]))])
+    return json.dumps(json.loads(fl.Layout(content=content).to_json()), indent=1) + "\n"
+
+
 # --------------------------------------------------------------------------- export
 
 def export_foxglove(rec: Recording, path: str, rate: float | None = None, force_scale: float = FORCE_SCALE,
                     torque_scale: float = TORQUE_SCALE) -> dict:
-    """A viewer-ready copy of ``rec`` at ``path`` (MCAP, Foxglove's schemas): written to a
-    temporary file beside it, renamed when complete. Returns {"frames", "events", "bytes"}."""
+    """A viewer-ready copy of ``rec`` at ``path`` (MCAP, Foxglove's schemas), written to a
+    temporary file beside it and renamed when complete, and its layout (``layout_path``).
+    Returns {"frames", "events", "bytes", "rate", "layout"}."""
     foxglove = _sdk()
     from foxglove.mcap import MCAPWriteOptions
     model = SceneModel(rec.header, force_scale, torque_scale)
@@ -406,5 +455,14 @@ def export_foxglove(rec: Recording, path: str, rate: float | None = None, force_
         os.remove(tmp)
         raise
     os.replace(tmp, path)
+    layout = layout_path(path)
+    with open(f"{layout}.partial", "w") as fh:
+        fh.write(layout_json(model))
+    os.replace(f"{layout}.partial", layout)
     return {"frames": len(frames), "events": len(events), "bytes": os.path.getsize(path),
-            "rate": float(rate or model.display_rate)}
+            "rate": float(rate or model.display_rate), "layout": layout}
+
+
+def layout_path(path: str) -> str:
+    """Where the layout of a copy at ``path`` goes: beside it, OUT.layout.json."""
+    return os.path.splitext(path)[0] + ".layout.json"

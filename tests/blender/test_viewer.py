@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import sys
 
 import numpy as np
@@ -310,6 +311,37 @@ def test_events_are_logs(pinch, exported):
         assert match[0].level == expected_level
 
 
+def panels(node):
+    if node.get("type") == "panel":
+        yield node
+    for item in node.get("items", []):
+        yield from panels(item["content"])
+
+
+def test_layout_shows_what_the_copy_has(exported):
+    path, done, (topics, _, _) = exported
+    with open(done["layout"]) as fh:
+        text = fh.read()
+    docs = os.path.join(recordings.ROOT, "docs", "foxglove", "grasp_lab_layout.json")
+    with open(docs) as fh:
+        assert fh.read() == text, "docs/foxglove/grasp_lab_layout.json is not the sample scene's layout"
+    layout = json.loads(text)
+    found = {p["panelType"]: p for p in panels(layout["content"])}
+    assert set(found) == {"ThreeDee", "Plot", "StateTransitions", "Log"}
+    assert set(found["ThreeDee"]["config"]["topics"]) == {viewer.TOPIC_SCENE, viewer.TOPIC_BODIES}
+    assert found["Log"]["config"]["topicToRender"] == viewer.TOPIC_LOG
+    series = [s["value"] for p in panels(layout["content"]) if p["panelType"] in ("Plot", "StateTransitions")
+              for s in p["config"]["paths"]]
+    assert len(series) == 2 * 2 + 2 + 2 + 2      # forces (Fn, Ft) and use per finger, Box grip and residual, states
+    for value in series:
+        topic, field = value.split(".", 1)
+        assert topic in topics, value
+        assert all(field in msg for _, msg in topics[topic]), value
+    for name in ("Finger 0", "Finger 1"):
+        assert any(name in s.get("label", "") for p in panels(layout["content"]) if p["panelType"] == "Plot"
+                   for s in p["config"]["paths"])
+
+
 # --------------------------------------------------------------------------- the command
 
 def test_cli_export_foxglove(pinch, tmp_path):
@@ -317,6 +349,7 @@ def test_cli_export_foxglove(pinch, tmp_path):
     path = tmp_path / "copy.mcap"
     assert cli.main(["export", pinch.path, "--foxglove", str(path)], out=out, err=err) == 0, err.getvalue()
     assert f"{path}: 181 frames at 30 Hz, 8 events" in out.getvalue()
+    assert f"layout {tmp_path / 'copy.layout.json'}" in out.getvalue()
     assert not (tmp_path / "copy.mcap.partial").exists()
     topics, _, _ = read_back(path)
     assert len(topics[viewer.TOPIC_SCENE]) == 181
