@@ -124,6 +124,7 @@ class BlenderSession:
         self.result = SessionResult(body_names=[b.name for b in desc.bodies],
                                     finger_names=[f.name for f in desc.fingers])
         self.snapshot = None
+        self.live_view = None       # engine.live_view.LiveView: display updates served to Foxglove
         self.finished = False
         self.error = ""             # why a live session stopped early
         self.ended_by = "Stop"      # how it ended, for the report
@@ -139,6 +140,8 @@ class BlenderSession:
     def apply(self, snap, frame):
         """Write body poses back and update the display objects."""
         self.snapshot = snap
+        if self.live_view is not None:
+            self.live_view.offer(snap)
         for i in self.dynamic:
             p = snap.poses[i]
             self.objects[i].matrix_world = self.links[i].matrix_world(p[:3], p[3:])
@@ -230,6 +233,8 @@ class BlenderSession:
                       if st["lag_s"] > 2.0 / max(self.settings.display_rate, 1.0) else "real time")
             lines.append(f"contacts {n_c} / {len(self.desc.fingers)}   display {st['display_rate']:.1f} Hz   "
                          f"{behind}")
+        if self.live_view is not None:
+            lines.append(self.live_view.status())
         return "\n".join(lines)
 
     def finish(self):
@@ -244,6 +249,8 @@ class BlenderSession:
         self.runner.stop()
         r = self.result
         r.stats = self.runner.stats()
+        if self.live_view is not None:
+            r.stats["live_view"] = self.live_view.close()
         if self.devices is not None:
             r.stats["device_events"] = list(self.devices.events)
             self.runner.events += self.devices.events

@@ -108,6 +108,21 @@ def _configure_run(p):
     p.add_argument("--record", metavar="OUT.mcap", help="record every haptic tick to this file")
     p.add_argument("--save", metavar="OUT.blend", help="save the scene after the session")
     p.add_argument("--set", action="append", default=[], type=_override, metavar="KEY=VALUE", help=SET_HELP)
+    p.add_argument("--live-view", nargs="?", const=8765, type=_port, metavar="PORT",
+                   help="with --realtime: serve the session to Foxglove over WebSocket, watching only "
+                        "(default port 8765; 0: any free port)")
+    p.add_argument("--live-view-bind", default="127.0.0.1", metavar="ADDR",
+                   help="the address the live view listens on (default 127.0.0.1: this machine only)")
+
+
+def _port(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a port number, got {text!r}") from None
+    if not 0 <= v <= 65535:
+        raise argparse.ArgumentTypeError(f"a port is 0..65535, got {v}")
+    return v
 
 
 def _configure_info(p):
@@ -232,6 +247,8 @@ def _run_run(args, out, err):
     from .. import headless
     for spec in args.device:
         check_device(spec)
+    if args.live_view is not None and not args.realtime:
+        raise CliError("--live-view needs --realtime (it serves a live session)")
     if args.device and not args.realtime:
         raise CliError("--device needs --realtime (devices drive a live session on the threaded runtime)")
     return headless.run(args, out, err)

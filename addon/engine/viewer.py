@@ -222,11 +222,6 @@ def _sdk():
     return foxglove
 
 
-def _stamp(fm, t: float):
-    ns = max(0, int(round(t * 1e9)))
-    return fm.Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
-
-
 class FoxgloveChannels:
     """The viewer channels on one foxglove-sdk context (an MCAP file or a live server)."""
 
@@ -244,6 +239,7 @@ class FoxgloveChannels:
         self.body_plots = [foxglove.Channel(t, schema=BODY_SCHEMA, context=context) for t in model.body_topics]
         self._bodies_at = None
         self._body_entities = None
+        self.time_offset = 0.0      # s added to session time in stamps (live: the wall clock)
         fm = self.fm
         c = lambda rgba: fm.Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])  # noqa: E731
         self._state_colors = {k: c(v) for k, v in STATE_COLORS.items()}
@@ -256,6 +252,13 @@ class FoxgloveChannels:
         self._strip = fm.LinePrimitiveLineType.LineStrip
 
     # ---- building blocks
+    def _ns(self, t: float) -> int:
+        return max(0, int(round((t + self.time_offset) * 1e9)))
+
+    def _ts(self, t: float):
+        ns = self._ns(t)
+        return self.fm.Timestamp(ns // 1_000_000_000, ns % 1_000_000_000)
+
     def _point(self, p):
         return self.fm.Point3(x=p[0], y=p[1], z=p[2])
 
@@ -291,7 +294,7 @@ class FoxgloveChannels:
     # ---- messages of a frame
     def scene_update(self, fr: ViewerFrame):
         fm, model, colors = self.fm, self.model, self._colors
-        stamp = _stamp(fm, fr.time)
+        stamp = self._ts(fr.time)
         entities = []
         for j, name in enumerate(model.finger_names):
             s = fr.state[j]
@@ -316,7 +319,7 @@ class FoxgloveChannels:
 
     def frame_transforms(self, fr: ViewerFrame):
         fm = self.fm
-        stamp = _stamp(fm, fr.time)
+        stamp = self._ts(fr.time)
         return fm.FrameTransforms(transforms=[
             fm.FrameTransform(timestamp=stamp, parent_frame_id=WORLD_FRAME, child_frame_id=frame,
                               translation=fm.Vector3(x=p[0], y=p[1], z=p[2]),
@@ -325,9 +328,9 @@ class FoxgloveChannels:
 
     def log_frame(self, fr: ViewerFrame) -> None:
         """Everything a display update shows, stamped with its session time."""
-        ns = max(0, int(round(fr.time * 1e9)))
+        ns = self._ns(fr.time)
         if self._bodies_at is None or fr.time >= self._bodies_at + BODIES_REPEAT - 1e-9:
-            self.bodies.log(self.fm.SceneUpdate(entities=self._body_entities_of(_stamp(self.fm, fr.time))),
+            self.bodies.log(self.fm.SceneUpdate(entities=self._body_entities_of(self._ts(fr.time))),
                             log_time=ns)
             self._bodies_at = fr.time
         self.transforms.log(self.frame_transforms(fr), log_time=ns)
@@ -344,9 +347,9 @@ class FoxgloveChannels:
         level = (fm.LogLevel.Warning if kind in WARNING_EVENTS else
                  fm.LogLevel.Error if kind in ERROR_EVENTS else fm.LogLevel.Info)
         text = " ".join(str(x) for x in (kind, e.get("subject", ""), e.get("detail", "")) if x != "")
-        self.log.log(fm.Log(timestamp=_stamp(fm, t), level=level, message=text, name="grasp_lab",
+        self.log.log(fm.Log(timestamp=self._ts(t), level=level, message=text, name="grasp_lab",
                             file=self.model.header.get("source", "") or "", line=max(0, int(e.get("tick", 0)))),
-                     log_time=max(0, int(round(t * 1e9))))
+                     log_time=self._ns(t))
 
 
 WARNING_EVENTS = {"slip", "forces_off", "clamp_begin", "device_lost", "device_stall", "device_dropped"}
