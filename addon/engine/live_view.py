@@ -31,15 +31,18 @@ def header_of(desc, haptic_rate: float, runtime: dict | None = None) -> dict:
 
 
 class _Viewers:
-    """The server's listener: how many subscriptions viewers hold (for the HUD)."""
+    """The server's listener: how many subscriptions viewers hold (for the HUD), and whether
+    one is new (it gets the body meshes with the next update, not a second later)."""
 
     def __init__(self):
         self.subscribed = 0
+        self.joined = False
         self._lock = threading.Lock()
 
     def on_subscribe(self, client, channel):
         with self._lock:
             self.subscribed += 1
+            self.joined = True
 
     def on_unsubscribe(self, client, channel):
         with self._lock:
@@ -116,6 +119,9 @@ class LiveView:
                 # Stamped with the wall clock of the display update that offered it: a viewer's
                 # timeline is the wall clock, and its delay is what it receives minus the stamp.
                 self.channels.time_offset = offered - snap.time
+                if self.viewers.joined:
+                    self.viewers.joined = False
+                    self.channels.resend_bodies()
                 row = self._row(snap)
                 fr = frames_of(self.model, self, row, [snap.time])[0]
                 for tick, t, kind, subject, detail in self.events(row):

@@ -326,6 +326,10 @@ class FoxgloveChannels:
                               rotation=fm.Quaternion(x=p[4], y=p[5], z=p[6], w=p[3]))
             for frame, p in zip(self.model.body_frames, fr.pose)])
 
+    def resend_bodies(self) -> None:
+        """The body meshes go out again with the next frame (a viewer joined)."""
+        self._bodies_at = None
+
     def log_frame(self, fr: ViewerFrame) -> None:
         """Everything a display update shows, stamped with its session time."""
         ns = self._ns(fr.time)
