@@ -10,6 +10,11 @@ sample scene (2 bodies + 2 fingers, a real EXEC recording) and 20 bodies + 10 fi
 (synthetic motion, every finger pressing). Then the export's speed and the copy's size per
 second of session beside the recording's.
 
+Live view: snapshots of the same sessions offered at 30 Hz (as display updates offer them)
+to a LiveView watched by one WebSocket client on localhost: what ``offer`` costs the display
+update, what the live view's thread spends per update, and the delay from the display
+update to the client receiving the scene.
+
 Usage: .venv/bin/python bench/bench_viewer.py [--seconds 20]
 """
 from __future__ import annotations
@@ -81,6 +86,64 @@ def per_frame_costs(rec, tmp, repeats=3):
     return viewer_us, rec_us, rate
 
 
+def live_costs(rec, seconds=6.0, rate=30.0):
+    """offer() µs, live thread µs per update, delay ms (display update -> client has the
+    scene), updates received / offered."""
+    import json
+    import struct
+
+    from websockets.sync.client import connect
+
+    from addon.engine.live_view import LiveView
+    from addon.engine.runner import Snapshot
+    lv = LiveView(rec.header, port=0)
+    ws = connect(lv.address, subprotocols=["foxglove.sdk.v1"])
+    json.loads(ws.recv(timeout=5))
+    channels = {}
+    while len(channels) < 4 + len(rec.body_names) + len(rec.finger_names):
+        msg = json.loads(ws.recv(timeout=5))
+        if msg["op"] == "advertise":
+            channels.update({c["id"]: c["topic"] for c in msg["channels"]})
+    scene = [cid for cid, topic in channels.items() if topic == "/grasp_lab/scene"][0]
+    ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": c, "channelId": c} for c in channels]}))
+    time.sleep(0.3)
+    delays, offers, received = [], [], [0]
+    stop = [False]
+
+    def listen():
+        while not stop[0]:
+            try:
+                m = ws.recv(timeout=0.2)
+            except TimeoutError:
+                continue
+            if isinstance(m, bytes):
+                _, sub, log_time = struct.unpack_from("<BIQ", m)
+                if sub == scene:
+                    delays.append((time.time() - log_time / 1e9) * 1e3)
+                    received[0] += 1
+    import threading
+    th = threading.Thread(target=listen)
+    th.start()
+    n = int(seconds * rate)
+    step = max(1, int(len(rec.ticks) / n))
+    t0 = time.perf_counter()
+    for k in range(n):
+        t = rec.ticks[(k * step) % len(rec.ticks)]
+        snap = Snapshot(float(t["time"]), t["pose"], t["pose"][:, :3], t["wrench"][:, :3], t["wrench"][:, 3:],
+                        t["hip"], t["god_object"], t["force"], t["state"], t["contact"])
+        a = time.perf_counter()
+        lv.offer(snap)
+        offers.append((time.perf_counter() - a) * 1e6)
+        time.sleep(max(0.0, t0 + (k + 1) / rate - time.perf_counter()))
+    time.sleep(0.5)
+    stop[0] = True
+    th.join()
+    ws.close()
+    cost = list(lv.cost_us)
+    lv.close()
+    return offers, cost, delays, received[0], n
+
+
 def pct(a, q):
     return float(np.percentile(a, q))
 
@@ -122,6 +185,14 @@ def main(argv=None):
                      f"{spent / duration * 1e3:.0f} ms ({done['frames']} frames at {rate:g} Hz)"))
         rows.append((f"file per second of session, {label}: viewer copy / recording",
                      f"{done['bytes'] / duration / 1e3:.1f} / {os.path.getsize(path) / duration / 1e3:.1f} kB"))
+        offers, cost, delays, got, n = live_costs(rec)
+        rows.append((f"live view, {label}: offer() on the display update (median / max)",
+                     f"{statistics.median(offers):.1f} / {max(offers):.1f} µs"))
+        rows.append((f"live view, {label}: its thread per update (median / p95)",
+                     f"{statistics.median(cost):.0f} / {pct(cost, 95):.0f} µs"))
+        rows.append((f"live view, {label}: display update to client, localhost (median / p95 / max)",
+                     f"{statistics.median(delays):.1f} / {pct(delays, 95):.1f} / {max(delays):.1f} ms "
+                     f"({got} of {n} updates received at 30 Hz)"))
     print("| what | measured |\n| --- | --- |")
     for k, val in rows:
         print(f"| {k} | {val} |")

@@ -123,7 +123,7 @@ class LiveView:
                     self.viewers.joined = False
                     self.channels.resend_bodies()
                 row = self._row(snap)
-                fr = frames_of(self.model, self, row, [snap.time])[0]
+                fr = frames_of(self.model, self, row, [snap.time], normals=False)[0]
                 for tick, t, kind, subject, detail in self.events(row):
                     self.channels.log_event({"tick": tick, "time": t, "kind": kind, "subject": subject,
                                              "detail": detail})

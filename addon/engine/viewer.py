@@ -171,8 +171,10 @@ class SceneModel:
         return frames_of(self, rec, rec.ticks[idx], times)
 
 
-def frames_of(model: SceneModel, rec, ticks: np.ndarray, times) -> list:
-    """ViewerFrames of tick records (one per frame time), computed for all of them at once."""
+def frames_of(model: SceneModel, rec, ticks: np.ndarray, times, normals: bool = True) -> list:
+    """ViewerFrames of tick records (one per frame time), computed for all of them at once.
+    ``normals=False``: the records carry no contact normals (a live snapshot), so the finger
+    numbers that need one (normal and tangential force, friction use, grip) are left out."""
     m = finger_measures(rec, ticks)
     grip = body_grip(ticks["contact"], m["gl_normal_force"], len(model.body_names))
     pose, force, go, wrench = ticks["pose"], ticks["force"], ticks["god_object"], ticks["wrench"]
@@ -189,8 +191,10 @@ def frames_of(model: SceneModel, rec, ticks: np.ndarray, times) -> list:
     res_force = np.linalg.norm(wrench[..., :3], axis=-1)
     res_torque = np.linalg.norm(wrench[..., 3:], axis=-1)
     penetration = np.linalg.norm(go - ticks["hip"], axis=-1)
-    per_finger = {"force_norm": m["gl_force"], "normal_force": m["gl_normal_force"],
-                  "tangential_force": m["gl_tangential_force"], "friction_use": m["gl_friction_use"]}
+    per_finger = {"force_norm": m["gl_force"]}
+    if normals:
+        per_finger.update({"normal_force": m["gl_normal_force"], "tangential_force": m["gl_tangential_force"],
+                           "friction_use": m["gl_friction_use"]})
     out = []
     for k, t in enumerate(np.asarray(times, dtype=np.float64).tolist()):
         f, st, cn = force[k].tolist(), state[k].tolist(), contact_name[k].tolist()
@@ -202,7 +206,8 @@ def frames_of(model: SceneModel, rec, ticks: np.ndarray, times) -> list:
                     "contact": cn[j], "penetration": pen[j]} for j in range(len(st))]
         p, g, rf, rt = pose[k].tolist(), grip[k].tolist(), res_force[k].tolist(), res_torque[k].tolist()
         ic, sl = in_contact[k].tolist(), slipping[k].tolist()
-        bodies = [{"time": t, "position": {"x": p[i][0], "y": p[i][1], "z": p[i][2]}, "grip": g[i],
+        bodies = [{"time": t, "position": {"x": p[i][0], "y": p[i][1], "z": p[i][2]},
+                   **({"grip": g[i]} if normals else {}),
                    "residual_force": rf[i], "residual_torque": rt[i], "fingers_in_contact": ic[i],
                    "fingers_slipping": sl[i]} for i in range(len(p))]
         out.append(ViewerFrame(time=t, pose=p, hip=ticks["hip"][k].tolist(), god_object=go[k].tolist(),

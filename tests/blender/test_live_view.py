@@ -130,6 +130,8 @@ def test_a_viewer_receives_the_advertised_channels_as_the_session_runs(pinch):
             numbers = json.loads(f_data)
             snap = shown[round(numbers["time"], 9)]
             assert [numbers["force"][k] for k in "xyz"] == list(snap.finger_forces[0])
+            # A snapshot has no contact normals: what needs one is left out, not shown as 0.
+            assert not {"normal_force", "tangential_force", "friction_use"} & set(numbers)
             tf = FrameTransforms.FromString(tf_data)
             for frame, pose in zip(tf.transforms, snap.poses):
                 assert [frame.translation.x, frame.translation.y, frame.translation.z] == list(pose[:3])
