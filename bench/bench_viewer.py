@@ -34,6 +34,9 @@ sys.path.insert(0, os.path.join(ROOT, "bench"))
 sys.path.insert(0, ROOT)
 
 
+DISPLAY_UPDATE_MS = 2.52     # main-thread time of a display update, 20 bodies + 10 fingers (bench_gui.py)
+
+
 def pressing(rec):
     """Every finger on a body, pushing (synthetic sessions have free fingers): arrows and
     plot numbers as in a grasp."""
@@ -163,7 +166,7 @@ def main(argv=None):
     recordings.record_exec(sample, gc, seconds=6.0)
     many = os.path.join(tmp, "many.mcap")
     bench_recording.synthetic_session(many, args.seconds / 60.0, "lz4")
-    rows = []
+    rows, targets = [], []
     for label, path, synthetic in (("sample scene, 2 + 2", sample, False),
                                    ("20 bodies + 10 fingers", many, True)):
         rec = open_recording(path)
@@ -193,10 +196,38 @@ def main(argv=None):
         rows.append((f"live view, {label}: display update to client, localhost (median / p95 / max)",
                      f"{statistics.median(delays):.1f} / {pct(delays, 95):.1f} / {max(delays):.1f} ms "
                      f"({got} of {n} updates received at 30 Hz)"))
-    print("| what | measured |\n| --- | --- |")
+        share = statistics.median(offers) / (DISPLAY_UPDATE_MS * 1e3) * 100
+        targets.append((f"live view costs the display update ≤ 5 % of its time, {label}",
+                        f"{share:.1f} % (offer() {statistics.median(offers):.1f} µs of {DISPLAY_UPDATE_MS} ms)",
+                        share <= 5.0))
+        targets.append((f"live viewer receives updates at the display rate, < 100 ms late on localhost, {label}",
+                        f"{got} of {n}; p95 {pct(delays, 95):.1f} ms, max {max(delays):.1f} ms",
+                        got >= 0.95 * n and pct(delays, 95) < 100.0))
+    print("### Viewer channels (Foxglove)\n")
+    print(f"`bench/bench_viewer.py`: foxglove-sdk {_version('foxglove-sdk')}. "
+          "Every recording could carry the viewer channels, or a copy can be written afterwards "
+          "(`grasp-lab export --foxglove`). A display update's channels cost about ten times what the "
+          "recorder does for the same period, and more than the 5 % of a display update allowed "
+          f"(the main thread's display update: {DISPLAY_UPDATE_MS} ms for 20 bodies + 10 fingers, "
+          "GUI section above), so recordings do not carry them: the haptic loop and the recorder pay "
+          "nothing, and the copy is written at the command line. The live view builds the same "
+          "channels on a thread of its own; the display update only hands its snapshot over (that "
+          "thread's Python work still takes the interpreter lock for the time below, a share of the "
+          "main thread's, not measured as display-update time here).\n")
+    print("| target | result | met |")
+    print("|---|---|---|")
+    for name, value, met in targets:
+        print(f"| {name} | {value} | {'yes' if met else '**no**'} |")
+    print()
+    print("| measurement | value |\n|---|---|")
     for k, val in rows:
         print(f"| {k} | {val} |")
     return 0
+
+
+def _version(dist):
+    from importlib.metadata import version
+    return version(dist)
 
 
 if __name__ == "__main__":
