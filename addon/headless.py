@@ -95,10 +95,9 @@ def run(args, out, err) -> int:
 
 def _serve_live(session, args, out) -> None:
     """--live-view: the session's display updates served to Foxglove (engine/live_view.py)."""
-    from .engine.live_view import LiveView, header_of
+    from .session import start_live_view
     try:
-        session.live_view = LiveView(header_of(session.desc, session.runner.haptic_rate), port=args.live_view,
-                                     bind=args.live_view_bind)
+        start_live_view(session, args.live_view, args.live_view_bind)
     except (ImportError, OSError) as ex:
         session.finish()
         raise CliError(str(ex)) from None

@@ -288,6 +288,15 @@ class BlenderSession:
 
 # --------------------------------------------------------------------------- rest poses
 
+def start_live_view(session, port: int, bind: str):
+    """Serve a live session to Foxglove (engine/live_view.py): the session panel's Live View
+    and ``grasp-lab run --live-view``. ImportError without foxglove-sdk, OSError for an
+    address it cannot serve on."""
+    from .engine.live_view import LiveView, header_of
+    session.live_view = LiveView(header_of(session.desc, session.runner.haptic_rate), port=port, bind=bind)
+    return session.live_view
+
+
 def store_rest_poses(context, links):
     for link in links:
         obj = bpy.data.objects.get(link.name)
@@ -360,6 +369,11 @@ class GRASPLAB_OT_session(bpy.types.Operator):
         try:
             prefs = get_prefs(context)
             s = context.scene.grasp_lab
+            if s.live_view:
+                try:
+                    start_live_view(session, s.live_view_port, s.live_view_bind)
+                except (ImportError, OSError) as ex:       # the session runs without it
+                    self.report({"WARNING"}, f"Grasp Lab: no live view: {ex}")
             session.interval = 1.0 / s.display_rate
             session.budget = prefs.max_step_ms * 1e-3
             session.wm = context.window_manager

@@ -6,6 +6,7 @@ session showed. Viewers come and go; requests a watching-only server does not ta
 refused."""
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import re
@@ -26,6 +27,7 @@ from addon.engine.runner import Snapshot
 pytest.importorskip("foxglove")
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms  # noqa: E402
 from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate  # noqa: E402
+from websockets.exceptions import WebSocketException  # noqa: E402
 from websockets.sync.client import connect  # noqa: E402
 
 from addon.engine.live_view import LiveView  # noqa: E402
@@ -149,8 +151,8 @@ def test_viewers_come_and_go_and_cannot_publish(pinch):
     lv = LiveView(pinch.header, port=0)
     feeding = threading.Event()
 
-    def feed():
-        for snap in snapshots(pinch, every=10):
+    def feed():             # the session goes on (round and round) until the test ends
+        for snap in itertools.cycle(list(snapshots(pinch, every=10))):
             if feeding.is_set():
                 return
             lv.offer(snap)
@@ -202,6 +204,41 @@ def blend(bpy, sample, tmp_path):
     path = tmp_path / "pinch.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(path))
     return path
+
+
+def test_a_live_blender_session_with_the_panels_live_view(bpy, sample, core):
+    """The session panel's Live View settings and start_live_view (shared with the command
+    line): a threaded live session served while the display updates run, its address and
+    updates in the HUD, the server closed when the session finishes."""
+    session = grasp_env.submodule("session")
+    sample.build(bpy)
+    s = bpy.context.scene.grasp_lab
+    assert (s.live_view, s.live_view_port, s.live_view_bind) == (False, 8765, "127.0.0.1")
+    s.live_view_port = 0
+    live = session.BlenderSession(bpy.context, live=True, duration=2.0)
+    try:
+        lv = session.start_live_view(live, s.live_view_port, s.live_view_bind)
+        v = Viewer(lv.address)
+        v.read(3, until=lambda: len(v.channels) >= 8)
+        v.subscribe_all()
+        v.read(0.2)
+        t0 = time.perf_counter()
+        while time.perf_counter() - t0 < 1.0:
+            live.tick(time.perf_counter() - t0)
+            v.read(0.03)
+        v.read(1.0, until=lambda: len(v.of(viewer.TOPIC_SCENE)) >= lv.updates)
+        assert lv.address in live.hud_text() and f"{lv.updates} updates" in live.hud_text()
+        scenes = v.of(viewer.TOPIC_SCENE)
+        assert len(scenes) >= 5
+        shown = SceneUpdate.FromString(scenes[-1][1])
+        go = {e.id: e for e in shown.entities}["finger/Finger 0"].spheres[0].pose.position
+        assert [go.x, go.y, go.z] == pytest.approx(list(live.snapshot.god_objects[0]), abs=0.05)
+        v.close()
+    finally:
+        result = live.finish()
+    assert result.stats["live_view"]["updates"] > 0 and result.stats["live_view"]["error"] == ""
+    with pytest.raises((OSError, WebSocketException)):    # closed with the session
+        Viewer(lv.address)
 
 
 def test_cli_realtime_live_view(blend, tmp_path):
