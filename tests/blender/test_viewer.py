@@ -11,23 +11,33 @@ import sys
 
 import numpy as np
 import pytest
-from google.protobuf import descriptor_pb2
-from mcap.reader import make_reader
-from scipy.spatial import ConvexHull
-from scipy.spatial.transform import Rotation
 
 import recordings
 from addon.engine import cli, viewer
 from addon.engine.recording import open_recording
 
-pytest.importorskip("foxglove")     # noqa: the SDK is in requirements.txt; pinned there
-from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms  # noqa: E402
-from foxglove_schemas_protobuf.Log_pb2 import Log  # noqa: E402
-from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate  # noqa: E402
+try:
+    from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+    from foxglove_schemas_protobuf.Log_pb2 import Log
+    from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+    from google.protobuf import descriptor_pb2
+    from mcap.reader import make_reader
+    from scipy.spatial import ConvexHull
+    from scipy.spatial.transform import Rotation
+    MISSING = None
+except ImportError as ex:       # the bpy 4.2 / 5.0 venvs collect this file but run only -m multiversion
+    MISSING = ex
 
 pytestmark = pytest.mark.needs_core
-PROTOBUF = {"foxglove.SceneUpdate": SceneUpdate, "foxglove.FrameTransforms": FrameTransforms,
-            "foxglove.Log": Log}
+
+
+@pytest.fixture(autouse=True)
+def _test_dependencies():
+    """requirements.txt has them: missing is a failure, not a skip."""
+    if MISSING is not None:
+        raise MISSING
+PROTOBUF = {} if MISSING else {"foxglove.SceneUpdate": SceneUpdate, "foxglove.FrameTransforms": FrameTransforms,
+                                "foxglove.Log": Log}
 STICK, SLIP = 1, 2
 
 
