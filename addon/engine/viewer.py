@@ -161,14 +161,19 @@ class SceneModel:
         taken = set()
         self.finger_topics = [FINGER_TOPIC + topic_name(n, taken) for n in self.finger_names]
 
-    def frames(self, rec: Recording, rate: float | None = None) -> list:
-        """The recording at ``rate`` (default: its display rate), one ViewerFrame a display update."""
+    def frame_times(self, rec: Recording, rate: float | None = None) -> np.ndarray:
+        """The display updates of a recording at ``rate`` (default: its display rate), s."""
         rate = float(rate or self.display_rate)
         t = rec.ticks["time"]
         first, last = int(np.ceil(t[0] * rate - 1e-9)), int(np.floor(t[-1] * rate + 1e-9))
-        times = np.arange(first, last + 1) / rate
-        idx = rec.sample(times)
-        return frames_of(self, rec, rec.ticks[idx], times)
+        return np.arange(first, last + 1) / rate
+
+    def frames(self, rec: Recording, times: np.ndarray, batch: int = 512):
+        """ViewerFrames at ``times``, computed ``batch`` at a time (a long session's frames are
+        never all in memory)."""
+        for start in range(0, len(times), batch):
+            part = times[start:start + batch]
+            yield from frames_of(self, rec, rec.ticks[rec.sample(part)], part)
 
 
 def frames_of(model: SceneModel, rec, ticks: np.ndarray, times, normals: bool = True) -> list:
@@ -390,7 +395,7 @@ BODY_SCHEMA = {"type": "object", "title": "grasp_lab.BodyNumbers", "properties":
 def layout_json(model: SceneModel) -> str:
     """A Foxglove layout for the copy of a recording of this scene: the 3-D scene beside force,
     friction-use and grip plots, the fingers' stick/slip states and the event log."""
-    foxglove = _sdk()   # noqa: F841 (its layouts module, below)
+    _sdk()
     import foxglove.layouts as fl
     fingers = list(zip(model.finger_names, model.finger_topics))
     bodies = [(n, t) for n, t, static in zip(model.body_names, model.body_topics, model.static) if not static]
@@ -442,8 +447,8 @@ def export_foxglove(rec: Recording, path: str, rate: float | None = None, force_
     foxglove = _sdk()
     from foxglove.mcap import MCAPWriteOptions
     model = SceneModel(rec.header, force_scale, torque_scale)
-    frames = model.frames(rec, rate)
-    if not frames:
+    times = model.frame_times(rec, rate)
+    if not len(times):
         raise ValueError(f"{rec.path}: the recording is shorter than one display frame")
     tmp = f"{path}.partial"
     context = foxglove.Context()
@@ -453,7 +458,7 @@ def export_foxglove(rec: Recording, path: str, rate: float | None = None, force_
         channels = FoxgloveChannels(model, context)
         events = sorted(rec.events, key=lambda e: float(e.get("time", 0.0)))
         k = 0
-        for fr in frames:           # events interleaved in time, so the file is written in log-time order
+        for fr in model.frames(rec, times):     # events interleaved: the file is in log-time order
             while k < len(events) and float(events[k].get("time", 0.0)) <= fr.time:
                 channels.log_event(events[k])
                 k += 1
@@ -471,7 +476,7 @@ def export_foxglove(rec: Recording, path: str, rate: float | None = None, force_
     with open(f"{layout}.partial", "w") as fh:
         fh.write(layout_json(model))
     os.replace(f"{layout}.partial", layout)
-    return {"frames": len(frames), "events": len(events), "bytes": os.path.getsize(path),
+    return {"frames": len(times), "events": len(events), "bytes": os.path.getsize(path),
             "rate": float(rate or model.display_rate), "layout": layout}
 
 

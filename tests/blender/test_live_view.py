@@ -15,7 +15,6 @@ import subprocess
 import threading
 import time
 
-import numpy as np
 import pytest
 
 import grasp_env
