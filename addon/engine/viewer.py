@@ -444,6 +444,8 @@ def export_foxglove(rec: Recording, path: str, rate: float | None = None, force_
     """A viewer-ready copy of ``rec`` at ``path`` (MCAP, Foxglove's schemas), written to a
     temporary file beside it and renamed when complete, and its layout (``layout_path``).
     Returns {"frames", "events", "bytes", "rate", "layout"}."""
+    if os.path.exists(path) and os.path.exists(rec.path) and os.path.samefile(path, rec.path):
+        raise ValueError(f"{path}: that is the recording itself; write the copy to another file")
     foxglove = _sdk()
     from foxglove.mcap import MCAPWriteOptions
     model = SceneModel(rec.header, force_scale, torque_scale)

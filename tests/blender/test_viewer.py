@@ -370,6 +370,37 @@ def test_cli_export_foxglove(pinch, tmp_path):
     assert "missing" in err.getvalue()
 
 
+def test_cli_refuses_to_overwrite_the_recording(pinch, tmp_path):
+    import shutil
+    rec = tmp_path / "rec.mcap"
+    shutil.copy(pinch.path, rec)
+    before = rec.read_bytes()
+    err = io.StringIO()
+    assert cli.main(["export", str(rec), "--foxglove", str(tmp_path / "." / "rec.mcap")], out=io.StringIO(),
+                    err=err) == 1
+    assert "the recording itself" in err.getvalue()
+    assert rec.read_bytes() == before
+
+
+def test_cli_exports_what_a_cut_recording_kept(pinch, tmp_path):
+    """A recording cut short (a killed session): the copy has what the reader recovered, and
+    the command warns as the other commands do."""
+    data = open(pinch.path, "rb").read()
+    cut = tmp_path / "cut.mcap"
+    cut.write_bytes(data[:len(data) // 2])
+    kept = open_recording(str(cut))
+    assert kept.damage and 0 < len(kept.ticks) < len(pinch.ticks)
+    out, err = io.StringIO(), io.StringIO()
+    path = tmp_path / "copy.mcap"
+    assert cli.main(["export", str(cut), "--foxglove", str(path)], out=out, err=err) == 0
+    assert "warning" in err.getvalue()
+    topics, _, _ = read_back(path)
+    times = [t for t, _ in topics[viewer.TOPIC_SCENE]]
+    assert len(times) == int(np.floor(kept.ticks["time"][-1] * 30 + 1e-9)) + 1
+    for t, m in topics[viewer.TOPIC_SCENE][::10]:
+        check_scene(kept, t, m)
+
+
 def test_cli_without_the_sdk_says_what_to_install(pinch, tmp_path, monkeypatch):
     for name in [n for n in sys.modules if n == "foxglove" or n.startswith("foxglove.")]:
         monkeypatch.delitem(sys.modules, name)
