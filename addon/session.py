@@ -140,8 +140,6 @@ class BlenderSession:
     def apply(self, snap, frame):
         """Write body poses back and update the display objects."""
         self.snapshot = snap
-        if self.live_view is not None:
-            self.live_view.offer(snap)
         for i in self.dynamic:
             p = snap.poses[i]
             self.objects[i].matrix_world = self.links[i].matrix_world(p[:3], p[3:])
@@ -188,6 +186,10 @@ class BlenderSession:
         self.apply(snap, frame)
         if display.overlay_active():
             display.set_overlay(snap, self.hud_text())
+        if self.live_view is not None:
+            # Last: its thread wakes and works while this one waits for the next update,
+            # not while the update still needs the interpreter.
+            self.live_view.offer(snap)
         return self.settings.loop and self.runner.time >= self.duration - 1e-9
 
     def _record_device_events(self, events) -> None:

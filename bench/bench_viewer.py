@@ -52,39 +52,38 @@ def pressing(rec):
 
 def per_frame_costs(rec, tmp, repeats=3):
     """µs per display update: the viewer channels (frame numbers + messages + MCAP write) and
-    the recorder's work for the same period (tick records written, events derived)."""
+    the recorder's work for the same period (tick records written, events derived), one
+    after the other for each display update, so load on the machine weighs on both alike."""
     import foxglove
     from foxglove.mcap import MCAPWriteOptions
 
     from addon.engine import recording, viewer
     model = viewer.SceneModel(rec.header)
     rate = model.display_rate
-    times = np.arange(0, int(rec.ticks["time"][-1] * rate)) / rate
+    per = int(round(rec.haptic_rate / rate))
+    times = np.arange(0, (len(rec.ticks) - 1) // per) / rate
     idx = rec.sample(times)
-    viewer_us = []
+    viewer_us, rec_us = [], []
     for r in range(repeats):
         ctx = foxglove.Context()
+        writer = recording.RecordingWriter(os.path.join(tmp, f"r{r}.mcap"), rec.header, compression="lz4")
+        events = recording.EventDetector(rec.header)
         with open(os.path.join(tmp, f"v{r}.mcap"), "wb") as fh:
             w = foxglove.open_mcap(fh, context=ctx, writer_options=MCAPWriteOptions(profile=""))
             ch = viewer.FoxgloveChannels(model, ctx)
             for k, i in enumerate(idx):
+                block = rec.ticks[k * per:(k + 1) * per]
                 t0 = time.perf_counter()
+                writer.write_ticks(block)
+                for tick, t, kind, subject, detail in events(block):
+                    writer.event(t, kind, subject, detail, tick=tick)
+                t1 = time.perf_counter()
                 fr = viewer.frames_of(model, rec, rec.ticks[i:i + 1], times[k:k + 1])[0]
                 ch.log_frame(fr)
-                viewer_us.append((time.perf_counter() - t0) * 1e6)
+                t2 = time.perf_counter()
+                rec_us.append((t1 - t0) * 1e6)
+                viewer_us.append((t2 - t1) * 1e6)
             w.close()
-    per = int(round(rec.haptic_rate / rate))
-    rec_us = []
-    for r in range(repeats):
-        writer = recording.RecordingWriter(os.path.join(tmp, f"r{r}.mcap"), rec.header, compression="lz4")
-        events = recording.EventDetector(rec.header)
-        for start in range(0, len(rec.ticks) - per, per):
-            block = rec.ticks[start:start + per]
-            t0 = time.perf_counter()
-            writer.write_ticks(block)
-            for tick, t, kind, subject, detail in events(block):
-                writer.event(t, kind, subject, detail, tick=tick)
-            rec_us.append((time.perf_counter() - t0) * 1e6)
         writer.close()
     return viewer_us, rec_us, rate
 
@@ -147,6 +146,66 @@ def live_costs(rec, seconds=6.0, rate=30.0):
     return offers, cost, delays, received[0], n
 
 
+def display_updates_with_live_view(seconds=2.0, rounds=5, rate=30.0):
+    """A live Blender session of the sample scene (threaded runtime), display updates at 30 Hz
+    with one viewer subscribed: the main thread's time per display update (``session.tick``)
+    with the live view on and off, in alternating blocks. Returns (off µs, on µs) lists."""
+    import json
+    import threading
+
+    import grasp_env
+    grasp_env.isolate()
+    import bpy
+    grasp_env.enable()
+    import recordings
+    from websockets.sync.client import connect
+    session_mod = grasp_env.submodule("session")
+    bpy.ops.wm.read_homefile(use_empty=True)
+    recordings.sample_module().build(bpy)
+    live = session_mod.BlenderSession(bpy.context, live=True, duration=1e6)
+    lv = session_mod.start_live_view(live, 0, "127.0.0.1")
+    live.live_view = None
+    ws = connect(lv.address, subprotocols=["foxglove.sdk.v1"])
+    channels = {}
+    json.loads(ws.recv(timeout=5))
+    while len(channels) < 8:
+        msg = json.loads(ws.recv(timeout=5))
+        if msg["op"] == "advertise":
+            channels.update({c["id"]: c["topic"] for c in msg["channels"]})
+    ws.send(json.dumps({"op": "subscribe", "subscriptions": [{"id": c, "channelId": c} for c in channels]}))
+    stop = [False]
+
+    def drain():
+        while not stop[0]:
+            try:
+                ws.recv(timeout=0.2)
+            except TimeoutError:
+                pass
+    th = threading.Thread(target=drain)
+    th.start()
+    times = {False: [], True: []}
+    t0 = time.perf_counter()
+    k = 0
+    try:
+        for _ in range(rounds):
+            for on in (False, True):
+                live.live_view = lv if on else None
+                end = time.perf_counter() + seconds
+                while time.perf_counter() < end:
+                    a = time.perf_counter()
+                    live.tick(a - t0)
+                    times[on].append((time.perf_counter() - a) * 1e6)
+                    k += 1
+                    time.sleep(max(0.0, t0 + k / rate - time.perf_counter()))
+    finally:
+        live.live_view = lv
+        live.finish()
+        stop[0] = True
+        th.join()
+        ws.close()
+    return times[False], times[True]
+
+
 def pct(a, q):
     return float(np.percentile(a, q))
 
@@ -196,13 +255,19 @@ def main(argv=None):
         rows.append((f"live view, {label}: display update to client, localhost (median / p95 / max)",
                      f"{statistics.median(delays):.1f} / {pct(delays, 95):.1f} / {max(delays):.1f} ms "
                      f"({got} of {n} updates received at 30 Hz)"))
-        share = statistics.median(offers) / (DISPLAY_UPDATE_MS * 1e3) * 100
-        targets.append((f"live view costs the display update ≤ 5 % of its time, {label}",
-                        f"{share:.1f} % (offer() {statistics.median(offers):.1f} µs of {DISPLAY_UPDATE_MS} ms)",
-                        share <= 5.0))
         targets.append((f"live viewer receives updates at the display rate, < 100 ms late on localhost, {label}",
                         f"{got} of {n}; p95 {pct(delays, 95):.1f} ms, max {max(delays):.1f} ms",
                         got >= 0.95 * n and pct(delays, 95) < 100.0))
+    off, on = display_updates_with_live_view()
+    rows.append(("live Blender session, sample scene: main-thread time per display update, live view off / on, "
+                 "one viewer subscribed (median; mean)",
+                 f"{statistics.median(off):.0f} / {statistics.median(on):.0f} µs; "
+                 f"{statistics.mean(off):.0f} / {statistics.mean(on):.0f} µs"))
+    share = (statistics.median(on) - statistics.median(off)) / statistics.median(off) * 100
+    targets.insert(0, ("live view costs a live Blender session's display update ≤ 5 % (sample scene; the "
+                       "interpreter lock shared with the live view's thread included)",
+                       f"{share:+.1f} % (median {statistics.median(off):.0f} -> {statistics.median(on):.0f} µs)",
+                       share <= 5.0))
     print("### Viewer channels (Foxglove)\n")
     print(f"`bench/bench_viewer.py`: foxglove-sdk {_version('foxglove-sdk')}. "
           "Every recording could carry the viewer channels, or a copy can be written afterwards "
@@ -211,9 +276,10 @@ def main(argv=None):
           f"(the main thread's display update: {DISPLAY_UPDATE_MS} ms for 20 bodies + 10 fingers, "
           "GUI section above), so recordings do not carry them: the haptic loop and the recorder pay "
           "nothing, and the copy is written at the command line. The live view builds the same "
-          "channels on a thread of its own; the display update only hands its snapshot over (that "
-          "thread's Python work still takes the interpreter lock for the time below, a share of the "
-          "main thread's, not measured as display-update time here).\n")
+          "channels on a thread of its own; the display update hands its snapshot over as its last "
+          "step, so that thread's Python work (below) holds the interpreter lock while the main "
+          "thread waits for its next update, not during one: a live Blender session's display "
+          "updates are timed with the live view on and off, alternating.\n")
     print("| target | result | met |")
     print("|---|---|---|")
     for name, value, met in targets:
