@@ -13,6 +13,7 @@ session goes on.
 """
 from __future__ import annotations
 
+import collections
 import threading
 import time
 
@@ -75,7 +76,7 @@ class LiveView:
         self.dropped = 0                    # snapshots replaced before the thread took them
         self.cost_us = []                   # per update: snapshot to messages sent, this thread's wall time
         self.error = ""
-        self._slot = None               # (snapshot, wall time offered): the latest, not yet sent
+        self._slot = collections.deque(maxlen=1)    # (snapshot, wall time offered): the latest, unsent
         self._stop = threading.Event()
         self._tick = 0
         self._thread = threading.Thread(target=self._loop, name="grasp_lab live view", daemon=True)
@@ -85,6 +86,11 @@ class LiveView:
     def address(self) -> str:
         return f"ws://{self.bind}:{self.port}"
 
+    @property
+    def pending(self) -> bool:
+        """A snapshot is offered and not yet sent."""
+        return bool(self._slot)
+
     def status(self) -> str:
         return (f"live view {self.address}: {self.viewers.subscribed} subscriptions, {self.updates} updates, "
                 f"{self.dropped} skipped" + (f"; {self.error}" if self.error else ""))
@@ -92,9 +98,9 @@ class LiveView:
     def offer(self, snap) -> None:
         """The latest snapshot (engine.runner.Snapshot): one assignment, no lock, no wake-up
         (the thread polls every ``POLL`` s), so the display update pays next to nothing."""
-        if self._slot is not None:
+        if self._slot:
             self.dropped += 1
-        self._slot = (snap, time.time())
+        self._slot.append((snap, time.time()))     # a deque of one: the older one goes
 
     def _row(self, snap) -> np.ndarray:
         r = np.zeros(1, self.dtype)
@@ -110,12 +116,12 @@ class LiveView:
     def _loop(self):
         try:
             while True:
-                taken, self._slot = self._slot, None    # one bytecode apart: an offer in between
-                if taken is None:                       # is counted as skipped, never half-read
+                try:
+                    snap, offered = self._slot.popleft()
+                except IndexError:
                     if self._stop.wait(POLL):
                         return
                     continue
-                snap, offered = taken
                 t0 = time.perf_counter()
                 # Stamped with the wall clock of the display update that offered it: a viewer's
                 # timeline is the wall clock, and its delay is what it receives minus the stamp.
