@@ -18,6 +18,7 @@ import numpy as np
 from mathutils import Matrix, Quaternion
 
 from . import anim, display
+from .engine.measures import body_grip, finger_measures
 from .engine.recording import Recording, scene_from_dict
 from .engine.runner import quat_rotate
 
@@ -194,21 +195,6 @@ def _custom(obj, props: dict, run=None) -> list:
     return [(f'["{name}"]', 0, values) + ((run,) if run is not None else ()) for name, values in props.items()]
 
 
-def finger_measures(rec: Recording, ticks) -> dict:
-    """Per finger (n, nf): |F|, |Fn|, |Ft|, friction use |Ft| / (mu_s |Fn|), state."""
-    f, n = np.ascontiguousarray(ticks["force"]), np.ascontiguousarray(ticks["normal"])
-    fn = np.einsum("ijk,ijk->ij", f, n)
-    tangential = f - fn[:, :, None] * n
-    ft = np.sqrt(np.einsum("ijk,ijk->ij", tangential, tangential))
-    contact = ticks["contact"]
-    mu = np.array([b["mu_s"] for b in rec.header["scene"]["bodies"]] + [np.nan])
-    mu_c = mu[np.where(contact >= 0, contact, len(mu) - 1)]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        use = np.where((contact >= 0) & (np.abs(fn) > 1e-12), ft / (mu_c * np.abs(fn)), 0.0)
-    return {"gl_state": ticks["state"].astype(np.float64), "gl_force": np.sqrt(np.einsum("ijk,ijk->ij", f, f)),
-            "gl_normal_force": np.abs(fn), "gl_tangential_force": ft, "gl_friction_use": use}
-
-
 def bake_recording(context, rec: Recording, every_tick: bool = False, force_scale: float | None = None,
                    torque_scale: float | None = None) -> BakeReport:
     """Bake ``rec`` into the context's scene. Returns what was baked and what was missing."""
@@ -267,12 +253,7 @@ def bake_recording(context, rec: Recording, every_tick: bool = False, force_scal
         obj.scale = (size, size, size)
         props = _custom(obj, {k: v[j] for k, v in measures.items()})
         jobs.append(partial(_point_job, obj, per["god_object"][j], _parent_inverse(obj), props))
-    grip = np.zeros((len(idx), len(desc.bodies)))
-    fn = measures["gl_normal_force"]
-    for j in range(len(desc.fingers)):
-        c = per["contact"][j]
-        on = c >= 0
-        np.add.at(grip, (np.flatnonzero(on), c[on]), fn[j, on])
+    grip = body_grip(per["contact"].T, measures["gl_normal_force"].T, len(desc.bodies))
     for k, i in enumerate(shown.dynamic):
         force_arrow, torque_arrow = shown.force_arrows[k], shown.torque_arrows[k]
         for arrow in (force_arrow, torque_arrow):

@@ -115,6 +115,8 @@ def run(args, out, err) -> int:
         session.finish()
         raise CliError(f"{args.scene}: no fingertip is animated, so a real-time session has no end: "
                        f"give --duration S")
+    if getattr(args, "live_view", None) is not None:
+        _serve_live(session, args, out)
     if session.recorder is not None:
         for o in args.set:          # in the header's scene already; the events say they were set
             session.recorder.parameter_change(0.0, o.obj or "scene", o.key, o.value)
@@ -135,12 +137,28 @@ def run(args, out, err) -> int:
     return _report(args, result, session.runner.recording_end, applied, out)
 
 
+def _serve_live(session, args, out) -> None:
+    """--live-view: the session's display updates served to Foxglove (engine/live_view.py)."""
+    from .session import start_live_view
+    try:
+        start_live_view(session, args.live_view, args.live_view_bind)
+    except (ImportError, OSError) as ex:
+        session.finish()
+        raise CliError(str(ex)) from None
+    print(f"live view: {session.live_view.address} (Foxglove: open a connection, Foxglove WebSocket, "
+          f"to this address)", file=out, flush=True)
+
+
 def _report(args, result, end, applied, out) -> int:
     st = result.stats
     print(f"{os.path.abspath(args.scene)}: {st['time']:.3f} s simulated, {st.get('runtime_haptic_ticks', st['steps'])} ticks at "
           f"{st['haptic_rate_target']:g} Hz ({'threaded runtime, real time' if st['threaded'] else 'EXEC'}), "
           f"{len(result.body_names)} bodies, {len(result.finger_names)} fingers"
           + (f"; set {', '.join(applied)}" if applied else ""), file=out)
+    if st.get("live_view"):
+        lv = st["live_view"]
+        print(f"live view: {lv['updates']} updates, {lv['dropped']} skipped"
+              + (f"; {lv['error']}" if lv["error"] else ""), file=out)
     if result.recording:
         print(f"recording: {result.recording} ({end.get('overflow', 0)} ticks lost to overflow)", file=out)
         if end.get("recorder_error"):

@@ -124,6 +124,7 @@ class BlenderSession:
         self.result = SessionResult(body_names=[b.name for b in desc.bodies],
                                     finger_names=[f.name for f in desc.fingers])
         self.snapshot = None
+        self.live_view = None       # engine.live_view.LiveView: display updates served to Foxglove
         self.finished = False
         self.error = ""             # why a live session stopped early
         self.ended_by = "Stop"      # how it ended, for the report
@@ -185,6 +186,10 @@ class BlenderSession:
         self.apply(snap, frame)
         if display.overlay_active():
             display.set_overlay(snap, self.hud_text())
+        if self.live_view is not None:
+            # Last: its thread wakes and works while this one waits for the next update,
+            # not while the update still needs the interpreter.
+            self.live_view.offer(snap)
         return self.settings.loop and self.runner.time >= self.duration - 1e-9
 
     def _record_device_events(self, events) -> None:
@@ -230,6 +235,8 @@ class BlenderSession:
                       if st["lag_s"] > 2.0 / max(self.settings.display_rate, 1.0) else "real time")
             lines.append(f"contacts {n_c} / {len(self.desc.fingers)}   display {st['display_rate']:.1f} Hz   "
                          f"{behind}")
+        if self.live_view is not None:
+            lines.append(self.live_view.status())
         return "\n".join(lines)
 
     def finish(self):
@@ -244,6 +251,8 @@ class BlenderSession:
         self.runner.stop()
         r = self.result
         r.stats = self.runner.stats()
+        if self.live_view is not None:
+            r.stats["live_view"] = self.live_view.close()
         if self.devices is not None:
             r.stats["device_events"] = list(self.devices.events)
             self.runner.events += self.devices.events
@@ -280,6 +289,15 @@ class BlenderSession:
 
 
 # --------------------------------------------------------------------------- rest poses
+
+def start_live_view(session, port: int, bind: str):
+    """Serve a live session to Foxglove (engine/live_view.py): the session panel's Live View
+    and ``grasp-lab run --live-view``. ImportError without foxglove-sdk, OSError for an
+    address it cannot serve on."""
+    from .engine.live_view import LiveView, header_of
+    session.live_view = LiveView(header_of(session.desc, session.runner.haptic_rate), port=port, bind=bind)
+    return session.live_view
+
 
 def store_rest_poses(context, links):
     for link in links:
@@ -353,6 +371,11 @@ class GRASPLAB_OT_session(bpy.types.Operator):
         try:
             prefs = get_prefs(context)
             s = context.scene.grasp_lab
+            if s.live_view:
+                try:
+                    start_live_view(session, s.live_view_port, s.live_view_bind)
+                except (ImportError, OSError) as ex:       # the session runs without it
+                    self.report({"WARNING"}, f"Grasp Lab: no live view: {ex}")
             session.interval = 1.0 / s.display_rate
             session.budget = prefs.max_step_ms * 1e-3
             session.wm = context.window_manager

@@ -677,6 +677,11 @@ def main(argv=None) -> int:
                                   os.path.join(HERE, "bench_recording.py")], timeout=900)
         ok &= good
         blender = blender.rstrip() + "\n\n" + rec
+        log("viewer channels (bench/bench_viewer.py)")
+        good, fox = run_external([venv_py if os.path.exists(venv_py) else sys.executable,
+                                  os.path.join(HERE, "bench_viewer.py")], timeout=600)
+        ok &= good
+        blender = blender.rstrip() + "\n\n" + fox
     jitter_s = 5.0 if args.quick else 60.0
     log(f"haptic-loop jitter (bench/bench_jitter.py, {jitter_s:g} s per run: bare loop and runtime, "
         "SCHED_FIFO and normal)")

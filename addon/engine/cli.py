@@ -128,6 +128,21 @@ def _configure_run(p):
     p.add_argument("--max-size", type=_size, default=limits.DEFAULT_MAX_SIZE, metavar="BYTES", help=MAX_SIZE_HELP)
     p.add_argument("--save", metavar="OUT.blend", help="save the scene after the session")
     p.add_argument("--set", action="append", default=[], type=_override, metavar="KEY=VALUE", help=SET_HELP)
+    p.add_argument("--live-view", nargs="?", const=8765, type=_port, metavar="PORT",
+                   help="with --realtime: serve the session to Foxglove over WebSocket, watching only "
+                        "(default port 8765; 0: any free port)")
+    p.add_argument("--live-view-bind", default="127.0.0.1", metavar="ADDR",
+                   help="the address the live view listens on (default 127.0.0.1: this machine only)")
+
+
+def _port(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a port number, got {text!r}") from None
+    if not 0 <= v <= 65535:
+        raise argparse.ArgumentTypeError(f"a port is 0..65535, got {v}")
+    return v
 
 
 def _configure_info(p):
@@ -156,6 +171,8 @@ def _configure_export(p):
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--csv", metavar="DIR", help="write DIR/bodies.csv, fingers.csv, events.csv")
     g.add_argument("--npz", metavar="FILE", help="write one .npz with every field")
+    g.add_argument("--foxglove", metavar="OUT.mcap", help="a copy Foxglove shows: 3-D scene, transforms, "
+                                                          "plot channels, events, at the display rate")
     p.add_argument("--every", type=_positive_int, default=1, metavar="N", help="every N-th tick (default 1)")
 
 
@@ -236,7 +253,15 @@ def _run_export(args, out, err):
         for name in ("bodies.csv", "fingers.csv", "events.csv"):
             outputs.check_paths({"REC.mcap": args.recording}, {"--csv": os.path.join(args.csv, name)})
     rec = _open(args.recording, err)
-    if args.csv:
+    if args.foxglove:
+        from .viewer import export_foxglove
+        try:
+            done = export_foxglove(rec, args.foxglove)
+        except ImportError as ex:
+            raise CliError(str(ex)) from None
+        print(f"{args.foxglove}: {done['frames']} frames at {done['rate']:g} Hz, {done['events']} events, "
+              f"{done['bytes'] / 1e6:.2f} MB; layout {done['layout']}", file=out)
+    elif args.csv:
         counts = export_csv(rec, args.csv, args.every)
         for name, n in counts.items():
             print(f"{os.path.join(args.csv, name)}: {n} rows", file=out)
@@ -251,6 +276,10 @@ def _run_run(args, out, err):
     outputs.check_paths({"SCENE.blend": args.scene}, {"--record": args.record, "--save": args.save})
     for spec in args.device:
         check_device(spec)
+    if args.live_view is not None and not args.realtime:
+        raise CliError("--live-view needs --realtime (it serves a live session)")
+    if args.live_view is not None and args.device:
+        raise CliError("--live-view does not serve --device sessions yet (the session panel's Live View does)")
     if args.device and not args.realtime:
         raise CliError("--device needs --realtime (devices drive a live session on the threaded runtime)")
     for spec in args.device:
