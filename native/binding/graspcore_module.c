@@ -945,7 +945,7 @@ static PyObject *World_push_device_hips(PyObject *obj, PyObject *args) {
     return result;
 }
 
-/* serial_events(device) -> [(time, name, value)], popped oldest first. */
+/* serial_events(device) -> [(time, name, value, session_time)], popped oldest first. */
 static PyObject *World_serial_events(PyObject *obj, PyObject *args) {
     WorldObject *self = (WorldObject *)obj;
     int32_t id;
@@ -958,7 +958,8 @@ static PyObject *World_serial_events(PyObject *obj, PyObject *args) {
     int n;
     while (list && (n = gc_world_serial_events(self->world, id, ev, 64)) > 0) {
         for (int i = 0; i < n; ++i) {
-            PyObject *item = Py_BuildValue("(dsi)", ev[i].time, names[ev[i].code & 7], (int)ev[i].value);
+            PyObject *item = Py_BuildValue("(dsid)", ev[i].time, names[ev[i].code & 7], (int)ev[i].value,
+                                           ev[i].session_time);
             if (!item || PyList_Append(list, item) < 0) {
                 Py_XDECREF(item);
                 Py_DECREF(list);
@@ -1035,7 +1036,7 @@ static PyMethodDef World_methods[] = {
     {"push_device_hips", World_push_device_hips, METH_VARARGS,
      "push_device_hips(finger_offset, array (n, 3) float64): HIPs from a device read in Python (SpaceMouse, glove), "
      "merged with the serial devices' fingers."},
-    {"serial_events", World_serial_events, METH_VARARGS, "serial_events(device) -> [(time, event, value)] safety events."},
+    {"serial_events", World_serial_events, METH_VARARGS, "serial_events(device) -> [(time, event, value, session_time)] safety events: monotonic and session clock."},
     {NULL, NULL, 0, NULL},
 };
 

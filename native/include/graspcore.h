@@ -322,12 +322,16 @@ typedef enum gcSerialEventCode {
     GC_SERIAL_EV_LOST = 2,      /* value: 1 hang-up, 0 silence */
     GC_SERIAL_EV_RECOVERED = 3, /* poses again after a loss */
     GC_SERIAL_EV_ENABLED = 4,   /* value: 1 on, 0 off */
-    GC_SERIAL_EV_ESTOP = 5,     /* value: reason (0 host, 1 device button, 2 device fault) */
+    GC_SERIAL_EV_ESTOP = 5,     /* value: reason (0 host, 1 device button, 2 device fault, other bytes as the
+                                 * device sent them; GC_ESTOP_REASON_STATUS: only a pose's status said so) */
     GC_SERIAL_EV_STALL = 6,     /* value: 1 forces zeroed for a stalled haptic loop, 0 resumed */
     GC_SERIAL_EV_DROPPED = 7    /* value: frames dropped since the previous such event (at most 10 Hz) */
 } gcSerialEventCode;
+enum { GC_ESTOP_REASON_STATUS = 256 }; /* an e-stop seen in a pose's status bit 1 (its ESTOP frame was lost) */
 typedef struct gcSerialEvent {
-    double time;                /* s, CLOCK_MONOTONIC */
+    double time;                /* s, CLOCK_MONOTONIC, when the device thread observed it */
+    double session_time;        /* s, the same instant on the session clock (the latest haptic tick's
+                                 * time plus the time since it); -1 before the runtime's first tick */
     int32_t code;               /* gcSerialEventCode */
     int32_t value;
 } gcSerialEvent;

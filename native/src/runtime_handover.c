@@ -148,9 +148,10 @@ void gc_rt_haptic_tick(gcRuntime *rt, int64_t now) {
     gc_serial_hub_tick(rt->serial, hw, rt->device_force, ok, now);
     gc_rt_publish_to_object(rt);
     gc_rt_publish_display(rt, now, ok);
-    if (rt->tick_log)
-        gc_tick_log_push(rt->tick_log, hw, rt->device_force, rt->tick, rt->object_time_seen, now,
-                         rt->def.realtime, ok, atomic_load_explicit(&rt->adopted, memory_order_relaxed));
+    if (rt->tick_log) /* fingers a serial device drives: what their device was actually sent */
+        gc_tick_log_push(rt->tick_log, hw, gc_serial_hub_recorded_forces(rt->serial, rt->device_force, hw->num_fingers),
+                         rt->tick, rt->object_time_seen, now, rt->def.realtime, ok,
+                         atomic_load_explicit(&rt->adopted, memory_order_relaxed));
     store_double(&rt->haptic_time_bits, hw->time);
     count(&rt->haptic_ticks);
 }

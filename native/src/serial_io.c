@@ -32,6 +32,7 @@
 #define GC_HEARTBEAT_NS 100000000LL
 #define GC_RATE_WINDOW_NS 250000000LL
 #define GC_DROP_EVENT_NS 100000000LL
+#define GC_ESTOP_STATUS_GRACE_NS 50000000LL /* poses may say "e-stop latched" this long after ENABLE(1) */
 #define NS 1000000000LL
 
 /* ---- codec ---------------------------------------------------------------------------- */
@@ -179,8 +180,18 @@ struct gcSerialHub {
     /* The latest tick (sequence lock; relaxed atomics so that readers never race). */
     _Atomic uint64_t seq;
     _Atomic int64_t tick_ns;
+    _Atomic uint64_t tick_time_bits; /* the tick's session time (a double) */
     _Atomic int tick_enabled;
     _Atomic uint64_t *force_bits, *go_bits, *hip_bits; /* 3 per finger, doubles as bits */
+    /* What each finger's device was last sent, in scene axes, and until when it renders it (its
+     * TTL; 0: nothing): what the tick log records as the finger's device force. One writer a
+     * finger (the thread of the device that drives it), a sequence lock a finger. */
+    _Atomic uint32_t *sent_seq;
+    _Atomic uint64_t *sent_bits;
+    _Atomic int64_t *sent_until_ns;
+    _Atomic unsigned char *driven; /* 1 once a serial device has driven the finger */
+    _Atomic int any_driven;
+    double *recorded; /* the haptic loop's scratch: the device forces it records */
     /* The merged HIPs every device thread pushes (fingers without a device keep theirs). */
     pthread_mutex_t hip_mutex;
     double *hips;
@@ -196,6 +207,7 @@ struct gcSerialDevice {
     int fd;
     gcSerialDef def;
     double A[9], b[3]; /* device metres -> world: x = A p + b */
+    double A_inv[9];   /* forces sent (device axes) back to scene axes: f = A^-T f_dev */
     pthread_t thread;
     _Atomic int run;
     _Atomic int enable_request, enable_generation, estop_request;
@@ -226,6 +238,14 @@ static double load_d(_Atomic uint64_t *slot) {
     return v;
 }
 
+/* A sequence-locked read: acquire, so that the sequence number read after it is not read before. */
+static double load_d_acquire(_Atomic uint64_t *slot) {
+    uint64_t u = atomic_load_explicit(slot, memory_order_acquire);
+    double v;
+    memcpy(&v, &u, 8);
+    return v;
+}
+
 gcSerialHub *gc_serial_hub_create(const gcWorld *w) {
     gcSerialHub *h = calloc(1, sizeof *h);
     if (!h) return NULL;
@@ -238,7 +258,13 @@ gcSerialHub *gc_serial_hub_create(const gcWorld *w) {
     h->go_bits = calloc(n, sizeof *h->go_bits);
     h->hip_bits = calloc(n, sizeof *h->hip_bits);
     h->hips = calloc(n, sizeof *h->hips);
-    if (!h->force_bits || !h->go_bits || !h->hip_bits || !h->hips) {
+    h->sent_seq = calloc((size_t)w->def.max_fingers, sizeof *h->sent_seq);
+    h->sent_bits = calloc(n, sizeof *h->sent_bits);
+    h->sent_until_ns = calloc((size_t)w->def.max_fingers, sizeof *h->sent_until_ns);
+    h->driven = calloc((size_t)w->def.max_fingers, sizeof *h->driven);
+    h->recorded = calloc(n, sizeof *h->recorded);
+    if (!h->force_bits || !h->go_bits || !h->hip_bits || !h->hips || !h->sent_seq || !h->sent_bits ||
+        !h->sent_until_ns || !h->driven || !h->recorded) {
         gc_serial_hub_destroy(h);
         return NULL;
     }
@@ -263,8 +289,68 @@ void gc_serial_hub_tick(gcSerialHub *h, const gcWorld *hap, const double *device
         store_d(&h->hip_bits[3 * i + 2], f->hip.z);
     }
     atomic_store_explicit(&h->tick_ns, t, memory_order_relaxed);
+    store_d(&h->tick_time_bits, hap->time);
     atomic_store_explicit(&h->tick_enabled, enabled, memory_order_relaxed);
     atomic_store_explicit(&h->seq, s + 2, memory_order_release);
+}
+
+/* A finger's last sent force (scene axes) and until when the device renders it. */
+static void sent_store(gcSerialHub *h, int finger, const double f[3], int64_t until_ns) {
+    uint32_t s = atomic_load_explicit(&h->sent_seq[finger], memory_order_relaxed);
+    atomic_store_explicit(&h->sent_seq[finger], s + 1, memory_order_relaxed);
+    atomic_thread_fence(memory_order_release);
+    for (int c = 0; c < 3; ++c) store_d(&h->sent_bits[3 * finger + c], f[c]);
+    atomic_store_explicit(&h->sent_until_ns[finger], until_ns, memory_order_relaxed);
+    atomic_store_explicit(&h->sent_seq[finger], s + 2, memory_order_release);
+}
+
+/* The device renders nothing from now on (it was told ENABLE(0) or ESTOP, or stopped itself). */
+static void sent_clear(gcSerialHub *h, int offset, int n) {
+    static const double zero[3] = {0, 0, 0};
+    for (int i = offset; i < offset + n; ++i) sent_store(h, i, zero, 0);
+}
+
+const double *gc_serial_hub_recorded_forces(gcSerialHub *h, const double *device_force, int num_fingers) {
+    if (!atomic_load_explicit(&h->any_driven, memory_order_acquire)) return device_force;
+    int64_t now = 0;
+    for (int i = 0; i < num_fingers; ++i) {
+        double *out = &h->recorded[3 * i];
+        if (!atomic_load_explicit(&h->driven[i], memory_order_acquire)) {
+            memcpy(out, &device_force[3 * i], 3 * sizeof(double));
+            continue;
+        }
+        if (!now) now = now_ns(); /* the device threads' clock, whatever clock the loop runs on */
+        /* A writer preempted mid-store must not hold the haptic loop: after a few tries the
+         * finger keeps what the previous tick recorded (a millisecond old). */
+        for (int attempt = 0; attempt < 8; ++attempt) {
+            uint32_t s1 = atomic_load_explicit(&h->sent_seq[i], memory_order_acquire);
+            if (s1 & 1) continue;
+            double v[3];
+            for (int c = 0; c < 3; ++c) v[c] = load_d_acquire(&h->sent_bits[3 * i + c]);
+            int64_t until = atomic_load_explicit(&h->sent_until_ns[i], memory_order_acquire);
+            if (atomic_load_explicit(&h->sent_seq[i], memory_order_relaxed) != s1) continue;
+            for (int c = 0; c < 3; ++c) out[c] = now < until ? v[c] : 0.0; /* its TTL over: the device let go */
+            break;
+        }
+    }
+    return h->recorded;
+}
+
+/* The session time of monotonic instant t: the latest tick's time plus the time since its
+ * wake-up (-1 before the first tick). */
+static double hub_session_time(gcSerialHub *h, int64_t t) {
+    for (int attempt = 0;; ++attempt) {
+        if (attempt >= 64) { /* the haptic loop was preempted mid-publication: let it run */
+            struct timespec pause = {0, 1000};
+            nanosleep(&pause, NULL);
+        }
+        uint64_t s1 = atomic_load_explicit(&h->seq, memory_order_acquire);
+        if (s1 & 1) continue;
+        int64_t tick = atomic_load_explicit(&h->tick_ns, memory_order_acquire);
+        double time = load_d_acquire(&h->tick_time_bits);
+        if (atomic_load_explicit(&h->seq, memory_order_relaxed) != s1) continue;
+        return s1 ? time + (double)(t - tick) / NS : -1.0;
+    }
 }
 
 /* Fingers [offset, offset + n) of the latest tick: forces, god-objects, HIPs (NULL to skip).
@@ -329,6 +415,8 @@ typedef struct gcDeviceRun { /* the thread's own state */
     int64_t last_pose_ns, last_tx_ns, last_hello_ns, enabled_since_ns, last_publish_ns, last_drop_event_ns;
     uint64_t drops_reported;
     int enable_generation, stalled;
+    int estop_latched;       /* an e-stop, until the next ENABLE(1) */
+    int64_t enable_sent_ns;  /* when ENABLE(1) was last sent */
     double unit_scale;
     int64_t rate_window_ns;
     uint64_t rate_window_poses;
@@ -343,13 +431,16 @@ static void emit(gcSerialDevice *d, int code, int value) {
     unsigned tail = atomic_load_explicit(&d->ev_tail, memory_order_acquire);
     if (head - tail >= GC_SERIAL_EVENTS) return; /* full: the reader is away; the counters still say it */
     gcSerialEvent *e = &d->events[head % GC_SERIAL_EVENTS];
-    e->time = (double)now_ns() / NS;
+    int64_t t = now_ns();
+    e->time = (double)t / NS;
+    e->session_time = hub_session_time(d->hub, t);
     e->code = code;
     e->value = value;
     atomic_store_explicit(&d->ev_head, head + 1, memory_order_release);
 }
 
-static void send_frame(gcDeviceRun *r, uint8_t type, const uint8_t *payload, size_t n) {
+/* 1 when the whole frame was written. */
+static int send_frame(gcDeviceRun *r, uint8_t type, const uint8_t *payload, size_t n) {
     uint8_t wire[GC_PROTO_WIRE_MAX + 1];
     size_t len = gc_frame_encode(type, r->tx_seq++, payload, n, wire);
     size_t off = 0;
@@ -361,14 +452,32 @@ static void send_frame(gcDeviceRun *r, uint8_t type, const uint8_t *payload, siz
         }
         if (k < 0 && errno == EINTR) continue;
         r->s.write_errors++; /* full (EAGAIN) or gone: the frame is lost, the TTL covers it */
-        return;
+        return 0;
     }
     r->last_tx_ns = now_ns();
+    return 1;
 }
 
 static void send_enable(gcDeviceRun *r, int on) {
     uint8_t p = on ? 1 : 0;
     send_frame(r, GC_MSG_ENABLE, &p, 1);
+    if (on) {
+        r->estop_latched = 0; /* ENABLE(1) clears a latched e-stop, on both sides */
+        r->enable_sent_ns = now_ns();
+    } else {
+        sent_clear(r->dev->hub, r->dev->def.finger_offset, r->dev->def.num_fingers);
+    }
+}
+
+/* Forces off until the next ENABLE(1): an e-stop, the host's (reason 0) or the device's. */
+static void latch_estop(gcDeviceRun *r, int reason) {
+    r->s.enabled = 0;
+    r->enabled_since_ns = 0;
+    sent_clear(r->dev->hub, r->dev->def.finger_offset, r->dev->def.num_fingers);
+    if (r->estop_latched) return; /* a repeated ESTOP: one event, one count */
+    r->estop_latched = 1;
+    r->s.estops++;
+    emit(r->dev, GC_SERIAL_EV_ESTOP, reason);
 }
 
 static double percentile_us(const uint32_t *hist, uint64_t total, double q) {
@@ -440,6 +549,7 @@ static void send_forces(gcDeviceRun *r, uint16_t ack, int64_t t) {
     gc_put16(p + 2, (uint16_t)fmin(ttl_us, 65535.0));
     p[4] = (uint8_t)n;
     p[5] = 0;
+    double sent[3 * GC_PROTO_MAX_FINGERS]; /* what the frame carries, back in scene axes */
     for (int i = 0; i < n; ++i) {
         double v[3] = {0, 0, 0};
         if (i < m && gain > 0) {
@@ -449,10 +559,18 @@ static void send_forces(gcDeviceRun *r, uint16_t ack, int64_t t) {
             if (!(norm == norm)) v[0] = v[1] = v[2] = 0; /* NaN never leaves */
             else if (norm > limit) for (int c = 0; c < 3; ++c) v[c] *= limit / norm;
         }
-        for (int c = 0; c < 3; ++c) gc_putf32(p + 6 + 12 * i + 4 * c, (float)v[c]);
+        for (int c = 0; c < 3; ++c) {
+            v[c] = (float)v[c];
+            gc_putf32(p + 6 + 12 * i + 4 * c, (float)v[c]);
+        }
+        if (i < m)
+            for (int c = 0; c < 3; ++c) /* f = A^-T f_dev */
+                sent[3 * i + c] = d->A_inv[c] * v[0] + d->A_inv[3 + c] * v[1] + d->A_inv[6 + c] * v[2];
     }
-    send_frame(r, GC_MSG_FORCE, p, 6 + 12 * (size_t)n);
+    if (!send_frame(r, GC_MSG_FORCE, p, 6 + 12 * (size_t)n)) return; /* not sent: the last frame's TTL runs on */
     r->s.forces_sent++;
+    int64_t until = r->last_tx_ns + (int64_t)gc_le16(p + 2) * 1000;
+    for (int i = 0; i < m; ++i) sent_store(d->hub, d->def.finger_offset + i, &sent[3 * i], until);
 }
 
 static void on_hello(gcDeviceRun *r, const gcFrame *fr) {
@@ -509,6 +627,10 @@ static void on_pose(gcDeviceRun *r, const gcFrame *fr, int64_t t_read) {
         emit(d, GC_SERIAL_EV_RECOVERED, 0);
         s->state = GC_SERIAL_STREAMING;
     }
+    /* A pose saying "e-stop latched" while forces are on: an ESTOP frame was lost on the way
+     * (a device that has not yet taken up our ENABLE(1) may still say so for a moment). */
+    if ((p[5] & GC_STATUS_ESTOPPED) && s->enabled && t_read - r->enable_sent_ns > GC_ESTOP_STATUS_GRACE_NS)
+        latch_estop(r, GC_ESTOP_REASON_STATUS);
     r->last_pose_ns = t_read;
     s->poses++;
     r->rate_window_poses++;
@@ -525,11 +647,7 @@ static void on_frame(gcDeviceRun *r, const gcFrame *fr, int64_t t) {
     switch (fr->type) {
     case GC_MSG_HELLO_DEVICE: on_hello(r, fr); break;
     case GC_MSG_POSE: on_pose(r, fr, t); break;
-    case GC_MSG_ESTOP:
-        r->s.estops++;
-        r->s.enabled = 0;
-        emit(r->dev, GC_SERIAL_EV_ESTOP, fr->payload[0]);
-        break;
+    case GC_MSG_ESTOP: latch_estop(r, fr->payload[0]); break;
     case GC_MSG_HEARTBEAT: r->s.heartbeats++; break;
     default: break; /* host-bound types only */
     }
@@ -541,9 +659,8 @@ static void take_requests(gcDeviceRun *r) {
     if (atomic_exchange_explicit(&d->estop_request, 0, memory_order_acq_rel)) {
         uint8_t reason = 0;
         send_frame(r, GC_MSG_ESTOP, &reason, 1);
-        r->s.estops++;
-        r->s.enabled = 0;
-        emit(d, GC_SERIAL_EV_ESTOP, 0);
+        r->estop_latched = 0; /* the host's own e-stop is always an event */
+        latch_estop(r, 0);
     }
     int gen = atomic_load_explicit(&d->enable_generation, memory_order_acquire);
     if (gen != r->enable_generation) {
@@ -651,6 +768,11 @@ static gcSerialDevice *device_of(gcWorld *w, int32_t id) {
     return h->devices[id];
 }
 
+/* The determinant of the upper-left 3x3 of a row-major 4x4. */
+static double det3(const double *m) {
+    return m[0] * (m[5] * m[10] - m[6] * m[9]) - m[1] * (m[4] * m[10] - m[6] * m[8]) + m[2] * (m[4] * m[9] - m[5] * m[8]);
+}
+
 static const char *check_serial_def(const gcWorld *w, int fd, const gcSerialDef *d) {
     if (fd < 0) return "fd: must be an open file descriptor";
     if (d->num_fingers < 1 || d->num_fingers > GC_PROTO_MAX_FINGERS) return "num_fingers: must be 1..32";
@@ -660,6 +782,7 @@ static const char *check_serial_def(const gcWorld *w, int fd, const gcSerialDef 
         if (!isfinite(d->transform[i])) return "transform: must be finite";
     if (d->transform[12] != 0 || d->transform[13] != 0 || d->transform[14] != 0 || d->transform[15] != 1)
         return "transform: the last row must be (0, 0, 0, 1)";
+    if (!(fabs(det3(d->transform)) > 1e-12)) return "transform: singular (a workspace frame must keep three dimensions)";
     if (!(d->force_ttl > 0 && d->force_ttl <= 0.065)) return "force_ttl: must be in (0, 0.065] s";
     if (!(d->lost_timeout > 0 && isfinite(d->lost_timeout))) return "lost_timeout: must be a finite number > 0";
     if (!(d->max_force >= 0 && isfinite(d->max_force))) return "max_force: must be a finite number >= 0";
@@ -713,12 +836,21 @@ gcStatus gc_world_attach_serial(gcWorld *w, int fd, const gcSerialDef *def, int3
         for (int j = 0; j < 3; ++j) d->A[3 * i + j] = def->transform[4 * i + j];
         d->b[i] = def->transform[4 * i + 3];
     }
+    const double *A = d->A, inv_det = 1.0 / det3(def->transform); /* checked non-zero */
+    for (int i = 0; i < 3; ++i) /* the inverse as the transposed cofactor matrix */
+        for (int j = 0; j < 3; ++j) {
+            int i1 = (j + 1) % 3, i2 = (j + 2) % 3, j1 = (i + 1) % 3, j2 = (i + 2) % 3;
+            d->A_inv[3 * i + j] = (A[3 * i1 + j1] * A[3 * i2 + j2] - A[3 * i1 + j2] * A[3 * i2 + j1]) * inv_det;
+        }
     pthread_mutex_init(&d->stats_mutex, NULL);
     atomic_store(&d->run, 1);
     r->dev = d;
     r->unit_scale = 1.0;
     gc_decoder_reset(&r->dec);
     hub_claim_fingers(h, w, def->finger_offset + def->num_fingers);
+    for (int i = def->finger_offset; i < def->finger_offset + def->num_fingers; ++i)
+        atomic_store_explicit(&h->driven[i], 1, memory_order_release);
+    atomic_store_explicit(&h->any_driven, 1, memory_order_release);
     if (pthread_create(&d->thread, NULL, device_main, r)) {
         pthread_mutex_destroy(&d->stats_mutex);
         free(d);
@@ -767,6 +899,11 @@ void gc_serial_hub_destroy(gcSerialHub *h) {
     free(h->go_bits);
     free(h->hip_bits);
     free(h->hips);
+    free(h->sent_seq);
+    free(h->sent_bits);
+    free(h->sent_until_ns);
+    free(h->driven);
+    free(h->recorded);
     free(h);
 }
 
