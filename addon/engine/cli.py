@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Callable
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+EXIT_DEVICE_LOST = 3    # run: the session ran and was saved, but a device was lost during it
 PROG = "grasp-lab"
 
 
@@ -105,6 +106,9 @@ def _configure_run(p):
                         "(default: stepped as fast as it goes, deterministic)")
     p.add_argument("--device", action="append", default=[], metavar="SPEC",
                    help="an input device: serial:PORT, spacemouse, opengloves:PORT (repeatable)")
+    p.add_argument("--forces", choices=("on", "off"), default="off",
+                   help="device forces (default off, as in the UI): on turns them on at the start, ramping "
+                        "in, with the same safety as the sidebar's Forces On")
     p.add_argument("--record", metavar="OUT.mcap", help="record every haptic tick to this file")
     p.add_argument("--save", metavar="OUT.blend", help="save the scene after the session")
     p.add_argument("--set", action="append", default=[], type=_override, metavar="KEY=VALUE", help=SET_HELP)
@@ -178,7 +182,10 @@ def _run_info(args, out, err):
     if s["runtime"]:
         p("runtime     " + ", ".join(f"{k} {v}" for k, v in s["runtime"].items()))
     if s["device"]:
-        p("device      " + ", ".join(f"{k} {v}" for k, v in s["device"].items()))
+        p("device      " + ", ".join(f"{k} {v}" for k, v in s["device"].items() if k != "drivers"))
+    from .devices.live import loss_lines, recorded_device_events
+    for line in loss_lines(recorded_device_events(s["event_list"])):
+        p("device lost " + line)
     p("versions    " + ", ".join(f"{k} {v}" for k, v in (s["versions"] or {}).items()))
     p("events      " + (", ".join(f"{k} {v}" for k, v in sorted(s["events"].items())) or "none"))
     if s["overflow"]:
@@ -224,6 +231,8 @@ def _run_run(args, out, err):
         check_device(spec)
     if args.device and not args.realtime:
         raise CliError("--device needs --realtime (devices drive a live session on the threaded runtime)")
+    if args.forces == "on" and not args.device:
+        raise CliError("--forces on needs --device (device forces go to the devices of the session)")
     return headless.run(args, out, err)
 
 

@@ -19,6 +19,12 @@ def _rows(ticks, every):
     return ticks[::every] if every > 1 else ticks
 
 
+def _events_by_time(rec: Recording) -> list:
+    """Events in time order (the file holds them as written: tick-derived events by the
+    recorder thread, device events as the session polled them)."""
+    return sorted(rec.events, key=lambda e: float(e.get("time", 0.0)))
+
+
 def _fmt(a):
     return [repr(float(v)) for v in a]
 
@@ -54,7 +60,7 @@ def export_csv(rec: Recording, folder: str, every: int = 1) -> dict:
     with open(os.path.join(folder, "events.csv"), "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(EVENT_COLUMNS)
-        for e in rec.events:
+        for e in _events_by_time(rec):
             w.writerow([repr(float(e.get("time", 0.0))), e.get("kind", ""), e.get("subject", ""),
                         e.get("detail", "")])
         counts["events.csv"] = len(rec.events)
@@ -65,11 +71,12 @@ def export_npz(rec: Recording, path: str, every: int = 1) -> int:
     """Every tick field as an array (time first), names and events. Returns the ticks written."""
     ticks = _rows(rec.ticks, every)
     arrays = {name: np.ascontiguousarray(ticks[name]) for name in ticks.dtype.names}
+    events = _events_by_time(rec)
     np.savez_compressed(
         path, body_names=np.array(rec.body_names), finger_names=np.array(rec.finger_names),
         haptic_rate=rec.haptic_rate,
-        event_time=np.array([e.get("time", 0.0) for e in rec.events], dtype=np.float64),
-        event_kind=np.array([e.get("kind", "") for e in rec.events]),
-        event_subject=np.array([e.get("subject", "") for e in rec.events]),
-        event_detail=np.array([e.get("detail", "") for e in rec.events]), **arrays)
+        event_time=np.array([e.get("time", 0.0) for e in events], dtype=np.float64),
+        event_kind=np.array([e.get("kind", "") for e in events]),
+        event_subject=np.array([e.get("subject", "") for e in events]),
+        event_detail=np.array([e.get("detail", "") for e in events]), **arrays)
     return len(ticks)

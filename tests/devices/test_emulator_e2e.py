@@ -95,7 +95,7 @@ def test_emulator_end_to_end_unplug_and_reconnect():
         assert time.monotonic() - t_unplug < 0.25
         assert world.running
         wait_for(lambda: dev.stats()["state"] == "hangup", 0.25, "the hang-up to show")
-        events = [name for _, name, _ in dev.events()]
+        events = [name for _, name, _, _ in dev.events()]
         assert events[:2] == ["connected", "enabled"] and "lost" in events, events
 
         # What the device saw: force frames answering poses, clamped to its 5 N, none while

@@ -1,7 +1,7 @@
 """The reference device emulator: a Grasp Lab serial device (docs/protocol.md) in software.
 
     python -m addon.engine.devices.emulator (--pty | PORT) [--fingers N]
-        [--motion NAME | --from SCENE.blend] [--rate HZ] [--duration S]
+        [--motion NAME | --from SCENE.blend] [--rate HZ] [--duration S] [--estop-at S] [--force-log PATH]
 
 With ``--pty`` it opens a pseudo-terminal in raw mode and prints ``PORT /dev/pts/N`` as its
 first line; the host opens that path. After the host's hello it answers with its
@@ -10,7 +10,10 @@ or the fingertip animation of a .blend. It behaves as firmware must: forces stay
 until ENABLE(1), each force frame lives for its TTL, an e-stop latches. It checks every
 force frame it gets (finger count, NaN, the force limit, the TTL limit, forces while
 disabled), measures pose-to-force latency by the acknowledged sequence number, and prints
-a report (``REPORT {json}``) when it ends (duration, SIGTERM or SIGINT).
+a report (``REPORT {json}``) when it ends (duration, SIGTERM or SIGINT). ``--estop-at S``
+presses its stop button S seconds into streaming (ESTOP(1) sent, forces latched off until
+ENABLE(1)); ``--force-log PATH`` writes every force frame it received (CSV: time since its
+streaming started, ack_seq, ttl_us, then fx fy fz per finger, exactly as sent).
 """
 from __future__ import annotations
 
@@ -167,7 +170,7 @@ def _percentile(sorted_values, q):
 
 class Emulator:
     def __init__(self, fd, n_fingers=2, motion=motion_grip, rate=1000.0, force_max=5.0, ttl_max_ms=50,
-                 renders_forces=True, name="grasp-lab-emulator", corrupt_every=0):
+                 renders_forces=True, name="grasp-lab-emulator", corrupt_every=0, estop_at=None, log_forces=False):
         self.fd = fd
         self.n = int(n_fingers)
         self.motion = motion
@@ -189,6 +192,10 @@ class Emulator:
         self.write_errors = 0
         self.stop = False
         self.started = None
+        self.estop_at = estop_at    # s into streaming: the stop button (None: never)
+        self.estop_sent_at = None
+        self.forces_after_estop = 0     # force frames with a non-zero force after the button, before ENABLE(1)
+        self.force_log = [] if log_forces else None     # (t, ack_seq, ttl_us, forces) of every force frame
 
     def _send(self, type_, payload):
         frame = P.encode(type_, self.seq, payload)
@@ -218,6 +225,10 @@ class Emulator:
                 self.checker.violations["nan"] += 1
                 return
             self.rendered = self.checker.check(force, self.enabled)
+            if self.estopped and any(any(f) for f in force.forces):
+                self.forces_after_estop += 1
+            if self.force_log is not None:
+                self.force_log.append((now - (self.started or now), force.ack_seq, force.ttl_us, force.forces))
             self.force_expiry = now + force.ttl_us * 1e-6
             sent = self.sent_at.pop(force.ack_seq, None)
             if sent is not None:
@@ -254,6 +265,11 @@ class Emulator:
             if self.force_expiry and now > self.force_expiry and any(any(f) for f in self.rendered):
                 self.ttl_expiries += 1        # the host went quiet: the device lets go by itself
                 self.rendered = [(0.0, 0.0, 0.0)] * self.n
+            if self.estop_at is not None and self.estop_sent_at is None and t >= self.estop_at:
+                self.estop_sent_at = t        # the stop button: forces off at once, latched, and said so
+                self.enabled, self.estopped = False, True
+                self.rendered = [(0.0, 0.0, 0.0)] * self.n
+                self._send(P.ESTOP, P.estop(P.ESTOP_BUTTON))
             status = (P.STATUS_FORCES_ON if self.enabled else 0) | (P.STATUS_ESTOPPED if self.estopped else 0)
             positions = self.motion(t, self.n)
             self._send(P.POSE, P.pose(int(t * 1e6), positions, status))
@@ -285,7 +301,13 @@ class Emulator:
             "latency_p50_ms": _ms(_percentile(lat, 0.50)), "latency_p99_ms": _ms(_percentile(lat, 0.99)),
             "latency_max_ms": _ms(lat[-1] if lat else None), "unacknowledged": self.poses_sent - len(lat),
             "host_frames_dropped": self.decoder.errors, "write_errors": self.write_errors,
+            "estop_at_s": self.estop_sent_at, "forces_after_estop": self.forces_after_estop,
         }
+
+    def write_force_log(self, path):
+        with open(path, "w") as fh:
+            for t, ack, ttl, forces in self.force_log or ():
+                fh.write(",".join([repr(t), str(ack), str(ttl)] + [repr(c) for f in forces for c in f]) + "\n")
 
 
 def _ms(v):
@@ -314,6 +336,9 @@ def build_parser(parser=None):
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds of streaming")
     p.add_argument("--force-max", type=float, default=5.0, help="the device's force limit, N per finger (default 5)")
     p.add_argument("--ttl-max", type=int, default=50, help="longest force TTL the device accepts, ms (default 50)")
+    p.add_argument("--estop-at", type=float, default=None, metavar="S",
+                   help="press the device's stop button S seconds into streaming (ESTOP sent, forces latched off)")
+    p.add_argument("--force-log", metavar="PATH", help="write every force frame received (CSV) here at the end")
     p.add_argument("--corrupt-every", type=int, default=0, help="break the CRC of every Kth pose frame (tests)")
     p.add_argument("--wait", type=float, default=30.0, help="seconds to wait for the host's hello (default 30)")
     p.add_argument("--report", metavar="PATH", help="also write the report as JSON here")
@@ -337,7 +362,8 @@ def main(argv=None, args=None):
         serial_port = serial.Serial(args.port, 115200, timeout=0)
         fd, path = serial_port.fileno(), args.port
     print(f"PORT {path}", flush=True)
-    emu = Emulator(fd, n, motion, args.rate, args.force_max, args.ttl_max, corrupt_every=args.corrupt_every)
+    emu = Emulator(fd, n, motion, args.rate, args.force_max, args.ttl_max, corrupt_every=args.corrupt_every,
+                   estop_at=args.estop_at, log_forces=bool(args.force_log))
 
     def stop(signum, frame):
         emu.stop = True
@@ -351,6 +377,8 @@ def main(argv=None, args=None):
     finally:
         if serial_port is not None:
             serial_port.close()
+    if args.force_log:
+        emu.write_force_log(args.force_log)
     print("REPORT " + json.dumps(report), flush=True)
     if args.report:
         with open(args.report, "w") as fh:
