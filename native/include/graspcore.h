@@ -347,7 +347,7 @@ typedef struct gcSerialStats {
     uint64_t poses, forces_sent, heartbeats;
     uint64_t dropped;           /* frames dropped, the sum of the errors below */
     uint64_t frame_errors[8];   /* cobs, short, crc, version, type, length, overflow, range */
-    uint64_t sequence_gaps;     /* pose frames missing from the sequence numbers */
+    uint64_t sequence_gaps;     /* device frames (any type) missing from its sequence numbers */
     uint64_t disconnects, estops, stall_zeroes, write_errors, push_rejected;
     double latency_p50_us, latency_p99_us, latency_max_us; /* pose read -> force frame written */
     double gain;                /* current ramp gain 0..1 (0 while disabled) */

@@ -410,8 +410,10 @@ typedef struct gcDeviceRun { /* the thread's own state */
     gcFrameDecoder dec;
     gcFrame frame;
     gcSerialStats s;
-    uint16_t tx_seq, last_pose_seq;
-    int have_pose_seq;
+    uint16_t tx_seq, last_rx_seq; /* the device's sequence: +1 a frame of any type */
+    int have_rx_seq;
+    int host_estop;           /* our ESTOP is latched: said again while the device's poses do not show it */
+    int64_t estop_sent_ns;
     int64_t last_pose_ns, last_tx_ns, last_hello_ns, enabled_since_ns, last_publish_ns, last_drop_event_ns;
     uint64_t drops_reported;
     int enable_generation, stalled;
@@ -462,7 +464,7 @@ static void send_enable(gcDeviceRun *r, int on) {
     uint8_t p = on ? 1 : 0;
     send_frame(r, GC_MSG_ENABLE, &p, 1);
     if (on) {
-        r->estop_latched = 0; /* ENABLE(1) clears a latched e-stop, on both sides */
+        r->estop_latched = r->host_estop = 0; /* ENABLE(1) clears a latched e-stop, on both sides */
         r->enable_sent_ns = now_ns();
     } else {
         sent_clear(r->dev->hub, r->dev->def.finger_offset, r->dev->def.num_fingers);
@@ -594,7 +596,7 @@ static void on_hello(gcDeviceRun *r, const gcFrame *fr) {
     r->unit_scale = units == 1 ? 1e-3 : 1.0;
     if (s->state != GC_SERIAL_STREAMING) emit(r->dev, GC_SERIAL_EV_CONNECTED, n);
     s->state = GC_SERIAL_STREAMING;
-    r->have_pose_seq = 0;
+    r->have_rx_seq = 0; /* a restarted device may start its sequence anywhere */
     r->last_pose_ns = 0;
     send_enable(r, s->enabled);
 }
@@ -620,9 +622,6 @@ static void on_pose(gcDeviceRun *r, const gcFrame *fr, int64_t t_read) {
         s->frame_errors[GC_FRAME_RANGE]++;
         return;
     }
-    if (r->have_pose_seq) s->sequence_gaps += (uint16_t)(fr->seq - r->last_pose_seq - 1);
-    r->last_pose_seq = fr->seq;
-    r->have_pose_seq = 1;
     if (s->state == GC_SERIAL_LOST) {
         emit(d, GC_SERIAL_EV_RECOVERED, 0);
         s->state = GC_SERIAL_STREAMING;
@@ -631,6 +630,12 @@ static void on_pose(gcDeviceRun *r, const gcFrame *fr, int64_t t_read) {
      * (a device that has not yet taken up our ENABLE(1) may still say so for a moment). */
     if ((p[5] & GC_STATUS_ESTOPPED) && s->enabled && t_read - r->enable_sent_ns > GC_ESTOP_STATUS_GRACE_NS)
         latch_estop(r, GC_ESTOP_REASON_STATUS);
+    /* Ours, not shown latched in its poses: our ESTOP may have been lost; say it again. */
+    if (r->host_estop && !(p[5] & GC_STATUS_ESTOPPED) && t_read - r->estop_sent_ns > GC_HELLO_RETRY_NS) {
+        uint8_t reason = 0;
+        send_frame(r, GC_MSG_ESTOP, &reason, 1);
+        r->estop_sent_ns = t_read;
+    }
     r->last_pose_ns = t_read;
     s->poses++;
     r->rate_window_poses++;
@@ -644,6 +649,11 @@ static void on_pose(gcDeviceRun *r, const gcFrame *fr, int64_t t_read) {
 }
 
 static void on_frame(gcDeviceRun *r, const gcFrame *fr, int64_t t) {
+    /* Frames of the device's sequence that never arrived (any type: its seq counts them all). */
+    if (fr->type == GC_MSG_HELLO_DEVICE) r->have_rx_seq = 0;
+    if (r->have_rx_seq) r->s.sequence_gaps += (uint16_t)(fr->seq - r->last_rx_seq - 1);
+    r->last_rx_seq = fr->seq;
+    r->have_rx_seq = 1;
     switch (fr->type) {
     case GC_MSG_HELLO_DEVICE: on_hello(r, fr); break;
     case GC_MSG_POSE: on_pose(r, fr, t); break;
@@ -661,6 +671,8 @@ static void take_requests(gcDeviceRun *r) {
         send_frame(r, GC_MSG_ESTOP, &reason, 1);
         r->estop_latched = 0; /* the host's own e-stop is always an event */
         latch_estop(r, 0);
+        r->host_estop = 1;
+        r->estop_sent_ns = now_ns();
     }
     int gen = atomic_load_explicit(&d->enable_generation, memory_order_acquire);
     if (gen != r->enable_generation) {
@@ -718,7 +730,8 @@ static void *device_main(void *arg) {
             lose(r, GC_SERIAL_LOST);
         }
         if (r->s.state == GC_SERIAL_LOST) let_go(r);
-        if (r->s.state == GC_SERIAL_WAITING && t - r->last_hello_ns > GC_HELLO_RETRY_NS) {
+        /* No capabilities yet, or silent: hello every 100 ms (a device that restarted answers it). */
+        if ((r->s.state == GC_SERIAL_WAITING || r->s.state == GC_SERIAL_LOST) && t - r->last_hello_ns > GC_HELLO_RETRY_NS) {
             send_frame(r, GC_MSG_HELLO_HOST, hello, 2);
             r->last_hello_ns = t;
         }

@@ -630,6 +630,92 @@ static void test_recorded_forces(void) {
     close(sv[0]), close(sv[1]);
 }
 
+/* Host-side rules of docs/protocol.md: the device's sequence counts frames of every type (a
+ * HEARTBEAT between poses is no gap, a frame that never came is); a silent device gets a
+ * HELLO_HOST every 100 ms (so that one that restarted answers); the host's ESTOP is said
+ * again while the device's poses do not show it latched. */
+static void test_protocol_rules(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    gcFingerDef fd = gc_default_finger_def();
+    int32_t f;
+    GC_CHECK(gc_world_add_finger(w, &fd, &f) == GC_OK, "finger");
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start");
+    int sv[2];
+    GC_CHECK(socketpair(AF_UNIX, SOCK_STREAM, 0, sv) == 0, "socketpair");
+    fcntl(sv[0], F_SETFL, O_NONBLOCK);
+    static Dev dev;
+    memset(&dev, 0, sizeof dev);
+    dev.fd = sv[1];
+    gc_decoder_reset(&dev.dec);
+    gcSerialDef sd = gc_default_serial_def();
+    sd.priority = 0;
+    int32_t id;
+    GC_CHECK(gc_world_attach_serial(w, sv[0], &sd, &id) == GC_OK, "attach");
+    dev_read(&dev, 200);
+    uint8_t hello[12] = {1, GC_CAP_FORCES, 0, 0};
+    gc_put16(hello + 4, 1000);
+    gc_putf32(hello + 6, 5.0f);
+    gc_put16(hello + 10, 50);
+    dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, 12);
+    gcSerialStats st;
+    for (int i = 0; i < 100; ++i) { /* a heartbeat after every pose: its seq is the next one */
+        dev_pose(&dev, 0, 0, 0.05);
+        uint8_t hb[4] = {0};
+        dev_send(&dev, GC_MSG_HEARTBEAT, hb, 4);
+        dev_read(&dev, 0);
+        sleep_ms(1);
+    }
+    WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.poses >= 100 && st.heartbeats >= 100));
+    GC_CHECK(st.poses == 100 && st.heartbeats == 100 && st.sequence_gaps == 0,
+             "heartbeats between poses: %llu poses, %llu heartbeats, %llu gaps", (unsigned long long)st.poses,
+             (unsigned long long)st.heartbeats, (unsigned long long)st.sequence_gaps);
+    dev.seq += 3; /* three frames lost on the way */
+    stream(&dev, 20, 0.05);
+    WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.poses >= 120));
+    GC_CHECK(st.sequence_gaps == 3, "three frames missing: %llu gaps", (unsigned long long)st.sequence_gaps);
+
+    /* The host's e-stop: ESTOP(0), and again every 100 ms while the poses say "not latched". */
+    gc_world_serial_estop(w, id);
+    int estops = 0;
+    for (int k = 0; k < 5; ++k) {
+        uint8_t buf[4096];
+        for (int i = 0; i < 60; ++i) { /* poses without the e-stop bit, counting ESTOP frames */
+            dev_pose(&dev, 0, 0, 0.05);
+            struct pollfd pfd = {.fd = dev.fd, .events = POLLIN};
+            while (poll(&pfd, 1, 1) > 0) {
+                ssize_t n = read(dev.fd, buf, sizeof buf);
+                if (n <= 0) break;
+                gcFrame fr;
+                for (ssize_t j = 0; j < n; ++j)
+                    if (gc_decoder_push(&dev.dec, buf[j], &fr) && fr.type == GC_MSG_ESTOP) estops++;
+            }
+        }
+    }
+    GC_CHECK(estops >= 2, "the host's ESTOP said again while the device does not show it: %d frames", estops);
+    dev.status = GC_STATUS_ESTOPPED; /* now latched at the device: no more */
+    stream(&dev, 50, 0.05);
+    int hellos = dev.hellos;
+    sleep_ms(350); /* silent: lost after 0.1 s, then hellos */
+    dev_read(&dev, 10);
+    GC_CHECK(dev.hellos >= hellos + 2, "hellos to a silent device: %d", dev.hellos - hellos);
+    gc_world_serial_stats(w, id, &st);
+    GC_CHECK(st.state == GC_SERIAL_LOST, "state %d", st.state);
+    dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, 12); /* it restarted: its sequence starts again */
+    dev.seq = 0;
+    stream(&dev, 50, 0.05);
+    uint64_t gaps = st.sequence_gaps;
+    WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.state == GC_SERIAL_STREAMING && st.poses > 200));
+    GC_CHECK(st.state == GC_SERIAL_STREAMING && st.sequence_gaps == gaps, "streaming again, gaps %llu (were %llu)",
+             (unsigned long long)st.sequence_gaps, (unsigned long long)gaps);
+    gc_world_stop(w);
+    gc_world_destroy(w);
+    close(sv[0]), close(sv[1]);
+}
+
 int main(void) {
     test_crc_and_cobs();
     test_vectors();
@@ -637,6 +723,7 @@ int main(void) {
     test_device_thread();
     test_two_devices();
     test_recorded_forces();
+    test_protocol_rules();
     test_peer_gone_before_hello();
     return gc_test_summary("test_serial_io");
 }

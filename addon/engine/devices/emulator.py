@@ -143,8 +143,9 @@ class ForceChecker:
         if len(force.forces) != self.n:
             self.violations["fingers"] += 1
             return [(0.0, 0.0, 0.0)] * self.n
-        if force.ttl_us > self.ttl_max_us or force.ttl_us == 0:
-            self.violations["ttl"] += 1
+        if (self.ttl_max_us and force.ttl_us > self.ttl_max_us) or force.ttl_us == 0:
+            self.violations["ttl"] += 1     # rejected: zero every force (protocol.md section 3)
+            return [(0.0, 0.0, 0.0)] * self.n
         out = []
         for f in force.forces:
             norm = math.sqrt(sum(c * c for c in f))
@@ -209,12 +210,14 @@ class Emulator:
 
     def _on_frame(self, frame, now):
         if frame.type == P.HELLO_HOST:
-            self.host_hellos += 1
+            self.host_hellos += 1       # a (re)started host: forces off until it enables them again
+            self.enabled = False
+            self.rendered = [(0.0, 0.0, 0.0)] * self.n
             self._send(P.HELLO_DEVICE, self.hello)
             if self.started is None:
                 self.started = now
         elif frame.type == P.ENABLE:
-            self.enabled = bool(P.parse_u8(frame.payload))   # ENABLE(1) also clears a latched e-stop
+            self.enabled = P.parse_u8(frame.payload) == 1   # any other value is off; ENABLE(1) clears an e-stop
             self.estopped = self.estopped and not self.enabled
         elif frame.type == P.ESTOP:
             self.enabled, self.estopped = False, True
@@ -223,6 +226,7 @@ class Emulator:
                 force = P.parse_force(frame.payload)
             except P.ProtocolError:
                 self.checker.violations["nan"] += 1
+                self.rendered = [(0.0, 0.0, 0.0)] * self.n      # a rejected frame zeroes every force
                 return
             self.rendered = self.checker.check(force, self.enabled)
             if self.estopped and any(any(f) for f in force.forces):
