@@ -66,7 +66,7 @@ def run(args, out, err) -> int:
         live = run_realtime(context, args.duration, device_specs=args.device, record_path=record,
                             forces=args.forces == "on")
         code = _report(args, live.finish(), live.runner.recording_end, applied, out)
-        return _report_devices(live, err) or code
+        return _report_devices(live, out, err) or code
     session = BlenderSession(context, live=args.realtime,
                              duration=args.duration if args.duration else None, record_path=record)
     if session.duration == float("inf"):
@@ -108,10 +108,12 @@ def _report(args, result, end, applied, out) -> int:
     return 0
 
 
-def _report_devices(live, err) -> int:
-    """A device lost during the run is said on standard error: EXIT_DEVICE_LOST (docs/cli.md)."""
+def _report_devices(live, out, err) -> int:
+    """Which device drove which finger; a device lost during the run is said on standard
+    error: EXIT_DEVICE_LOST (docs/cli.md)."""
     from .engine.cli import EXIT_DEVICE_LOST
     from .engine.devices.live import loss_lines
+    print(f"fingers: {live.input_description()['detail']}", file=out)
     lines = loss_lines(live.result.stats.get("device_events", []))
     for line in lines:
         print(f"grasp-lab run: {line}", file=err)
