@@ -945,6 +945,29 @@ static PyObject *World_push_device_hips(PyObject *obj, PyObject *args) {
     return result;
 }
 
+/* device_forces_sent(finger_offset, float64 buffer of xyz rows) -> True if stored, False if rejected. */
+static PyObject *World_device_forces_sent(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int offset;
+    PyObject *forces;
+    if (!PyArg_ParseTuple(args, "iO", &offset, &forces) || !check_world(self)) return NULL;
+    Py_buffer b;
+    if (PyObject_GetBuffer(forces, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
+    PyObject *result = NULL;
+    if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0 || b.len == 0) {
+        PyErr_SetString(PyExc_ValueError, "forces: must be a C-contiguous float64 array of xyz rows");
+    } else {
+        gcStatus st = gc_world_device_forces_sent(self->world, offset, (int)(b.len / (Py_ssize_t)(3 * sizeof(double))),
+                                                  b.buf);
+        if (st < 0)
+            raise_status(self, st);
+        else
+            result = PyBool_FromLong(st == GC_OK);
+    }
+    PyBuffer_Release(&b);
+    return result;
+}
+
 /* serial_events(device) -> [(time, name, value, session_time)], popped oldest first. */
 static PyObject *World_serial_events(PyObject *obj, PyObject *args) {
     WorldObject *self = (WorldObject *)obj;
@@ -1036,6 +1059,9 @@ static PyMethodDef World_methods[] = {
     {"push_device_hips", World_push_device_hips, METH_VARARGS,
      "push_device_hips(finger_offset, array (n, 3) float64): HIPs from a device read in Python (SpaceMouse, glove), "
      "merged with the serial devices' fingers."},
+    {"device_forces_sent", World_device_forces_sent, METH_VARARGS,
+     "device_forces_sent(finger_offset, array (n, 3) float64): what a device read in Python was sent (scene axes), "
+     "recorded as those fingers' device force until the next call."},
     {"serial_events", World_serial_events, METH_VARARGS, "serial_events(device) -> [(time, event, value, session_time)] safety events: monotonic and session clock."},
     {NULL, NULL, 0, NULL},
 };

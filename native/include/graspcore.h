@@ -367,6 +367,10 @@ int gc_world_serial_events(gcWorld *world, int32_t device, gcSerialEvent *out, i
  * the call to use instead of push_hips while serial devices are attached.
  * GC_WARN_REJECTED: a NaN/Inf position (nothing pushed). */
 gcStatus gc_world_push_device_hips(gcWorld *world, int finger_offset, int count, const double *positions);
+/* What such a device was sent for fingers finger_offset.. (3 a finger, scene axes; zeros for an
+ * input-only device), held until the next call: recorded in the tick log as their device force,
+ * as the serial devices' frames are. GC_WARN_REJECTED: a NaN/Inf force (nothing stored). */
+gcStatus gc_world_device_forces_sent(gcWorld *world, int finger_offset, int count, const double *forces);
 
 
 #ifdef __cplusplus

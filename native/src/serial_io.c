@@ -957,6 +957,26 @@ gcStatus gc_world_push_device_hips(gcWorld *w, int offset, int count, const doub
     return hub_push(w->serial, offset, count, positions);
 }
 
+gcStatus gc_world_device_forces_sent(gcWorld *w, int offset, int count, const double *forces) {
+    if (!w || !forces || !w->serial) return GC_ERR_INVALID_ARGUMENT;
+    if (count < 1 || offset < 0 || offset + count > w->num_fingers) {
+        gc_world_set_error(w, "finger_offset, count: fingers %d..%d are not all fingers of the world", offset,
+                           offset + count - 1);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    for (int i = 0; i < 3 * count; ++i)
+        if (!isfinite(forces[i])) return GC_WARN_REJECTED;
+    gcSerialHub *h = w->serial;
+    pthread_mutex_lock(&h->hip_mutex); /* callers on several threads: one writer a finger at a time */
+    for (int i = 0; i < count; ++i) {
+        sent_store(h, offset + i, &forces[3 * i], INT64_MAX);
+        atomic_store_explicit(&h->driven[offset + i], 1, memory_order_release);
+    }
+    pthread_mutex_unlock(&h->hip_mutex);
+    atomic_store_explicit(&h->any_driven, 1, memory_order_release);
+    return GC_OK;
+}
+
 int gc_world_serial_events(gcWorld *w, int32_t id, gcSerialEvent *out, int capacity) {
     gcSerialDevice *d = device_of(w, id);
     if (!d || !out) return 0;

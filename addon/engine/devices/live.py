@@ -71,7 +71,8 @@ class SourceDevice:
     """A device read in Python (SpaceMouse, OpenGloves: tens of Hz) in a DeviceSet. Its
     fingertips go in through ``push_device_hips`` at every poll, merged with the serial
     devices' fingers; a source with ``send_forces`` (a glove) gets its fingers' device
-    forces back, zero until enabled."""
+    forces back, zero until enabled. What it was sent (nothing, for an input-only device) is
+    what the recording holds as its fingers' device force (``device_forces_sent``)."""
 
     def __init__(self, world, source, finger_offset: int, label: str):
         self.world, self.source, self.label, self.port = world, source, label, label
@@ -85,11 +86,16 @@ class SourceDevice:
     def connect(self) -> None:
         self.source.open()
         self.connected = True
+        self._sent(np.zeros((self.num_fingers, 3)))     # nothing yet (an input-only device: ever)
 
     def disconnect(self) -> None:
         if self.connected:
             self.source.close()
+            self._sent(np.zeros((self.num_fingers, 3)))
         self.connected = False
+
+    def _sent(self, forces) -> None:
+        self.world.device_forces_sent(self.finger_offset, np.ascontiguousarray(forces, dtype=np.float64))
 
     def reconnect(self, port=None) -> None:
         self.disconnect()
@@ -108,7 +114,8 @@ class SourceDevice:
             self.rejected += 1
         self.polls += 1
         if hasattr(self.source, "send_forces") and forces is not None:
-            self.source.send_forces(forces[self.finger_offset:self.finger_offset + self.num_fingers], self.enabled)
+            self._sent(self.source.send_forces(forces[self.finger_offset:self.finger_offset + self.num_fingers],
+                                               self.enabled))
 
     def stats(self) -> dict:
         state = getattr(self.source, "state", None)
