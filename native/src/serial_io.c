@@ -385,7 +385,7 @@ static gcStatus hub_push(gcSerialHub *h, int offset, int n, const double *positi
     double t = (double)now_ns() / NS;
     if (t <= h->last_push_t) t = nextafter(h->last_push_t, INFINITY);
     h->last_push_t = t;
-    gcStatus st = gc_world_push_hips(h->world, h->hips, h->hip_count, t);
+    gcStatus st = gc_runtime_push_input(h->world, h->hips, h->hip_count, t); /* no error message: not ours */
     pthread_mutex_unlock(&h->hip_mutex);
     return st;
 }

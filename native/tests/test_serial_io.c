@@ -716,6 +716,62 @@ static void test_protocol_rules(void) {
     close(sv[0]), close(sv[1]);
 }
 
+/* A device attached before the runtime starts (a session connecting its devices first): its
+ * poses are refused, counted, and leave the world's last error alone (the API thread's: TSan
+ * sees any write from the device thread racing the error calls below); once the runtime runs
+ * the same thread drives the finger. */
+static void test_attach_before_start(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    gcFingerDef fd = gc_default_finger_def();
+    int32_t f;
+    GC_CHECK(gc_world_add_finger(w, &fd, &f) == GC_OK, "finger");
+    int sv[2];
+    GC_CHECK(socketpair(AF_UNIX, SOCK_STREAM, 0, sv) == 0, "socketpair");
+    fcntl(sv[0], F_SETFL, O_NONBLOCK);
+    static Dev dev;
+    memset(&dev, 0, sizeof dev);
+    dev.fd = sv[1];
+    gc_decoder_reset(&dev.dec);
+    gcSerialDef sd = gc_default_serial_def();
+    sd.priority = 0;
+    int32_t id;
+    GC_CHECK(gc_world_attach_serial(w, sv[0], &sd, &id) == GC_OK, "attach before start: %s", gc_world_last_error(w));
+    dev_read(&dev, 200);
+    uint8_t hello[12] = {1, GC_CAP_FORCES, 0, 0};
+    gc_put16(hello + 4, 1000);
+    gc_putf32(hello + 6, 5.0f);
+    gc_put16(hello + 10, 50);
+    dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, 12);
+    for (int i = 0; i < 50; ++i) { /* poses while stopped, errors set on this thread meanwhile */
+        dev_pose(&dev, 0, 0, 0.25);
+        double nan3[3] = {NAN, 0, 0};
+        GC_CHECK(gc_world_set_hip(w, f, nan3) == GC_ERR_INVALID_ARGUMENT, "a NaN HIP refused");
+        GC_CHECK(strstr(gc_world_last_error(w), "position") != NULL || strstr(gc_world_last_error(w), "finite"),
+                 "this thread's error stays: %s", gc_world_last_error(w));
+        dev_read(&dev, 0);
+        sleep_ms(1);
+    }
+    gcSerialStats st;
+    WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.poses >= 50));
+    GC_CHECK(st.poses == 50 && st.push_rejected == 50, "poses before start: %llu, refused %llu",
+             (unsigned long long)st.poses, (unsigned long long)st.push_rejected);
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start with a device streaming: %s", gc_world_last_error(w));
+    stream(&dev, 100, 0.25);
+    double hip[3] = {0, 0, 0};
+    gcSnapshot hs;
+    memset(&hs, 0, sizeof hs);
+    hs.hips = hip;
+    WAIT_UNTIL((gc_world_snapshot(w, &hs), fabs(hip[2] - 0.25) < 1e-7));
+    GC_CHECK(fabs(hip[2] - 0.25) < 1e-7, "the device drives the finger once running: z %g", hip[2]);
+    gc_world_stop(w);
+    gc_world_destroy(w);
+    close(sv[0]), close(sv[1]);
+}
+
 int main(void) {
     test_crc_and_cobs();
     test_vectors();
@@ -724,6 +780,7 @@ int main(void) {
     test_two_devices();
     test_recorded_forces();
     test_protocol_rules();
+    test_attach_before_start();
     test_peer_gone_before_hello();
     return gc_test_summary("test_serial_io");
 }
