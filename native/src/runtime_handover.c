@@ -66,16 +66,11 @@ static int update_safety(gcRuntime *rt, int64_t now) {
         rt->enabled_since_ns = NEVER;
     else if (rt->enabled_since_ns == NEVER)
         rt->enabled_since_ns = now;
-    double gain = 0.0;
-    if (ok) gain = rt->ramp_ns > 0 ? fmin(1.0, (double)(now - rt->enabled_since_ns) / (double)rt->ramp_ns) : 1.0;
+    double gain = ok ? gc_ramp_gain((double)(now - rt->enabled_since_ns), (double)rt->ramp_ns) : 0.0;
     for (int32_t i = 0; i < hw->num_fingers; ++i) {
-        gcVec3 f = gc_scale(hw->fingers[i].force, gain);
-        if (!gc_vec_finite(f)) {
-            count(&rt->nonfinite_forces);
-            f = gc_v3(0, 0, 0);
-        }
-        double norm = gc_len(f);
-        if (norm > rt->def.max_force) f = gc_scale(f, rt->def.max_force / norm);
+        int nonfinite = 0;
+        gcVec3 f = gc_gate_force(hw->fingers[i].force, gain, rt->def.max_force, &nonfinite);
+        if (nonfinite) count(&rt->nonfinite_forces);
         double *out = &rt->device_force[3 * i];
         out[0] = f.x, out[1] = f.y, out[2] = f.z;
     }

@@ -12,6 +12,7 @@
 
 #include "graspcore.h"
 #include "body.h"
+#include "gc_math.h"
 #include "runtime.h"
 
 #include <errno.h>
@@ -541,8 +542,7 @@ static void send_forces(gcDeviceRun *r, uint16_t ack, int64_t t) {
         r->enabled_since_ns = 0;
     else if (!r->enabled_since_ns)
         r->enabled_since_ns = t;
-    double gain = 0.0;
-    if (on) gain = d->def.ramp_time > 0 ? fmin(1.0, (double)(t - r->enabled_since_ns) / (d->def.ramp_time * NS)) : 1.0;
+    double gain = on ? gc_ramp_gain((double)(t - r->enabled_since_ns), d->def.ramp_time * NS) : 0.0;
     r->s.gain = gain;
     double limit = fmin(d->def.max_force, r->s.device_force_max);
     uint8_t p[6 + 12 * GC_PROTO_MAX_FINGERS];
@@ -554,12 +554,14 @@ static void send_forces(gcDeviceRun *r, uint16_t ack, int64_t t) {
     double sent[3 * GC_PROTO_MAX_FINGERS]; /* what the frame carries, back in scene axes */
     for (int i = 0; i < n; ++i) {
         double v[3] = {0, 0, 0};
-        if (i < m && gain > 0) {
+        if (i < m && gain > 0) { /* in device axes, f_dev = A^T f, through the one gate */
             const double *fw = &f[3 * i], *A = d->A;
-            for (int c = 0; c < 3; ++c) v[c] = gain * (A[c] * fw[0] + A[3 + c] * fw[1] + A[6 + c] * fw[2]);
-            double norm = sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
-            if (!(norm == norm)) v[0] = v[1] = v[2] = 0; /* NaN never leaves */
-            else if (norm > limit) for (int c = 0; c < 3; ++c) v[c] *= limit / norm;
+            int nonfinite = 0;
+            gcVec3 g = gc_gate_force(gc_v3(A[0] * fw[0] + A[3] * fw[1] + A[6] * fw[2],
+                                           A[1] * fw[0] + A[4] * fw[1] + A[7] * fw[2],
+                                           A[2] * fw[0] + A[5] * fw[1] + A[8] * fw[2]),
+                                     gain, limit, &nonfinite);
+            v[0] = g.x, v[1] = g.y, v[2] = g.z;
         }
         for (int c = 0; c < 3; ++c) {
             v[c] = (float)v[c];

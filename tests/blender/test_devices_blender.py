@@ -266,3 +266,13 @@ def test_a_device_with_no_finger_to_drive_is_an_error_naming_it(bpy, sample, cor
         devices_ui.run_realtime(bpy.context, 0.1, ["serial:/dev/null@2"])
     assert len(bpy.context.scene.grasp_lab_devices) == 0
     assert grasp_env.submodule("session").active_session() is None
+
+
+def test_run_forces_on_needs_a_device(tmp_path):
+    launcher = os.path.join(grasp_env.ROOT, ".venv", "bin", "grasp-lab")
+    r = subprocess.run([launcher, "run", str(tmp_path / "none.blend"), "--realtime", "--forces", "on"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 1 and "--forces on needs --device" in r.stderr, (r.returncode, r.stderr)
+    r = subprocess.run([launcher, "run", str(tmp_path / "none.blend"), "--forces", "sometimes"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and "--forces" in r.stderr, (r.returncode, r.stderr)
