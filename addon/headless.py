@@ -116,7 +116,7 @@ def _report_devices(live, out, err) -> int:
     print(f"fingers: {live.input_description()['detail']}", file=out)
     lines = loss_lines(live.result.stats.get("device_events", []))
     for line in lines:
-        print(f"grasp-lab run: {line}", file=err)
+        print(f"grasp-lab run: device {line}", file=err)
     return EXIT_DEVICE_LOST if lines else 0
 
 

@@ -185,7 +185,7 @@ def _run_info(args, out, err):
         p("device      " + ", ".join(f"{k} {v}" for k, v in s["device"].items() if k != "drivers"))
     from .devices.live import loss_lines, recorded_device_events
     for line in loss_lines(recorded_device_events(s["event_list"])):
-        p("device lost " + line)
+        p("device      " + line)
     p("versions    " + ", ".join(f"{k} {v}" for k, v in (s["versions"] or {}).items()))
     p("events      " + (", ".join(f"{k} {v}" for k, v in sorted(s["events"].items())) or "none"))
     if s["overflow"]:

@@ -250,7 +250,7 @@ def test_run_device_drives_animated_fingers_forces_on_recording_is_the_truth(bpy
 
     info = subprocess.run([launcher, "info", str(rec)], capture_output=True, text=True, timeout=60).stdout
     assert f"Finger 0, Finger 1: serial device {port}" in info, info
-    assert f"device lost device {port} lost at" in info, info
+    assert f"device      {port} lost at" in info and "(hang-up), not back by the end" in info, info
     subprocess.run([launcher, "export", str(rec), "--csv", str(tmp_path / "csv")], check=True, timeout=60,
                    capture_output=True)
     with open(tmp_path / "csv" / "events.csv") as fh:

@@ -35,8 +35,8 @@ def test_losses_pair_each_loss_with_its_return():
               (1.1, "/dev/a", "lost", 0)]     # out of order, as polled: sorted by time; a second "lost" of
     assert losses(events) == [("/dev/a", 1.0, "hang-up", 2.5), ("/dev/b", 1.2, "silence", 1.4),
                               ("/dev/b", 3.0, "silence", None)]   # an open loss is one loss
-    assert loss_lines(events)[2] == "device /dev/b lost at 3.000 s (silence), not back by the end"
-    assert loss_lines(events)[0] == "device /dev/a lost at 1.000 s (hang-up), back at 2.500 s"
+    assert loss_lines(events)[2] == "/dev/b lost at 3.000 s (silence), not back by the end"
+    assert loss_lines(events)[0] == "/dev/a lost at 1.000 s (hang-up), back at 2.500 s"
     assert loss_lines([(0.1, "/dev/a", "connected", 2)]) == []
     recorded = [{"time": 1.0, "kind": "device_lost", "subject": "/dev/a", "value": 1},
                 {"time": 0.5, "kind": "contact_begin", "subject": "Finger 0"}]

@@ -268,6 +268,6 @@ def recorded_device_events(events) -> list:
 
 def loss_lines(events) -> list:
     """``losses`` as sentences, for the terminal and ``grasp-lab info``."""
-    return [f"device {label} lost at {t:.3f} s ({how}), " + (f"back at {back:.3f} s" if back is not None
+    return [f"{label} lost at {t:.3f} s ({how}), " + (f"back at {back:.3f} s" if back is not None
                                                              else "not back by the end")
             for label, t, how, back in losses(events)]
