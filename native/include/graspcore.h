@@ -307,6 +307,13 @@ typedef struct gcSerialDef {
     double stall_timeout;       /* s, haptic-loop output older than this: zero forces, default 0.005 */
     int priority;               /* SCHED_FIFO priority tried for the device thread, default 70 (below the
                                  * haptic loop's 80); 0 = normal. Refused -> normal, said in stats */
+    /* UDP (docs/protocol.md section 8): fd is a bound datagram socket, one frame a datagram.
+     * Frames go to udp_host:udp_port until a HELLO_DEVICE pins the session to the address that
+     * sent it; datagrams from any other address are then dropped and counted (foreign). Late
+     * and duplicated poses are dropped and counted, so that a HIP never goes back in time.
+     * udp_port 0 (default): a byte stream (serial port, pty, stream socket). */
+    char udp_host[64];          /* numeric IPv4 or IPv6 address */
+    int udp_port;
 } gcSerialDef;
 gcSerialDef gc_default_serial_def(void);
 
@@ -325,7 +332,8 @@ typedef enum gcSerialEventCode {
     GC_SERIAL_EV_ESTOP = 5,     /* value: reason (0 host, 1 device button, 2 device fault, other bytes as the
                                  * device sent them; GC_ESTOP_REASON_STATUS: only a pose's status said so) */
     GC_SERIAL_EV_STALL = 6,     /* value: 1 forces zeroed for a stalled haptic loop, 0 resumed */
-    GC_SERIAL_EV_DROPPED = 7    /* value: frames dropped since the previous such event (at most 10 Hz) */
+    GC_SERIAL_EV_DROPPED = 7,   /* value: frames dropped since the previous such event (at most 10 Hz) */
+    GC_SERIAL_EV_FOREIGN = 8    /* UDP: datagrams from another address since the previous such event (at most 10 Hz) */
 } gcSerialEventCode;
 enum { GC_ESTOP_REASON_STATUS = 256 }; /* an e-stop seen in a pose's status bit 1 (its ESTOP frame was lost) */
 typedef struct gcSerialEvent {
@@ -352,6 +360,9 @@ typedef struct gcSerialStats {
     double latency_p50_us, latency_p99_us, latency_max_us; /* pose read -> force frame written */
     double gain;                /* current ramp gain 0..1 (0 while disabled) */
     int rt_priority;            /* 1: the device thread runs at SCHED_FIFO */
+    uint64_t late_poses, duplicate_poses; /* UDP: poses older than, or the same as, the newest taken: dropped */
+    uint64_t foreign_datagrams; /* UDP: from an address other than the pinned device's: dropped */
+    char peer[64];              /* UDP: the device's address once pinned ("" before) */
 } gcSerialStats;
 
 gcStatus gc_world_attach_serial(gcWorld *world, int fd, const gcSerialDef *def, int32_t *out_device);

@@ -15,14 +15,18 @@
 #include "gc_math.h"
 #include "runtime.h"
 
+#include <arpa/inet.h>
 #include <errno.h>
 #include <math.h>
+#include <netinet/in.h>
 #include <poll.h>
 #include <pthread.h>
 #include <sched.h>
 #include <signal.h>
 #include <stdatomic.h>
+#include <stdio.h>
 #include <stdlib.h>
+#include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -416,7 +420,11 @@ typedef struct gcDeviceRun { /* the thread's own state */
     int host_estop;           /* our ESTOP is latched: said again while the device's poses do not show it */
     int64_t estop_sent_ns;
     int64_t last_pose_ns, last_tx_ns, last_hello_ns, enabled_since_ns, last_publish_ns, last_drop_event_ns;
-    uint64_t drops_reported;
+    uint64_t drops_reported, foreign_reported;
+    /* UDP: where frames go (the configured address, then the pinned device's). */
+    int datagram, pinned;
+    struct sockaddr_storage peer;
+    socklen_t peer_len;
     int enable_generation, stalled;
     int estop_latched;       /* an e-stop, until the next ENABLE(1) */
     int64_t enable_sent_ns;  /* when ENABLE(1) was last sent */
@@ -447,6 +455,16 @@ static int send_frame(gcDeviceRun *r, uint8_t type, const uint8_t *payload, size
     uint8_t wire[GC_PROTO_WIRE_MAX + 1];
     size_t len = gc_frame_encode(type, r->tx_seq++, payload, n, wire);
     size_t off = 0;
+    if (r->datagram) { /* one frame, one datagram: whole or not at all */
+        ssize_t k;
+        do k = sendto(r->dev->fd, wire, len, 0, (const struct sockaddr *)&r->peer, r->peer_len);
+        while (k < 0 && errno == EINTR);
+        if (k != (ssize_t)len) {
+            r->s.write_errors++;
+            return 0;
+        }
+        off = len;
+    }
     while (off < len) {
         ssize_t k = write(r->dev->fd, wire + off, len - off);
         if (k > 0) {
@@ -653,6 +671,18 @@ static void on_pose(gcDeviceRun *r, const gcFrame *fr, int64_t t_read) {
 static void on_frame(gcDeviceRun *r, const gcFrame *fr, int64_t t) {
     /* Frames of the device's sequence that never arrived (any type: its seq counts them all). */
     if (fr->type == GC_MSG_HELLO_DEVICE) r->have_rx_seq = 0;
+    int16_t ahead = (int16_t)(fr->seq - r->last_rx_seq);
+    if (r->datagram && r->have_rx_seq && ahead <= 0) {
+        /* UDP delivered it late or twice: a pose would move the HIPs back in time (dropped);
+         * an ESTOP still stops, whenever it comes. */
+        if (fr->type == GC_MSG_POSE) {
+            if (ahead == 0) r->s.duplicate_poses++;
+            else r->s.late_poses++;
+            return;
+        }
+        if (fr->type == GC_MSG_ESTOP) latch_estop(r, fr->payload[0]);
+        return;
+    }
     if (r->have_rx_seq) r->s.sequence_gaps += (uint16_t)(fr->seq - r->last_rx_seq - 1);
     r->last_rx_seq = fr->seq;
     r->have_rx_seq = 1;
@@ -687,6 +717,57 @@ static void take_requests(gcDeviceRun *r) {
     }
 }
 
+static int same_address(const struct sockaddr_storage *a, socklen_t a_len, const struct sockaddr_storage *b,
+                        socklen_t b_len) {
+    if (a_len != b_len || a->ss_family != b->ss_family) return 0;
+    if (a->ss_family == AF_INET) {
+        const struct sockaddr_in *x = (const void *)a, *y = (const void *)b;
+        return x->sin_port == y->sin_port && x->sin_addr.s_addr == y->sin_addr.s_addr;
+    }
+    const struct sockaddr_in6 *x = (const void *)a, *y = (const void *)b;
+    return x->sin6_port == y->sin6_port && !memcmp(&x->sin6_addr, &y->sin6_addr, sizeof x->sin6_addr);
+}
+
+/* UDP: every waiting datagram, one frame each. Before the hello only a HELLO_DEVICE is taken
+ * (it pins the session to its sender); after it, only the pinned sender's datagrams. */
+static void read_datagrams(gcDeviceRun *r, uint8_t *buf, size_t cap, int64_t t) {
+    for (int budget = 0; budget < 64; ++budget) { /* capped: requests and timers run in between */
+        struct sockaddr_storage from;
+        socklen_t from_len = sizeof from;
+        ssize_t k = recvfrom(r->dev->fd, buf, cap, MSG_DONTWAIT, (struct sockaddr *)&from, &from_len);
+        if (k < 0) return; /* EAGAIN: no more (an ICMP error from an earlier send: ignored) */
+        if (r->pinned && !same_address(&from, from_len, &r->peer, r->peer_len)) {
+            r->s.foreign_datagrams++;
+            continue;
+        }
+        size_t n = (size_t)k;
+        if ((n == 0 || buf[n - 1] != 0) && n < cap) buf[n++] = 0; /* a datagram is one frame: it ends here */
+        for (size_t i = 0; i < n; ++i) {
+            if (!gc_decoder_push(&r->dec, buf[i], &r->frame)) continue;
+            if (!r->pinned && r->frame.type != GC_MSG_HELLO_DEVICE) {
+                r->s.foreign_datagrams++; /* not the hello: nobody is the device yet */
+                continue;
+            }
+            if (!r->pinned) {
+                r->peer = from, r->peer_len = from_len, r->pinned = 1;
+                char host[INET6_ADDRSTRLEN] = "";
+                int port = 0;
+                if (from.ss_family == AF_INET) {
+                    const struct sockaddr_in *a = (const void *)&from;
+                    inet_ntop(AF_INET, &a->sin_addr, host, sizeof host);
+                    port = ntohs(a->sin_port);
+                } else {
+                    const struct sockaddr_in6 *a = (const void *)&from;
+                    inet_ntop(AF_INET6, &a->sin6_addr, host, sizeof host);
+                    port = ntohs(a->sin6_port);
+                }
+                snprintf(r->s.peer, sizeof r->s.peer, "%s:%d", host, port);
+            }
+            on_frame(r, &r->frame, t);
+        }
+    }
+}
+
 static void *device_main(void *arg) {
     gcDeviceRun *r = arg;
     gcSerialDevice *d = r->dev;
@@ -712,7 +793,9 @@ static void *device_main(void *arg) {
         struct pollfd pfd = {.fd = d->fd, .events = POLLIN};
         int pr = poll(&pfd, 1, 1);
         int64_t t = now_ns();
-        if (pr > 0 && (pfd.revents & POLLIN)) {
+        if (r->datagram) {
+            if (pr > 0) read_datagrams(r, buf, sizeof buf, t); /* no hang-up: silence is a loss */
+        } else if (pr > 0 && (pfd.revents & POLLIN)) {
             ssize_t k = read(d->fd, buf, sizeof buf);
             if (k > 0) {
                 for (ssize_t i = 0; i < k; ++i)
@@ -741,6 +824,10 @@ static void *device_main(void *arg) {
             uint8_t hb[4];
             gc_put32(hb, (uint32_t)(t / 1000));
             send_frame(r, GC_MSG_HEARTBEAT, hb, 4);
+        }
+        if (r->s.foreign_datagrams != r->foreign_reported && t - r->last_drop_event_ns > GC_DROP_EVENT_NS) {
+            emit(d, GC_SERIAL_EV_FOREIGN, (int)(r->s.foreign_datagrams - r->foreign_reported));
+            r->foreign_reported = r->s.foreign_datagrams;
         }
         uint64_t drops = r->s.dropped;
         if (drops != r->drops_reported && t - r->last_drop_event_ns > GC_DROP_EVENT_NS) {
@@ -805,6 +892,14 @@ static const char *check_serial_def(const gcWorld *w, int fd, const gcSerialDef 
     if (!(d->max_position > 0)) return "max_position: must be > 0";
     if (!(d->stall_timeout > 0 && isfinite(d->stall_timeout))) return "stall_timeout: must be a finite number > 0";
     if (d->priority < 0 || d->priority > 99) return "priority: must be 0..99";
+    if (d->udp_port < 0 || d->udp_port > 65535) return "udp_port: must be 1..65535 (0: a byte stream)";
+    if (d->udp_port && !memchr(d->udp_host, 0, sizeof d->udp_host)) return "udp_host: longer than 63 bytes";
+    if (d->udp_port) {
+        struct in6_addr a6;
+        struct in_addr a4;
+        if (inet_pton(AF_INET, d->udp_host, &a4) != 1 && inet_pton(AF_INET6, d->udp_host, &a6) != 1)
+            return "udp_host: not a numeric IPv4 or IPv6 address";
+    }
     return NULL;
 }
 
@@ -861,6 +956,19 @@ gcStatus gc_world_attach_serial(gcWorld *w, int fd, const gcSerialDef *def, int3
     atomic_store(&d->run, 1);
     r->dev = d;
     r->unit_scale = 1.0;
+    if (def->udp_port) { /* frames go there until a HELLO_DEVICE pins the session to its sender */
+        r->datagram = 1;
+        struct sockaddr_in *a4 = (void *)&r->peer;
+        struct sockaddr_in6 *a6 = (void *)&r->peer;
+        if (inet_pton(AF_INET, def->udp_host, &a4->sin_addr) == 1) {
+            a4->sin_family = AF_INET, a4->sin_port = htons((uint16_t)def->udp_port);
+            r->peer_len = sizeof *a4;
+        } else {
+            inet_pton(AF_INET6, def->udp_host, &a6->sin6_addr);
+            a6->sin6_family = AF_INET6, a6->sin6_port = htons((uint16_t)def->udp_port);
+            r->peer_len = sizeof *a6;
+        }
+    }
     gc_decoder_reset(&r->dec);
     hub_claim_fingers(h, w, def->finger_offset + def->num_fingers);
     for (int i = def->finger_offset; i < def->finger_offset + def->num_fingers; ++i)

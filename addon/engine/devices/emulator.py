@@ -171,7 +171,8 @@ def _percentile(sorted_values, q):
 
 class Emulator:
     def __init__(self, fd, n_fingers=2, motion=motion_grip, rate=1000.0, force_max=5.0, ttl_max_ms=50,
-                 renders_forces=True, name="grasp-lab-emulator", corrupt_every=0, estop_at=None, log_forces=False):
+                 renders_forces=True, name="grasp-lab-emulator", corrupt_every=0, estop_at=None, log_forces=False,
+                 udp=None, drop_every=0, dup_every=0, reorder_every=0):
         self.fd = fd
         self.n = int(n_fingers)
         self.motion = motion
@@ -197,14 +198,42 @@ class Emulator:
         self.estop_sent_at = None
         self.forces_after_estop = 0     # force frames with a non-zero force after the button, before ENABLE(1)
         self.force_log = [] if log_forces else None     # (t, ack_seq, ttl_us, forces) of every force frame
+        # UDP (--udp): a bound socket; frames go to the host that said hello (others are ignored).
+        self.udp, self.host_addr, self.foreign = udp, None, 0
+        self.drop_every, self.dup_every, self.reorder_every = int(drop_every), int(dup_every), int(reorder_every)
+        self.held = None            # a pose held back, to be sent after the next one (reordering)
+        self.injected = dict.fromkeys(("dropped", "duplicated", "reordered"), 0)
 
     def _send(self, type_, payload):
         frame = P.encode(type_, self.seq, payload)
         if self.corrupt_every and type_ == P.POSE and self.seq % self.corrupt_every == 0:
             frame = frame[:2] + bytes([frame[2] ^ 0x40 or 1]) + frame[3:]   # a CRC error, still framed
-        self.seq = (self.seq + 1) & 0xFFFF
+        seq, self.seq = self.seq, (self.seq + 1) & 0xFFFF
+        if self.udp is None:
+            self._write(frame)
+            return
+        # The network's faults, injected on poses: lost, duplicated, delivered after the next one.
+        if type_ == P.POSE and self.drop_every and seq % self.drop_every == 0:
+            self.injected["dropped"] += 1
+            return
+        if type_ == P.POSE and self.reorder_every and seq % self.reorder_every == 0 and self.held is None:
+            self.held = frame
+            self.injected["reordered"] += 1
+            return
+        self._write(frame)
+        if type_ == P.POSE and self.dup_every and seq % self.dup_every == 0:
+            self._write(frame)
+            self.injected["duplicated"] += 1
+        if self.held is not None and type_ == P.POSE:
+            held, self.held = self.held, None
+            self._write(held)
+
+    def _write(self, frame):
         try:
-            os.write(self.fd, frame)
+            if self.udp is None:
+                os.write(self.fd, frame)
+            elif self.host_addr is not None:
+                self.udp.sendto(frame, self.host_addr)
         except (BlockingIOError, OSError):
             self.write_errors += 1
 
@@ -242,6 +271,9 @@ class Emulator:
         r, _, _ = select.select([self.fd], [], [], max(0.0, timeout))
         if not r:
             return
+        if self.udp is not None:
+            self._read_datagrams()
+            return
         try:
             data = os.read(self.fd, 65536)
         except (BlockingIOError, InterruptedError):
@@ -252,6 +284,24 @@ class Emulator:
         now = time.perf_counter()
         for frame in self.decoder.feed(data):
             self._on_frame(frame, now)
+
+    def _read_datagrams(self):
+        now = time.perf_counter()
+        while True:
+            try:
+                data, addr = self.udp.recvfrom(65536)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:         # an ICMP error from an earlier send (the host is gone)
+                continue
+            frames = self.decoder.feed(data if data.endswith(b"\0") else data + b"\0")
+            if self.host_addr is None and any(f.type == P.HELLO_HOST for f in frames):
+                self.host_addr = addr       # the host that said hello: the only one from now on
+            if addr != self.host_addr:
+                self.foreign += 1
+                continue
+            for frame in frames:
+                self._on_frame(frame, now)
 
     def run(self, duration=None, wait_hello=30.0):
         t_open = time.perf_counter()
@@ -306,6 +356,7 @@ class Emulator:
             "latency_max_ms": _ms(lat[-1] if lat else None), "unacknowledged": self.poses_sent - len(lat),
             "host_frames_dropped": self.decoder.errors, "write_errors": self.write_errors,
             "estop_at_s": self.estop_sent_at, "forces_after_estop": self.forces_after_estop,
+            "injected": self.injected, "foreign_datagrams": self.foreign,
         }
 
     def write_force_log(self, path):
@@ -332,6 +383,8 @@ def build_parser(parser=None):
     where = p.add_mutually_exclusive_group(required=True)
     where.add_argument("--pty", action="store_true", help="open a pseudo-terminal and print its path")
     where.add_argument("port", nargs="?", help="a serial port to speak on (e.g. one end of a null-modem pair)")
+    where.add_argument("--udp", type=int, metavar="PORT",
+                       help="speak UDP on 127.0.0.1:PORT (0: a free port); prints 'PORT udp:127.0.0.1:N'")
     what = p.add_mutually_exclusive_group()
     what.add_argument("--motion", default="grip", choices=sorted(MOTIONS), help="named demo motion (default grip)")
     what.add_argument("--from", dest="from_blend", metavar="SCENE.blend", help="play the fingertip animation of a .blend")
@@ -344,6 +397,9 @@ def build_parser(parser=None):
                    help="press the device's stop button S seconds into streaming (ESTOP sent, forces latched off)")
     p.add_argument("--force-log", metavar="PATH", help="write every force frame received (CSV) here at the end")
     p.add_argument("--corrupt-every", type=int, default=0, help="break the CRC of every Kth pose frame (tests)")
+    p.add_argument("--drop-every", type=int, default=0, help="UDP: lose every Kth pose (tests)")
+    p.add_argument("--dup-every", type=int, default=0, help="UDP: send every Kth pose twice (tests)")
+    p.add_argument("--reorder-every", type=int, default=0, help="UDP: send every Kth pose after the next one (tests)")
     p.add_argument("--wait", type=float, default=30.0, help="seconds to wait for the host's hello (default 30)")
     p.add_argument("--report", metavar="PATH", help="also write the report as JSON here")
     return p
@@ -358,8 +414,14 @@ def main(argv=None, args=None):
     motion, n = MOTIONS[args.motion], args.fingers
     if args.from_blend:
         motion, n = motion_from_blend(args.from_blend)
-    serial_port = slave = None
-    if args.pty:
+    serial_port = slave = udp = None
+    if args.udp is not None:
+        import socket
+        udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        udp.bind(("127.0.0.1", args.udp))
+        udp.setblocking(False)
+        fd, path = udp.fileno(), f"udp:127.0.0.1:{udp.getsockname()[1]}"
+    elif args.pty:
         fd, slave, path = open_pty()
     else:
         import serial
@@ -367,7 +429,8 @@ def main(argv=None, args=None):
         fd, path = serial_port.fileno(), args.port
     print(f"PORT {path}", flush=True)
     emu = Emulator(fd, n, motion, args.rate, args.force_max, args.ttl_max, corrupt_every=args.corrupt_every,
-                   estop_at=args.estop_at, log_forces=bool(args.force_log))
+                   estop_at=args.estop_at, log_forces=bool(args.force_log), udp=udp, drop_every=args.drop_every,
+                   dup_every=args.dup_every, reorder_every=args.reorder_every)
 
     def stop(signum, frame):
         emu.stop = True
@@ -390,6 +453,8 @@ def main(argv=None, args=None):
     if slave is not None:
         os.close(slave)
         os.close(fd)
+    if udp is not None:
+        udp.close()
     return 0
 
 

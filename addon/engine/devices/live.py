@@ -16,7 +16,7 @@ import numpy as np
 
 from ..inputs import InputSource
 from .cli_commands import parse_device_spec
-from .serial_device import SerialDevice
+from .serial_device import SerialDevice, UdpDevice
 
 
 def device_fingers(devices, n_fingers: int, finger_names=None) -> np.ndarray:
@@ -161,6 +161,14 @@ class DeviceSet:
                 raise ValueError(f"--device {spec!r}: fingers {first}..{first + count - 1}, the scene has {n_world}")
             self.add(d["port"], first, count, frames[i] if frames else None, **limits)
             next_first = first + count
+
+    def add_udp(self, host: str, port: int, finger_offset: int, num_fingers: int, transform=None,
+                label: str | None = None, **limits) -> UdpDevice:
+        """A device (or a bridge program) speaking the protocol over UDP at host:port."""
+        dev = UdpDevice(self.world, host, port, finger_offset, num_fingers, transform, label=label, **limits)
+        dev.connect()
+        self.devices.append(dev)
+        return dev
 
     def add_source(self, source, finger_offset: int, label: str | None = None) -> SourceDevice:
         """A SpaceMouse or glove input source driving fingers finger_offset.. (opened here)."""

@@ -3,6 +3,7 @@
 pyserial opens and configures the port (raw, 8N1, the baud rate; a pseudo-terminal
 ignores the rate); the C core's device thread then owns its I/O at the haptic rate. This
 class only holds the port open and talks to the core's API: it never reads the port.
+``UdpDevice`` is the same over UDP (docs/protocol.md section 8): a socket instead of a port.
 """
 from __future__ import annotations
 
@@ -101,3 +102,63 @@ class SerialDevice:
 
     def __exit__(self, *exc):
         self.disconnect()
+
+
+class UdpDevice(SerialDevice):
+    """The same frames over UDP, one a datagram: a bridge program over a vendor SDK, or a device
+    on another machine, at ``host:port``. The socket is bound to the loopback interface for a
+    device on this machine, else to ``bind`` (default: every interface); the core pins the
+    session to the address that answers the hello and counts datagrams from any other."""
+
+    def __init__(self, world, host: str, port: int, finger_offset: int = 0, num_fingers: int = 1, transform=None,
+                 label: str | None = None, bind: str | None = None, **limits):
+        import ipaddress
+        import socket
+        try:
+            self.address = ipaddress.ip_address(socket.gethostbyname(host) if not _is_ip(host) else host)
+        except (OSError, ValueError) as e:
+            raise ConnectionError(f"udp:{host}:{port}: cannot resolve the host ({e})") from e
+        if not 1 <= int(port) <= 65535:
+            raise ValueError(f"udp:{host}:{port}: the port must be 1..65535")
+        super().__init__(world, f"udp:{host}:{port}", finger_offset, num_fingers, transform,
+                         label=label or f"udp:{host}:{port}", **limits)
+        self.udp_port = int(port)
+        self.bind = bind if bind is not None else ("127.0.0.1" if self.address.is_loopback else "0.0.0.0")
+        self.sock = None
+
+    def connect(self) -> None:
+        import socket
+        self.sock = socket.socket(socket.AF_INET if self.address.version == 4 else socket.AF_INET6, socket.SOCK_DGRAM)
+        try:
+            self.sock.bind((self.bind if self.address.version == 4 else "::1" if self.address.is_loopback else "::", 0))
+            self.sock.setblocking(False)
+            self.device_id = self.world.attach_serial(
+                self.sock.fileno(), finger_offset=self.finger_offset, num_fingers=self.num_fingers,
+                transform=self.transform, udp_host=str(self.address), udp_port=self.udp_port, **self.limits)
+        except Exception:
+            self.sock.close()
+            self.sock = None
+            raise
+        if self.enabled:
+            self.world.serial_enable(self.device_id, True)
+
+    def disconnect(self) -> None:
+        if self.device_id is not None:
+            self.world.detach_serial(self.device_id)
+            self.device_id = None
+        if self.sock is not None:
+            self.sock.close()
+            self.sock = None
+
+    @property
+    def local_port(self) -> int:
+        return self.sock.getsockname()[1] if self.sock is not None else 0
+
+
+def _is_ip(host: str) -> bool:
+    import ipaddress
+    try:
+        ipaddress.ip_address(host)
+        return True
+    except ValueError:
+        return False
