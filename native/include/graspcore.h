@@ -307,7 +307,7 @@ typedef struct gcSerialDef {
     double stall_timeout;       /* s, haptic-loop output older than this: zero forces, default 0.005 */
     int priority;               /* SCHED_FIFO priority tried for the device thread, default 70 (below the
                                  * haptic loop's 80); 0 = normal. Refused -> normal, said in stats */
-    /* UDP (docs/protocol.md section 8): fd is a bound datagram socket, one frame a datagram.
+    /* UDP (docs/protocol.md section 7): fd is a bound datagram socket, one frame a datagram.
      * Frames go to udp_host:udp_port until a HELLO_DEVICE pins the session to the address that
      * sent it; datagrams from any other address are then dropped and counted (foreign). Late
      * and duplicated poses are dropped and counted, so that a HIP never goes back in time.

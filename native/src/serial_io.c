@@ -427,6 +427,7 @@ typedef struct gcDeviceRun { /* the thread's own state */
     socklen_t peer_len;
     int enable_generation, stalled;
     int estop_latched;       /* an e-stop, until the next ENABLE(1) */
+    int hello_pending;       /* HELLO_HOST sent to a silent device, no HELLO_DEVICE yet: zero forces */
     int64_t enable_sent_ns;  /* when ENABLE(1) was last sent */
     double unit_scale;
     int64_t rate_window_ns;
@@ -555,7 +556,7 @@ static void send_forces(gcDeviceRun *r, uint16_t ack, int64_t t) {
         emit(d, GC_SERIAL_EV_STALL, stalled);
         r->stalled = stalled;
     }
-    int on = r->s.enabled && r->s.renders_forces && !stalled && tick_enabled;
+    int on = r->s.enabled && r->s.renders_forces && !stalled && tick_enabled && !r->hello_pending;
     if (!on)
         r->enabled_since_ns = 0;
     else if (!r->enabled_since_ns)
@@ -619,6 +620,7 @@ static void on_hello(gcDeviceRun *r, const gcFrame *fr) {
     r->have_rx_seq = 0; /* a restarted device may start its sequence anywhere */
     r->last_pose_ns = 0;
     send_enable(r, s->enabled);
+    r->hello_pending = 0;
 }
 
 static void on_pose(gcDeviceRun *r, const gcFrame *fr, int64_t t_read) {
@@ -818,6 +820,7 @@ static void *device_main(void *arg) {
         /* No capabilities yet, or silent: hello every 100 ms (a device that restarted answers it). */
         if ((r->s.state == GC_SERIAL_WAITING || r->s.state == GC_SERIAL_LOST) && t - r->last_hello_ns > GC_HELLO_RETRY_NS) {
             send_frame(r, GC_MSG_HELLO_HOST, hello, 2);
+            r->hello_pending = 1; /* a device that takes it turns forces off: none until its hello */
             r->last_hello_ns = t;
         }
         if (r->s.state != GC_SERIAL_HANGUP && t - r->last_tx_ns > GC_HEARTBEAT_NS) {

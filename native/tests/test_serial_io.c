@@ -14,6 +14,9 @@
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <stdio.h>
 #include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
@@ -772,6 +775,107 @@ static void test_attach_before_start(void) {
     close(sv[0]), close(sv[1]);
 }
 
+/* ---- UDP ---------------------------------------------------------------------------------- */
+
+static int udp_socket(int *port) {
+    int fd = socket(AF_INET, SOCK_DGRAM, 0);
+    struct sockaddr_in a = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+    GC_CHECK(fd >= 0 && bind(fd, (struct sockaddr *)&a, sizeof a) == 0, "udp bind");
+    socklen_t len = sizeof a;
+    getsockname(fd, (struct sockaddr *)&a, &len);
+    *port = ntohs(a.sin_port);
+    fcntl(fd, F_SETFL, O_NONBLOCK);
+    return fd;
+}
+
+static void udp_send(int fd, int port, uint8_t type, uint16_t seq, const uint8_t *p, size_t n) {
+    uint8_t wire[GC_PROTO_WIRE_MAX + 1];
+    size_t len = gc_frame_encode(type, seq, p, n, wire);
+    struct sockaddr_in to = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port),
+                             .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+    GC_CHECK(sendto(fd, wire, len, 0, (struct sockaddr *)&to, sizeof to) == (ssize_t)len, "udp send");
+}
+
+static void udp_pose(int fd, int port, uint16_t seq, double z) {
+    uint8_t p[18] = {0};
+    p[4] = 1;
+    gc_putf32(p + 6, 0.0f), gc_putf32(p + 10, 0.0f), gc_putf32(p + 14, (float)z);
+    udp_send(fd, port, GC_MSG_POSE, seq, p, 18);
+}
+
+/* The datagram transport: hello to the configured address, the session pinned to the sender
+ * of the HELLO_DEVICE, a second sender dropped and counted, late and duplicated poses dropped
+ * (the HIP stays at the newest pose), the device's address in the stats. */
+static void test_udp(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    gcFingerDef fd = gc_default_finger_def();
+    int32_t f;
+    GC_CHECK(gc_world_add_finger(w, &fd, &f) == GC_OK, "finger");
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start");
+    int host_port, dev_port, other_port;
+    int host = udp_socket(&host_port), dev = udp_socket(&dev_port), other = udp_socket(&other_port);
+    gcSerialDef sd = gc_default_serial_def();
+    sd.priority = 0;
+    int32_t id;
+    strcpy(sd.udp_host, "not-an-address");
+    sd.udp_port = dev_port;
+    GC_CHECK(gc_world_attach_serial(w, host, &sd, &id) == GC_ERR_INVALID_ARGUMENT &&
+                 strstr(gc_world_last_error(w), "udp_host"), "a host name refused: %s", gc_world_last_error(w));
+    strcpy(sd.udp_host, "127.0.0.1");
+    GC_CHECK(gc_world_attach_serial(w, host, &sd, &id) == GC_OK, "attach udp: %s", gc_world_last_error(w));
+    uint8_t buf[512];
+    ssize_t k = -1;
+    for (int i = 0; i < 200 && k < 0; ++i, sleep_ms(1)) k = recv(dev, buf, sizeof buf, 0);
+    gcFrame fr;
+    GC_CHECK(k > 1 && gc_frame_decode(buf, (size_t)k - 1, &fr) == GC_FRAME_OK && fr.type == GC_MSG_HELLO_HOST,
+             "HELLO_HOST to the configured address (%zd bytes)", k);
+    uint8_t hello[12] = {1, GC_CAP_FORCES, 0, 0};
+    gc_put16(hello + 4, 1000);
+    gc_putf32(hello + 6, 5.0f);
+    gc_put16(hello + 10, 50);
+    udp_pose(other, host_port, 0, 0.9); /* before the hello: nobody is the device yet */
+    udp_send(dev, host_port, GC_MSG_HELLO_DEVICE, 0, hello, 12);
+    uint16_t seq = 1;
+    for (int i = 0; i < 50; ++i, sleep_ms(1)) {
+        udp_pose(dev, host_port, seq++, 0.1);
+        udp_pose(other, host_port, (uint16_t)(1000 + i), 0.9); /* a second sender: ignored */
+    }
+    udp_pose(dev, host_port, (uint16_t)(seq + 1), 0.2); /* newest */
+    udp_pose(dev, host_port, seq, 0.15);                /* late: the one before */
+    udp_pose(dev, host_port, (uint16_t)(seq + 1), 0.2); /* again */
+    gcSerialStats st;
+    WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.poses >= 51 && st.late_poses + st.duplicate_poses >= 2));
+    GC_CHECK(st.poses == 51 && st.late_poses == 1 && st.duplicate_poses == 1 && st.sequence_gaps == 1,
+             "poses %llu, late %llu, duplicate %llu, gaps %llu", (unsigned long long)st.poses,
+             (unsigned long long)st.late_poses, (unsigned long long)st.duplicate_poses,
+             (unsigned long long)st.sequence_gaps);
+    GC_CHECK(st.foreign_datagrams == 51, "foreign datagrams %llu", (unsigned long long)st.foreign_datagrams);
+    char want[64];
+    snprintf(want, sizeof want, "127.0.0.1:%d", dev_port);
+    GC_CHECK(!strcmp(st.peer, want), "peer '%s', want '%s'", st.peer, want);
+    double hip[3] = {0, 0, 0};
+    gcSnapshot hs;
+    memset(&hs, 0, sizeof hs);
+    hs.hips = hip;
+    WAIT_UNTIL((gc_world_snapshot(w, &hs), fabs(hip[2] - 0.2) < 1e-7));
+    sleep_ms(20);
+    gc_world_snapshot(w, &hs);
+    GC_CHECK(fabs(hip[2] - 0.2) < 1e-7, "the newest pose holds (not the late one, not the intruder's): %g", hip[2]);
+    k = -1;
+    int forces = 0;
+    while ((k = recv(dev, buf, sizeof buf, 0)) > 0)
+        forces += gc_frame_decode(buf, (size_t)k - 1, &fr) == GC_FRAME_OK && fr.type == GC_MSG_FORCE;
+    GC_CHECK(forces >= 50, "force frames back to the device: %d", forces);
+    GC_CHECK(recv(other, buf, sizeof buf, 0) < 0, "nothing sent to the other sender");
+    gc_world_stop(w);
+    gc_world_destroy(w);
+    close(host), close(dev), close(other);
+}
+
 int main(void) {
     test_crc_and_cobs();
     test_vectors();
@@ -781,6 +885,7 @@ int main(void) {
     test_recorded_forces();
     test_protocol_rules();
     test_attach_before_start();
+    test_udp();
     test_peer_gone_before_hello();
     return gc_test_summary("test_serial_io");
 }

@@ -86,7 +86,7 @@ def test_firmware_written_from_the_document_alone(firmware):
     report = json.loads([line for line in out.splitlines() if line.startswith("REPORT ")][0][7:])
     assert report["dropped"] == [0, 0, 0, 0] and report["rejected"] == 0, report      # every host frame valid
     assert report["forces_while_off"] == 0, report      # zero while off and while e-stopped
-    assert report["hellos"] == 2 and report["enables"] >= 2, report
+    assert report["hellos"] >= 2 and report["enables"] >= 2, report     # more if it was ever silent 0.1 s
     assert report["max_norm"] == pytest.approx(2.0, abs=1e-6), report    # its own 2 N limit (the spring: 3 N)
     # The TTL the host sent (20 ms, under its 30 ms limit) ran out after the host went: it let go.
     assert report["ttl_expiries"] >= 1 and 19.9 <= report["max_ttl_gap_ms"] < 40, report

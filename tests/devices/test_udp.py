@@ -123,7 +123,7 @@ def test_udp_stalled_device_is_lost_and_lets_go():
         t0 = time.monotonic()
         wait_for(lambda: np.linalg.norm(world.snapshot()["spring_forces"], axis=1).max() < 1e-6, 1.0, "let go")
         assert time.monotonic() - t0 < 0.25
-        assert dev.stats()["state"] == "lost"
+        wait_for(lambda: dev.stats()["state"] == "lost", 0.1, "the state to say so")      # published every 10 ms
         emu.send_signal(signal.SIGCONT)                # back: picked up again
         wait_for(lambda: dev.stats()["state"] == "streaming", 5, "streaming again")
         names = [e[1] for e in dev.events()]

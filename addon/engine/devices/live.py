@@ -252,6 +252,8 @@ def device_event_detail(event: str, value: int) -> str:
         return "forces zeroed: the haptic loop stalled" if value else "haptic loop running again"
     if event == "dropped":
         return f"{value} frames dropped"
+    if event == "foreign":
+        return f"{value} datagrams from another address ignored"
     return f"value {value}"
 
 

@@ -3,7 +3,7 @@
 pyserial opens and configures the port (raw, 8N1, the baud rate; a pseudo-terminal
 ignores the rate); the C core's device thread then owns its I/O at the haptic rate. This
 class only holds the port open and talks to the core's API: it never reads the port.
-``UdpDevice`` is the same over UDP (docs/protocol.md section 8): a socket instead of a port.
+``UdpDevice`` is the same over UDP (docs/protocol.md section 7): a socket instead of a port.
 """
 from __future__ import annotations
 
