@@ -113,7 +113,10 @@ def _report_devices(live, out, err) -> int:
     error: EXIT_DEVICE_LOST (docs/cli.md)."""
     from .engine.cli import EXIT_DEVICE_LOST
     from .engine.devices.live import loss_lines
+    from .engine.devices.live import summary_line
     print(f"fingers: {live.input_description()['detail']}", file=out)
+    for label, st in live.result.stats.get("device_stats", {}).items():
+        print(f"device {summary_line(label, st)}", file=out)
     lines = loss_lines(live.result.stats.get("device_events", []))
     for line in lines:
         print(f"grasp-lab run: device {line}", file=err)

@@ -273,14 +273,17 @@ class BlenderSession:
         if self.finished:
             return self.result
         self.finished = True
+        device_stats = {}
         if self.devices is not None:
             self._record_device_events(self.devices.poll())   # before the runner stops and the file closes
+            device_stats = {d.label: d.stats() for d in self.devices.devices}
             self.devices.close()
         self.runner.stop()
         r = self.result
         r.stats = self.runner.stats()
         if self.devices is not None:
             r.stats["device_events"] = list(self.devices.events)
+            r.stats["device_stats"] = device_stats         # each device's counters when it was closed
             self.runner.events += self.devices.events
         r.final = self.snapshot
         if self.bake:

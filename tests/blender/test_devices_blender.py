@@ -201,6 +201,8 @@ def test_run_device_drives_animated_fingers_forces_on_recording_is_the_truth(bpy
     # The unplug (the emulator ended after 2 s of streaming) is said, and the exit code says so.
     assert r.returncode == 3, (r.returncode, r.stdout, r.stderr)
     assert f"fingers: Finger 0, Finger 1: serial device {port}" in r.stdout, r.stdout
+    summary = [line for line in r.stdout.splitlines() if line.startswith(f"device {port}: ")]
+    assert summary and "0 frames dropped, 0 missing, 1 e-stops, 1 losses" in summary[0], r.stdout
     assert f"grasp-lab run: device {port} lost at" in r.stderr and "(hang-up), not back by the end" in r.stderr, \
         r.stderr
 

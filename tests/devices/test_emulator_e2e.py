@@ -108,8 +108,10 @@ def test_emulator_end_to_end_unplug_and_reconnect():
 
         # Reconnect: a new device on a new port picks the same fingers up again.
         emu = Emulator("--fingers", "2", "--motion", "grip")
+        before = dev.stats()["poses"]                   # the counters run on over the reconnection
         dev.reconnect(emu.port)
-        wait_for(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > 700, 15, "streaming again")
+        wait_for(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > before + 700, 15,
+                 "streaming again")
         np.testing.assert_allclose(springs(world), GRIP_SPRING, rtol=0.05)
         assert dev.stats()["enabled"]
         report = emu.stop()

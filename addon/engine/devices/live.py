@@ -270,6 +270,21 @@ def losses(events) -> list:
     return [tuple(x) for x in out]
 
 
+def summary_line(label: str, st: dict) -> str:
+    """A device's counters at the end of a session, in one line (``grasp-lab run``)."""
+    if "poses" not in st:
+        return f"{label}: never connected"
+    kinds = ", ".join(f"{k} {v}" for k, v in st.get("frame_errors", {}).items() if v)
+    out = (f"{label}: {st.get('poses', 0)} poses, {st.get('forces_sent', 0)} force frames, "
+           f"{st.get('dropped', 0)} frames dropped" + (f" ({kinds})" if kinds else "") +
+           f", {st.get('sequence_gaps', 0)} missing, {st.get('estops', 0)} e-stops, "
+           f"{st.get('disconnects', 0)} losses, {st.get('stall_zeroes', 0)} stalls")
+    if st.get("late_poses") or st.get("duplicate_poses") or st.get("foreign_datagrams"):
+        out += (f", UDP: {st.get('late_poses', 0)} late, {st.get('duplicate_poses', 0)} duplicated, "
+                f"{st.get('foreign_datagrams', 0)} from others")
+    return out
+
+
 def recorded_device_events(events) -> list:
     """A recording's device events (dicts, docs/recording-format.md) as ``losses`` takes them."""
     return [(float(e.get("time", 0.0)), e.get("subject", ""), e["kind"][len("device_"):], int(e.get("value", 0)))

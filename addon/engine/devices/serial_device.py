@@ -10,6 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 DEFAULT_BAUD = 1_000_000
+# Counters carried over a reconnection (the core's device thread starts its own from zero).
+COUNTERS = ("poses", "forces_sent", "heartbeats", "dropped", "sequence_gaps", "disconnects", "estops", "stall_zeroes",
+            "write_errors", "push_rejected", "late_poses", "duplicate_poses", "foreign_datagrams")
 
 
 def workspace_matrix(transform) -> list:
@@ -40,6 +43,7 @@ class SerialDevice:
         self.serial = None
         self.device_id = None
         self.enabled = False
+        self._past = {}             # counters of the connections before this one
 
     def connect(self) -> None:
         import serial
@@ -58,10 +62,14 @@ class SerialDevice:
         if self.enabled:
             self.world.serial_enable(self.device_id, True)
 
-    def disconnect(self) -> None:
+    def _detach(self) -> None:
         if self.device_id is not None:
+            self._past = self.stats()           # the totals so far, before the thread's go
             self.world.detach_serial(self.device_id)
             self.device_id = None
+
+    def disconnect(self) -> None:
+        self._detach()
         if self.serial is not None:
             self.serial.close()
             self.serial = None
@@ -89,9 +97,15 @@ class SerialDevice:
             self.world.serial_estop(self.device_id)
 
     def stats(self) -> dict:
+        """The core's serial_stats, its counters totalled over every connection of this device."""
         if self.device_id is None:
-            return {"state": "disconnected", "enabled": False}
-        return self.world.serial_stats(self.device_id)
+            return dict(self._past, state="disconnected", enabled=False)
+        st = self.world.serial_stats(self.device_id)
+        for k in COUNTERS:
+            st[k] = st.get(k, 0) + self._past.get(k, 0)
+        if "frame_errors" in self._past:
+            st["frame_errors"] = {k: v + self._past["frame_errors"].get(k, 0) for k, v in st["frame_errors"].items()}
+        return st
 
     def events(self) -> list:
         return [] if self.device_id is None else self.world.serial_events(self.device_id)
@@ -143,9 +157,7 @@ class UdpDevice(SerialDevice):
             self.world.serial_enable(self.device_id, True)
 
     def disconnect(self) -> None:
-        if self.device_id is not None:
-            self.world.detach_serial(self.device_id)
-            self.device_id = None
+        self._detach()
         if self.sock is not None:
             self.sock.close()
             self.sock = None
