@@ -305,7 +305,7 @@ def serial_roundtrip(seconds: float) -> tuple[bool, str, list[str]]:
     try:
         good, md = run_external([venv_py if os.path.exists(venv_py) else sys.executable, script,
                                  "--seconds", f"{seconds:g}", "--rounds", "6" if seconds >= 30 else "2",
-                                 "--json", js], timeout=2 * seconds + 180)
+                                 "--transport", "both", "--json", js], timeout=4 * seconds + 240)
         rows = json.load(open(js)) if good else []
     except (OSError, ValueError) as exc:
         good, md, rows = False, f"bench_serial.py wrote no statistics: {exc}", []
@@ -315,11 +315,12 @@ def serial_roundtrip(seconds: float) -> tuple[bool, str, list[str]]:
 
 
 def serial_target_rows(rows: list[dict], seconds: float) -> list[str]:
-    bare = next((r for r in rows if "echo" in r["host"]), None)
     out = []
     for r in rows:
         if "graspcore" not in r["host"]:
             continue
+        link = "UDP (loopback)" if r.get("transport") == "udp" else "a pty"
+        bare = next((b for b in rows if "echo" in b["host"] and b.get("transport") == r.get("transport")), None)
         ok = r["p99_us"] < 1000 and r["unacknowledged"] == 0
         why = ""
         if not ok and bare:
@@ -327,7 +328,7 @@ def serial_target_rows(rows: list[dict], seconds: float) -> list[str]:
                    else " (the bare echo loop met it)")
         bare_txt = (f"; bare C echo loop, same run: {bare['p99_us']:.0f} µs, {bare['unacknowledged']} unanswered"
                     if bare else "")
-        out.append(f"| Serial device, pose in to force out over a pty at 1 kHz, {seconds:.0f} s under Python load: "
+        out.append(f"| Serial device, pose in to force out over {link} at 1 kHz, {seconds:.0f} s under Python load: "
                    f"p99 < 1 ms, no dropped frames | {r['p99_us']:.0f} µs, {r['unacknowledged']} unanswered, "
                    f"{r['frame_errors']} frame errors{bare_txt} | {'**met**' if ok else '**MISSED**' + why} |")
     return out
@@ -723,14 +724,16 @@ def main(argv=None) -> int:
         "forces stay below 1 µN (let go), and until the recorded device forces (what the device was sent, "
         "until that frame's 20 ms TTL) stay zero:", "", unplug_md])
     serial_section = "\n".join([
-        "## Serial device round trip (1 kHz over a pseudo-terminal, under Python CPU load)", "",
-        f"`bench/bench_serial.py --seconds {jitter_s:g}` (docs/devices.md): a C device (`bench/serial_device.c`, "
+        "## Serial device round trip (1 kHz over a pseudo-terminal and over UDP, under Python CPU load)", "",
+        f"`bench/bench_serial.py --seconds {jitter_s:g} --transport both` (docs/devices.md): a C device (`bench/serial_device.c`, "
         "SCHED_FIFO as hardware of its own would be) sends a pose every millisecond and times it until the force "
         "frame acknowledging it comes back. The hosts, in alternating rounds under the same load (Python threads "
         "burning CPU, the runtime running and snapshotted at 100 Hz): the bare C echo loop (decode, answer at once; "
         "SCHED_FIFO 70) and graspcore (pyserial opens the port, the runtime grips a box, the core's serial thread "
         "at SCHED_FIFO 70 pushes HIPs and answers with the haptic loop's forces). Both round trips cross the "
-        "kernel's pty buffer twice (a worker thread at normal priority). "
+        "kernel's pty buffer twice (a worker thread at normal priority). Then the same over UDP on the loopback "
+        "interface (docs/protocol.md section 7): the device on a UDP socket, the echo loop and graspcore's device "
+        "thread on theirs. "
         "Its output:", "",
         serial_md])
     mb_section = mb.report_section(mb_rows, mjinfo, pbinfo, mb_prof, overlaps, xml_mb,
