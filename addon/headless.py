@@ -107,8 +107,10 @@ def run(args, out, err) -> int:
         from .devices_ui import run_realtime
         if not args.duration:
             raise CliError("--device: give --duration S (a device session has no end of its own)")
-        live = run_realtime(context, args.duration, device_specs=args.device, record_path=record)
-        return _report(args, live.finish(), live.runner.recording_end, applied, out)
+        live = run_realtime(context, args.duration, device_specs=args.device, record_path=record,
+                            forces=args.forces == "on")
+        code = _report(args, live.finish(), live.runner.recording_end, applied, out)
+        return _report_devices(live, out, err) or code
     session = BlenderSession(context, live=args.realtime,
                              duration=args.duration if args.duration else None, record_path=record)
     if session.duration == float("inf"):
@@ -166,6 +168,21 @@ def _report(args, result, end, applied, out) -> int:
     if args.save:
         print(f"saved: {save_blend(args.save)}", file=out)
     return 0
+
+
+def _report_devices(live, out, err) -> int:
+    """Which device drove which finger; a device lost during the run is said on standard
+    error: EXIT_DEVICE_LOST (docs/cli.md)."""
+    from .engine.cli import EXIT_DEVICE_LOST
+    from .engine.devices.live import loss_lines
+    from .engine.devices.live import summary_line
+    print(f"fingers: {live.input_description()['detail']}", file=out)
+    for label, st in live.result.stats.get("device_stats", {}).items():
+        print(f"device {summary_line(label, st)}", file=out)
+    lines = loss_lines(live.result.stats.get("device_events", []))
+    for line in lines:
+        print(f"grasp-lab run: device {line}", file=err)
+    return EXIT_DEVICE_LOST if lines else 0
 
 
 def bake(args, out, err) -> int:

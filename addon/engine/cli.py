@@ -25,6 +25,7 @@ from typing import Callable
 from . import limits, outputs
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+EXIT_DEVICE_LOST = 3    # run: the session ran and was saved, but a device was lost during it
 PROG = "grasp-lab"
 
 
@@ -124,6 +125,9 @@ def _configure_run(p):
                         "(default: stepped as fast as it goes, deterministic)")
     p.add_argument("--device", action="append", default=[], metavar="SPEC",
                    help="an input device: serial:PORT, spacemouse, opengloves:PORT (repeatable)")
+    p.add_argument("--forces", choices=("on", "off"), default="off",
+                   help="device forces (default off, as in the UI): on turns them on at the start, ramping "
+                        "in, with the same safety as the sidebar's Forces On")
     p.add_argument("--record", metavar="OUT.mcap", help="record every haptic tick to this file")
     p.add_argument("--max-size", type=_size, default=limits.DEFAULT_MAX_SIZE, metavar="BYTES", help=MAX_SIZE_HELP)
     p.add_argument("--save", metavar="OUT.blend", help="save the scene after the session")
@@ -216,7 +220,10 @@ def _run_info(args, out, err):
     if s["runtime"]:
         p("runtime     " + ", ".join(f"{k} {v}" for k, v in s["runtime"].items()))
     if s["device"]:
-        p("device      " + ", ".join(f"{k} {v}" for k, v in s["device"].items()))
+        p("device      " + ", ".join(f"{k} {v}" for k, v in s["device"].items() if k != "drivers"))
+    from .devices.live import loss_lines, recorded_device_events
+    for line in loss_lines(recorded_device_events(s["event_list"])):
+        p("device      " + line)
     p("versions    " + ", ".join(f"{k} {v}" for k, v in (s["versions"] or {}).items()))
     p("events      " + (", ".join(f"{k} {v}" for k, v in sorted(s["events"].items())) or "none"))
     if s["overflow"]:
@@ -282,6 +289,8 @@ def _run_run(args, out, err):
         raise CliError("--live-view does not serve --device sessions yet (the session panel's Live View does)")
     if args.device and not args.realtime:
         raise CliError("--device needs --realtime (devices drive a live session on the threaded runtime)")
+    if args.forces == "on" and not args.device:
+        raise CliError("--forces on needs --device (device forces go to the devices of the session)")
     for spec in args.device:
         check_port(spec)
     return headless.run(args, out, err)

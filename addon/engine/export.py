@@ -22,6 +22,12 @@ def _rows(ticks, every):
     return ticks[::every] if every > 1 else ticks
 
 
+def _events_by_time(rec: Recording) -> list:
+    """Events in time order (the file holds them as written: tick-derived events by the
+    recorder thread, device events as the session polled them)."""
+    return sorted(rec.events, key=lambda e: float(e.get("time", 0.0)))
+
+
 def _fmt(a):
     return [repr(float(v)) for v in a]
 
@@ -72,7 +78,7 @@ def _write_csv(rec, ticks, bodies, fingers, events):
             fingers.writerow([ts, name, *_fmt(values[k, f]), STATE_NAMES[s] if 0 <= s < 3 else str(s),
                               rec.body_names[c] if 0 <= c < len(rec.body_names) else ""])
     events.writerow(EVENT_COLUMNS)
-    for e in rec.events:
+    for e in _events_by_time(rec):
         events.writerow([repr(float(e.get("time", 0.0))), e.get("kind", ""), e.get("subject", ""),
                          e.get("detail", "")])
     return len(ticks) * len(rec.body_names), len(ticks) * len(rec.finger_names), len(rec.events)
@@ -82,12 +88,13 @@ def export_npz(rec: Recording, path: str, every: int = 1) -> int:
     """Every tick field as an array (time first), names and events, in one .npz written
     beside ``path`` (the exact name given) and renamed into place. Returns the ticks written."""
     ticks = _rows(rec.ticks, every)
+    events = _events_by_time(rec)
     arrays = {"body_names": np.array(rec.body_names), "finger_names": np.array(rec.finger_names),
               "haptic_rate": np.array(rec.haptic_rate),
-              "event_time": np.array([e.get("time", 0.0) for e in rec.events], dtype=np.float64),
-              "event_kind": np.array([e.get("kind", "") for e in rec.events]),
-              "event_subject": np.array([e.get("subject", "") for e in rec.events]),
-              "event_detail": np.array([e.get("detail", "") for e in rec.events])}
+              "event_time": np.array([e.get("time", 0.0) for e in events], dtype=np.float64),
+              "event_kind": np.array([e.get("kind", "") for e in events]),
+              "event_subject": np.array([e.get("subject", "") for e in events]),
+              "event_detail": np.array([e.get("detail", "") for e in events])}
     arrays.update({name: np.ascontiguousarray(ticks[name]) for name in ticks.dtype.names})
     with AtomicFile(path) as out:
         # np.savez_compressed's layout, with the archive closed on any error (a full disk)
