@@ -504,7 +504,10 @@ def boot_extension() -> str:
     import re
     import shutil
     import tempfile
-    if "bpy" not in sys.modules and "BLENDER_USER_RESOURCES" not in os.environ:
+    if "bpy" not in sys.modules:
+        # Always a private folder, even when BLENDER_USER_RESOURCES is set: installing the zip
+        # takes the repository's lock, and a command killed while holding it (kill -9) would
+        # leave every later command sharing that folder refused ("lock exists").
         tmp = tempfile.mkdtemp(prefix="grasp_lab_cli_")
         os.environ["BLENDER_USER_RESOURCES"] = tmp
         atexit.register(shutil.rmtree, tmp, True)

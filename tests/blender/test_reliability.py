@@ -535,8 +535,12 @@ def test_a_signal_stops_resim_and_export_leaving_the_targets(files, tmp_path, co
             "export-csv": ("export", long, "--csv", target.parent),
             "export-npz": ("export", long, "--npz", target)}[command]
     proc = start(*args)
-    time.sleep(0.8)                                 # reading done, replaying / writing
-    assert proc.poll() is None
+    # Signalled once it is writing (its .partial exists), not after a fixed sleep: on a loaded
+    # machine the interpreter may still be starting, before any handler is installed.
+    deadline = time.monotonic() + 60
+    while not [n for n in os.listdir(target.parent) if n.endswith(".partial")]:
+        assert proc.poll() is None and time.monotonic() < deadline, proc.communicate()
+        time.sleep(0.01)
     t0 = time.monotonic()
     proc.send_signal(signal.SIGTERM)
     _, err = proc.communicate(timeout=30)
