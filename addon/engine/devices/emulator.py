@@ -105,6 +105,10 @@ def _finger_channel(obj):
     if gl is not None and hasattr(gl, "role"):
         return gl.channel if gl.role == "FINGER" else None
     raw = obj.get("grasp_lab")
+    if raw is None and hasattr(obj, "bl_system_properties_get"):
+        # Blender 5.0 keeps registered properties apart from the object's custom properties.
+        system = obj.bl_system_properties_get()
+        raw = system.get("grasp_lab") if system is not None else None
     if raw is None or raw.get("role", 0) != 3:
         return None
     return raw.get("channel", 0)
