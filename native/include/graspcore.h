@@ -371,8 +371,10 @@ gcStatus gc_world_push_device_hips(gcWorld *world, int finger_offset, int count,
  * with a the world axis of smallest |n.a| (ties: x, then y, then z), t2 = n x t1; its wrench is
  * (f, (p - center) x f / radius). A contact with mu 0 gives one wrench (its k edges coincide).
  * The GWS is the convex hull of the edge wrenches (6-D); force closure = the origin strictly
- * inside it. Exact: the hull is built facet by facet, no sampling. A workspace holds all
- * storage; it grows to the largest problem it has seen and is reused without allocating. */
+ * inside it. Exact, no sampling: closure by a linear program, epsilon and the weakest direction
+ * by a support-function search (each answer certified against the hull), the volume from the
+ * whole hull. A workspace holds all storage; it grows to the largest problem it has seen and is
+ * reused without allocating. */
 typedef struct gcGraspDef {
     int edges;              /* friction cone edges per contact, >= 3, default 8 */
     double tolerance;       /* relative to the largest wrench norm: rank, flatness, visibility and
