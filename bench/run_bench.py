@@ -334,6 +334,48 @@ def serial_target_rows(rows: list[dict], seconds: float) -> list[str]:
     return out
 
 
+def grasp_quality(quick: bool) -> tuple[bool, str, list[str]]:
+    """bench/bench_grasp_quality.py: graspcore.grasp_quality beside scipy ConvexHull on the same
+    contact sets in the same run: (ok, its Markdown, target rows for the summary)."""
+    script = os.path.join(HERE, "bench_grasp_quality.py")
+    venv_py = os.path.join(ROOT, ".venv", "bin", "python")
+    fd, js = tempfile.mkstemp(suffix=".json")
+    os.close(fd)
+    try:
+        good, md = run_external([venv_py if os.path.exists(venv_py) else sys.executable, script, "--json", js]
+                                + (["--quick"] if quick else []), timeout=600)
+        data = json.load(open(js)) if good else {}
+    except (OSError, ValueError) as exc:
+        good, md, data = False, f"bench_grasp_quality.py wrote no statistics: {exc}", {}
+    finally:
+        os.unlink(js)
+    return good, md, grasp_target_rows(data)
+
+
+def grasp_target_rows(data: dict) -> list[str]:
+    target = data.get("target", 100.0)
+    rows = [r for r in data.get("rows", []) if r["edges"] == 8]
+    if not rows:
+        return []
+    ratios = " / ".join(f"{r['ratio']:.0f}×" for r in rows)
+    times = " / ".join(f"{r['fast_us']:.0f} vs {r['scipy_us']:.0f} µs" for r in rows)
+    ok = all(r["ratio"] >= target for r in rows)
+    counts = " / ".join(str(r["contacts"]) for r in rows)
+    out = [f"| Grasp quality (closure, epsilon, weakest: `volume=False`) ≥ {target:.0f}× faster than scipy "
+           f"ConvexHull, {counts} contacts × 8 edges | {ratios} ({times}) | {'**met**' if ok else '**MISSED**'} |"]
+    live = data.get("live")
+    if live:
+        out.append(f"| Grasp analysis core work per display update (2 bodies × 5 contacts: quality and mu_min) "
+                   f"< 500 µs | median {live['median_us']:.0f} µs, 99th percentile {live['p99_us']:.0f} µs | "
+                   f"{'**met**' if live['p99_us'] < 500 else '**MISSED**'} |")
+    return out
+
+
+# --- report ---------------------------------------------------------------------------
+def us(x: float) -> str:
+    return f"{x * 1e6:.2f}"
+
+
 def unplug(trials: int) -> tuple[bool, str, list[str]]:
     """bench/bench_unplug.py: a device unplugged (and silenced) mid-grip, from the recording:
     (ok, its Markdown table, target rows for the summary)."""
@@ -754,11 +796,15 @@ def main(argv=None) -> int:
         "period error < 100 µs and no period more than 1 ms late over the run (docs/runtime.md, "
         "\"Measured jitter\"). Its output:".format(jitter_s), "",
         jitter_md])
+    log("grasp quality (bench/bench_grasp_quality.py: graspcore beside scipy ConvexHull)")
+    good, grasp_md, grasp_targets = grasp_quality(args.quick)
+    ok &= good
     meta["load_end"] = loadavg()
     meta["wall_s"] = time.perf_counter() - t_start
     md = report(info, mjinfo, grasps, creep, profile, gjk, blender, xml3, meta, pbinfo=pbinfo,
-                extra_targets=mb.target_rows(mb_rows, mjinfo is not None) + jitter_targets + serial_targets + unplug_targets,
-                sections=[s for s in (held_section, mb_section, jitter_section, serial_section) if s])
+                extra_targets=mb.target_rows(mb_rows, mjinfo is not None) + jitter_targets + serial_targets + unplug_targets
+                + grasp_targets,
+                sections=[s for s in (held_section, mb_section, jitter_section, serial_section, grasp_md) if s])
     if args.quick:
         md = md.replace("# Benchmarks\n", "# Benchmarks (--quick run: too few repeats to quote)\n", 1)
     os.makedirs(os.path.dirname(args.out), exist_ok=True)
