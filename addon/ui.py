@@ -98,6 +98,11 @@ class GRASPLAB_PT_session(_GraspPanel, bpy.types.Panel):
         sub.active = s.display_objects
         sub.prop(s, "force_scale")
         sub.prop(s, "torque_scale")
+        col.prop(s, "live_view")
+        sub = col.column(align=True)
+        sub.active = s.live_view
+        sub.prop(s, "live_view_port")
+        sub.prop(s, "live_view_bind")
         row = layout.row(align=True)
         row.operator("grasp_lab.reset", icon="LOOP_BACK")
         row.operator("grasp_lab.clear_display", text="Clear Display", icon="TRASH")
