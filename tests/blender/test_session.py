@@ -192,7 +192,9 @@ def test_live_session_ticks_without_timers(bpy, sample, core):
     assert bpy.context.scene.frame_current == 1 + round(1.0 * 24)
     assert "real time" in s.hud_text()
     assert s.tick(5.0) is True                       # reached the duration
-    assert "contacts 2 / 2" in s.hud_text()          # closed on the box
+    hud = s.hud_text().split("\n")                   # the grasp first: closed on the box
+    assert hud[0].startswith("Box: closure ") and "Finger 0 stick" in hud[3] and "Finger 1 stick" in hud[3]
+    assert hud[4].startswith("t 1.25 / 1.25 s") and len(hud) == 5
     s.finish()
     display.add_overlay()                            # no-op headless
     assert not display.overlay_active()
@@ -223,8 +225,10 @@ def test_live_session_on_the_threaded_runtime(bpy, sample, core):
     # (> 250 Hz: the loop runs at its real-time rate's order; the rate itself is benchmarked.)
     assert stats["haptic_rate"] == stats["runtime_haptic_rate"] > 250
     assert stats["steps"] > 200 and stats["step_us"] > 0
-    hud = s.hud_text()                               # the C loop's own timing and safety
-    assert "haptic loop p99" in hud and stats["runtime_priority_note"] in hud
-    assert "haptic 0 Hz" not in hud and "step 0 µs" not in hud
+    hud = s.hud_text()                               # the grasp, then the C loop's own timing
+    assert hud.startswith("Box: closure ") and "p99" in hud and "haptic 0 Hz" not in hud
+    detail = "\n".join(s.loop_lines(detail=True))   # the sidebar's Loop panel: all of it
+    assert stats["runtime_priority_note"] in detail and "safety: rejected inputs" in detail
+    assert "step 0 µs" not in detail
     s.finish()
     assert not s.runner.world.running
