@@ -164,7 +164,7 @@ def test_a_live_session_driven_by_an_emulated_device(gui):
     stopped_cleanly(r)
     assert r["threads_running"] == ["gc-haptic", "gc-object", "gc-serial"]
     assert r["contacts"] == [0, 0]                          # the device's fingertips grip the box
-    assert f"{port}: streaming, fingers 0..1" in r["hud"] and "forces on" in r["hud"], r["hud"]
+    assert f"{port}: streaming, fingers 0..1" in r["hud"] and "forces enabled" in r["hud"], r["hud"]
     # A loaded machine may add "stall" safety events (the haptic loop ran late: forces held
     # at zero meanwhile); the device still connects first and is enabled next.
     assert [e for e in r["device_events"] if e != "stall"][:2] == ["connected", "enabled"], r["device_events"]
