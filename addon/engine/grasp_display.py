@@ -57,13 +57,10 @@ class GraspMonitor:
         self._prev = None           # (time, centre-of-mass velocities)
         self._acc = None
 
-    def com_velocities(self, snap) -> np.ndarray:
-        """Centre-of-mass velocities (n, 3): v_origin + w x (com - origin)."""
-        v = np.asarray(snap.velocities, dtype=np.float64)
-        return v[:, :3] + np.cross(v[:, 3:], snap.com - snap.poses[:, :3])
-
     def accelerations(self, snap) -> np.ndarray:
-        v = self.com_velocities(snap)
+        if not self.models:                 # fingers only: nothing to hold
+            return np.zeros((0, 3))
+        v = analysis.com_velocities(self.models, snap.poses, np.asarray(snap.velocities, dtype=np.float64))
         if self._prev is not None and snap.time > self._prev[0]:
             self._acc = (v - self._prev[1]) / (snap.time - self._prev[0])
         elif self._acc is None or self._acc.shape != v.shape:

@@ -39,36 +39,35 @@ def test_finger_colours_free_fingers_keep_the_god_object_blue():
 
 # ---------------------------------------------------------------- accelerations
 
-def _snap(t, velocities, poses, com):
+def _snap(t, velocities, poses):
     return SimpleNamespace(time=t, velocities=np.asarray(velocities, float), poses=np.asarray(poses, float),
-                           com=np.asarray(com, float), contacts=np.array([-1]))
+                           contacts=np.array([-1]))
 
 
 def test_centre_of_mass_acceleration_between_display_updates():
     """A body whose centre of mass is 0.1 m off its frame origin, spinning at 2 rad/s about
-    z: its centre moves at v_origin + w x (com - origin). The acceleration is the change of
-    that over the snapshots' time; a repeated snapshot time keeps the last one."""
-    m = grasp_display.GraspMonitor([], [])
-    pose = [[0, 0, 0, 1, 0, 0, 0]]
-    com = [[0.1, 0, 0]]
-    s0 = _snap(1.0, [[0, 0, 0, 0, 0, 2.0]], pose, com)
-    np.testing.assert_allclose(m.com_velocities(s0), [[0, 0.2, 0]])
+    z: its centre moves at v_origin + w x (R com). The acceleration is the change of that
+    over the snapshots' time; a repeated snapshot time keeps the last one."""
+    model = analysis.BodyModel("B", 1.0, np.array([0.1, 0, 0]), 0.8, 0.6, 0.1, False)
+    m = grasp_display.GraspMonitor([model], [])
+    s0 = _snap(1.0, [[0, 0, 0, 0, 0, 2.0]], [[0, 0, 0, 1, 0, 0, 0]])                   # centre moves at (0, 0.2, 0)
     np.testing.assert_array_equal(m.accelerations(s0), [[0, 0, 0]])          # first update
-    s1 = _snap(1.25, [[0, 0, 0.5, 0, 0, 2.0]], pose, [[0, 0.1, 0]])          # turned a quarter
-    np.testing.assert_allclose(m.com_velocities(s1), [[-0.2, 0, 0.5]])
-    np.testing.assert_allclose(m.accelerations(s1), [[-0.8, -0.8, 2.0]])
-    np.testing.assert_allclose(m.accelerations(s1), [[-0.8, -0.8, 2.0]])     # same tick again
-    s2 = _snap(1.5, [[0, 0, 0.5, 0, 0, 2.0]], pose, [[0, 0.1, 0]])
-    np.testing.assert_allclose(m.accelerations(s2), [[0, 0, 0]])
+    quarter = [[0, 0, 0, math.cos(math.pi / 4), 0, 0, math.sin(math.pi / 4)]]           # turned 90° about z
+    s1 = _snap(1.25, [[0, 0, 0.5, 0, 0, 2.0]], quarter)                       # centre: (-0.2, 0, 0.5)
+    np.testing.assert_allclose(m.accelerations(s1), [[-0.8, -0.8, 2.0]], atol=1e-12)
+    np.testing.assert_allclose(m.accelerations(s1), [[-0.8, -0.8, 2.0]], atol=1e-12)    # same tick again
+    s2 = _snap(1.5, [[0, 0, 0.5, 0, 0, 2.0]], quarter)
+    np.testing.assert_allclose(m.accelerations(s2), [[0, 0, 0]], atol=1e-12)
 
 
 def test_monitor_survives_a_refused_contact_set(monkeypatch):
     def refuse(*args, **kwargs):
         raise ValueError("normals: row 1 is not a unit vector")
     monkeypatch.setattr(grasp_display.analysis, "analyse", refuse)
-    m = grasp_display.GraspMonitor([], [0.01])
+    model = analysis.BodyModel("B", 1.0, np.zeros(3), 0.8, 0.6, 0.1, False)
+    m = grasp_display.GraspMonitor([model], [0.01])
     snap = SimpleNamespace(time=0.0, velocities=np.zeros((1, 6)), poses=np.array([[0, 0, 0, 1, 0, 0, 0.]]),
-                           com=np.zeros((1, 3)), contacts=np.array([0]), god_objects=np.zeros((1, 3)),
+                           contacts=np.array([0]), god_objects=np.zeros((1, 3)),
                            spring_forces=np.zeros((1, 3)), normals=np.zeros((1, 3)),
                            finger_states=np.array([1]))
     assert m.update(snap) == [] and "row 1" in m.error and len(m.costs) == 1
