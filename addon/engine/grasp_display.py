@@ -90,21 +90,32 @@ def _ratio(x: float) -> str:
     return "∞" if not math.isfinite(x) else f"{x:.1f}×"
 
 
+NBSP = "\u00a0"     # joins what wrapping must not split: a number and its unit, a finger's entry
+
+
+def _keep(text: str) -> str:
+    return text.replace(" ", NBSP)
+
+
 def grasp_lines(grasps, body_names, finger_names) -> list:
     """The grasp, per held body: closure and epsilon, the force it resists in its weakest
     direction, grip against load, the finger closest to slipping; then each finger's state
-    and friction use. Plain lines, most important first."""
+    and friction use. Plain lines, most important first; ``wrap`` never splits a value from
+    its unit or a finger's entry (they are joined by no-break spaces)."""
     if not grasps:
         return ["No finger on a body"]
     lines = []
     for g in grasps:
         closure = "closure yes" if g.force_closure else "closure no"
-        lines.append(f"{body_names[g.body]}: {closure}  ε {g.epsilon:.3f}  resists {g.resisted_force:.2f} N")
-        lines.append(f"  grip {g.grip_force:.2f} N / load {g.load_force:.2f} N = {_ratio(g.grip_ratio)}")
+        lines.append(f"{body_names[g.body]}: {closure}  {_keep(f'ε {g.epsilon:.3f}')}  "
+                     f"resists {_keep(f'{g.resisted_force:.2f} N')}")
+        lines.append(f"  grip {_keep(f'{g.grip_force:.2f} N')} / load {_keep(f'{g.load_force:.2f} N')} "
+                     f"= {_ratio(g.grip_ratio)}")
         if g.min_slip_finger >= 0:
-            lines.append(f"  slip margin {g.min_slip_margin:.2f} N at {finger_names[g.min_slip_finger]}")
-        fingers = [f"{finger_names[c.finger]} {STATE_NAMES[c.state] if 0 <= c.state < 3 else c.state} "
-                   f"{_percent(c.friction_use)}" for c in g.contacts]
+            lines.append(f"  slip margin {_keep(f'{g.min_slip_margin:.2f} N')} at "
+                         f"{_keep(finger_names[g.min_slip_finger])}")
+        fingers = [_keep(f"{finger_names[c.finger]} {STATE_NAMES[c.state] if 0 <= c.state < 3 else c.state} "
+                         f"{_percent(c.friction_use)}") for c in g.contacts]
         lines.append("  " + "   ".join(fingers))
     return lines
 

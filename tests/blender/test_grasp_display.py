@@ -84,11 +84,16 @@ def _grasp(body=0, closure=True):
 
 
 def test_grasp_lines_lead_with_closure_and_name_the_finger_closest_to_slip():
-    lines = grasp_display.grasp_lines([_grasp()], ["Box"], ["Thumb", "Index"])
-    assert lines == ["Box: closure yes  ε 0.123  resists 0.62 N",
-                     "  grip 5.00 N / load 1.96 N = 2.5×",
-                     "  slip margin 0.00 N at Index",
-                     "  Thumb stick 25%   Index slip 100%"]
+    lines = grasp_display.grasp_lines([_grasp()], ["Box"], ["Thumb", "Index Tip"])
+    assert [x.replace(grasp_display.NBSP, " ") for x in lines] == [
+        "Box: closure yes  ε 0.123  resists 0.62 N",
+        "  grip 5.00 N / load 1.96 N = 2.5×",
+        "  slip margin 0.00 N at Index Tip",
+        "  Thumb stick 25%   Index Tip slip 100%"]
+    # Wrapped narrow, a value stays with its unit and a finger's entry stays whole.
+    narrow = grasp_display.wrap(lines, 14)
+    assert "0.62\u00a0N" in " ".join(narrow) and any(x.strip() == "Index\u00a0Tip\u00a0slip\u00a0100%"
+                                                        for x in narrow), narrow
     open_ = grasp_display.grasp_lines([_grasp(closure=False)], ["Box"], ["Thumb", "Index"])
     assert open_[0].startswith("Box: closure no") and not any("slip margin" in x for x in open_)
     weightless = _grasp()
@@ -110,6 +115,8 @@ def test_wrap_breaks_at_words_within_the_width():
         out = grasp_display.wrap(lines, width)
         assert all(len(x) <= width for x in out)
         assert " ".join(out).split() == " ".join(lines).split()        # no word cut or lost
+    # A word longer than the width stays whole on its own line rather than being cut.
+    assert grasp_display.wrap(["ab Fingertip_of_the_thumb cd"], 12) == ["ab", "  Fingertip_of_the_thumb", "  cd"]
     out = grasp_display.wrap(lines, 20)
     assert [x for x in out if "Index" in x][0].startswith("    ")     # continuations indented
 

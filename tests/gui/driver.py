@@ -316,7 +316,7 @@ def scenario_start_esc_stop():
         area, win_region, ui = view3d()
         during = colour_counts(pixels(screenshot("running")), win_region, ui)
         RESULT["hud"] = s.hud_text()                      # what the picture shows
-        if during["red"] > before["red"] + 100 and during["blue"] > before["blue"] + 200 \
+        if during["red"] > before["red"] + 100 and during["green"] > before["green"] + 100 \
                 and during["hud_white"] > 1000:
             break
         shown = len(s.runner.ticks)
