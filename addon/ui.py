@@ -8,12 +8,19 @@ from .engine import grasp_display
 
 
 def wrapped_labels(layout, context, lines, icon_first="NONE"):
-    """Labels that wrap at the region's width instead of being cut off mid-word."""
-    # Blender's interface font is about 6.5 px a character at scale 1; the panel's margins 30 px.
-    scale = context.preferences.view.ui_scale
-    width = int((context.region.width - 30 * scale) / (6.5 * scale)) if context.region else 40
+    """Labels that wrap at the region's width instead of being cut off mid-word: measured in
+    the interface font where it can be (a window), else at about 6.5 px a character."""
+    scale = context.preferences.system.ui_scale
+    width = (context.region.width if context.region else 300) - 40 * scale   # panel and box margins
+    measure = None
+    if not bpy.app.background:
+        import blf
+        blf.size(0, context.preferences.ui_styles[0].widget.points * scale)
+        measure = lambda text: blf.dimensions(0, text)[0]  # noqa: E731
+    if measure is None:
+        width, measure = int(width / (6.5 * scale)), len
     col = layout.column(align=True)
-    for k, line in enumerate(grasp_display.wrap(lines, width)):
+    for k, line in enumerate(grasp_display.wrap(lines, width, measure)):
         col.label(text=line, icon=icon_first if k == 0 else "NONE")
     return col
 

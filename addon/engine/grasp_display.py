@@ -7,7 +7,7 @@ waits for it (it only publishes the snapshot)."""
 from __future__ import annotations
 
 import math
-import textwrap
+import re
 import time
 
 import numpy as np
@@ -134,14 +134,25 @@ def force_output(runtime_enabled: bool, devices_enabled=None) -> str:
     return "forces on"
 
 
-def wrap(lines, width_chars: int) -> list:
-    """Lines wrapped at word boundaries to ``width_chars`` (continuations indented)."""
+def wrap(lines, width, measure=len) -> list:
+    """Lines wrapped at spaces so that ``measure(line) <= width`` (characters by default; a
+    panel passes its width in pixels and the interface font's measure). A continuation is
+    indented two more spaces than its line; a word wider than the width gets a line of its
+    own, whole."""
     out = []
-    width = max(int(width_chars), 12)
     for line in lines:
-        indent = line[:len(line) - len(line.lstrip())]
-        out += textwrap.wrap(line, width=width, subsequent_indent=indent + "  ", break_long_words=False,
-                             break_on_hyphens=False) or [""]
+        body = line.lstrip(" ")
+        indent = line[:len(line) - len(body)]
+        pieces = re.split(r"( +)", body)
+        current, gap = indent + pieces[0], ""
+        for k in range(1, len(pieces), 2):
+            sep, word = pieces[k], pieces[k + 1]
+            if measure(current + sep + word) <= width:
+                current += sep + word
+            else:
+                out.append(current)
+                current = indent + "  " + word
+        out.append(current)
     return out
 
 

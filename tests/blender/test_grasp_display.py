@@ -117,6 +117,10 @@ def test_wrap_breaks_at_words_within_the_width():
         assert " ".join(out).split() == " ".join(lines).split()        # no word cut or lost
     # A word longer than the width stays whole on its own line rather than being cut.
     assert grasp_display.wrap(["ab Fingertip_of_the_thumb cd"], 12) == ["ab", "  Fingertip_of_the_thumb", "  cd"]
+    # Measured in pixels by a font's measure (here 5 px a character, 9 for "W").
+    px = lambda t: 5 * len(t) + 4 * t.count("W")  # noqa: E731
+    assert grasp_display.wrap(["WWW aaa bbb"], 38, px) == ["WWW", "  aaa", "  bbb"]
+    assert grasp_display.wrap(["WWW aaa bbb"], 38, lambda t: 5 * len(t)) == ["WWW aaa", "  bbb"]
     out = grasp_display.wrap(lines, 20)
     assert [x for x in out if "Index" in x][0].startswith("    ")     # continuations indented
 

@@ -404,12 +404,22 @@ def scenario_grasp_hud():
         n: {"material": [round(v, 4) for v in bpy.data.objects[f"GL God-object {n}"].material_slots[0].material
                          .diffuse_color], "expected": [round(v, 4) for v in want[i]]}
         for i, n in enumerate(names)}
-    # The sidebar's grasp lines, as the panel wraps them, measured in the interface font.
+    # The sidebar's grasp lines, as the panel wraps them (its labels, read from the UI), measured
+    # in the interface font.
     prefs = bpy.context.preferences
     scale = prefs.system.ui_scale
     blf.size(0, prefs.ui_styles[0].widget.points * scale)
-    width = int((ui.width - 30 * scale) / (6.5 * scale))
-    lines = gd.wrap(s.grasp_lines(), width)
+    ui_mod = ext("ui")
+    lines = []
+
+    class Recorder:
+        def column(self, align=False):
+            return self
+
+        def label(self, text="", icon="NONE"):
+            lines.append(text)
+    with bpy.context.temp_override(window=window(), area=area, region=ui):
+        ui_mod.wrapped_labels(Recorder(), bpy.context, s.grasp_lines())
     RESULT["sidebar"] = {"region_width": ui.width, "ui_scale": scale, "lines": lines,
                          "text_px": [blf.dimensions(0, x)[0] for x in lines]}
     RESULT["analysis_ms"] = [1e3 * c for c in s.monitor.costs[-50:]]
