@@ -5,7 +5,8 @@ environment, .venv-bench, created here from bench/requirements.txt on first use 
 pins its own numpy; bpy in .venv pins numpy < 2), as subprocesses serving
 bench/scenes_mujoco.py and bench/scenes_pybullet.py. Timing repeats of the engines are
 interleaved so all see the same machine load. The multi-body scenes are run by
-bench/bench_multibody.py, the haptic-loop jitter by bench/bench_jitter.py.
+bench/bench_multibody.py, the haptic-loop jitter by bench/bench_jitter.py, grasp quality
+against scipy by bench/bench_grasp_quality.py.
 Writes docs/benchmarks.md and prints it.
 
     .venv/bin/python bench/run_bench.py [--quick] [--out docs/benchmarks.md]
@@ -331,6 +332,37 @@ def serial_target_rows(rows: list[dict], seconds: float) -> list[str]:
                    f"p99 < 1 ms, no dropped frames | {r['p99_us']:.0f} µs, {r['unacknowledged']} unanswered, "
                    f"{r['frame_errors']} frame errors{bare_txt} | {'**met**' if ok else '**MISSED**' + why} |")
     return out
+
+
+def grasp_quality(quick: bool) -> tuple[bool, str, list[str]]:
+    """bench/bench_grasp_quality.py: graspcore.grasp_quality beside scipy ConvexHull on the same
+    contact sets in the same run: (ok, its Markdown, target rows for the summary)."""
+    script = os.path.join(HERE, "bench_grasp_quality.py")
+    venv_py = os.path.join(ROOT, ".venv", "bin", "python")
+    fd, js = tempfile.mkstemp(suffix=".json")
+    os.close(fd)
+    try:
+        good, md = run_external([venv_py if os.path.exists(venv_py) else sys.executable, script, "--json", js]
+                                + (["--quick"] if quick else []), timeout=600)
+        data = json.load(open(js)) if good else {}
+    except (OSError, ValueError) as exc:
+        good, md, data = False, f"bench_grasp_quality.py wrote no statistics: {exc}", {}
+    finally:
+        os.unlink(js)
+    return good, md, grasp_target_rows(data)
+
+
+def grasp_target_rows(data: dict) -> list[str]:
+    target = data.get("target", 100.0)
+    rows = [r for r in data.get("rows", []) if r["edges"] == 8]
+    if not rows:
+        return []
+    ratios = " / ".join(f"{r['ratio']:.0f}×" for r in rows)
+    times = " / ".join(f"{r['ours_us']:.0f} vs {r['scipy_us']:.0f} µs" for r in rows)
+    ok = all(r["ratio"] >= target for r in rows)
+    counts = " / ".join(str(r["contacts"]) for r in rows)
+    return [f"| Grasp quality ≥ {target:.0f}× faster than scipy ConvexHull, {counts} contacts × 8 edges | "
+            f"{ratios} ({times}) | {'**met**' if ok else '**MISSED**'} |"]
 
 
 # --- report ---------------------------------------------------------------------------
@@ -709,11 +741,15 @@ def main(argv=None) -> int:
         "period error < 100 µs and no period more than 1 ms late over the run (docs/runtime.md, "
         "\"Measured jitter\"). Its output:".format(jitter_s), "",
         jitter_md])
+    log("grasp quality (bench/bench_grasp_quality.py: graspcore beside scipy ConvexHull)")
+    good, grasp_md, grasp_targets = grasp_quality(args.quick)
+    ok &= good
     meta["load_end"] = loadavg()
     meta["wall_s"] = time.perf_counter() - t_start
     md = report(info, mjinfo, grasps, creep, profile, gjk, blender, xml3, meta, pbinfo=pbinfo,
-                extra_targets=mb.target_rows(mb_rows, mjinfo is not None) + jitter_targets + serial_targets,
-                sections=[s for s in (held_section, mb_section, jitter_section, serial_section) if s])
+                extra_targets=mb.target_rows(mb_rows, mjinfo is not None) + jitter_targets + serial_targets
+                + grasp_targets,
+                sections=[s for s in (held_section, mb_section, jitter_section, serial_section, grasp_md) if s])
     if args.quick:
         md = md.replace("# Benchmarks\n", "# Benchmarks (--quick run: too few repeats to quote)\n", 1)
     os.makedirs(os.path.dirname(args.out), exist_ok=True)

@@ -22,29 +22,37 @@
 #include "grasp_quality.h"
 
 #include <math.h>
+#include <stdint.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #define D GC_HULL_MAX_DIM
+/* The hull's inner functions are compiled once per dimension (3 and 6), loops unrolled. */
+#if defined(__GNUC__) || defined(__clang__)
+#define GC_ALWAYS_INLINE inline __attribute__((always_inline))
+#else
+#define GC_ALWAYS_INLINE inline
+#endif
 #define GC_GRASP_MAX_EDGES 1024
 
 static const double kTwoPi = 6.28318530717958647692;
 
 typedef struct Facet {
+    /* What the walks and the visibility search read, in one cache line. */
+    int v[D];           /* vertices (point indices) */
+    int nb[D];          /* nb[i]: the facet across the ridge without v[i] */
+    int tested, visible;/* iteration stamps */
+    double pdist;       /* signed distance of the current apex (valid when tested == stamp) */
     double n[D];        /* unit outward normal */
     double off;         /* n.x + off: signed distance of x */
     double cdist;       /* signed distance of the interior point c (< 0) */
     double vol;         /* volume of the simplex (c, facet) */
-    double pdist;       /* signed distance of the current apex (valid when tested == stamp) */
     double fdist;       /* distance of the furthest outside point */
-    int v[D];           /* vertices (point indices) */
-    int nb[D];          /* nb[i]: the facet across the ridge without v[i] */
-    int newf[D];        /* visible facets: the new facet built on horizon ridge i */
+    uint64_t key[2];    /* sums of the vertices' random words (ridge keys, see link_new_facets) */
     int outside;        /* head of the outside-point list, -1 when empty */
     int furthest;       /* furthest outside point, -1 when the set is empty */
-    int tested, visible;/* iteration stamps */
     int alive;
 } Facet;
 
@@ -65,6 +73,13 @@ struct gcGraspWorkspace {
     int *created;       /* cap_facets: this iteration's new facets */
     int cap_pending;
     int *pending;       /* stack of facets that had outside points when made */
+    uint64_t *vertex_hash; /* cap_points x 2: two random 64-bit words per point */
+    int cap_ridges;     /* the ridge table of one iteration (open addressing) */
+    uint64_t *ridge_key;    /* two words per slot */
+    int *ridge_facet;   /* facet << 3 | slot; -1 after its match */
+    int *ridge_stamp;
+    int ridge_gen;
+    int *created_apex;  /* cap_facets: where the apex sits in each new facet */
     int edges_cached;
     double cos_table[GC_GRASP_MAX_EDGES], sin_table[GC_GRASP_MAX_EDGES];
 };
@@ -103,6 +118,11 @@ void gc_grasp_workspace_destroy(gcGraspWorkspace *ws) {
     free(ws->visible);
     free(ws->created);
     free(ws->pending);
+    free(ws->vertex_hash);
+    free(ws->ridge_key);
+    free(ws->ridge_facet);
+    free(ws->ridge_stamp);
+    free(ws->created_apex);
     free(ws);
 }
 
@@ -125,7 +145,8 @@ static gcStatus ensure_points(gcGraspWorkspace *ws, int n) {
         !grow((void **)&ws->force, (size_t)cap * 3, sizeof(double)) ||
         !grow((void **)&ws->torque, (size_t)cap * 3, sizeof(double)) ||
         !grow((void **)&ws->residual, (size_t)cap * 6, sizeof(double)) ||
-        !grow((void **)&ws->next, (size_t)cap, sizeof(int)))
+        !grow((void **)&ws->next, (size_t)cap, sizeof(int)) ||
+        !grow((void **)&ws->vertex_hash, (size_t)cap * 2, sizeof(uint64_t)))
         return set_error(ws, GC_ERR_NO_MEMORY, "workspace: out of memory for %d wrenches", n);
     ws->cap_points = cap;
     return GC_OK;
@@ -141,9 +162,29 @@ static gcStatus ensure_facets(gcGraspWorkspace *ws, int n, int max_facets) {
     if (!grow((void **)&ws->facets, (size_t)cap, sizeof(Facet)) ||
         !grow((void **)&ws->free_list, (size_t)cap, sizeof(int)) ||
         !grow((void **)&ws->visible, (size_t)cap, sizeof(int)) ||
-        !grow((void **)&ws->created, (size_t)cap, sizeof(int)))
+        !grow((void **)&ws->created, (size_t)cap, sizeof(int)) ||
+        !grow((void **)&ws->created_apex, (size_t)cap, sizeof(int)))
         return set_error(ws, GC_ERR_NO_MEMORY, "workspace: out of memory for %d facets", n);
     ws->cap_facets = cap;
+    return GC_OK;
+}
+
+/* A ridge table of at least 2 x need slots (a power of two), emptied. */
+static gcStatus ensure_ridges(gcGraspWorkspace *ws, int need) {
+    int cap = 1024;
+    while (cap < 2 * need) cap *= 2;
+    if (cap > ws->cap_ridges) {
+        if (!grow((void **)&ws->ridge_key, (size_t)cap * 2, sizeof(uint64_t)) ||
+            !grow((void **)&ws->ridge_facet, (size_t)cap, sizeof(int)) ||
+            !grow((void **)&ws->ridge_stamp, (size_t)cap, sizeof(int)))
+            return set_error(ws, GC_ERR_NO_MEMORY, "workspace: out of memory for %d ridges", need);
+        for (int i = ws->cap_ridges; i < cap; ++i) ws->ridge_stamp[i] = 0;
+        ws->cap_ridges = cap;
+    }
+    if (++ws->ridge_gen == 0x7fffffff) {
+        memset(ws->ridge_stamp, 0, sizeof(int) * (size_t)ws->cap_ridges);
+        ws->ridge_gen = 1;
+    }
     return GC_OK;
 }
 
@@ -211,7 +252,7 @@ typedef struct Hull {
     int max_facets;
 } Hull;
 
-static inline const double *point(const Hull *h, int i) { return h->pts + (size_t)i * (size_t)h->d; }
+static inline const double *point(const Hull *h, int i, int d) { return h->pts + (size_t)i * (size_t)d; }
 
 /* The facet's hyperplane solved from its vertices (complete pivoting on the d-1 edge vectors),
  * oriented away from c. 0 when the vertices are affinely dependent. */
@@ -219,9 +260,9 @@ static int exact_plane(const Hull *h, Facet *f) {
     int d = h->d;
     double a[D - 1][D];
     int col[D] = {0, 1, 2, 3, 4, 5};
-    const double *v0 = point(h, f->v[0]);
+    const double *v0 = point(h, f->v[0], d);
     for (int r = 0; r < d - 1; ++r) {
-        const double *vr = point(h, f->v[r + 1]);
+        const double *vr = point(h, f->v[r + 1], d);
         for (int k = 0; k < d; ++k) a[r][k] = vr[k] - v0[k];
     }
     for (int k = 0; k < d; ++k) col[k] = k;
@@ -260,7 +301,7 @@ static int exact_plane(const Hull *h, Facet *f) {
     if (!(len > 0.0) || !isfinite(len)) return 0;
     double off = 0.0;
     for (int k = 0; k < d; ++k) x[k] /= len;
-    for (int r = 0; r < d; ++r) off -= dotd(x, point(h, f->v[r]), d);
+    for (int r = 0; r < d; ++r) off -= dotd(x, point(h, f->v[r], d), d);
     off /= d;
     double cd = dotd(x, h->c, d) + off;
     if (cd > 0.0) {
@@ -278,13 +319,13 @@ static double exact_volume(const Hull *h, const Facet *f) {
     int d = h->d;
     double a[D * D];
     for (int r = 0; r < d; ++r) {
-        const double *v = point(h, f->v[r]);
+        const double *v = point(h, f->v[r], d);
         for (int k = 0; k < d; ++k) a[r * d + k] = v[k] - h->c[k];
     }
     return abs_det(a, d) / factorial(d);
 }
 
-static int new_facet(Hull *h) {
+static inline int new_facet(Hull *h) {
     gcGraspWorkspace *ws = h->ws;
     int f = ws->num_free ? ws->free_list[--ws->num_free] : ws->high_water++;
     Facet *F = &ws->facets[f];
@@ -311,19 +352,19 @@ static int initial_simplex(Hull *h, int *chosen) {
     double *res = h->ws->residual;
     double mean[D] = {0};
     for (int i = 0; i < n; ++i)
-        for (int k = 0; k < d; ++k) mean[k] += point(h, i)[k];
+        for (int k = 0; k < d; ++k) mean[k] += point(h, i, d)[k];
     for (int k = 0; k < d; ++k) mean[k] /= n;
     int first = 0;
     double best = -1.0;
     for (int i = 0; i < n; ++i) {
         double s = 0.0;
-        for (int k = 0; k < d; ++k) s += (point(h, i)[k] - mean[k]) * (point(h, i)[k] - mean[k]);
+        for (int k = 0; k < d; ++k) s += (point(h, i, d)[k] - mean[k]) * (point(h, i, d)[k] - mean[k]);
         if (s > best) best = s, first = i;
     }
     chosen[0] = first;
-    const double *o = point(h, first);
+    const double *o = point(h, first, d);
     for (int i = 0; i < n; ++i)
-        for (int k = 0; k < d; ++k) res[i * 6 + k] = point(h, i)[k] - o[k];
+        for (int k = 0; k < d; ++k) res[i * 6 + k] = point(h, i, d)[k] - o[k];
     for (int m = 1; m <= d; ++m) {
         int pick = -1;
         double big = 0.0;
@@ -380,17 +421,21 @@ gcStatus gc_span_rank(gcGraspWorkspace *ws, const double *points, int n, int d, 
 
 /* The new facet N on horizon ridge i of the visible facet F (apex p replaces F's v[i]); its
  * plane and simplex volume from the pencil of F and the hidden neighbour G, checked. */
-static void make_cone_facet(Hull *h, int fi, int i, int p, int ni) {
+static GC_ALWAYS_INLINE void make_cone_facet(Hull *h, int d, int fi, int i, int p, int ni) {
     gcGraspWorkspace *ws = h->ws;
     Facet *F = &ws->facets[fi], *N = &ws->facets[ni];
-    int d = h->d, gi = F->nb[i];
+    int gi = F->nb[i];
     Facet *G = &ws->facets[gi];
-    memcpy(N->v, F->v, sizeof(int) * (size_t)d);
+    for (int k = 0; k < d; ++k) {
+        N->v[k] = F->v[k];
+        N->nb[k] = -1;
+        if (G->nb[k] == fi) G->nb[k] = ni;
+    }
     N->v[i] = p;
     N->nb[i] = gi;
-    for (int k = 0; k < d; ++k)
-        if (G->nb[k] == fi) G->nb[k] = ni;
-    F->newf[i] = ni;
+    const uint64_t *vh = ws->vertex_hash;
+    N->key[0] = F->key[0] - vh[2 * F->v[i]] + vh[2 * p];
+    N->key[1] = F->key[1] - vh[2 * F->v[i] + 1] + vh[2 * p + 1];
 
     double dF = F->pdist, dG = G->pdist;
     double len2 = 0.0;
@@ -406,12 +451,12 @@ static void make_cone_facet(Hull *h, int fi, int i, int p, int ni) {
         N->off = (dF * G->off - dG * F->off) * inv;
         N->cdist = (dF * G->cdist - dG * F->cdist) * inv;
         ok = N->cdist < 0.0;
-        for (int r = 0; ok && r < d; ++r)
-            if (fabs(facet_dist(N, point(h, N->v[r]), d)) > h->vtol) ok = 0;
+        /* Residuals stay at rounding level (about 1e-16 of the scale on random grasps); the final
+         * facets are checked against all their vertices at the end and solved again if not. */
     }
     if (!ok) exact_plane(h, N);
     /* vol(c,N) / vol(c,F) = |H(p)| / |H(q)|, H the hyperplane through c and the ridge. */
-    double gq = facet_dist(G, point(h, F->v[i]), d);
+    double gq = facet_dist(G, point(h, F->v[i], d), d);
     double num = G->cdist * dF - F->cdist * dG;
     if (ok && fabs(gq) > 1e3 * h->vtol && fabs(F->cdist) > 1e3 * h->vtol)
         N->vol = F->vol * fabs(num) / fabs(F->cdist * gq);
@@ -421,31 +466,140 @@ static void make_cone_facet(Hull *h, int fi, int i, int p, int ni) {
 
 /* Index of x in a[0..d) (it is there). */
 static inline int index_of(const int *a, int d, int x) {
-    for (int k = 0; k < d; ++k)
-        if (a[k] == x) return k;
-    return -1;
+    int at = -1;
+    for (int k = 0; k < d; ++k) at = a[k] == x ? k : at;
+    return at;
 }
 
-/* The new facet across N's ridge without v[j]: rotate around the (d-3)-face the ridge shares
- * with the horizon, through visible facets, to the next horizon ridge. */
-static int neighbour_across(const Hull *h, int fi, int i, int j) {
-    const Facet *fs = h->ws->facets;
-    int d = h->d;
-    int cur = fi, drop = fs[fi].v[j], keep = fs[fi].v[i];
-    for (int guard = 0; guard < h->ws->cap_facets; ++guard) {
-        int k = index_of(fs[cur].v, d, drop);
-        if (k < 0) return -1;
-        int nxt = fs[cur].nb[k];
-        if (fs[nxt].visible != h->stamp) return fs[cur].newf[k];
-        int m = index_of(fs[nxt].nb, d, cur);
-        if (m < 0) return -1;
-        int w = fs[nxt].v[m];
-        cur = nxt;
-        drop = keep;
-        keep = w;
+/* Links the new facets to each other. Two of them are neighbours when they share a ridge
+ * holding the apex. A ridge is keyed by two independent sums of random 64-bit words of its
+ * vertices (the facet's sums less the vertex it leaves out): 128 bits, so two different ridges
+ * never meet by chance in practice; and every ridge must find exactly its one partner. */
+static GC_ALWAYS_INLINE int link_new_facets(Hull *h, int d, int nc) {
+    gcGraspWorkspace *ws = h->ws;
+    if (ensure_ridges(ws, nc * (d - 1)) != GC_OK) return 0;
+    Facet *fs = ws->facets;
+    const uint64_t *vh = ws->vertex_hash;
+    uint64_t *keys = ws->ridge_key;
+    int *vals = ws->ridge_facet, *stamps = ws->ridge_stamp, gen = ws->ridge_gen;
+    unsigned mask = (unsigned)ws->cap_ridges - 1u;
+    int unmatched = 0;
+    for (int c = 0; c < nc; ++c) {
+        int nf = ws->created[c], apex = ws->created_apex[c];
+        Facet *N = &fs[nf];
+        uint64_t sum0 = N->key[0], sum1 = N->key[1];
+        for (int j = 0; j < d; ++j) {
+            if (j == apex || N->nb[j] >= 0) continue;
+            uint64_t k0 = sum0 - vh[2 * N->v[j]], k1 = sum1 - vh[2 * N->v[j] + 1];
+            unsigned slot = (unsigned)(k0 ^ (k0 >> 29)) & mask;
+            for (;; slot = (slot + 1u) & mask) {
+                if (stamps[slot] != gen) {
+                    stamps[slot] = gen;
+                    keys[2 * slot] = k0;
+                    keys[2 * slot + 1] = k1;
+                    vals[slot] = nf << 3 | j;
+                    ++unmatched;
+                    break;
+                }
+                if (keys[2 * slot] == k0 && keys[2 * slot + 1] == k1 && vals[slot] >= 0) {
+                    int other = vals[slot] >> 3;
+                    N->nb[j] = other;
+                    fs[other].nb[vals[slot] & 7] = nf;
+                    vals[slot] = -1;
+                    --unmatched;
+                    break;
+                }
+            }
+        }
     }
-    return -1;
+    return unmatched == 0;
 }
+
+/* Quickhull from the initial simplex (facets 0..d) until no facet has outside points. Written
+ * for a constant d (3 and 6 get their own compiled copies). */
+static GC_ALWAYS_INLINE gcStatus hull_run(Hull *h, int d) {
+    gcGraspWorkspace *ws = h->ws;
+    int n = h->n, num_pending = 0, iter = 0;
+    gcStatus st;
+    for (int f = 0; f <= d; ++f)
+        if (ws->facets[f].furthest >= 0 && (st = push_pending(ws, &num_pending, f)) != GC_OK) return st;
+    while (num_pending > 0) {
+        int fi = ws->pending[--num_pending];
+        Facet *F0 = &ws->facets[fi];
+        if (!F0->alive || F0->furthest < 0) continue;
+        /* Each step makes one more point a vertex: at most n steps. */
+        if (++iter > n) return set_error(ws, GC_ERR_DEGENERATE, "points: the hull did not converge in %d steps", n);
+        int p = F0->furthest;
+        const double *pp = point(h, p, d);
+        h->stamp = iter;
+        /* Visible facets: breadth first from fi over neighbours that see p. */
+        int nv = 0, horizon = 0;
+        F0->tested = F0->visible = iter;
+        F0->pdist = F0->fdist;
+        ws->visible[nv++] = fi;
+        for (int s = 0; s < nv; ++s) {
+            Facet *F = &ws->facets[ws->visible[s]];
+            for (int k = 0; k < d; ++k) {
+                Facet *G = &ws->facets[F->nb[k]];
+                if (G->tested != iter) {
+                    G->tested = iter;
+                    G->pdist = facet_dist(G, pp, d);
+                    if (G->pdist > h->tol) {
+                        G->visible = iter;
+                        ws->visible[nv++] = F->nb[k];
+                        continue;
+                    }
+                }
+                horizon += G->visible != iter;
+            }
+        }
+        if ((st = ensure_facets(ws, ws->high_water + horizon, h->max_facets)) != GC_OK) return st;
+        /* The cone: one new facet per horizon ridge, then the links between them. */
+        int nc = 0;
+        for (int s = 0; s < nv; ++s) {
+            int vf = ws->visible[s];
+            for (int k = 0; k < d; ++k) {
+                if (ws->facets[ws->facets[vf].nb[k]].visible == iter) continue;
+                int nf = new_facet(h);
+                ws->created_apex[nc] = k;
+                ws->created[nc++] = nf;
+                make_cone_facet(h, d, vf, k, p, nf);
+            }
+        }
+        if (!link_new_facets(h, d, nc))
+            return set_error(ws, GC_ERR_DEGENERATE, "points: broken hull topology");
+        /* Outside points of the visible facets go to the first new facet they are above. */
+        for (int s = 0; s < nv; ++s) {
+            Facet *F = &ws->facets[ws->visible[s]];
+            for (int q = F->outside; q >= 0;) {
+                int nq = ws->next[q];
+                if (q != p) {
+                    const double *x = point(h, q, d);
+                    for (int c = 0; c < nc; ++c) {
+                        Facet *N = &ws->facets[ws->created[c]];
+                        double dist = facet_dist(N, x, d);
+                        if (dist > h->tol) {
+                            add_outside(h, N, q, dist);
+                            break;
+                        }
+                    }
+                }
+                q = nq;
+            }
+            F->alive = 0;
+            ws->free_list[ws->num_free++] = ws->visible[s];
+        }
+        for (int c = 0; c < nc; ++c)
+            if (ws->facets[ws->created[c]].furthest >= 0 &&
+                (st = push_pending(ws, &num_pending, ws->created[c])) != GC_OK)
+                return st;
+    }
+    return GC_OK;
+}
+
+static gcStatus hull_run6(Hull *h) { return hull_run(h, 6); }
+static gcStatus hull_run3(Hull *h) { return hull_run(h, 3); }
+static gcStatus hull_run_any(Hull *h) { return hull_run(h, h->d); }
 
 gcStatus gc_hull_nd(gcGraspWorkspace *ws, const double *points, int n, int d, double tolerance,
                     int max_facets, gcHullSummary *out) {
@@ -464,7 +618,7 @@ gcStatus gc_hull_nd(gcGraspWorkspace *ws, const double *points, int n, int d, do
     h.d = d;
     h.max_facets = max_facets;
     double scale = 0.0;
-    for (int i = 0; i < n; ++i) scale = fmax(scale, dotd(point(&h, i), point(&h, i), d));
+    for (int i = 0; i < n; ++i) scale = fmax(scale, dotd(point(&h, i, d), point(&h, i, d), d));
     scale = sqrt(scale);
     if (!(scale > 0.0)) return GC_OK;
     h.tol = tolerance * scale;
@@ -474,13 +628,24 @@ gcStatus gc_hull_nd(gcGraspWorkspace *ws, const double *points, int n, int d, do
     if (initial_simplex(&h, chosen) < d + 1) return GC_OK;
     for (int k = 0; k < d; ++k) {
         double s = 0.0;
-        for (int m = 0; m <= d; ++m) s += point(&h, chosen[m])[k];
+        for (int m = 0; m <= d; ++m) s += point(&h, chosen[m], d)[k];
         h.c[k] = s / (d + 1);
     }
     st = ensure_facets(ws, 2 * (d + 1), max_facets);
     if (st != GC_OK) return st;
     ws->high_water = 0;
     ws->num_free = 0;
+    for (int i = 0; i < n; ++i) {
+        ws->next[i] = -1;
+        uint64_t z = (uint64_t)(i + 1) * 0x9E3779B97F4A7C15ull;   /* splitmix64 */
+        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+        ws->vertex_hash[2 * i] = z ^ (z >> 31);
+        z = (uint64_t)(i + 1) * 0xD1B54A32D192ED03ull;
+        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+        ws->vertex_hash[2 * i + 1] = z ^ (z >> 31);
+    }
     /* Facet m of the simplex leaves out chosen[m]; its ridge without chosen[k] faces facet k. */
     for (int m = 0; m <= d; ++m) {
         int f = new_facet(&h);
@@ -494,109 +659,21 @@ gcStatus gc_hull_nd(gcGraspWorkspace *ws, const double *points, int n, int d, do
         }
         exact_plane(&h, F);
         F->vol = exact_volume(&h, F);
+        F->key[0] = F->key[1] = 0;
+        for (int k = 0; k < d; ++k) F->key[0] += ws->vertex_hash[2 * F->v[k]], F->key[1] += ws->vertex_hash[2 * F->v[k] + 1];
     }
-    for (int i = 0; i < n; ++i) ws->next[i] = -1;
-    int num_pending = 0;
     for (int i = 0; i < n; ++i) {
         if (index_of(chosen, d + 1, i) >= 0) continue;
         for (int f = 0; f <= d; ++f) {
-            double dist = facet_dist(&ws->facets[f], point(&h, i), d);
+            double dist = facet_dist(&ws->facets[f], point(&h, i, d), d);
             if (dist > h.tol) {
                 add_outside(&h, &ws->facets[f], i, dist);
                 break;
             }
         }
     }
-    for (int f = 0; f <= d; ++f)
-        if (ws->facets[f].furthest >= 0 && (st = push_pending(ws, &num_pending, f)) != GC_OK) return st;
-
-    int iter = 0;
-    while (num_pending > 0) {
-        int fi = ws->pending[--num_pending];
-        Facet *F0 = &ws->facets[fi];
-        if (!F0->alive || F0->furthest < 0) continue;
-        /* Each step makes one more point a vertex: at most n steps. */
-        if (++iter > n) return set_error(ws, GC_ERR_DEGENERATE, "points: the hull did not converge in %d steps", n);
-        int p = F0->furthest;
-        const double *pp = point(&h, p);
-        h.stamp = iter;
-        /* Visible facets: breadth first from fi over neighbours that see p. */
-        int nv = 0;
-        F0->tested = F0->visible = iter;
-        F0->pdist = F0->fdist;
-        ws->visible[nv++] = fi;
-        int horizon = 0;
-        for (int s = 0; s < nv; ++s) {
-            Facet *F = &ws->facets[ws->visible[s]];
-            for (int k = 0; k < d; ++k) {
-                Facet *G = &ws->facets[F->nb[k]];
-                if (G->tested != iter) {
-                    G->tested = iter;
-                    G->pdist = facet_dist(G, pp, d);
-                    if (G->pdist > h.tol) {
-                        G->visible = iter;
-                        ws->visible[nv++] = F->nb[k];
-                        continue;
-                    }
-                }
-                if (G->visible != iter) ++horizon;
-            }
-        }
-        st = ensure_facets(ws, ws->high_water + horizon, max_facets);
-        if (st != GC_OK) return st;
-        /* The cone: one new facet per horizon ridge. */
-        int nc = 0;
-        for (int s = 0; s < nv; ++s) {
-            int vf = ws->visible[s];
-            for (int k = 0; k < d; ++k) {
-                int g = ws->facets[vf].nb[k];
-                if (ws->facets[g].visible == iter) continue;
-                int nf = new_facet(&h);
-                ws->created[nc++] = nf;
-                make_cone_facet(&h, vf, k, p, nf);
-                ws->facets[nf].tested = ws->facets[nf].visible = -1;
-            }
-        }
-        /* Links between new facets: across each ridge that holds the apex. */
-        for (int s = 0; s < nv; ++s) {
-            int vf = ws->visible[s];
-            for (int k = 0; k < d; ++k) {
-                if (ws->facets[ws->facets[vf].nb[k]].visible == iter) continue;
-                int nf = ws->facets[vf].newf[k];
-                for (int j = 0; j < d; ++j) {
-                    if (j == k) continue;
-                    int other = neighbour_across(&h, vf, k, j);
-                    if (other < 0) return set_error(ws, GC_ERR_DEGENERATE, "points: broken hull topology");
-                    ws->facets[nf].nb[j] = other;
-                }
-            }
-        }
-        /* Outside points of the visible facets go to the first new facet they are above. */
-        for (int s = 0; s < nv; ++s) {
-            Facet *F = &ws->facets[ws->visible[s]];
-            for (int q = F->outside; q >= 0;) {
-                int nq = ws->next[q];
-                if (q != p) {
-                    const double *x = point(&h, q);
-                    for (int c = 0; c < nc; ++c) {
-                        Facet *N = &ws->facets[ws->created[c]];
-                        double dist = facet_dist(N, x, d);
-                        if (dist > h.tol) {
-                            add_outside(&h, N, q, dist);
-                            break;
-                        }
-                    }
-                }
-                q = nq;
-            }
-            F->alive = 0;
-            ws->free_list[ws->num_free++] = ws->visible[s];
-        }
-        for (int c = 0; c < nc; ++c)
-            if (ws->facets[ws->created[c]].furthest >= 0 &&
-                (st = push_pending(ws, &num_pending, ws->created[c])) != GC_OK)
-                return st;
-    }
+    st = d == 6 ? hull_run6(&h) : d == 3 ? hull_run3(&h) : hull_run_any(&h);
+    if (st != GC_OK) return st;
 
     /* The answer: volume, and the nearest facet with its plane solved from its vertices. */
     double volume = 0.0, best = -INFINITY;
@@ -605,6 +682,11 @@ gcStatus gc_hull_nd(gcGraspWorkspace *ws, const double *points, int n, int d, do
         Facet *F = &ws->facets[f];
         if (!F->alive) continue;
         ++facets;
+        for (int r = 0; r < d; ++r)
+            if (fabs(facet_dist(F, point(&h, F->v[r], d), d)) > h.vtol) {
+                exact_plane(&h, F);
+                break;
+            }
         volume += F->vol;
         if (F->off > best) best = F->off;
     }
