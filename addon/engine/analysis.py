@@ -201,6 +201,20 @@ def friction_use(ft, mu, fn):
         return np.where(cone > 0, ft / np.where(cone > 0, cone, 1.0), np.where(ft > 0, np.inf, 0.0))
 
 
+def _mu_min(core, point, normal, starts, count, centers, radii, edges) -> np.ndarray:
+    """graspcore.grasp_mu_min of each set (a bisection: tens of hulls), once per distinct set:
+    a body at rest in a still hand gives the same set, bit for bit, tick after tick."""
+    out = np.empty(len(starts))
+    seen = {}
+    for i, (s, c) in enumerate(zip(starts, count)):
+        key = (point[s:s + c].tobytes(), normal[s:s + c].tobytes(), centers[i].tobytes(), float(radii[i]))
+        if key not in seen:
+            seen[key] = core.grasp_mu_min(point[s:s + c], normal[s:s + c], centers[i], radii[i], edges=edges,
+                                          mu_max=MU_MAX)
+        out[i] = seen[key]
+    return out
+
+
 def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_bodies, finger_radii,
                    accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8) -> GraspTable:
     """The measures for T snapshots at once: poses (T, nb, 7), god_objects / forces / normals
@@ -252,9 +266,7 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
     radii = np.array([m.radius for m in models] + [1.0])[set_b]
     quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges) if len(starts) \
         else np.zeros(0, NO_QUALITY)
-    mu_min = np.array([core.grasp_mu_min(point[s:s + c], n_in[s:s + c], centers[i], radii[i], edges=edges,
-                                         mu_max=MU_MAX)
-                       for i, (s, c) in enumerate(zip(starts, count))], dtype=np.float64)
+    mu_min = _mu_min(core, point, n_in, starts, count, centers, radii, edges)
     if len(starts):
         grip = np.add.reduceat(fn, starts)
         friction_needed = np.maximum.reduceat(needed, starts)

@@ -46,11 +46,12 @@ UNITS = {"length": "m", "mass": "kg", "time": "s", "force": "N", "torque": "N m"
          "stiffness": "N/m", "damping": "N s/m", "rate": "Hz", "period_us": "us", "work_us": "us"}
 COMPRESSIONS = ("lz4", "zstd", "none")   # lz4 by default: 3x faster to read back than zstd
 
-# One tick record (graspcore.h, gc_tick_record_size): fixed fields, then per-finger and
-# per-body arrays. Kept here too so a recording opens without the core.
-FIXED_FIELDS = [("tick", "<u8", ()), ("time", "<f8", ()), ("object_time", "<f8", ()),
-                ("state_hash", "<u8", ()), ("period_us", "<f4", ()), ("work_us", "<f4", ()),
-                ("flags", "<u4", ()), ("adopted", "<u4", ()), ("log_us", "<f4", ())]
+# The tick record's layout is the core's (graspcore.tick_dtype, checked against
+# gc_tick_record_size): the writer takes it from there and stores it in the file's schema,
+# which readers build their record type from (a recording opens without the core). The
+# fields every reader needs:
+REQUIRED_FIELDS = ("tick", "time", "object_time", "state_hash", "period_us", "work_us", "flags", "adopted",
+                   "log_us")
 FLAG_FORCES_ENABLED = 1
 
 
@@ -59,11 +60,9 @@ class RecordingError(ValueError):
 
 
 def tick_dtype(n_bodies: int, n_fingers: int) -> np.dtype:
-    nb, nf = int(n_bodies), int(n_fingers)
-    return np.dtype([(n, t, s) for n, t, s in FIXED_FIELDS] + [
-        ("hip", "<f8", (nf, 3)), ("god_object", "<f8", (nf, 3)), ("force", "<f8", (nf, 3)),
-        ("device_force", "<f8", (nf, 3)), ("normal", "<f8", (nf, 3)), ("pose", "<f8", (nb, 7)), ("velocity", "<f8", (nb, 6)),
-        ("wrench", "<f8", (nb, 6)), ("state", "<i4", (nf,)), ("contact", "<i4", (nf,))])
+    """The core's tick record type (graspcore.tick_dtype): what a recording is written with."""
+    from .. import core_loader
+    return core_loader.load().tick_dtype(n_bodies, n_fingers)
 
 
 def schema_of(dtype: np.dtype) -> dict:
@@ -87,7 +86,7 @@ def dtype_of(schema: dict) -> np.dtype:
         dtype = np.dtype(spec)
     except (KeyError, TypeError, ValueError) as ex:
         raise ValueError(f"tick schema is malformed ({ex})") from None
-    missing = {n for n, _, _ in FIXED_FIELDS} - set(dtype.names)
+    missing = set(REQUIRED_FIELDS) - set(dtype.names)
     if missing:
         raise ValueError(f"tick schema lacks {sorted(missing)}")
     return dtype

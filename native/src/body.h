@@ -43,12 +43,12 @@ static inline gcVec3 gc_body_origin_velocity(const gcBody *body, const gcBodySta
     return gc_add(state->v, gc_cross(state->w, gc_mat3_mul_vec(&state->R, gc_neg(body->com_local))));
 }
 
-/* A finger's first contact plane normal in world axes (outward of the body it touches),
- * 0 when the finger is free: what the tick record and the snapshot carry per finger. */
+/* A finger's contact plane normal in world axes (outward of the body it touches), of the
+ * contact whose god-object, state and body it reports (its deepest, xfca.c), 0 when the finger
+ * is free: what the tick record and the snapshot carry per finger. */
 static inline gcVec3 gc_finger_contact_normal(const gcWorld *world, const gcFinger *finger) {
-    if (finger->num_contacts < 1 || finger->contacts[0].part < 0) return gc_v3(0, 0, 0);
-    const gcBody *b = &world->bodies[world->parts[finger->contacts[0].part].body];
-    return gc_mat3_mul_vec(&b->state.R, finger->contacts[0].normal_local);
+    (void)world;
+    return finger->normal;
 }
 
 #endif

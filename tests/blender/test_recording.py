@@ -291,9 +291,17 @@ def test_reading_every_nth_tick_and_the_ticks_before(exec_rec):
         recording.open_recording(exec_rec[0], fps=24, every=3)
 
 
-def test_the_format_layout_is_the_cores(core):
+def test_the_format_layout_is_the_cores(core, tmp_path):
+    """One layout: the writer's is the core's (graspcore.tick_dtype, whose size the core
+    checks; test_tick_log.py checks its fields against the core's values)."""
     for nb, nf in ((0, 0), (2, 2), (20, 10), (1, 7)):
         assert recording.tick_dtype(nb, nf) == core.tick_dtype(nb, nf)
+    desc, _ = recordings.pinch_desc()
+    w = recording.RecordingWriter(str(tmp_path / "layout.mcap"), recording.make_header(desc, mode="exec",
+                                                                                        haptic_rate=1000.0))
+    w.close()
+    assert w.dtype == core.tick_dtype(2, 2)
+    assert recording.open_recording(tmp_path / "layout.mcap").dtype == core.tick_dtype(2, 2)
 
 
 

@@ -187,8 +187,9 @@ class World(_core.World):
         per finger ``god_objects``, ``hips``, ``forces`` (device: clamped, ramped, zero
         under the watchdog), ``spring_forces`` (physics, unclamped) (m, 3),
         ``finger_states`` (m,) int32 (0 free, 1 stick, 2 slip), ``contact_bodies``
-        (m,) int32 (-1 when free) and ``normals`` (m, 3): the first contact's plane normal,
-        world, pointing out of the body touched (0 when free); per body ``linear_velocities``
+        (m,) int32 (-1 when free) and ``normals`` (m, 3): the plane normal of the contact
+        whose god-object it reports (the deepest), world, pointing out of the body touched (0
+        when free); per body ``linear_velocities``
         (of the body frame origin, as ``body_velocity``) and ``angular_velocities`` (n, 3).
         While the runtime runs, the world's queries and views answer from the last snapshot."""
         (time, object_time, tick, enabled, nb, nf, poses, wrenches, adopted, gos, hips, forces,
