@@ -68,8 +68,8 @@ def measure_main_thread(updates: int) -> dict:
     monitor = grasp_display.GraspMonitor(analysis.body_models(desc), [f.radius for f in desc.fingers],
                                          gravity=desc.gravity)
     names_b, names_f = [b.name for b in desc.bodies], [f.name for f in desc.fingers]
-    t_snap, t_an, t_view = [], [], []
-    grasps = []
+    t_snap, t_an, t_view, t_quality, t_mu_min = [], [], [], [], []
+    grasps, refused, errors = [], 0, set()
     for k in range(updates):
         r.advance_to(0.5 + (k + 1) / DISPLAY_RATE)
         t0 = time.perf_counter()
@@ -85,9 +85,36 @@ def measure_main_thread(updates: int) -> dict:
         t_snap.append(t1 - t0)
         t_an.append(t2 - t1)
         t_view.append(t3 - t2)
+        if monitor.error:
+            refused += 1
+            errors.add(monitor.error)
+        else:
+            tq, tm = _core_parts(graspcore, grasps)
+            t_quality.append(tq)
+            t_mu_min.append(tm)
     held = [(names_b[g.body], len(g.contacts), bool(g.force_closure), float(g.epsilon)) for g in grasps]
     return {"snapshot": _stats(t_snap), "analysis": _stats(t_an), "view": _stats(t_view), "held": held,
+            "quality": _stats(t_quality or [0.0]), "mu_min": _stats(t_mu_min or [0.0]),
+            "refused": refused, "errors": sorted(errors),
             "updates": updates, "ratio": float(np.median(t_an) / np.median(t_snap))}
+
+
+def _core_parts(graspcore, grasps):
+    """The core calls the analysis makes for these grasps, timed alone: the closure measures of
+    both bodies in one batch, and mu_min (bisection on closure) of each."""
+    pts = np.concatenate([[c.point for c in g.contacts] for g in grasps])
+    nrm = np.concatenate([[c.normal for c in g.contacts] for g in grasps])
+    mu = np.concatenate([[c.mu for c in g.contacts] for g in grasps])
+    counts = np.array([len(g.contacts) for g in grasps])
+    centers = np.array([g.center for g in grasps])
+    radii = np.array([g.radius for g in grasps])
+    t0 = time.perf_counter()
+    graspcore.grasp_quality_batch(pts, nrm, mu, counts, centers, radii)
+    t1 = time.perf_counter()
+    for g in grasps:
+        graspcore.grasp_mu_min(np.array([c.point for c in g.contacts]), np.array([c.normal for c in g.contacts]),
+                               g.center, g.radius, mu_max=analysis.MU_MAX)
+    return t1 - t0, time.perf_counter() - t1
 
 
 def measure_haptic_loop(seconds: float, runs: int) -> dict:
@@ -139,6 +166,12 @@ def section(main: dict, loop: dict) -> str:
         f"| **analysis** (`GraspMonitor.update`: accelerations + `analysis.analyse`, both bodies) | "
         f"{f(main['analysis'])} |",
         f"| HUD text, god-object colours, weakest-wrench geometry | {f(main['view'])} |",
+        f"| of the analysis: `grasp_quality_batch`, both bodies, alone | {f(main['quality'])} |",
+        f"| of the analysis: `grasp_mu_min`, both bodies, alone | {f(main['mu_min'])} |",
+        "",
+        f"Updates whose contact set the analysis refused (no grasp lines shown, the message instead): "
+        f"{main['refused']} of {main['updates']}" + (f" ({'; '.join(main['errors'])})" if main["errors"] else "")
+        + ".",
         "",
         f"Analysis / snapshot (medians): {main['ratio']:.1f}x. Last update: "
         + "; ".join(f"{b}: {n} contacts, closure {'yes' if c else 'no'}, epsilon {e:.4f}"
