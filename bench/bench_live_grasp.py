@@ -11,7 +11,10 @@ Two measurements:
    without the analysis (alternating runs): the haptic loop's mean tick and p99 period
    jitter must not change (the analysis never runs on the haptic thread).
 
-    .venv/bin/python bench/bench_live_grasp.py [--updates 600] [--runs 3] [--seconds 3] [--out FILE]
+3. With ``--gui``: the GUI test's grasp_hud scenario (tests/gui, a three-finger grasp in the GUI
+   Blender 4.3 under Xvfb and llvmpipe): the analysis per display update there.
+
+    .venv/bin/python bench/bench_live_grasp.py [--updates 600] [--runs 3] [--seconds 3] [--gui] [--out FILE]
 """
 from __future__ import annotations
 
@@ -149,7 +152,23 @@ def measure_haptic_loop(seconds: float, runs: int) -> dict:
     return out
 
 
-def section(main: dict, loop: dict) -> str:
+def measure_gui() -> dict | None:
+    """The grasp_hud GUI scenario once (needs the GUI Blender and dist/'s zip)."""
+    import glob
+    sys.path.insert(0, os.path.join(ROOT, "tests", "gui"))
+    import gui_run
+    zips = sorted(glob.glob(os.path.join(ROOT, "dist", "grasp_lab-*-linux_x64.zip")))
+    if gui_run.why_not() or not zips:
+        return None
+    r, console, _ = gui_run.run(gui_run.prepare(zips[-1]), "grasp_hud")
+    if not r.get("ok"):
+        raise RuntimeError(f"grasp_hud failed: {r.get('error')}\n{console[-2000:]}")
+    g = r["grasps"][0]
+    return {"analysis": _stats(np.array(r["analysis_ms"]) * 1e-3), "updates": len(r["analysis_ms"]),
+            "display_rate": r["display_rate"], "contacts": len(g["contacts"]), "blender": r["blender"]}
+
+
+def section(main: dict, loop: dict, gui: dict | None = None) -> str:
     f = lambda d: f"{d['median_ms']:.3f} | {d['p99_ms']:.3f} | {d['max_ms']:.3f}"  # noqa: E731
     lines = [
         "## Live grasp analysis per display update (2 bodies x 5 fingers)",
@@ -191,6 +210,11 @@ def section(main: dict, loop: dict) -> str:
     mean = {m: float(np.median([r["tick_mean_us"] for r in loop[m]])) for m in loop}
     lines += ["", f"Mean haptic tick with the analysis / without (medians of the runs): "
                   f"{mean['analysis'] / mean['plain']:.2f}x.", ""]
+    if gui is not None:
+        a = gui["analysis"]
+        lines += [f"In the GUI Blender {gui['blender']} (tests/gui scenario grasp_hud: one box, {gui['contacts']} "
+                  f"fingers, llvmpipe under Xvfb), {gui['updates']} display updates at {gui['display_rate']:.1f} Hz: "
+                  f"the analysis took {a['median_ms']:.3f} ms median, {a['max_ms']:.3f} ms at most.", ""]
     return "\n".join(lines)
 
 
@@ -199,9 +223,11 @@ def main():
     ap.add_argument("--updates", type=int, default=600)
     ap.add_argument("--runs", type=int, default=3)
     ap.add_argument("--seconds", type=float, default=3.0)
+    ap.add_argument("--gui", action="store_true", help="also the GUI scenario grasp_hud")
     ap.add_argument("--out", help="append the section to this file")
     a = ap.parse_args()
-    text = section(measure_main_thread(a.updates), measure_haptic_loop(a.seconds, a.runs))
+    text = section(measure_main_thread(a.updates), measure_haptic_loop(a.seconds, a.runs),
+                   measure_gui() if a.gui else None)
     print(text)
     if a.out:
         with open(a.out, "a") as fh:
