@@ -5,13 +5,16 @@
  *
  * The hull is quickhull with simplicial facets: an initial simplex of well-spread points,
  * an outside set per facet, the furthest outside point added next, the facets it sees
- * replaced by a cone of new facets over the horizon. Two things make it fast on these inputs:
+ * replaced by a cone of new facets over the horizon. What makes it fast on these inputs:
  *  - A new facet's hyperplane comes from the pencil of its two horizon facets (the visible F
  *    and the hidden G share the ridge, and the apex p must lie on the new plane:
- *    N = dist(p,F) G - dist(p,G) F), O(d) instead of solving a (d-1) x d system. Each such
- *    plane is checked against all its vertices and solved from them when the check fails or
- *    the pencil is ill-conditioned; the planes that decide the answer (the nearest facet, any
- *    facet near the origin) are solved from their vertices at the end.
+ *    N = dist(p,F) G - dist(p,G) F), O(d) instead of solving a (d-1) x d system. A pencil
+ *    that cancels is solved from the vertices instead. At the end every facet is checked
+ *    against all its vertices (solved again if one is off by more than 1e-12 of the scale),
+ *    and the facets that decide closure and epsilon (the one the origin is nearest to or
+ *    furthest outside of, and any within 1e-9 of it) are solved from their vertices.
+ *  - New facets are linked to each other through a table of their ridges, keyed by sums of
+ *    random words of the ridge's vertices (each facet carries its sums, updated in O(1)).
  *  - The volume of the simplex (c, N) (c a fixed interior point) follows from (c, F) by the
  *    same pencil: both are determinants affine in the apex and vanish on the hyperplane
  *    through c and the ridge.
