@@ -6,9 +6,9 @@ the load. bpy-free: the live HUD, ``grasp-lab analyze`` and the bake call it.
 Conventions (xFCA, native/src/xfca.c): a finger's god-object is its fingertip sphere's
 centre, on the body's surface inflated by the finger's radius; the recorded ``normal`` is that
 contact's outward plane normal (world); ``force`` is the coupling spring force the finger
-exerts, k (GO - HIP) + damping, and the body gets its reaction, applied at the contact. So a
-contact's point on the body is GO - radius * normal, its inward normal is -normal and the
-force on the body is -force.
+exerts, k (GO - HIP) + damping, and the body gets its reaction (the core applies it at the GO).
+So a contact's point on the body's surface is GO - radius * normal, its inward normal is
+-normal and the force on the body is -force.
 
 One implementation for one snapshot and for many: ``analyse_arrays`` takes arrays with a
 leading snapshot axis and answers tables (one row per held body per snapshot, one per
@@ -22,7 +22,7 @@ import numpy as np
 
 from .runner import quat_rotate
 
-STICK, SLIP = 1, 2
+SLIP = 2                # gcFingerState
 MU_MAX = 10.0           # mu_min searches friction up to this; above: inf (no friction closes it)
 # The fields of graspcore.grasp_quality_batch's rows that are read here (an answer with no set).
 NO_QUALITY = np.dtype([("force_closure", "?"), ("force_only_closure", "?"), ("torque_closure", "?"),
