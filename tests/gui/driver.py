@@ -368,6 +368,10 @@ def scenario_grasp_hud():
     fingers[0].location = (-0.030, -0.012, z)
     third.location = (-0.030, 0.012, z)
     fingers[1].location = (0.030, 0.0, z)
+    box = bpy.data.objects["Box"]
+    for o in bpy.context.scene.objects:                   # the box active: its Object panel shows
+        o.select_set(o is box)
+    bpy.context.view_layer.objects.active = box
     bpy.context.view_layer.update()
     yield from open_grasp_tab()
     yield 1.0
