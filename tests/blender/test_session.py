@@ -88,6 +88,31 @@ def test_fingers_stick_while_holding(bpy, sample, core):
     assert res.trajectory("Box")[-1, 2] > sample.BOX_Z + sample.LIFT - 0.001
 
 
+def test_each_frame_analysed_and_god_objects_coloured_by_friction_use(bpy, sample, core):
+    """Frame by frame the session analyses the grasp. Mid-lift (constant speed: no
+    acceleration) the two fingertips hold the box: two point contacts, which no friction puts
+    in force closure (nothing resists a twist about the line between them), a load of its
+    weight, a grip of the two normal forces; each god-object's material has the colour of its
+    finger's friction use."""
+    sample.build(bpy)
+    bpy.ops.grasp_lab.session(duration=(sample.MID_LIFT_FRAME - 1) / sample.FPS)
+    session = grasp_env.submodule("session")
+    gd = grasp_env.submodule("engine.grasp_display")
+    res = session.last_result
+    assert len(res.grasps) == len(res.frames)
+    assert res.grasps[0] == [] and res.frames[0] == 1                  # open hand: nothing held
+    (g,) = res.grasps[-1]
+    assert res.body_names[g.body] == "Box" and sorted(c.finger for c in g.contacts) == [0, 1]
+    assert not g.force_closure and g.epsilon == 0.0 and not any(g.weakest)
+    assert g.load_force == pytest.approx(sample.BOX_MASS * 9.81, rel=0.05)
+    assert g.grip_force == pytest.approx(sum(c.fn for c in g.contacts)) and g.grip_force > 2 * g.load_force
+    for c in g.contacts:
+        assert 0.0 < c.friction_use < 1.0 and c.state == 1
+        mat = bpy.data.objects[f"GL God-object Finger {c.finger}"].material_slots[0].material
+        np.testing.assert_allclose(mat.diffuse_color, gd.friction_color(c.friction_use), atol=1e-6)
+        assert mat.diffuse_color[1] > mat.diffuse_color[2]              # on the green-yellow-red scale
+
+
 @pytest.mark.multiversion
 def test_display_objects_and_bake(bpy, sample, core):
     sample.build(bpy)
