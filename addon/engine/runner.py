@@ -33,7 +33,7 @@ class Snapshot:
     finger_states: np.ndarray   # (n_fingers,) 0 free, 1 stick, 2 slip
     contacts: np.ndarray        # (n_fingers,) body index in the description, -1 none
     spring_forces: np.ndarray   # (n_fingers, 3) coupling spring force on the body touched (physics)
-    normals: np.ndarray         # (n_fingers, 3) first contact's plane normal, out of the body; 0 free
+    normals: np.ndarray         # (n_fingers, 3) reported contact's plane normal, out of the body; 0 free
     velocities: np.ndarray      # (n_bodies, 6) linear (body frame origin), angular; world
 
     @property
