@@ -83,6 +83,9 @@ struct gcGraspWorkspace {
     int *ridge_stamp;
     int ridge_gen;
     int *created_apex;  /* cap_facets: where the apex sits in each new facet */
+    int cap_lp;
+    double *lp;         /* the closure LP's tableau */
+    int *lp_basis;
     int edges_cached;
     double cos_table[GC_GRASP_MAX_EDGES], sin_table[GC_GRASP_MAX_EDGES];
 };
@@ -101,6 +104,7 @@ gcGraspDef gc_default_grasp_def(void) {
     def.edges = 8;
     def.tolerance = 1e-10;
     def.max_facets = 1 << 20;
+    def.volume = 1;
     return def;
 }
 
@@ -126,6 +130,8 @@ void gc_grasp_workspace_destroy(gcGraspWorkspace *ws) {
     free(ws->ridge_facet);
     free(ws->ridge_stamp);
     free(ws->created_apex);
+    free(ws->lp);
+    free(ws->lp_basis);
     free(ws);
 }
 
@@ -253,6 +259,7 @@ typedef struct Hull {
     double c[D];        /* interior point (centroid of the initial simplex) */
     int stamp;
     int max_facets;
+    int volumes;        /* 0: the simplex volumes are not needed (the support-function search) */
 } Hull;
 
 static inline const double *point(const Hull *h, int i, int d) { return h->pts + (size_t)i * (size_t)d; }
@@ -458,6 +465,7 @@ static GC_ALWAYS_INLINE void make_cone_facet(Hull *h, int d, int fi, int i, int 
          * facets are checked against all their vertices at the end and solved again if not. */
     }
     if (!ok) exact_plane(h, N);
+    if (!h->volumes) return;
     /* vol(c,N) / vol(c,F) = |H(p)| / |H(q)|, H the hyperplane through c and the ridge. */
     double gq = facet_dist(G, point(h, F->v[i], d), d);
     double num = G->cdist * dF - F->cdist * dG;
@@ -518,6 +526,57 @@ static GC_ALWAYS_INLINE int link_new_facets(Hull *h, int d, int nc) {
     return unmatched == 0;
 }
 
+/* Makes point p (pdist above facet fi) a vertex: the facets that see it (breadth first from fi,
+ * left in ws->visible[0 .. *out_nv), still alive) are replaced by a cone of new facets over the
+ * horizon (ws->created[0 .. *out_nc)), linked. iter stamps this step (> every earlier one). */
+static GC_ALWAYS_INLINE gcStatus add_apex(Hull *h, int d, int fi, int p, double pdist, int iter, int *out_nv,
+                                          int *out_nc) {
+    gcGraspWorkspace *ws = h->ws;
+    gcStatus st;
+    Facet *F0 = &ws->facets[fi];
+    const double *pp = point(h, p, d);
+    h->stamp = iter;
+    /* Visible facets: breadth first from fi over neighbours that see p. */
+    int nv = 0, horizon = 0;
+    F0->tested = F0->visible = iter;
+    F0->pdist = pdist;
+    ws->visible[nv++] = fi;
+    for (int s = 0; s < nv; ++s) {
+        Facet *F = &ws->facets[ws->visible[s]];
+        for (int k = 0; k < d; ++k) {
+            Facet *G = &ws->facets[F->nb[k]];
+            if (G->tested != iter) {
+                G->tested = iter;
+                G->pdist = facet_dist(G, pp, d);
+                if (G->pdist > h->tol) {
+                    G->visible = iter;
+                    ws->visible[nv++] = F->nb[k];
+                    continue;
+                }
+            }
+            horizon += G->visible != iter;
+        }
+    }
+    if ((st = ensure_facets(ws, ws->high_water + horizon, h->max_facets)) != GC_OK) return st;
+    /* The cone: one new facet per horizon ridge, then the links between them. */
+    int nc = 0;
+    for (int s = 0; s < nv; ++s) {
+        int vf = ws->visible[s];
+        for (int k = 0; k < d; ++k) {
+            if (ws->facets[ws->facets[vf].nb[k]].visible == iter) continue;
+            int nf = new_facet(h);
+            ws->created_apex[nc] = k;
+            ws->created[nc++] = nf;
+            make_cone_facet(h, d, vf, k, p, nf);
+        }
+    }
+    if (!link_new_facets(h, d, nc))
+        return set_error(ws, GC_ERR_DEGENERATE, "points: broken hull topology");
+    *out_nv = nv;
+    *out_nc = nc;
+    return GC_OK;
+}
+
 /* Quickhull from the initial simplex (facets 0..d) until no facet has outside points. Written
  * for a constant d (3 and 6 get their own compiled copies). */
 static GC_ALWAYS_INLINE gcStatus hull_run(Hull *h, int d) {
@@ -532,45 +591,8 @@ static GC_ALWAYS_INLINE gcStatus hull_run(Hull *h, int d) {
         if (!F0->alive || F0->furthest < 0) continue;
         /* Each step makes one more point a vertex: at most n steps. */
         if (++iter > n) return set_error(ws, GC_ERR_DEGENERATE, "points: the hull did not converge in %d steps", n);
-        int p = F0->furthest;
-        const double *pp = point(h, p, d);
-        h->stamp = iter;
-        /* Visible facets: breadth first from fi over neighbours that see p. */
-        int nv = 0, horizon = 0;
-        F0->tested = F0->visible = iter;
-        F0->pdist = F0->fdist;
-        ws->visible[nv++] = fi;
-        for (int s = 0; s < nv; ++s) {
-            Facet *F = &ws->facets[ws->visible[s]];
-            for (int k = 0; k < d; ++k) {
-                Facet *G = &ws->facets[F->nb[k]];
-                if (G->tested != iter) {
-                    G->tested = iter;
-                    G->pdist = facet_dist(G, pp, d);
-                    if (G->pdist > h->tol) {
-                        G->visible = iter;
-                        ws->visible[nv++] = F->nb[k];
-                        continue;
-                    }
-                }
-                horizon += G->visible != iter;
-            }
-        }
-        if ((st = ensure_facets(ws, ws->high_water + horizon, h->max_facets)) != GC_OK) return st;
-        /* The cone: one new facet per horizon ridge, then the links between them. */
-        int nc = 0;
-        for (int s = 0; s < nv; ++s) {
-            int vf = ws->visible[s];
-            for (int k = 0; k < d; ++k) {
-                if (ws->facets[ws->facets[vf].nb[k]].visible == iter) continue;
-                int nf = new_facet(h);
-                ws->created_apex[nc] = k;
-                ws->created[nc++] = nf;
-                make_cone_facet(h, d, vf, k, p, nf);
-            }
-        }
-        if (!link_new_facets(h, d, nc))
-            return set_error(ws, GC_ERR_DEGENERATE, "points: broken hull topology");
+        int p = F0->furthest, nv = 0, nc = 0;
+        if ((st = add_apex(h, d, fi, p, F0->fdist, iter, &nv, &nc)) != GC_OK) return st;
         /* Outside points of the visible facets go to the first new facet they are above. */
         for (int s = 0; s < nv; ++s) {
             Facet *F = &ws->facets[ws->visible[s]];
@@ -604,35 +626,33 @@ static gcStatus hull_run6(Hull *h) { return hull_run(h, 6); }
 static gcStatus hull_run3(Hull *h) { return hull_run(h, 3); }
 static gcStatus hull_run_any(Hull *h) { return hull_run(h, h->d); }
 
-gcStatus gc_hull_nd(gcGraspWorkspace *ws, const double *points, int n, int d, double tolerance,
-                    int max_facets, gcHullSummary *out) {
-    memset(out, 0, sizeof *out);
-    out->result = GC_HULL_FLAT;
-    out->offset_max = 0.0;
-    if (d < 3 || d > D) return set_error(ws, GC_ERR_INVALID_ARGUMENT, "d: %d, expected 3 to %d", d, D);
+/* The initial simplex of a hull of n points of dimension d (facets 0..d, planes solved), the
+ * interior point c, the tolerances and the vertices' random words. *full 0 (and nothing made)
+ * when the points span less than d affine dimensions. */
+static gcStatus hull_begin(Hull *h, gcGraspWorkspace *ws, const double *points, int n, int d, double tolerance,
+                           int max_facets, int volumes, int chosen[D + 1], int *full) {
+    *full = 0;
+    memset(h, 0, sizeof *h);
+    h->ws = ws;
+    h->pts = points;
+    h->n = n;
+    h->d = d;
+    h->max_facets = max_facets;
+    h->volumes = volumes;
     if (n < d + 1) return GC_OK;
     gcStatus st = ensure_points(ws, n);
     if (st != GC_OK) return st;
-    Hull h;
-    memset(&h, 0, sizeof h);
-    h.ws = ws;
-    h.pts = points;
-    h.n = n;
-    h.d = d;
-    h.max_facets = max_facets;
     double scale = 0.0;
-    for (int i = 0; i < n; ++i) scale = fmax(scale, dotd(point(&h, i, d), point(&h, i, d), d));
+    for (int i = 0; i < n; ++i) scale = fmax(scale, dotd(point(h, i, d), point(h, i, d), d));
     scale = sqrt(scale);
     if (!(scale > 0.0)) return GC_OK;
-    h.tol = tolerance * scale;
-    h.vtol = 1e-12 * scale;
-
-    int chosen[D + 1];
-    if (initial_simplex(&h, chosen) < d + 1) return GC_OK;
+    h->tol = tolerance * scale;
+    h->vtol = 1e-12 * scale;
+    if (initial_simplex(h, chosen) < d + 1) return GC_OK;
     for (int k = 0; k < d; ++k) {
         double s = 0.0;
-        for (int m = 0; m <= d; ++m) s += point(&h, chosen[m], d)[k];
-        h.c[k] = s / (d + 1);
+        for (int m = 0; m <= d; ++m) s += point(h, chosen[m], d)[k];
+        h->c[k] = s / (d + 1);
     }
     st = ensure_facets(ws, 2 * (d + 1), max_facets);
     if (st != GC_OK) return st;
@@ -651,7 +671,7 @@ gcStatus gc_hull_nd(gcGraspWorkspace *ws, const double *points, int n, int d, do
     }
     /* Facet m of the simplex leaves out chosen[m]; its ridge without chosen[k] faces facet k. */
     for (int m = 0; m <= d; ++m) {
-        int f = new_facet(&h);
+        int f = new_facet(h);
         Facet *F = &ws->facets[f];
         int r = 0;
         for (int k = 0; k <= d; ++k) {
@@ -660,11 +680,25 @@ gcStatus gc_hull_nd(gcGraspWorkspace *ws, const double *points, int n, int d, do
             F->nb[r] = k;
             ++r;
         }
-        exact_plane(&h, F);
-        F->vol = exact_volume(&h, F);
+        exact_plane(h, F);
+        F->vol = volumes ? exact_volume(h, F) : 0.0;
         F->key[0] = F->key[1] = 0;
         for (int k = 0; k < d; ++k) F->key[0] += ws->vertex_hash[2 * F->v[k]], F->key[1] += ws->vertex_hash[2 * F->v[k] + 1];
     }
+    *full = 1;
+    return GC_OK;
+}
+
+gcStatus gc_hull_nd(gcGraspWorkspace *ws, const double *points, int n, int d, double tolerance,
+                    int max_facets, gcHullSummary *out) {
+    memset(out, 0, sizeof *out);
+    out->result = GC_HULL_FLAT;
+    out->offset_max = 0.0;
+    if (d < 3 || d > D) return set_error(ws, GC_ERR_INVALID_ARGUMENT, "d: %d, expected 3 to %d", d, D);
+    Hull h;
+    int chosen[D + 1], full;
+    gcStatus st = hull_begin(&h, ws, points, n, d, tolerance, max_facets, 1, chosen, &full);
+    if (st != GC_OK || !full) return st;
     for (int i = 0; i < n; ++i) {
         if (index_of(chosen, d + 1, i) >= 0) continue;
         for (int f = 0; f <= d; ++f) {
@@ -707,6 +741,204 @@ gcStatus gc_hull_nd(gcGraspWorkspace *ws, const double *points, int n, int d, do
     out->volume = volume;
     out->offset_max = best_exact;
     if (nearest >= 0) memcpy(out->nearest_normal, ws->facets[nearest].n, sizeof(double) * (size_t)d);
+    return GC_OK;
+}
+
+/* ---- the origin's nearest facet by support queries -------------------------------------- */
+
+/* The support-function search (after Zheng, IEEE T-RO 2013): an inner polytope P, the hull of a
+ * few of the points, grows until the facet of P that decides (the one the origin is furthest
+ * outside of, or nearest to when it is inside) lies on a supporting plane of the whole set: no
+ * point more than the tolerance beyond it. Then that plane is a facet plane of the full hull, and
+ * because P lies inside the full hull, no facet of the full hull is nearer the origin: the answer
+ * is the full hull's, exactly, without building it. Each step adds the support point of the
+ * deciding facet's normal (a new vertex of P), so at most n steps. */
+static GC_ALWAYS_INLINE gcStatus nearest_run(Hull *h, int d, gcHullSummary *out) {
+    gcGraspWorkspace *ws = h->ws;
+    int n = h->n;
+    for (int iter = 1;; ++iter) {
+        if (iter > n + 1)
+            return set_error(ws, GC_ERR_DEGENERATE, "points: the support search did not converge in %d steps", n);
+        int fb = -1;
+        double best = -INFINITY;
+        for (int f = 0; f < ws->high_water; ++f) {
+            const Facet *F = &ws->facets[f];
+            if (F->alive && F->off > best) best = F->off, fb = f;
+        }
+        Facet *F = &ws->facets[fb];
+        exact_plane(h, F);
+        int p = -1;
+        double support = -INFINITY;
+        for (int i = 0; i < n; ++i) {
+            double s = dotd(F->n, point(h, i, d), d);
+            if (s > support) support = s, p = i;
+        }
+        double gap = support + F->off;    /* how far the support point is beyond F's plane */
+        if (!(gap > h->tol)) {
+            out->result = GC_HULL_FULL;
+            out->offset_max = F->off;
+            memcpy(out->nearest_normal, F->n, sizeof(double) * (size_t)d);
+            return GC_OK;
+        }
+        int nv = 0, nc = 0;
+        gcStatus st = add_apex(h, d, fb, p, gap, iter, &nv, &nc);
+        if (st != GC_OK) return st;
+        for (int s = 0; s < nv; ++s) {
+            ws->facets[ws->visible[s]].alive = 0;
+            ws->free_list[ws->num_free++] = ws->visible[s];
+        }
+    }
+}
+
+static gcStatus nearest_run6(Hull *h, gcHullSummary *out) { return nearest_run(h, 6, out); }
+static gcStatus nearest_run3(Hull *h, gcHullSummary *out) { return nearest_run(h, 3, out); }
+static gcStatus nearest_run_any(Hull *h, gcHullSummary *out) { return nearest_run(h, h->d, out); }
+
+gcStatus gc_hull_nearest(gcGraspWorkspace *ws, const double *points, int n, int d, double tolerance,
+                         int max_facets, gcHullSummary *out) {
+    memset(out, 0, sizeof *out);
+    out->result = GC_HULL_FLAT;
+    out->facets = -1;
+    out->volume = -1.0;
+    if (d < 3 || d > D) return set_error(ws, GC_ERR_INVALID_ARGUMENT, "d: %d, expected 3 to %d", d, D);
+    Hull h;
+    int chosen[D + 1], full;
+    gcStatus st = hull_begin(&h, ws, points, n, d, tolerance, max_facets, 0, chosen, &full);
+    if (st != GC_OK || !full) return st;
+    return d == 6 ? nearest_run6(&h, out) : d == 3 ? nearest_run3(&h, out) : nearest_run_any(&h, out);
+}
+
+/* ---- the closure LP ------------------------------------------------------------------------ */
+
+/* Largest t with sum_i lambda_i x_i = 0, sum_i lambda_i = 1, lambda_i >= t (lambda_i >= -1 too,
+ * which only matters when t < 0). With lambda_i = mu_i + tau - 1 (mu, tau >= 0) it is the
+ * standard form  sum mu_i x_i + tau S = S,  sum mu_i + n tau = 1 + n,  maximise tau,  S = sum x_i,
+ * solved by the two-phase simplex method on a dense tableau of d + 1 rows (artificial variables
+ * first, then tau). Dantzig's rule, switching to Bland's (no cycling) after a run of degenerate
+ * pivots; capped. The points are scaled by 1 / the largest norm (t does not change). */
+static void lp_pivot(double *T, int rows, int cols, int r, int c) {
+    double *pr = T + (size_t)r * cols;
+    double inv = 1.0 / pr[c];
+    for (int k = 0; k < cols; ++k) pr[k] *= inv;
+    pr[c] = 1.0;
+    for (int q = 0; q <= rows; ++q) {
+        if (q == r) continue;
+        double *pq = T + (size_t)q * cols, m = pq[c];
+        if (m == 0.0) continue;
+        for (int k = 0; k < cols; ++k) pq[k] -= m * pr[k];
+        pq[c] = 0.0;
+    }
+}
+
+/* Minimises the objective row (row `rows`) over the columns [0, allowed). 1 when optimal, 0 when
+ * the cap was reached; -1 unbounded (cannot happen here: tau <= (1 + n) / n). */
+static int lp_minimise(double *T, int *basis, int rows, int cols, int allowed, int cap) {
+    const double cost_eps = 1e-12, pivot_eps = 1e-11;
+    double *obj = T + (size_t)rows * cols;
+    int rhs = cols - 1, degenerate_run = 0, bland = 0;
+    for (int it = 0; it < cap; ++it) {
+        int enter = -1;
+        double most = -cost_eps;
+        for (int j = 0; j < allowed; ++j) {
+            if (obj[j] < most) {
+                enter = j;
+                if (bland) break;
+                most = obj[j];
+            }
+        }
+        if (enter < 0) return 1;
+        int leave = -1;
+        double ratio = INFINITY;
+        for (int r = 0; r < rows; ++r) {
+            double a = T[(size_t)r * cols + enter];
+            if (a <= pivot_eps) continue;
+            double q = T[(size_t)r * cols + rhs] / a;
+            if (q < ratio || (q == ratio && basis[r] < basis[leave])) ratio = q, leave = r;
+        }
+        if (leave < 0) return -1;
+        degenerate_run = ratio <= 0.0 ? degenerate_run + 1 : 0;
+        if (degenerate_run > 2 * rows) bland = 1;
+        lp_pivot(T, rows, cols, leave, enter);
+        basis[leave] = enter;
+    }
+    return 0;
+}
+
+gcStatus gc_closure_lp(gcGraspWorkspace *ws, const double *points, int n, int d, double *t_max) {
+    *t_max = -INFINITY;
+    if (d < 1 || d > D) return set_error(ws, GC_ERR_INVALID_ARGUMENT, "d: %d, expected 1 to %d", d, D);
+    if (n < 1) return GC_OK;
+    int rows = d + 1, tau = n, art = n + 1, cols = n + 1 + rows + 1, rhs = cols - 1;
+    size_t need = (size_t)(rows + 1) * (size_t)cols;
+    if (need > (size_t)ws->cap_lp) {
+        if (!grow((void **)&ws->lp, need, sizeof(double)) || !grow((void **)&ws->lp_basis, (size_t)rows, sizeof(int)))
+            return set_error(ws, GC_ERR_NO_MEMORY, "workspace: out of memory for the closure LP");
+        ws->cap_lp = (int)need;
+    }
+    double *T = ws->lp;
+    int *basis = ws->lp_basis;
+    double scale = 0.0;
+    for (int i = 0; i < n; ++i) scale = fmax(scale, dotd(points + (size_t)i * d, points + (size_t)i * d, d));
+    if (!(scale > 0.0)) return GC_OK;
+    double inv = 1.0 / sqrt(scale);
+    memset(T, 0, sizeof(double) * need);
+    for (int i = 0; i < n; ++i) {
+        for (int k = 0; k < d; ++k) {
+            double x = points[(size_t)i * d + k] * inv;
+            T[(size_t)k * cols + i] = x;
+            T[(size_t)k * cols + tau] += x;
+            T[(size_t)k * cols + rhs] += x;
+        }
+        T[(size_t)d * cols + i] = 1.0;
+    }
+    T[(size_t)d * cols + tau] = n;
+    T[(size_t)d * cols + rhs] = 1.0 + n;
+    /* Phase 1: artificial a_r in row r (rows with a negative right-hand side negated first). */
+    double *obj = T + (size_t)rows * cols;
+    for (int r = 0; r < rows; ++r) {
+        double *pr = T + (size_t)r * cols;
+        if (pr[rhs] < 0.0)
+            for (int k = 0; k < cols; ++k) pr[k] = -pr[k];
+        pr[art + r] = 1.0;
+        basis[r] = art + r;
+        for (int k = 0; k < art; ++k) obj[k] -= pr[k];
+        obj[rhs] -= pr[rhs];
+    }
+    int cap = 50 * (n + rows) + 100;
+    int res = lp_minimise(T, basis, rows, cols, art + rows, cap);
+    if (res == 0) return set_error(ws, GC_ERR_DEGENERATE, "points: the closure LP did not converge in %d pivots", cap);
+    if (-obj[rhs] > 1e-9 * (1.0 + n)) return GC_OK;   /* infeasible: t < -1, the origin is far outside */
+    /* Artificials still basic (at zero) leave for any structural column; a row with none is
+     * redundant and is emptied. */
+    for (int r = 0; r < rows; ++r) {
+        if (basis[r] < art) continue;
+        double *pr = T + (size_t)r * cols;
+        int c = -1;
+        double big = 1e-9;
+        for (int j = 0; j < art; ++j)
+            if (fabs(pr[j]) > big) big = fabs(pr[j]), c = j;
+        if (c >= 0) {
+            lp_pivot(T, rows, cols, r, c);
+            basis[r] = c;
+        } else {
+            for (int k = 0; k < cols; ++k) pr[k] = 0.0;
+        }
+    }
+    /* Phase 2: minimise -tau, artificials barred. */
+    for (int k = 0; k < cols; ++k) obj[k] = 0.0;
+    obj[tau] = -1.0;
+    for (int r = 0; r < rows; ++r)
+        if (basis[r] == tau) {
+            const double *pr = T + (size_t)r * cols;
+            for (int k = 0; k < cols; ++k) obj[k] += pr[k];
+            obj[tau] = 0.0;
+        }
+    res = lp_minimise(T, basis, rows, cols, art, cap);
+    if (res == 0) return set_error(ws, GC_ERR_DEGENERATE, "points: the closure LP did not converge in %d pivots", cap);
+    double tau_value = 0.0;
+    for (int r = 0; r < rows; ++r)
+        if (basis[r] == tau) tau_value = T[(size_t)r * cols + rhs];
+    *t_max = tau_value - 1.0;
     return GC_OK;
 }
 
@@ -806,7 +1038,98 @@ static gcStatus closure_of(gcGraspWorkspace *ws, const gcGraspDef *def, const do
     return GC_OK;
 }
 
+/* The LP's answer, checked both ways against the hull's rule (closed: the origin more than
+ * tolerance x scale inside, scale the largest point norm). With t* the LP's optimum:
+ *  - t* <= tolerance / (2 rows): not closed. A hull holding the ball of radius e > tolerance x
+ *    scale about the origin has t* > tolerance / (rows (1 + tolerance)): the origin is
+ *    (x + s g) / (1 + s) with g the centroid, |x| = e, s = e / |g|.
+ *  - closed when sigma_min(X) > 2 tolerance x scale (1 + rows t*) / t* (checked by a Cholesky
+ *    factorisation of X^T X less that squared): for any unit u, with a_i = u.x_i and m their
+ *    largest, sum lambda_i a_i = 0 and lambda_i >= t* give m >= t* sum_i max(0, -a_i) >=
+ *    t* (sum_i |a_i| - rows m), so m >= t* sigma_min / (1 + rows t*), and the distance from
+ *    the origin to the boundary is the least m over u.
+ * Otherwise (the origin within a hair of the boundary, or a flat set) *answer is -1: undecided. */
+static gcStatus lp_decide(gcGraspWorkspace *ws, const gcGraspDef *def, const double *pts, int rows, int d,
+                          int *answer) {
+    *answer = 0;
+    double t;
+    gcStatus st = gc_closure_lp(ws, pts, rows, d, &t);
+    if (st != GC_OK || !(t > 0.5 * def->tolerance / rows)) return st;
+    *answer = -1;
+    double gram[D * D] = {0}, scale2 = 0.0;
+    for (int i = 0; i < rows; ++i) {
+        const double *x = pts + (size_t)i * d;
+        scale2 = fmax(scale2, dotd(x, x, d));
+        for (int r = 0; r < d; ++r)
+            for (int c = 0; c <= r; ++c) gram[r * D + c] += x[r] * x[c];
+    }
+    double s = 2.0 * def->tolerance * sqrt(scale2) * (1.0 + rows * t) / t;
+    for (int r = 0; r < d; ++r) gram[r * D + r] -= s * s;
+    /* Cholesky: positive definite (with room) exactly when every pivot is positive. */
+    for (int c = 0; c < d; ++c) {
+        double p = gram[c * D + c];
+        for (int k = 0; k < c; ++k) p -= gram[c * D + k] * gram[c * D + k];
+        if (!(p > 1e-12 * scale2)) return GC_OK;
+        p = sqrt(p);
+        gram[c * D + c] = p;
+        for (int r = c + 1; r < d; ++r) {
+            double v = gram[r * D + c];
+            for (int k = 0; k < c; ++k) v -= gram[r * D + k] * gram[c * D + k];
+            gram[r * D + c] = v / p;
+        }
+    }
+    *answer = 1;
+    return GC_OK;
+}
+
+/* closure_of without the hull: the LP decides (lp_decide); the support search finds the nearest
+ * facet when nearest is set or the LP left it undecided, and then decides with the hull's rule,
+ * so the two paths answer alike. rank may be NULL. */
+static gcStatus closure_fast(gcGraspWorkspace *ws, const gcGraspDef *def, const double *pts, int rows, int d,
+                             int nearest, int *closed, int *rank, gcHullSummary *summary) {
+    memset(summary, 0, sizeof *summary);
+    *closed = 0;
+    int answer;
+    gcStatus st = lp_decide(ws, def, pts, rows, d, &answer);
+    if (st != GC_OK) return st;
+    if (answer != 0 && (nearest || answer < 0)) {
+        if ((st = gc_hull_nearest(ws, pts, rows, d, def->tolerance, def->max_facets, summary)) != GC_OK) return st;
+        double scale = 0.0;
+        for (int i = 0; i < rows; ++i) scale = fmax(scale, dotd(pts + (size_t)i * d, pts + (size_t)i * d, d));
+        answer = summary->result == GC_HULL_FULL && summary->offset_max < -def->tolerance * sqrt(scale);
+    }
+    *closed = answer;
+    if (rank) {
+        *rank = d;
+        if (!answer) st = gc_span_rank(ws, pts, rows, d, def->tolerance, rank);
+    }
+    return st;
+}
+
+/* def->volume 0: no full hull; volume and facets are -1 (not computed). */
+static gcStatus quality_fast(gcGraspWorkspace *ws, const gcGraspDef *def, int rows, gcGraspQuality *out) {
+    memset(out, 0, sizeof *out);
+    out->volume = -1.0;
+    out->facets = -1;
+    int closed, rank;
+    gcHullSummary s;
+    gcStatus st = closure_fast(ws, def, ws->force, rows, 3, 0, &closed, NULL, &s);
+    if (st != GC_OK) return st;
+    out->force_only_closure = closed;
+    if ((st = closure_fast(ws, def, ws->torque, rows, 3, 0, &closed, NULL, &s)) != GC_OK) return st;
+    out->torque_closure = closed;
+    if ((st = closure_fast(ws, def, ws->wrench, rows, 6, 1, &closed, &rank, &s)) != GC_OK) return st;
+    out->rank = rank;
+    out->force_closure = closed;
+    if (closed) {
+        out->epsilon = -s.offset_max;
+        memcpy(out->weakest, s.nearest_normal, sizeof out->weakest);
+    }
+    return GC_OK;
+}
+
 static gcStatus quality_of_built(gcGraspWorkspace *ws, const gcGraspDef *def, int rows, gcGraspQuality *out) {
+    if (!def->volume) return quality_fast(ws, def, rows, out);
     memset(out, 0, sizeof *out);
     int closed, rank;
     gcHullSummary s;
@@ -884,31 +1207,105 @@ gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const doub
     if (st != GC_OK) return st;
     if (!(mu_max >= 0.0) || !isfinite(mu_max))
         return set_error(ws, GC_ERR_INVALID_ARGUMENT, "mu_max: %g, expected a finite number >= 0", mu_max);
-    int rows, closed, rank;
-    gcHullSummary s;
-    /* closed_at(mu): the 6-D closure test for every contact at mu. */
+    int rows, closed;
+    double t;
+    gcHullSummary summary;
+    /* In closure at mu as grasp_quality answers it (the LP, then the support search). */
 #define CLOSED_AT(m)                                                                                          \
     do {                                                                                                      \
         if ((st = build_wrenches(ws, def->edges, points, normals, NULL, (m), num_contacts, center, radius,     \
-                                 &rows)) != GC_OK)                                                            \
+                                 &rows)) != GC_OK ||                                                          \
+            (st = closure_fast(ws, def, ws->wrench, rows, 6, 0, &closed, NULL, &summary)) != GC_OK)           \
             return st;                                                                                        \
-        if ((st = closure_of(ws, def, ws->wrench, rows, 6, &closed, &rank, &s)) != GC_OK) return st;           \
     } while (0)
-    CLOSED_AT(0.0);
+    CLOSED_AT(0.0);     /* one wrench per contact */
     if (closed) {
         *out_mu = 0.0;
         return GC_OK;
     }
-    CLOSED_AT(mu_max);
-    if (!closed) return GC_OK;
-    double lo = 0.0, hi = mu_max;
-    for (int it = 0; it < 100 && hi - lo > 1e-6; ++it) {
-        double mid = 0.5 * (lo + hi);
-        CLOSED_AT(mid);
-        if (closed)
-            hi = mid;
-        else
-            lo = mid;
+    /* The same LP with the margin it found: g(mu) = mu (t*(mu) - threshold), > 0 exactly when
+     * closed. t* grows like a - b / mu over the range that matters (the edges' spread from the
+     * normal wrench scales with mu), so g is close to a straight line and the root is found in a
+     * few secant steps. */
+#define MARGIN_AT(m, g)                                                                                       \
+    do {                                                                                                      \
+        if ((st = build_wrenches(ws, def->edges, points, normals, NULL, (m), num_contacts, center, radius,     \
+                                 &rows)) != GC_OK ||                                                          \
+            (st = gc_closure_lp(ws, ws->wrench, rows, 6, &t)) != GC_OK)                                       \
+            return st;                                                                                        \
+        (g) = (m) * (fmax(t, -1.0) - 0.5 * def->tolerance / rows);                                            \
+    } while (0)
+    if (mu_max == 0.0) return GC_OK;
+    /* An LP "no" is never a "yes": not closed at mu_max. A "yes" is checked at the end. */
+    double glo = 0.0, ghi = 0.0, b_start = mu_max;
+    MARGIN_AT(mu_max, ghi);
+    if (!(ghi > 0.0)) return GC_OK;
+    /* The bracket's open end: mu_max / 100 if open there, else 0 (g(0) = 0 is no help to the
+     * interpolation: -g(mu_max / 100) stands in for it). */
+    double lo = 0.01 * mu_max, g1;
+    MARGIN_AT(lo, g1);
+    if (g1 > 0.0) {
+        b_start = lo;
+        ghi = g1;
+        lo = 0.0;
+        glo = -g1;
+    } else {
+        glo = fmin(g1, -1e-300);
+    }
+    /* Brent's method on g over [lo, b]: inverse quadratic or secant steps while they stay in
+     * the bracket and shrink it fast enough, bisection otherwise; each step at least 0.4e-6, so
+     * the bracket ends within 0.8e-6 around the root. b is the latest point, c the other end of
+     * the bracket (g of the opposite sign), a the point before b. */
+    const double step_min = 0.4e-6;
+    double a = lo, b = b_start, c = lo, fa = glo, fb = ghi, fc = glo, d = b - a, e = b - a;
+    for (int it = 0; it < 200; ++it) {
+        if ((fb > 0.0) == (fc > 0.0)) {
+            c = a;
+            fc = fa;
+            d = e = b - a;
+        }
+        if (fabs(fc) < fabs(fb)) {
+            a = b, b = c, c = a;
+            fa = fb, fb = fc, fc = fa;
+        }
+        double half = 0.5 * (c - b);
+        if (fabs(half) <= step_min) break;
+        if (fabs(e) >= step_min && fabs(fa) > fabs(fb)) {
+            double s = fb / fa, p, q;
+            if (a == c) {
+                p = 2.0 * half * s;
+                q = 1.0 - s;
+            } else {
+                double qa = fa / fc, r = fb / fc;
+                p = s * (2.0 * half * qa * (qa - r) - (b - a) * (r - 1.0));
+                q = (qa - 1.0) * (r - 1.0) * (s - 1.0);
+            }
+            if (p > 0.0) q = -q;
+            p = fabs(p);
+            if (2.0 * p < fmin(3.0 * half * q - fabs(step_min * q), fabs(e * q))) {
+                e = d;
+                d = p / q;
+            } else {
+                d = e = half;
+            }
+        } else {
+            d = e = half;
+        }
+        a = b;
+        fa = fb;
+        b += fabs(d) > step_min ? d : copysign(step_min, half);
+        MARGIN_AT(b, fb);
+    }
+    double hi = fb > 0.0 ? b : c;
+#undef MARGIN_AT
+    /* The LP may call a set closed whose origin is within the tolerance of the hull's boundary
+     * (grasp_quality: not closed); the root it brackets is then below the closure's by about the
+     * tolerance. Step up to the first mu grasp_quality calls closed; none up to mu_max: inf. */
+    for (double step = 1e-9;; step *= 2.0) {
+        CLOSED_AT(hi);
+        if (closed) break;
+        if (hi >= mu_max) return GC_OK;
+        hi = fmin(hi + step, mu_max);
     }
 #undef CLOSED_AT
     *out_mu = hi;
