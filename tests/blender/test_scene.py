@@ -265,12 +265,16 @@ def test_validate_operator_ok(bpy):
     assert bpy.ops.grasp_lab.validate_scene() == {"FINISHED"}
 
 
-def test_large_mesh_conversion_under_a_second(bpy):
-    import time
+def test_large_mesh_conversion(bpy):
+    # A ~100k-triangle sphere converts to one body whose volume is the mesh's own (its speed
+    # is benchmarked in bench/bench_blender.py, not timed here).
+    import trimesh
     bpy.ops.mesh.primitive_uv_sphere_add(segments=320, ring_count=160, radius=0.05)
     obj = bpy.context.active_object
     obj.grasp_lab.role = "DYNAMIC"
     assert len(obj.data.polygons) * 2 > 100_000 - 1000
-    t = time.perf_counter()
-    _describe(bpy)
-    assert time.perf_counter() - t < 1.0
+    desc, _, _ = _describe(bpy)
+    reference = _world_trimesh(obj)
+    assert isinstance(reference, trimesh.Trimesh) and reference.is_volume
+    assert desc.bodies[0].mass_properties.volume == pytest.approx(reference.volume, rel=1e-6)
+    assert reference.volume < 4 / 3 * math.pi * 0.05 ** 3
