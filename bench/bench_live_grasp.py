@@ -179,7 +179,7 @@ def section(main: dict, loop: dict, gui: dict | None = None) -> str:
         f"({platform.processor() or platform.machine()}, {os.cpu_count()} cores, shared), "
         "`.venv/bin/python bench/bench_live_grasp.py`. Two 6 cm, 200 g boxes each held by the 5-finger "
         f"grasp of the held-box scene; {main['updates']} display updates at {DISPLAY_RATE:.0f} Hz of session "
-        "time, main thread. Target: the analysis under {TARGET_MS} ms per update.",
+        f"time, main thread. Target: the analysis under {TARGET_MS} ms per update.",
         "",
         "| per display update | median ms | p99 ms | max ms |",
         "| --- | --- | --- | --- |",
