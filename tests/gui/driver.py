@@ -349,6 +349,28 @@ def scenario_start_esc_stop():
     RESULT["last_time"] = last_result().stats["time"]
 
 
+def weakest_on_screen(px, area, region, geo):
+    """Where the weakest wrench should be drawn (its ring and its arrow's tip, projected with
+    the viewport's own matrices) against the magenta of a screenshot: how many of the ring's
+    points have magenta within 4 px, and, as a control, how many of the same ring moved 10 cm
+    along y do."""
+    from bpy_extras.view3d_utils import location_3d_to_region_2d
+    p = region_pixels(px, region)[..., :3]
+    magenta = (p[..., 0] > 0.6) & (p[..., 2] > 0.55) & (p[..., 0] > p[..., 1] + 0.35) & (p[..., 2] > p[..., 1] + 0.35)
+    rv3d = area.spaces[0].region_3d
+
+    def near(point):
+        at = location_3d_to_region_2d(region, rv3d, point)
+        if at is None:
+            return False
+        col, row = int(round(at.x)), int(round(region.height - at.y))
+        return bool(magenta[max(row - 4, 0):row + 5, max(col - 4, 0):col + 5].any())
+    ring = geo["ring"][::4] if geo["ring"] is not None else []
+    return {"ring_points": len(ring), "ring_hits": sum(near(q) for q in ring),
+            "moved_ring_hits": sum(near(q + np.array([0.0, 0.1, 0.0])) for q in ring),
+            "arrow_tip_hit": near(geo["arrow"][1])}
+
+
 def scenario_grasp_hud():
     """Three fingertips squeeze the box on the table (one on +x, two side by side on -x: a
     grasp in force closure), steadily until Esc. Pictures are taken, one a display update,
@@ -383,7 +405,8 @@ def scenario_grasp_hud():
                           and s.monitor.grasps[0].force_closure, 15, "the box held in force closure")
     for attempt in range(20):
         area, win_region, ui = view3d()
-        during = colour_counts(pixels(screenshot("grasp_hud")), win_region, ui)
+        shot = pixels(screenshot("grasp_hud"))
+        during = colour_counts(shot, win_region, ui)
         grasps = list(s.monitor.grasps)
         RESULT["hud"] = s.hud_text()
         if during["magenta"] > before["magenta"] + 100 and during["green"] > before["green"] + 100 \
@@ -397,6 +420,7 @@ def scenario_grasp_hud():
     RESULT["pixels"] = {"before": before, "during": during}
     RESULT["pictures_taken"] = attempt + 1
     gd = ext("engine.grasp_display")
+    RESULT["weakest_on_screen"] = weakest_on_screen(shot, area, win_region, gd.weakest_geometry(grasps[0]))
     RESULT["grasps"] = [{"body": g.body, "force_closure": bool(g.force_closure), "epsilon": g.epsilon,
                          "weakest": [float(v) for v in g.weakest], "grip_ratio": g.grip_ratio,
                          "contacts": [{"finger": c.finger, "friction_use": c.friction_use, "state": c.state}

@@ -73,6 +73,11 @@ def test_the_hud_and_viewport_show_a_held_grasp(gui):
     assert during["magenta"] > before["magenta"] + 100, r["pixels"]          # the weakest wrench
     assert during["green"] > before["green"] + 100, r["pixels"]              # god-objects far from slip
     assert before["hud_white"] < 50 < 1000 < during["hud_white"], r["pixels"]
+    # Drawn where the grasp's weakest wrench is: its ring, projected with the viewport's matrices,
+    # lies on magenta pixels; the same ring 10 cm away does not.
+    on = r["weakest_on_screen"]
+    assert on["ring_points"] >= 10 and on["ring_hits"] >= 0.8 * on["ring_points"], on
+    assert on["moved_ring_hits"] <= 0.2 * on["ring_points"] and on["arrow_tip_hit"], on
     for name, c in r["god_object_colours"].items():
         assert c["material"] == c["expected"], (name, c)
     assert all(c["friction_use"] < 0.5 for c in g["contacts"]), g       # squeezing on a table: green
