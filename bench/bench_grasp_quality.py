@@ -2,17 +2,23 @@
 
 graspcore.grasp_quality beside scipy's ConvexHull (qhull, what grasp-analysis code calls) on
 the same seeded contact sets in the same run: 3, 5 and 10 contacts x 8 and 16 cone edges,
-random mu in [0.1, 1.5]. Repeats alternate between the two so both see the same machine load.
+random mu in [0.1, 1.5]. Each repeat times all four below, one after the other, so all see
+the same machine load.
 
 - scipy: ``ConvexHull(W)`` on the 6-D edge wrenches, built beforehand (not timed): the hull
   alone, which is what the closure test, epsilon and volume need.
-- graspcore: the whole ``grasp_quality`` call: argument checks, the cones, the rank, the 6-D
-  hull with epsilon, volume and weakest direction, and the two 3-D hulls of the force-only and
-  torque-only conditions.
+- full: the whole ``grasp_quality(..., volume=True)`` call (the default): argument checks, the
+  cones, the rank, the 6-D hull with epsilon, volume and weakest direction, and the two 3-D
+  hulls of the force-only and torque-only conditions.
+- fast: ``grasp_quality(..., volume=False)``: the same answers but the volume, with no hull
+  (the closure LP and the support-function search).
+- mu_min: ``grasp_mu_min`` of the same contacts (mu_max 10).
 
-Per set the median of its repeats; per row the median over the sets, and the ratio of the
-medians. Target: graspcore >= 100x faster at 8 edges. Then the batch: grasp_quality_batch
-over many sets in one call beside a Python loop of single calls.
+Per set the median of its repeats; per row the median over the sets, and the ratios of the
+medians. Target: the fast path >= 100x faster than scipy at 8 edges. Then the live analysis's
+core work per display update (2 bodies x 5 contacts: grasp_quality without volume and
+grasp_mu_min for each), and the batch: grasp_quality_batch over many sets in one call beside
+a Python loop of single calls, with and without the volume.
 
 Usage: .venv/bin/python bench/bench_grasp_quality.py [--quick] [--json FILE]
 """
@@ -73,38 +79,70 @@ def time_once(fn) -> float:
 
 def compare(contacts: int, edges: int, sets: int, repeats: int, seed: int) -> dict:
     rng = np.random.default_rng(seed)
-    ours, theirs, facets, closed = [], [], [], 0
+    full, fast, theirs, mu_mins, facets, closed = [], [], [], [], [], 0
     for _ in range(sets):
         p, n, mu, c, r = random_grasp(rng, contacts)
         w = edge_wrenches(p, n, mu, c, r, edges)
         res = graspcore.grasp_quality(p, n, mu, c, r, edges)  # warm: the workspace grows once
+        quick = graspcore.grasp_quality(p, n, mu, c, r, edges, volume=False)
+        if quick["force_closure"] != res["force_closure"] or quick["epsilon"] != pytest_approx(res["epsilon"]):
+            raise SystemExit(f"fast path differs from the full path: {quick} vs {res}")
         facets.append(res["facets"])
         closed += res["force_closure"]
-        a, b = [], []
+        a, b, f, m = [], [], [], []
         for _ in range(repeats):
             b.append(time_once(lambda: ConvexHull(w)))
             a.append(time_once(lambda: graspcore.grasp_quality(p, n, mu, c, r, edges)))
-        ours.append(statistics.median(a))
+            f.append(time_once(lambda: graspcore.grasp_quality(p, n, mu, c, r, edges, volume=False)))
+            m.append(time_once(lambda: graspcore.grasp_mu_min(p, n, c, r, edges)))
+        full.append(statistics.median(a))
+        fast.append(statistics.median(f))
         theirs.append(statistics.median(b))
-    o, t = statistics.median(ours), statistics.median(theirs)
-    return dict(contacts=contacts, edges=edges, sets=sets, repeats=repeats, ours_us=o * 1e6, scipy_us=t * 1e6,
-                ratio=t / o, facets=statistics.median(facets), closed=closed)
+        mu_mins.append(statistics.median(m))
+    o, q, t = statistics.median(full), statistics.median(fast), statistics.median(theirs)
+    return dict(contacts=contacts, edges=edges, sets=sets, repeats=repeats, full_us=o * 1e6, fast_us=q * 1e6,
+                scipy_us=t * 1e6, ratio_full=t / o, ratio=t / q, mu_min_us=statistics.median(mu_mins) * 1e6,
+                facets=statistics.median(facets), closed=closed)
 
 
-def batch(contacts: int, edges: int, sets: int, repeats: int, seed: int) -> dict:
+def pytest_approx(x: float):
+    """Equal within 1e-9 relative (the tests' tolerance), for the sanity check above."""
+    class Near:
+        def __eq__(self, y):
+            return abs(y - x) <= 1e-9 * abs(x)
+    return Near()
+
+
+def live_update(snapshots: int, seed: int) -> dict:
+    """The analysis's core work per display update: 2 held bodies x 5 contacts, each
+    grasp_quality(volume=False) and grasp_mu_min, as the live HUD calls them."""
+    rng = np.random.default_rng(seed)
+    bodies = [[random_grasp(rng, 5) for _ in range(2)] for _ in range(snapshots)]
+
+    def update(pair):
+        for p, n, mu, c, r in pair:
+            graspcore.grasp_quality(p, n, mu, c, r, 8, volume=False)
+            graspcore.grasp_mu_min(p, n, c, r, 8)
+    update(bodies[0])
+    times = sorted(time_once(lambda: update(pair)) for pair in bodies)
+    return dict(snapshots=snapshots, median_us=statistics.median(times) * 1e6,
+                p99_us=times[int(0.99 * (len(times) - 1))] * 1e6, max_us=times[-1] * 1e6)
+
+
+def batch(contacts: int, edges: int, sets: int, repeats: int, seed: int, volume: bool) -> dict:
     rng = np.random.default_rng(seed)
     grasps = [random_grasp(rng, contacts) for _ in range(sets)]
     args = (np.concatenate([g[0] for g in grasps]), np.concatenate([g[1] for g in grasps]),
             np.concatenate([g[2] for g in grasps]), [contacts] * sets, np.array([g[3] for g in grasps]),
             [g[4] for g in grasps], edges)
-    graspcore.grasp_quality_batch(*args)
+    graspcore.grasp_quality_batch(*args, volume=volume)
     tb, tl = [], []
     for _ in range(repeats):
-        tb.append(time_once(lambda: graspcore.grasp_quality_batch(*args)))
-        tl.append(time_once(lambda: [graspcore.grasp_quality(*g, edges) for g in grasps]))
+        tb.append(time_once(lambda: graspcore.grasp_quality_batch(*args, volume=volume)))
+        tl.append(time_once(lambda: [graspcore.grasp_quality(*g, edges, volume=volume) for g in grasps]))
     b, loop = min(tb), min(tl)
-    return dict(contacts=contacts, edges=edges, sets=sets, batch_us=b / sets * 1e6, loop_us=loop / sets * 1e6,
-                per_second=sets / b)
+    return dict(contacts=contacts, edges=edges, sets=sets, volume=volume, batch_us=b / sets * 1e6,
+                loop_us=loop / sets * 1e6, per_second=sets / b)
 
 
 def cpu_name() -> str:
@@ -129,9 +167,12 @@ def main(argv=None) -> int:
             sets = (3 if args.quick else (20 if edges == 8 else 8))
             repeats = 3 if args.quick else (7 if edges == 8 else 3)
             rows.append(compare(contacts, edges, sets, repeats, seed=100 * contacts + edges))
-            print(f"[grasp] {contacts} x {edges}: {rows[-1]['ours_us']:.0f} vs {rows[-1]['scipy_us']:.0f} us",
-                  file=sys.stderr, flush=True)
-    batches = [batch(c, 8, 50 if args.quick else 500, 2 if args.quick else 5, seed=7 + c) for c in (3, 5)]
+            r = rows[-1]
+            print(f"[grasp] {contacts} x {edges}: full {r['full_us']:.0f}, fast {r['fast_us']:.0f}, "
+                  f"scipy {r['scipy_us']:.0f}, mu_min {r['mu_min_us']:.0f} us", file=sys.stderr, flush=True)
+    live = live_update(100 if args.quick else 2000, seed=11)
+    batches = [batch(c, 8, 50 if args.quick else 500, 2 if args.quick else 5, seed=7 + c, volume=v)
+               for v in (True, False) for c in (3, 5)]
     load_end = os.getloadavg()
 
     now = _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
@@ -140,27 +181,36 @@ def main(argv=None) -> int:
         f"`bench/bench_grasp_quality.py` on {now}: {cpu_name()}, {os.cpu_count()} logical cores, "
         f"Python {platform.python_version()}, numpy {np.__version__}, scipy {scipy.__version__}; load average "
         f"{' '.join(f'{x:.2f}' for x in load_start)} at start, {' '.join(f'{x:.2f}' for x in load_end)} at end "
-        "(the two alternate repeat by repeat, so load inflates both alike). Seeded random grasps, mu in "
-        "[0.1, 1.5]. scipy: `ConvexHull` of the 6-D edge wrenches, built beforehand and not timed; graspcore: "
-        "the whole `grasp_quality` call (checks, cones, rank, the 6-D hull with epsilon, volume and weakest "
-        "direction, and the force-only and torque-only 3-D hulls). Median over the sets of each set's median.", "",
-        "| contacts x edges | sets in closure | hull facets (median) | graspcore µs | scipy µs | ratio |",
-        "|---|---|---|---|---|---|",
+        "(all alternate within each repeat, so load inflates them alike). Seeded random grasps, mu in "
+        "[0.1, 1.5]. scipy: `ConvexHull` of the 6-D edge wrenches, built beforehand and not timed; full: "
+        "the whole `grasp_quality` call with the volume (checks, cones, rank, the 6-D hull with epsilon, volume "
+        "and weakest direction, and the force-only and torque-only 3-D hulls); fast: `grasp_quality(..., "
+        "volume=False)`, every answer but the volume, no hull (closure LP, support-function search); mu_min: "
+        "`grasp_mu_min` of the same contacts. The four alternate within each repeat. Median over the sets of "
+        "each set's median.", "",
+        "| contacts x edges | sets in closure | hull facets (median) | full µs | fast µs | scipy µs | "
+        "scipy / full | scipy / fast | mu_min µs |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
         out.append(f"| {r['contacts']} x {r['edges']} | {r['closed']} of {r['sets']} | {r['facets']:.0f} | "
-                   f"{r['ours_us']:.0f} | {r['scipy_us']:.0f} | {r['ratio']:.0f}× |")
-    out += ["", "Batch (`grasp_quality_batch`, one call, the GIL released throughout) beside a Python loop of "
+                   f"{r['full_us']:.0f} | {r['fast_us']:.1f} | {r['scipy_us']:.0f} | {r['ratio_full']:.0f}× | "
+                   f"**{r['ratio']:.0f}×** | {r['mu_min_us']:.0f} |")
+    out += ["", f"Live analysis, the core's part of one display update: 2 held bodies × 5 contacts, each "
+            f"`grasp_quality(volume=False)` and `grasp_mu_min` from Python, {live['snapshots']} random "
+            f"snapshots: median {live['median_us']:.0f} µs, 99th percentile {live['p99_us']:.0f} µs, "
+            f"largest {live['max_us']:.0f} µs (budget 500 µs for the whole analysis).", "",
+            "Batch (`grasp_quality_batch`, one call, the GIL released throughout) beside a Python loop of "
             "single calls, 8 edges, best of the repeats:", "",
-            "| contacts | sets | batch µs per grasp | loop µs per grasp | grasps per second (batch) |",
-            "|---|---|---|---|---|"]
+            "| contacts | volume | sets | batch µs per grasp | loop µs per grasp | grasps per second (batch) |",
+            "|---|---|---|---|---|---|"]
     for b in batches:
-        out.append(f"| {b['contacts']} | {b['sets']} | {b['batch_us']:.0f} | {b['loop_us']:.0f} | "
+        out.append(f"| {b['contacts']} | {b['volume']} | {b['sets']} | {b['batch_us']:.1f} | {b['loop_us']:.1f} | "
                    f"{b['per_second']:.0f} |")
     print("\n".join(out))
     if args.json:
         with open(args.json, "w") as fh:
-            json.dump(dict(rows=rows, batches=batches, target=TARGET), fh)
+            json.dump(dict(rows=rows, batches=batches, live=live, target=TARGET), fh)
     return 0
 
 

@@ -21,7 +21,13 @@
  * Coplanar points (the k edge wrenches of one contact all lie on a 2-flat) are "not visible"
  * within the tolerance, so coplanar facets stay as adjacent simplices; the answers (the
  * hyperplanes, the volume) do not depend on how a flat face is cut into simplices.
- * All storage is in the workspace and grows only when a larger problem comes. */
+ * All storage is in the workspace and grows only when a larger problem comes.
+ *
+ * The fast path (gcGraspDef.volume = 0) builds no full hull: a small linear program decides
+ * closure (certified against the hull's rule both ways, lp_decide), and the support-function
+ * search (nearest_run) grows a hull of a few points until its nearest facet supports the whole
+ * set, which gives epsilon and the weakest direction exactly. mu_min uses the LP alone, and the
+ * fast path's rule for its answer. */
 #include "grasp_quality.h"
 
 #include <math.h>
@@ -766,19 +772,25 @@ static GC_ALWAYS_INLINE gcStatus nearest_run(Hull *h, int d, gcHullSummary *out)
             if (F->alive && F->off > best) best = F->off, fb = f;
         }
         Facet *F = &ws->facets[fb];
-        exact_plane(h, F);
         int p = -1;
-        double support = -INFINITY;
-        for (int i = 0; i < n; ++i) {
-            double s = dotd(F->n, point(h, i, d), d);
-            if (s > support) support = s, p = i;
-        }
-        double gap = support + F->off;    /* how far the support point is beyond F's plane */
-        if (!(gap > h->tol)) {
-            out->result = GC_HULL_FULL;
-            out->offset_max = F->off;
-            memcpy(out->nearest_normal, F->n, sizeof(double) * (size_t)d);
-            return GC_OK;
+        double gap;
+        /* The answer is read off a plane solved from the facet's vertices (the pencil planes are
+         * good to rounding, not exact): solved when the support query first finds it supporting. */
+        for (int exact = 0;; exact = 1) {
+            double support = -INFINITY;
+            for (int i = 0; i < n; ++i) {
+                double s = dotd(F->n, point(h, i, d), d);
+                if (s > support) support = s, p = i;
+            }
+            gap = support + F->off;    /* how far the support point is beyond F's plane */
+            if (gap > h->tol) break;
+            if (exact) {
+                out->result = GC_HULL_FULL;
+                out->offset_max = F->off;
+                memcpy(out->nearest_normal, F->n, sizeof(double) * (size_t)d);
+                return GC_OK;
+            }
+            exact_plane(h, F);
         }
         int nv = 0, nc = 0;
         gcStatus st = add_apex(h, d, fb, p, gap, iter, &nv, &nc);
@@ -864,24 +876,11 @@ static int lp_minimise(double *T, int *basis, int rows, int cols, int allowed, i
     return 0;
 }
 
-gcStatus gc_closure_lp(gcGraspWorkspace *ws, const double *points, int n, int d, double *t_max) {
-    *t_max = -INFINITY;
-    if (d < 1 || d > D) return set_error(ws, GC_ERR_INVALID_ARGUMENT, "d: %d, expected 1 to %d", d, D);
-    if (n < 1) return GC_OK;
-    int rows = d + 1, tau = n, art = n + 1, cols = n + 1 + rows + 1, rhs = cols - 1;
-    size_t need = (size_t)(rows + 1) * (size_t)cols;
-    if (need > (size_t)ws->cap_lp) {
-        if (!grow((void **)&ws->lp, need, sizeof(double)) || !grow((void **)&ws->lp_basis, (size_t)rows, sizeof(int)))
-            return set_error(ws, GC_ERR_NO_MEMORY, "workspace: out of memory for the closure LP");
-        ws->cap_lp = (int)need;
-    }
-    double *T = ws->lp;
-    int *basis = ws->lp_basis;
-    double scale = 0.0;
-    for (int i = 0; i < n; ++i) scale = fmax(scale, dotd(points + (size_t)i * d, points + (size_t)i * d, d));
-    if (!(scale > 0.0)) return GC_OK;
-    double inv = 1.0 / sqrt(scale);
-    memset(T, 0, sizeof(double) * need);
+/* The tableau's constraint rows for the points (scaled by inv), objective row and artificial
+ * columns zero. */
+static void lp_fill(double *T, const double *points, int n, int d, int cols, double inv) {
+    int rows = d + 1, tau = n, rhs = cols - 1;
+    memset(T, 0, sizeof(double) * (size_t)(rows + 1) * (size_t)cols);
     for (int i = 0; i < n; ++i) {
         for (int k = 0; k < d; ++k) {
             double x = points[(size_t)i * d + k] * inv;
@@ -893,35 +892,87 @@ gcStatus gc_closure_lp(gcGraspWorkspace *ws, const double *points, int n, int d,
     }
     T[(size_t)d * cols + tau] = n;
     T[(size_t)d * cols + rhs] = 1.0 + n;
-    /* Phase 1: artificial a_r in row r (rows with a negative right-hand side negated first). */
-    double *obj = T + (size_t)rows * cols;
-    for (int r = 0; r < rows; ++r) {
-        double *pr = T + (size_t)r * cols;
-        if (pr[rhs] < 0.0)
-            for (int k = 0; k < cols; ++k) pr[k] = -pr[k];
-        pr[art + r] = 1.0;
-        basis[r] = art + r;
-        for (int k = 0; k < art; ++k) obj[k] -= pr[k];
-        obj[rhs] -= pr[rhs];
-    }
-    int cap = 50 * (n + rows) + 100;
-    int res = lp_minimise(T, basis, rows, cols, art + rows, cap);
-    if (res == 0) return set_error(ws, GC_ERR_DEGENERATE, "points: the closure LP did not converge in %d pivots", cap);
-    if (-obj[rhs] > 1e-9 * (1.0 + n)) return GC_OK;   /* infeasible: t < -1, the origin is far outside */
-    /* Artificials still basic (at zero) leave for any structural column; a row with none is
-     * redundant and is emptied. */
-    for (int r = 0; r < rows; ++r) {
-        if (basis[r] < art) continue;
-        double *pr = T + (size_t)r * cols;
-        int c = -1;
+}
+
+/* Makes the columns warm[0 .. rows) basic (Gauss-Jordan, largest pivot per column). 1 when they
+ * form a basis whose solution is feasible (right-hand sides >= 0 up to rounding). */
+static int lp_warm_basis(double *T, int *basis, int rows, int cols, const int *warm) {
+    int rhs = cols - 1;
+    for (int r = 0; r < rows; ++r) basis[r] = -1;
+    for (int k = 0; k < rows; ++k) {
+        int c = warm[k], pick = -1;
         double big = 1e-9;
-        for (int j = 0; j < art; ++j)
-            if (fabs(pr[j]) > big) big = fabs(pr[j]), c = j;
-        if (c >= 0) {
-            lp_pivot(T, rows, cols, r, c);
-            basis[r] = c;
-        } else {
-            for (int k = 0; k < cols; ++k) pr[k] = 0.0;
+        for (int r = 0; r < rows; ++r)
+            if (basis[r] < 0 && fabs(T[(size_t)r * cols + c]) > big) big = fabs(T[(size_t)r * cols + c]), pick = r;
+        if (pick < 0) return 0;
+        lp_pivot(T, rows, cols, pick, c);
+        basis[pick] = c;
+    }
+    for (int r = 0; r < rows; ++r) {
+        double *v = &T[(size_t)r * cols + rhs];
+        if (*v < -1e-9) return 0;
+        if (*v < 0.0) *v = 0.0;
+    }
+    return 1;
+}
+
+/* gc_closure_lp; warm (d + 1 column indices, or NULL) is an optimal basis of an earlier LP over
+ * the same number of points, tried first (a nearby problem's basis is often still optimal or a
+ * pivot or two away), and holds this one's on return (warm[0] -1 when there is none). */
+static gcStatus closure_lp(gcGraspWorkspace *ws, const double *points, int n, int d, int *warm, double *t_max) {
+    *t_max = -INFINITY;
+    if (d < 1 || d > D) return set_error(ws, GC_ERR_INVALID_ARGUMENT, "d: %d, expected 1 to %d", d, D);
+    int start[D + 1], has_warm = warm && warm[0] >= 0;
+    if (has_warm) memcpy(start, warm, sizeof(int) * (size_t)(d + 1));
+    if (warm) warm[0] = -1;
+    if (n < 1) return GC_OK;
+    int rows = d + 1, tau = n, art = n + 1, cols = n + 1 + rows + 1, rhs = cols - 1;
+    size_t need = (size_t)(rows + 1) * (size_t)cols;
+    if (need > (size_t)ws->cap_lp) {
+        if (!grow((void **)&ws->lp, need, sizeof(double)) || !grow((void **)&ws->lp_basis, D + 1, sizeof(int)))
+            return set_error(ws, GC_ERR_NO_MEMORY, "workspace: out of memory for the closure LP");
+        ws->cap_lp = (int)need;
+    }
+    double *T = ws->lp;
+    int *basis = ws->lp_basis;
+    double scale = 0.0;
+    for (int i = 0; i < n; ++i) scale = fmax(scale, dotd(points + (size_t)i * d, points + (size_t)i * d, d));
+    if (!(scale > 0.0)) return GC_OK;
+    double inv = 1.0 / sqrt(scale);
+    int cap = 50 * (n + rows) + 100, res;
+    double *obj = T + (size_t)rows * cols;
+    lp_fill(T, points, n, d, cols, inv);
+    if (!has_warm || !lp_warm_basis(T, basis, rows, cols, start)) {
+        if (has_warm) lp_fill(T, points, n, d, cols, inv);
+        /* Phase 1: artificial a_r in row r (rows with a negative right-hand side negated first). */
+        for (int r = 0; r < rows; ++r) {
+            double *pr = T + (size_t)r * cols;
+            if (pr[rhs] < 0.0)
+                for (int k = 0; k < cols; ++k) pr[k] = -pr[k];
+            pr[art + r] = 1.0;
+            basis[r] = art + r;
+            for (int k = 0; k < art; ++k) obj[k] -= pr[k];
+            obj[rhs] -= pr[rhs];
+        }
+        res = lp_minimise(T, basis, rows, cols, art + rows, cap);
+        if (res == 0)
+            return set_error(ws, GC_ERR_DEGENERATE, "points: the closure LP did not converge in %d pivots", cap);
+        if (-obj[rhs] > 1e-9 * (1.0 + n)) return GC_OK;   /* infeasible: t < -1, the origin is far outside */
+        /* Artificials still basic (at zero) leave for any structural column; a row with none is
+         * redundant and is emptied. */
+        for (int r = 0; r < rows; ++r) {
+            if (basis[r] < art) continue;
+            double *pr = T + (size_t)r * cols;
+            int c = -1;
+            double big = 1e-9;
+            for (int j = 0; j < art; ++j)
+                if (fabs(pr[j]) > big) big = fabs(pr[j]), c = j;
+            if (c >= 0) {
+                lp_pivot(T, rows, cols, r, c);
+                basis[r] = c;
+            } else {
+                for (int k = 0; k < cols; ++k) pr[k] = 0.0;
+            }
         }
     }
     /* Phase 2: minimise -tau, artificials barred. */
@@ -936,10 +987,18 @@ gcStatus gc_closure_lp(gcGraspWorkspace *ws, const double *points, int n, int d,
     res = lp_minimise(T, basis, rows, cols, art, cap);
     if (res == 0) return set_error(ws, GC_ERR_DEGENERATE, "points: the closure LP did not converge in %d pivots", cap);
     double tau_value = 0.0;
-    for (int r = 0; r < rows; ++r)
+    int structural = 1;
+    for (int r = 0; r < rows; ++r) {
         if (basis[r] == tau) tau_value = T[(size_t)r * cols + rhs];
+        structural = structural && basis[r] < art;
+    }
     *t_max = tau_value - 1.0;
+    if (warm && structural) memcpy(warm, basis, sizeof(int) * (size_t)rows);
     return GC_OK;
+}
+
+gcStatus gc_closure_lp(gcGraspWorkspace *ws, const double *points, int n, int d, double *t_max) {
+    return closure_lp(ws, points, n, d, NULL, t_max);
 }
 
 /* ---- the grasp wrench space ---------------------------------------------------------------- */
@@ -1113,18 +1172,22 @@ static gcStatus quality_fast(gcGraspWorkspace *ws, const gcGraspDef *def, int ro
     out->facets = -1;
     int closed, rank;
     gcHullSummary s;
-    gcStatus st = closure_fast(ws, def, ws->force, rows, 3, 0, &closed, NULL, &s);
+    gcStatus st = closure_fast(ws, def, ws->wrench, rows, 6, 1, &closed, &rank, &s);
     if (st != GC_OK) return st;
-    out->force_only_closure = closed;
-    if ((st = closure_fast(ws, def, ws->torque, rows, 3, 0, &closed, NULL, &s)) != GC_OK) return st;
-    out->torque_closure = closed;
-    if ((st = closure_fast(ws, def, ws->wrench, rows, 6, 1, &closed, &rank, &s)) != GC_OK) return st;
     out->rank = rank;
     out->force_closure = closed;
     if (closed) {
         out->epsilon = -s.offset_max;
         memcpy(out->weakest, s.nearest_normal, sizeof out->weakest);
+        /* The force and torque parts of a ball of radius epsilon about the origin are balls of
+         * that radius in the projections, and their scales are no larger: both 3-D conditions hold. */
+        out->force_only_closure = out->torque_closure = 1;
+        return GC_OK;
     }
+    if ((st = closure_fast(ws, def, ws->force, rows, 3, 0, &closed, NULL, &s)) != GC_OK) return st;
+    out->force_only_closure = closed;
+    if ((st = closure_fast(ws, def, ws->torque, rows, 3, 0, &closed, NULL, &s)) != GC_OK) return st;
+    out->torque_closure = closed;
     return GC_OK;
 }
 
@@ -1231,11 +1294,12 @@ gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const doub
     do {                                                                                                      \
         if ((st = build_wrenches(ws, def->edges, points, normals, NULL, (m), num_contacts, center, radius,     \
                                  &rows)) != GC_OK ||                                                          \
-            (st = gc_closure_lp(ws, ws->wrench, rows, 6, &t)) != GC_OK)                                       \
+            (st = closure_lp(ws, ws->wrench, rows, 6, warm, &t)) != GC_OK)                                    \
             return st;                                                                                        \
         (g) = (m) * (fmax(t, -1.0) - 0.5 * def->tolerance / rows);                                            \
     } while (0)
     if (mu_max == 0.0) return GC_OK;
+    int warm[D + 1] = {-1};   /* each LP starts from the last one's optimal basis */
     /* An LP "no" is never a "yes": not closed at mu_max. A "yes" is checked at the end. */
     double glo = 0.0, ghi = 0.0, b_start = mu_max;
     MARGIN_AT(mu_max, ghi);
@@ -1296,7 +1360,10 @@ gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const doub
         b += fabs(d) > step_min ? d : copysign(step_min, half);
         MARGIN_AT(b, fb);
     }
-    double hi = fb > 0.0 ? b : c;
+    /* The root is in (open end, open end + 0.8e-6]: answer open end + 1e-6, closed as well and
+     * far enough from the root (about 0.2e-6 at least) for the LP's certificate to settle it
+     * without the support search, most times. */
+    double hi = fmin((fb > 0.0 ? c : b) + 1e-6, mu_max);
 #undef MARGIN_AT
     /* The LP may call a set closed whose origin is within the tolerance of the hull's boundary
      * (grasp_quality: not closed); the root it brackets is then below the closure's by about the

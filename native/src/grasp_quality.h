@@ -35,8 +35,11 @@ gcStatus gc_hull_nd(gcGraspWorkspace *ws, const double *points, int n, int d, do
 gcStatus gc_span_rank(gcGraspWorkspace *ws, const double *points, int n, int d, double tolerance, int *rank);
 
 /* The nearest facet of the hull of n points of dimension d (3..6) without building the hull
- * (the support-function search): result GC_HULL_FULL with offset_max and nearest_normal as
- * gc_hull_nd gives them (the same facet plane), facets and volume -1 (not computed). */
+ * (the support-function search). Origin inside: offset_max and nearest_normal as gc_hull_nd
+ * gives them (the same facet plane, solved from its vertices). Origin outside or within the
+ * tolerance of the boundary: offset_max >= -tolerance x scale, the origin's signed distance to a
+ * supporting facet plane (not always the largest). facets and volume are -1 (not computed);
+ * GC_HULL_FLAT as gc_hull_nd. */
 gcStatus gc_hull_nearest(gcGraspWorkspace *ws, const double *points, int n, int d, double tolerance,
                          int max_facets, gcHullSummary *out);
 

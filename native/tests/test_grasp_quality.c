@@ -361,15 +361,227 @@ static void test_degenerate_but_valid(gcGraspWorkspace *ws) {
     double p[12] = {1, 0, 0, 1, 0, 0, -1, 0, 0, 0, 1, 0}, n[12] = {-1, 0, 0, -1, 0, 0, 1, 0, 0, 0, -1, 0};
     double mu[4] = {0.5, 0.5, 0.0, 0.3}, c[3] = {0, 0, 0};
     gcGraspDef def = gc_default_grasp_def();
-    for (int edges = 3; edges <= 64; edges *= 2) {
-        def.edges = edges;
-        gcGraspQuality q;
-        gcStatus st = gc_grasp_quality(ws, &def, p, n, mu, 4, c, 1.0, &q);
-        GC_CHECK(st == GC_OK && all_finite(&q), "coincident contacts, %d edges: status %d", edges, st);
-    }
+    for (int volume = 0; volume <= 1; ++volume)
+        for (int edges = 3; edges <= 64; edges *= 2) {
+            def.edges = edges;
+            def.volume = volume;
+            gcGraspQuality q;
+            gcStatus st = gc_grasp_quality(ws, &def, p, n, mu, 4, c, 1.0, &q);
+            GC_CHECK(st == GC_OK && all_finite(&q), "coincident contacts, %d edges, volume %d: status %d", edges,
+                     volume, st);
+        }
     gcGraspQuality q;
     GC_CHECK(gc_grasp_quality(ws, NULL, NULL, NULL, NULL, 0, c, 1.0, &q) == GC_OK && q.rank == 0 && !q.force_closure,
              "no contacts: rank 0, not in closure");
+}
+
+/* ---- the fast path: the closure LP and the support search ------------------------------ */
+
+/* A simplex of d + 1 points with the origin at barycentric coordinates beta (sum 1): the only
+ * weights that balance them are beta, so the LP's optimum is min beta (or -inf below -1). */
+static double lp_of_simplex(gcGraspWorkspace *ws, int d, const double *beta) {
+    double pts[7 * 6] = {0}, x0[6] = {0};
+    rng_seed(100 + d);
+    for (int i = 1; i <= d; ++i)
+        for (int k = 0; k < d; ++k) pts[i * d + k] = (k == i - 1 ? 2.0 : 0.0) + rng_uniform() - 0.5;
+    for (int i = 1; i <= d; ++i)
+        for (int k = 0; k < d; ++k) x0[k] -= beta[i] * pts[i * d + k] / beta[0];
+    memcpy(pts, x0, sizeof(double) * (size_t)d);
+    double t = NAN;
+    gcStatus st = gc_closure_lp(ws, pts, d + 1, d, &t);
+    GC_CHECK(st == GC_OK, "LP simplex d=%d: status %d (%s)", d, st, gc_grasp_workspace_error(ws));
+    return t;
+}
+
+static void test_closure_lp(gcGraspWorkspace *ws) {
+    /* Centrally symmetric sets (cross-polytopes, each point k times): equal weights, t* = 1/n. */
+    for (int d = 3; d <= 6; d += 3)
+        for (int copies = 1; copies <= 3; ++copies) {
+            double pts[36 * 6] = {0};
+            int n = 0;
+            for (int c = 0; c < copies; ++c)
+                for (int k = 0; k < d; ++k) {
+                    pts[n++ * d + k] = 1.0;
+                    pts[n++ * d + k] = -1.0;
+                }
+            double t = NAN;
+            GC_CHECK(gc_closure_lp(ws, pts, n, d, &t) == GC_OK, "LP cross-polytope: status");
+            GC_CHECK_NEAR(t, 1.0 / n, 1e-14, "LP cross-polytope: t* = 1/n");
+        }
+    const double inside3[4] = {0.1, 0.2, 0.3, 0.4}, outside3[4] = {-0.2, 0.4, 0.4, 0.4},
+                 face3[4] = {0.3, 0.3, 0.4, 0.0}, far3[4] = {1.0, 1.0, 1.0, -2.0};
+    GC_CHECK_NEAR(lp_of_simplex(ws, 3, inside3), 0.1, 1e-13, "LP 3-simplex, origin inside: t* = min beta");
+    GC_CHECK_NEAR(lp_of_simplex(ws, 3, outside3), -0.2, 1e-13, "LP 3-simplex, origin outside: t* = min beta < 0");
+    GC_CHECK_NEAR(lp_of_simplex(ws, 3, face3), 0.0, 1e-13, "LP 3-simplex, origin on a face: t* = 0");
+    GC_CHECK(lp_of_simplex(ws, 3, far3) == -INFINITY, "LP 3-simplex, weights below -1 needed: -inf");
+    const double inside6[7] = {0.05, 0.1, 0.15, 0.2, 0.1, 0.25, 0.15};
+    GC_CHECK_NEAR(lp_of_simplex(ws, 6, inside6), 0.05, 1e-13, "LP 6-simplex: t* = min beta");
+    /* Points on the plane z = 1: the origin is not in their affine hull, no weights balance them. */
+    double plane[5 * 3] = {1, 0, 1, -1, 0, 1, 0, 1, 1, 0, -1, 1, 0.3, 0.2, 1};
+    double t = 0;
+    GC_CHECK(gc_closure_lp(ws, plane, 5, 3, &t) == GC_OK && t == -INFINITY, "LP plane z = 1: t* %g, expected -inf",
+             t);
+    /* A square about the origin in the plane z = 0: the LP sees the relative interior (t* = 1/4);
+     * closure also needs rank d, which grasp quality checks besides. */
+    double square[4 * 3] = {1, 0, 0, -1, 0, 0, 0, 1, 0, 0, -1, 0};
+    GC_CHECK(gc_closure_lp(ws, square, 4, 3, &t) == GC_OK, "LP square: status");
+    GC_CHECK_NEAR(t, 0.25, 1e-14, "LP square in a plane: t* = 1/4");
+    GC_CHECK(gc_closure_lp(ws, square, 0, 3, &t) == GC_OK && t == -INFINITY, "LP no points: -inf");
+    GC_CHECK(gc_closure_lp(ws, square, 4, 7, &t) == GC_ERR_INVALID_ARGUMENT, "LP d = 7: invalid");
+}
+
+/* The support search answers what the full hull answers, on polytopes whose nearest facet is
+ * known and on random point clouds. */
+static void test_hull_nearest(gcGraspWorkspace *ws) {
+    /* The cube [-1, 1]^6 moved by s: nearest facet x0 = -0.7 (distance 0.7, normal -e0). */
+    double cube[64 * 6];
+    const double shift[6] = {0.3, -0.2, 0.1, 0.0, 0.15, -0.25};
+    for (int i = 0; i < 64; ++i)
+        for (int k = 0; k < 6; ++k) cube[i * 6 + k] = ((i >> k) & 1 ? 1.0 : -1.0) + shift[k];
+    gcHullSummary s;
+    GC_CHECK(gc_hull_nearest(ws, cube, 64, 6, 1e-10, 1 << 20, &s) == GC_OK && s.result == GC_HULL_FULL,
+             "nearest: moved cube full");
+    GC_CHECK_NEAR(s.offset_max, -0.7, 1e-14, "nearest: moved cube at 0.7");
+    GC_CHECK_NEAR(s.nearest_normal[0], -1.0, 1e-14, "nearest: moved cube normal -e0");
+    GC_CHECK(s.facets == -1 && s.volume == -1.0, "nearest: no facet count or volume");
+    /* The cross-polytope moved by s: facets sigma.x = 1 + sigma.s, the nearest has
+     * sigma_k = -sign(s_k), distance (1 - sum |s_k|) / sqrt(6). */
+    const double s6[6] = {0.1, -0.05, 0.2, 0.03, -0.01, 0.02};
+    double cross[12 * 6] = {0};
+    for (int k = 0; k < 6; ++k) {
+        for (int j = 0; j < 6; ++j) cross[(2 * k) * 6 + j] = cross[(2 * k + 1) * 6 + j] = s6[j];
+        cross[(2 * k) * 6 + k] += 1.0;
+        cross[(2 * k + 1) * 6 + k] -= 1.0;
+    }
+    GC_CHECK(gc_hull_nearest(ws, cross, 12, 6, 1e-10, 1 << 20, &s) == GC_OK, "nearest: cross-polytope status");
+    GC_CHECK_NEAR(s.offset_max, -(1.0 - 0.41) / sqrt(6.0), 1e-14, "nearest: moved cross-polytope distance");
+    for (int k = 0; k < 6; ++k)
+        GC_CHECK_NEAR(s.nearest_normal[k], (s6[k] > 0 ? -1.0 : 1.0) / sqrt(6.0), 1e-13, "nearest: its normal");
+    /* Moved out of it (sum |s_k| > 1): the origin outside, a positive offset. */
+    for (int i = 0; i < 12; ++i) cross[i * 6] += 1.2;
+    GC_CHECK(gc_hull_nearest(ws, cross, 12, 6, 1e-10, 1 << 20, &s) == GC_OK && s.offset_max > 0.0,
+             "nearest: origin outside, offset %g", s.offset_max);
+    /* Random clouds about a point near the origin, d = 3..6: the same nearest facet as the hull. */
+    rng_seed(77);
+    int bad = 0;
+    for (int trial = 0; trial < 40; ++trial) {
+        int d = 3 + trial % 4, n = 20 + trial * 3;
+        double pts[160 * 6], c[6];
+        for (int k = 0; k < d; ++k) c[k] = 0.4 * (rng_uniform() - 0.5);
+        for (int i = 0; i < n; ++i)
+            for (int k = 0; k < d; ++k) pts[i * d + k] = c[k] + 2.0 * rng_uniform() - 1.0;
+        gcHullSummary full, fast;
+        if (gc_hull_nd(ws, pts, n, d, 1e-10, 1 << 20, &full) != GC_OK ||
+            gc_hull_nearest(ws, pts, n, d, 1e-10, 1 << 20, &fast) != GC_OK || full.offset_max >= 0.0) {
+            ++bad;
+            continue;
+        }
+        int same = fabs(full.offset_max - fast.offset_max) <= 1e-12 * fabs(full.offset_max);
+        for (int k = 0; k < d; ++k) same = same && fabs(full.nearest_normal[k] - fast.nearest_normal[k]) <= 1e-12;
+        bad += !same;
+    }
+    GC_CHECK(bad == 0, "nearest vs the full hull on random clouds: %d of 40 differ", bad);
+}
+
+static void check_fast_agrees(gcGraspWorkspace *ws, const double *p, const double *n, const double *mu, int m,
+                              const char *what) {
+    const double c[3] = {0.05, -0.02, 0.01};
+    gcGraspDef fast_def = gc_default_grasp_def();
+    fast_def.volume = 0;
+    gcGraspQuality full, fast;
+    gcStatus a = gc_grasp_quality(ws, NULL, p, n, mu, m, c, 1.3, &full);
+    gcStatus b = gc_grasp_quality(ws, &fast_def, p, n, mu, m, c, 1.3, &fast);
+    int same = a == GC_OK && b == GC_OK && full.force_closure == fast.force_closure &&
+               full.force_only_closure == fast.force_only_closure && full.torque_closure == fast.torque_closure &&
+               full.rank == fast.rank && fabs(full.epsilon - fast.epsilon) <= 1e-12 * full.epsilon;
+    for (int k = 0; k < 6; ++k) same = same && fabs(full.weakest[k] - fast.weakest[k]) <= 1e-12;
+    GC_CHECK(same && fast.volume == -1.0 && fast.facets == -1 && all_finite(&fast),
+             "%s: fast path closure %d/%d/%d rank %d eps %.15g, full %d/%d/%d rank %d eps %.15g", what,
+             fast.force_closure, fast.force_only_closure, fast.torque_closure, fast.rank, fast.epsilon,
+             full.force_closure, full.force_only_closure, full.torque_closure, full.rank, full.epsilon);
+}
+
+/* The closed-form grasps above and random ones through both paths. */
+static void test_fast_path(gcGraspWorkspace *ws) {
+    const double mu0[7] = {0}, mu5[7] = {0.5, 0.5, 0.5, 0.5, 0.5, 0.5, 0.5};
+    check_fast_agrees(ws, kCubePoints, kCubeNormals, mu0, 7, "cube 7 frictionless");
+    check_fast_agrees(ws, kCubePoints, kCubeNormals, mu0, 6, "cube 6 frictionless");
+    check_fast_agrees(ws, kCubePoints, kCubeNormals, mu5, 7, "cube 7, mu 0.5");
+    check_fast_agrees(ws, kCubePoints, kCubeNormals, mu5, 2, "cube 2, mu 0.5");
+    const double pa[6] = {1, 0, 0, -1, 0, 0}, na[6] = {-1, 0, 0, 1, 0, 0};
+    check_fast_agrees(ws, pa, na, mu5, 2, "antipodal");
+    check_fast_agrees(ws, pa, na, mu5, 1, "one contact");
+    check_fast_agrees(ws, pa, na, mu5, 0, "no contacts");
+    double p3[9], n3[9];
+    for (int i = 0; i < 3; ++i) {
+        double a = 2 * kPi * i / 3;
+        p3[3 * i] = cos(a), p3[3 * i + 1] = sin(a), p3[3 * i + 2] = 0;
+        n3[3 * i] = -cos(a), n3[3 * i + 1] = -sin(a), n3[3 * i + 2] = 0;
+    }
+    check_fast_agrees(ws, p3, n3, mu5, 3, "three fingers");
+    check_fast_agrees(ws, p3, n3, mu0, 3, "three fingers frictionless");
+    double pf[18] = {0}, nf[18] = {0};
+    for (int f = 0; f < 6; ++f) {
+        pf[3 * f + f / 2] = f % 2 ? -1.0 : 1.0;
+        nf[3 * f + f / 2] = f % 2 ? 1.0 : -1.0;
+    }
+    check_fast_agrees(ws, pf, nf, mu0, 6, "face centres");
+    rng_seed(23);
+    for (int trial = 0; trial < 60; ++trial) {
+        int m = 2 + trial % 7;
+        double p[24], n[24], mu[8];
+        for (int i = 0; i < m; ++i) {
+            double z = 2 * rng_uniform() - 1, phi = 2 * kPi * rng_uniform(), s = sqrt(1 - z * z);
+            p[3 * i] = s * cos(phi), p[3 * i + 1] = s * sin(phi), p[3 * i + 2] = z;
+            for (int k = 0; k < 3; ++k) n[3 * i + k] = -p[3 * i + k] + 0.6 * (rng_uniform() - 0.5);
+            mu[i] = 0.05 + 0.8 * rng_uniform();
+        }
+        char what[64];
+        snprintf(what, sizeof what, "random grasp %d (%d contacts)", trial, m);
+        check_fast_agrees(ws, p, n, mu, m, what);
+    }
+}
+
+/* mu_min (the LP's margin, Brent's method, checked at the end) against a bisection on the full
+ * hull's closure. */
+static void test_mu_min_against_hull_bisection(gcGraspWorkspace *ws) {
+    rng_seed(31);
+    const double c[3] = {0, 0, 0};
+    int compared = 0;
+    for (int trial = 0; trial < 12; ++trial) {
+        int m = 3 + trial % 3;
+        double p[15], n[15], mu[5];
+        for (int i = 0; i < m; ++i) {
+            double z = 2 * rng_uniform() - 1, phi = 2 * kPi * rng_uniform(), s = sqrt(1 - z * z);
+            p[3 * i] = s * cos(phi), p[3 * i + 1] = s * sin(phi), p[3 * i + 2] = z;
+            for (int k = 0; k < 3; ++k) n[3 * i + k] = -p[3 * i + k] + 0.6 * (rng_uniform() - 0.5);
+        }
+        double got = -1;
+        GC_CHECK(gc_grasp_mu_min(ws, NULL, p, n, m, c, 1.0, 10.0, &got) == GC_OK, "mu_min %d: status", trial);
+        gcGraspQuality q;
+        for (int i = 0; i < m; ++i) mu[i] = 10.0;
+        gc_grasp_quality(ws, NULL, p, n, mu, m, c, 1.0, &q);
+        if (!q.force_closure) {
+            GC_CHECK(isinf(got), "mu_min %d: not closed at 10, got %g", trial, got);
+            continue;
+        }
+        double lo = 0.0, hi = 10.0;
+        while (hi - lo > 1e-8) {
+            double mid = 0.5 * (lo + hi);
+            for (int i = 0; i < m; ++i) mu[i] = mid;
+            gc_grasp_quality(ws, NULL, p, n, mu, m, c, 1.0, &q);
+            if (q.force_closure)
+                hi = mid;
+            else
+                lo = mid;
+        }
+        for (int i = 0; i < m; ++i) mu[i] = got;
+        gc_grasp_quality(ws, NULL, p, n, mu, m, c, 1.0, &q);
+        GC_CHECK(fabs(got - hi) <= 1.01e-6 && q.force_closure, "mu_min %d: %.9g vs hull bisection %.9g, closed %d",
+                 trial, got, hi, q.force_closure);
+        ++compared;
+    }
+    GC_CHECK(compared >= 4, "mu_min: only %d finite cases compared", compared);
 }
 
 static void expect_error(gcGraspWorkspace *ws, gcStatus st, const char *prefix, const char *what) {
@@ -471,6 +683,10 @@ int main(void) {
     test_degenerate_but_valid(ws);
     test_bad_input(ws);
     test_batch(ws);
+    test_closure_lp(ws);
+    test_hull_nearest(ws);
+    test_fast_path(ws);
+    test_mu_min_against_hull_bisection(ws);
     gc_grasp_workspace_destroy(ws);
     return gc_test_summary("test_grasp_quality");
 }

@@ -91,6 +91,60 @@ def test_matches_qhull(seed, contacts, edges):
         assert got["facets"] > 0
 
 
+FAST_CASES = [(seed, contacts, edges) for edges in (8, 16) for contacts in range(2, 11) for seed in range(6)]
+
+
+@pytest.mark.parametrize("seed, contacts, edges", FAST_CASES)
+def test_fast_path_matches_full_path_and_qhull(seed, contacts, edges):
+    """volume=False (no 6-D hull: the closure LP and the support search) gives the full path's
+    flags, rank, epsilon and weakest direction, and qhull's. Friction scaled down at random so
+    the sets fall on both sides of closure in all three conditions."""
+    rng = np.random.default_rng(7000 + 1000 * seed + 10 * contacts + edges)
+    points, normals, mu, center, radius = random_grasp(rng, contacts)
+    mu = mu * rng.uniform(0.05, 1.0)
+    fast = graspcore.grasp_quality(points, normals, mu, center, radius, edges, volume=False)
+    full = graspcore.grasp_quality(points, normals, mu, center, radius, edges)
+    want = reference(points, normals, mu, center, radius, edges)
+    for flag in ("force_closure", "force_only_closure", "torque_closure"):
+        assert fast[flag] == full[flag] == want[flag], flag
+    assert fast["rank"] == full["rank"] == want["rank"]
+    assert fast["epsilon"] == pytest.approx(want["epsilon"], rel=1e-9, abs=0.0)
+    assert fast["epsilon"] == pytest.approx(full["epsilon"], rel=1e-9, abs=0.0)
+    assert np.allclose(fast["weakest"], want["weakest"], atol=1e-9)
+    assert fast["volume"] == -1.0 and fast["facets"] == -1
+
+
+def test_fast_path_cases_include_every_answer():
+    """The seeded sets above reach closure and miss it, in 6-D and in both 3-D conditions."""
+    seen = set()
+    for seed, contacts, edges in FAST_CASES:
+        rng = np.random.default_rng(7000 + 1000 * seed + 10 * contacts + edges)
+        points, normals, mu, center, radius = random_grasp(rng, contacts)
+        got = graspcore.grasp_quality(points, normals, mu * rng.uniform(0.05, 1.0), center, radius, edges,
+                                      volume=False)
+        seen |= {("6", got["force_closure"]), ("f", got["force_only_closure"]), ("t", got["torque_closure"])}
+    assert len(seen) == 6, seen
+
+
+def test_fast_path_near_the_boundary():
+    """Sets whose origin lies within a hair of the hull's boundary (mu just above and below a
+    set's mu_min), where the LP's margin alone cannot decide: both paths answer alike."""
+    rng = np.random.default_rng(41)
+    answers = set()
+    for _ in range(6):
+        points, normals, _, center, radius = random_grasp(rng, 4)
+        mu_min = graspcore.grasp_mu_min(points, normals, center, radius, 8)
+        if not 0.0 < mu_min < 10.0:
+            continue
+        for mu in (mu_min - 1e-6, mu_min - 1e-9, mu_min, mu_min + 1e-9, mu_min + 1e-6):
+            fast = graspcore.grasp_quality(points, normals, mu, center, radius, 8, volume=False)
+            full = graspcore.grasp_quality(points, normals, mu, center, radius, 8)
+            assert fast["force_closure"] == full["force_closure"], mu
+            assert fast["epsilon"] == pytest.approx(full["epsilon"], rel=1e-6, abs=1e-15)
+            answers.add(fast["force_closure"])
+    assert answers == {True, False}
+
+
 def test_random_cases_include_both_answers():
     """The seeded sets above are not all in closure, nor all out of it."""
     answers = set()
@@ -116,16 +170,34 @@ def test_force_and_torque_conditions_against_3d_hulls():
     assert len(seen) >= 3, seen
 
 
-def test_never_nan_and_rank_deficient_sets():
-    antipodal = graspcore.grasp_quality([[1, 0, 0], [-1, 0, 0]], [[-1, 0, 0], [1, 0, 0]], 0.7, [0, 0, 0], 1.0)
+@pytest.mark.parametrize("volume", [True, False])
+def test_never_nan_and_rank_deficient_sets(volume):
+    no_volume = 0.0 if volume else -1.0
+    antipodal = graspcore.grasp_quality([[1, 0, 0], [-1, 0, 0]], [[-1, 0, 0], [1, 0, 0]], 0.7, [0, 0, 0], 1.0,
+                                        volume=volume)
     assert antipodal["rank"] == 5 and not antipodal["force_closure"]
-    assert antipodal["epsilon"] == 0.0 and antipodal["volume"] == 0.0 and antipodal["weakest"] == (0.0,) * 6
-    one = graspcore.grasp_quality([[0, 0, 1]], [[0, 0, -1]], 1.0, [0, 0, 0], 1.0)
-    assert one["rank"] == 3 and not one["force_only_closure"]
-    same = graspcore.grasp_quality([[0, 0, 1]] * 4, [[0, 0, -1]] * 4, [0.5, 0.0, 0.5, 1.0], [0, 0, 0], 1.0, 16)
+    assert antipodal["epsilon"] == 0.0 and antipodal["volume"] == no_volume and antipodal["weakest"] == (0.0,) * 6
+    one = graspcore.grasp_quality([[0, 0, 1]], [[0, 0, -1]], 1.0, [0, 0, 0], 1.0, volume=volume)
+    assert one["rank"] == 3 and not one["force_only_closure"] and not one["force_closure"]
+    same = graspcore.grasp_quality([[0, 0, 1]] * 4, [[0, 0, -1]] * 4, [0.5, 0.0, 0.5, 1.0], [0, 0, 0], 1.0, 16,
+                                   volume=volume)
     assert all(math.isfinite(v) for v in (same["epsilon"], same["volume"], *same["weakest"]))
-    empty = graspcore.grasp_quality(np.zeros((0, 3)), np.zeros((0, 3)), 0.5, [0, 0, 0], 1.0)
-    assert empty["rank"] == 0 and not empty["force_closure"]
+    assert not same["force_closure"]
+    empty = graspcore.grasp_quality(np.zeros((0, 3)), np.zeros((0, 3)), 0.5, [0, 0, 0], 1.0, volume=volume)
+    assert empty["rank"] == 0 and not empty["force_closure"] and empty["volume"] == no_volume
+    # Frictionless contacts in one plane, normals through the centre: forces in the plane, no torque.
+    flat = graspcore.grasp_quality([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0]],
+                                   [[-1, 0, 0], [1, 0, 0], [0, -1, 0], [0, 1, 0]], 0.0, [0, 0, 0], 1.0,
+                                   volume=volume)
+    assert flat["rank"] == 2 and not flat["force_closure"] and not flat["force_only_closure"]
+
+
+def test_volume_flag_is_a_bool():
+    with pytest.raises(ValueError, match=r"^volume\b"):
+        graspcore.grasp_quality(**GOOD, volume=1)
+    with pytest.raises(ValueError, match=r"^volume\b"):
+        graspcore.grasp_quality_batch(np.array(GOOD["points"], float), np.array(GOOD["normals"], float), 0.5, [3],
+                                      np.zeros((1, 3)), [1.0], volume="no")
 
 
 def test_batch_equals_single_calls():
@@ -140,6 +212,16 @@ def test_batch_equals_single_calls():
         one = graspcore.grasp_quality(*s, 8)
         for name in graspcore.GRASP_QUALITY_DTYPE.names:
             assert np.array_equal(row[name], np.asarray(one[name])), name
+    fast = graspcore.grasp_quality_batch(
+        np.concatenate([s[0] for s in sets]), np.concatenate([s[1] for s in sets]),
+        np.concatenate([s[2] for s in sets]), counts, np.array([s[3] for s in sets]), [s[4] for s in sets], 8,
+        volume=False)
+    for row, s in zip(fast, sets):
+        one = graspcore.grasp_quality(*s, 8, volume=False)
+        for name in graspcore.GRASP_QUALITY_DTYPE.names:
+            assert np.array_equal(row[name], np.asarray(one[name])), name
+    assert (fast["volume"] == -1.0).all() and (fast["facets"] == -1).all()
+    assert np.array_equal(fast["force_closure"], table["force_closure"])
     assert table["force_closure"].any() and not table["force_closure"].all()
     assert len(graspcore.grasp_quality_batch(np.zeros((0, 3)), np.zeros((0, 3)), 0.5, [], np.zeros((0, 3)), [])) == 0
 
