@@ -93,9 +93,10 @@ def main(argv=None) -> int:
     os.makedirs(tmp, exist_ok=True)
     path = os.path.join(tmp, f"held_{args.minutes:g}min.mcap")
     t0 = time.perf_counter()
+    made = None
     if not os.path.exists(path):
         record(path, args.minutes)
-    made = time.perf_counter() - t0
+        made = time.perf_counter() - t0
     size = os.path.getsize(path)
     os.sync()
     every = args.every
@@ -196,7 +197,7 @@ def main(argv=None) -> int:
           f"{platform.platform()}, load average at the end {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}; the machine "
           f"was shared with other jobs). The recording: a {args.minutes:g}-minute EXEC session of two 0.2 kg boxes "
           f"held in the air, one by three fingers, one pinched by two, carried up and down and sideways (made by "
-          f"the project's recorder in {made:.0f} s; {int(rec.ticks['tick'][-1]) + 1} ticks, {size / 1e6:.0f} MB lz4). "
+          f"the project's recorder{f' in {made:.0f} s' if made else ' (in an earlier run)'}; {int(rec.ticks['tick'][-1]) + 1} ticks, {size / 1e6:.0f} MB lz4). "
           f"`grasp-lab analyze --every {every}` analyses every {every}-th tick (display rate, 30 Hz): "
           f"{analysed} ticks, {sets} held-body samples, {contacts} contacts, cones of 8 edges.\n")
     print("| what | time | target | met |\n|---|---|---|---|")

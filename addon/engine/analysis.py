@@ -24,10 +24,6 @@ from .runner import quat_rotate
 
 SLIP = 2                # gcFingerState
 MU_MAX = 10.0           # mu_min searches friction up to this; above: inf (no friction closes it)
-# The fields of graspcore.grasp_quality_batch's rows that are read here (an answer with no set).
-NO_QUALITY = np.dtype([("force_closure", "?"), ("force_only_closure", "?"), ("torque_closure", "?"),
-                       ("epsilon", "<f8"), ("volume", "<f8"), ("weakest", "<f8", (6,)), ("rank", "<i4"),
-                       ("facets", "<i4")])
 _TINY = 1e-12           # normals shorter than this are "no normal" (a free finger records 0)
 
 
@@ -264,8 +260,7 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
     set_of = np.repeat(np.arange(len(starts)), count)
     centers = centres_of_mass(models, poses[set_t])[np.arange(len(starts)), set_b]
     radii = np.array([m.radius for m in models] + [1.0])[set_b]
-    quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges) if len(starts) \
-        else np.zeros(0, NO_QUALITY)
+    quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges)
     mu_min = _mu_min(core, point, n_in, starts, count, centers, radii, edges)
     if len(starts):
         grip = np.add.reduceat(fn, starts)

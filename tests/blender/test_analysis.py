@@ -291,3 +291,31 @@ def test_analyze_refuses_a_recording_without_normals(tmp_path, monkeypatch):
     monkeypatch.undo()
     code, out, err = run_cli("analyze", str(tmp_path / "old.mcap"))
     assert code == 1 and "older version" in err and "normals" in err, err
+
+
+def test_thinned_read_gives_the_same_numbers(lift):
+    """analyze --every N reads only ticks N k and the tick before each: the same accelerations,
+    so the same numbers as the whole recording analysed, bit for bit."""
+    full = analysis.analyse_recording(lift)
+    thin_rec = recording.open_recording(lift.path, every=50)
+    thin = analysis.analyse_recording(thin_rec, every=50)
+    ticks = thin_rec.ticks["tick"][thin.snapshot]
+    assert len(ticks) > 20 and np.all(ticks % 50 == 0)
+    rows = np.searchsorted(lift.ticks["tick"][full.snapshot], ticks)
+    for name in ("load_force", "grip_force", "min_slip_margin", "mu_min", "friction_needed"):
+        np.testing.assert_array_equal(getattr(thin, name), getattr(full, name)[rows], err_msg=name)
+    np.testing.assert_array_equal(thin.quality, full.quality[rows])
+
+
+def test_cone_edges(three):
+    """--edges K: the contacts' cones of K edges, as the core routine builds them."""
+    for k in (3, 16):
+        table = analysis.analyse_recording(three, every=500, edges=k)
+        g = row_of(table, three, 1500)
+        points = np.array([c.point for c in g.contacts])
+        normals = np.array([c.normal for c in g.contacts])
+        q = graspcore.grasp_quality(points, normals, [c.mu for c in g.contacts], g.center, g.radius, edges=k)
+        assert g.epsilon == q["epsilon"] and g.volume == q["volume"] and g.force_closure == q["force_closure"]
+    eight = row_of(analysis.analyse_recording(three, every=500), three, 1500)
+    sixteen = row_of(analysis.analyse_recording(three, every=500, edges=16), three, 1500)
+    assert sixteen.epsilon > eight.epsilon         # a finer cone spans more of the true one
