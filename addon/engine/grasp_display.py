@@ -78,7 +78,7 @@ class GraspMonitor:
                 self.grasps = analysis.analyse(self.models, snap.poses, snap.god_objects, snap.spring_forces,
                                                snap.normals, snap.finger_states, snap.contacts,
                                                self.finger_radii, accelerations=acc, gravity=self.gravity,
-                                               edges=self.edges)
+                                               edges=self.edges, volume=False)  # the HUD shows no volume
             except ValueError as ex:    # one display update without numbers; the session goes on
                 self.error = str(ex)
         self.cost_s = time.perf_counter() - t0
