@@ -65,7 +65,7 @@ def tick_dtype(n_bodies: int, n_fingers: int) -> np.dtype:
     return np.dtype([(n, t, s) for n, t, s in FIXED_FIELDS] + [
         ("hip", "<f8", (nf, 3)), ("god_object", "<f8", (nf, 3)), ("force", "<f8", (nf, 3)),
         ("device_force", "<f8", (nf, 3)), ("normal", "<f8", (nf, 3)), ("pose", "<f8", (nb, 7)), ("velocity", "<f8", (nb, 6)),
-        ("wrench", "<f8", (nb, 6)), ("state", "<i4", (nf,)), ("contact", "<i4", (nf,))])
+        ("wrench", "<f8", (nb, 6)), ("state", "<i4", (nf,)), ("contact", "<i4", (nf,)), ("parts", "<u4", (nf,))])
 
 
 def schema_of(dtype: np.dtype) -> dict:

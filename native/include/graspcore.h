@@ -272,7 +272,8 @@ gcStatus gc_world_debug_stall(gcWorld *world, double seconds);
  * spring), device_force (after the safety layer), normal (of the first contact, world; 0
  * when free) as 3 f64 each; per body pose (7 f64),
  * velocity (linear of the body frame origin, angular; 6 f64), residual wrench (6 f64); per
- * finger state i32, contact body i32 (-1 free). */
+ * finger state i32, contact body i32 (-1 free); per finger parts u32 (bit i: touches part i of
+ * its body, parts past 31 on bit 31). */
 size_t gc_tick_record_size(int num_bodies, int num_fingers);
 /* The stopped world as one record (after a gc_world_step); device_force = force. */
 gcStatus gc_world_tick_record(gcWorld *world, uint64_t tick, void *out, size_t size);

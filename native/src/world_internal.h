@@ -69,6 +69,7 @@ typedef struct gcFingerContact {
     gcVec3 normal_local;            /* contact plane normal (outward), body frame */
     gcVec3 so_local;                /* surface object, body frame */
     double depth;                   /* HIP depth below the GO plane, last step */
+    double share;                   /* weight of its spring in the finger's force (xfca.c: seams) */
 } gcFingerContact;
 
 #define GC_MAX_CONTACTS_PER_FINGER 8

@@ -148,6 +148,33 @@ static int has_contact_with(const gcFinger *f, int32_t part) {
     return 0;
 }
 
+/* Seams of a decomposed body. Where one finger touches several convex parts of one body,
+ * each part has its own GO, and near a seam between parts of one smooth surface two GOs sit
+ * on nearly the same plane at nearly the same depth: summed, the springs double the force
+ * the finger feels, and it steps up and down as contacts come and go. Each spring is
+ * weighted by share_i = d_i / sum_j d_j max(0, n_i . n_j) over the finger's contacts on the
+ * same body (d depth, n plane normal): parallel planes at equal depth share the force (the
+ * mean), planes at 90 degrees or more apart (a real crease, the two walls of a slot) add
+ * (share 1), and a contact that starts or ends at zero depth weighs nothing then, so the
+ * total stays continuous. A lone contact has share exactly 1 (d / d). docs/physics.md. */
+static void blend_seams(const gcWorld *w, gcFinger *f) {
+    for (int i = 0; i < f->num_contacts; ++i) {
+        gcFingerContact *c = &f->contacts[i];
+        int32_t body = w->parts[c->part].body;
+        double overlap = 0.0;
+        for (int j = 0; j < f->num_contacts; ++j) {
+            const gcFingerContact *o = &f->contacts[j];
+            if (j == i) {
+                overlap += c->depth;
+                continue;
+            }
+            if (w->parts[o->part].body != body) continue;
+            overlap += o->depth * fmax(0.0, gc_dot(c->normal_local, o->normal_local));
+        }
+        c->share = overlap > 0.0 ? c->depth / overlap : 1.0;
+    }
+}
+
 static void finger_update(gcWorld *w, gcFinger *f, double dt) {
     f->hip_velocity = gc_scale(gc_sub(f->hip, f->hip_prev), 1.0 / dt);
     /* Existing contacts, compacting away the ones that ended. */
@@ -187,6 +214,7 @@ static void finger_update(gcWorld *w, gcFinger *f, double dt) {
             if (update_contact(f, b, h, &c, to, dt)) f->contacts[f->num_contacts++] = c;
         }
     }
+    blend_seams(w, f);
 }
 
 /* Force rendered to the device and the finger's reported GO/state (the deepest contact). */
@@ -202,11 +230,11 @@ static void finger_outputs(gcWorld *w, int32_t id) {
         const gcBody *b = &w->bodies[w->parts[c->part].body];
         gcTransform fr = gc_body_transform(b);
         gcVec3 go = gc_transform_point(&fr, c->go_local);
-        force = gc_madd(force, gc_sub(go, f->hip), f->stiffness);
+        force = gc_madd(force, gc_sub(go, f->hip), f->stiffness * c->share);
         if (f->damping > 0.0) {
             /* Damping on the HIP vs the body point at the god-object. */
             gcVec3 v_point = b->is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(go, b->state.com)));
-            force = gc_madd(force, gc_sub(v_point, f->hip_velocity), f->damping);
+            force = gc_madd(force, gc_sub(v_point, f->hip_velocity), f->damping * c->share);
         }
         if (c->depth > deepest) {
             deepest = c->depth;

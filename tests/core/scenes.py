@@ -23,3 +23,69 @@ def quat_to_matrix(q):
         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
         [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
     ])
+
+
+# --------------------------------------------------------------------------- the hooked mug's handle
+# The sample scene mug_hook's mug (sample_scenes/library.py), decomposed as the add-on's Collision
+# Shape Automatic does it, held still: a finger pressed up into the inside of its handle slides
+# along it across the seams between the handle's convex parts.
+
+def mug_parts():
+    """(parts, ring centre, ring major radius, ring minor radius): the mug's convex parts,
+    body frame, and its handle ring (in the x-z plane)."""
+    import os
+    import sys
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    sys.path.insert(0, root)
+    from sample_scenes import library
+    from addon.engine.decompose import decompose
+    mug = next(b for b in library.mug_hook().bodies if b.name == "Mug")
+    verts, faces = library._shape_geometry(mug.shape)
+    tris = [(f[0], f[k], f[k + 1]) for f in faces for k in range(1, len(f) - 1)]
+    parts = decompose(np.array(verts), np.array(tris))
+    ring_shape, offset = mug.shape.shapes[1]
+    return parts, np.array(offset, float), ring_shape.major, ring_shape.minor
+
+
+MUG_FINGER = dict(radius=0.007, stiffness=1500.0, damping=3.0)   # mug_hook's finger
+
+
+def mug_handle_slide(load=4.0, start_deg=60.0, end_deg=120.0, seconds=2.0, hold=0.3, dt=1e-3):
+    """(world, hips): the static mug at the origin and one finger whose HIP presses ``load``
+    newtons outward into the inside of the handle, then slides along the ring's inner arc from
+    ``start_deg`` to ``end_deg`` (angle about the ring centre in the x-z plane, 90 = top) in
+    ``seconds`` with an eased start and end. ``hips`` is (ticks, 3), one HIP per step."""
+    import graspcore
+    parts, centre, major, minor = mug_parts()
+    w = graspcore.World()
+    w.add_body(parts=parts, static=True, mu_s=0.6, mu_d=0.5)
+    k = MUG_FINGER["stiffness"]
+    r_hip = major - minor - MUG_FINGER["radius"] + load / k
+
+    def at(deg):
+        a = np.radians(deg)
+        return centre + r_hip * np.array([np.cos(a), 0.0, np.sin(a)])
+
+    # Approach along the radius from the ring's centre, then hold, then slide.
+    start = at(start_deg)
+    below = centre + (start - centre) * 0.4
+    approach = [below + (start - below) * s for s in np.linspace(0.0, 1.0, int(0.2 / dt))]
+    held = [start] * int(hold / dt)
+    n = int(seconds / dt)
+    s = np.linspace(0.0, 1.0, n)
+    ease = s * s * (3.0 - 2.0 * s)
+    slide = [at(start_deg + (end_deg - start_deg) * e) for e in ease]
+    hips = np.array(approach + held + slide + [at(end_deg)] * int(hold / dt))
+    w.add_finger(position=below, **MUG_FINGER)
+    return w, hips
+
+
+def run_ticks(w, hips, dt=1e-3):
+    """Steps the world along the HIPs, one tick record per step (tick 0: the start)."""
+    ticks = np.zeros(len(hips) + 1, dtype=w.tick_dtype())
+    ticks[0] = w.tick_record(tick=0)
+    for t, h in enumerate(hips, start=1):
+        w.set_hips(np.asarray(h, float).reshape(1, 3))
+        w.step(dt)
+        ticks[t] = w.tick_record(tick=t)
+    return ticks
