@@ -7,8 +7,10 @@ the ``WINDOW`` ticks before it): a contact starting or ending, a stick/slip tran
 change in the set of convex parts the finger touches (the ``parts`` field; recordings made
 before it was added cannot name this cause), a body handed over between the haptic and the
 object thread (``adopted``), the safety layer (forces gated on or off, ramped or clamped:
-the jump is in ``device_force − force``), or the HIP itself jumping (its spring alone gives
-``k |ΔHIP|``). A jump with none of these is *unexplained*.
+the jump is in ``device_force − force``), or the hand itself: the HIP's own terms of the
+coupling, ``−k ΔHIP − c Δv_HIP`` (its spring and its damper: a HIP that starts moving at
+10 cm/s in one tick changes a 2 N s/m damper's force by 0.2 N), when the change without
+them is below the threshold: the god-object did not jump, the hand moved. A jump with none of these is *unexplained*.
 """
 from __future__ import annotations
 
@@ -19,7 +21,7 @@ from .recording import FLAG_FORCES_ENABLED
 DEFAULT_THRESHOLD = 0.25          # N per tick
 WINDOW = 2                        # ticks before a jump whose transitions can explain it
 CAUSES = ("contact onset", "contact end", "stick/slip", "change of convex part",
-          "hand-over between threads", "safety gate", "HIP jump")
+          "hand-over between threads", "safety gate", "HIP motion")
 UNEXPLAINED = "unexplained"
 
 
@@ -35,8 +37,8 @@ def _within(changed: np.ndarray, t: int) -> bool:
     return bool(changed[max(0, t - WINDOW):t + 1].any())
 
 
-def finger_continuity(ticks: np.ndarray, i: int, stiffness: float, threshold: float = DEFAULT_THRESHOLD,
-                      field: str = "device_force") -> dict:
+def finger_continuity(ticks: np.ndarray, i: int, stiffness: float, damping: float = 0.0,
+                      threshold: float = DEFAULT_THRESHOLD, field: str = "device_force") -> dict:
     """Finger ``i`` of the tick records: the distribution of |F(t) − F(t−1)| over the ticks
     where it touches something at t or t − 1 (free ticks would only dilute it), and the
     ticks above ``threshold`` with their causes."""
@@ -67,9 +69,18 @@ def finger_continuity(ticks: np.ndarray, i: int, stiffness: float, threshold: fl
     safety_delta = np.zeros(len(force))
     if field != "force" and len(force) > 1:
         safety_delta[1:] = np.linalg.norm(np.diff(force - ticks["force"][:, i], axis=0), axis=1)
-    hip_delta = np.zeros(len(force))
+    without_hand = delta.copy()          # |dF + k dHIP + c dv_HIP|: the change the hand did not make
     if len(force) > 1:
-        hip_delta[1:] = stiffness * np.linalg.norm(np.diff(ticks["hip"][:, i], axis=0), axis=1)
+        step = np.zeros((len(force), 3))
+        step[1:] = np.diff(ticks["hip"][:, i], axis=0)
+        dt = np.ones(len(force))
+        dt[1:] = np.diff(ticks["time"])
+        velocity = step / np.where(dt > 0.0, dt, np.inf)[:, None]
+        dv = np.zeros_like(velocity)
+        dv[2:] = np.diff(velocity[1:], axis=0)
+        change = np.zeros((len(force), 3))
+        change[1:] = np.diff(force, axis=0)
+        without_hand = np.linalg.norm(change + stiffness * step + damping * dv, axis=1)
     jumps = []
     for t in np.nonzero(delta > threshold)[0].tolist():
         causes = []
@@ -85,8 +96,8 @@ def finger_continuity(ticks: np.ndarray, i: int, stiffness: float, threshold: fl
             causes.append("hand-over between threads")
         if _within(gate, t) or safety_delta[t] > 0.5 * delta[t]:
             causes.append("safety gate")
-        if hip_delta[t] > 0.5 * delta[t]:
-            causes.append("HIP jump")
+        if without_hand[t] <= threshold:
+            causes.append("HIP motion")
         jumps.append({"tick": int(ticks["tick"][t]), "time": float(ticks["time"][t]), "delta": float(delta[t]),
                       "causes": causes or [UNEXPLAINED]})
     worst = int(np.argmax(delta)) if len(delta) else 0
@@ -104,7 +115,8 @@ def force_continuity(rec, threshold: float = DEFAULT_THRESHOLD, field: str = "de
     scene_fingers = rec.header["scene"]["fingers"]
     fingers = []
     for i, name in enumerate(rec.finger_names):
-        r = finger_continuity(rec.ticks, i, float(scene_fingers[i]["stiffness"]), threshold, field)
+        r = finger_continuity(rec.ticks, i, float(scene_fingers[i]["stiffness"]),
+                              float(scene_fingers[i]["damping"]), threshold, field)
         r["name"] = name
         fingers.append(r)
     return {"threshold": threshold, "field": field, "parts_recorded": "parts" in rec.ticks.dtype.names,

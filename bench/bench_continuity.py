@@ -1,0 +1,113 @@
+"""Force continuity over the sample scenes and along the hooked mug's handle (issue 20).
+
+For every scene of sample_scenes/library.py: the scene is built, run headless (EXEC, 1 kHz)
+with a recording, and the recording's force continuity is measured
+(addon/engine/continuity.py): per finger the per-tick change of the rendered force, its
+p99.9 and largest value, and every change above the threshold with its cause. Then the
+mug of `mug_hook` held still while a finger pressed 4 N into its handle slides 60 degrees
+along the inside of the ring across the seams of its convex parts (tests/core/scenes.py).
+
+    .venv/bin/python bench/bench_continuity.py [--threshold 0.25] [--only mug_hook ...]
+
+prints Markdown tables (docs/benchmarks.md, "Force continuity").
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+sys.path.insert(0, ROOT)
+sys.path.insert(0, os.path.join(ROOT, "tests", "core"))
+
+from addon.engine.continuity import cause_counts, finger_continuity, force_continuity  # noqa: E402
+from addon.engine.recording import open_recording  # noqa: E402
+
+
+def scene_rows(names, threshold, folder):
+    py = sys.executable
+    subprocess.run([py, os.path.join(ROOT, "sample_scenes", "library.py"), "--out", folder, "--only", *names],
+                   check=True, stdout=subprocess.DEVNULL)
+    rows = []
+    for name in names:
+        rec_path = os.path.join(folder, f"{name}.mcap")
+        subprocess.run([os.path.join(ROOT, ".venv", "bin", "grasp-lab"), "run", os.path.join(folder, f"{name}.blend"),
+                        "--record", rec_path], check=True, stdout=subprocess.DEVNULL)
+        r = force_continuity(open_recording(rec_path), threshold=threshold)
+        worst = max(r["fingers"], key=lambda f: f["max"])
+        jumps = [j for f in r["fingers"] for j in f["jumps"]]
+        counts = {}
+        for f in r["fingers"]:
+            for c, n in cause_counts(f).items():
+                counts[c] = counts.get(c, 0) + n
+        biggest = max(jumps, key=lambda j: j["delta"]) if jumps else None
+        rows.append({"scene": name, "fingers": len(r["fingers"]),
+                     "p999": max(f["p999"] for f in r["fingers"]), "max": worst["max"], "max_finger": worst["name"],
+                     "max_time": worst["max_time"], "max_causes": biggest["causes"] if biggest else [],
+                     "jumps": len(jumps), "causes": counts,
+                     "unexplained": sum(1 for j in jumps if j["causes"] == ["unexplained"])})
+    return rows
+
+
+def mug_slide(threshold):
+    """The handle slide: the largest per-tick change while slipping, without and with the
+    ticks of a stick/slip transition (the friction law's own step, (mu_s - mu_d) |Fn|)."""
+    import scenes
+    w, hips = scenes.mug_handle_slide()
+    ticks = scenes.run_ticks(w, hips)
+    k = scenes.MUG_FINGER["stiffness"]
+    r = finger_continuity(ticks, 0, k, scenes.MUG_FINGER["damping"], threshold)
+    delta, state = r["delta"], ticks["state"][:, 0]
+    slide = np.zeros(len(delta), dtype=bool)
+    start = 1 + int(0.2 / 1e-3) + int(0.3 / 1e-3)
+    slide[start:start + 2000] = True
+    transition = np.zeros(len(delta), dtype=bool)
+    transition[1:] = state[1:] != state[:-1]
+    near = transition | np.roll(transition, 1)
+    force = np.linalg.norm(ticks["force"][:, 0], axis=1)
+    parts = ticks["parts"][:, 0]
+    part_change = np.zeros(len(delta), dtype=bool)
+    part_change[1:] = (parts[1:] != parts[:-1]) & (parts[1:] != 0) & (parts[:-1] != 0)
+    return {"max_sliding": float(delta[slide & ~near].max()), "max_with_stick_slip": float(delta[slide].max()),
+            "max_at_part_change": float(max(delta[t] for t in np.nonzero(part_change & slide)[0])) if (part_change & slide).any() else 0.0,
+            "part_changes": int((part_change & slide).sum()), "p999": float(np.percentile(delta[slide], 99.9)),
+            "force_min": float(force[slide].min()), "force_max": float(force[slide].max()),
+            "jumps": r["jumps"], "max_parts": int(max(bin(int(p)).count("1") for p in parts))}
+
+
+def main(argv=None):
+    from sample_scenes import library
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--threshold", type=float, default=0.25, help="N per tick (default 0.25)")
+    ap.add_argument("--only", nargs="+", choices=sorted(library.SCENES), help="these scenes only")
+    args = ap.parse_args(argv)
+    with tempfile.TemporaryDirectory() as folder:
+        rows = scene_rows(args.only or list(library.SCENES), args.threshold, folder)
+    print(f"| scene | fingers | p99.9 of per-tick change | largest (finger, time, cause) | changes > {args.threshold:g} N: causes | unexplained |")
+    print("| --- | --- | --- | --- | --- | --- |")
+    for r in rows:
+        causes = ", ".join(f"{c} {n}" for c, n in sorted(r["causes"].items())) or "none"
+        cause = ", ".join(r["max_causes"]) if r["max"] > args.threshold else "below the threshold"
+        print(f"| {r['scene']} | {r['fingers']} | {r['p999']:.3f} N | {r['max']:.3f} N ({r['max_finger']}, "
+              f"{r['max_time']:.3f} s, {cause}) | {r['jumps']}: {causes} | {r['unexplained']} |")
+    m = mug_slide(args.threshold)
+    print()
+    print("| hooked mug's handle, 60 degrees slid at 4 N | value |")
+    print("| --- | --- |")
+    print(f"| largest per-tick change while sliding (stick/slip transitions aside) | {m['max_sliding']:.3f} N |")
+    print(f"| largest at a change of convex part ({m['part_changes']} changes) | {m['max_at_part_change']:.3f} N |")
+    print(f"| largest with the stick/slip transitions | {m['max_with_stick_slip']:.3f} N |")
+    print(f"| p99.9 while sliding | {m['p999']:.3f} N |")
+    print(f"| force while sliding | {m['force_min']:.2f} to {m['force_max']:.2f} N |")
+    print(f"| most parts touched at once | {m['max_parts']} |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
