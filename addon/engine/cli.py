@@ -153,6 +153,17 @@ def _configure_info(p):
     p.add_argument("recording", metavar="REC.mcap")
 
 
+def _configure_continuity(p):
+    p.add_argument("recording", metavar="REC.mcap")
+    p.add_argument("--threshold", type=_positive_float(limits.MAX_CONTINUITY_THRESHOLD), default=None,
+                   metavar="N", help="per-tick force change listed with its cause (default 0.25 N)")
+    p.add_argument("--field", choices=("device_force", "force"), default="device_force",
+                   help="the force measured: what the device got (default) or the coupling force")
+    p.add_argument("--max-jumps", type=_positive_int, default=20, metavar="N",
+                   help="list at most N changes per finger (default 20)")
+    p.add_argument("--strict", action="store_true", help="exit 1 when a change above the threshold has no cause")
+
+
 def _configure_bake(p):
     p.add_argument("recording", metavar="REC.mcap")
     p.add_argument("scene", metavar="SCENE.blend", help="the scene the recording was made in")
@@ -226,6 +237,7 @@ def _run_info(args, out, err):
         p("device      " + line)
     p("versions    " + ", ".join(f"{k} {v}" for k, v in (s["versions"] or {}).items()))
     p("events      " + (", ".join(f"{k} {v}" for k, v in sorted(s["events"].items())) or "none"))
+    p("continuity  " + _continuity_line(args.recording))
     if s["overflow"]:
         p(f"overflow    {s['overflow']} ticks dropped by the recorder (ring full)")
     if s["recorder_error"]:
@@ -233,6 +245,32 @@ def _run_info(args, out, err):
     if s["ended_by"]:
         p(f"ended       early, by {s['ended_by']} (clean: false)")
     p("damage      " + ("; ".join(s["damage"]) if s["damage"] else "none (summary, footer and data CRC intact)"))
+    return EXIT_OK
+
+
+def _continuity_line(path) -> str:
+    """The force continuity of a recording in one line (reads its ticks)."""
+    from .continuity import force_continuity, summary_line
+    from .recording import RecordingError, open_recording
+    try:
+        rec = open_recording(path)
+    except (RecordingError, OSError, ValueError) as ex:
+        return f"not measured ({ex})"
+    if len(rec.ticks) < 2:
+        return "not measured (fewer than 2 ticks)"
+    return summary_line(force_continuity(rec))
+
+
+def _run_continuity(args, out, err):
+    from .continuity import DEFAULT_THRESHOLD, force_continuity, report, unexplained
+    rec = _open(args.recording, err)
+    result = force_continuity(rec, threshold=args.threshold or DEFAULT_THRESHOLD, field=args.field)
+    print(report(result, max_jumps=args.max_jumps), file=out)
+    bad = unexplained(result)
+    if args.strict and bad:
+        name, j = bad[0]
+        raise CliError(f"{args.recording}: {len(bad)} force change(s) above {result['threshold']:g} N with no "
+                       f"cause, the first: {name} {j['delta']:.3f} N at tick {j['tick']}")
     return EXIT_OK
 
 
@@ -327,6 +365,8 @@ register_command("run", "run a scene headless (EXEC, deterministic; --realtime: 
                  _configure_run, _run_run, needs_blender=True)
 register_command("info", "duration, ticks, rates, fingers, bodies, parameters, events and damage of a "
                          "recording", _configure_info, _run_info)
+register_command("continuity", "per-tick change of each finger's force: its distribution and every change "
+                               "above a threshold with its cause", _configure_continuity, _run_continuity)
 register_command("bake", "bake a recording into a scene as keyframes", _configure_bake, _run_bake,
                  needs_blender=True)
 register_command("resim", "re-simulate a recording (with overrides); 'identical' or the divergence report",

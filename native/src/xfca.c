@@ -149,29 +149,64 @@ static int has_contact_with(const gcFinger *f, int32_t part) {
 }
 
 /* Seams of a decomposed body. Where one finger touches several convex parts of one body,
- * each part has its own GO, and near a seam between parts of one smooth surface two GOs sit
- * on nearly the same plane at nearly the same depth: summed, the springs double the force
- * the finger feels, and it steps up and down as contacts come and go. Each spring is
- * weighted by share_i = d_i / sum_j d_j max(0, n_i . n_j) over the finger's contacts on the
- * same body (d depth, n plane normal): parallel planes at equal depth share the force (the
- * mean), planes at 90 degrees or more apart (a real crease, the two walls of a slot) add
- * (share 1), and a contact that starts or ends at zero depth weighs nothing then, so the
- * total stays continuous. A lone contact has share exactly 1 (d / d). docs/physics.md. */
+ * each part has its own GO. Two things go wrong when their springs are simply summed:
+ * near a seam between parts of one smooth surface, two GOs sit on nearly the same plane at
+ * nearly the same depth, so the force doubles; and at a seam, a part's GO on its own
+ * rounded edge lies inside the neighbouring part, off the body's surface, and pushes the
+ * finger back as a ridge would. So each spring i is weighted by
+ *   share_i = e_i / sum_j e_j max(0, n_i . n_j),   e_i = g_i d_i,
+ *   g_i = max(0, 1 - (b_i - b_min) / (GC_SEAM_BURIAL * D))
+ * over the finger's contacts on the same body: d depth, n plane normal, D the deepest d,
+ * b how deep the GO lies inside the other parts touched (inflated by the finger radius)
+ * and b_min the least b. Parallel planes at equal depth share the force (the mean); planes
+ * 90 degrees or more apart (a real crease, the two walls of a slot) add (share 1). Only a
+ * GO buried deeper than the others loses weight: in a concave crease every GO lies inside
+ * the other part (by the other's depth), so equal depths keep the plain sum there. A
+ * contact that starts or ends at zero depth, or sinks into a neighbour, weighs nothing
+ * then, so the total stays continuous. A lone contact has share exactly 1 (d / d), as
+ * before. docs/physics.md. */
+#define GC_SEAM_BURIAL 1.0
+
 static void blend_seams(const gcWorld *w, gcFinger *f) {
+    double effective[GC_MAX_CONTACTS_PER_FINGER], burial[GC_MAX_CONTACTS_PER_FINGER];
+    int shared[GC_MAX_CONTACTS_PER_FINGER];
+    for (int i = 0; i < f->num_contacts; ++i) {
+        const gcFingerContact *c = &f->contacts[i];
+        int32_t body = w->parts[c->part].body;
+        effective[i] = c->depth;
+        burial[i] = 0.0;
+        shared[i] = 0;
+        for (int j = 0; j < f->num_contacts; ++j) {
+            const gcFingerContact *o = &f->contacts[j];
+            if (j == i || w->parts[o->part].body != body) continue;
+            shared[i] = 1;
+            gcVec3 n;
+            burial[i] = fmax(burial[i], -tip_query(&w->parts[o->part].hull, c->go_local, f->radius, &n));
+        }
+    }
+    for (int i = 0; i < f->num_contacts; ++i) {
+        if (!shared[i]) continue;
+        const gcFingerContact *c = &f->contacts[i];
+        int32_t body = w->parts[c->part].body;
+        double deepest = 0.0, least = burial[i];
+        for (int j = 0; j < f->num_contacts; ++j) {
+            if (w->parts[f->contacts[j].part].body != body) continue;
+            deepest = fmax(deepest, f->contacts[j].depth);
+            least = fmin(least, burial[j]);
+        }
+        double sunk = burial[i] - least;
+        if (sunk > 0.0) effective[i] = c->depth * fmax(0.0, 1.0 - sunk / (GC_SEAM_BURIAL * deepest));
+    }
     for (int i = 0; i < f->num_contacts; ++i) {
         gcFingerContact *c = &f->contacts[i];
         int32_t body = w->parts[c->part].body;
         double overlap = 0.0;
         for (int j = 0; j < f->num_contacts; ++j) {
             const gcFingerContact *o = &f->contacts[j];
-            if (j == i) {
-                overlap += c->depth;
-                continue;
-            }
             if (w->parts[o->part].body != body) continue;
-            overlap += o->depth * fmax(0.0, gc_dot(c->normal_local, o->normal_local));
+            overlap += effective[j] * (j == i ? 1.0 : fmax(0.0, gc_dot(c->normal_local, o->normal_local)));
         }
-        c->share = overlap > 0.0 ? c->depth / overlap : 1.0;
+        c->share = overlap > 0.0 ? effective[i] / overlap : 0.0;
     }
 }
 
