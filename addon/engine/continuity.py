@@ -10,7 +10,9 @@ object thread (``adopted``), the safety layer (forces gated on or off, ramped or
 the jump is in ``device_force − force``), or the hand itself: the HIP's own terms of the
 coupling, ``−k ΔHIP − c Δv_HIP`` (its spring and its damper: a HIP that starts moving at
 10 cm/s in one tick changes a 2 N s/m damper's force by 0.2 N), when the change without
-them is below the threshold: the god-object did not jump, the hand moved. A jump with none of these is *unexplained*.
+them is below the threshold, or the change of the change (``Δ²F``, against the tick
+before: a carried body's god-object moves along with the HIP) without the hand's change of
+them is, after a tick that was no jump: the god-object did not jump, the hand moved. A jump with none of these is *unexplained*.
 """
 from __future__ import annotations
 
@@ -80,7 +82,13 @@ def finger_continuity(ticks: np.ndarray, i: int, stiffness: float, damping: floa
         dv[2:] = np.diff(velocity[1:], axis=0)
         change = np.zeros((len(force), 3))
         change[1:] = np.diff(force, axis=0)
-        without_hand = np.linalg.norm(change + stiffness * step + damping * dv, axis=1)
+        hand = stiffness * step + damping * dv
+        trend = np.zeros_like(change)            # the change against the tick before's
+        trend[2:] = np.diff(change[1:] + hand[1:], axis=0)
+        steady = np.ones(len(force), dtype=bool)  # the trend counts after a tick that was no jump
+        steady[1:] = delta[:-1] <= threshold
+        without_hand = np.minimum(np.linalg.norm(change + hand, axis=1),
+                                  np.where(steady, np.linalg.norm(trend, axis=1), np.inf))
     jumps = []
     for t in np.nonzero(delta > threshold)[0].tolist():
         causes = []

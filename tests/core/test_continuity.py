@@ -188,3 +188,28 @@ def test_the_hand_explains_a_jump_its_spring_and_damper_make():
 def test_threshold_must_be_positive():
     with pytest.raises(ValueError, match="threshold"):
         continuity.finger_continuity(_ticks(), 0, K, threshold=0.0)
+
+
+def test_two_jumps_in_a_row_are_both_unexplained():
+    # The second of two equal steps continues the first's trend, but a trend only explains
+    # a change after a tick that was no jump.
+    t = _ticks()
+    _jump(t, 20)
+    _jump(t, 21)
+    r = continuity.finger_continuity(t, 0, K, threshold=0.25)
+    assert [j["causes"] for j in r["jumps"]] == [[continuity.UNEXPLAINED]] * 2
+
+
+def test_a_carried_body_following_the_hand_is_no_jump():
+    # The HIP and the god-object of a carried body both move at 150 mm/s, then 200 mm/s (a
+    # key frame of the animation): the spring's stretch stays, the damper steps by c dv.
+    # The HIP's own terms alone (k dHIP = 0.2 N a tick) do not account for it; the change
+    # against the tick before's does.
+    k, c = 1000.0, 4.0
+    t = _ticks()
+    v = np.where(np.arange(len(t)) >= 20, 0.2, 0.15)
+    t["hip"][:, 0, 1] = np.cumsum(v * 1e-3)
+    t["force"][:, 0, 1] = -1.0 - c * v
+    t["device_force"][:, 0, 1] = t["force"][:, 0, 1]
+    r = continuity.finger_continuity(t, 0, k, c, threshold=0.1)
+    assert [(j["tick"], j["causes"]) for j in r["jumps"]] == [(20, ["HIP motion"])]
