@@ -5,14 +5,17 @@ The hand feels a force discontinuity (the source chapter, §2.6), so a jump must
 physical reason. The causes are read from the tick records around the jump (the tick and
 the ``WINDOW`` ticks before it): a contact starting or ending, a stick/slip transition, a
 change in the set of convex parts the finger touches (the ``parts`` field; recordings made
-before it was added cannot name this cause), a body handed over between the haptic and the
+before it was added cannot name this cause), the touched body's contacts with other bodies
+jumping (it landed on or left the table: its residual force less gravity and the fingers'
+reactions), a body handed over between the haptic and the
 object thread (``adopted``), the safety layer (forces gated on or off, ramped or clamped:
 the jump is in ``device_force − force``), or the hand itself: the HIP's own terms of the
 coupling, ``−k ΔHIP − c Δv_HIP`` (its spring and its damper: a HIP that starts moving at
 10 cm/s in one tick changes a 2 N s/m damper's force by 0.2 N), when the change without
-them is below the threshold, or the change of the change (``Δ²F``, against the tick
-before: a carried body's god-object moves along with the HIP) without the hand's change of
-them is, after a tick that was no jump: the god-object did not jump, the hand moved. A jump with none of these is *unexplained*.
+them is below the threshold: the god-object did not jump, the hand moved. A *steady change*
+is one that, less the hand's terms, differs from the tick before's by less than the threshold,
+after a tick that was no jump or an explained one: the force ramps (a body accelerating, a
+carried body's god-object moving along with the HIP), it does not step. A jump with none of these is *unexplained*.
 """
 from __future__ import annotations
 
@@ -22,8 +25,8 @@ from .recording import FLAG_FORCES_ENABLED
 
 DEFAULT_THRESHOLD = 0.25          # N per tick
 WINDOW = 2                        # ticks before a jump whose transitions can explain it
-CAUSES = ("contact onset", "contact end", "stick/slip", "change of convex part",
-          "hand-over between threads", "safety gate", "HIP motion")
+CAUSES = ("contact onset", "contact end", "stick/slip", "change of convex part", "body contact",
+          "hand-over between threads", "safety gate", "HIP motion", "steady change")
 UNEXPLAINED = "unexplained"
 
 
@@ -39,11 +42,30 @@ def _within(changed: np.ndarray, t: int) -> bool:
     return bool(changed[max(0, t - WINDOW):t + 1].any())
 
 
+def body_contact_forces(ticks: np.ndarray, masses, gravity) -> np.ndarray:
+    """(n, B, 3): per body the force its contacts with other bodies put on it, from the
+    record: the residual force (its rate of change of momentum) less gravity and less the
+    fingers' reactions (a finger exerting ``force`` on the device puts ``−force`` on the
+    body). Static bodies: zero."""
+    n, nb = len(ticks), ticks["wrench"].shape[1]
+    out = np.zeros((n, nb, 3))
+    g = np.asarray(gravity, dtype=np.float64)
+    for b in range(nb):
+        if masses[b] is None:
+            continue
+        on_body = ticks["contact"] == b                                   # (n, F)
+        fingers = np.einsum("nf,nfk->nk", on_body.astype(np.float64), ticks["force"])
+        out[:, b] = ticks["wrench"][:, b, :3] - masses[b] * g + fingers
+    return out
+
+
 def finger_continuity(ticks: np.ndarray, i: int, stiffness: float, damping: float = 0.0,
-                      threshold: float = DEFAULT_THRESHOLD, field: str = "device_force") -> dict:
+                      threshold: float = DEFAULT_THRESHOLD, field: str = "device_force",
+                      body_contacts: np.ndarray | None = None) -> dict:
     """Finger ``i`` of the tick records: the distribution of |F(t) − F(t−1)| over the ticks
     where it touches something at t or t − 1 (free ticks would only dilute it), and the
-    ticks above ``threshold`` with their causes."""
+    ticks above ``threshold`` with their causes. ``body_contacts`` (``body_contact_forces``)
+    lets a jump of the touched body's contacts with other bodies be named."""
     if not threshold > 0.0:
         raise ValueError(f"threshold: expected a positive force in N, got {threshold!r}")
     force = np.ascontiguousarray(ticks[field][:, i])
@@ -71,7 +93,14 @@ def finger_continuity(ticks: np.ndarray, i: int, stiffness: float, damping: floa
     safety_delta = np.zeros(len(force))
     if field != "force" and len(force) > 1:
         safety_delta[1:] = np.linalg.norm(np.diff(force - ticks["force"][:, i], axis=0), axis=1)
+    impact = np.zeros(len(force), dtype=bool)     # the touched body's other contacts jumped
+    if body_contacts is not None and len(force) > 1:
+        body = np.where(touching, contact, np.concatenate(([-1], contact[:-1])))
+        rows = np.nonzero(body[1:] >= 0)[0] + 1
+        step = np.linalg.norm(body_contacts[rows, body[rows]] - body_contacts[rows - 1, body[rows]], axis=1)
+        impact[rows] = step > threshold
     without_hand = delta.copy()          # |dF + k dHIP + c dv_HIP|: the change the hand did not make
+    off_trend = delta.copy()             # the same, against the tick before's
     if len(force) > 1:
         step = np.zeros((len(force), 3))
         step[1:] = np.diff(ticks["hip"][:, i], axis=0)
@@ -82,14 +111,11 @@ def finger_continuity(ticks: np.ndarray, i: int, stiffness: float, damping: floa
         dv[2:] = np.diff(velocity[1:], axis=0)
         change = np.zeros((len(force), 3))
         change[1:] = np.diff(force, axis=0)
-        hand = stiffness * step + damping * dv
-        trend = np.zeros_like(change)            # the change against the tick before's
-        trend[2:] = np.diff(change[1:] + hand[1:], axis=0)
-        steady = np.ones(len(force), dtype=bool)  # the trend counts after a tick that was no jump
-        steady[1:] = delta[:-1] <= threshold
-        without_hand = np.minimum(np.linalg.norm(change + hand, axis=1),
-                                  np.where(steady, np.linalg.norm(trend, axis=1), np.inf))
+        rest = change + stiffness * step + damping * dv
+        without_hand = np.linalg.norm(rest, axis=1)
+        off_trend[2:] = np.linalg.norm(np.diff(rest[1:], axis=0), axis=1)
     jumps = []
+    explained = set()                    # jump ticks with a cause: a trend after one still counts
     for t in np.nonzero(delta > threshold)[0].tolist():
         causes = []
         if _within(onset, t):
@@ -100,12 +126,18 @@ def finger_continuity(ticks: np.ndarray, i: int, stiffness: float, damping: floa
             causes.append("stick/slip")
         if parts is not None and _within(parts, t):
             causes.append("change of convex part")
+        if _within(impact, t):
+            causes.append("body contact")
         if _within(handover, t):
             causes.append("hand-over between threads")
         if _within(gate, t) or safety_delta[t] > 0.5 * delta[t]:
             causes.append("safety gate")
         if without_hand[t] <= threshold:
             causes.append("HIP motion")
+        elif off_trend[t] <= threshold and (t < 1 or delta[t - 1] <= threshold or t - 1 in explained):
+            causes.append("steady change")
+        if causes:
+            explained.add(t)
         jumps.append({"tick": int(ticks["tick"][t]), "time": float(ticks["time"][t]), "delta": float(delta[t]),
                       "causes": causes or [UNEXPLAINED]})
     worst = int(np.argmax(delta)) if len(delta) else 0
@@ -120,11 +152,14 @@ def finger_continuity(ticks: np.ndarray, i: int, stiffness: float, damping: floa
 def force_continuity(rec, threshold: float = DEFAULT_THRESHOLD, field: str = "device_force") -> dict:
     """All fingers of a recording (``recording.Recording``): ``{"threshold", "field",
     "parts_recorded", "fingers": [{"name", ...finger_continuity}]}``."""
-    scene_fingers = rec.header["scene"]["fingers"]
+    scene = rec.header["scene"]
+    scene_fingers = scene["fingers"]
+    masses = [None if b["static"] else float(b["mass"]) for b in scene["bodies"]]
+    body_contacts = body_contact_forces(rec.ticks, masses, scene["gravity"])
     fingers = []
     for i, name in enumerate(rec.finger_names):
         r = finger_continuity(rec.ticks, i, float(scene_fingers[i]["stiffness"]),
-                              float(scene_fingers[i]["damping"]), threshold, field)
+                              float(scene_fingers[i]["damping"]), threshold, field, body_contacts)
         r["name"] = name
         fingers.append(r)
     return {"threshold": threshold, "field": field, "parts_recorded": "parts" in rec.ticks.dtype.names,
