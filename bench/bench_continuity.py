@@ -55,11 +55,11 @@ def scene_rows(names, threshold, folder):
     return rows
 
 
-def mug_slide(threshold, seconds):
+def mug_slide(threshold, seconds, renderer="xfca"):
     """The handle slide: the largest per-tick change while slipping, without and with the
     ticks of a stick/slip transition (the friction law's own step, (mu_s - mu_d) |Fn|)."""
     import scenes
-    w, hips = scenes.mug_handle_slide(seconds=seconds)
+    w, hips = scenes.mug_handle_slide(seconds=seconds, renderer=renderer)
     ticks = scenes.run_ticks(w, hips)
     k = scenes.MUG_FINGER["stiffness"]
     r = finger_continuity(ticks, 0, k, scenes.MUG_FINGER["damping"], threshold)

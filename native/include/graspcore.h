@@ -76,11 +76,18 @@ typedef struct gcBodyDef {
 } gcBodyDef;
 gcBodyDef gc_default_body_def(void);
 
+/* How a finger's force is found (docs/physics.md): the friction-cone god-objects, one per
+ * convex part touched (xFCA), or the light-mass cursor: a mass on the finger's spring and
+ * damper, kept outside all the convex parts together by a constraint solve. */
+typedef enum gcFingerRenderer { GC_RENDERER_XFCA = 0, GC_RENDERER_CURSOR = 1 } gcFingerRenderer;
+
 typedef struct gcFingerDef {
     double radius;          /* fingertip sphere, m (0 = point), default 0.008 */
     double stiffness;       /* N/m, default 1000 */
     double damping;         /* N s/m on the HIP vs god-object-point velocity, default 0 */
     double position[3];     /* initial HIP */
+    gcFingerRenderer renderer; /* default GC_RENDERER_XFCA */
+    double cursor_mass;     /* kg, the cursor renderer's mass, >= 0, default 0.002 */
 } gcFingerDef;
 gcFingerDef gc_default_finger_def(void);
 

@@ -123,6 +123,10 @@ static uint64_t hash_finger(uint64_t h, const gcWorld *w, int i) {
     const gcFinger *f = &w->fingers[i], *shown = w->shown ? &w->shown->fingers[i] : f;
     h = hash_bytes(h, &shown->hip, sizeof shown->hip);
     h = hash_bytes(h, &shown->force, sizeof shown->force);
+    if (f->renderer == GC_RENDERER_CURSOR) { /* its own state (xFCA fingers hash as before) */
+        h = hash_bytes(h, &f->cursor, sizeof f->cursor);
+        h = hash_bytes(h, &f->cursor_velocity, sizeof f->cursor_velocity);
+    }
     for (int c = 0; c < f->num_contacts; ++c) {
         const gcFingerContact *k = &f->contacts[c];
         h = hash_4(h, &k->part);

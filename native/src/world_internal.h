@@ -76,6 +76,9 @@ typedef struct gcFingerContact {
 
 typedef struct gcFinger {
     double radius, stiffness, damping;
+    gcFingerRenderer renderer;      /* xFCA god-objects, or the light-mass cursor (cursor.c) */
+    double cursor_mass;             /* kg, the cursor renderer's */
+    gcVec3 cursor, cursor_velocity; /* the cursor's centre and velocity, world (cursor renderer) */
     gcVec3 hip, hip_prev, hip_velocity;
     int hip_initialised;
     int num_contacts;

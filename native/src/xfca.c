@@ -7,6 +7,8 @@
  * part inflated by the finger radius, so a point finger is radius 0. */
 #include "xfca.h"
 
+#include "cursor.h"
+
 #include <string.h>
 
 /* Conservative advancement is capped; a miss after the cap is treated as no contact
@@ -289,9 +291,20 @@ static void finger_outputs(gcWorld *w, int32_t id) {
 }
 
 void gc_xfca_update(gcWorld *w, double dt) {
-    for (int32_t i = 0; i < w->num_fingers; ++i) finger_update(w, &w->fingers[i], dt);
+    for (int32_t i = 0; i < w->num_fingers; ++i) {
+        gcFinger *f = &w->fingers[i];
+        if (f->renderer == GC_RENDERER_CURSOR)
+            gc_cursor_finger_update(w, f, dt);
+        else
+            finger_update(w, f, dt);
+    }
 }
 
 void gc_xfca_outputs(gcWorld *w) {
-    for (int32_t i = 0; i < w->num_fingers; ++i) finger_outputs(w, i);
+    for (int32_t i = 0; i < w->num_fingers; ++i) {
+        if (w->fingers[i].renderer == GC_RENDERER_CURSOR)
+            gc_cursor_finger_outputs(w, i);
+        else
+            finger_outputs(w, i);
+    }
 }

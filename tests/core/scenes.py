@@ -50,7 +50,7 @@ def mug_parts():
 MUG_FINGER = dict(radius=0.007, stiffness=1500.0, damping=3.0)   # mug_hook's finger
 
 
-def mug_handle_slide(load=4.0, start_deg=20.0, end_deg=80.0, seconds=2.0, hold=0.3, dt=1e-3):
+def mug_handle_slide(load=4.0, start_deg=20.0, end_deg=80.0, seconds=2.0, hold=0.3, dt=1e-3, renderer="xfca"):
     """(world, hips): the static mug at the origin and one finger whose HIP presses ``load``
     newtons outward into the inside of the handle, then slides along the ring's inner arc from
     ``start_deg`` to ``end_deg`` (angle about the ring centre in the x-z plane, 90 = top) in
@@ -76,7 +76,7 @@ def mug_handle_slide(load=4.0, start_deg=20.0, end_deg=80.0, seconds=2.0, hold=0
     ease = s * s * (3.0 - 2.0 * s)
     slide = [at(start_deg + (end_deg - start_deg) * e) for e in ease]
     hips = np.array(approach + held + slide + [at(end_deg)] * int(hold / dt))
-    w.add_finger(position=below, **MUG_FINGER)
+    w.add_finger(position=below, renderer=renderer, **MUG_FINGER)
     return w, hips
 
 
