@@ -26,7 +26,7 @@ ROOT = os.path.dirname(HERE)
 sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.join(ROOT, "tests", "core"))
 
-from addon.engine.continuity import cause_counts, finger_continuity, force_continuity  # noqa: E402
+from addon.engine.continuity import WINDOW, cause_counts, finger_continuity, force_continuity  # noqa: E402
 from addon.engine.recording import open_recording  # noqa: E402
 
 
@@ -69,16 +69,78 @@ def mug_slide(threshold, seconds, renderer="xfca"):
     slide[start:start + int(seconds / 1e-3)] = True
     transition = np.zeros(len(delta), dtype=bool)
     transition[1:] = state[1:] != state[:-1]
-    near = transition | np.roll(transition, 1)
+    near = transition.copy()                # the transition and the ticks it can explain
+    for lag in range(1, WINDOW + 1):
+        near[lag:] |= transition[:-lag]
     force = np.linalg.norm(ticks["force"][:, 0], axis=1)
     parts = ticks["parts"][:, 0]
     part_change = np.zeros(len(delta), dtype=bool)
     part_change[1:] = (parts[1:] != parts[:-1]) & (parts[1:] != 0) & (parts[:-1] != 0)
-    return {"max_sliding": float(delta[slide & ~near].max()), "max_with_stick_slip": float(delta[slide].max()),
+    return {"max_sliding": float(delta[slide & ~near].max()), "renderer": renderer, "max_with_stick_slip": float(delta[slide].max()),
             "max_at_part_change": float(max(delta[t] for t in np.nonzero(part_change & slide)[0])) if (part_change & slide).any() else 0.0,
             "part_changes": int((part_change & slide).sum()), "p999": float(np.percentile(delta[slide], 99.9)),
             "force_min": float(force[slide].min()), "force_max": float(force[slide].max()),
             "jumps": r["jumps"], "max_parts": int(max(bin(int(p)).count("1") for p in parts))}
+
+
+def _step_times(w, hips, dt=1e-3):
+    """Wall time of each w.step (µs), HIPs set outside the timed call."""
+    import time
+    out = np.empty(len(hips))
+    for t, h in enumerate(hips):
+        w.set_hips(np.asarray(h, float).reshape(1, 3))
+        t0 = time.perf_counter_ns()
+        w.step(dt)
+        out[t] = (time.perf_counter_ns() - t0) / 1e3
+    return out
+
+
+def _corner_world(renderer):
+    """Worst case of the cursor's solve: a fingertip pressed into a corner of a cubic cavity
+    whose six walls are six convex parts, sweeping round it (three planes active, six in reach)."""
+    import graspcore
+    import scenes
+    half, t = 0.02, 0.004
+    walls = []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            c = np.zeros(3)
+            c[axis] = sign * (half + t / 2)
+            h = [half + t] * 3
+            h[axis] = t / 2
+            walls.append(scenes.box_points(*h, center=c))
+    w = graspcore.World()
+    w.add_body(parts=walls, static=True, mu_s=0.6, mu_d=0.5)
+    r, d = 0.005, 0.002
+    corner = np.array([half - r + d] * 3)
+    n = 2000
+    a = np.linspace(0.0, 4 * np.pi, n)
+    hips = corner + 0.001 * np.stack([np.cos(a), np.sin(a), np.zeros(n)], axis=1)
+    w.add_finger(radius=r, stiffness=1000.0, damping=2.0, position=np.zeros(3), renderer=renderer)
+    hips = np.concatenate([np.linspace(np.zeros(3), corner, 300), hips])
+    return w, hips
+
+
+def cost(repeats=5):
+    """Per tick of one finger (µs, the step's wall time with the Python call): the handle
+    slide (0.3 s) and the six-wall corner, xFCA beside the cursor, repeats interleaved."""
+    import scenes
+    rows = {}
+    for _ in range(repeats):
+        for scene in ("handle slide", "six-wall corner"):
+            for renderer in ("xfca", "cursor"):
+                if scene == "handle slide":
+                    w, hips = scenes.mug_handle_slide(seconds=0.3, renderer=renderer)
+                else:
+                    w, hips = _corner_world(renderer)
+                rows.setdefault((scene, renderer), []).append(_step_times(w, hips))
+    out = {}
+    for key, runs in rows.items():
+        med = np.median([np.median(r) for r in runs])
+        p99 = np.median([np.percentile(r, 99) for r in runs])
+        worst = np.median([r.max() for r in runs])
+        out[key] = (med, p99, worst)
+    return out
 
 
 SLIDE_SECONDS = (2.0, 0.3)      # 60 degrees of the 13.7 mm arc: 14 and 96 mm/s on average
@@ -89,6 +151,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--threshold", type=float, default=0.25, help="N per tick (default 0.25)")
     ap.add_argument("--only", nargs="+", choices=sorted(library.SCENES), help="these scenes only")
+    ap.add_argument("--cost", action="store_true", help="also time both renderers per tick")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory() as folder:
         rows = scene_rows(args.only or list(library.SCENES), args.threshold, folder)
@@ -99,10 +162,12 @@ def main(argv=None):
         cause = ", ".join(r["max_causes"]) if r["max"] > args.threshold else "below the threshold"
         print(f"| {r['scene']} | {r['fingers']} | {r['p999']:.3f} N | {r['max']:.3f} N ({r['max_finger']}, "
               f"{r['max_time']:.3f} s, {cause}) | {r['jumps']}: {causes} | {r['unexplained']} |")
-    slides = [mug_slide(args.threshold, seconds) for seconds in SLIDE_SECONDS]
+    slides = [mug_slide(args.threshold, seconds, renderer) for renderer in ("xfca", "cursor")
+              for seconds in SLIDE_SECONDS]
     print()
-    print("| hooked mug's handle, 60 degrees slid at 4 N in | " + " | ".join(f"{s:g} s" for s in SLIDE_SECONDS) + " |")
-    print("| --- | " + " | ".join("---" for _ in SLIDE_SECONDS) + " |")
+    print("| hooked mug's handle, 60 degrees slid at 4 N | " +
+          " | ".join(f"{m['renderer']}, {s:g} s" for m, s in zip(slides, SLIDE_SECONDS * 2)) + " |")
+    print("| --- | " + " | ".join("---" for _ in slides) + " |")
     rows = (("largest per-tick change while sliding (stick/slip transitions aside)", "max_sliding", "{:.3f} N"),
             ("largest at a change of convex part", "max_at_part_change", "{:.3f} N"),
             ("changes of convex part while sliding", "part_changes", "{}"),
@@ -113,6 +178,15 @@ def main(argv=None):
             ("most parts touched at once", "max_parts", "{}"))
     for label, key, fmt in rows:
         print(f"| {label} | " + " | ".join(fmt.format(m[key]) for m in slides) + " |")
+    if args.cost:
+        c = cost()
+        print()
+        print("| one finger, per tick (µs: median / p99 / largest) | xFCA | cursor | cursor / xFCA (median) |")
+        print("| --- | --- | --- | --- |")
+        for scene in ("handle slide", "six-wall corner"):
+            x, k = c[(scene, "xfca")], c[(scene, "cursor")]
+            print(f"| {scene} | {x[0]:.2f} / {x[1]:.2f} / {x[2]:.1f} | {k[0]:.2f} / {k[1]:.2f} / {k[2]:.1f} | "
+                  f"{k[0] / x[0]:.1f}x |")
     return 0
 
 

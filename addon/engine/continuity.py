@@ -15,7 +15,9 @@ coupling, ``−k ΔHIP − c Δv_HIP`` (its spring and its damper: a HIP that st
 them is below the threshold: the god-object did not jump, the hand moved. A *steady change*
 is one that, less the hand's terms, differs from the tick before's by less than the threshold,
 after a tick that was no jump or an explained one: the force ramps (a body accelerating, a
-carried body's god-object moving along with the HIP), it does not step. A jump with none of these is *unexplained*.
+carried body's god-object moving along with the HIP), it does not step. *Free motion*: the
+finger touched nothing at that tick or the one before (the cursor renderer's light mass is
+felt in free space). A jump with none of these is *unexplained*.
 """
 from __future__ import annotations
 
@@ -26,7 +28,7 @@ from .recording import FLAG_FORCES_ENABLED
 DEFAULT_THRESHOLD = 0.25          # N per tick
 WINDOW = 2                        # ticks before a jump whose transitions can explain it
 CAUSES = ("contact onset", "contact end", "stick/slip", "change of convex part", "body contact",
-          "hand-over between threads", "safety gate", "HIP motion", "steady change")
+          "hand-over between threads", "safety gate", "HIP motion", "steady change", "free motion")
 UNEXPLAINED = "unexplained"
 
 
@@ -118,6 +120,8 @@ def finger_continuity(ticks: np.ndarray, i: int, stiffness: float, damping: floa
     explained = set()                    # jump ticks with a cause: a trend after one still counts
     for t in np.nonzero(delta > threshold)[0].tolist():
         causes = []
+        if not in_contact[t]:
+            causes.append("free motion")
         if _within(onset, t):
             causes.append("contact onset")
         if _within(end, t):
