@@ -19,6 +19,7 @@ SET_RANGES = {
     "radius": (0.0, 1.0, "m"),
     "stiffness": (1.0, 1e6, "N/m"),
     "damping": (0.0, 1e4, "N s/m"),
+    "cursor_mass": (0.0, 1.0, "kg"),
 }
 
 # Arguments: (low, high); low exclusive where the name says "positive".

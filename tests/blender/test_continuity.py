@@ -63,3 +63,26 @@ def test_info_has_the_continuity_line_and_strict_names_a_jump(bpy, tmp_path, cap
     # ... and a threshold outside its range is a usage error naming the range.
     code, _, err = call("continuity", rec, "--threshold", "-1")
     assert code == 2 and "must be in (0, 10000], got -1" in err + capsys.readouterr().err
+
+
+def test_the_cursor_renderer_from_the_command_line(bpy, tmp_path, capsys):
+    # mug_hook with its finger rendered by the light-mass cursor (run --set), recorded: the
+    # header says so, the mug still hangs from the finger and no change above 0.1 N lacks a
+    # cause; the xFCA recording replayed with the cursor (resim --set) is another run.
+    xfca = _recorded(bpy, "mug_hook", tmp_path)
+    assert recording.open_recording(str(xfca)).header["scene"]["fingers"][0]["renderer"] == "xfca"
+    rec = tmp_path / "cursor.mcap"
+    code, _, err = call("run", tmp_path / "mug_hook.blend", "--set", "Index.renderer=cursor", "--record", rec)
+    assert code == 0, err
+    r = recording.open_recording(str(rec))
+    finger = r.header["scene"]["fingers"][0]
+    assert finger["renderer"] == "cursor" and finger["cursor_mass"] == pytest.approx(0.002)
+    assert r.ticks["contact"][-1, 0] == r.body_names.index("Mug")
+    code, out, err = call("continuity", rec, "--threshold", "0.1", "--strict")
+    assert code == 0, err + out
+    again = tmp_path / "again.mcap"
+    code, out, _ = call("resim", xfca, "--set", "Index.renderer=cursor", "--record", again)
+    assert code == 0 and out.startswith("diverged")
+    assert recording.open_recording(str(again)).header["scene"]["fingers"][0]["renderer"] == "cursor"
+    code, _, err = call("resim", xfca, "--set", "Index.renderer=lcp")
+    assert code == 2 and "renderer expects xfca or cursor" in err + capsys.readouterr().err
