@@ -143,6 +143,26 @@ def cost(repeats=5):
     return out
 
 
+def bowl(renderer):
+    """The decomposed bowl traced inside at 3 N (tests/core/scenes.py, bowl_trace)."""
+    import scenes
+    w, hips = scenes.bowl_trace(renderer=renderer)
+    ticks = scenes.run_ticks(w, hips)
+    r = finger_continuity(ticks, 0, 1000.0, 2.0, 0.1)
+    state = ticks["state"][:, 0]
+    transition = np.zeros(len(state), dtype=bool)
+    transition[1:] = state[1:] != state[:-1]
+    near = transition.copy()
+    for lag in range(1, WINDOW + 1):
+        near[lag:] |= transition[:-lag]
+    trace = np.zeros(len(state), dtype=bool)
+    trace[401:1901] = True
+    force = np.linalg.norm(ticks["force"][:, 0], axis=1)
+    return {"max_sliding": float(r["delta"][trace & ~near].max()), "max": float(r["delta"][trace].max()),
+            "force_min": float(force[trace].min()), "force_max": float(force[trace].max()),
+            "unexplained": sum(1 for j in r["jumps"] if j["causes"] == ["unexplained"])}
+
+
 SLIDE_SECONDS = (2.0, 0.3)      # 60 degrees of the 13.7 mm arc: 14 and 96 mm/s on average
 
 
@@ -178,6 +198,15 @@ def main(argv=None):
             ("most parts touched at once", "max_parts", "{}"))
     for label, key, fmt in rows:
         print(f"| {label} | " + " | ".join(fmt.format(m[key]) for m in slides) + " |")
+    bowls = {r: bowl(r) for r in ("xfca", "cursor")}
+    print()
+    print("| the bowl (20 parts) traced 120 degrees inside at 3 N in 1.5 s | xfca | cursor |")
+    print("| --- | --- | --- |")
+    for label, key, fmt in (("largest per-tick change (stick/slip transitions aside)", "max_sliding", "{:.3f} N"),
+                            ("largest with the stick/slip transitions", "max", "{:.3f} N"),
+                            ("changes above 0.1 N with no cause", "unexplained", "{}"),
+                            ("least force", "force_min", "{:.2f} N"), ("largest force", "force_max", "{:.2f} N")):
+        print(f"| {label} | " + " | ".join(fmt.format(bowls[r][key]) for r in ("xfca", "cursor")) + " |")
     if args.cost:
         c = cost()
         print()

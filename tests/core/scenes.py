@@ -89,3 +89,67 @@ def run_ticks(w, hips, dt=1e-3):
         w.step(dt)
         ticks[t] = w.tick_record(tick=t)
     return ticks
+
+
+def bowl_parts(outer=0.04, wall=0.006, rings=8, segments=24):
+    """A hemispherical bowl (opening up, rim at z = 0, centre of its sphere at the origin) as a
+    closed mesh, decomposed as the add-on's Collision Shape Automatic does it: its convex parts."""
+    import os
+    import sys
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    sys.path.insert(0, root)
+    from addon.engine.decompose import decompose
+    inner = outer - wall
+    verts, tris = [], []
+
+    def ring(radius, k):                      # k = 0 at the rim ... rings at the bottom pole
+        a = 0.5 * np.pi * k / rings
+        return [(radius * np.cos(a) * np.cos(2 * np.pi * j / segments), radius * np.cos(a) * np.sin(2 * np.pi * j / segments),
+                 -radius * np.sin(a)) for j in range(segments)]
+
+    for surface, radius in ((0, outer), (1, inner)):
+        for k in range(rings):
+            verts += ring(radius, k)
+        verts.append((0.0, 0.0, -radius))     # pole
+    n_side = rings * segments + 1
+    for surface in (0, 1):
+        base = surface * n_side
+        pole = base + rings * segments
+        for k in range(rings):
+            for j in range(segments):
+                a, b = base + k * segments + j, base + k * segments + (j + 1) % segments
+                if k + 1 < rings:
+                    c, d = base + (k + 1) * segments + (j + 1) % segments, base + (k + 1) * segments + j
+                    quad = [(a, d, c), (a, c, b)] if surface == 0 else [(a, c, d), (a, b, c)]
+                    tris += quad
+                else:
+                    tris.append((a, pole, b) if surface == 0 else (a, b, pole))
+    for j in range(segments):                 # the rim joins the two surfaces
+        a, b = j, (j + 1) % segments
+        c, d = n_side + (j + 1) % segments, n_side + j
+        tris += [(a, b, c), (a, c, d)]
+    return decompose(np.array(verts), np.array(tris)), outer, inner
+
+
+def bowl_trace(renderer="xfca", load=3.0, seconds=1.5, radius=0.006, stiffness=1000.0, damping=2.0,
+               mu=(0.6, 0.5)):
+    """(world, hips): a fingertip pressed ``load`` N into the inside of the static bowl traced
+    from one side of it through the bottom to the other (a 120 degree arc)."""
+    import graspcore
+    parts, outer, inner = bowl_parts()
+    w = graspcore.World()
+    w.add_body(parts=parts, static=True, mu_s=mu[0], mu_d=mu[1])
+    r_hip = inner - radius + load / stiffness
+
+    def at(deg):                               # angle from straight down, in the x-z plane
+        a = np.radians(deg)
+        return r_hip * np.array([np.sin(a), 0.0, -np.cos(a)])
+
+    start = at(-60.0)
+    approach = [start * s for s in np.linspace(0.5, 1.0, 200)]
+    n = int(seconds / 1e-3)
+    s = np.linspace(0.0, 1.0, n)
+    ease = s * s * (3.0 - 2.0 * s)
+    hips = np.array(approach + [start] * 200 + [at(-60.0 + 120.0 * e) for e in ease] + [at(60.0)] * 200)
+    w.add_finger(radius=radius, stiffness=stiffness, damping=damping, position=hips[0], renderer=renderer)
+    return w, hips
