@@ -248,6 +248,16 @@ void gc_cursor_finger_update(gcWorld *w, gcFinger *f, double dt) {
             int sc;
             x = solve(w, f, xf, slip, sp, &sc, sl);
             state = GC_FINGER_SLIP;
+            /* The parts it rests on now: those of the slip's solve that hold it, else the
+             * frictionless solve's (a slip within one face meets no new plane). */
+            double sum = 0.0;
+            for (int i = 0; i < sc; ++i) sum += sl[i];
+            if (sum > 0.0) {
+                memcpy(planes, sp, (size_t)sc * sizeof *sp);
+                memcpy(lambda, sl, (size_t)sc * sizeof *sl);
+                count = sc;
+                lambda_sum = sum;
+            }
         } else {
             state = GC_FINGER_STICK; /* first touch: where the constraint put it */
         }
