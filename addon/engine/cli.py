@@ -257,7 +257,7 @@ def _run_info(args, out, err):
         p("device      " + line)
     p("versions    " + ", ".join(f"{k} {v}" for k, v in (s["versions"] or {}).items()))
     p("events      " + (", ".join(f"{k} {v}" for k, v in sorted(s["events"].items())) or "none"))
-    p("continuity  " + _continuity_line(args.recording))
+    p("continuity  " + _continuity_line(args.recording, s["ticks"]))
     if s["overflow"]:
         p(f"overflow    {s['overflow']} ticks dropped by the recorder (ring full)")
     if s["recorder_error"]:
@@ -268,10 +268,18 @@ def _run_info(args, out, err):
     return EXIT_OK
 
 
-def _continuity_line(path) -> str:
+# info reads every tick for its continuity line up to this many (about a second of reading);
+# a longer recording names the command that measures it, so info stays quick.
+INFO_CONTINUITY_TICKS = 200_000
+
+
+def _continuity_line(path, ticks: int) -> str:
     """The force continuity of a recording in one line (reads its ticks)."""
     from .continuity import force_continuity, summary_line
     from .recording import RecordingError, open_recording
+    if ticks > INFO_CONTINUITY_TICKS:
+        return (f"not measured by info for {ticks} ticks (more than {INFO_CONTINUITY_TICKS}): "
+                f"grasp-lab continuity {path}")
     try:
         rec = open_recording(path)
     except (RecordingError, OSError, ValueError) as ex:
