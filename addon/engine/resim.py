@@ -186,6 +186,23 @@ def compare(recorded: Recording, new_ticks: np.ndarray, tolerance: float, same_r
     return div
 
 
+def replay(world, hips: np.ndarray, dt: float, has_start: bool = True, before_step=None) -> np.ndarray:
+    """Step ``world`` once per row of ``hips`` ((steps, fingers, 3): each step's HIPs) and
+    return every tick's record; tick 0, the state before the first step, only ``if has_start``.
+    ``before_step(world, k)``, if given, runs before step k (0-based): the sweep's pushes."""
+    ticks = np.zeros(len(hips) + 1, dtype=world.tick_dtype())
+    world._tick_record(ticks[:1], 0)
+    n_f = hips.shape[1] if hips.ndim == 3 else 0
+    for k in range(len(hips)):
+        if n_f:
+            world.set_hips(hips[k])
+        if before_step is not None:
+            before_step(world, k)
+        world.step(dt)
+        world._tick_record(ticks[k + 1:k + 2], k + 1)
+    return ticks if has_start else ticks[1:]
+
+
 def resimulate(recorded: Recording, graspcore, overrides=(), tolerance: float = 1e-6,
                record_path: str | None = None, compression: str = "lz4") -> ResimResult:
     """Replay ``recorded``'s HIPs, tick by tick, through a world built from its header."""
@@ -216,16 +233,7 @@ def resimulate(recorded: Recording, graspcore, overrides=(), tolerance: float = 
     has_start = int(recorded.ticks["tick"][0]) == 0
     if same_rate and has_start:
         hips = hips[1:]
-    ticks = np.zeros(len(hips) + 1, dtype=world.tick_dtype())
-    world._tick_record(ticks[:1], 0)
-    n_f = len(handle.finger_ids)
-    for k in range(len(hips)):
-        if n_f:
-            world.set_hips(hips[k])
-        world.step(dt)
-        world._tick_record(ticks[k + 1:k + 2], k + 1)
-    if not has_start:
-        ticks = ticks[1:]
+    ticks = replay(world, hips, dt, has_start)
     div = compare(recorded, ticks, tolerance, same_rate)
     header = make_header(desc, mode="resim", haptic_rate=rate, source=recorded.path,
                          fps=recorded.header["rates"].get("fps"), device=recorded.header.get("device"),
