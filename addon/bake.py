@@ -5,8 +5,10 @@ arrows (the "Grasp Lab" collection) get keys at the scene's frame rate, or at ev
 haptic tick as subframes. Measures for the Graph Editor are animated custom properties:
 on "GL God-object <finger>": ``gl_state`` (0 free, 1 stick, 2 slip), ``gl_force`` |F|,
 ``gl_normal_force`` |Fn|, ``gl_tangential_force`` |Ft|, ``gl_friction_use``
-|Ft|/(mu_s |Fn|); on "GL Force <body>": ``gl_grip`` (sum of |Fn| of the fingers on it),
-``gl_force`` |residual force|, ``gl_torque`` |residual torque|.
+|Ft|/(mu |Fn|) (mu of the contact's current cone); on "GL Force <body>": ``gl_grip`` (sum
+of |Fn| of the fingers on it), ``gl_force`` |residual force|, ``gl_torque`` |residual torque|,
+and the grasp analysis (engine/analysis.py, docs/analysis.md): ``gl_held``, ``gl_closure``,
+``gl_epsilon``, ``gl_mu_min``, ``gl_slip_margin``, ``gl_grip_load``.
 """
 from __future__ import annotations
 
@@ -18,6 +20,7 @@ import numpy as np
 from mathutils import Matrix, Quaternion
 
 from . import anim, display
+from .engine import analysis
 from .engine.recording import Recording, scene_from_dict
 from .engine.runner import quat_rotate
 
@@ -195,18 +198,16 @@ def _custom(obj, props: dict, run=None) -> list:
 
 
 def finger_measures(rec: Recording, ticks) -> dict:
-    """Per finger (n, nf): |F|, |Fn|, |Ft|, friction use |Ft| / (mu_s |Fn|), state."""
-    f, n = np.ascontiguousarray(ticks["force"]), np.ascontiguousarray(ticks["normal"])
-    fn = np.einsum("ijk,ijk->ij", f, n)
-    tangential = f - fn[:, :, None] * n
-    ft = np.sqrt(np.einsum("ijk,ijk->ij", tangential, tangential))
+    """Per finger (n, nf): |F|, |Fn|, |Ft|, friction use |Ft| / (mu |Fn|) with the mu of its
+    current cone (analysis.friction_use; NONE when unbounded: a finger pulling), state."""
+    f = np.ascontiguousarray(ticks["force"])
+    fn, ft = analysis.contact_forces(f, ticks["normal"])
     contact = ticks["contact"]
-    mu = np.array([b["mu_s"] for b in rec.header["scene"]["bodies"]] + [np.nan])
-    mu_c = mu[np.where(contact >= 0, contact, len(mu) - 1)]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        use = np.where((contact >= 0) & (np.abs(fn) > 1e-12), ft / (mu_c * np.abs(fn)), 0.0)
+    mu = analysis.cone_mu(analysis.body_models(rec.header["scene"]), ticks["state"], contact)
+    use = np.where(contact >= 0, analysis.friction_use(ft, mu, fn), 0.0)
     return {"gl_state": ticks["state"].astype(np.float64), "gl_force": np.sqrt(np.einsum("ijk,ijk->ij", f, f)),
-            "gl_normal_force": np.abs(fn), "gl_tangential_force": ft, "gl_friction_use": use}
+            "gl_normal_force": np.abs(fn), "gl_tangential_force": ft,
+            "gl_friction_use": np.where(np.isfinite(use), use, analysis.NONE)}
 
 
 def bake_recording(context, rec: Recording, every_tick: bool = False, force_scale: float | None = None,
@@ -273,14 +274,20 @@ def bake_recording(context, rec: Recording, every_tick: bool = False, force_scal
         c = per["contact"][j]
         on = c >= 0
         np.add.at(grip, (np.flatnonzero(on), c[on]), fn[j, on])
+    # The grasp measures of each held body (docs/analysis.md), at the baked ticks.
+    rows = np.unique(idx)
+    grasp = analysis.body_series(analysis.analyse_recording(rec, rows=rows), rows, len(desc.bodies))
+    at = np.searchsorted(rows, idx)
     for k, i in enumerate(shown.dynamic):
         force_arrow, torque_arrow = shown.force_arrows[k], shown.torque_arrows[k]
         for arrow in (force_arrow, torque_arrow):
             arrow.rotation_mode = "QUATERNION"
         for name in ("gl_grip", "gl_force", "gl_torque"):
             force_arrow[name] = 0.0
+        props = _custom(force_arrow, {name: np.ascontiguousarray(v[:, i]) for name, v in grasp.items()}, at)
         jobs.append(partial(_arrows_job, force_arrow, torque_arrow, per["pose"][i], per["wrench"][i],
-                            desc.bodies[i].mass_properties.center_of_mass, grip[:, i], force_scale, torque_scale))
+                            desc.bodies[i].mass_properties.center_of_mass, grip[:, i], force_scale, torque_scale,
+                            props))
 
     wm = context.window_manager
     wm.progress_begin(0, len(jobs))
@@ -309,9 +316,9 @@ def _point_job(obj, points, parent, extra):
     return [(obj, _point_channels(points, parent) + extra, None)]
 
 
-def _arrows_job(force_arrow, torque_arrow, pose, wrench, com_local, grip, force_scale, torque_scale):
+def _arrows_job(force_arrow, torque_arrow, pose, wrench, com_local, grip, force_scale, torque_scale, extra):
     """A body's force and torque arrows, once per run of equal poses and wrenches (a body at
-    rest: once), and the arrow's measures (grip, |force|, |torque|)."""
+    rest: once), and the arrow's measures (grip, |force|, |torque|, and ``extra``'s channels)."""
     change = _changes(pose) | _changes(wrench)
     pose, run = _distinct(pose, change)
     wrench = wrench[change]
@@ -319,5 +326,5 @@ def _arrows_job(force_arrow, torque_arrow, pose, wrench, com_local, grip, force_
     force, torque = wrench[:, :3], wrench[:, 3:]
     props = [('["gl_grip"]', 0, grip), ('["gl_force"]', 0, _norms(force), run),
              ('["gl_torque"]', 0, _norms(torque), run)]
-    return [(force_arrow, _arrow_channels(com, force, force_scale, run) + props, None),
+    return [(force_arrow, _arrow_channels(com, force, force_scale, run) + props + extra, None),
             (torque_arrow, _arrow_channels(com, torque, torque_scale, run), None)]

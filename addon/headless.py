@@ -109,7 +109,8 @@ def _report(args, result, end, applied, out) -> int:
 def bake(args, out, err) -> int:
     open_blend(args.scene)
     render = bpy.context.scene.render
-    rec = open_recording(args.recording, fps=None if args.every_tick else render.fps / render.fps_base)
+    rec = open_recording(args.recording, fps=None if args.every_tick else render.fps / render.fps_base,
+                         previous=True)
     for w in rec.warnings():
         print(f"warning: {w}", file=err)
     report = baking.bake_recording(bpy.context, rec, every_tick=args.every_tick)

@@ -6,6 +6,7 @@
 #include <Python.h>
 
 #include <stdatomic.h>
+#include <limits.h>
 #include <string.h>
 
 #include "graspcore.h"
@@ -687,16 +688,18 @@ static PyObject *World_push_hips(PyObject *obj, PyObject *args) {
 }
 
 /* _snapshot() -> (time, object_time, tick, forces_enabled, n_bodies, n_fingers, poses,
- * wrenches, adopted, god_objects, hips, forces, spring_forces, states, contact_bodies),
- * arrays as bytearrays (float64, uint8 or int32) for numpy.frombuffer. */
+ * wrenches, adopted, god_objects, hips, forces, spring_forces, states, contact_bodies,
+ * normals, velocities), arrays as bytearrays (float64, uint8 or int32) for numpy.frombuffer. */
 static PyObject *World_snapshot(PyObject *obj, PyObject *unused) {
     WorldObject *self = (WorldObject *)obj;
     if (!check_world(self)) return NULL;
     if (!gc_world_running(self->world) && !check_ready(self)) return NULL;
     int nb = gc_world_body_count(self->world), nf = gc_world_finger_count(self->world);
-    Py_ssize_t sizes[9] = {nb * 7 * 8, nb * 6 * 8, nb, nf * 3 * 8, nf * 3 * 8, nf * 3 * 8, nf * 3 * 8, nf * 4, nf * 4};
-    PyObject *arrays[9] = {NULL};
-    for (int i = 0; i < 9; ++i) {
+    enum { N_ARRAYS = 11 };
+    Py_ssize_t sizes[N_ARRAYS] = {nb * 7 * 8, nb * 6 * 8, nb,     nf * 3 * 8, nf * 3 * 8, nf * 3 * 8,
+                                  nf * 3 * 8, nf * 4,     nf * 4, nf * 3 * 8, nb * 6 * 8};
+    PyObject *arrays[N_ARRAYS] = {NULL};
+    for (int i = 0; i < N_ARRAYS; ++i) {
         arrays[i] = PyByteArray_FromStringAndSize(NULL, sizes[i]);
         if (!arrays[i]) {
             for (int j = 0; j < i; ++j) Py_DECREF(arrays[j]);
@@ -714,14 +717,16 @@ static PyObject *World_snapshot(PyObject *obj, PyObject *unused) {
     snap.spring_forces = (double *)PyByteArray_AsString(arrays[6]);
     snap.finger_states = (int32_t *)PyByteArray_AsString(arrays[7]);
     snap.contact_bodies = (int32_t *)PyByteArray_AsString(arrays[8]);
+    snap.normals = (double *)PyByteArray_AsString(arrays[9]);
+    snap.velocities = (double *)PyByteArray_AsString(arrays[10]);
     gcStatus st = gc_world_snapshot(self->world, &snap);
     if (st < 0) {
-        for (int i = 0; i < 9; ++i) Py_DECREF(arrays[i]);
+        for (int i = 0; i < N_ARRAYS; ++i) Py_DECREF(arrays[i]);
         return raise_status(self, st);
     }
-    return Py_BuildValue("(ddKiiiNNNNNNNNN)", snap.time, snap.object_time, (unsigned long long)snap.tick,
+    return Py_BuildValue("(ddKiiiNNNNNNNNNNN)", snap.time, snap.object_time, (unsigned long long)snap.tick,
                          snap.forces_enabled, nb, nf, arrays[0], arrays[1], arrays[2], arrays[3], arrays[4],
-                         arrays[5], arrays[6], arrays[7], arrays[8]);
+                         arrays[5], arrays[6], arrays[7], arrays[8], arrays[9], arrays[10]);
 }
 
 static PyObject *World_stats(PyObject *obj, PyObject *unused) {
@@ -828,6 +833,177 @@ static PyObject *module_tick_record_size(PyObject *mod, PyObject *args) {
         return NULL;
     }
     return PyLong_FromSize_t(gc_tick_record_size(nb, nf));
+}
+
+/* ---- grasp quality (docs/api.md "Grasp quality") ---- */
+
+/* One workspace kept between calls (its storage grows to the largest grasp seen); a call that
+ * finds it in use on another thread (the GIL is released while it works) makes its own. */
+static gcGraspWorkspace *cached_workspace;
+static atomic_int cached_workspace_busy;
+
+static gcGraspWorkspace *workspace_take(void) {
+    if (atomic_exchange(&cached_workspace_busy, 1) == 0) {
+        if (!cached_workspace) cached_workspace = gc_grasp_workspace_create();
+        if (cached_workspace) return cached_workspace;
+        atomic_store(&cached_workspace_busy, 0);
+    }
+    gcGraspWorkspace *ws = gc_grasp_workspace_create();
+    if (!ws) PyErr_NoMemory();
+    return ws;
+}
+
+static void workspace_give(gcGraspWorkspace *ws) {
+    if (ws && ws == cached_workspace)
+        atomic_store(&cached_workspace_busy, 0);
+    else
+        gc_grasp_workspace_destroy(ws);
+}
+
+/* Up to 8 C-contiguous buffers of a grasp call: each of format fmt[i] ('d' float64, 'i' int32)
+ * and, when count[i] >= 0, exactly that many items. 1 on success (release with release_all). */
+typedef struct GraspBuffers {
+    Py_buffer b[8];
+    int n;
+} GraspBuffers;
+
+static void release_all(GraspBuffers *g) {
+    for (int i = 0; i < g->n; ++i) PyBuffer_Release(&g->b[i]);
+    g->n = 0;
+}
+
+static int take_buffer(GraspBuffers *g, PyObject *arg, char fmt, Py_ssize_t count, const char *name, int writable) {
+    Py_buffer *b = &g->b[g->n];
+    if (PyObject_GetBuffer(arg, b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | (writable ? PyBUF_WRITABLE : 0)) < 0)
+        return 0;
+    Py_ssize_t size = fmt == 'd' ? (Py_ssize_t)sizeof(double) : (Py_ssize_t)sizeof(int32_t);
+    int ok = writable ? 1 : (b->format && b->format[0] == fmt && b->format[1] == '\0' && b->itemsize == size);
+    if (ok && count >= 0) ok = b->len == count * size;
+    if (!ok) {
+        PyErr_Format(PyExc_ValueError, "%s: expected a C-contiguous %s array of %zd items", name,
+                     fmt == 'd' ? "float64" : "int32", count);
+        PyBuffer_Release(b);
+        return 0;
+    }
+    ++g->n;
+    return 1;
+}
+
+static PyObject *grasp_quality_dict(const gcGraspQuality *q) {
+    return Py_BuildValue("{s:O,s:O,s:O,s:d,s:d,s:(dddddd),s:i,s:i}", "force_closure",
+                         q->force_closure ? Py_True : Py_False, "force_only_closure",
+                         q->force_only_closure ? Py_True : Py_False, "torque_closure",
+                         q->torque_closure ? Py_True : Py_False, "epsilon", q->epsilon, "volume", q->volume, "weakest",
+                         q->weakest[0], q->weakest[1], q->weakest[2], q->weakest[3], q->weakest[4], q->weakest[5],
+                         "rank", (int)q->rank, "facets", (int)q->facets);
+}
+
+/* _grasp_quality(points, normals, mu, center, radius, edges): float64 buffers of 3n, 3n, n, 3. */
+static PyObject *module_grasp_quality(PyObject *mod, PyObject *args) {
+    PyObject *po, *no, *mo, *co;
+    double radius;
+    int edges;
+    if (!PyArg_ParseTuple(args, "OOOOdi", &po, &no, &mo, &co, &radius, &edges)) return NULL;
+    GraspBuffers g = {.n = 0};
+    PyObject *result = NULL;
+    if (take_buffer(&g, mo, 'd', -1, "mu", 0)) {
+        Py_ssize_t n = g.b[0].len / (Py_ssize_t)sizeof(double);
+        if (n > INT_MAX / 3) {
+            PyErr_SetString(PyExc_ValueError, "points: too many contacts");
+        } else if (take_buffer(&g, po, 'd', 3 * n, "points", 0) && take_buffer(&g, no, 'd', 3 * n, "normals", 0) &&
+                   take_buffer(&g, co, 'd', 3, "center", 0)) {
+            gcGraspWorkspace *ws = workspace_take();
+            if (ws) {
+                gcGraspDef def = gc_default_grasp_def();
+                def.edges = edges;
+                gcGraspQuality q;
+                gcStatus st;
+                Py_BEGIN_ALLOW_THREADS
+                st = gc_grasp_quality(ws, &def, g.b[1].buf, g.b[2].buf, g.b[0].buf, (int)n, g.b[3].buf, radius, &q);
+                Py_END_ALLOW_THREADS
+                result = st < 0 ? raise_message(st, gc_grasp_workspace_error(ws)) : grasp_quality_dict(&q);
+                workspace_give(ws);
+            }
+        }
+    }
+    release_all(&g);
+    return result;
+}
+
+/* _grasp_quality_batch(points, normals, mu, counts (int32), centers, radii, edges, out): out a writable
+ * buffer of len(counts) * GRASP_QUALITY_SIZE bytes, filled with gcGraspQuality records. */
+static PyObject *module_grasp_quality_batch(PyObject *mod, PyObject *args) {
+    PyObject *po, *no, *mo, *ko, *co, *ro, *oo;
+    int edges;
+    if (!PyArg_ParseTuple(args, "OOOOOOiO", &po, &no, &mo, &ko, &co, &ro, &edges, &oo)) return NULL;
+    GraspBuffers g = {.n = 0};
+    PyObject *result = NULL;
+    if (take_buffer(&g, mo, 'd', -1, "mu", 0) && take_buffer(&g, ko, 'i', -1, "counts", 0)) {
+        Py_ssize_t rows = g.b[0].len / (Py_ssize_t)sizeof(double);
+        Py_ssize_t sets = g.b[1].len / (Py_ssize_t)sizeof(int32_t);
+        if (rows > INT_MAX / 3 || sets > INT_MAX / 3) {
+            PyErr_SetString(PyExc_ValueError, "counts: too many contact sets");
+        } else if (take_buffer(&g, po, 'd', 3 * rows, "points", 0) &&
+                   take_buffer(&g, no, 'd', 3 * rows, "normals", 0) &&
+                   take_buffer(&g, co, 'd', 3 * sets, "centers", 0) && take_buffer(&g, ro, 'd', sets, "radii", 0) &&
+                   take_buffer(&g, oo, 'd', -1, "out", 1)) {
+            const int32_t *counts = g.b[1].buf;
+            long long total = 0;
+            for (Py_ssize_t s = 0; s < sets; ++s) total += counts[s] > 0 ? counts[s] : 0;
+            if (g.b[6].len != sets * (Py_ssize_t)sizeof(gcGraspQuality)) {
+                PyErr_SetString(PyExc_ValueError, "out: wrong size");
+            } else if (total != rows) {
+                PyErr_Format(PyExc_ValueError, "counts: they add up to %lld contacts, points has %zd rows", total,
+                             rows);
+            } else {
+                gcGraspWorkspace *ws = workspace_take();
+                if (ws) {
+                    gcGraspDef def = gc_default_grasp_def();
+                    def.edges = edges;
+                    gcStatus st;
+                    Py_BEGIN_ALLOW_THREADS
+                    st = gc_grasp_quality_batch(ws, &def, g.b[2].buf, g.b[3].buf, g.b[0].buf, counts, (int)sets,
+                                                g.b[4].buf, g.b[5].buf, g.b[6].buf);
+                    Py_END_ALLOW_THREADS
+                    result = st < 0 ? raise_message(st, gc_grasp_workspace_error(ws)) : Py_NewRef(Py_None);
+                    workspace_give(ws);
+                }
+            }
+        }
+    }
+    release_all(&g);
+    return result;
+}
+
+/* _grasp_mu_min(points, normals, center, radius, edges, mu_max) -> float. */
+static PyObject *module_grasp_mu_min(PyObject *mod, PyObject *args) {
+    PyObject *po, *no, *co;
+    double radius, mu_max;
+    int edges;
+    if (!PyArg_ParseTuple(args, "OOOdid", &po, &no, &co, &radius, &edges, &mu_max)) return NULL;
+    GraspBuffers g = {.n = 0};
+    PyObject *result = NULL;
+    if (take_buffer(&g, po, 'd', -1, "points", 0)) {
+        Py_ssize_t n = g.b[0].len / (Py_ssize_t)(3 * sizeof(double));
+        if (n > INT_MAX / 3 || g.b[0].len % (Py_ssize_t)(3 * sizeof(double)) != 0) {
+            PyErr_SetString(PyExc_ValueError, "points: expected xyz rows");
+        } else if (take_buffer(&g, no, 'd', 3 * n, "normals", 0) && take_buffer(&g, co, 'd', 3, "center", 0)) {
+            gcGraspWorkspace *ws = workspace_take();
+            if (ws) {
+                gcGraspDef def = gc_default_grasp_def();
+                def.edges = edges;
+                double mu = 0.0;
+                gcStatus st;
+                Py_BEGIN_ALLOW_THREADS
+                st = gc_grasp_mu_min(ws, &def, g.b[0].buf, g.b[1].buf, (int)n, g.b[2].buf, radius, mu_max, &mu);
+                Py_END_ALLOW_THREADS
+                result = st < 0 ? raise_message(st, gc_grasp_workspace_error(ws)) : PyFloat_FromDouble(mu);
+                workspace_give(ws);
+            }
+        }
+    }
+    release_all(&g);
+    return result;
 }
 
 /* ---- serial devices ---- */
@@ -1077,6 +1253,10 @@ static int add_defaults(PyObject *m) {
 
 static int module_exec(PyObject *m) {
     if (add_defaults(m) < 0) return -1;
+    gcGraspDef grasp = gc_default_grasp_def();
+    if (PyModule_AddIntConstant(m, "GRASP_QUALITY_SIZE", (long)sizeof(gcGraspQuality)) < 0 ||
+        PyModule_AddIntConstant(m, "GRASP_DEFAULT_EDGES", grasp.edges) < 0)
+        return -1;
     World_Type = PyType_FromSpec(&World_spec);
     if (!World_Type || PyModule_AddObjectRef(m, "World", World_Type) < 0) return -1;
     View_Type = PyType_FromSpec(&View_spec);
@@ -1087,6 +1267,10 @@ static int module_exec(PyObject *m) {
 static PyMethodDef module_methods[] = {
     {"tick_record_size", module_tick_record_size, METH_VARARGS,
      "tick_record_size(num_bodies, num_fingers) -> bytes of one tick log record."},
+    {"_grasp_quality", module_grasp_quality, METH_VARARGS, "Low-level grasp_quality; use graspcore.grasp_quality."},
+    {"_grasp_quality_batch", module_grasp_quality_batch, METH_VARARGS,
+     "Low-level grasp_quality_batch; use graspcore.grasp_quality_batch."},
+    {"_grasp_mu_min", module_grasp_mu_min, METH_VARARGS, "Low-level grasp_mu_min; use graspcore.grasp_mu_min."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -236,6 +236,11 @@ typedef struct gcSnapshot {
     double *spring_forces;      /* 3 per finger: the physics spring force, unclamped */
     int32_t *finger_states;     /* gcFingerState per finger */
     int32_t *contact_bodies;    /* per finger, -1 when free */
+    double *normals;            /* 3 per finger: plane normal of the contact whose god-object, state
+                                 * and body it reports (its deepest), world, pointing out of the
+                                 * body touched (as in the tick record); 0 when free */
+    double *velocities;         /* 6 per body: linear velocity of the body frame origin, angular
+                                 * (world), as gc_world_body_velocity */
 } gcSnapshot;
 gcStatus gc_world_snapshot(gcWorld *world, gcSnapshot *snapshot);
 
@@ -269,7 +274,7 @@ gcStatus gc_world_debug_stall(gcWorld *world, double seconds);
  * time f64, object_time f64, state_hash u64, period_us f32, work_us f32, flags u32 (bit 0:
  * device forces enabled), adopted u32, log_us f32 (what recording the previous tick cost, real
  * time); then per finger hip, god_object, force (the coupling
- * spring), device_force (after the safety layer), normal (of the first contact, world; 0
+ * spring), device_force (after the safety layer), normal (of the reported contact, world; 0
  * when free) as 3 f64 each; per body pose (7 f64),
  * velocity (linear of the body frame origin, angular; 6 f64), residual wrench (6 f64); per
  * finger state i32, contact body i32 (-1 free). */
@@ -363,6 +368,62 @@ int gc_world_serial_events(gcWorld *world, int32_t device, gcSerialEvent *out, i
  * the call to use instead of push_hips while serial devices are attached.
  * GC_WARN_REJECTED: a NaN/Inf position (nothing pushed). */
 gcStatus gc_world_push_device_hips(gcWorld *world, int finger_offset, int count, const double *positions);
+
+
+/* ---- Grasp quality (docs/api.md "Grasp quality") ----
+ * The grasp wrench space (GWS) of point contacts with linearised friction cones: edge j of
+ * contact i is f = n_i + mu_i (cos(2 pi j/k) t1_i + sin(2 pi j/k) t2_i), t1 = normalize(n x a)
+ * with a the world axis of smallest |n.a| (ties: x, then y, then z), t2 = n x t1; its wrench is
+ * (f, (p - center) x f / radius). A contact with mu 0 gives one wrench (its k edges coincide).
+ * The GWS is the convex hull of the edge wrenches (6-D); force closure = the origin strictly
+ * inside it. Exact: the hull is built facet by facet, no sampling. A workspace holds all
+ * storage; it grows to the largest problem it has seen and is reused without allocating. */
+typedef struct gcGraspDef {
+    int edges;              /* friction cone edges per contact, >= 3, default 8 */
+    double tolerance;       /* relative to the largest wrench norm: rank, flatness, visibility and
+                             * "strictly inside" (origin more than this far inside every facet);
+                             * default 1e-10 */
+    int max_facets;         /* cap on the facets alive at once, default 1 << 20 (GC_ERR_CAPACITY past it) */
+} gcGraspDef;
+gcGraspDef gc_default_grasp_def(void);
+
+typedef struct gcGraspQuality {
+    int32_t force_closure;      /* 1: origin strictly inside the 6-D GWS */
+    int32_t force_only_closure; /* 1: origin strictly inside the hull of the edge forces (3-D) */
+    int32_t torque_closure;     /* 1: origin strictly inside the hull of the scaled edge torques (3-D) */
+    int32_t rank;               /* dimension of the linear span of the edge wrenches, 0..6 */
+    int32_t facets;             /* simplicial facets of the 6-D hull (0 when it is not full-dimensional) */
+    int32_t reserved;
+    double epsilon;             /* distance from the origin to the nearest facet; 0 when not in closure */
+    double volume;              /* 6-D volume of the GWS; 0 when it is not full-dimensional */
+    double weakest[6];          /* unit outward normal of the nearest facet (fx fy fz tx ty tz); 0 when not
+                                 * in closure */
+} gcGraspQuality;
+
+typedef struct gcGraspWorkspace gcGraspWorkspace;
+/* NULL when out of memory. */
+gcGraspWorkspace *gc_grasp_workspace_create(void);
+void gc_grasp_workspace_destroy(gcGraspWorkspace *ws);
+/* Message for the last failed call with this workspace, naming the argument (empty when none). */
+const char *gc_grasp_workspace_error(const gcGraspWorkspace *ws);
+
+/* One contact set: num_contacts >= 0 rows of points, normals (xyz, inward, normalised here; a zero
+ * normal is an error) and mu (>= 0). def NULL = defaults. */
+gcStatus gc_grasp_quality(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
+                          const double *normals, const double *mu, int num_contacts, const double center[3],
+                          double radius, gcGraspQuality *out);
+/* num_sets contact sets: counts[s] contacts each, their rows concatenated in points, normals, mu;
+ * centers 3 and radii 1 per set; out num_sets results. Stops at the first bad set (the message
+ * names it). */
+gcStatus gc_grasp_quality_batch(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
+                                const double *normals, const double *mu, const int32_t *counts, int num_sets,
+                                const double *centers, const double *radii, gcGraspQuality *out);
+/* The smallest friction coefficient (the same at every contact) at which the set is in force
+ * closure, by bisection to 1e-6 (closure only grows with mu): 0 for frictionless closure,
+ * INFINITY when not in closure at mu_max. */
+gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
+                         const double *normals, int num_contacts, const double center[3], double radius,
+                         double mu_max, double *out_mu);
 
 
 #ifdef __cplusplus

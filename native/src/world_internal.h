@@ -82,6 +82,7 @@ typedef struct gcFinger {
     /* Outputs. */
     gcVec3 god_object;              /* world: force-weighted GO, or the HIP when free */
     gcVec3 force;                   /* rendered to the device: k (GO - HIP) + damping */
+    gcVec3 normal;                  /* world: the reported contact's outward normal, 0 when free */
     int32_t contact_body;           /* -1 when free */
     gcFingerState state;
 } gcFinger;

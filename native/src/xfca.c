@@ -189,12 +189,14 @@ static void finger_update(gcWorld *w, gcFinger *f, double dt) {
     }
 }
 
-/* Force rendered to the device and the finger's reported GO/state (the deepest contact). */
+/* Force rendered to the device and the finger's reported GO, normal and state: the deepest
+ * contact's (the analysis takes the GO, the normal and the body as one contact). */
 static void finger_outputs(gcWorld *w, int32_t id) {
     gcFinger *f = &w->fingers[id];
     gcVec3 force = gc_v3(0, 0, 0);
     double deepest = -1.0;
     f->god_object = f->hip;
+    f->normal = gc_v3(0, 0, 0);
     f->contact_body = -1;
     f->state = GC_FINGER_FREE;
     for (int i = 0; i < f->num_contacts; ++i) {
@@ -211,6 +213,7 @@ static void finger_outputs(gcWorld *w, int32_t id) {
         if (c->depth > deepest) {
             deepest = c->depth;
             f->god_object = go;
+            f->normal = gc_mat3_mul_vec(&b->state.R, c->normal_local);
             f->contact_body = w->parts[c->part].body;
             f->state = c->state;
         }

@@ -10,7 +10,8 @@ import numpy as np
 
 from . import _core
 
-__all__ = ["World", "FINGER_STATES", "BODY_DEFAULTS", "FINGER_DEFAULTS", "tick_dtype"]
+__all__ = ["World", "FINGER_STATES", "BODY_DEFAULTS", "FINGER_DEFAULTS", "tick_dtype", "grasp_quality",
+           "grasp_quality_batch", "grasp_mu_min", "GRASP_QUALITY_DTYPE"]
 
 # The core's own defaults (gc_default_body_def / gc_default_finger_def), not copies.
 BODY_DEFAULTS = dict(_core.BODY_DEFAULTS)
@@ -185,12 +186,16 @@ class World(_core.World):
         (n, 7), ``residual_forces`` / ``residual_torques`` (n, 3), ``adopted`` (n,) bool;
         per finger ``god_objects``, ``hips``, ``forces`` (device: clamped, ramped, zero
         under the watchdog), ``spring_forces`` (physics, unclamped) (m, 3),
-        ``finger_states`` (m,) int32 (0 free, 1 stick, 2 slip) and ``contact_bodies``
-        (m,) int32 (-1 when free). While the runtime runs, the world's queries and views
-        answer from the last snapshot."""
+        ``finger_states`` (m,) int32 (0 free, 1 stick, 2 slip), ``contact_bodies``
+        (m,) int32 (-1 when free) and ``normals`` (m, 3): the plane normal of the contact
+        whose god-object it reports (the deepest), world, pointing out of the body touched (0
+        when free); per body ``linear_velocities``
+        (of the body frame origin, as ``body_velocity``) and ``angular_velocities`` (n, 3).
+        While the runtime runs, the world's queries and views answer from the last snapshot."""
         (time, object_time, tick, enabled, nb, nf, poses, wrenches, adopted, gos, hips, forces,
-         springs, states, contacts) = self._snapshot()
+         springs, states, contacts, normals, velocities) = self._snapshot()
         wrenches = np.frombuffer(wrenches, dtype=np.float64).reshape(nb, 6)
+        velocities = np.frombuffer(velocities, dtype=np.float64).reshape(nb, 6)
         return {
             "time": time,
             "object_time": object_time,
@@ -206,6 +211,9 @@ class World(_core.World):
             "spring_forces": np.frombuffer(springs, dtype=np.float64).reshape(nf, 3),
             "finger_states": np.frombuffer(states, dtype=np.int32),
             "contact_bodies": np.frombuffer(contacts, dtype=np.int32),
+            "normals": np.frombuffer(normals, dtype=np.float64).reshape(nf, 3),
+            "linear_velocities": velocities[:, :3],
+            "angular_velocities": velocities[:, 3:],
         }
 
     # ---- Tick log (docs/recording-format.md): one record per tick for recorders.
@@ -233,3 +241,123 @@ class World(_core.World):
         if out.dtype != self.tick_dtype() or out.ndim != 1 or not out.flags.c_contiguous:
             raise ValueError("out: expected a C-contiguous 1-d array of World.tick_dtype()")
         return out[:self._drain_ticks(out)]
+
+
+# ---- Grasp quality (docs/api.md "Grasp quality"): the grasp wrench space of point contacts.
+
+# The core's gcGraspQuality record, and the structured array grasp_quality_batch returns.
+_GRASP_RECORD = np.dtype([
+    ("force_closure", "<i4"), ("force_only_closure", "<i4"), ("torque_closure", "<i4"), ("rank", "<i4"),
+    ("facets", "<i4"), ("reserved", "<i4"), ("epsilon", "<f8"), ("volume", "<f8"), ("weakest", "<f8", (6,)),
+])
+if _GRASP_RECORD.itemsize != _core.GRASP_QUALITY_SIZE:
+    raise RuntimeError("graspcore: gcGraspQuality does not match the core (rebuild the core)")
+GRASP_QUALITY_DTYPE = np.dtype([
+    ("force_closure", "?"), ("force_only_closure", "?"), ("torque_closure", "?"), ("epsilon", "<f8"),
+    ("volume", "<f8"), ("weakest", "<f8", (6,)), ("rank", "<i4"), ("facets", "<i4"),
+])
+
+
+def _rows3(value, name: str) -> np.ndarray:
+    try:
+        array = np.ascontiguousarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}: expected an (N, 3) array of numbers ({exc})") from None
+    if array.ndim == 1 and array.size == 3:
+        array = array.reshape(1, 3)
+    if array.ndim == 1 and array.size == 0:
+        array = array.reshape(0, 3)
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise ValueError(f"{name}: expected an (N, 3) array, got shape {array.shape}")
+    return array
+
+
+def _vector(value, size: int, name: str) -> np.ndarray:
+    try:
+        array = np.ascontiguousarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}: expected {size} numbers ({exc})") from None
+    if array.shape != (size,):
+        raise ValueError(f"{name}: expected shape ({size},), got {array.shape}")
+    return array
+
+
+def _contacts(points, normals, mu):
+    points = _rows3(points, "points")
+    normals = _rows3(normals, "normals")
+    if normals.shape != points.shape:
+        raise ValueError(f"normals: expected shape {points.shape} like points, got {normals.shape}")
+    n = points.shape[0]
+    try:
+        mu_array = np.asarray(mu, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"mu: expected a number or {n} numbers ({exc})") from None
+    if mu_array.ndim == 0:
+        mu_array = np.full(n, float(mu_array))
+    if mu_array.shape != (n,):
+        raise ValueError(f"mu: expected a number or shape ({n},), got {mu_array.shape}")
+    return points, normals, np.ascontiguousarray(mu_array)
+
+
+def _number(value, name: str, kind=float):
+    try:
+        if kind is int:
+            if isinstance(value, bool) or int(value) != value:
+                raise ValueError("not an integer")
+            return int(value)
+        return float(value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name}: expected {'an integer' if kind is int else 'a number'}, got {value!r} ({exc})") from None
+
+
+def grasp_quality(points, normals, mu, center, radius, edges: int = 8) -> dict:
+    """Quality of a grasp by point contacts with friction (docs/api.md "Grasp quality").
+
+    points (n, 3) contact points, normals (n, 3) inward normals (into the object), mu one number
+    or (n,), center the object's centre of mass, radius > 0 the torque scale, edges >= 3 per
+    linearised friction cone. Returns force_closure, force_only_closure, torque_closure, epsilon,
+    volume, weakest (6 floats), rank, facets. Bad input raises ValueError naming the argument."""
+    points, normals, mu = _contacts(points, normals, mu)
+    return _core._grasp_quality(points, normals, mu, _vector(center, 3, "center"), _number(radius, "radius"),
+                                _number(edges, "edges", int))
+
+
+def grasp_quality_batch(points, normals, mu, counts, centers, radii, edges: int = 8) -> np.ndarray:
+    """grasp_quality of many contact sets: counts[s] contacts in set s, their rows of points,
+    normals and mu (one number or one per row) concatenated; centers (m, 3), radii (m,).
+    Returns a structured array of GRASP_QUALITY_DTYPE, one row per set."""
+    points, normals, mu = _contacts(points, normals, mu)
+    try:
+        counts_array = np.asarray(counts)
+        if counts_array.ndim != 1 or (counts_array.size and not np.issubdtype(counts_array.dtype, np.integer)):
+            raise ValueError(f"shape {counts_array.shape}, dtype {counts_array.dtype}")
+        if counts_array.size and (counts_array.min() < 0 or counts_array.max() > np.iinfo(np.int32).max):
+            raise ValueError("a count is negative or too large")
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"counts: expected a 1-d array of contact counts >= 0 ({exc})") from None
+    counts_array = np.ascontiguousarray(counts_array, dtype=np.int32)
+    m = counts_array.shape[0]
+    if int(counts_array.sum(dtype=np.int64)) != points.shape[0]:
+        raise ValueError(f"counts: they add up to {int(counts_array.sum(dtype=np.int64))} contacts, "
+                         f"points has {points.shape[0]} rows")
+    centers_array = _rows3(centers, "centers") if m else np.zeros((0, 3))
+    if centers_array.shape != (m, 3):
+        raise ValueError(f"centers: expected shape ({m}, 3), got {centers_array.shape}")
+    radii_array = _vector(radii, m, "radii")
+    raw = np.zeros(m, dtype=_GRASP_RECORD)
+    if m:
+        _core._grasp_quality_batch(points, normals, mu, counts_array, np.ascontiguousarray(centers_array),
+                                   radii_array, _number(edges, "edges", int), raw.view(np.uint8))
+    out = np.zeros(m, dtype=GRASP_QUALITY_DTYPE)
+    for name in GRASP_QUALITY_DTYPE.names:
+        out[name] = raw[name]
+    return out
+
+
+def grasp_mu_min(points, normals, center, radius, edges: int = 8, mu_max: float = 10.0) -> float:
+    """The smallest friction coefficient (the same at every contact) at which the contact set is
+    in force closure, by bisection to 1e-6; 0.0 for frictionless closure, math.inf when not in
+    closure at mu_max."""
+    points, normals, _ = _contacts(points, normals, 0.0)
+    return _core._grasp_mu_min(points, normals, _vector(center, 3, "center"), _number(radius, "radius"),
+                               _number(edges, "edges", int), _number(mu_max, "mu_max"))
