@@ -216,10 +216,11 @@ def _mu_min(core, point, normal, starts, count, centers, radii, edges) -> np.nda
 
 
 def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_bodies, finger_radii,
-                   accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8) -> GraspTable:
+                   accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, with_mu_min=True) -> GraspTable:
     """The measures for T snapshots at once: poses (T, nb, 7), god_objects / forces / normals
     (T, nf, 3), states / contact_bodies (T, nf), finger_radii (nf,), accelerations (T, nb, 3)
-    of the centres of mass or None (0: the load is the weight)."""
+    of the centres of mass or None (0: the load is the weight). ``with_mu_min=False`` skips
+    mu_min (a bisection, most of the cost; NaN in the table): the sweep's samples."""
     core = _core()
     poses = np.asarray(poses, dtype=np.float64)
     god_objects = np.asarray(god_objects, dtype=np.float64)
@@ -266,7 +267,8 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
     radii = np.array([m.radius for m in models] + [1.0])[set_b]
     quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges) if len(starts) \
         else np.zeros(0, NO_QUALITY)
-    mu_min = _mu_min(core, point, n_in, starts, count, centers, radii, edges)
+    mu_min = _mu_min(core, point, n_in, starts, count, centers, radii, edges) if with_mu_min else \
+        np.full(len(starts), np.nan)
     if len(starts):
         grip = np.add.reduceat(fn, starts)
         friction_needed = np.maximum.reduceat(needed, starts)
@@ -327,7 +329,8 @@ def analyse(models, poses, god_objects, forces, normals, states, contact_bodies,
     return body_grasps(table)
 
 
-def analyse_recording(rec, every: int = 1, edges: int = 8, rows=None, chunk: int = 4096) -> GraspTable:
+def analyse_recording(rec, every: int = 1, edges: int = 8, rows=None, chunk: int = 4096,
+                      with_mu_min: bool = True) -> GraspTable:
     """The measures at the tick records of a Recording whose tick number is a multiple of
     ``every`` (all of them for 1), or at its records ``rows``, with the centres of mass's
     accelerations from the recorded velocities (each tick against the record before it: read
@@ -350,7 +353,7 @@ def analyse_recording(rec, every: int = 1, edges: int = 8, rows=None, chunk: int
         t = rec.ticks[r]
         acc = recorded_accelerations(models, rec.ticks, r)
         table = analyse_arrays(models, t["pose"], t["god_object"], t["force"], t["normal"], t["state"],
-                               t["contact"], radii, acc, gravity, edges)
+                               t["contact"], radii, acc, gravity, edges, with_mu_min)
         table.snapshot = r[table.snapshot]
         parts.append(table)
     if not parts:

@@ -34,7 +34,7 @@ from .scene import build_world
 PUSH_DURATION = 0.05        # s: a push is a force held this long (an impulse of N x 0.05 N s)
 DROP_GRACE = 0.05           # s: losing the body for longer than this is a drop
 HOLD_FINGERS = 2            # fingers on a body for it to count as held
-ANALYSIS_PERIOD = 0.01      # s: the grasp measures are taken every this (100 Hz) while held
+ANALYSIS_PERIOD = 0.02      # s: the grasp measures are taken every this (50 Hz) while held
 Z95 = 1.959963984540054     # two-sided 95 % normal quantile
 CHUNK_SECONDS_LOCAL = 0.25  # s of work per task on the local pool (balance, resume granularity)
 CHUNK_SECONDS_DASK = 1.0    # s of work per task on a Dask cluster at least (its per-task overhead)
@@ -173,6 +173,7 @@ class Job:
     body: int                   # the held body (index in the scene)
     window: tuple               # (first, last) record the recording holds the body
     analysis: bool
+    analysis_period: float = ANALYSIS_PERIOD
     cells: int = 1
     grid_shape: tuple = ()
 
@@ -257,7 +258,8 @@ def _copy_desc(desc):
     return copy.deepcopy(desc)
 
 
-def make_job(rec, varies, seed: int, body_name: str | None = None, analysis: bool = True) -> Job:
+def make_job(rec, varies, seed: int, body_name: str | None = None, analysis: bool = True,
+             analysis_period: float = ANALYSIS_PERIOD) -> Job:
     if len(rec.ticks) < 2:
         raise SweepError(f"{rec.path}: too few ticks to re-simulate")
     if not (0 <= int(seed) < 2 ** 63):
@@ -278,6 +280,7 @@ def make_job(rec, varies, seed: int, body_name: str | None = None, analysis: boo
     return Job(scene=rec.header["scene"], rate=float(rec.haptic_rate), hips=np.ascontiguousarray(hips),
                has_start=has_start, times=np.ascontiguousarray(rec.ticks["time"]), varies=list(varies),
                seed=int(seed), body=body, window=(int(held[0]), int(held[-1])), analysis=bool(analysis),
+               analysis_period=float(analysis_period),
                cells=int(np.prod(grid_shape)) if grid_shape else 1, grid_shape=grid_shape)
 
 
@@ -463,8 +466,11 @@ def max_slip(ticks, body: int) -> float:
 
 
 def _analysis_outcomes(job, ticks, desc, start, stop, held):
+    """Time in force closure and the smallest epsilon while held, from analysis.py's measures
+    every analysis_period (mu_min, a bisection, skipped: it is not reported here). A contact set
+    the quality routine refuses leaves both empty (None) rather than losing the sample."""
     analysis = _analysis_module()
-    every = max(1, int(round(ANALYSIS_PERIOD * job.rate)))
+    every = max(1, int(round(job.analysis_period * job.rate)))
     rows = np.arange(start, stop + 1, every)
     rows = rows[held[rows]]
     if len(rows) == 0:
@@ -474,7 +480,10 @@ def _analysis_outcomes(job, ticks, desc, start, stop, held):
         path = "sample"
         header = {"scene": scene_to_dict(desc)}
     _Run.ticks = ticks
-    table = analysis.analyse_recording(_Run, rows=rows)
+    try:
+        table = analysis.analyse_recording(_Run, rows=rows, with_mu_min=False)
+    except ValueError:
+        return {"closure_time": None, "min_epsilon": None}
     mine = table.body == job.body
     closure = table.quality["force_closure"][mine]
     eps = table.quality["epsilon"][mine]
@@ -725,6 +734,7 @@ def summarize(job: Job, rows: list, spec: dict) -> dict:
                "p_held": k / n if n else None, "ci95": [lo, hi], "ci_method": "Wilson score, 95 %",
                "hold_window": [float(job.times[job.window[0]]), float(job.times[job.window[1]])],
                "sensitivity": sensitivity(job, rows),
+               "analysis_refused": sum(1 for r in rows if job.analysis and r["min_epsilon"] is None),
                "outcomes": {name: _stats(r[name] for r in rows)
                             for name in fieldnames(job)[len(job.columns) + 3:]}}
     return summary
@@ -828,7 +838,8 @@ def _bins(vary: Vary, x, rows):
 def spec_of(job: Job, rec, samples_per_cell: int) -> dict:
     return {"recording": os.path.abspath(rec.path), "fingerprint": rec.header.get("fingerprint", ""),
             "ticks": int(len(rec.ticks)), "body": job.scene["bodies"][job.body]["name"], "seed": job.seed,
-            "vary": [v.text for v in job.varies], "analysis": job.analysis, "samples_per_cell": samples_per_cell,
+            "vary": [v.text for v in job.varies], "analysis": job.analysis,
+            "analysis_period": job.analysis_period, "samples_per_cell": samples_per_cell,
             "cells": job.cells, "total": samples_per_cell * job.cells}
 
 
@@ -841,7 +852,7 @@ def _check_resume(folder: str, spec: dict) -> None:
             old = json.load(fh)
     except (OSError, ValueError) as ex:
         raise SweepError(f"{path}: not readable ({ex}); use another --out") from None
-    for key in ("fingerprint", "ticks", "body", "seed", "vary", "analysis", "cells"):
+    for key in ("fingerprint", "ticks", "body", "seed", "vary", "analysis", "analysis_period", "cells"):
         if old.get(key) != spec[key]:
             raise SweepError(f"{folder} holds another sweep ({key}: {old.get(key)!r} there, {spec[key]!r} "
                              f"now); use another --out to start a new one")
@@ -857,10 +868,11 @@ class SweepResult:
 
 
 def sweep(rec, varies, samples: int, seed: int, folder: str, workers: int = 1, scheduler: str | None = None,
-          body: str | None = None, analysis: bool = True, pictures: bool = True, progress=None) -> SweepResult:
+          body: str | None = None, analysis: bool = True, analysis_period: float = ANALYSIS_PERIOD,
+          pictures: bool = True, progress=None) -> SweepResult:
     """Run (or finish) a sweep of ``rec`` into ``folder``; samples already there are kept."""
     from .. import core_loader
-    job = make_job(rec, varies, seed, body, analysis)
+    job = make_job(rec, varies, seed, body, analysis, analysis_period)
     spec = spec_of(job, rec, samples)
     os.makedirs(folder, exist_ok=True)
     _check_resume(folder, spec)
@@ -921,7 +933,7 @@ def _vary_arg(text):
 
 
 def configure(p) -> None:
-    from .cli import _positive_int
+    from .cli import _positive_float, _positive_int
     p.add_argument("recording", metavar="REC.mcap", help="a recording (or SCENE.blend: recorded first)")
     p.add_argument("--samples", type=_positive_int, required=True, metavar="N",
                    help="samples (per cell of the grid axes, if any)")
@@ -938,6 +950,8 @@ def configure(p) -> None:
     p.add_argument("--body", metavar="NAME", help="the held body (default: the one the recording holds longest)")
     p.add_argument("--no-analysis", action="store_true",
                    help="skip the grasp measures (time in force closure, smallest epsilon)")
+    p.add_argument("--analysis-period", type=_positive_float, default=ANALYSIS_PERIOD, metavar="S",
+                   help=f"the grasp measures every S seconds while held (default {ANALYSIS_PERIOD})")
 
 
 def run_command(args, out, err) -> int:
@@ -961,7 +975,8 @@ def run_command(args, out, err) -> int:
             last[0] = seconds
             print(f"sweep: {done}/{total} samples, {seconds:.1f} s", file=err, flush=True)
     result = sweep(rec, args.vary, args.samples, args.seed, args.out, workers=args.workers,
-                   scheduler=args.scheduler, body=args.body, analysis=not args.no_analysis, progress=progress)
+                   scheduler=args.scheduler, body=args.body, analysis=not args.no_analysis,
+                   analysis_period=args.analysis_period, progress=progress)
     s = result.summary
     print(f"{s['held']} of {s['samples']} samples held {s['body']!r}: p = {s['p_held']:.3f}, "
           f"95 % interval {s['ci95'][0]:.3f} .. {s['ci95'][1]:.3f}", file=out)
