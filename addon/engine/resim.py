@@ -186,20 +186,21 @@ def compare(recorded: Recording, new_ticks: np.ndarray, tolerance: float, same_r
     return div
 
 
-def replay(world, hips: np.ndarray, dt: float, has_start: bool = True, before_step=None) -> np.ndarray:
+def replay(world, hips: np.ndarray, dt: float, has_start: bool = True, before: dict | None = None) -> np.ndarray:
     """Step ``world`` once per row of ``hips`` ((steps, fingers, 3): each step's HIPs) and
     return every tick's record; tick 0, the state before the first step, only ``if has_start``.
-    ``before_step(world, k)``, if given, runs before step k (0-based): the sweep's pushes."""
-    ticks = np.zeros(len(hips) + 1, dtype=world.tick_dtype())
+    The stretches run in C (``World.step_hips``); ``before`` ({step: f(world)}, 0-based steps)
+    runs Python before those steps: the sweep's pushes."""
+    n = len(hips)
+    ticks = np.zeros(n + 1, dtype=world.tick_dtype())
     world._tick_record(ticks[:1], 0)
-    n_f = hips.shape[1] if hips.ndim == 3 else 0
-    for k in range(len(hips)):
-        if n_f:
-            world.set_hips(hips[k])
-        if before_step is not None:
-            before_step(world, k)
-        world.step(dt)
-        world._tick_record(ticks[k + 1:k + 2], k + 1)
+    k = 0
+    for stop in sorted(set(before or ()) & set(range(n))) + [n]:
+        if stop > k:
+            world.step_hips(hips[k:stop], dt, ticks[k + 1:stop + 1], first_tick=k + 1)
+            k = stop
+        if stop < n:
+            before[stop](world)
     return ticks if has_start else ticks[1:]
 
 

@@ -38,6 +38,7 @@ ANALYSIS_PERIOD = 0.02      # s: the grasp measures are taken every this (50 Hz)
 Z95 = 1.959963984540054     # two-sided 95 % normal quantile
 CHUNK_SECONDS_LOCAL = 0.25  # s of work per task on the local pool (balance, resume granularity)
 CHUNK_SECONDS_DASK = 1.0    # s of work per task on a Dask cluster at least (its per-task overhead)
+CONNECT_TIMEOUT = 30.0      # s to reach a --scheduler
 SPEC_FILE, SAMPLES_FILE, SUMMARY_FILE = "sweep.json", "samples.csv", "summary.json"
 STRICTLY_POSITIVE = ("mass", "stiffness")
 
@@ -380,29 +381,27 @@ def run_sample(job: Job, i: int, graspcore) -> dict:
             hips += rng.normal(0.0, d.hip_noise, hips.shape)
     handle = build_world(desc, graspcore)
     dt = 1.0 / job.rate
-    before_step = None
+    before = None
     if d.push is not None:
-        before_step = _pusher(handle.body_ids[job.body], desc.bodies[job.body].mass_properties.mass,
+        before = _pusher(handle.body_ids[job.body], desc.bodies[job.body].mass_properties.mass,
                               d.push, dt, job.has_start)
-    ticks = replay(handle.world, hips, dt, job.has_start, before_step)
+    ticks = replay(handle.world, hips, dt, job.has_start, before)
     row = {"sample": i, "seed": seed, **d.values}
     row.update(outcomes(job, ticks, desc))
     return row
 
 
-def _pusher(body_id, mass, push, dt, has_start):
-    """before_step hook: a force of ``newtons`` along ``direction`` through the centre of mass for
-    PUSH_DURATION from ``time``, as the velocity it adds each step (F dt / m)."""
+def _pusher(body_id, mass, push, dt, has_start) -> dict:
+    """resim.replay's ``before`` hooks: a force of ``newtons`` along ``direction`` through the
+    centre of mass for PUSH_DURATION from ``time``, as the velocity it adds each step (F dt / m)."""
     newtons, direction, at = push
     first = int(round(at / dt)) - (0 if has_start else 1)
-    last = first + max(1, int(round(PUSH_DURATION / dt)))
     dv = np.asarray(direction) * (newtons * dt / mass)
 
-    def before_step(world, k):
-        if first <= k < last:
-            lin, ang = world.body_velocity(body_id)
-            world.set_body_velocity(body_id, tuple(np.add(lin, dv)), ang)
-    return before_step
+    def kick(world):
+        lin, ang = world.body_velocity(body_id)
+        world.set_body_velocity(body_id, tuple(np.add(lin, dv)), ang)
+    return {k: kick for k in range(max(0, first), first + max(1, int(round(PUSH_DURATION / dt))))}
 
 
 def outcomes(job: Job, ticks, desc) -> dict:
@@ -588,7 +587,7 @@ def run_dask(job: Job, todo, address: str, seconds_per_sample: float, on_rows, f
     except ImportError as ex:
         raise SweepError(f"--scheduler needs dask.distributed (pip install 'dask[distributed]'): {ex}") from None
     try:
-        client = Client(address, timeout=30)
+        client = Client(address, timeout=CONNECT_TIMEOUT)
     except (OSError, TimeoutError) as ex:
         raise SweepError(f"--scheduler {address}: cannot connect ({ex})") from None
     try:
