@@ -379,7 +379,7 @@ def run_sample(job: Job, i: int, graspcore) -> dict:
             hips += d.hip_offset
         if d.hip_noise:
             hips += rng.normal(0.0, d.hip_noise, hips.shape)
-    handle = build_world(desc, graspcore)
+    handle = build_world(desc, graspcore, exact=True)
     dt = 1.0 / job.rate
     before = None
     if d.push is not None:
@@ -426,9 +426,10 @@ def outcomes(job: Job, ticks, desc) -> dict:
     start = first + int(starts[0])
     # a drop: fewer than HOLD_FINGERS fingers for longer than the grace, beginning while the
     # recording still holds the body and at least the grace before it lets go
-    lost = np.concatenate([~held, np.zeros(grace, dtype=bool)]).astype(np.int64)
-    run = np.convolve(lost, np.ones(grace, dtype=np.int64), "valid")[:n]      # lost over [k, k+grace)
-    candidates = np.flatnonzero(run[start:max(start, last - grace + 1)] >= grace)
+    lost = np.concatenate([[0], np.cumsum(~held)])
+    end = max(start, last - grace + 1)
+    run = lost[start + grace:end + grace] - lost[start:end]        # ticks lost in [k, k + grace)
+    candidates = np.flatnonzero(run >= grace)
     stop = last
     if len(candidates):
         stop = start + int(candidates[0])
@@ -446,22 +447,17 @@ def max_slip(ticks, body: int) -> float:
     """The largest distance a finger's contact point moved over the body's surface (its
     god-object in the body frame) since that contact began, m."""
     from .runner import quat_rotate
-    if len(ticks) == 0:
+    on = ticks["contact"] == body                   # (n, fingers)
+    t, f = np.nonzero(on.T)                         # finger by finger, ticks in order
+    if len(t) == 0:
         return 0.0
-    poses = ticks["pose"][:, body]                  # (n, 7)
+    t, f = f, t
+    poses = ticks["pose"][t, body]
     inverse = poses[:, 3:] * np.array([1.0, -1.0, -1.0, -1.0])
-    worst = 0.0
-    for f in range(ticks["god_object"].shape[1]):
-        on = ticks["contact"][:, f] == body
-        if not on.any():
-            continue
-        local = quat_rotate(inverse, ticks["god_object"][:, f] - poses[:, :3])    # (n, 3) body frame
-        begins = on & ~np.concatenate([[False], on[:-1]])
-        segment = np.cumsum(begins)                  # contact number per tick
-        anchor = local[np.flatnonzero(begins)][np.maximum(segment - 1, 0)]
-        d = np.linalg.norm(local - anchor, axis=1)[on]
-        worst = max(worst, float(d.max()))
-    return worst
+    local = quat_rotate(inverse, ticks["god_object"][t, f] - poses[:, :3])     # body frame
+    begins = np.r_[True, (f[1:] != f[:-1]) | (t[1:] != t[:-1] + 1)]           # a contact's first tick
+    anchor = local[np.flatnonzero(begins)][np.cumsum(begins) - 1]
+    return float(np.sqrt(np.max(np.einsum("ij,ij->i", local - anchor, local - anchor))))
 
 
 def _analysis_outcomes(job, ticks, desc, start, stop, held):

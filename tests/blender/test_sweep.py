@@ -100,6 +100,20 @@ def test_sample_seeds_depend_on_the_sweep_seed_and_the_sample_only():
     assert a != [sweep.sample_seed(8, i) for i in range(50)]
 
 
+def test_a_sample_with_nothing_varied_is_the_recording(lift, core):
+    """The sweep's worlds are made with just the scene's capacities (scene.build_world(exact=
+    True)); a sample with no variation replays the recording bit for bit all the same."""
+    from addon.engine import resim, scene
+    job = sweep.make_job(lift, [], 0)
+    desc = recording.scene_from_dict(lift.header["scene"])
+    handle = scene.build_world(desc, core, exact=True)
+    ticks = resim.replay(handle.world, job.hips, 1.0 / job.rate, job.has_start)
+    np.testing.assert_array_equal(ticks["state_hash"], lift.ticks["state_hash"])
+    row = sweep.run_sample(job, 0, core)
+    assert row["held"] == 1 and row["drop_time"] is None
+    assert row["held_time"] == lift.ticks["time"][job.window[1]] - lift.ticks["time"][job.window[0]]
+
+
 # ------------------------------------------------------------------------ statistics
 
 @pytest.mark.parametrize("k, n", [(0, 10), (3, 10), (10, 10), (37, 50), (9512, 10000), (1, 1)])
@@ -235,7 +249,8 @@ def test_a_dask_cluster_that_loses_a_worker_gives_the_same_samples(lift, tmp_pat
                 p.kill()
 
 
-def test_unreachable_scheduler_says_so(lift, tmp_path):
+def test_unreachable_scheduler_says_so(lift, tmp_path, monkeypatch):
+    monkeypatch.setattr(sweep, "CONNECT_TIMEOUT", 2.0)
     with pytest.raises(sweep.SweepError, match="tcp://127.0.0.1:9: cannot connect"):
         sweep.sweep(lift, V("Box.mu_s=0.5:0.6"), 3, 0, str(tmp_path), scheduler="tcp://127.0.0.1:9")
 
