@@ -235,7 +235,8 @@ class World(_core.World):
         ``first_tick``, ``first_tick + 1``, ...) into ``out`` (a 1-d array of ``tick_dtype()``,
         at least steps long). Bit for bit those calls one by one. Returns the filled part of
         ``out``."""
-        h = np.ascontiguousarray(hips, dtype=np.float64)
+        # aligned too: an array rebuilt by Dask's deserialiser may sit unaligned in its frame
+        h = np.require(hips, dtype=np.float64, requirements=["C_CONTIGUOUS", "ALIGNED"])
         if h.ndim != 3 or h.shape[2] != 3:
             raise ValueError(f"hips: expected a (steps, fingers, 3) array, got shape {h.shape}")
         if out.dtype != self.tick_dtype() or out.ndim != 1 or not out.flags.c_contiguous or len(out) < len(h):
