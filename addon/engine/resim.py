@@ -192,7 +192,7 @@ def replay(world, hips: np.ndarray, dt: float, has_start: bool = True, before: d
     The stretches run in C (``World.step_hips``); ``before`` ({step: f(world)}, 0-based steps)
     runs Python before those steps: the sweep's pushes."""
     n = len(hips)
-    ticks = np.zeros(n + 1, dtype=world.tick_dtype())
+    ticks = np.empty(n + 1, dtype=world.tick_dtype())       # every byte of a record is written
     world._tick_record(ticks[:1], 0)
     k = 0
     for stop in sorted(set(before or ()) & set(range(n))) + [n]:

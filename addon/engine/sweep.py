@@ -412,12 +412,13 @@ def outcomes(job: Job, ticks, desc) -> dict:
     n = len(ticks)
     first, last = job.window
     last = min(last, n - 1)
-    held = hold_counts(ticks, job.body) >= HOLD_FINGERS
+    on = ticks["contact"] == job.body               # (n, fingers)
+    held = on.sum(axis=1) >= HOLD_FINGERS
     grace = max(1, int(round(DROP_GRACE / dt)))
     starts = np.flatnonzero(held[first:last + 1])
     out = {"held": 0, "drop_time": None, "held_time": 0.0, "max_slip": 0.0}
-    forces = np.linalg.norm(ticks["force"], axis=2)
-    out["max_force"] = float(forces.max()) if forces.size else 0.0
+    force = ticks["force"]
+    out["max_force"] = float(np.sqrt(np.max((force * force).sum(axis=2)))) if force.size else 0.0
     if len(starts) == 0:
         out["drop_time"] = float(ticks["time"][first])
         if job.analysis:
@@ -437,27 +438,38 @@ def outcomes(job: Job, ticks, desc) -> dict:
     else:
         out["held"] = 1
     out["held_time"] = float(ticks["time"][stop] - ticks["time"][start])
-    out["max_slip"] = max_slip(ticks[start:stop + 1], job.body)
+    out["max_slip"] = max_slip(ticks[start:stop + 1], job.body, on[start:stop + 1])
     if job.analysis:
         out.update(_analysis_outcomes(job, ticks, desc, start, stop, held))
     return out
 
 
-def max_slip(ticks, body: int) -> float:
+SLIP = 2        # gcFingerState: a finger sliding over the body's surface
+
+
+def max_slip(ticks, body: int, on=None) -> float:
     """The largest distance a finger's contact point moved over the body's surface (its
-    god-object in the body frame) since that contact began, m."""
-    from .runner import quat_rotate
-    on = ticks["contact"] == body                   # (n, fingers)
-    t, f = np.nonzero(on.T)                         # finger by finger, ticks in order
-    if len(t) == 0:
+    god-object in the body frame) since that contact began, m. A sticking contact does not
+    move over the surface, so only the ticks where one slides are looked at (and the ticks
+    their contacts began). ``on``: ticks["contact"] == body, if known."""
+    on = ticks["contact"] == body if on is None else on      # (n, fingers)
+    sliding = on & (ticks["state"] == SLIP)
+    rows = np.flatnonzero(sliding.any(axis=1))
+    if len(rows) == 0:
         return 0.0
-    t, f = f, t
-    poses = ticks["pose"][t, body]
-    inverse = poses[:, 3:] * np.array([1.0, -1.0, -1.0, -1.0])
-    local = quat_rotate(inverse, ticks["god_object"][t, f] - poses[:, :3])     # body frame
-    begins = np.r_[True, (f[1:] != f[:-1]) | (t[1:] != t[:-1] + 1)]           # a contact's first tick
-    anchor = local[np.flatnonzero(begins)][np.cumsum(begins) - 1]
-    return float(np.sqrt(np.max(np.einsum("ij,ij->i", local - anchor, local - anchor))))
+    n, nf = on.shape
+    begins = on & ~np.concatenate([np.zeros((1, nf), bool), on[:-1]])
+    first = np.maximum.accumulate(np.where(begins, np.arange(n)[:, None], 0), axis=0)[rows]   # (r, fingers)
+    needed, where = np.unique(np.concatenate([rows, first.ravel()]), return_inverse=True)
+    pose = ticks["pose"][needed, body]
+    w, x, y, z = pose[:, 3], pose[:, 4], pose[:, 5], pose[:, 6]
+    rot = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y),       # body to world
+                    2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x),
+                    2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], 1).reshape(-1, 3, 3)
+    local = np.matmul(ticks["god_object"][needed] - pose[:, None, :3], rot)     # R^T (GO - p), body frame
+    at, anchor = where[:len(rows)], where[len(rows):].reshape(len(rows), nf)
+    moved = local[at] - local[anchor, np.arange(nf)]
+    return float(np.sqrt(np.max((moved * moved).sum(axis=2)[sliding[rows]])))
 
 
 def _analysis_outcomes(job, ticks, desc, start, stop, held):
@@ -490,6 +502,7 @@ def run_chunk(job, indices) -> list:
     """Samples ``indices``, each on its own; their rows. ``job``: a Job or its state()."""
     from .. import core_loader
     gc = core_loader.load()
+    _recording._reuse_freed_memory()       # each sample's records: heap, not a fresh mapping each
     if isinstance(job, dict):
         job = Job.from_state(job)
     return [run_sample(job, int(i), gc) for i in indices]

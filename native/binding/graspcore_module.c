@@ -814,17 +814,19 @@ static PyObject *World_step_hips(PyObject *obj, PyObject *args) {
         return NULL;
     }
     size_t record = gc_tick_record_size(gc_world_body_count(self->world), gc_world_finger_count(self->world));
-    if (!writable_buffer(out, &b, record * (size_t)steps, "out")) {
+    int records = out != Py_None;       /* None: the steps alone (benchmarks) */
+    if (records && !writable_buffer(out, &b, record * (size_t)steps, "out")) {
         PyBuffer_Release(&h);
         return NULL;
     }
     gcStatus st;
     atomic_store(&self->busy, 1);
     Py_BEGIN_ALLOW_THREADS
-    st = gc_world_step_hips(self->world, h.buf, fingers, steps, dt, first_tick, b.buf, (size_t)b.len, NULL);
+    st = gc_world_step_hips(self->world, h.buf, fingers, steps, dt, first_tick, records ? b.buf : NULL,
+                            records ? (size_t)b.len : 0, NULL);
     Py_END_ALLOW_THREADS
     atomic_store(&self->busy, 0);
-    PyBuffer_Release(&b);
+    if (records) PyBuffer_Release(&b);
     PyBuffer_Release(&h);
     if (st < 0) return raise_status(self, st);
     if (warn_status(self, st) < 0) return NULL;

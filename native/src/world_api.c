@@ -441,7 +441,7 @@ gcStatus gc_world_step_hips(gcWorld *w, const double *hips, int num_fingers, int
         return GC_ERR_INVALID_ARGUMENT;
     }
     size_t record = gc_tick_record_size(w->num_bodies, w->num_fingers);
-    if (!records || size / record < (size_t)steps) {
+    if (records && size / record < (size_t)steps) {
         gc_world_set_error(w, "records: %zu bytes for %d records of %zu", size, steps, record);
         return GC_ERR_INVALID_ARGUMENT;
     }
@@ -451,7 +451,8 @@ gcStatus gc_world_step_hips(gcWorld *w, const double *hips, int num_fingers, int
                                        : GC_OK;
         if (st >= 0) st = gc_world_step(w, dt);
         if (st == GC_WARN_STOPPED) warned = st;
-        if (st >= 0) st = gc_world_tick_record(w, first_tick + (uint64_t)k, (char *)records + record * (size_t)k, record);
+        if (st >= 0 && records)
+            st = gc_world_tick_record(w, first_tick + (uint64_t)k, (char *)records + record * (size_t)k, record);
         if (st < 0) return st;
         if (done) *done = k + 1;
     }

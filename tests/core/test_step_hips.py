@@ -37,6 +37,9 @@ def test_the_same_records_as_step_by_step():
     assert one.tobytes() == all_.tobytes()
     assert b.state_hash() == a.state_hash() and all_["tick"][-1] == 600
     assert all_["contact"][-1].tolist() == [0, 0] and all_["pose"][-1, 0, 2] > 0.28      # squeezed and lifted
+    c = pinch_world()
+    assert c.step_hips(hips, 0.001, None) is None           # the steps alone: the same state
+    assert c.state_hash() == a.state_hash()
 
 
 def test_unaligned_hips_are_taken():
