@@ -278,3 +278,23 @@ def test_command_line_end_to_end(lift, tmp_path):
     assert cli.main(["sweep", lift.path, "--samples", "6", "--seed", "2", "--vary", "Box.mu_s=0.1:1.0",
                      "--vary", "Box.mass=0.1:0.5", "--out", str(tmp_path)], out=out, err=io.StringIO()) == 0
     assert "re-simulated" not in out.getvalue()
+
+
+def test_a_scene_is_recorded_first(bpy, sample, tmp_path):
+    """`grasp-lab sweep SCENE.blend`: the launcher runs the scene headless into DIR/recording.mcap
+    (Blender in the parent only), then sweeps that recording; run again, it is not recorded again."""
+    sample.build(bpy)
+    blend = tmp_path / "pinch.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    launcher = os.path.join(os.path.dirname(sys.executable), "grasp-lab")
+    out = tmp_path / "sweep"
+    args = [launcher, "sweep", str(blend), "--samples", "3", "--vary", "Box.mass=0.05:0.2", "--out", str(out),
+            "--workers", "2", "--no-analysis"]
+    r = subprocess.run(args, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    rec = recording.open_recording(str(out / "recording.mcap"))
+    assert rec.header["mode"] == "exec" and rec.header["body_names"] == ["Box", "Table"]
+    assert "3 samples held 'Box'" in r.stdout and len(read_csv(out / "samples.csv")) == 3
+    stamp = os.stat(out / "recording.mcap").st_mtime_ns
+    r = subprocess.run(args, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and os.stat(out / "recording.mcap").st_mtime_ns == stamp
