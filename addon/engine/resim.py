@@ -195,7 +195,7 @@ def replay(world, hips: np.ndarray, dt: float, has_start: bool = True, before: d
     ticks = np.empty(n + 1, dtype=world.tick_dtype())       # every byte of a record is written
     world._tick_record(ticks[:1], 0)
     k = 0
-    for stop in sorted(set(before or ()) & set(range(n))) + [n]:
+    for stop in sorted(k for k in (before or ()) if 0 <= k < n) + [n]:
         if stop > k:
             world.step_hips(hips[k:stop], dt, ticks[k + 1:stop + 1], first_tick=k + 1)
             k = stop

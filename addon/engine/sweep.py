@@ -271,6 +271,10 @@ def make_job(rec, varies, seed: int, body_name: str | None = None, analysis: boo
         raise SweepError(f"the recording never holds {rec.header['scene']['bodies'][body]['name']!r}")
     desc = scene_from_dict(rec.header["scene"])
     _check_varies(varies, desc, body)
+    end = float(rec.ticks["time"][-1])
+    for v in varies:
+        if v.kind == "push" and v.at >= end:
+            raise SweepError(f"--vary {v.text!r}: the recording ends at {end:.3f} s, before the push")
     has_start = int(rec.ticks["tick"][0]) == 0
     hips = np.ascontiguousarray(rec.ticks["hip"])
     if has_start:
@@ -352,7 +356,7 @@ def _keep_friction_legal(overrides, bodies):
             by_body.setdefault(o.obj, {})[o.key] = o
     for name, os_ in by_body.items():
         b = bodies.get(name)
-        if b is None or b["static"] and False:
+        if b is None:
             continue
         if "mu_s" in os_ and "mu_d" not in os_:
             ratio = b["mu_d"] / b["mu_s"] if b["mu_s"] > 0 else 1.0

@@ -81,6 +81,8 @@ def test_keys_must_name_what_the_recording_has(lift, tmp_path, capsys):
         sweep.make_job(lift, V("Table.com=0.01"), 0)
     with pytest.raises(sweep.SweepError, match="varied twice"):
         sweep.make_job(lift, V("Box.mass=0.1:0.2", "Box.mass=0.3"), 0)
+    with pytest.raises(sweep.SweepError, match="ends at 3.000 s, before the push"):
+        sweep.make_job(lift, V("push=1@3.5"), 0)
     with pytest.raises(sweep.SweepError, match="--body 'Table' is static"):
         sweep.make_job(lift, [], 0, body_name="Table")
     # On the command line a malformed spec is a usage error (2), a missing object a failure (1).
