@@ -8,7 +8,7 @@
 #                      focused subset on bpy 4.2 (.venv-bpy42) and 5.0.1 (.venv-bpy50).
 
 .PHONY: extension extension-validate test-blender test-gui test-blender-45 test-blender-42 \
-        test-blender-50 venv-bpy42 venv-bpy50 clean-extension sample-scenes blender-docs-image \
+        test-blender-50 venv-bpy42 venv-bpy50 clean-extension sample-scenes scenes blender-docs-image \
         bench-blender
 
 EXT_VERSION := $(shell sed -n 's/^version *= *"\(.*\)"/\1/p' blender_manifest.toml | head -1)
@@ -85,6 +85,12 @@ test-gui: $(EXT_ZIP)
 # The sample scene as a .blend (built, not committed) and the docs render.
 sample-scenes: $(EXT_ZIP)
 	GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) sample_scenes/build_pinch_and_lift.py --save $(BUILD)/pinch_and_lift.blend
+
+# The scene library (docs/scenes.md): every scene of sample_scenes/library.py as a .blend in
+# build/scenes/, each run headless once and checked against what it claims (a few seconds).
+# Built, not committed: the script is the source; the files are mostly Blender's own UI data.
+scenes: $(VENV)/.core
+	$(PY) sample_scenes/library.py --out $(BUILD)/scenes --run
 
 # Frame 43: halfway through the lift (what `make demo` renders too).
 blender-docs-image: $(EXT_ZIP)

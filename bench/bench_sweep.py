@@ -181,7 +181,7 @@ def main():
         parts = {k: statistics.median(v) * 1e3 for k, v in t_parts.items()}
 
         # 2. two local workers vs one (both through sweep(), workers=1 in process, 2 spawned)
-        n_pool = 400 if args.quick else 1200
+        n_pool = 600 if args.quick else 3000     # a pool starts in about 0.2 s: amortised
         log("pool: 1 vs 2 workers")
         one_t, two_t = [], []
         for r in range(2 if args.quick else 3):

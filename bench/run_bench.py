@@ -5,7 +5,9 @@ environment, .venv-bench, created here from bench/requirements.txt on first use 
 pins its own numpy; bpy in .venv pins numpy < 2), as subprocesses serving
 bench/scenes_mujoco.py and bench/scenes_pybullet.py. Timing repeats of the engines are
 interleaved so all see the same machine load. The multi-body scenes are run by
-bench/bench_multibody.py, the haptic-loop jitter by bench/bench_jitter.py.
+bench/bench_multibody.py, the haptic-loop jitter by bench/bench_jitter.py, grasp quality
+against scipy by bench/bench_grasp_quality.py, grasp-lab analyze of a 10-minute recording by
+bench/bench_analysis.py.
 Writes docs/benchmarks.md and prints it.
 
     .venv/bin/python bench/run_bench.py [--quick] [--out docs/benchmarks.md]
@@ -18,6 +20,7 @@ import hashlib
 import json
 import os
 import platform
+import re
 import shutil
 import statistics
 import subprocess
@@ -241,6 +244,38 @@ def run_external(cmd: list[str], timeout: float) -> tuple[bool, str]:
     return True, demote_headings(r.stdout.strip())
 
 
+def grasp_analysis(quick: bool) -> tuple[bool, str, list[str]]:
+    """bench/bench_analysis.py: a 10-minute recording through grasp-lab analyze (1 minute with
+    --quick); (ok, its Markdown section, target rows for the summary)."""
+    venv_py = os.path.join(ROOT, ".venv", "bin", "python")
+    cmd = [venv_py if os.path.exists(venv_py) else sys.executable, os.path.join(HERE, "bench_analysis.py")]
+    if quick:
+        cmd += ["--minutes", "1", "--repeats", "1"]
+    try:
+        r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=3600)
+    except subprocess.TimeoutExpired:
+        return False, "## Grasp analysis\n\n`bench/bench_analysis.py` did not finish within 3600 s.", []
+    if r.returncode != 0:
+        tail = "\n".join((r.stderr or r.stdout).strip().splitlines()[-15:])
+        return (False, f"## Grasp analysis\n\n`bench/bench_analysis.py` failed (exit {r.returncode}):\n\n```\n{tail}\n```",
+                [])
+    found = re.search(r"<!-- target (.*?) -->", r.stdout)
+    values = dict(kv.split("=") for kv in found.group(1).split()) if found else {}
+    rows = []
+    if values:
+        total, mu, snap = (float(values[k]) for k in ("analyze_s", "mu_min_s", "snapshot_ms"))
+        failed = values.get("failed") == "1"
+        rows.append(f"| `grasp-lab analyze` of a {values['minutes']}-minute recording, every display-rate tick, "
+                    f"< 10 s | {total:.1f} s (of which `grasp_mu_min` {mu:.1f} s)"
+                    + (": the command failed (see \"Grasp analysis\"), its parts timed" if failed else "")
+                    + f" | {'**met**' if total < 10 and not failed else '**MISSED**'} |")
+        fast = float(values.get("fast_ms", snap))
+        rows.append(f"| Grasp analysis of one snapshot, 2 bodies × 5 fingers, < 0.5 ms | {fast:.2f} ms without the "
+                    f"volume (the live view's call), {snap:.2f} ms with it | "
+                    f"{'**met**' if fast < 0.5 else '**MISSED**'} |")
+    return True, r.stdout.strip(), rows
+
+
 def jitter(seconds: float) -> tuple[bool, str, list[str]]:
     """bench/bench_jitter.py in both modes (SCHED_FIFO and normal priority), each beside the
     bare-loop baseline of the same mode: (ok, its Markdown, target rows for the summary)."""
@@ -330,6 +365,43 @@ def serial_target_rows(rows: list[dict], seconds: float) -> list[str]:
         out.append(f"| Serial device, pose in to force out over a pty at 1 kHz, {seconds:.0f} s under Python load: "
                    f"p99 < 1 ms, no dropped frames | {r['p99_us']:.0f} µs, {r['unacknowledged']} unanswered, "
                    f"{r['frame_errors']} frame errors{bare_txt} | {'**met**' if ok else '**MISSED**' + why} |")
+    return out
+
+
+def grasp_quality(quick: bool) -> tuple[bool, str, list[str]]:
+    """bench/bench_grasp_quality.py: graspcore.grasp_quality beside scipy ConvexHull on the same
+    contact sets in the same run: (ok, its Markdown, target rows for the summary)."""
+    script = os.path.join(HERE, "bench_grasp_quality.py")
+    venv_py = os.path.join(ROOT, ".venv", "bin", "python")
+    fd, js = tempfile.mkstemp(suffix=".json")
+    os.close(fd)
+    try:
+        good, md = run_external([venv_py if os.path.exists(venv_py) else sys.executable, script, "--json", js]
+                                + (["--quick"] if quick else []), timeout=600)
+        data = json.load(open(js)) if good else {}
+    except (OSError, ValueError) as exc:
+        good, md, data = False, f"bench_grasp_quality.py wrote no statistics: {exc}", {}
+    finally:
+        os.unlink(js)
+    return good, md, grasp_target_rows(data)
+
+
+def grasp_target_rows(data: dict) -> list[str]:
+    target = data.get("target", 100.0)
+    rows = [r for r in data.get("rows", []) if r["edges"] == 8]
+    if not rows:
+        return []
+    ratios = " / ".join(f"{r['ratio']:.0f}×" for r in rows)
+    times = " / ".join(f"{r['fast_us']:.0f} vs {r['scipy_us']:.0f} µs" for r in rows)
+    ok = all(r["ratio"] >= target for r in rows)
+    counts = " / ".join(str(r["contacts"]) for r in rows)
+    out = [f"| Grasp quality (closure, epsilon, weakest: `volume=False`) ≥ {target:.0f}× faster than scipy "
+           f"ConvexHull, {counts} contacts × 8 edges | {ratios} ({times}) | {'**met**' if ok else '**MISSED**'} |"]
+    live = data.get("live")
+    if live:
+        out.append(f"| Grasp analysis core work per display update (2 bodies × 5 contacts: quality and mu_min) "
+                   f"< 500 µs | median {live['median_us']:.0f} µs, 99th percentile {live['p99_us']:.0f} µs | "
+                   f"{'**met**' if live['p99_us'] < 500 else '**MISSED**'} |")
     return out
 
 
@@ -709,11 +781,19 @@ def main(argv=None) -> int:
         "period error < 100 µs and no period more than 1 ms late over the run (docs/runtime.md, "
         "\"Measured jitter\"). Its output:".format(jitter_s), "",
         jitter_md])
+    log("grasp quality (bench/bench_grasp_quality.py: graspcore beside scipy ConvexHull)")
+    good, grasp_md, grasp_targets = grasp_quality(args.quick)
+    ok &= good
+    log("grasp analysis (bench/bench_analysis.py: a 10-minute recording through grasp-lab analyze)")
+    good, analysis_md, analysis_targets = grasp_analysis(args.quick)
+    ok &= good
     meta["load_end"] = loadavg()
     meta["wall_s"] = time.perf_counter() - t_start
     md = report(info, mjinfo, grasps, creep, profile, gjk, blender, xml3, meta, pbinfo=pbinfo,
-                extra_targets=mb.target_rows(mb_rows, mjinfo is not None) + jitter_targets + serial_targets,
-                sections=[s for s in (held_section, mb_section, jitter_section, serial_section) if s])
+                extra_targets=mb.target_rows(mb_rows, mjinfo is not None) + jitter_targets + serial_targets
+                + grasp_targets + analysis_targets,
+                sections=[s for s in (held_section, mb_section, jitter_section, serial_section, grasp_md,
+                                      analysis_md) if s])
     if args.quick:
         md = md.replace("# Benchmarks\n", "# Benchmarks (--quick run: too few repeats to quote)\n", 1)
     os.makedirs(os.path.dirname(args.out), exist_ok=True)

@@ -85,78 +85,25 @@ def phase_at(frame):
     return name
 
 
-def _box_mesh(bpy, name, size):
-    sx, sy, sz = (s / 2 for s in size)
-    me = bpy.data.meshes.new(name)
-    verts = [(x, y, z) for x in (-sx, sx) for y in (-sy, sy) for z in (-sz, sz)]
-    faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
-    me.from_pydata(verts, [], faces)
-    me.update()
-    return me
-
-
 def build(bpy):
-    """Create the scene in the current file (expects an empty or default scene).
+    """Create the scene in the current file (expects an empty or default scene): the library's
+    ``pinch_and_lift`` (sample_scenes/library.py builds it from the numbers above).
     Returns the box object."""
-    scene = bpy.context.scene
-    scene.render.fps = FPS
-    scene.render.fps_base = 1.0
-    scene.frame_start = KEYS[0][0]
-    scene.frame_end = KEYS[-1][0]
-    scene.frame_set(scene.frame_start)
-    scene.unit_settings.system = "METRIC"
-    s = scene.grasp_lab
-    s.gravity = (0.0, 0.0, -9.81)
-    s.haptic_rate = 1000.0
-    s.duration = 0.0
-
-    table = bpy.data.objects.new("Table", _box_mesh(bpy, "Table", TABLE_SIZE))
-    table.location = TABLE_CENTER
-    scene.collection.objects.link(table)
-    gl = table.grasp_lab
-    gl.role = "STATIC"
-    gl.mu_s, gl.mu_d = TABLE_MU
-
-    box = bpy.data.objects.new("Box", _box_mesh(bpy, "Box", (BOX_SIZE,) * 3))
-    box.location = (0.0, 0.0, BOX_Z)
-    scene.collection.objects.link(box)
-    gl = box.grasp_lab
-    gl.role = "DYNAMIC"
-    gl.mass_mode = "MASS"
-    gl.mass = BOX_MASS
-    gl.mu_s, gl.mu_d = BOX_MU
-
-    for i, sign in enumerate((-1.0, 1.0)):
-        f = bpy.data.objects.new(f"Finger {i}", None)
-        f.empty_display_type = "SPHERE"
-        f.empty_display_size = FINGER_RADIUS
-        scene.collection.objects.link(f)
-        fg = f.grasp_lab
-        fg.role = "FINGER"
-        fg.radius = FINGER_RADIUS
-        fg.stiffness = STIFFNESS
-        fg.damping = DAMPING
-        fg.channel = i
-        for frame, _phase, x, y, z in KEYS:
-            f.location = (sign * x, y, z)
-            f.keyframe_insert("location", frame=frame)
-        _set_linear(bpy, f)
-    scene.frame_set(scene.frame_start)
-    return box
+    _library().build(bpy, "pinch_and_lift")
+    return bpy.data.objects["Box"]
 
 
-def _set_linear(bpy, obj):
-    ad = obj.animation_data
-    action = ad.action
-    if bpy.app.version >= (4, 4, 0):
-        from bpy_extras import anim_utils
-        fcurves = anim_utils.action_get_channelbag_for_slot(action, ad.action_slot).fcurves
-    else:
-        fcurves = action.fcurves
-    for fc in fcurves:
-        for kp in fc.keyframe_points:
-            kp.interpolation = "LINEAR"
-        fc.update()
+def _library():
+    import importlib.util
+    import os
+    name = "grasp_lab_scene_library"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(
+            name, os.path.join(os.path.dirname(os.path.abspath(__file__)), "library.py"))
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[name] = mod            # before running it: its dataclasses look it up
+        spec.loader.exec_module(mod)
+    return sys.modules[name]
 
 
 # --------------------------------------------------------------------------- rendering
@@ -168,24 +115,13 @@ def _material(bpy, name, color):
 
 
 def add_render_setup(bpy):
-    """Camera, sun, materials (Workbench shows the material colour) and visible fingertip
-    spheres (role None, parented to the finger empties: the HIPs)."""
-    import math
+    """The docs' camera position (on the library's camera, its target and sun), materials
+    (Workbench shows the material colour) and visible fingertip spheres (role None, parented
+    to the finger empties: the HIPs)."""
     import bmesh
     scene = bpy.context.scene
-    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    cam.data.lens = 60
-    scene.collection.objects.link(cam)
-    cam.location = (0.17, -0.42, 0.16)
-    target = bpy.data.objects.new("Camera Target", None)
-    target.location = (0.0, 0.035, 0.055)
-    scene.collection.objects.link(target)
-    track = cam.constraints.new("TRACK_TO")
-    track.target = target
-    scene.camera = cam
-    light = bpy.data.objects.new("Light", bpy.data.lights.new("Light", "SUN"))
-    light.rotation_euler = (math.radians(40), math.radians(10), math.radians(30))
-    scene.collection.objects.link(light)
+    bpy.data.objects["Camera"].location = (0.17, -0.42, 0.16)
+    bpy.data.objects["Camera Target"].location = (0.0, 0.035, 0.055)
     bpy.data.objects["Table"].data.materials.append(_material(bpy, "Table", (0.78, 0.66, 0.50, 1.0)))
     bpy.data.objects["Box"].data.materials.append(_material(bpy, "Box", (0.93, 0.90, 0.80, 1.0)))
     tip_mat = _material(bpy, "Fingertip", (0.30, 0.30, 0.33, 1.0))
@@ -300,9 +236,9 @@ def main(argv):
         scene.grasp_lab.record = True
         scene.grasp_lab.recording_folder = grasp_env.isolate()
         bpy.ops.grasp_lab.session(duration=(args.frame - scene.frame_start) / FPS)
-        import numpy as np
-        rec = np.load(scene.grasp_lab.last_recording)
-        add_finger_force_arrows(bpy, None, rec["god_objects"][-1:], rec["finger_forces"][-1:],
+        rec = _extension_module("engine.recording").open_recording(scene.grasp_lab.last_recording)
+        last = rec.ticks[-1:]
+        add_finger_force_arrows(bpy, None, last["god_object"], last["device_force"],
                                 args.force_scale, bake=False)
         print(render(bpy, args.render))
     elif args.run:

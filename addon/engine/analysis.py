@@ -6,9 +6,9 @@ the load. bpy-free: the live HUD, ``grasp-lab analyze`` and the bake call it.
 Conventions (xFCA, native/src/xfca.c): a finger's god-object is its fingertip sphere's
 centre, on the body's surface inflated by the finger's radius; the recorded ``normal`` is that
 contact's outward plane normal (world); ``force`` is the coupling spring force the finger
-exerts, k (GO - HIP) + damping, and the body gets its reaction, applied at the contact. So a
-contact's point on the body is GO - radius * normal, its inward normal is -normal and the
-force on the body is -force.
+exerts, k (GO - HIP) + damping, and the body gets its reaction (the core applies it at the GO).
+So a contact's point on the body's surface is GO - radius * normal, its inward normal is
+-normal and the force on the body is -force.
 
 One implementation for one snapshot and for many: ``analyse_arrays`` takes arrays with a
 leading snapshot axis and answers tables (one row per held body per snapshot, one per
@@ -16,18 +16,14 @@ contact); ``analyse`` is it for one snapshot, as objects.
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
 
-from .runner import quat_rotate
 
-STICK, SLIP = 1, 2
+SLIP = 2                # gcFingerState
 MU_MAX = 10.0           # mu_min searches friction up to this; above: inf (no friction closes it)
-# The fields of graspcore.grasp_quality_batch's rows that are read here (an answer with no set).
-NO_QUALITY = np.dtype([("force_closure", "?"), ("force_only_closure", "?"), ("torque_closure", "?"),
-                       ("epsilon", "<f8"), ("volume", "<f8"), ("weakest", "<f8", (6,)), ("rank", "<i4"),
-                       ("facets", "<i4")])
 _TINY = 1e-12           # normals shorter than this are "no normal" (a free finger records 0)
 
 
@@ -110,14 +106,28 @@ def body_models(scene) -> list:
 def centres_of_mass(models, poses) -> np.ndarray:
     """World centres of mass (..., nb, 3) of body frame poses (..., nb, 7)."""
     com = np.array([m.com for m in models], dtype=np.float64)
-    return poses[..., :3] + quat_rotate(poses[..., 3:], com)
+    return poses[..., :3] + _rotate(poses[..., 3:], com)
+
+
+def _cross(a, b):
+    """a x b over the last axis (np.cross, without its axis handling: this runs per snapshot)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def _rotate(q, v):
+    """runner.quat_rotate's rotation of v by unit quaternions q (w, x, y, z), with _cross."""
+    u = q[..., 1:]
+    t = 2.0 * _cross(u, np.broadcast_to(v, u.shape))
+    return v + q[..., :1] * t + _cross(u, t)
 
 
 def com_velocities(models, poses, velocities) -> np.ndarray:
     """Velocities of the centres of mass (..., nb, 3) from the recorded velocities of the body
     frame origins and angular velocities (..., nb, 6): v_com = v_origin + w x (R com)."""
     com = np.array([m.com for m in models], dtype=np.float64)
-    return velocities[..., :3] + np.cross(velocities[..., 3:], quat_rotate(poses[..., 3:], com))
+    return velocities[..., :3] + _cross(velocities[..., 3:], _rotate(poses[..., 3:], com))
 
 
 def recorded_accelerations(models, ticks, rows) -> np.ndarray:
@@ -201,6 +211,14 @@ def friction_use(ft, mu, fn):
         return np.where(cone > 0, ft / np.where(cone > 0, cone, 1.0), np.where(ft > 0, np.inf, 0.0))
 
 
+class GraspAnalysisError(ValueError):
+    """The core refused a contact set; ``snapshot`` is its snapshot index (None if unknown)."""
+
+    def __init__(self, message: str, snapshot=None):
+        super().__init__(message)
+        self.snapshot = snapshot
+
+
 def _mu_min(core, point, normal, starts, count, centers, radii, edges) -> np.ndarray:
     """graspcore.grasp_mu_min of each set (a bisection: tens of hulls), once per distinct set:
     a body at rest in a still hand gives the same set, bit for bit, tick after tick."""
@@ -209,18 +227,25 @@ def _mu_min(core, point, normal, starts, count, centers, radii, edges) -> np.nda
     for i, (s, c) in enumerate(zip(starts, count)):
         key = (point[s:s + c].tobytes(), normal[s:s + c].tobytes(), centers[i].tobytes(), float(radii[i]))
         if key not in seen:
-            seen[key] = core.grasp_mu_min(point[s:s + c], normal[s:s + c], centers[i], radii[i], edges=edges,
-                                          mu_max=MU_MAX)
+            try:
+                seen[key] = core.grasp_mu_min(point[s:s + c], normal[s:s + c], centers[i], radii[i], edges=edges,
+                                              mu_max=MU_MAX)
+            except ValueError as ex:
+                ex.set_index = i
+                raise
         out[i] = seen[key]
     return out
 
 
 def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_bodies, finger_radii,
-                   accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, with_mu_min=True) -> GraspTable:
+                   accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True,
+                   with_mu_min=True) -> GraspTable:
     """The measures for T snapshots at once: poses (T, nb, 7), god_objects / forces / normals
     (T, nf, 3), states / contact_bodies (T, nf), finger_radii (nf,), accelerations (T, nb, 3)
-    of the centres of mass or None (0: the load is the weight). ``with_mu_min=False`` skips
-    mu_min (a bisection, most of the cost; NaN in the table): the sweep's samples."""
+    of the centres of mass or None (0: the load is the weight). ``volume=False``: the core's
+    fast path, without the 6-D hull (volume -1: not computed; every other measure the same).
+    ``with_mu_min=False`` skips mu_min (a search, most of the cost; NaN in the table): the
+    sweep's samples."""
     core = _core()
     poses = np.asarray(poses, dtype=np.float64)
     god_objects = np.asarray(god_objects, dtype=np.float64)
@@ -265,10 +290,21 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
     set_of = np.repeat(np.arange(len(starts)), count)
     centers = centres_of_mass(models, poses[set_t])[np.arange(len(starts)), set_b]
     radii = np.array([m.radius for m in models] + [1.0])[set_b]
-    quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges) if len(starts) \
-        else np.zeros(0, NO_QUALITY)
-    mu_min = _mu_min(core, point, n_in, starts, count, centers, radii, edges) if with_mu_min else \
-        np.full(len(starts), np.nan)
+    try:
+        quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges, volume=volume)
+        mu_min = _mu_min(core, point, n_in, starts, count, centers, radii, edges) if with_mu_min else \
+            np.full(len(starts), np.nan)
+    except ValueError as ex:
+        # Name the snapshot and body whose contacts the core refused (the batch's message starts
+        # with the set: "set 3: points: ...").
+        message, i = str(ex), getattr(ex, "set_index", None)
+        numbered = re.match(r"set (\d+): (.*)", message, re.S)
+        if i is None and numbered:
+            i, message = int(numbered.group(1)), numbered.group(2)
+        if i is None or not 0 <= i < len(set_t):
+            raise
+        raise GraspAnalysisError(f"snapshot {int(set_t[i])}, body {models[set_b[i]].name}: {message}",
+                                 int(set_t[i])) from None
     if len(starts):
         grip = np.add.reduceat(fn, starts)
         friction_needed = np.maximum.reduceat(needed, starts)
@@ -317,20 +353,21 @@ def body_grasps(table: GraspTable, sets=None) -> list:
 
 
 def analyse(models, poses, god_objects, forces, normals, states, contact_bodies, finger_radii,
-            accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8) -> list:
+            accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True) -> list:
     """The measures of one snapshot: one BodyGrasp per dynamic body with at least one finger in
     contact. Arrays as in the tick record: poses (nb, 7), god_objects, forces (the coupling
     spring force the finger exerts), normals (nf, 3), states, contact_bodies (nf,), finger_radii
-    (nf,); accelerations (nb, 3) of the centres of mass, or None (0: the load is the weight)."""
+    (nf,); accelerations (nb, 3) of the centres of mass, or None (0: the load is the weight).
+    ``volume=False`` skips the grasp wrench space's volume (-1), the live view's choice."""
     one = lambda a, dtype=np.float64: np.asarray(a, dtype=dtype)[None]  # noqa: E731
     table = analyse_arrays(models, one(poses), one(god_objects), one(forces), one(normals),
                            one(states, np.int32), one(contact_bodies, np.int32), finger_radii,
-                           None if accelerations is None else one(accelerations), gravity, edges)
+                           None if accelerations is None else one(accelerations), gravity, edges, volume)
     return body_grasps(table)
 
 
 def analyse_recording(rec, every: int = 1, edges: int = 8, rows=None, chunk: int = 4096,
-                      with_mu_min: bool = True) -> GraspTable:
+                      with_mu_min: bool = True, volume: bool = True) -> GraspTable:
     """The measures at the tick records of a Recording whose tick number is a multiple of
     ``every`` (all of them for 1), or at its records ``rows``, with the centres of mass's
     accelerations from the recorded velocities (each tick against the record before it: read
@@ -352,8 +389,16 @@ def analyse_recording(rec, every: int = 1, edges: int = 8, rows=None, chunk: int
         r = rows[lo:lo + chunk]
         t = rec.ticks[r]
         acc = recorded_accelerations(models, rec.ticks, r)
-        table = analyse_arrays(models, t["pose"], t["god_object"], t["force"], t["normal"], t["state"],
-                               t["contact"], radii, acc, gravity, edges, with_mu_min)
+        try:
+            table = analyse_arrays(models, t["pose"], t["god_object"], t["force"], t["normal"], t["state"],
+                                   t["contact"], radii, acc, gravity, edges, volume=volume,
+                                   with_mu_min=with_mu_min)
+        except GraspAnalysisError as ex:
+            if ex.snapshot is None:
+                raise
+            row = int(r[ex.snapshot])
+            raise GraspAnalysisError(f"tick {int(rec.ticks['tick'][row])} (t = {rec.ticks['time'][row]:.6g} s), "
+                                     f"{str(ex).split(', ', 1)[1]}", row) from None
         table.snapshot = r[table.snapshot]
         parts.append(table)
     if not parts:

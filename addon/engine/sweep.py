@@ -478,7 +478,7 @@ def max_slip(ticks, body: int, on=None) -> float:
 
 def _analysis_outcomes(job, ticks, desc, start, stop, held):
     """Time in force closure and the smallest epsilon while held, from analysis.py's measures
-    every analysis_period (mu_min, a bisection, skipped: it is not reported here). A contact set
+    every analysis_period (mu_min, a search, and the hull's volume skipped: not reported here). A contact set
     the quality routine refuses leaves both empty (None) rather than losing the sample."""
     analysis = _analysis_module()
     every = max(1, int(round(job.analysis_period * job.rate)))
@@ -492,7 +492,7 @@ def _analysis_outcomes(job, ticks, desc, start, stop, held):
         header = {"scene": scene_to_dict(desc)}
     _Run.ticks = ticks
     try:
-        table = analysis.analyse_recording(_Run, rows=rows, with_mu_min=False)
+        table = analysis.analyse_recording(_Run, rows=rows, with_mu_min=False, volume=False)
     except ValueError:
         return {"closure_time": None, "min_epsilon": None}
     mine = table.body == job.body

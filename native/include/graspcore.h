@@ -393,6 +393,10 @@ typedef struct gcGraspDef {
                              * "strictly inside" (origin more than this far inside every facet);
                              * default 1e-10 */
     int max_facets;         /* cap on the facets alive at once, default 1 << 20 (GC_ERR_CAPACITY past it) */
+    int volume;             /* 1 (default): build the whole 6-D hull, for its volume and facet count.
+                             * 0: the fast path, no hull: closure flags by a linear program, epsilon
+                             * and weakest by support queries (the same values); volume and facets
+                             * are then -1 (not computed) */
 } gcGraspDef;
 gcGraspDef gc_default_grasp_def(void);
 

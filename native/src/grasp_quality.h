@@ -34,4 +34,19 @@ gcStatus gc_hull_nd(gcGraspWorkspace *ws, const double *points, int n, int d, do
  * below tolerance x the largest norm count as zero). */
 gcStatus gc_span_rank(gcGraspWorkspace *ws, const double *points, int n, int d, double tolerance, int *rank);
 
+/* The nearest facet of the hull of n points of dimension d (3..6) without building the hull
+ * (the support-function search). Origin inside: offset_max and nearest_normal as gc_hull_nd
+ * gives them (the same facet plane, solved from its vertices). Origin outside or within the
+ * tolerance of the boundary: offset_max >= -tolerance x scale, the origin's signed distance to a
+ * supporting facet plane (not always the largest). facets and volume are -1 (not computed);
+ * GC_HULL_FLAT as gc_hull_nd. */
+gcStatus gc_hull_nearest(gcGraspWorkspace *ws, const double *points, int n, int d, double tolerance,
+                         int max_facets, gcHullSummary *out);
+
+/* The closure LP: *t_max = the largest t with sum lambda_i x_i = 0, sum lambda_i = 1,
+ * lambda_i >= t over n points of dimension d (1..6); > 0 exactly when the origin is in the
+ * relative interior of their hull. -INFINITY when t < -1 or there are no points.
+ * GC_ERR_DEGENERATE if the simplex method hits its pivot cap. */
+gcStatus gc_closure_lp(gcGraspWorkspace *ws, const double *points, int n, int d, double *t_max);
+
 #endif

@@ -291,3 +291,68 @@ def test_analyze_refuses_a_recording_without_normals(tmp_path, monkeypatch):
     monkeypatch.undo()
     code, out, err = run_cli("analyze", str(tmp_path / "old.mcap"))
     assert code == 1 and "older version" in err and "normals" in err, err
+
+
+def test_thinned_read_gives_the_same_numbers(lift):
+    """analyze --every N reads only ticks N k and the tick before each: the same accelerations,
+    so the same numbers as the whole recording analysed, bit for bit."""
+    full = analysis.analyse_recording(lift)
+    thin_rec = recording.open_recording(lift.path, every=50)
+    thin = analysis.analyse_recording(thin_rec, every=50)
+    ticks = thin_rec.ticks["tick"][thin.snapshot]
+    assert len(ticks) > 20 and np.all(ticks % 50 == 0)
+    rows = np.searchsorted(lift.ticks["tick"][full.snapshot], ticks)
+    for name in ("load_force", "grip_force", "min_slip_margin", "mu_min", "friction_needed"):
+        np.testing.assert_array_equal(getattr(thin, name), getattr(full, name)[rows], err_msg=name)
+    np.testing.assert_array_equal(thin.quality, full.quality[rows])
+
+
+def test_cone_edges(three):
+    """--edges K: the contacts' cones of K edges, as the core routine builds them."""
+    for k in (3, 16):
+        table = analysis.analyse_recording(three, every=500, edges=k)
+        g = row_of(table, three, 1500)
+        points = np.array([c.point for c in g.contacts])
+        normals = np.array([c.normal for c in g.contacts])
+        q = graspcore.grasp_quality(points, normals, [c.mu for c in g.contacts], g.center, g.radius, edges=k)
+        assert g.epsilon == q["epsilon"] and g.volume == q["volume"] and g.force_closure == q["force_closure"]
+    eight = row_of(analysis.analyse_recording(three, every=500), three, 1500)
+    sixteen = row_of(analysis.analyse_recording(three, every=500, edges=16), three, 1500)
+    assert sixteen.epsilon > eight.epsilon         # a finer cone spans more of the true one
+
+
+def test_a_contact_set_the_core_refuses_is_located(pinch):
+    """Bad numbers in a snapshot (a NaN god-object) come back as an error naming the snapshot
+    and the body, and in a recording the tick and its time."""
+    models = analysis.body_models(pinch.header["scene"])
+    t = pinch.ticks[1000].copy()
+    t["god_object"][1, 0] = np.nan
+    radii = [f["radius"] for f in pinch.header["scene"]["fingers"]]
+    with pytest.raises(analysis.GraspAnalysisError, match=r"snapshot 0, body Box: points: .*not finite") as err:
+        analysis.analyse(models, t["pose"], t["god_object"], t["force"], t["normal"], t["state"], t["contact"],
+                         radii)
+    assert err.value.snapshot == 0
+    broken = recording.Recording(pinch.path, pinch.header, pinch.dtype, pinch.ticks.copy())
+    broken.ticks["god_object"][1000, 1, 0] = np.nan
+    with pytest.raises(ValueError, match=r"tick 1000 \(t = 1 s\), body Box: points"):
+        analysis.analyse_recording(broken, every=100)
+
+
+def test_live_options_and_rotation(three):
+    """volume=False (the live view's fast path): the same measures but the volume (-1, not
+    computed); the centres of mass rotate as the runner's quat_rotate does."""
+    from addon.engine.runner import quat_rotate
+    models = analysis.body_models(three.header["scene"])
+    t = three.ticks[1500]
+    radii = [f["radius"] for f in three.header["scene"]["fingers"]]
+    args = (models, t["pose"], t["god_object"], t["force"], t["normal"], t["state"], t["contact"], radii)
+    (full,) = analysis.analyse(*args)
+    (fast,) = analysis.analyse(*args, volume=False)
+    assert full.volume > 0 and fast.volume == -1.0
+    assert (fast.force_closure, fast.epsilon, fast.mu_min) == (full.force_closure, full.epsilon, full.mu_min)
+    np.testing.assert_allclose(fast.weakest, full.weakest, rtol=0, atol=1e-12)
+    rng = np.random.default_rng(1)
+    q = rng.normal(size=(50, 4))
+    q /= np.linalg.norm(q, axis=1, keepdims=True)
+    v = rng.normal(size=3)
+    np.testing.assert_allclose(analysis._rotate(q, v), quat_rotate(q, v), rtol=0, atol=1e-15)

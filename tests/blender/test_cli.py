@@ -260,4 +260,6 @@ def test_blender_cli_command_registered(bpy, sample, core, tmp_path):
     execute = grasp_env.submodule("cli_blender")._execute
     assert execute(["info", s.last_recording]) == 0
     assert execute(["resim", s.last_recording]) == 0
+    assert execute(["analyze", s.last_recording, "--csv", str(tmp_path / "grasp"), "--every", "50"]) == 0
+    assert (tmp_path / "grasp" / "grasp.csv").exists()
     assert execute(["info"]) == 2

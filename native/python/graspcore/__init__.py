@@ -326,21 +326,32 @@ def _number(value, name: str, kind=float):
         raise ValueError(f"{name}: expected {'an integer' if kind is int else 'a number'}, got {value!r} ({exc})") from None
 
 
-def grasp_quality(points, normals, mu, center, radius, edges: int = 8) -> dict:
+def _flag(value, name: str) -> bool:
+    if not isinstance(value, (bool, np.bool_)):
+        raise ValueError(f"{name}: expected True or False, got {value!r}")
+    return bool(value)
+
+
+def grasp_quality(points, normals, mu, center, radius, edges: int = 8, volume: bool = True) -> dict:
     """Quality of a grasp by point contacts with friction (docs/api.md "Grasp quality").
 
     points (n, 3) contact points, normals (n, 3) inward normals (into the object), mu one number
     or (n,), center the object's centre of mass, radius > 0 the torque scale, edges >= 3 per
     linearised friction cone. Returns force_closure, force_only_closure, torque_closure, epsilon,
-    volume, weakest (6 floats), rank, facets. Bad input raises ValueError naming the argument."""
+    volume, weakest (6 floats), rank, facets. volume=False takes the fast path (no 6-D hull:
+    closure by a linear program, epsilon and weakest by support queries, the same values) and
+    returns volume -1.0 and facets -1 (not computed). Bad input raises ValueError naming the
+    argument."""
     points, normals, mu = _contacts(points, normals, mu)
     return _core._grasp_quality(points, normals, mu, _vector(center, 3, "center"), _number(radius, "radius"),
-                                _number(edges, "edges", int))
+                                _number(edges, "edges", int), _flag(volume, "volume"))
 
 
-def grasp_quality_batch(points, normals, mu, counts, centers, radii, edges: int = 8) -> np.ndarray:
+def grasp_quality_batch(points, normals, mu, counts, centers, radii, edges: int = 8,
+                        volume: bool = True) -> np.ndarray:
     """grasp_quality of many contact sets: counts[s] contacts in set s, their rows of points,
     normals and mu (one number or one per row) concatenated; centers (m, 3), radii (m,).
+    volume as in grasp_quality (False: volume -1.0 and facets -1 in every row, much faster).
     Returns a structured array of GRASP_QUALITY_DTYPE, one row per set."""
     points, normals, mu = _contacts(points, normals, mu)
     try:
@@ -363,7 +374,8 @@ def grasp_quality_batch(points, normals, mu, counts, centers, radii, edges: int 
     raw = np.zeros(m, dtype=_GRASP_RECORD)
     if m:
         _core._grasp_quality_batch(points, normals, mu, counts_array, np.ascontiguousarray(centers_array),
-                                   radii_array, _number(edges, "edges", int), raw.view(np.uint8))
+                                   radii_array, _number(edges, "edges", int), _flag(volume, "volume"),
+                                   raw.view(np.uint8))
     out = np.zeros(m, dtype=GRASP_QUALITY_DTYPE)
     for name in GRASP_QUALITY_DTYPE.names:
         out[name] = raw[name]
@@ -372,8 +384,8 @@ def grasp_quality_batch(points, normals, mu, counts, centers, radii, edges: int 
 
 def grasp_mu_min(points, normals, center, radius, edges: int = 8, mu_max: float = 10.0) -> float:
     """The smallest friction coefficient (the same at every contact) at which the contact set is
-    in force closure, by bisection to 1e-6; 0.0 for frictionless closure, math.inf when not in
-    closure at mu_max."""
+    in force closure, by bisection to 1e-6 (each step the closure linear program, no hull); 0.0 for
+    frictionless closure, math.inf when not in closure at mu_max."""
     points, normals, _ = _contacts(points, normals, 0.0)
     return _core._grasp_mu_min(points, normals, _vector(center, 3, "center"), _number(radius, "radius"),
                                _number(edges, "edges", int), _number(mu_max, "mu_max"))

@@ -1,0 +1,798 @@
+"""The grasp library: the source chapter's grasps (§2.2) as sample scenes, built by one builder
+from a declarative description per scene (``SCENES``).
+
+Every scene is a table (or a stand) with the objects of the grasp on it and fingertip spheres
+(empties with role Finger) animated on the timeline: the scripted device. Each finger has a
+*closed* position (its HIP inside the object by the squeeze depth) and an *outward* direction;
+a scene's timeline (``keys``) says, per key frame, how far the fingers stand open along their
+outward directions and where the hand has carried them (an offset added to every finger), with
+Bézier ease-in/out between keys. The same fingertip animation is what the device emulator plays
+with ``--from SCENE.blend`` (docs/devices.md). A scene's one-line description is stored in the
+.blend as the scene's custom property ``grasp_lab_description``.
+
+Each scene also states what it shows (``claim``), in numbers the tests check against the
+simulated result (tests/blender/test_scene_library.py) and docs/scenes.md reports.
+
+Usage (with the extension enabled: from the tests, or standalone as below):
+
+    python sample_scenes/library.py [--out build/scenes] [--only NAME ...] [--run] [--zip ZIP]
+
+builds every scene (or those named) into OUT/NAME.blend; ``--run`` also runs each one
+headless and prints what it measured against what it claims.
+``build(bpy, name)``, ``run(bpy)``, ``measure(scene, result)`` and ``verdict(scene, measured)``
+are importable.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import sys
+from dataclasses import dataclass, field
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+FPS = 24
+G = 9.81
+DESCRIPTION_KEY = "grasp_lab_description"
+
+
+# --------------------------------------------------------------------------- shapes
+# Each shape is a closed, outward-facing mesh about the object's origin.
+
+@dataclass(frozen=True)
+class Box:
+    size: tuple                             # x, y, z extents, m
+
+
+@dataclass(frozen=True)
+class Prism:
+    """A right prism about z: ``sides`` = 6 for a hexagonal pencil, 32 for a can."""
+    radius: float                           # circumradius, m
+    height: float
+    sides: int
+    angle: float = 0.0                      # first vertex's angle about z, rad
+
+
+@dataclass(frozen=True)
+class Ring:
+    """A torus in the x-z plane about its origin (a mug's handle)."""
+    major: float                            # ring radius, m
+    minor: float                            # tube radius, m
+    segments: int = 24
+    tube_segments: int = 8
+
+
+@dataclass(frozen=True)
+class Union:
+    """Closed shapes side by side in one mesh, each at an offset (islands may overlap)."""
+    shapes: tuple                           # ((shape, (dx, dy, dz)), ...)
+
+
+# --------------------------------------------------------------------------- scene parts
+
+@dataclass
+class Body:
+    name: str
+    shape: object
+    location: tuple
+    static: bool = False
+    mass: float = 0.1                       # kg (dynamic bodies)
+    mu: tuple = (0.8, 0.6)                  # mu_s, mu_d
+    collision: str = "HULL"                 # HULL or AUTO (the add-on's Collision Shape)
+
+
+@dataclass
+class Finger:
+    name: str
+    closed: tuple                           # HIP when the grasp is closed, before the hand moves
+    outward: tuple                          # unit direction the finger opens along
+    radius: float = 0.008
+    stiffness: float = 1000.0
+    damping: float = 2.0
+    group: str = "hand"                     # which hand / person (several devices)
+
+
+@dataclass
+class Key:
+    frame: int
+    phase: str                              # the phase that starts at this frame
+    opening: float                          # m along each finger's outward direction
+    offset: tuple = (0.0, 0.0, 0.0)         # where the hand has carried every finger
+
+
+@dataclass
+class Held:
+    """The body rises with the fingers and stays in them: from ``grasp_frame`` to the end its
+    displacement relative to the fingers' centroid stays below ``max_slip`` (the finger springs'
+    give included), no finger slips during the ``hold`` phases, and it is ``rise`` higher when
+    the first hold starts."""
+    body: str
+    rise: float
+    max_slip: float
+    grasp_frame: int
+    max_tilt_deg: float = 180.0             # largest turn from its pose at grasp_frame
+
+
+@dataclass
+class Slides:
+    """The grip is let off below "just enough": the body slides out of the fingers and falls
+    at least ``min_drop`` relative to them, and starts slipping when the grip force per finger
+    has fallen to ``m g / (n mu_s)``: that grip lies between the grips of the frames before and
+    at the first slip (within ``onset_tolerance``, relative)."""
+    body: str
+    min_drop: float
+    onset_tolerance: float = 0.02
+
+
+@dataclass
+class Hangs:
+    """Hooked: the body rises at least ``rise`` and hangs from the finger: it swings about the
+    vertical through the god-object, its centre of mass on average (over the last ``window``
+    frames) within ``max_offset`` of it horizontally."""
+    body: str
+    finger: str
+    rise: float
+    max_offset: float
+    window: int = 48
+
+
+@dataclass
+class Carried:
+    """A held body carrying others resting on it: those stay put on it within ``max_shift``,
+    and the fingers feel the whole load (their upward force, averaged over the ``hold``
+    frames, is the weight of all within ``load_tolerance``, relative)."""
+    body: str
+    riders: tuple
+    rise: float
+    max_shift: float
+    grasp_frame: int
+    load_tolerance: float = 0.03
+
+
+@dataclass
+class Scene:
+    name: str
+    description: str
+    bodies: list
+    fingers: list
+    keys: list
+    claim: object
+    interpolation: str = "BEZIER"           # of the fingertip keys: BEZIER eases in and out
+
+    @property
+    def frame_end(self) -> int:
+        return self.keys[-1].frame
+
+    def body(self, name):
+        return next(b for b in self.bodies if b.name == name)
+
+    def frames_of(self, phase):
+        """Frames (inclusive start, exclusive end) of every key range of ``phase``."""
+        out = []
+        for a, b in zip(self.keys, self.keys[1:]):
+            if a.phase == phase:
+                out.extend(range(a.frame, b.frame))
+        return out
+
+    def phase_at(self, frame):
+        name = self.keys[0].phase
+        for k in self.keys:
+            if frame >= k.frame:
+                name = k.phase
+        return name
+
+
+# --------------------------------------------------------------------------- the library
+
+def _table(size=(0.40, 0.30, 0.02), center=(0.0, 0.0, -0.01), mu=(0.6, 0.5), name="Table"):
+    return Body(name, Box(size), center, static=True, mu=mu)
+
+
+def _unit(v):
+    n = math.sqrt(sum(c * c for c in v))
+    return tuple(c / n for c in v)
+
+
+def _lift_keys(lift, clearance, squeeze_end=25, hold_frames=36, carry=None):
+    """rest, close, squeeze, lift ``lift`` m over 1 s, hold; optionally carry, hold."""
+    up = (0.0, 0.0, lift)
+    keys = [Key(1, "rest", clearance), Key(7, "close", clearance), Key(squeeze_end - 6, "squeeze", 0.0),
+            Key(squeeze_end, "lift", 0.0), Key(squeeze_end + 24, "hold", 0.0, up)]
+    end = squeeze_end + 24 + hold_frames
+    if carry is not None:
+        moved = tuple(u + c for u, c in zip(up, carry))
+        keys += [Key(end, "carry", 0.0, up), Key(end + 24, "hold", 0.0, moved)]
+        end += 24 + hold_frames
+        up = moved
+    keys.append(Key(end, "end", 0.0, up))
+    return keys
+
+
+def _pinch_and_lift_module():
+    import importlib.util
+    name = "grasp_lab_build_pinch_and_lift"
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(name, os.path.join(HERE, "build_pinch_and_lift.py"))
+        mod = importlib.util.module_from_spec(spec)
+        sys.modules[name] = mod
+        spec.loader.exec_module(mod)
+    return sys.modules[name]
+
+
+def pinch_and_lift() -> Scene:
+    # The first sample scene; its numbers and timeline are build_pinch_and_lift.py's (the demo).
+    p = _pinch_and_lift_module()
+    fingers = [Finger(f"Finger {i}", (s * p.CLOSED_X, 0.0, p.BOX_Z), (s, 0.0, 0.0), radius=p.FINGER_RADIUS,
+                      stiffness=p.STIFFNESS, damping=p.DAMPING) for i, s in enumerate((-1.0, 1.0))]
+    keys = [Key(f, phase, x - p.CLOSED_X, (0.0, y, z - p.BOX_Z)) for f, phase, x, y, z in p.KEYS]
+    return Scene("pinch_and_lift", "Pinch: two fingertips pick a box off the table, lift it, carry it "
+                 "and put it back down",
+                 [Body("Table", Box(p.TABLE_SIZE), p.TABLE_CENTER, static=True, mu=p.TABLE_MU),
+                  Body("Box", Box((p.BOX_SIZE,) * 3), (0.0, 0.0, p.BOX_Z), mass=p.BOX_MASS, mu=p.BOX_MU)],
+                 fingers, keys, Held("Box", rise=p.LIFT, max_slip=0.001, grasp_frame=31, max_tilt_deg=1.0),
+                 interpolation="LINEAR")
+
+
+def key_pinch() -> Scene:
+    # A credit card (85.6 x 54 x 0.76 mm, 5 g) standing in a slot. Lateral (key) pinch: the
+    # thumb tip on one face, the side of the curled index on the other, met as two spheres
+    # (distal and middle phalanx) 2 cm apart, so the card cannot pivot about the pinch axis.
+    t = 0.00076
+    card = Body("Card", Box((t, 0.0856, 0.054)), (0.0, 0.0, 0.027), mass=0.005, mu=(0.6, 0.5))
+    slot_wall = Box((0.01, 0.10, 0.012))
+    gap = 0.0005                                            # per side
+    walls = [Body(f"Slot {s}", slot_wall, (sgn * (t / 2 + gap + 0.005), 0.0, 0.006), static=True)
+             for s, sgn in (("-x", -1), ("+x", 1))]
+    z = 0.045                                               # pinch height, 9 mm below the top edge
+    squeeze = 0.002
+    r_thumb, r_index = 0.009, 0.008
+    fingers = [
+        Finger("Thumb", (t / 2 + r_thumb - 2 * squeeze, 0.0, z), (1.0, 0.0, 0.0), radius=r_thumb),
+        Finger("Index distal", (-(t / 2 + r_index - squeeze), -0.01, z), (-1.0, 0.0, 0.0), radius=r_index),
+        Finger("Index middle", (-(t / 2 + r_index - squeeze), 0.01, z), (-1.0, 0.0, 0.0), radius=r_index),
+    ]
+    return Scene("key_pinch", "Key pinch: the thumb presses a card against the side of the index and "
+                 "draws it out of its slot",
+                 [_table(), card] + walls, fingers, _lift_keys(0.06, 0.012),
+                 Held("Card", rise=0.06, max_slip=0.0015, grasp_frame=25, max_tilt_deg=3.0))
+
+
+def tripod_pencil() -> Scene:
+    # A 10 g hexagonal pencil (7 mm across flats, 175 mm) standing on end; thumb, index and
+    # middle fingertips on alternate flats 3 cm below its top lift it 8 cm and carry it 10 cm
+    # sideways: the pencil hangs in the grip and hardly swings.
+    flats = 0.007
+    length = 0.175
+    r = flats / math.sqrt(3.0)                              # circumradius
+    pencil = Body("Pencil", Prism(r, length, 6), (0.0, 0.0, length / 2), mass=0.010, mu=(0.7, 0.5))
+    z = length - 0.03
+    squeeze = 0.0015
+    tip = 0.007
+    fingers = []
+    for name, deg in (("Thumb", 30.0), ("Index", 150.0), ("Middle", 270.0)):
+        n = (math.cos(math.radians(deg)), math.sin(math.radians(deg)), 0.0)
+        d = flats / 2 + tip - squeeze
+        fingers.append(Finger(name, (n[0] * d, n[1] * d, z), n, radius=tip))
+    return Scene("tripod_pencil", "Tripod (stylus) grasp: thumb, index and middle fingertips lift a "
+                 "10 g hexagonal pencil and hold it steady",
+                 [_table(), pencil], fingers, _lift_keys(0.08, 0.01, carry=(0.10, 0.0, 0.0)),
+                 Held("Pencil", rise=0.08, max_slip=0.001, grasp_frame=25, max_tilt_deg=2.0))
+
+
+WEAK_BOX = 0.05
+WEAK_MASS = 0.1
+WEAK_MU = (0.8, 0.6)
+
+
+def weak_grip_slide() -> Scene:
+    # The pinch of pinch_and_lift (5 cm, 100 g box, two 1000 N/m fingertips 3 mm deep: 3 N
+    # each, 2.4 N of friction per finger against 0.49 N of weight each), lifted 8 cm; then the
+    # fingers ease off slowly, past "just enough" (m g / (2 mu_s) = 0.61 N per finger, at
+    # 0.61 mm deep), and the box slides out of them onto the table.
+    half = WEAK_BOX / 2
+    r, squeeze = 0.008, 0.003
+    fingers = [Finger(f"Finger {i}", (s * (half + r - squeeze), 0.0, half), (s, 0.0, 0.0), radius=r)
+               for i, s in enumerate((-1.0, 1.0))]
+    box = Body("Box", Box((WEAK_BOX,) * 3), (0.0, 0.0, half), mass=WEAK_MASS, mu=WEAK_MU)
+    up = (0.0, 0.0, 0.08)
+    keys = [Key(1, "rest", 0.015), Key(7, "close", 0.015), Key(19, "squeeze", 0.0), Key(25, "lift", 0.0),
+            Key(49, "hold", 0.0, up), Key(61, "ease off", 0.0, up), Key(109, "hold", 0.0028, up),
+            Key(133, "end", 0.0028, up)]
+    return Scene("weak_grip_slide", "Weak grip: a lifted box is held less and less firmly until the "
+                 "grip falls below just enough and the box slides out of the fingers",
+                 [_table(), box], fingers, keys, Slides("Box", min_drop=0.05))
+
+
+def can_power() -> Scene:
+    # A full 330 ml can (66 mm x 115 mm, 350 g) on the table; the thumb on one side, the four
+    # fingertips round the other at four heights, squeezing 3 mm (the thumb about 4 times as
+    # deep: it balances the four), lift it 10 cm.
+    rad, h = 0.033, 0.115
+    can = Body("Can", Prism(rad, h, 32), (0.0, 0.0, h / 2), mass=0.35, mu=(0.6, 0.5))
+    zc = h / 2
+    r, squeeze, k = 0.008, 0.003, 1000.0
+    fingers = []
+    # Fingertips 10 deg either side of the far side, alternating so that their sideways pushes
+    # cancel in force and in moment (sum of sin = sum of z sin = 0): the can is not twisted.
+    wrap = ((("Index", 170.0, 0.03), ("Middle", 190.0, 0.01), ("Ring", 190.0, -0.01),
+             ("Little", 170.0, -0.03)))
+    for name, deg, dz in wrap:
+        n = (math.cos(math.radians(deg)), math.sin(math.radians(deg)), 0.0)
+        d = rad + r - squeeze
+        fingers.append(Finger(name, (n[0] * d, n[1] * d, zc + dz), n, radius=r, stiffness=k))
+    balance = sum(math.cos(math.radians(d)) for _, d, _ in wrap)          # < 0
+    r_t = 0.010
+    fingers.insert(0, Finger("Thumb", (rad + r_t + balance * squeeze, 0.0, zc), (1.0, 0.0, 0.0),
+                             radius=r_t, stiffness=k))
+    return Scene("can_power", "Power grasp with fingertips: thumb and four fingertips round a full "
+                 "350 g can lift it off the table",
+                 [_table(), can], fingers, _lift_keys(0.10, 0.015),
+                 Held("Can", rise=0.10, max_slip=0.002, grasp_frame=25, max_tilt_deg=3.0))
+
+
+def mug_hook() -> Scene:
+    # A full mug (solid 80 x 90 mm cylinder, 350 g) with a ring handle on its +x side, its top
+    # at the rim: the centre of mass is below the handle. The mesh is one object, Collision
+    # Shape Automatic: the decomposition cuts the ring into convex pieces. One fingertip goes
+    # through the handle and lifts: the mug tips until its centre of mass hangs below the finger.
+    rad, h = 0.04, 0.09
+    ring = Ring(major=0.024, minor=0.006)
+    ring_x, ring_z = rad + 0.010, h / 2 - 0.030              # ring top level with the rim
+    mug = Body("Mug", Union(((Prism(rad, h, 32), (0.0, 0.0, 0.0)), (ring, (ring_x, 0.0, ring_z)))),
+               (0.0, 0.0, h / 2), mass=0.35, mu=(0.6, 0.5), collision="AUTO")
+    r = 0.007
+    inside = (ring_x + 0.006, 0.0, h / 2 + ring_z)          # in the handle's hole, near its outer side
+    finger = Finger("Index", inside, (0.0, -1.0, 0.0), radius=r, stiffness=1500.0, damping=3.0)
+    keys = [Key(1, "rest", 0.04), Key(7, "reach in", 0.04), Key(25, "lift", 0.0),
+            Key(73, "hold", 0.0, (0.0, 0.0, 0.12)), Key(145, "end", 0.0, (0.0, 0.0, 0.12))]
+    return Scene("mug_hook", "Hook grasp: one finger through a mug's handle lifts the full mug, which "
+                 "hangs with its centre of mass below the finger",
+                 [_table(), mug], [finger], keys, Hangs("Mug", "Index", rise=0.05, max_offset=0.003))
+
+
+def tray_two_hands() -> Scene:
+    # A 50 x 30 cm, 400 g tray overhanging a 30 cm stand at both ends, two 150 g cups on it.
+    # Each hand: the thumb on top, two fingertips under the overhang 8 cm apart. Lifted 8 cm
+    # and carried 10 cm sideways: the cups ride on the tray.
+    tray_t = 0.012
+    tray = Body("Tray", Box((0.50, 0.30, tray_t)), (0.0, 0.0, tray_t / 2), mass=0.4, mu=(0.6, 0.5))
+    stand = _table(size=(0.30, 0.30, 0.02), name="Stand")
+    cup = Prism(0.04, 0.09, 24)
+    cups = [Body(f"Cup {i}", cup, (x, 0.02 * (1 - 2 * i), tray_t + 0.045), mass=0.15, mu=(0.5, 0.4))
+            for i, x in enumerate((-0.08, 0.09))]
+    r, k = 0.008, 1500.0
+    load = (0.4 + 2 * 0.15) * G / 2                         # per hand
+    d_thumb = 0.003
+    d_below = (load / k + d_thumb) / 2                      # 2 k d_below - k d_thumb = load
+    fingers = []
+    for hand, sx in (("Left", -1.0), ("Right", 1.0)):
+        x = sx * 0.22
+        fingers.append(Finger(f"{hand} thumb", (x, 0.0, tray_t + r - d_thumb), (0.0, 0.0, 1.0),
+                              radius=r, stiffness=k, group=hand))
+        for name, y in (("index", 0.04), ("middle", -0.04)):
+            fingers.append(Finger(f"{hand} {name}", (x, y, -r + d_below), (0.0, 0.0, -1.0),
+                                  radius=r, stiffness=k, group=hand))
+    keys = _lift_keys(0.08, 0.012, carry=(0.0, 0.10, 0.0))
+    return Scene("tray_two_hands", "Two hands carry a tray with two cups: the cups ride on the tray and "
+                 "the fingers feel their weight through it",
+                 [stand, tray] + cups, fingers, keys,
+                 Carried("Tray", riders=("Cup 0", "Cup 1"), rise=0.08, max_shift=0.001, grasp_frame=25))
+
+
+def two_people_box() -> Scene:
+    # A 40 cm, 2 kg box; two people squeeze it from either side with three fingertips each
+    # (2000 N/m, 4 mm: 24 N a side, 19 N of friction against 9.8 N), lift it and carry it.
+    size = 0.40
+    box = Body("Box", Box((size, 0.30, 0.25)), (0.0, 0.0, 0.125), mass=2.0, mu=(0.8, 0.6))
+    r, k, squeeze = 0.009, 2000.0, 0.004
+    fingers = []
+    for person, s in (("A", -1.0), ("B", 1.0)):
+        for i, (y, dz) in enumerate(((-0.06, 0.02), (0.0, -0.02), (0.06, 0.02))):
+            fingers.append(Finger(f"{person} finger {i}", (s * (size / 2 + r - squeeze), y, 0.125 + dz),
+                                  (s, 0.0, 0.0), radius=r, stiffness=k, damping=4.0, group=person))
+    keys = _lift_keys(0.10, 0.02, carry=(0.0, 0.15, 0.0))
+    return Scene("two_people_box", "Two people, three fingertips each, lift a 2 kg box together and "
+                 "carry it",
+                 [_table(size=(0.6, 0.5, 0.02)), box], fingers, keys,
+                 Held("Box", rise=0.10, max_slip=0.0025, grasp_frame=25, max_tilt_deg=2.0))
+
+
+SCENES = {f.__name__: f for f in (pinch_and_lift, key_pinch, tripod_pencil, weak_grip_slide, can_power, mug_hook,
+                                  tray_two_hands, two_people_box)}
+
+
+def scene(name) -> Scene:
+    if name not in SCENES:
+        raise KeyError(f"no scene {name!r} in the library (have {', '.join(SCENES)})")
+    return SCENES[name]()
+
+
+# --------------------------------------------------------------------------- meshes
+
+def _shape_geometry(shape):
+    """(vertices, faces) of a closed outward-facing mesh, faces as index tuples."""
+    if isinstance(shape, Box):
+        sx, sy, sz = (s / 2 for s in shape.size)
+        verts = [(x, y, z) for x in (-sx, sx) for y in (-sy, sy) for z in (-sz, sz)]
+        faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+        return verts, faces
+    if isinstance(shape, Prism):
+        n, r, hz = shape.sides, shape.radius, shape.height / 2
+        ring = [(r * math.cos(shape.angle + 2 * math.pi * i / n), r * math.sin(shape.angle + 2 * math.pi * i / n))
+                for i in range(n)]
+        verts = [(x, y, -hz) for x, y in ring] + [(x, y, hz) for x, y in ring]
+        faces = [tuple(range(n - 1, -1, -1)), tuple(range(n, 2 * n))]
+        faces += [(i, (i + 1) % n, n + (i + 1) % n, n + i) for i in range(n)]
+        return verts, faces
+    if isinstance(shape, Ring):
+        n, m, big, small = shape.segments, shape.tube_segments, shape.major, shape.minor
+        verts = []
+        for i in range(n):
+            u = 2 * math.pi * i / n
+            for j in range(m):
+                v = 2 * math.pi * j / m
+                rr = big + small * math.cos(v)
+                verts.append((rr * math.cos(u), small * math.sin(v), rr * math.sin(u)))
+        faces = []
+        for i in range(n):
+            for j in range(m):
+                a, b = i * m + j, ((i + 1) % n) * m + j
+                c, d = ((i + 1) % n) * m + (j + 1) % m, i * m + (j + 1) % m
+                faces.append((a, d, c, b))
+        return verts, faces
+    if isinstance(shape, Union):
+        verts, faces = [], []
+        for sub, (dx, dy, dz) in shape.shapes:
+            v, f = _shape_geometry(sub)
+            base = len(verts)
+            verts += [(x + dx, y + dy, z + dz) for x, y, z in v]
+            faces += [tuple(base + i for i in face) for face in f]
+        return verts, faces
+    raise TypeError(f"unknown shape {shape!r}")
+
+
+def _mesh(bpy, name, shape):
+    me = bpy.data.meshes.new(name)
+    verts, faces = _shape_geometry(shape)
+    me.from_pydata(verts, [], faces)
+    me.update()
+    return me
+
+
+# --------------------------------------------------------------------------- building
+
+def finger_position(finger: Finger, key: Key):
+    """The finger's HIP at a key: closed, opened along its outward direction, carried."""
+    return tuple(c + key.opening * o + d for c, o, d in zip(finger.closed, _unit(finger.outward), key.offset))
+
+
+def build(bpy, name):
+    """Create scene ``name`` in the current (empty) file. Returns the Scene description."""
+    sc = scene(name)
+    bscene = bpy.context.scene
+    bscene[DESCRIPTION_KEY] = sc.description
+    bscene.render.fps, bscene.render.fps_base = FPS, 1.0
+    bscene.frame_start, bscene.frame_end = sc.keys[0].frame, sc.frame_end
+    bscene.unit_settings.system = "METRIC"
+    s = bscene.grasp_lab
+    s.gravity = (0.0, 0.0, -G)
+    s.haptic_rate = 1000.0
+    s.duration = 0.0
+    bscene.frame_set(bscene.frame_start)
+    for b in sc.bodies:
+        obj = bpy.data.objects.new(b.name, _mesh(bpy, b.name, b.shape))
+        obj.location = b.location
+        bscene.collection.objects.link(obj)
+        gl = obj.grasp_lab
+        gl.role = "STATIC" if b.static else "DYNAMIC"
+        gl.mu_s, gl.mu_d = b.mu
+        if not b.static:
+            gl.mass_mode = "MASS"
+            gl.mass = b.mass
+        gl.shape = b.collision
+    for channel, f in enumerate(sc.fingers):
+        obj = bpy.data.objects.new(f.name, None)
+        obj.empty_display_type = "SPHERE"
+        obj.empty_display_size = f.radius
+        bscene.collection.objects.link(obj)
+        obj["grasp_lab_group"] = f.group
+        gl = obj.grasp_lab
+        gl.role = "FINGER"
+        gl.radius, gl.stiffness, gl.damping, gl.channel = f.radius, f.stiffness, f.damping, channel
+        for key in sc.keys:
+            obj.location = finger_position(f, key)
+            obj.keyframe_insert("location", frame=key.frame)
+        _set_interpolation(bpy, obj, sc.interpolation)
+    _add_view(bpy, sc)
+    bscene.frame_set(bscene.frame_start)
+    return sc
+
+
+def extent(sc: Scene):
+    """(centre, radius) of what the scene is about: its moving bodies where they start and where
+    the hand carries them, and the fingertips at every key (the tables left out)."""
+    import numpy as np
+    pts = [finger_position(f, k) for f in sc.fingers for k in sc.keys]
+    carried = np.array([k.offset for k in sc.keys])
+    for b in sc.bodies:
+        if not b.static:
+            verts = np.array(_shape_geometry(b.shape)[0]) + np.array(b.location)
+            pts.extend((verts[None, :, :] + carried[:, None, :]).reshape(-1, 3))
+    pts = np.array(pts)
+    lo, hi = pts.min(axis=0), pts.max(axis=0)
+    return (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
+
+
+VIEW_DIRECTION = (0.17, -0.455, 0.105)      # from what is shown toward the camera (the demo's)
+CAMERA_LENS = 60.0
+
+
+def _add_view(bpy, sc: Scene):
+    """A camera (aimed by a TRACK_TO at "Camera Target") and a sun, hidden in the viewports (they
+    would cross the grasp), and, when building files (in the background), every 3D viewport of
+    the file framed on the scene with clipping for millimetre objects; a Blender with a window
+    keeps the view its user has."""
+    from mathutils import Vector
+    bscene = bpy.context.scene
+    centre, radius = extent(sc)
+    bscene.render.resolution_x, bscene.render.resolution_y = 960, 600
+    half_fov = math.atan(18.0 * 600 / 960 / CAMERA_LENS)   # vertical, 36 mm sensor across
+    distance = 1.1 * radius / math.sin(half_fov)
+    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    cam.data.lens = CAMERA_LENS
+    cam.location = Vector(centre) + Vector(VIEW_DIRECTION).normalized() * distance
+    target = bpy.data.objects.new("Camera Target", None)
+    target.location = centre
+    for obj in (cam, target):
+        bscene.collection.objects.link(obj)
+    cam.constraints.new("TRACK_TO").target = target
+    bscene.camera = cam
+    light = bpy.data.objects.new("Light", bpy.data.lights.new("Light", "SUN"))
+    light.rotation_euler = (math.radians(40), math.radians(10), math.radians(30))
+    bscene.collection.objects.link(light)
+    target.empty_display_size = radius / 10
+    for obj in (cam, target, light):
+        obj.hide_viewport = True
+    if not bpy.app.background:
+        return
+    for screen in bpy.data.screens:
+        for area in screen.areas:
+            if area.type == "VIEW_3D":
+                space = area.spaces[0]
+                space.clip_start, space.clip_end = distance / 1000, distance * 100
+                space.region_3d.view_location = centre
+                space.region_3d.view_distance = distance
+
+
+def _set_interpolation(bpy, obj, interpolation):
+    """LINEAR, or BEZIER with flat (auto-clamped) handles: ease in and out of every key, no
+    overshoot."""
+    ad = obj.animation_data
+    if bpy.app.version >= (4, 4, 0):
+        from bpy_extras import anim_utils
+        fcurves = anim_utils.action_get_channelbag_for_slot(ad.action, ad.action_slot).fcurves
+    else:
+        fcurves = ad.action.fcurves
+    for fc in fcurves:
+        for kp in fc.keyframe_points:
+            kp.interpolation = interpolation
+            if interpolation == "BEZIER":
+                kp.handle_left_type = kp.handle_right_type = "AUTO_CLAMPED"
+        fc.update()
+
+
+# --------------------------------------------------------------------------- running
+
+@dataclass
+class Result:
+    """Per frame (from the start frame): the session's snapshots, stacked."""
+    frames: object
+    body_names: list
+    finger_names: list
+    poses: object               # (n_frames, n_bodies, 7)
+    com: object                 # (n_frames, n_bodies, 3)
+    hips: object                # (n_frames, n_fingers, 3)
+    god_objects: object
+    finger_forces: object       # rendered to the device
+    states: object              # 0 free, 1 stick, 2 slip
+    contacts: object            # body index, -1 none
+    stats: dict = field(default_factory=dict)
+
+    def body(self, name):
+        return self.body_names.index(name)
+
+
+def _session_module(bpy):
+    import importlib
+    for mod in bpy.context.preferences.addons.keys():
+        if mod.endswith(".grasp_lab"):
+            return importlib.import_module(f"{mod}.session")
+    raise RuntimeError("the grasp_lab extension is not enabled")
+
+
+def run(bpy):
+    """Run the current scene (built by ``build``) headless, frame by frame; returns a Result."""
+    import numpy as np
+    session = _session_module(bpy)
+    bpy.context.scene.grasp_lab.display_objects = False
+    s = session.BlenderSession(bpy.context, live=False)
+    snaps = [s.snapshot]
+    frames = [s.frame_start]
+    try:
+        for k in range(1, s.n_frames + 1):
+            s.advance_frame(s.frame_start + k)
+            snaps.append(s.snapshot)
+            frames.append(s.frame_start + k)
+    finally:
+        res = s.finish()
+    stack = lambda attr: np.array([getattr(p, attr) for p in snaps])   # noqa: E731
+    return Result(np.array(frames), list(res.body_names), list(res.finger_names), stack("poses"),
+                  stack("com"), stack("hips"), stack("god_objects"), stack("finger_forces"),
+                  stack("finger_states"), stack("contacts"), dict(res.stats))
+
+
+# --------------------------------------------------------------------------- measuring
+
+def _angle_deg(q0, q1):
+    import numpy as np
+    d = abs(float(np.dot(q0, q1))) / (np.linalg.norm(q0) * np.linalg.norm(q1))
+    return math.degrees(2.0 * math.acos(min(1.0, d)))
+
+
+def measure(sc: Scene, r: Result) -> dict:
+    """The numbers the scene's claim is about, from a simulated Result."""
+    import numpy as np
+    c = sc.claim
+    fr = list(r.frames)
+    out = {}
+    if isinstance(c, (Held, Carried)):
+        i = r.body(c.body)
+        g = fr.index(c.grasp_frame)
+        centroid = r.hips.mean(axis=1)
+        rel = (r.com[:, i] - centroid) - (r.com[g, i] - centroid[g])
+        lifted = fr.index(sc.frames_of("hold")[0])         # the first hold: lifted
+        out["rise"] = float(r.com[lifted, i, 2] - r.com[0, i, 2])
+        out["slip"] = float(np.linalg.norm(rel[g:], axis=1).max())
+        out["tilt_deg"] = max(_angle_deg(r.poses[g, i, 3:], q) for q in r.poses[g:, i, 3:])
+        hold = [fr.index(f) for f in sc.frames_of("hold")]
+        touching = r.contacts[g] == i
+        out["fingers_touching"] = int(touching.sum())
+        # what the finger springs alone give under the load (all in parallel): part of "slip"
+        load = sum(sc.body(n).mass for n in (c.body,) + tuple(getattr(c, "riders", ()))) * G
+        out["spring_give"] = load / sum(f.stiffness for f, t in zip(sc.fingers, touching) if t)
+        out["slipping_frames"] = int((r.states[hold][:, touching] == 2).any(axis=1).sum())
+        if isinstance(c, Carried):
+            shifts = []
+            for name in c.riders:
+                j = r.body(name)
+                shifts.append(float(np.linalg.norm(_in_frame(r.poses[:, i], r.com[:, j])
+                                                   - _in_frame(r.poses[:1, i], r.com[:1, j]), axis=1).max()))
+            out["rider_shift"] = max(shifts)
+            weight = G * sum(sc.body(n).mass for n in (c.body,) + tuple(c.riders))
+            up = -r.finger_forces[hold][:, :, 2].sum(axis=1)     # the device's force is the reaction
+            out["felt_load"] = float(up.mean())
+            out["weight"] = weight
+    elif isinstance(c, Slides):
+        i = r.body(c.body)
+        centroid = r.hips.mean(axis=1)
+        rel_z = r.com[:, i, 2] - centroid[:, 2]
+        held = fr.index(sc.frames_of("ease off")[0])
+        out["drop"] = float(rel_z[held] - rel_z.min())
+        out["end_z"] = float(r.com[-1, i, 2])
+        out["rest_z"] = float(r.com[0, i, 2])
+        # slip onset: the first frame after the hold where a finger slips (the core's state);
+        # the grip per finger just before it
+        moved = np.nonzero((r.states[held:] == 2).any(axis=1))[0]
+        if len(moved):
+            onset = held + int(moved[0])
+            grip = np.abs(r.finger_forces[:, :, 0]).mean(axis=1)
+            body = sc.body(c.body)
+            n_f = len(sc.fingers)
+            out["onset_frame"] = int(fr[onset])
+            out["grip_before"] = float(grip[onset - 1])
+            out["grip_at_onset"] = float(grip[onset])
+            out["just_enough"] = body.mass * G / (n_f * body.mu[0])
+    elif isinstance(c, Hangs):
+        i = r.body(c.body)
+        f = r.finger_names.index(c.finger)
+        out["rise"] = float(r.com[-1, i, 2] - r.com[0, i, 2])
+        d = r.com[-c.window:, i, :2] - r.god_objects[-c.window:, f, :2]
+        out["com_offset"] = float(np.linalg.norm(d.mean(axis=0)))
+        out["swing"] = float(np.linalg.norm(d, axis=1).max())
+        out["touching"] = bool((r.contacts[-c.window:, f] == i).all())
+        out["tilt_deg"] = float(np.mean([_angle_deg(r.poses[0, i, 3:], q) for q in r.poses[-c.window:, i, 3:]]))
+    return out
+
+
+def _in_frame(pose, points):
+    """World points in a body's frame: pose (n, 7), points (n, 3)."""
+    import numpy as np
+    q = pose[:, 3:].copy()
+    q[:, 1:] *= -1.0                         # inverse rotation
+    v = points - pose[:, :3]
+    w, u = q[:, :1], q[:, 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def verdict(sc: Scene, m: dict) -> list:
+    """What breaks the scene's claim, as text (empty: it does what it shows)."""
+    c = sc.claim
+    bad = []
+    if isinstance(c, (Held, Carried)):
+        if m["rise"] < c.rise - 0.005:
+            bad.append(f"rose {m['rise'] * 1e3:.1f} mm, not {c.rise * 1e3:.0f}")
+        if isinstance(c, Held) and m["slip"] > c.max_slip:
+            bad.append(f"moved {m['slip'] * 1e3:.2f} mm in the fingers (at most {c.max_slip * 1e3:.2f})")
+        if isinstance(c, Held) and m["tilt_deg"] > c.max_tilt_deg:
+            bad.append(f"turned {m['tilt_deg']:.2f} deg (at most {c.max_tilt_deg})")
+        if m["slipping_frames"]:
+            bad.append(f"a finger slipped in {m['slipping_frames']} hold frames")
+        if m["fingers_touching"] != len(sc.fingers):
+            bad.append(f"{m['fingers_touching']} of {len(sc.fingers)} fingers touch it")
+        if isinstance(c, Carried):
+            if m["rider_shift"] > c.max_shift:
+                bad.append(f"a rider shifted {m['rider_shift'] * 1e3:.2f} mm on it")
+            if abs(m["felt_load"] - m["weight"]) > c.load_tolerance * m["weight"]:
+                bad.append(f"fingers felt {m['felt_load']:.3f} N, the load is {m['weight']:.3f} N")
+    elif isinstance(c, Slides):
+        if m["drop"] < c.min_drop:
+            bad.append(f"dropped {m['drop'] * 1e3:.1f} mm in the fingers, not {c.min_drop * 1e3:.0f}")
+        if abs(m["end_z"] - m["rest_z"]) > 0.001:
+            bad.append(f"ended at z {m['end_z'] * 1e3:.1f} mm, not back on the table")
+        if "onset_frame" not in m:
+            bad.append("never slipped")
+        elif not (m["grip_at_onset"] * (1 - c.onset_tolerance) <= m["just_enough"]
+                  <= m["grip_before"] * (1 + c.onset_tolerance)):
+            bad.append(f"slipped between {m['grip_before']:.3f} and {m['grip_at_onset']:.3f} N per "
+                       f"finger, just enough is {m['just_enough']:.3f} N")
+    elif isinstance(c, Hangs):
+        if m["rise"] < c.rise:
+            bad.append(f"rose {m['rise'] * 1e3:.1f} mm (at least {c.rise * 1e3:.0f})")
+        if not m["touching"]:
+            bad.append("the finger lost the handle")
+        if m["com_offset"] > c.max_offset:
+            bad.append(f"centre of mass {m['com_offset'] * 1e3:.1f} mm off the finger's vertical")
+    return bad
+
+
+# --------------------------------------------------------------------------- command line
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default=os.path.join(ROOT, "build", "scenes"), help="where the .blend files go")
+    ap.add_argument("--only", nargs="+", choices=sorted(SCENES), help="these scenes only")
+    ap.add_argument("--run", action="store_true", help="also run each scene and print its outcome")
+    ap.add_argument("--no-save", action="store_true", help="do not write .blend files")
+    ap.add_argument("--zip", help="install the extension from this built zip (default: $GRASP_LAB_ZIP, "
+                                  "else a development repository of addon/)")
+    args = ap.parse_args(argv)
+    sys.path.insert(0, os.path.join(ROOT, "tests", "blender"))
+    import grasp_env                 # isolates Blender's user resources, then loads the add-on
+    grasp_env.isolate()
+    import bpy
+    grasp_env.enable(args.zip)
+    failed = 0
+    for name in args.only or SCENES:
+        bpy.ops.wm.read_homefile(use_empty=True)
+        sc = build(bpy, name)
+        if not args.no_save:
+            os.makedirs(args.out, exist_ok=True)
+            path = os.path.abspath(os.path.join(args.out, f"{name}.blend"))
+            if os.path.exists(path):
+                os.remove(path)              # written anew, not kept as a .blend1 backup
+            bpy.ops.wm.save_as_mainfile(filepath=path, compress=True)
+            print(f"{path} ({os.path.getsize(path) / 1024:.0f} kB): {sc.description}")
+        if args.run:
+            m = measure(sc, run(bpy))
+            bad = verdict(sc, m)
+            failed += bool(bad)
+            print(f"  {name}: " + ", ".join(f"{k} {v:.6g}" if isinstance(v, float) else f"{k} {v}"
+                                            for k, v in m.items()))
+            print(f"  {name}: " + ("OK" if not bad else "FAILS: " + "; ".join(bad)))
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
