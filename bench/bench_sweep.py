@@ -183,10 +183,19 @@ def main():
         # 2. two local workers vs one (both through sweep(), workers=1 in process, 2 spawned)
         n_pool = 600 if args.quick else 3000     # a pool starts in about 0.2 s: amortised
         log("pool: 1 vs 2 workers")
-        one_t, two_t = [], []
+        import resource
+
+        def cpu_all():      # this process and its reaped children (the pool's workers), CPU s
+            c = resource.getrusage(resource.RUSAGE_CHILDREN)
+            return time.process_time() + c.ru_utime + c.ru_stime
+        one_t, two_t, one_cpu, two_cpu = [], [], [], []
         for r in range(2 if args.quick else 3):
+            c = cpu_all()
             one_t.append(timed_sweep(rec, n_pool, os.path.join(tmp, "p1"), workers=1, analysis=False)[0])
+            one_cpu.append(cpu_all() - c)
+            c = cpu_all()
             two_t.append(timed_sweep(rec, n_pool, os.path.join(tmp, "p2"), workers=2, analysis=False)[0])
+            two_cpu.append(cpu_all() - c)
         one_rate, two_rate = n_pool / statistics.median(one_t), n_pool / statistics.median(two_t)
         same_bytes = open(os.path.join(tmp, "p1", "samples.csv"), "rb").read() == \
             open(os.path.join(tmp, "p2", "samples.csv"), "rb").read()
@@ -235,7 +244,7 @@ def main():
     import dask
     import matplotlib
     ratio = bare_s / sweep_s
-    print("### Sweeps (grasp-lab sweep)\n")
+    print("# Sweeps (grasp-lab sweep)\n")     # run_bench.py nests it: "## Sweeps"
     print(f"Run on {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} by `.venv/bin/python bench/bench_sweep.py"
           f"{' --quick' if args.quick else ''}` ({platform.machine()}, {os.cpu_count()} logical cores, shared: "
           f"load average {load0[0]:.2f} at start, {load1[0]:.2f} at end). Python {platform.python_version()}, "
@@ -270,6 +279,10 @@ def main():
     print(f"| the same with the grasp measures (every 20 ms while held), CPU time | {an_s * 1e3:.2f} ms a sample |")
     print(f"| 1 / 2 local workers, {n_pool} samples (median of runs) | {statistics.median(one_t):.2f} / "
           f"{statistics.median(two_t):.2f} s; samples.csv the same bytes: {'yes' if same_bytes else 'NO'} |")
+    print(f"| CPU for {n_pool} samples, all processes: 1 worker (in process) / pool of 2 (its start, pickling, "
+          f"the parent) | {statistics.median(one_cpu):.2f} / {statistics.median(two_cpu):.2f} s: the pool's overhead "
+          f"{(statistics.median(two_cpu) / statistics.median(one_cpu) - 1) * 100:+.0f} %, so 2 free cores would give "
+          f"{2 * statistics.median(one_cpu) / statistics.median(two_cpu):.2f}× at most |")
     print(f"| Dask (2 workers × 1 thread) / local pool of 2, {n_pool} samples | {statistics.median(dask_t):.2f} / "
           f"{statistics.median(pool_t):.2f} s; samples.csv the same bytes: {'yes' if dask_same else 'NO'} |")
     if long_row:

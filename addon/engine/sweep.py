@@ -36,7 +36,8 @@ DROP_GRACE = 0.05           # s: losing the body for longer than this is a drop
 HOLD_FINGERS = 2            # fingers on a body for it to count as held
 ANALYSIS_PERIOD = 0.02      # s: the grasp measures are taken every this (50 Hz) while held
 Z95 = 1.959963984540054     # two-sided 95 % normal quantile
-CHUNK_SECONDS_LOCAL = 0.25  # s of work per task on the local pool (balance, resume granularity)
+CHUNK_SECONDS_LOCAL = 0.25  # s of work per chunk in this process (progress, resume granularity)
+LOCAL_CHUNK_MAX = 64        # samples per task on the local pool at most (balance, resume granularity)
 CHUNK_SECONDS_DASK = 1.0    # s of work per task on a Dask cluster at least (its per-task overhead)
 CONNECT_TIMEOUT = 30.0      # s to reach a --scheduler
 SPEC_FILE, SAMPLES_FILE, SUMMARY_FILE = "sweep.json", "samples.csv", "summary.json"
@@ -530,21 +531,27 @@ def _chunks(todo, size):
     return [todo[k:k + size] for k in range(0, len(todo), size)]
 
 
-def run_local(job: Job, todo, workers: int, seconds_per_sample: float, on_rows) -> None:
+def run_local(job: Job, todo, workers: int, on_rows) -> None:
     """On this machine: in this process for one worker, else a pool of ``workers`` processes
-    (spawned: they import this module, numpy and the core, never bpy)."""
-    if workers <= 1:
-        size = max(1, int(CHUNK_SECONDS_LOCAL / max(seconds_per_sample, 1e-6)))
-        for chunk in _chunks(todo, size):
+    (spawned: they import this module, numpy and the core, never bpy). The first sample runs
+    here while the pool starts, so a scene the core refuses fails at once."""
+    from .. import core_loader
+    if workers <= 1 or len(todo) <= 1:
+        t = time.perf_counter()
+        on_rows(run_chunk(job, todo[:1]))
+        size = max(1, int(CHUNK_SECONDS_LOCAL / max(time.perf_counter() - t, 1e-6)))
+        for chunk in _chunks(todo[1:], size):
             on_rows(run_chunk(job, chunk))
         return
     import concurrent.futures as cf
     import multiprocessing
-    size = max(1, min(int(CHUNK_SECONDS_LOCAL / max(seconds_per_sample, 1e-6)), len(todo) // (4 * workers)))
+    rest = todo[1:]
+    size = max(1, min(LOCAL_CHUNK_MAX, len(rest) // (8 * workers)))     # load balance and resume granularity
     with cf.ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn"),
                                 initializer=_init_local_worker, initargs=(job,)) as pool:
-        futures = [pool.submit(_local_chunk, c) for c in _chunks(todo, size)]
+        futures = [pool.submit(_local_chunk, c) for c in _chunks(rest, size)]
         try:
+            on_rows([run_sample(job, todo[0], core_loader.load())])
             for f in cf.as_completed(futures):
                 on_rows(f.result())
         except BaseException:
@@ -590,10 +597,12 @@ def _trampoline(package: str):
     return namespace["run"]
 
 
-def run_dask(job: Job, todo, address: str, seconds_per_sample: float, on_rows, folder: str) -> None:
+def run_dask(job: Job, todo, address: str, on_rows, folder: str) -> None:
     """On an existing Dask cluster (never one of our own): the engine uploaded to every worker
-    (and to any that joins later), the samples in tasks of at least CHUNK_SECONDS_DASK of work.
-    A worker lost mid-sweep has its tasks run again elsewhere: the same rows."""
+    (and to any that joins later), the samples in tasks of at least CHUNK_SECONDS_DASK of work
+    (the first sample, run here, says how many that is). A worker lost mid-sweep has its tasks
+    run again elsewhere: the same rows."""
+    from .. import core_loader
     try:
         from distributed import Client, as_completed
         from distributed.diagnostics.plugin import UploadFile
@@ -604,6 +613,12 @@ def run_dask(job: Job, todo, address: str, seconds_per_sample: float, on_rows, f
     except (OSError, TimeoutError) as ex:
         raise SweepError(f"--scheduler {address}: cannot connect ({ex})") from None
     try:
+        t = time.perf_counter()
+        on_rows([run_sample(job, todo[0], core_loader.load())])   # a scene the core refuses fails here
+        seconds_per_sample = time.perf_counter() - t
+        todo = todo[1:]
+        if not todo:
+            return
         path, package = engine_zip(folder)
         client.register_plugin(UploadFile(path), name="grasp_lab_sweep")
         job_future = client.scatter([job.state()], broadcast=True, hash=False)[0]   # a list: a dict would scatter per key
@@ -883,7 +898,6 @@ def sweep(rec, varies, samples: int, seed: int, folder: str, workers: int = 1, s
           body: str | None = None, analysis: bool = True, analysis_period: float = ANALYSIS_PERIOD,
           pictures: bool = True, progress=None) -> SweepResult:
     """Run (or finish) a sweep of ``rec`` into ``folder``; samples already there are kept."""
-    from .. import core_loader
     job = make_job(rec, varies, seed, body, analysis, analysis_period)
     spec = spec_of(job, rec, samples)
     os.makedirs(folder, exist_ok=True)
@@ -898,10 +912,6 @@ def sweep(rec, varies, samples: int, seed: int, folder: str, workers: int = 1, s
     t0 = time.perf_counter()
     ran = 0
     if todo:
-        # one sample here first: its time sizes the chunks, and a scene the core refuses fails now
-        t = time.perf_counter()
-        first = run_sample(job, todo[0], core_loader.load())
-        seconds_per_sample = time.perf_counter() - t
         with open(csv_path, "a", newline="") as fh:
             writer = csv.writer(fh, lineterminator="\n")
 
@@ -914,12 +924,10 @@ def sweep(rec, varies, samples: int, seed: int, folder: str, workers: int = 1, s
                 ran += len(new)
                 if progress:
                     progress(len(done), total, time.perf_counter() - t0)
-            on_rows([first])
-            rest = todo[1:]
-            if rest and scheduler:
-                run_dask(job, rest, scheduler, seconds_per_sample, on_rows, folder)
-            elif rest:
-                run_local(job, rest, workers, seconds_per_sample, on_rows)
+            if scheduler:
+                run_dask(job, todo, scheduler, on_rows, folder)
+            else:
+                run_local(job, todo, workers, on_rows)
     seconds = time.perf_counter() - t0
     rows = [done[i] for i in sorted(done) if i < total]
     write_sorted(csv_path, names, {r["sample"]: r for r in rows})
