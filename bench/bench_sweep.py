@@ -204,16 +204,22 @@ def main():
         log("dask vs local pool")
         cdir = os.path.join(tmp, "cluster")
         os.makedirs(cdir)
+        c_section = cpu_all()
         procs, address = start_cluster(cdir)
         try:
-            dask_t, pool_t = [], []
+            dask_t, pool_t, pool_cpu = [], [], []
             for r in range(2 if args.quick else 3):
                 dask_t.append(timed_sweep(rec, n_pool, os.path.join(tmp, "d"), scheduler=address, analysis=False)[0])
+                c = cpu_all()
                 pool_t.append(timed_sweep(rec, n_pool, os.path.join(tmp, "p2"), workers=2, analysis=False)[0])
+                pool_cpu.append(cpu_all() - c)
             dask_same = open(os.path.join(tmp, "d", "samples.csv"), "rb").read() == \
                 open(os.path.join(tmp, "p2", "samples.csv"), "rb").read()
         finally:
             stop_cluster(procs)
+        # the cluster's processes are this one's children, reaped above: all their CPU (start-up,
+        # scheduler, idle) and the client's, per run
+        dask_cpu = (cpu_all() - c_section - sum(pool_cpu)) / len(dask_t)
         dask_rate, pool_rate = n_pool / statistics.median(dask_t), n_pool / statistics.median(pool_t)
 
         # 4. the long sweep on the pool of two, memory watched
@@ -285,6 +291,9 @@ def main():
           f"{2 * statistics.median(one_cpu) / statistics.median(two_cpu):.2f}× at most |")
     print(f"| Dask (2 workers × 1 thread) / local pool of 2, {n_pool} samples | {statistics.median(dask_t):.2f} / "
           f"{statistics.median(pool_t):.2f} s; samples.csv the same bytes: {'yes' if dask_same else 'NO'} |")
+    print(f"| CPU for {n_pool} samples, all processes: Dask (scheduler, workers, client; start-up shared out) / "
+          f"local pool of 2 | {dask_cpu:.2f} / {statistics.median(pool_cpu):.2f} s "
+          f"({(dask_cpu / statistics.median(pool_cpu) - 1) * 100:+.0f} %) |")
     if long_row:
         print(f"| {n} samples: held, P(held), 95 % interval | {s['held']}, {s['p_held']:.4f}, "
               f"{s['ci95'][0]:.4f} .. {s['ci95'][1]:.4f} |")
