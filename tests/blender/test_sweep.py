@@ -304,3 +304,41 @@ def test_a_scene_is_recorded_first(bpy, sample, tmp_path):
     stamp = os.stat(out / "recording.mcap").st_mtime_ns
     r = subprocess.run(args, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0 and os.stat(out / "recording.mcap").st_mtime_ns == stamp
+
+
+def test_a_sweep_killed_mid_run_resumes_to_the_same_files(lift, tmp_path):
+    """`grasp-lab sweep` killed with SIGKILL while its pool works: the rows it had finished stay,
+    its worker processes end with it, and the sweep run again finishes with the same files as
+    one never stopped."""
+    import psutil
+    launcher = os.path.join(os.path.dirname(sys.executable), "grasp-lab")
+    args = [launcher, "sweep", lift.path, "--samples", "200", "--seed", "4", "--vary", "Box.mu_s=0.1:1.0",
+            "--vary", "Box.mass=0.05:0.6", "--no-analysis", "--workers", "2"]
+    killed = tmp_path / "killed"
+    p = subprocess.Popen(args + ["--out", str(killed)], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120
+    rows = 0
+    while time.monotonic() < deadline and p.poll() is None:
+        if (killed / "samples.csv").exists():
+            rows = (killed / "samples.csv").read_text().count("\n") - 1
+            if rows >= 20:
+                break
+        time.sleep(0.02)
+    assert p.poll() is None, "the sweep ended before it could be killed"
+    children = psutil.Process(p.pid).children(recursive=True)
+    p.send_signal(signal.SIGKILL)
+    p.wait(10)
+    gone, alive = psutil.wait_procs(children, timeout=10)
+    for c in alive:         # not to leave them behind when the check below fails
+        c.kill()
+    assert not alive, f"workers left running: {alive}"
+    kept = read_csv(killed / "samples.csv")
+    assert 20 <= len(kept) < 200
+    r = subprocess.run(args + ["--out", str(killed)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert f"{200 - len(kept)} samples re-simulated" in r.stdout
+    whole = tmp_path / "whole"
+    r = subprocess.run(args + ["--out", str(whole)], capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    for name in ("samples.csv", "summary.json", "map.png", "outcomes.png"):
+        assert (killed / name).read_bytes() == (whole / name).read_bytes(), name
