@@ -550,6 +550,10 @@ def run_local(job: Job, todo, workers: int, on_rows) -> None:
     (spawned: they import this module, numpy and the core, never bpy). The first sample runs
     here while the pool starts, so a scene the core refuses fails at once."""
     from .. import core_loader
+    if __name__.startswith("bl_ext."):
+        # Inside Blender the engine is a module of Blender's extension package, which a plain
+        # worker process cannot import: the sweep runs in this process (docs/sweeps.md).
+        workers = 1
     if workers <= 1 or len(todo) <= 1:
         t = time.perf_counter()
         on_rows(run_chunk(job, todo[:1]))
@@ -852,7 +856,11 @@ def draw_pictures(job: Job, rows: list, folder: str) -> list:
                 ax.hist(v * scale, bins=30, color=colour, alpha=0.6, label=what)
         ax.set_xlabel(label)
         ax.set_ylabel("samples")
-    axes.flat[0].legend(fontsize=8)
+    for ax in axes.flat:        # one legend, on a plot with both kinds when there is one
+        if len(ax.get_legend_handles_labels()[0]) == 2 or ax is axes.flat[-1]:
+            if ax.get_legend_handles_labels()[0]:
+                ax.legend(fontsize=8)
+            break
     fig.tight_layout()
     paths.append(os.path.join(folder, "outcomes.png"))
     fig.savefig(paths[-1], metadata={"Software": None})

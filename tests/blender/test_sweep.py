@@ -342,3 +342,18 @@ def test_a_sweep_killed_mid_run_resumes_to_the_same_files(lift, tmp_path):
     assert r.returncode == 0, r.stderr
     for name in ("samples.csv", "summary.json", "map.png", "outcomes.png"):
         assert (killed / name).read_bytes() == (whole / name).read_bytes(), name
+
+
+def test_inside_blender_the_sweep_runs_in_blenders_process(ext, lift, tmp_path):
+    """The extension's own copy of the command line (as `blender -c grasp_lab sweep` runs it):
+    its pool workers could not import a module of Blender's extension package, so the samples
+    run in this process, the same samples as outside."""
+    import importlib
+    ext_cli = importlib.import_module(f"{ext}.engine.cli")
+    out, err = io.StringIO(), io.StringIO()
+    args = ["sweep", lift.path, "--samples", "4", "--vary", "Box.mu_s=0.1:1.0", "--no-analysis"]
+    assert ext_cli.main(args + ["--out", str(tmp_path / "in"), "--workers", "2"], out=out, err=err) == 0, \
+        err.getvalue()
+    assert cli.main(args + ["--out", str(tmp_path / "out"), "--workers", "2"], out=io.StringIO(),
+                    err=io.StringIO()) == 0
+    assert (tmp_path / "in" / "samples.csv").read_bytes() == (tmp_path / "out" / "samples.csv").read_bytes()
