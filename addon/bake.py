@@ -21,6 +21,7 @@ from mathutils import Matrix, Quaternion
 
 from . import anim, display
 from .engine import analysis
+from .engine.measures import body_grip, finger_measures
 from .engine.recording import Recording, scene_from_dict
 from .engine.runner import quat_rotate
 
@@ -197,19 +198,6 @@ def _custom(obj, props: dict, run=None) -> list:
     return [(f'["{name}"]', 0, values) + ((run,) if run is not None else ()) for name, values in props.items()]
 
 
-def finger_measures(rec: Recording, ticks) -> dict:
-    """Per finger (n, nf): |F|, |Fn|, |Ft|, friction use |Ft| / (mu |Fn|) with the mu of its
-    current cone (analysis.friction_use; NONE when unbounded: a finger pulling), state."""
-    f = np.ascontiguousarray(ticks["force"])
-    fn, ft = analysis.contact_forces(f, ticks["normal"])
-    contact = ticks["contact"]
-    mu = analysis.cone_mu(analysis.body_models(rec.header["scene"]), ticks["state"], contact)
-    use = np.where(contact >= 0, analysis.friction_use(ft, mu, fn), 0.0)
-    return {"gl_state": ticks["state"].astype(np.float64), "gl_force": np.sqrt(np.einsum("ijk,ijk->ij", f, f)),
-            "gl_normal_force": np.abs(fn), "gl_tangential_force": ft,
-            "gl_friction_use": np.where(np.isfinite(use), use, analysis.NONE)}
-
-
 def bake_recording(context, rec: Recording, every_tick: bool = False, force_scale: float | None = None,
                    torque_scale: float | None = None) -> BakeReport:
     """Bake ``rec`` into the context's scene. Returns what was baked and what was missing."""
@@ -268,12 +256,7 @@ def bake_recording(context, rec: Recording, every_tick: bool = False, force_scal
         obj.scale = (size, size, size)
         props = _custom(obj, {k: v[j] for k, v in measures.items()})
         jobs.append(partial(_point_job, obj, per["god_object"][j], _parent_inverse(obj), props))
-    grip = np.zeros((len(idx), len(desc.bodies)))
-    fn = measures["gl_normal_force"]
-    for j in range(len(desc.fingers)):
-        c = per["contact"][j]
-        on = c >= 0
-        np.add.at(grip, (np.flatnonzero(on), c[on]), fn[j, on])
+    grip = body_grip(per["contact"].T, measures["gl_normal_force"].T, len(desc.bodies))
     # The grasp measures of each held body (docs/analysis.md), at the baked ticks.
     rows = np.unique(idx)
     grasp = analysis.body_series(analysis.analyse_recording(rec, rows=rows), rows, len(desc.bodies))

@@ -178,5 +178,11 @@ def sample_fingers(context, fingers, frame_start: int, frame_end: int):
         for j, obj in enumerate(fingers):
             pos[i, j] = obj.matrix_world.translation
     scene.frame_set(frame_start)
+    bad = np.argwhere(~np.isfinite(pos).all(axis=2))
+    if len(bad):
+        i, j = bad[0]
+        raise SceneError(fingers[j].name, f"fingertip position at frame {frames[i]} is not finite "
+                                          f"({tuple(pos[i, j])}; {len(bad)} frame-finger samples are "
+                                          f"not): fix its animation keys")
     times = (np.array(frames, dtype=np.float64) - frame_start) / fps
     return times, pos

@@ -19,6 +19,7 @@ def _is_empty(self, obj):
 
 KIND_ITEMS = (
     ("SERIAL", "Grasp Lab Serial", "A device speaking the Grasp Lab serial protocol (1 kHz, forces)"),
+    ("UDP", "Grasp Lab UDP", "The same protocol over UDP at HOST:PORT: a bridge program or a device on another machine"),
     ("SPACEMOUSE", "SpaceMouse", "6-DoF rate control of a hand carrying the fingertips; button 1 closes the grip"),
     ("OPENGLOVES", "OpenGloves", "An OpenGloves / LucidGloves glove: five curls in, a brake per finger out"),
 )
@@ -47,6 +48,13 @@ def _add_entry(devices, world, entry):
     frame = workspace_matrix(entry)
     if entry.kind == "SERIAL":
         devices.add(entry.port, entry.finger_offset, entry.num_fingers, frame, label=entry.port)
+        return
+    if entry.kind == "UDP":
+        host, _, port = entry.port.rpartition(":")
+        if not port.isdigit():
+            raise ValueError(f"{entry.port}: a UDP device needs HOST:PORT")
+        devices.add_udp(host.strip("[]"), int(port), entry.finger_offset, entry.num_fingers, frame,
+                        label=entry.port)
         return
     first, n = entry.finger_offset, entry.num_fingers
     if first + n > world.finger_count:
@@ -83,7 +91,7 @@ def status_lines(devices) -> list:
         first, n = s["fingers"]
         lines.append(f"{s['label']}: {s['state']}, fingers {first}..{first + n - 1}, {s['rate_hz']:.0f} Hz, "
                      f"dropped {s['dropped']}, p99 {s['latency_p99_us']:.0f} µs, "
-                     f"forces {'on' if s['enabled'] else 'off'}")
+                     f"forces {'enabled' if s['enabled'] else 'not enabled'}")
     for port, err in getattr(devices, "failed", {}).items():
         lines.append(f"{port}: not connected ({err})")
     return lines

@@ -8,13 +8,17 @@ import time
 import bpy
 
 from . import bake as baking
+from .engine import limits
 from .engine.cli import CliError
-from .engine.recording import open_recording
+from .engine.outputs import AtomicFile
+from .engine.recording import open_recording, tick_dtype
 from .engine.resim import BODY_KEYS, FINGER_KEYS
 
 
 def open_blend(path: str) -> None:
     path = os.path.abspath(path)
+    if os.path.isdir(path):
+        raise CliError(f"{path}: is a folder, not a .blend file")
     if not os.path.isfile(path):
         raise CliError(f"{path}: no such file")
     try:
@@ -24,10 +28,45 @@ def open_blend(path: str) -> None:
 
 
 def save_blend(path: str) -> str:
-    path = os.path.abspath(path)
-    os.makedirs(os.path.dirname(path), exist_ok=True)
-    bpy.ops.wm.save_as_mainfile(filepath=path)
-    return path
+    """Saved beside its target (a copy: the open file keeps its name) and renamed into place."""
+    out = AtomicFile(path)
+    with out:
+        os.unlink(out.partial)      # Blender writes the file itself (and would back up an old one)
+        try:
+            bpy.ops.wm.save_as_mainfile(filepath=out.partial, copy=True)
+        except RuntimeError as ex:  # Blender's report (a full disk, ...); the target is as it was
+            raise CliError(f"{out.path}: could not save ({str(ex).strip()}); it is as it was") from None
+    return out.path
+
+
+def check_run_size(context, args) -> None:
+    """The session's length, tick count and recording size, before any file is touched."""
+    s = context.scene.grasp_lab
+    scene = context.scene
+    fps = scene.render.fps / scene.render.fps_base
+    duration = args.duration or s.duration or (scene.frame_end - scene.frame_start) / fps
+    if duration <= 0 and not args.realtime:
+        raise CliError(f"{args.scene}: nothing to run: the animation is {scene.frame_end - scene.frame_start} "
+                       f"frames long and neither the scene nor --duration gives a duration")
+    if not args.record or duration <= 0:
+        return
+    roles = [o.grasp_lab.role for o in scene.objects]
+    n_fingers = roles.count("FINGER")
+    n_bodies = len(roles) - n_fingers - roles.count("NONE")
+    ticks = duration * s.haptic_rate + 1
+    limits.check_recording_size("--record", args.record, ticks, tick_dtype(n_bodies, n_fingers).itemsize,
+                                args.max_size)
+
+
+def check_channels(context) -> None:
+    """Fingers a device drives: one a channel (two on one would move together, silently)."""
+    by_channel = {}
+    for o in sorted(context.scene.objects, key=lambda o: o.name):
+        if o.grasp_lab.role == "FINGER":
+            other = by_channel.setdefault(o.grasp_lab.channel, o.name)
+            if other != o.name:
+                raise CliError(f"--device: fingers {other!r} and {o.name!r} are both on device channel "
+                               f"{o.grasp_lab.channel}: give each finger its own channel")
 
 
 def apply_overrides(context, overrides) -> list:
@@ -47,6 +86,8 @@ def apply_overrides(context, overrides) -> list:
                 raise CliError(f"--set {o}: {o.obj!r} is a {gl.role.lower()} object; {o.key} is not one "
                                f"of its properties ({', '.join(allowed)})")
             if o.key == "mass":
+                if gl.role == "STATIC":
+                    raise CliError(f"--set {o}: {o.obj!r} is static (it has no mass to set)")
                 gl.mass_mode = "MASS"
             setattr(gl, o.key, o.value)
         done.append(str(o))
@@ -58,19 +99,26 @@ def run(args, out, err) -> int:
     open_blend(args.scene)
     context = bpy.context
     applied = apply_overrides(context, args.set)
+    check_run_size(context, args)
+    if args.device:
+        check_channels(context)
     record = os.path.abspath(args.record) if args.record else None
     if args.device:
         from .devices_ui import run_realtime
         if not args.duration:
             raise CliError("--device: give --duration S (a device session has no end of its own)")
-        live = run_realtime(context, args.duration, device_specs=args.device, record_path=record)
-        return _report(args, live.finish(), live.runner.recording_end, applied, out)
+        live = run_realtime(context, args.duration, device_specs=args.device, record_path=record,
+                            forces=args.forces == "on")
+        code = _report(args, live.finish(), live.runner.recording_end, applied, out)
+        return _report_devices(live, out, err) or code
     session = BlenderSession(context, live=args.realtime,
                              duration=args.duration if args.duration else None, record_path=record)
     if session.duration == float("inf"):
         session.finish()
         raise CliError(f"{args.scene}: no fingertip is animated, so a real-time session has no end: "
                        f"give --duration S")
+    if getattr(args, "live_view", None) is not None:
+        _serve_live(session, args, out)
     if session.recorder is not None:
         for o in args.set:          # in the header's scene already; the events say they were set
             session.recorder.parameter_change(0.0, o.obj or "scene", o.key, o.value)
@@ -91,12 +139,28 @@ def run(args, out, err) -> int:
     return _report(args, result, session.runner.recording_end, applied, out)
 
 
+def _serve_live(session, args, out) -> None:
+    """--live-view: the session's display updates served to Foxglove (engine/live_view.py)."""
+    from .session import start_live_view
+    try:
+        start_live_view(session, args.live_view, args.live_view_bind)
+    except (ImportError, OSError) as ex:
+        session.finish()
+        raise CliError(str(ex)) from None
+    print(f"live view: {session.live_view.address} (Foxglove: open a connection, Foxglove WebSocket, "
+          f"to this address)", file=out, flush=True)
+
+
 def _report(args, result, end, applied, out) -> int:
     st = result.stats
     print(f"{os.path.abspath(args.scene)}: {st['time']:.3f} s simulated, {st.get('runtime_haptic_ticks', st['steps'])} ticks at "
           f"{st['haptic_rate_target']:g} Hz ({'threaded runtime, real time' if st['threaded'] else 'EXEC'}), "
           f"{len(result.body_names)} bodies, {len(result.finger_names)} fingers"
           + (f"; set {', '.join(applied)}" if applied else ""), file=out)
+    if st.get("live_view"):
+        lv = st["live_view"]
+        print(f"live view: {lv['updates']} updates, {lv['dropped']} skipped"
+              + (f"; {lv['error']}" if lv["error"] else ""), file=out)
     if result.recording:
         print(f"recording: {result.recording} ({end.get('overflow', 0)} ticks lost to overflow)", file=out)
         if end.get("recorder_error"):
@@ -106,6 +170,21 @@ def _report(args, result, end, applied, out) -> int:
     return 0
 
 
+def _report_devices(live, out, err) -> int:
+    """Which device drove which finger; a device lost during the run is said on standard
+    error: EXIT_DEVICE_LOST (docs/cli.md)."""
+    from .engine.cli import EXIT_DEVICE_LOST
+    from .engine.devices.live import loss_lines
+    from .engine.devices.live import summary_line
+    print(f"fingers: {live.input_description()['detail']}", file=out)
+    for label, st in live.result.stats.get("device_stats", {}).items():
+        print(f"device {summary_line(label, st)}", file=out)
+    lines = loss_lines(live.result.stats.get("device_events", []))
+    for line in lines:
+        print(f"grasp-lab run: device {line}", file=err)
+    return EXIT_DEVICE_LOST if lines else 0
+
+
 def bake(args, out, err) -> int:
     open_blend(args.scene)
     render = bpy.context.scene.render
@@ -113,6 +192,8 @@ def bake(args, out, err) -> int:
                          previous=True)
     for w in rec.warnings():
         print(f"warning: {w}", file=err)
+    if len(rec.ticks) == 0:
+        raise CliError(f"{args.recording}: no tick was recorded: nothing to bake")
     report = baking.bake_recording(bpy.context, rec, every_tick=args.every_tick)
     for name in report.missing:
         print(f"warning: {args.scene}: {name} is not in the scene (renamed or deleted): not baked", file=err)

@@ -99,6 +99,14 @@ class GRASPLAB_PG_scene(bpy.types.PropertyGroup):
     recording_folder: StringProperty(name="Recording Folder", default="//grasp_recordings/",
                                      subtype="DIR_PATH",
                                      description="Where session recordings are written")
+    live_view: BoolProperty(name="Live View", default=False,
+                            description="Serve live sessions to Foxglove over WebSocket, watching only "
+                                        "(docs/viewers.md)")
+    live_view_port: IntProperty(name="Port", default=8765, min=0, max=65535,
+                                description="Live view port (0: any free port, shown in the HUD)")
+    live_view_bind: StringProperty(name="Bind", default="127.0.0.1",
+                                   description="Address the live view listens on (127.0.0.1: this "
+                                               "machine only; 0.0.0.0: every interface)")
     # --- live status (read-only in the UI)
     running: BoolProperty(name="Running", default=False)
     status: StringProperty(name="Status", default="")

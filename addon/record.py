@@ -30,8 +30,7 @@ def session_recorder(session, path, threaded: bool, options: dict) -> SessionRec
     header = make_header(
         session.desc, mode="realtime" if threaded else "exec", haptic_rate=s.haptic_rate,
         fps=session.fps, source=bpy.data.filepath,
-        device={"kind": session.source.name, "fingers": len(session.desc.fingers),
-                "detail": "fingertip objects animated on the timeline (scripted device)"},
+        device=session.input_description(),
         runtime=runtime,
         extra={"scene_name": session.scene.name, "frame_start": session.frame_start})
     return SessionRecorder(RecordingWriter(path, header), session.handle.world)

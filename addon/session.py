@@ -25,7 +25,8 @@ import numpy as np
 from bpy.props import BoolProperty, FloatProperty
 
 from . import anim, convert, core_loader, display, record
-from .engine.devices.live import DeviceInput
+from .engine import analysis, grasp_display
+from .engine.devices.live import DeviceInput, device_event_detail, device_fingers, without_fingers
 from .engine.inputs import SampledTrajectory, TimelineInput
 from .engine.runner import SessionRunner
 from .engine.scene import SceneError, build_world, prepare
@@ -43,6 +44,7 @@ class SessionResult:
     stats: dict = field(default_factory=dict)
     recording: str = ""
     final: object = None                            # last Snapshot
+    grasps: list = field(default_factory=list)      # per display frame: analysis.BodyGrasp list
 
     def trajectory(self, body_name) -> np.ndarray:
         i = self.body_names.index(body_name)
@@ -99,17 +101,32 @@ class BlenderSession:
         if live and not scripted.any() and not duration > 0:
             self.duration = float("inf")        # nothing scripted, no length asked: until Esc or Stop
         self.threaded = live and prefs.use_runtime
-        # Serial devices drive their fingers from the core's own threads (docs/devices.md).
-        use_devices = self.threaded and len(getattr(scene, "grasp_lab_devices", ())) > 0
+        # Devices drive their fingers from the core's own threads (docs/devices.md), whatever
+        # those fingers' animation says; the animation drives the fingers no device drives.
+        entries = list(getattr(scene, "grasp_lab_devices", ()))
+        use_devices = self.threaded and len(entries) > 0
+        self.driven_by = np.full(len(finger_objs), -1)      # finger -> index of the device entry
+        self.device_labels, self.device_kinds = [], []
         if use_devices:
-            self.source = DeviceInput(len(finger_objs), self.source.script())
+            # Labelled as their events are (devices_ui.connect_scene_devices): the port, else the kind.
+            self.device_labels = [e.port or e.kind.lower() for e in entries]
+            self.device_kinds = [e.kind.lower() for e in entries]
+            self.driven_by = device_fingers(
+                [(label, e.finger_offset, 5 if e.kind == "OPENGLOVES" else e.num_fingers)
+                 for label, e in zip(self.device_labels, entries)],
+                len(finger_objs), [o.name for o in finger_objs])
+            self.source = DeviceInput(len(finger_objs), without_fingers(self.source.script(), self.driven_by >= 0))
+            if self.source.script() is None:
+                self.duration = duration if duration > 0 else float("inf")  # the devices' session: until asked
         options = {}
         if self.threaded:
             # Fingertips moved in the viewport arrive at the display's rate, which under a
-            # software renderer can be 1-2 Hz: that is not stale input (it is for a device;
-            # a serial device's own thread lets its fingers go when it falls silent). A
-            # mouse-dragged fingertip is walked at a bounded speed, a device's as it moves.
-            options = {"max_hip_speed": 0.0 if use_devices else prefs.max_hip_speed, "hip_timeout": 2.0}
+            # software renderer can be 1-2 Hz: that is not stale input, so hip_timeout is long
+            # and a mouse-dragged fingertip is walked at a bounded speed. With devices the
+            # runtime's own 0.1 s applies (docs/runtime.md): the device threads push at their
+            # rate, also while they let a lost device's fingers go.
+            options = {"max_hip_speed": 0.0} if use_devices else \
+                {"max_hip_speed": prefs.max_hip_speed, "hip_timeout": 2.0}
         self.recorder = record.session_recorder(self, record_path, self.threaded, options) \
             if (record_path or s.record) else None
         self.runner = SessionRunner(self.handle, self.source, haptic_rate=s.haptic_rate,
@@ -119,11 +136,14 @@ class BlenderSession:
         self.objects = [bpy.data.objects[link.name] for link in self.links]
         self.dynamic = [i for i, link in enumerate(self.links) if not link.static]
         self.display = display.DisplayObjects(scene, desc) if s.display_objects else None
+        self.monitor = grasp_display.GraspMonitor(analysis.body_models(desc), [f.radius for f in desc.fingers],
+                                                  gravity=desc.gravity)
         self.bake = s.bake
         self._baked = {}    # object name -> (frames, values)
         self.result = SessionResult(body_names=[b.name for b in desc.bodies],
                                     finger_names=[f.name for f in desc.fingers])
         self.snapshot = None
+        self.live_view = None       # engine.live_view.LiveView: display updates served to Foxglove
         self.finished = False
         self.error = ""             # why a live session stopped early
         self.ended_by = "Stop"      # how it ended, for the report
@@ -137,18 +157,21 @@ class BlenderSession:
 
     # ------------------------------------------------------------- per update
     def apply(self, snap, frame):
-        """Write body poses back and update the display objects."""
+        """Write body poses back, analyse the grasp, update the display objects."""
         self.snapshot = snap
         for i in self.dynamic:
             p = snap.poses[i]
             self.objects[i].matrix_world = self.links[i].matrix_world(p[:3], p[3:])
+        grasps = self.monitor.update(snap)
         if self.display is not None:
             s = self.settings
-            self.display.update(snap, s.force_scale, s.torque_scale)
+            self.display.update(snap, s.force_scale, s.torque_scale,
+                                grasp_display.finger_colors(grasps, len(snap.god_objects)))
         r = self.result
         r.frames.append(frame)
         r.times.append(snap.time)
         r.poses.append(snap.poses.copy())
+        r.grasps.append(grasps)
         if self.bake:
             objs = [self.objects[i] for i in self.dynamic]
             if self.display is not None:
@@ -184,52 +207,91 @@ class BlenderSession:
             self.scene.frame_current = frame
         self.apply(snap, frame)
         if display.overlay_active():
-            display.set_overlay(snap, self.hud_text())
+            display.set_overlay(snap, self.hud_text(), self.monitor.grasps)
+        if self.live_view is not None:
+            # Last: its thread wakes and works while this one waits for the next update,
+            # not while the update still needs the interpreter.
+            self.live_view.offer(snap)
         return self.settings.loop and self.runner.time >= self.duration - 1e-9
 
     def _record_device_events(self, events) -> None:
         """Device events (connected, lost, enabled, ...) into the recording as they come, at
-        session time: their stamps are the monotonic clock's, the session's time now is the
-        runner's."""
+        the session time the device thread observed them."""
         if self.recorder is None or not events:
             return
-        now, session_now = time.monotonic(), self.runner.time
         for t, source, event, value in events:
-            at = max(0.0, session_now - (now - t))
-            self.recorder.event(at, f"device_{event}", str(source), f"value {value}", value=value)
+            self.recorder.event(t, f"device_{event}", str(source), device_event_detail(event, value), value=value)
 
-    def hud_text(self) -> str:
-        """What the operator needs to trust the picture: the core's own rates and timing,
-        contacts, and why forces may be off."""
+    def input_description(self) -> dict:
+        """What drives the fingers, for the recording's header (``grasp-lab info``)."""
+        names = [o.name for o in self.finger_objects]
+        script = self.source.script()
+        scripted = np.zeros(len(names), dtype=bool) if script is None else \
+            (np.ones(len(names), dtype=bool) if script[2] is None else np.asarray(script[2], dtype=bool))
+        drivers, parts = [], []
+        for k, label in enumerate(self.device_labels):
+            fingers = [names[i] for i in np.flatnonzero(self.driven_by == k)]
+            drivers.append({"device": label, "kind": self.device_kinds[k], "fingers": fingers})
+            parts.append(f"{', '.join(fingers)}: {self.device_kinds[k]} device {label}")
+        animated = [n for i, n in enumerate(names) if scripted[i] and self.driven_by[i] < 0]
+        if animated:
+            parts.append(f"{', '.join(animated)}: animated on the timeline")
+        rest = [n for i, n in enumerate(names) if not scripted[i] and self.driven_by[i] < 0]
+        if rest:
+            parts.append(f"{', '.join(rest)}: not animated (where they are; live, moved in the viewport)")
+        out = {"kind": "devices" if drivers else self.source.name, "fingers": len(names),
+               "detail": "; ".join(parts)}
+        if drivers:
+            out["drivers"] = drivers
+        return out
+
+    def grasp_lines(self) -> list:
+        """The grasp as the last display update analysed it (engine.grasp_display)."""
+        lines = grasp_display.grasp_lines(self.monitor.grasps, [b.name for b in self.desc.bodies],
+                                          [f.name for f in self.desc.fingers])
+        if self.monitor.error:
+            lines.append(f"analysis: {self.monitor.error}")
+        return lines
+
+    def loop_lines(self, detail: bool = False) -> list:
+        """The loop's telemetry: what the operator needs to trust the picture. Short (one line,
+        and the safety counters only when one is not zero) or in ``detail``."""
         st = self.runner.stats()
-        snap = self.snapshot
-        n_c = snap.n_contacts if snap is not None else 0
         end = "until Esc" if self.duration == float("inf") else f"/ {self.duration:.2f} s"
-        mode = "threaded runtime" if st["threaded"] else "main thread"
-        lines = [f"Grasp Lab  t = {st['time']:.2f} {end}  ({mode})"]
-        if st["threaded"] and "runtime_haptic_rate" in st:
-            lines.append(f"haptic {st['haptic_rate']:.0f} Hz (target {st['haptic_rate_target']:.0f})   "
-                         f"object {st['runtime_object_rate']:.0f} Hz   step {st['step_us']:.0f} µs   "
-                         f"{st['steps']} steps")
-            lines.append(f"haptic loop p99 {st['runtime_jitter_p99_us']:.0f} µs   "
-                         f"late {st['runtime_late_periods']}   overruns {st['runtime_overruns']}   "
-                         f"adopted {st['runtime_adopted_bodies']}")
-            lines.append(f"contacts {n_c} / {len(self.desc.fingers)}   display {st['display_rate']:.1f} Hz   "
-                         f"forces {'on' if st['runtime_forces_enabled'] else 'off'}")
-            lines.append(f"safety: rejected inputs {st['runtime_rejected_inputs']}   "
-                         f"watchdog {st['runtime_watchdog_trips']}   stale {st['runtime_stale_inputs']}   "
-                         f"non-finite {st['runtime_nonfinite_forces']}")
-            lines.append(st["runtime_priority_note"])
-            if self.devices is not None:
-                from .devices_ui import status_lines
-                lines += status_lines(self.devices)
-        else:
-            lines.append(f"haptic {st['haptic_rate']:.0f} Hz (target {st['haptic_rate_target']:.0f})   "
-                         f"step {st['step_us']:.0f} µs   {st['steps']} steps")
+        cost = f"analysis {1e3 * self.monitor.cost_s:.2f} ms"
+        if not (st["threaded"] and "runtime_haptic_rate" in st):
             behind = (f"behind real time by {st['lag_s']:.2f} s (x{st['realtime_factor']:.2f})"
                       if st["lag_s"] > 2.0 / max(self.settings.display_rate, 1.0) else "real time")
-            lines.append(f"contacts {n_c} / {len(self.desc.fingers)}   display {st['display_rate']:.1f} Hz   "
-                         f"{behind}")
+            lines = [f"t {st['time']:.2f} {end}   main thread {st['haptic_rate']:.0f} Hz "
+                     f"(target {st['haptic_rate_target']:.0f})   display {st['display_rate']:.1f} Hz   {behind}"]
+            if detail:
+                lines.append(f"step {st['step_us']:.0f} µs   {st['steps']} steps   {cost}")
+            return lines
+        enabled = None if self.devices is None else [d["enabled"] for d in self.devices.status()]
+        forces = grasp_display.force_output(st["runtime_forces_enabled"], enabled)
+        lines = [f"t {st['time']:.2f} {end}   haptic {st['haptic_rate']:.0f} Hz   "
+                 f"display {st['display_rate']:.1f} Hz   p99 {st['runtime_jitter_p99_us']:.0f} µs   {forces}"]
+        safety = {k: st[f"runtime_{k}"] for k in ("rejected_inputs", "watchdog_trips", "stale_inputs",
+                                                  "nonfinite_forces")}
+        if detail or any(safety.values()):
+            lines.append(f"safety: rejected inputs {safety['rejected_inputs']}   watchdog {safety['watchdog_trips']}   "
+                         f"stale {safety['stale_inputs']}   non-finite {safety['nonfinite_forces']}")
+        if detail:
+            lines.append(f"haptic target {st['haptic_rate_target']:.0f} Hz   object {st['runtime_object_rate']:.0f} Hz   "
+                         f"step {st['step_us']:.0f} µs   {st['steps']} steps   {cost}")
+            lines.append(f"late {st['runtime_late_periods']}   overruns {st['runtime_overruns']}   "
+                         f"adopted {st['runtime_adopted_bodies']}")
+            lines.append(st["runtime_priority_note"])
+        if self.devices is not None:
+            from .devices_ui import status_lines
+            lines += status_lines(self.devices)
+        return lines
+
+    def hud_text(self) -> str:
+        """The viewport's HUD: the grasp first, the loop's telemetry second and shorter."""
+        lines = self.grasp_lines() + self.loop_lines()
+        if self.live_view is not None:
+            lines.append(self.live_view.status())
         return "\n".join(lines)
 
     def finish(self):
@@ -238,14 +300,19 @@ class BlenderSession:
         if self.finished:
             return self.result
         self.finished = True
+        device_stats = {}
         if self.devices is not None:
             self._record_device_events(self.devices.poll())   # before the runner stops and the file closes
+            device_stats = {d.label: d.stats() for d in self.devices.devices}
             self.devices.close()
         self.runner.stop()
         r = self.result
         r.stats = self.runner.stats()
+        if self.live_view is not None:
+            r.stats["live_view"] = self.live_view.close()
         if self.devices is not None:
             r.stats["device_events"] = list(self.devices.events)
+            r.stats["device_stats"] = device_stats         # each device's counters when it was closed
             self.runner.events += self.devices.events
         r.final = self.snapshot
         if self.bake:
@@ -280,6 +347,15 @@ class BlenderSession:
 
 
 # --------------------------------------------------------------------------- rest poses
+
+def start_live_view(session, port: int, bind: str):
+    """Serve a live session to Foxglove (engine/live_view.py): the session panel's Live View
+    and ``grasp-lab run --live-view``. ImportError without foxglove-sdk, OSError for an
+    address it cannot serve on."""
+    from .engine.live_view import LiveView, header_of
+    session.live_view = LiveView(header_of(session.desc, session.runner.haptic_rate), port=port, bind=bind)
+    return session.live_view
+
 
 def store_rest_poses(context, links):
     for link in links:
@@ -353,6 +429,11 @@ class GRASPLAB_OT_session(bpy.types.Operator):
         try:
             prefs = get_prefs(context)
             s = context.scene.grasp_lab
+            if s.live_view:
+                try:
+                    start_live_view(session, s.live_view_port, s.live_view_bind)
+                except (ImportError, OSError) as ex:       # the session runs without it
+                    self.report({"WARNING"}, f"Grasp Lab: no live view: {ex}")
             session.interval = 1.0 / s.display_rate
             session.budget = prefs.max_step_ms * 1e-3
             session.wm = context.window_manager

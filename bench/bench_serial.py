@@ -9,9 +9,12 @@ load) and the main thread takes runtime snapshots:
     process runs the same runtime meanwhile, unconnected, so that the load is the same);
   - graspcore: the port opened by pyserial, the runtime running (two fingers gripping a
     box), the core's serial thread pushing HIPs and answering with the haptic loop's forces.
-Target: p99 < 1 ms and no unacknowledged pose.
+Target: p99 < 1 ms and no unacknowledged pose. `--transport udp` runs the same over UDP on the
+loopback interface (the C device on a UDP socket; the echo loop and graspcore's device thread
+on theirs, docs/protocol.md section 7); `both` runs the pty and UDP, each in its own rounds.
 
-    .venv/bin/python bench/bench_serial.py [--seconds 60] [--rounds 6] [--rate 1000] [--load-threads 1] [--json out.json]
+    .venv/bin/python bench/bench_serial.py [--seconds 60] [--rounds 6] [--rate 1000] [--load-threads 1]
+                                           [--transport pty|udp|both] [--json out.json]
 
 --seconds is per host, split into --rounds rounds; the statistics are over all its rounds.
 """
@@ -51,9 +54,9 @@ def build_device() -> str:
     return DEVICE_BIN
 
 
-def start_device(seconds, rate, fingers):
-    proc = subprocess.Popen([DEVICE_BIN, "device", str(seconds), str(rate), str(fingers)], stdout=subprocess.PIPE,
-                            text=True)
+def start_device(seconds, rate, fingers, udp=False):
+    proc = subprocess.Popen([DEVICE_BIN, "device", str(seconds), str(rate), str(fingers)] + (["udp"] if udp else []),
+                            stdout=subprocess.PIPE, text=True)
     line = proc.stdout.readline()
     if not line.startswith("PORT "):
         raise RuntimeError(f"serial_device: {line!r}")
@@ -88,10 +91,10 @@ def under_load(proc, world, load_threads):
     return result
 
 
-def run_echo(seconds, rate, load_threads):
+def run_echo(seconds, rate, load_threads, udp=False):
     """The same process load as graspcore's run (the runtime running, snapshots, Python
     threads); only the host that answers the device differs."""
-    proc, port = start_device(seconds, rate, 2)
+    proc, port = start_device(seconds, rate, 2, udp)
     echo = subprocess.Popen([DEVICE_BIN, "echo", port])
     world = grip_world()
     world.start(haptic_rate=rate)
@@ -100,17 +103,26 @@ def run_echo(seconds, rate, load_threads):
     finally:
         echo.wait(timeout=10)
         world.stop()
-    r["host"] = "bare C echo loop"
+    r["host"] = "bare C echo loop" + (" (UDP)" if udp else "")
     return r
 
 
-def run_graspcore(seconds, rate, load_threads):
+def run_graspcore(seconds, rate, load_threads, udp=False):
+    import socket
+
     import serial
-    proc, port = start_device(seconds, rate, 2)
+    proc, port = start_device(seconds, rate, 2, udp)
     world = grip_world()
     world.start(haptic_rate=rate)
-    port_handle = serial.Serial(port, 1_000_000, timeout=0)
-    dev = world.attach_serial(port_handle.fileno(), finger_offset=0, num_fingers=2)
+    if udp:
+        port_handle = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        port_handle.bind(("127.0.0.1", 0))
+        port_handle.setblocking(False)
+        dev = world.attach_serial(port_handle.fileno(), finger_offset=0, num_fingers=2, udp_host="127.0.0.1",
+                                  udp_port=int(port.rsplit(":", 1)[1]))
+    else:
+        port_handle = serial.Serial(port, 1_000_000, timeout=0)
+        dev = world.attach_serial(port_handle.fileno(), finger_offset=0, num_fingers=2)
     world.serial_enable(dev, True)
     try:
         r = under_load(proc, world, load_threads)
@@ -124,7 +136,8 @@ def run_graspcore(seconds, rate, load_threads):
         world.detach_serial(dev)
         port_handle.close()
         world.stop()
-    r["host"] = "graspcore (runtime + serial thread)"
+    r["host"] = "graspcore (runtime + serial thread)" + (" (UDP)" if udp else "")
+    r["transport"] = "udp" if udp else "pty"
     return r
 
 
@@ -144,7 +157,7 @@ def merge(rounds: list, host: str) -> dict:
             if seen >= want:
                 return float(b)
         return 0.0
-    out = {"host": host, "rounds": len(rounds)}
+    out = {"host": host, "rounds": len(rounds), "transport": "udp" if "UDP" in host else "pty"}
     for k in ("poses", "acknowledged", "unacknowledged", "late_over_1ms", "frame_errors", "load_iterations"):
         out[k] = sum(r[k] for r in rounds)
     out.update(p50_us=pct(0.5), p99_us=pct(0.99), p999_us=pct(0.999), max_us=max(r["max_us"] for r in rounds))
@@ -163,7 +176,8 @@ def merge(rounds: list, host: str) -> dict:
 
 def table(results, seconds, rate) -> str:
     rounds = results[0]["rounds"]
-    lines = [f"Pose in to force out over a pty, {rate:g} Hz for {seconds:g} s per host in {rounds} alternating rounds, "
+    link = "UDP on the loopback interface" if results[0]["transport"] == "udp" else "a pty"
+    lines = [f"Pose in to force out over {link}, {rate:g} Hz for {seconds:g} s per host in {rounds} alternating rounds, "
              f"under Python CPU load ({platform.machine()}, {os.cpu_count()} CPUs, Linux {platform.release()}, "
              f"{time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}, load average at the end "
              f"{' '.join(open('/proc/loadavg').read().split()[:3])}). Round trip measured by the C device: pose "
@@ -194,16 +208,21 @@ def main(argv=None):
     ap.add_argument("--rounds", type=int, default=6)
     ap.add_argument("--rate", type=float, default=1000.0)
     ap.add_argument("--load-threads", type=int, default=1)
+    ap.add_argument("--transport", choices=("pty", "udp", "both"), default="pty")
     ap.add_argument("--json", help="write the results here")
     args = ap.parse_args(argv)
     build_device()
     per_round = args.seconds / args.rounds
-    echo, core = [], []
-    for _ in range(args.rounds):
-        echo.append(run_echo(per_round, args.rate, args.load_threads))
-        core.append(run_graspcore(per_round, args.rate, args.load_threads))
-    results = [merge(echo, "bare C echo loop"), merge(core, "graspcore (runtime + serial thread)")]
-    print(table(results, args.seconds, args.rate))
+    results = []
+    for udp in {"pty": (False,), "udp": (True,), "both": (False, True)}[args.transport]:
+        echo, core = [], []
+        for _ in range(args.rounds):
+            echo.append(run_echo(per_round, args.rate, args.load_threads, udp))
+            core.append(run_graspcore(per_round, args.rate, args.load_threads, udp))
+        mark = " (UDP)" if udp else ""
+        pair = [merge(echo, "bare C echo loop" + mark), merge(core, "graspcore (runtime + serial thread)" + mark)]
+        print(table(pair, args.seconds, args.rate) + "\n")
+        results += pair
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(results, fh, indent=1)

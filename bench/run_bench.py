@@ -340,7 +340,7 @@ def serial_roundtrip(seconds: float) -> tuple[bool, str, list[str]]:
     try:
         good, md = run_external([venv_py if os.path.exists(venv_py) else sys.executable, script,
                                  "--seconds", f"{seconds:g}", "--rounds", "6" if seconds >= 30 else "2",
-                                 "--json", js], timeout=2 * seconds + 180)
+                                 "--transport", "both", "--json", js], timeout=4 * seconds + 240)
         rows = json.load(open(js)) if good else []
     except (OSError, ValueError) as exc:
         good, md, rows = False, f"bench_serial.py wrote no statistics: {exc}", []
@@ -350,11 +350,12 @@ def serial_roundtrip(seconds: float) -> tuple[bool, str, list[str]]:
 
 
 def serial_target_rows(rows: list[dict], seconds: float) -> list[str]:
-    bare = next((r for r in rows if "echo" in r["host"]), None)
     out = []
     for r in rows:
         if "graspcore" not in r["host"]:
             continue
+        link = "UDP (loopback)" if r.get("transport") == "udp" else "a pty"
+        bare = next((b for b in rows if "echo" in b["host"] and b.get("transport") == r.get("transport")), None)
         ok = r["p99_us"] < 1000 and r["unacknowledged"] == 0
         why = ""
         if not ok and bare:
@@ -362,7 +363,7 @@ def serial_target_rows(rows: list[dict], seconds: float) -> list[str]:
                    else " (the bare echo loop met it)")
         bare_txt = (f"; bare C echo loop, same run: {bare['p99_us']:.0f} µs, {bare['unacknowledged']} unanswered"
                     if bare else "")
-        out.append(f"| Serial device, pose in to force out over a pty at 1 kHz, {seconds:.0f} s under Python load: "
+        out.append(f"| Serial device, pose in to force out over {link} at 1 kHz, {seconds:.0f} s under Python load: "
                    f"p99 < 1 ms, no dropped frames | {r['p99_us']:.0f} µs, {r['unacknowledged']} unanswered, "
                    f"{r['frame_errors']} frame errors{bare_txt} | {'**met**' if ok else '**MISSED**' + why} |")
     return out
@@ -403,6 +404,64 @@ def grasp_target_rows(data: dict) -> list[str]:
                    f"< 500 µs | median {live['median_us']:.0f} µs, 99th percentile {live['p99_us']:.0f} µs | "
                    f"{'**met**' if live['p99_us'] < 500 else '**MISSED**'} |")
     return out
+
+
+def live_grasp(quick: bool) -> tuple[bool, str, list[str]]:
+    """bench/bench_live_grasp.py: the live view's grasp analysis per display update (2 bodies x 5
+    fingers) and the haptic loop with and without it: (ok, its Markdown, target rows)."""
+    script = os.path.join(HERE, "bench_live_grasp.py")
+    venv_py = os.path.join(ROOT, ".venv", "bin", "python")
+    fd, js = tempfile.mkstemp(suffix=".json")
+    os.close(fd)
+    try:
+        good, md = run_external([venv_py if os.path.exists(venv_py) else sys.executable, script, "--json", js]
+                                + (["--quick"] if quick else []), timeout=900)
+        data = json.load(open(js)) if good else {}
+    except (OSError, ValueError) as exc:
+        good, md, data = False, f"bench_live_grasp.py wrote no statistics: {exc}", {}
+    finally:
+        os.unlink(js)
+    rows = []
+    if data:
+        a, target = data["main"]["analysis"], data["target_ms"]
+        mu = data["main"]["mu_min"]
+        ok = a["median_ms"] < target and a["p99_ms"] < target
+        rows.append(f"| Live grasp analysis per display update < {target} ms, 2 bodies × 5 fingers | "
+                    f"{a['median_ms']:.2f} ms median, p99 {a['p99_ms']:.2f} ms (of it `grasp_mu_min` alone: "
+                    f"{mu['median_ms']:.2f} ms) | {'**met**' if ok else '**MISSED**'} |")
+    return good, md, rows
+
+
+# --- report ---------------------------------------------------------------------------
+def us(x: float) -> str:
+    return f"{x * 1e6:.2f}"
+
+
+def unplug(trials: int) -> tuple[bool, str, list[str]]:
+    """bench/bench_unplug.py: a device unplugged (and silenced) mid-grip, from the recording:
+    (ok, its Markdown table, target rows for the summary)."""
+    venv_py = os.path.join(ROOT, ".venv", "bin", "python")
+    fd, js = tempfile.mkstemp(suffix=".json")
+    os.close(fd)
+    try:
+        good, md = run_external([venv_py if os.path.exists(venv_py) else sys.executable,
+                                 os.path.join(HERE, "bench_unplug.py"), "--trials", str(trials), "--json", js],
+                                timeout=60 + 10 * trials)
+        rows = [r for r in json.load(open(js)) if "error" not in r] if os.path.getsize(js) else []
+    except (OSError, ValueError) as exc:
+        good, md, rows = False, f"bench_unplug.py wrote no statistics: {exc}", []
+    finally:
+        os.unlink(js)
+    out = []
+    for how in ("hang-up", "silence"):
+        rs = [r for r in rows if r["how"] == how]
+        if rs:
+            worst = max(max(r["release_ms"], r["zero_ms"]) for r in rs)
+            out.append(f"| Device {how} mid-grip: fingers let go and device forces zero within 0.25 s, as the "
+                       f"recording shows | worst of {len(rs)}: let go {max(r['release_ms'] for r in rs):.1f} ms, "
+                       f"device forces zero {max(r['zero_ms'] for r in rs):.1f} ms | "
+                       f"{'**met**' if worst < 250 else '**MISSED**'} |")
+    return good, md, out
 
 
 # --- report ---------------------------------------------------------------------------
@@ -749,6 +808,11 @@ def main(argv=None) -> int:
                                   os.path.join(HERE, "bench_recording.py")], timeout=900)
         ok &= good
         blender = blender.rstrip() + "\n\n" + rec
+        log("viewer channels (bench/bench_viewer.py)")
+        good, fox = run_external([venv_py if os.path.exists(venv_py) else sys.executable,
+                                  os.path.join(HERE, "bench_viewer.py")], timeout=600)
+        ok &= good
+        blender = blender.rstrip() + "\n\n" + fox
     jitter_s = 5.0 if args.quick else 60.0
     log(f"haptic-loop jitter (bench/bench_jitter.py, {jitter_s:g} s per run: bare loop and runtime, "
         "SCHED_FIFO and normal)")
@@ -757,15 +821,27 @@ def main(argv=None) -> int:
     log(f"serial round trip (bench/bench_serial.py, {jitter_s:g} s per host: bare C echo loop, graspcore)")
     good, serial_md, serial_targets = serial_roundtrip(jitter_s)
     ok &= good
+    log("device unplugged mid-grip (bench/bench_unplug.py)")
+    good, unplug_md, unplug_targets = unplug(2 if args.quick else 10)
+    ok &= good
+    serial_md += "\n\n" + "\n".join([
+        "### Unplugged mid-grip", "",
+        "`bench/bench_unplug.py`: the emulator grips a box at 1 kHz with forces on (5 N, its limit), then is "
+        "killed (its pty closes: a hang-up) or stopped with SIGSTOP (silence); from the recording and the "
+        "device's `lost` event, the times after the cut until it is detected, until the fingers' spring "
+        "forces stay below 1 µN (let go), and until the recorded device forces (what the device was sent, "
+        "until that frame's 20 ms TTL) stay zero:", "", unplug_md])
     serial_section = "\n".join([
-        "## Serial device round trip (1 kHz over a pseudo-terminal, under Python CPU load)", "",
-        f"`bench/bench_serial.py --seconds {jitter_s:g}` (docs/devices.md): a C device (`bench/serial_device.c`, "
+        "## Serial device round trip (1 kHz over a pseudo-terminal and over UDP, under Python CPU load)", "",
+        f"`bench/bench_serial.py --seconds {jitter_s:g} --transport both` (docs/devices.md): a C device (`bench/serial_device.c`, "
         "SCHED_FIFO as hardware of its own would be) sends a pose every millisecond and times it until the force "
         "frame acknowledging it comes back. The hosts, in alternating rounds under the same load (Python threads "
         "burning CPU, the runtime running and snapshotted at 100 Hz): the bare C echo loop (decode, answer at once; "
         "SCHED_FIFO 70) and graspcore (pyserial opens the port, the runtime grips a box, the core's serial thread "
         "at SCHED_FIFO 70 pushes HIPs and answers with the haptic loop's forces). Both round trips cross the "
-        "kernel's pty buffer twice (a worker thread at normal priority). "
+        "kernel's pty buffer twice (a worker thread at normal priority). Then the same over UDP on the loopback "
+        "interface (docs/protocol.md section 7): the device on a UDP socket, the echo loop and graspcore's device "
+        "thread on theirs. "
         "Its output:", "",
         serial_md])
     mb_section = mb.report_section(mb_rows, mjinfo, pbinfo, mb_prof, overlaps, xml_mb,
@@ -787,6 +863,9 @@ def main(argv=None) -> int:
     log("grasp analysis (bench/bench_analysis.py: a 10-minute recording through grasp-lab analyze)")
     good, analysis_md, analysis_targets = grasp_analysis(args.quick)
     ok &= good
+    log("live grasp analysis (bench/bench_live_grasp.py: per display update, haptic loop beside it)")
+    good, live_md, live_targets = live_grasp(args.quick)
+    ok &= good
     log("sweeps (bench/bench_sweep.py: grasp-lab sweep in one process, a local pool, a Dask cluster on localhost)")
     good, sweep_md = run_external([sys.executable, os.path.join(HERE, "bench_sweep.py")]
                                   + (["--quick", "--samples", "2000"] if args.quick else []), timeout=1800)
@@ -794,10 +873,10 @@ def main(argv=None) -> int:
     meta["load_end"] = loadavg()
     meta["wall_s"] = time.perf_counter() - t_start
     md = report(info, mjinfo, grasps, creep, profile, gjk, blender, xml3, meta, pbinfo=pbinfo,
-                extra_targets=mb.target_rows(mb_rows, mjinfo is not None) + jitter_targets + serial_targets
-                + grasp_targets + analysis_targets,
+                extra_targets=mb.target_rows(mb_rows, mjinfo is not None) + jitter_targets + serial_targets + unplug_targets
+                + grasp_targets + analysis_targets + live_targets,
                 sections=[s for s in (held_section, mb_section, jitter_section, serial_section, grasp_md,
-                                      analysis_md, sweep_md) if s])
+                                      analysis_md, live_md, sweep_md) if s])
     if args.quick:
         md = md.replace("# Benchmarks\n", "# Benchmarks (--quick run: too few repeats to quote)\n", 1)
     os.makedirs(os.path.dirname(args.out), exist_ok=True)

@@ -1,6 +1,7 @@
 /* The device side of bench/bench_serial.py, and the bare C echo loop it is compared with.
  *
- *   serial_device device SECONDS RATE FINGERS   opens a pseudo-terminal, prints "PORT /dev/pts/N",
+ *   serial_device device SECONDS RATE FINGERS [udp]   opens a pseudo-terminal, prints "PORT /dev/pts/N"
+ *       (udp: a UDP socket on 127.0.0.1, "PORT udp:127.0.0.1:N", connected to the host that says hello),
  *       waits for the host's hello, answers with its capabilities, sends pose frames at RATE Hz
  *       (absolute CLOCK_MONOTONIC deadlines) for SECONDS, and measures for every pose the time
  *       until the force frame acknowledging it arrives. Prints one JSON line.
@@ -12,8 +13,11 @@
 #define _GNU_SOURCE
 #include "serial_io.h"
 
+#include <arpa/inet.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <netinet/in.h>
+#include <sys/socket.h>
 #include <math.h>
 #include <poll.h>
 #include <sched.h>
@@ -52,12 +56,25 @@ static void send_frame(int fd, uint8_t type, uint16_t *seq, const uint8_t *p, si
 }
 
 static int echo(const char *port) {
-    int fd = open(port, O_RDWR | O_NOCTTY);
-    if (fd < 0) {
-        perror(port);
-        return 1;
+    int fd;
+    if (!strncmp(port, "udp:127.0.0.1:", 14)) { /* a connected UDP socket: read and write are datagrams */
+        fd = socket(AF_INET, SOCK_DGRAM, 0);
+        struct sockaddr_in to = {.sin_family = AF_INET, .sin_port = htons((uint16_t)atoi(port + 14)),
+                                 .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+        struct timeval quiet = {1, 0}; /* no hang-up over UDP: a second of silence ends the echo */
+        if (fd < 0 || connect(fd, (struct sockaddr *)&to, sizeof to) ||
+            setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &quiet, sizeof quiet)) {
+            perror(port);
+            return 1;
+        }
+    } else {
+        fd = open(port, O_RDWR | O_NOCTTY);
+        if (fd < 0) {
+            perror(port);
+            return 1;
+        }
+        raw_mode(fd);
     }
-    raw_mode(fd);
     uint8_t hello[2] = {0, 0}, buf[4096], force[6 + 12 * GC_PROTO_MAX_FINGERS];
     uint16_t seq = 0;
     send_frame(fd, GC_MSG_HELLO_HOST, &seq, hello, 2);
@@ -80,16 +97,28 @@ static int echo(const char *port) {
     return 0;
 }
 
-static int device(double seconds, double rate, int fingers) {
-    int m = posix_openpt(O_RDWR | O_NOCTTY);
-    if (m < 0 || grantpt(m) || unlockpt(m)) {
-        perror("posix_openpt");
-        return 1;
+static int device(double seconds, double rate, int fingers, int udp) {
+    int m, keep = -1;
+    if (udp) {
+        m = socket(AF_INET, SOCK_DGRAM, 0);
+        struct sockaddr_in a = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+        socklen_t len = sizeof a;
+        if (m < 0 || bind(m, (struct sockaddr *)&a, sizeof a) || getsockname(m, (struct sockaddr *)&a, &len)) {
+            perror("udp");
+            return 1;
+        }
+        printf("PORT udp:127.0.0.1:%d\n", ntohs(a.sin_port));
+    } else {
+        m = posix_openpt(O_RDWR | O_NOCTTY);
+        if (m < 0 || grantpt(m) || unlockpt(m)) {
+            perror("posix_openpt");
+            return 1;
+        }
+        raw_mode(m);
+        keep = open(ptsname(m), O_RDWR | O_NOCTTY); /* the slave stays open: no hang-up between hosts */
+        raw_mode(keep);
+        printf("PORT %s\n", ptsname(m));
     }
-    raw_mode(m);
-    int keep = open(ptsname(m), O_RDWR | O_NOCTTY); /* the slave stays open: no hang-up between hosts */
-    raw_mode(keep);
-    printf("PORT %s\n", ptsname(m));
     fflush(stdout);
     fcntl(m, F_SETFL, O_NONBLOCK);
     static gcFrameDecoder dec;
@@ -104,9 +133,12 @@ static int device(double seconds, double rate, int fingers) {
     while (!hello && now_ns() < give_up) {
         struct pollfd p = {.fd = m, .events = POLLIN};
         if (poll(&p, 1, 10) <= 0) continue;
-        ssize_t k = read(m, buf, sizeof buf);
+        struct sockaddr_storage from;
+        socklen_t from_len = sizeof from;
+        ssize_t k = recvfrom(m, buf, sizeof buf, 0, (struct sockaddr *)&from, &from_len);
         for (ssize_t i = 0; i < k; ++i)
             if (gc_decoder_push(&dec, buf[i], &fr) && fr.type == GC_MSG_HELLO_HOST) hello = 1;
+        if (hello && udp) connect(m, (struct sockaddr *)&from, from_len); /* that host, only, from now on */
     }
     if (!hello) {
         fprintf(stderr, "no hello\n");
@@ -190,7 +222,7 @@ static int device(double seconds, double rate, int fingers) {
     for (int i = 0; i < LAT_BINS; ++i)
         if (hist[i]) printf("%s[%d, %u]", sep, i + 1, hist[i]), sep = ", ";
     printf("]}\n");
-    close(keep);
+    if (keep >= 0) close(keep);
     close(m);
     return 0;
 }
@@ -205,7 +237,8 @@ static void realtime(int priority) {
 
 int main(int argc, char **argv) {
     if (argc == 3 && !strcmp(argv[1], "echo")) return realtime(70), echo(argv[2]);
-    if (argc == 5 && !strcmp(argv[1], "device")) return realtime(90), device(atof(argv[2]), atof(argv[3]), atoi(argv[4]));
-    fprintf(stderr, "usage: serial_device device SECONDS RATE FINGERS | serial_device echo PORT\n");
+    if ((argc == 5 || (argc == 6 && !strcmp(argv[5], "udp"))) && !strcmp(argv[1], "device"))
+        return realtime(90), device(atof(argv[2]), atof(argv[3]), atoi(argv[4]), argc == 6);
+    fprintf(stderr, "usage: serial_device device SECONDS RATE FINGERS [udp] | serial_device echo PORT\n");
     return 64;
 }

@@ -13,14 +13,21 @@ command line to the extension's own copy of this module. The device work registe
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
+import signal
 import sys
-
-import numpy as np
+import traceback
+import warnings
 from dataclasses import dataclass
 from typing import Callable
 
+import numpy as np
+
+from . import limits, outputs
+
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+EXIT_DEVICE_LOST = 3    # run: the session ran and was saved, but a device was lost during it
 PROG = "grasp-lab"
 
 
@@ -79,37 +86,69 @@ def _positive_int(text):
         v = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {v}")
+    if not 1 <= v <= limits.MAX_EVERY:
+        raise argparse.ArgumentTypeError(f"must be in 1 .. {limits.MAX_EVERY}, got {v}")
     return v
 
 
-def _positive_float(text):
+def _positive_float(high):
+    """A number in (0, high]: the range is in the message of a value outside it."""
+    def parse(text):
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+        if not 0 < v <= high:
+            raise argparse.ArgumentTypeError(f"must be in (0, {high:g}], got {text}")
+        return v
+    return parse
+
+
+def _size(text):
     try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
-    if not v > 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {v}")
-    return v
+        return limits.parse_size(text)
+    except ValueError as ex:
+        raise argparse.ArgumentTypeError(str(ex)) from None
 
 
+MAX_SIZE_HELP = (f"refuse a recording that could take more than this (500M, 2G; default "
+                 f"{limits.DEFAULT_MAX_SIZE / 1e9:g}G), or more than the free space")
 SET_HELP = ("OBJECT.PROPERTY=VALUE (mass, mu_s, mu_d, viscosity, radius, stiffness, damping) or a "
             "scene setting: haptic_rate=HZ, gravity=X,Y,Z, gyroscopic=0|1; repeatable")
 
 
 def _configure_run(p):
     p.add_argument("scene", metavar="SCENE.blend", help="the .blend to simulate")
-    p.add_argument("--duration", type=_positive_float, metavar="S",
-                   help="seconds to run (default: the scene's duration, else its animation)")
+    p.add_argument("--duration", type=_positive_float(limits.MAX_DURATION), metavar="S",
+                   help=f"seconds to run, up to {limits.MAX_DURATION:g} (default: the scene's duration, "
+                        f"else its animation)")
     p.add_argument("--realtime", action="store_true",
                    help="the threaded runtime at wall-clock speed, as a live session "
                         "(default: stepped as fast as it goes, deterministic)")
     p.add_argument("--device", action="append", default=[], metavar="SPEC",
                    help="an input device: serial:PORT, spacemouse, opengloves:PORT (repeatable)")
+    p.add_argument("--forces", choices=("on", "off"), default="off",
+                   help="device forces (default off, as in the UI): on turns them on at the start, ramping "
+                        "in, with the same safety as the sidebar's Forces On")
     p.add_argument("--record", metavar="OUT.mcap", help="record every haptic tick to this file")
+    p.add_argument("--max-size", type=_size, default=limits.DEFAULT_MAX_SIZE, metavar="BYTES", help=MAX_SIZE_HELP)
     p.add_argument("--save", metavar="OUT.blend", help="save the scene after the session")
     p.add_argument("--set", action="append", default=[], type=_override, metavar="KEY=VALUE", help=SET_HELP)
+    p.add_argument("--live-view", nargs="?", const=8765, type=_port, metavar="PORT",
+                   help="with --realtime: serve the session to Foxglove over WebSocket, watching only "
+                        "(default port 8765; 0: any free port)")
+    p.add_argument("--live-view-bind", default="127.0.0.1", metavar="ADDR",
+                   help="the address the live view listens on (default 127.0.0.1: this machine only)")
+
+
+def _port(text):
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a port number, got {text!r}") from None
+    if not 0 <= v <= 65535:
+        raise argparse.ArgumentTypeError(f"a port is 0..65535, got {v}")
+    return v
 
 
 def _configure_info(p):
@@ -128,7 +167,8 @@ def _configure_resim(p):
     p.add_argument("recording", metavar="REC.mcap")
     p.add_argument("--set", action="append", default=[], type=_override, metavar="KEY=VALUE", help=SET_HELP)
     p.add_argument("--record", metavar="OUT.mcap", help="write the new run as a recording")
-    p.add_argument("--tolerance", type=_positive_float, default=1e-6, metavar="METRES",
+    p.add_argument("--max-size", type=_size, default=limits.DEFAULT_MAX_SIZE, metavar="BYTES", help=MAX_SIZE_HELP)
+    p.add_argument("--tolerance", type=_positive_float(limits.MAX_TOLERANCE), default=1e-6, metavar="METRES",
                    help="distance at which a body or god-object counts as diverged (default 1e-6)")
 
 
@@ -137,6 +177,8 @@ def _configure_export(p):
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--csv", metavar="DIR", help="write DIR/bodies.csv, fingers.csv, events.csv")
     g.add_argument("--npz", metavar="FILE", help="write one .npz with every field")
+    g.add_argument("--foxglove", metavar="OUT.mcap", help="a copy Foxglove shows: 3-D scene, transforms, "
+                                                          "plot channels, events, at the display rate")
     p.add_argument("--every", type=_positive_int, default=1, metavar="N", help="every N-th tick (default 1)")
 
 
@@ -197,13 +239,18 @@ def _run_info(args, out, err):
     if s["runtime"]:
         p("runtime     " + ", ".join(f"{k} {v}" for k, v in s["runtime"].items()))
     if s["device"]:
-        p("device      " + ", ".join(f"{k} {v}" for k, v in s["device"].items()))
+        p("device      " + ", ".join(f"{k} {v}" for k, v in s["device"].items() if k != "drivers"))
+    from .devices.live import loss_lines, recorded_device_events
+    for line in loss_lines(recorded_device_events(s["event_list"])):
+        p("device      " + line)
     p("versions    " + ", ".join(f"{k} {v}" for k, v in (s["versions"] or {}).items()))
     p("events      " + (", ".join(f"{k} {v}" for k, v in sorted(s["events"].items())) or "none"))
     if s["overflow"]:
         p(f"overflow    {s['overflow']} ticks dropped by the recorder (ring full)")
     if s["recorder_error"]:
         p(f"recorder    {s['recorder_error']}")
+    if s["ended_by"]:
+        p(f"ended       early, by {s['ended_by']} (clean: false)")
     p("damage      " + ("; ".join(s["damage"]) if s["damage"] else "none (summary, footer and data CRC intact)"))
     return EXIT_OK
 
@@ -215,9 +262,10 @@ def _load_core():
 
 def _run_resim(args, out, err):
     from .resim import resimulate
+    outputs.check_paths({"REC.mcap": args.recording}, {"--record": args.record})
     rec = _open(args.recording, err)
     result = resimulate(rec, _load_core(), overrides=args.set, tolerance=args.tolerance,
-                        record_path=args.record)
+                        record_path=args.record, max_size=args.max_size)
     print(result.divergence.report(), file=out)
     if result.path:
         print(f"new run: {result.path} ({len(result.ticks)} ticks)", file=out)
@@ -226,8 +274,20 @@ def _run_resim(args, out, err):
 
 def _run_export(args, out, err):
     from .export import export_csv, export_npz
-    rec = _open(args.recording, err)
+    outputs.check_paths({"REC.mcap": args.recording}, {"--csv": args.csv, "--npz": args.npz}, folders=("--csv",))
     if args.csv:
+        for name in ("bodies.csv", "fingers.csv", "events.csv"):
+            outputs.check_paths({"REC.mcap": args.recording}, {"--csv": os.path.join(args.csv, name)})
+    rec = _open(args.recording, err)
+    if args.foxglove:
+        from .viewer import export_foxglove
+        try:
+            done = export_foxglove(rec, args.foxglove)
+        except ImportError as ex:
+            raise CliError(str(ex)) from None
+        print(f"{args.foxglove}: {done['frames']} frames at {done['rate']:g} Hz, {done['events']} events, "
+              f"{done['bytes'] / 1e6:.2f} MB; layout {done['layout']}", file=out)
+    elif args.csv:
         counts = export_csv(rec, args.csv, args.every)
         for name, n in counts.items():
             print(f"{os.path.join(args.csv, name)}: {n} rows", file=out)
@@ -261,15 +321,46 @@ def _run_analyze(args, out, err):
 
 def _run_run(args, out, err):
     from .. import headless
+    outputs.check_paths({"SCENE.blend": args.scene}, {"--record": args.record, "--save": args.save})
     for spec in args.device:
         check_device(spec)
+    if args.live_view is not None and not args.realtime:
+        raise CliError("--live-view needs --realtime (it serves a live session)")
+    if args.live_view is not None and args.device:
+        raise CliError("--live-view does not serve --device sessions yet (the session panel's Live View does)")
     if args.device and not args.realtime:
         raise CliError("--device needs --realtime (devices drive a live session on the threaded runtime)")
+    if args.forces == "on" and not args.device:
+        raise CliError("--forces on needs --device (device forces go to the devices of the session)")
+    for spec in args.device:
+        check_port(spec)
     return headless.run(args, out, err)
+
+
+def check_port(spec: str) -> None:
+    """A --device SPEC's serial port opens and is a terminal (can be configured), checked
+    before any file is touched."""
+    import termios
+    kind, _, rest = spec.partition(":")
+    port = rest.partition("@")[0] if kind in ("serial", "opengloves") else ""
+    if not port:
+        return
+    try:
+        fd = os.open(port, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    except OSError as ex:
+        raise CliError(f"--device {spec}: cannot open {port} ({ex.strerror})") from None
+    try:
+        termios.tcgetattr(fd)
+    except termios.error as ex:
+        raise CliError(f"--device {spec}: {port} is not a serial port (cannot be configured: "
+                       f"{ex.args[-1]})") from None
+    finally:
+        os.close(fd)
 
 
 def _run_bake(args, out, err):
     from .. import headless
+    outputs.check_paths({"REC.mcap": args.recording, "SCENE.blend": args.scene}, {"--save": args.save})
     return headless.bake(args, out, err)
 
 
@@ -309,9 +400,12 @@ _register_sweep()
 def build_parser(prog=PROG) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=prog, description="Grasp Lab: multi-finger grasp sessions, "
                                                             "recordings, baking and re-simulation.")
+    parser.add_argument("--debug", action="store_true", help="a traceback with an error")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for cmd in COMMANDS.values():
-        cmd.configure(sub.add_parser(cmd.name, help=cmd.help, description=cmd.help))
+        p = sub.add_parser(cmd.name, help=cmd.help, description=cmd.help)
+        p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS, help="a traceback with an error")
+        cmd.configure(p)
     return parser
 
 
@@ -330,25 +424,122 @@ def main(argv=None, prog=PROG, out=None, err=None) -> int:
     except SystemExit as ex:      # --help (0) or a usage error (2): argparse has printed it
         return EXIT_USAGE if ex.code not in (0, None) else EXIT_OK
     cmd = COMMANDS[args.command]
-    if cmd.needs_blender and not in_extension():
+    with _signals_stop(), _warnings_once(prog, cmd.name, err):
         try:
-            module = boot_extension()
-        except (ImportError, RuntimeError, OSError) as ex:
-            print(f"{prog} {cmd.name}: error: Blender (the bpy module) with the Grasp Lab extension is "
-                  f"needed: {ex}", file=err)
-            return EXIT_FAILED
-        import importlib
-        return importlib.import_module(f"{module}.engine.cli").main(argv, prog, out, err)
+            if cmd.needs_blender and not in_extension():
+                try:
+                    module = boot_extension()
+                except (ImportError, RuntimeError, OSError) as ex:
+                    print(f"{prog} {cmd.name}: error: Blender (the bpy module) with the Grasp Lab extension "
+                          f"is needed: {ex}", file=err)
+                    return EXIT_FAILED
+                import importlib
+                return importlib.import_module(f"{module}.engine.cli").main(argv, prog, out, err)
+            return _run_command(cmd, args, prog, out, err)
+        except KeyboardInterrupt:       # a signal while Blender was loading
+            return _stopped(prog, cmd.name, err)
+
+
+def _run_command(cmd, args, prog, out, err) -> int:
+    """The command, its failure as one line (a traceback only with --debug), a signal's stop
+    as one line and exit 130 (SIGINT) / 143 (SIGTERM), after what was written is finished."""
     from .recording import RecordingError
     from .scene import SceneError
     try:
-        return int(cmd.run(args, out, err) or EXIT_OK)
-    except (CliError, RecordingError, SceneError, ValueError, OSError) as ex:
-        msg = str(ex)
+        code = int(cmd.run(args, out, err) or EXIT_OK)
+    except KeyboardInterrupt:
+        return _stopped(prog, cmd.name, err)
+    except (CliError, RecordingError, SceneError, ValueError, OSError, MemoryError) as ex:
+        if args.debug:
+            traceback.print_exc(file=err)
+        msg = str(ex) or type(ex).__name__
         if isinstance(ex, OSError) and getattr(ex, "filename", None) and str(ex.filename) not in msg:
             msg = f"{ex.filename}: {msg}"
+        if _stop_signal:
+            return _stopped(prog, cmd.name, err, msg)
         print(f"{prog} {cmd.name}: error: {msg}", file=err)
         return EXIT_FAILED
+    except Exception as ex:  # noqa: BLE001 - one line, not a traceback, unless asked
+        if args.debug:
+            traceback.print_exc(file=err)
+        print(f"{prog} {cmd.name}: error: internal error, {type(ex).__name__}: {ex}"
+              + ("" if args.debug else " (--debug shows where)"), file=err)
+        return EXIT_FAILED
+    finally:
+        for partial in outputs.close_unfinished():
+            print(f"{prog} {cmd.name}: warning: {partial}: left unfinished (a readable prefix; "
+                  f"`grasp-lab info` reads it)", file=err)
+    if _stop_signal:        # caught on the way (a live session ends on Ctrl-C) and finished
+        return _stopped(prog, cmd.name, err)
+    return code
+
+
+# ------------------------------------------------------------------------ signals, warnings
+
+_stop_signal = 0        # the signal that is stopping this command (0: none)
+SIGNAL_NAMES = {2: "SIGINT (Ctrl-C)", 15: "SIGTERM"}
+
+
+def _on_signal(signum, frame):
+    """SIGINT / SIGTERM: the first one stops the command where it is (KeyboardInterrupt, so
+    every ``finally`` finishes what it writes); later ones wait for that to finish."""
+    global _stop_signal
+    if _stop_signal:
+        return
+    _stop_signal = signum
+    from .recording import set_stop_reason
+    set_stop_reason(SIGNAL_NAMES.get(signum, f"signal {signum}"))
+    raise KeyboardInterrupt(SIGNAL_NAMES.get(signum))
+
+
+def _stopped(prog, name, err, detail="") -> int:
+    signum = _stop_signal or signal.SIGINT
+    done = outputs.committed()
+    what = (f"finished {', '.join(done)}" if done else "nothing was written")
+    print(f"{prog} {name}: stopped by {SIGNAL_NAMES.get(signum, signum)}; {what}"
+          + (f" ({detail})" if detail else ""), file=err)
+    return 128 + int(signum)
+
+
+@contextlib.contextmanager
+def _signals_stop():
+    """SIGINT and SIGTERM handled by _on_signal for the command (main thread only)."""
+    global _stop_signal
+    from .recording import set_stop_reason
+    _stop_signal = 0
+    set_stop_reason("")
+    try:
+        old = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    except ValueError:          # not the main thread: signals are the host's business
+        old = {}
+    try:
+        yield
+    finally:
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+        set_stop_reason("")     # a later session in this process (Blender) ends as it ends
+
+
+@contextlib.contextmanager
+def _warnings_once(prog, name, err):
+    """Each distinct warning printed once, as one line; repeats counted and said at the end."""
+    seen = {}
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        text = f"{category.__name__}: {message}"
+        seen[text] = seen.get(text, 0) + 1
+        if seen[text] == 1:
+            print(f"{prog} {name}: warning: {text}", file=err)
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("always")
+        warnings.showwarning = show
+        try:
+            yield
+        finally:
+            for text, n in seen.items():
+                if n > 1:
+                    print(f"{prog} {name}: warning: {text} ({n - 1} more times)", file=err)
 
 
 # ------------------------------------------------------------------------ outside Blender
@@ -365,7 +556,10 @@ def boot_extension() -> str:
     import re
     import shutil
     import tempfile
-    if "bpy" not in sys.modules and "BLENDER_USER_RESOURCES" not in os.environ:
+    if "bpy" not in sys.modules:
+        # Always a private folder, even when BLENDER_USER_RESOURCES is set: installing the zip
+        # takes the repository's lock, and a command killed while holding it (kill -9) would
+        # leave every later command sharing that folder refused ("lock exists").
         tmp = tempfile.mkdtemp(prefix="grasp_lab_cli_")
         os.environ["BLENDER_USER_RESOURCES"] = tmp
         atexit.register(shutil.rmtree, tmp, True)
@@ -406,7 +600,9 @@ def boot_extension() -> str:
 
 
 def launch() -> int:
-    """``grasp-lab`` in the venv."""
+    """``grasp-lab`` in the venv. Outside a command (loading, exiting) SIGTERM exits through
+    ``sys.exit``, so the temporary folders are removed then too."""
+    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
     return main(sys.argv[1:])
 
 

@@ -2,10 +2,13 @@
 from __future__ import annotations
 
 import csv
+import io
 import os
+import zipfile
 
 import numpy as np
 
+from .outputs import AtomicFile
 from .recording import STATE_NAMES, Recording
 
 BODY_COLUMNS = ["time", "body", "x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz",
@@ -19,59 +22,87 @@ def _rows(ticks, every):
     return ticks[::every] if every > 1 else ticks
 
 
+def _events_by_time(rec: Recording) -> list:
+    """Events in time order (the file holds them as written: tick-derived events by the
+    recorder thread, device events as the session polled them)."""
+    return sorted(rec.events, key=lambda e: float(e.get("time", 0.0)))
+
+
 def _fmt(a):
     return [repr(float(v)) for v in a]
 
 
 def export_csv(rec: Recording, folder: str, every: int = 1) -> dict:
     """bodies.csv, fingers.csv, events.csv in ``folder``; one row per tick (every ``every``-th)
-    per body or finger. Returns {name: rows written}."""
+    per body or finger. The three are written beside their targets and renamed into place
+    together when all are written. Returns {name: rows written}."""
+    made = not os.path.isdir(folder)
     os.makedirs(folder, exist_ok=True)
-    ticks = _rows(rec.ticks, every)
-    counts = {}
-    with open(os.path.join(folder, "bodies.csv"), "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(BODY_COLUMNS)
-        values = np.concatenate([ticks["pose"], ticks["velocity"], ticks["wrench"]], axis=2)  # (n, nb, 19)
-        for k, t in enumerate(ticks["time"]):
-            ts = repr(float(t))
-            for b, name in enumerate(rec.body_names):
-                w.writerow([ts, name, *_fmt(values[k, b])])
-        counts["bodies.csv"] = len(ticks) * len(rec.body_names)
-    with open(os.path.join(folder, "fingers.csv"), "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(FINGER_COLUMNS)
-        values = np.concatenate([ticks["hip"], ticks["god_object"], ticks["force"], ticks["device_force"]],
-                                axis=2)
-        for k, t in enumerate(ticks["time"]):
-            ts = repr(float(t))
-            for f, name in enumerate(rec.finger_names):
-                s = int(ticks["state"][k, f])
-                c = int(ticks["contact"][k, f])
-                w.writerow([ts, name, *_fmt(values[k, f]), STATE_NAMES[s] if 0 <= s < 3 else str(s),
-                            rec.body_names[c] if 0 <= c < len(rec.body_names) else ""])
-        counts["fingers.csv"] = len(ticks) * len(rec.finger_names)
-    with open(os.path.join(folder, "events.csv"), "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(EVENT_COLUMNS)
-        for e in rec.events:
-            w.writerow([repr(float(e.get("time", 0.0))), e.get("kind", ""), e.get("subject", ""),
-                        e.get("detail", "")])
-        counts["events.csv"] = len(rec.events)
+    names = ("bodies.csv", "fingers.csv", "events.csv")
+    outs = []
+    try:
+        outs = [AtomicFile(os.path.join(folder, name)) for name in names]
+        texts = [io.TextIOWrapper(o.file, newline="", encoding="utf-8") for o in outs]
+        counts = dict(zip(names, _write_csv(rec, _rows(rec.ticks, every), *map(csv.writer, texts))))
+        for t in texts:
+            t.flush()
+            t.detach()          # the AtomicFile keeps the file open until it is renamed
+        for o in outs:
+            o.commit()
+    except BaseException:
+        for o in outs:
+            o.discard()
+        if made:
+            try:
+                os.rmdir(folder)        # made here, for nothing
+            except OSError:
+                pass
+        raise
     return counts
 
 
+def _write_csv(rec, ticks, bodies, fingers, events):
+    bodies.writerow(BODY_COLUMNS)
+    values = np.concatenate([ticks["pose"], ticks["velocity"], ticks["wrench"]], axis=2)  # (n, nb, 19)
+    for k, t in enumerate(ticks["time"]):
+        ts = repr(float(t))
+        for b, name in enumerate(rec.body_names):
+            bodies.writerow([ts, name, *_fmt(values[k, b])])
+    fingers.writerow(FINGER_COLUMNS)
+    values = np.concatenate([ticks["hip"], ticks["god_object"], ticks["force"], ticks["device_force"]], axis=2)
+    for k, t in enumerate(ticks["time"]):
+        ts = repr(float(t))
+        for f, name in enumerate(rec.finger_names):
+            s = int(ticks["state"][k, f])
+            c = int(ticks["contact"][k, f])
+            fingers.writerow([ts, name, *_fmt(values[k, f]), STATE_NAMES[s] if 0 <= s < 3 else str(s),
+                              rec.body_names[c] if 0 <= c < len(rec.body_names) else ""])
+    events.writerow(EVENT_COLUMNS)
+    for e in _events_by_time(rec):
+        events.writerow([repr(float(e.get("time", 0.0))), e.get("kind", ""), e.get("subject", ""),
+                         e.get("detail", "")])
+    return len(ticks) * len(rec.body_names), len(ticks) * len(rec.finger_names), len(rec.events)
+
+
 def export_npz(rec: Recording, path: str, every: int = 1) -> int:
-    """Every tick field as an array (time first), names and events. Returns the ticks written."""
+    """Every tick field as an array (time first), names and events, in one .npz written
+    beside ``path`` (the exact name given) and renamed into place. Returns the ticks written."""
     ticks = _rows(rec.ticks, every)
-    arrays = {name: np.ascontiguousarray(ticks[name]) for name in ticks.dtype.names}
-    np.savez_compressed(
-        path, body_names=np.array(rec.body_names), finger_names=np.array(rec.finger_names),
-        haptic_rate=rec.haptic_rate,
-        event_time=np.array([e.get("time", 0.0) for e in rec.events], dtype=np.float64),
-        event_kind=np.array([e.get("kind", "") for e in rec.events]),
-        event_subject=np.array([e.get("subject", "") for e in rec.events]),
-        event_detail=np.array([e.get("detail", "") for e in rec.events]), **arrays)
+    events = _events_by_time(rec)
+    arrays = {"body_names": np.array(rec.body_names), "finger_names": np.array(rec.finger_names),
+              "haptic_rate": np.array(rec.haptic_rate),
+              "event_time": np.array([e.get("time", 0.0) for e in events], dtype=np.float64),
+              "event_kind": np.array([e.get("kind", "") for e in events]),
+              "event_subject": np.array([e.get("subject", "") for e in events]),
+              "event_detail": np.array([e.get("detail", "") for e in events])}
+    arrays.update({name: np.ascontiguousarray(ticks[name]) for name in ticks.dtype.names})
+    with AtomicFile(path) as out:
+        # np.savez_compressed's layout, with the archive closed on any error (a full disk)
+        # before the file is discarded.
+        with zipfile.ZipFile(out.file, "w", zipfile.ZIP_DEFLATED, allowZip64=True) as archive:
+            for name, array in arrays.items():
+                with archive.open(f"{name}.npy", "w", force_zip64=True) as member:
+                    np.lib.format.write_array(member, array, allow_pickle=False)
     return len(ticks)
 
 

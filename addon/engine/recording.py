@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .outputs import AtomicFile
+
 FORMAT_VERSION = 1
 PROFILE = "grasp_lab"
 TOPIC_HEADER = "/grasp_lab/header"
@@ -196,11 +198,15 @@ class RecordingWriter:
         _reuse_freed_memory()
         if compression not in COMPRESSIONS:
             raise ValueError(f"compression: expected one of {COMPRESSIONS}, got {compression!r}")
-        self.path = path
         self.header = header
         self.dtype = tick_dtype(len(header["body_names"]), len(header["finger_names"]))
         self.flush_interval = float(flush_interval)
-        self._file = open(path, "wb")
+        # Written as PATH.partial (a readable prefix at every flush), renamed to PATH when closed.
+        self._out = AtomicFile(path, keep_partial=_holds_ticks)
+        self.path = self._out.path
+        self.partial = self._out.partial
+        self._file = self._out.file
+        self._good = 0          # bytes on disk at the last flush: a valid prefix
         kind = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
         # Chunks close on the flush timer (far below this size), CRCs on every chunk and on the
         # whole data section (so `info` checks a whole file without decompressing it).
@@ -215,6 +221,7 @@ class RecordingWriter:
                     for topic in (TOPIC_HEADER, TOPIC_EVENTS, TOPIC_END)}
         self._ch[TOPIC_TICKS] = self._mcap.register_channel(TOPIC_TICKS, TICK_ENCODING, tick_schema)
         self._seq = 0
+        self._flushed_ticks = 0
         self.ticks = 0
         self.events = 0
         self.first_time = None
@@ -258,19 +265,60 @@ class RecordingWriter:
         """Close the chunk in progress and hand the bytes to the OS (a kill -9 keeps them)."""
         self._mcap.flush()
         self._file.flush()
+        self._good = self._file.tell()
+        self._flushed_ticks = self.ticks
+        self._out.keep = self.ticks > 0     # a readable prefix with ticks: kept after a crash
 
     def close(self, end: dict | None = None) -> None:
-        """The end record (counts, overflow), the summary and the footer."""
+        """The end record (counts, overflow, how the session ended: ``clean`` false and
+        ``ended_by`` when it did not end as asked), the summary and the footer; then the file
+        is renamed into place. A write that fails (a full disk) leaves PATH as it was and
+        PATH.partial cut back to its last flush (a readable prefix); the OSError says so."""
         if self.closed:
             return
         start = self.last_time if self.first_time is None else self.first_time
         data = {"ticks": self.ticks, "events": self.events, "start_time": start, "end_time": self.last_time,
                 "duration": self.last_time - start, "clean": True}
         data.update(end or {})
-        self._write_json(TOPIC_END, data, self.last_time)
-        self._mcap.finish()
-        self._file.close()
+        try:
+            self._write_json(TOPIC_END, data, self.last_time)
+            self._mcap.finish()
+            self._out.commit()
+        except OSError as ex:
+            self.abandon()
+            raise OSError(ex.errno, f"{ex.strerror or ex}: the recording could not be finished; "
+                                    f"{self.partial} holds its first {self.ticks_flushed()} ticks "
+                                    f"(a readable prefix, `grasp-lab info` reads it), {self.path} is "
+                                    f"as it was") from None
         self.closed = True
+
+    def ticks_flushed(self) -> int:
+        return self._flushed_ticks
+
+    def abandon(self) -> None:
+        """Stop writing without finishing (a write failed): the partial file cut back to its
+        last flush, left beside the untouched target."""
+        if self.closed:
+            return
+        self.closed = True
+        if self._flushed_ticks:
+            self._out.leave(self._good)
+        else:
+            self._out.discard()
+
+    def discard(self) -> None:
+        """Nothing of it is worth keeping (refused before it started, or a copy that failed):
+        the partial file removed, the target as it was."""
+        self.closed = True
+        self._out.discard()
+
+
+def _holds_ticks(path: str) -> bool:
+    """A partial recording left by a crash holds ticks (worth keeping); a header cut short does not."""
+    try:
+        return len(open_recording(path).ticks) > 0
+    except (RecordingError, OSError):
+        return False
 
 
 # --------------------------------------------------------------------------- events
@@ -339,6 +387,30 @@ class EventDetector:
 
 # --------------------------------------------------------------------------- recorder
 
+_stop_reason = ""
+
+
+def set_stop_reason(why: str) -> None:
+    """A signal is stopping the process (the command line's handler says which): recordings
+    finished from now on say ``clean: false`` and this."""
+    global _stop_reason
+    _stop_reason = why
+
+
+def stop_reason() -> str:
+    return _stop_reason
+
+
+def _in_flight() -> str:
+    """The exception a ``finally`` is running for, as the end record's ``ended_by``."""
+    ex = sys.exc_info()[1]
+    if ex is None:
+        return ""
+    if isinstance(ex, KeyboardInterrupt):
+        return "SIGINT (Ctrl-C)"
+    return f"{type(ex).__name__}: {ex}"
+
+
 class SessionRecorder:
     """Records every tick of a session into a RecordingWriter.
 
@@ -395,11 +467,24 @@ class SessionRecorder:
             self._write_block()
 
     def _write_block(self) -> None:
-        if self._n:
-            self._write(self._block[:self._n])
+        if self.writer.closed:
             self._n = 0
-        self.writer.flush()
+            return
+        try:
+            if self._n:
+                self._write(self._block[:self._n])
+            self.writer.flush()
+        except OSError as ex:       # a full disk: the session goes on, the file keeps its prefix
+            self._fail(ex)
+        self._n = 0
         self._last_flush = time.perf_counter()
+
+    def _fail(self, ex: OSError) -> None:
+        with self._lock:
+            self.writer.abandon()
+        self.error = self.error or (f"recording stopped after {self.writer.ticks_flushed()} ticks "
+                                    f"({ex.strerror or ex}); {self.writer.partial} holds them (a "
+                                    f"readable prefix), {self.writer.path} is as it was")
 
     def _write(self, records) -> None:
         with self._lock:
@@ -418,6 +503,10 @@ class SessionRecorder:
                 wait = min(self.poll, max(0.0, due - time.perf_counter()))
                 stopping = self._stop.wait(wait)
                 n = self.world._drain_ticks(buf)
+                if self.writer.closed:      # abandoned (a write failed): the ring is drained only
+                    if stopping:
+                        return
+                    continue
                 if n:
                     self._write(buf[:n])
                 overflow = int(self.world.tick_log_overflow())
@@ -434,6 +523,8 @@ class SessionRecorder:
                     last_flush = now
                 if stopping and n == 0:
                     return
+        except OSError as ex:       # a full disk: the session goes on; finish() reports it
+            self._fail(ex)
         except Exception as ex:     # the session goes on; finish() reports it
             self.error = f"recorder stopped: {ex}"
 
@@ -447,7 +538,9 @@ class SessionRecorder:
         self.event(t, "parameter", subject, f"{name} = {value}", name=name, value=value)
 
     def finish(self) -> dict:
-        """After the world stopped: write what is left, the end record, close the file."""
+        """After the world stopped: write what is left, the end record, close the file. A
+        session stopped before its end (a signal, the exception a ``finally`` finishes it for,
+        a failed write) gets ``clean: false`` and ``ended_by`` saying which."""
         if self.finished:
             return {}
         self.finished = True
@@ -458,7 +551,14 @@ class SessionRecorder:
         else:
             self._write_block()
         end = {"overflow": self.overflow, "recorder_error": self.error}
-        self.writer.close(end)
+        why = stop_reason() or _in_flight() or self.error
+        if why:
+            end.update(clean=False, ended_by=why)
+        if not self.writer.closed:
+            try:
+                self.writer.close(end)
+            except OSError as ex:
+                self.error = end["recorder_error"] = str(ex.strerror or ex)
         return end
 
 
@@ -548,6 +648,7 @@ class _Cursor:
     """Where the linear read is (the start of the record being read), for the damage message."""
     def __init__(self, size: int):
         self.size, self.pos = size, 0
+        self.trailing = 0       # bytes after the footer's magic
 
 
 SLAB = 4 << 20      # bytes the linear read takes from the file at a time
@@ -618,6 +719,7 @@ def _records(fh, validate: bool, cursor: _Cursor):
                 raise EndOfFile()
             if bytes(view[pos:pos + len(MCAP_MAGIC)]) != MCAP_MAGIC:
                 raise ValueError("no magic bytes after the footer")
+            cursor.trailing = cursor.size - (cursor.pos + len(MCAP_MAGIC))
             yield True
             return
 
@@ -884,6 +986,9 @@ def _read_linear(path: str, fps: float | None, validate: bool, span: float | Non
         if damage and "cut short" not in damage[0]:
             detail += f"; {damage[0]}"
         raise RecordingError(f"{path}: not a readable Grasp Lab recording ({detail})")
+    if footer and cursor.trailing:
+        damage.append(f"{cursor.trailing} bytes after the footer (byte {size - cursor.trailing} on): not "
+                      f"part of the recording (appended or written over by something else); ignored")
     if not damage and not footer:
         damage.append("file ends without its summary: the session did not end cleanly (cut short)")
     elif not damage and end is None:
@@ -1004,8 +1109,35 @@ def summarize(path: str) -> dict:
                     duration=rec.duration, damage=rec.damage, chunks=None)
 
 
+def _disagreements(header: dict, events: list) -> list:
+    """Parameters set at the start (``parameter`` events at time 0, from --set) that the
+    header's scene does not hold: the file contradicts itself."""
+    scene = header.get("scene") or {}
+    objects = {o["name"]: o for o in scene.get("bodies", []) + scene.get("fingers", [])}
+    found = []
+    for e in events:
+        if e.get("kind") != "parameter" or e.get("time", 0.0) != 0.0 or "name" not in e:
+            continue
+        name, value, subject = e["name"], e.get("value"), e.get("subject", "")
+        if subject == "scene":
+            held = header["rates"]["haptic_hz"] if name == "haptic_rate" else scene.get(name)
+        else:
+            held = objects.get(subject, {}).get(name)
+        if held is None:
+            continue
+        if isinstance(held, list) and isinstance(value, list):
+            same = len(held) == len(value) and all(float(a) == float(b) for a, b in zip(held, value))
+        else:
+            same = float(held) == float(value)
+        if not same:
+            found.append(f"header and events disagree: the header's scene has {subject}.{name} = {held}, "
+                         f"its parameter event says {value}")
+    return found
+
+
 def _summary(path, header, events, end, ticks, duration, damage, chunks) -> dict:
     rate = float(header["rates"]["haptic_hz"])
+    damage = list(damage) + _disagreements(header, events)
     kinds = {}
     for e in events:
         kinds[e.get("kind", "?")] = kinds.get(e.get("kind", "?"), 0) + 1
@@ -1016,4 +1148,5 @@ def _summary(path, header, events, end, ticks, duration, damage, chunks) -> dict
             "scene": header["scene"], "fingerprint": header["fingerprint"], "device": header.get("device"),
             "runtime": header.get("runtime"), "versions": header.get("versions"),
             "events": kinds, "event_list": events, "overflow": end.get("overflow"),
-            "recorder_error": end.get("recorder_error", ""), "damage": damage, "chunks": chunks}
+            "recorder_error": end.get("recorder_error", ""), "damage": damage, "chunks": chunks,
+            "ended_by": "" if end.get("clean", True) else end.get("ended_by") or "an unknown cause"}

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .limits import DEFAULT_MAX_SIZE, check_memory, check_recording_size, check_set_value
 from .recording import EventDetector, Recording, RecordingWriter, make_header, scene_from_dict
 from .scene import build_world
 
@@ -44,19 +45,24 @@ def parse_override(text: str) -> Override:
         if key in SCENE_KEYS:
             if key == "gravity":
                 g = tuple(float(v) for v in value.split(","))
-                if len(g) != 3 or not all(np.isfinite(g)):
+                if len(g) != 3:
                     raise ValueError
+                bad = next((why for why in map(lambda v: check_set_value(key, v), g) if why), "")
+                if bad:
+                    raise OverrideError(f"--set {text!r}: {bad}")
                 return Override(key, g)
             if key == "gyroscopic":
                 if value not in ("0", "1"):
                     raise ValueError
                 return Override(key, value == "1")
             hz = float(value)
-            if not (np.isfinite(hz) and hz > 0):
-                raise ValueError
+            if check_set_value(key, hz):
+                raise OverrideError(f"--set {text!r}: {check_set_value(key, hz)}")
             return Override(key, hz)
-    except ValueError:
-        want = {"gravity": "X,Y,Z in m/s^2", "gyroscopic": "0 or 1", "haptic_rate": "a rate in Hz > 0"}[key]
+    except ValueError as ex:
+        if isinstance(ex, OverrideError):
+            raise
+        want = {"gravity": "X,Y,Z in m/s^2", "gyroscopic": "0 or 1", "haptic_rate": "a rate in Hz"}[key]
         raise OverrideError(f"--set {text!r}: {key} expects {want}") from None
     obj, dot, prop = key.rpartition(".")
     if not dot or not obj:
@@ -68,8 +74,8 @@ def parse_override(text: str) -> Override:
         v = float(value)
     except ValueError:
         raise OverrideError(f"--set {text!r}: {prop} expects a number") from None
-    if not np.isfinite(v) or v < 0 or (prop in ("mass", "stiffness") and v <= 0):
-        raise OverrideError(f"--set {text!r}: {prop} must be {'> 0' if prop in ('mass', 'stiffness') else '>= 0'}")
+    if check_set_value(prop, v):
+        raise OverrideError(f"--set {text!r}: {check_set_value(prop, v)}")
     return Override(prop, v, obj)
 
 
@@ -136,6 +142,14 @@ class Divergence:
         for t, db, df in self.timeline:
             lines.append(f"  t = {t:8.3f} s  {db:10.3g} m  {df:10.3g} m")
         return "\n".join(lines)
+
+
+def _check_size(ticks: int, bytes_per_tick: int, record_path, max_size) -> None:
+    """The new run in memory (its records, the comparison's and the writer's working copies:
+    3 x, bench/bench_memory.py); its recording under max_size and the free space."""
+    check_memory("resim", ticks, bytes_per_tick, copies=3)
+    if record_path:
+        check_recording_size("--record", record_path, ticks, bytes_per_tick, max_size)
 
 
 @dataclass
@@ -205,8 +219,11 @@ def replay(world, hips: np.ndarray, dt: float, has_start: bool = True, before: d
 
 
 def resimulate(recorded: Recording, graspcore, overrides=(), tolerance: float = 1e-6,
-               record_path: str | None = None, compression: str = "lz4") -> ResimResult:
-    """Replay ``recorded``'s HIPs, tick by tick, through a world built from its header."""
+               record_path: str | None = None, compression: str = "lz4",
+               max_size: float = DEFAULT_MAX_SIZE) -> ResimResult:
+    """Replay ``recorded``'s HIPs, tick by tick, through a world built from its header. The
+    new run's tick count is checked against memory (and ``max_size``, the free disk space
+    when it is recorded) before anything is allocated."""
     if len(recorded.ticks) == 0:
         raise ValueError(f"{recorded.path}: no ticks to re-simulate")
     desc = scene_from_dict(recorded.header["scene"])
@@ -220,11 +237,13 @@ def resimulate(recorded: Recording, graspcore, overrides=(), tolerance: float = 
     t_rec = recorded.ticks["time"]
     hip_rec = recorded.ticks["hip"]
     if same_rate:
+        _check_size(len(t_rec), world.tick_dtype().itemsize + hip_rec[0].nbytes, record_path, max_size)
         hips = np.ascontiguousarray(hip_rec)     # out of the records: one array, rows set_hips takes
     else:   # the HIP stream resampled at the new rate (linear between recorded ticks)
         start = float(t_rec[0]) if int(recorded.ticks["tick"][0]) == 0 else \
             float(t_rec[0]) - 1.0 / recorded.haptic_rate
         n_new = int(np.floor((float(t_rec[-1]) - start) * rate + 1e-9))
+        _check_size(n_new + 1, world.tick_dtype().itemsize + hip_rec[0].nbytes, record_path, max_size)
         times = start + dt * np.arange(1, n_new + 1)
         hips = np.stack([np.stack([np.interp(times, t_rec, hip_rec[:, f, a]) for a in range(3)], axis=1)
                          for f in range(hip_rec.shape[1])], axis=1) if hip_rec.shape[1] else \
@@ -244,10 +263,14 @@ def resimulate(recorded: Recording, graspcore, overrides=(), tolerance: float = 
     result = ResimResult(ticks=ticks, divergence=div, header=header)
     if record_path:
         writer = RecordingWriter(record_path, header, compression=compression)
-        events = EventDetector(header)
-        writer.write_ticks(ticks)
-        for tick, t, kind, subject, detail in events(ticks):
-            writer.event(t, kind, subject, detail, tick=tick)
-        writer.close({"overflow": 0})
+        try:
+            events = EventDetector(header)
+            writer.write_ticks(ticks)
+            for tick, t, kind, subject, detail in events(ticks):
+                writer.event(t, kind, subject, detail, tick=tick)
+            writer.close({"overflow": 0})
+        except BaseException:       # a full disk, a signal: the target stays as it was
+            writer.discard()
+            raise
         result.path = record_path
     return result

@@ -19,6 +19,7 @@ from . import defaults
 # Limits for the "absurd scale" check, in metres (largest bounding-box extent).
 MIN_SIZE = 1e-4     # 0.1 mm
 MAX_SIZE = 100.0    # 100 m
+MAX_DISTANCE = 1e4  # m from the origin, for a body or a fingertip
 # A body whose volume is below this fraction of its bounding box is "zero volume".
 MIN_VOLUME_FRACTION = 1e-9
 
@@ -139,12 +140,22 @@ def check_scale(name: str, points: np.ndarray) -> None:
     """Refuse sizes that are almost certainly a unit or scale mistake."""
     if len(points) == 0:
         raise SceneError(name, "has no vertices")
+    check_distance(name, points)
     extent = float(np.max(points.max(axis=0) - points.min(axis=0)))
     if extent > MAX_SIZE or extent < MIN_SIZE:
         raise SceneError(
             name,
             f"absurd scale: largest extent is {extent:.3g} m (expected {MIN_SIZE:g} m to "
             f"{MAX_SIZE:g} m); apply or fix the object's scale (units are metres)")
+
+
+def check_distance(name: str, points) -> None:
+    """Within MAX_DISTANCE of the origin: farther out, millimetre geometry loses its precision
+    (and its volume reads as zero)."""
+    far = float(np.max(np.abs(np.asarray(points, dtype=np.float64)))) if np.size(points) else 0.0
+    if not far <= MAX_DISTANCE:
+        raise SceneError(name, f"is {far:.3g} m from the origin (at most {MAX_DISTANCE:g} m); move it "
+                               f"near the origin")
 
 
 def check_hull_points(name: str, points: np.ndarray) -> None:
@@ -225,6 +236,7 @@ def prepare(desc: SceneDesc) -> SceneDesc:
         if b.name in seen:
             raise SceneError(b.name, "duplicate body name")
         seen.add(b.name)
+        check_distance(b.name, b.position)
         if not b.parts:
             raise SceneError(b.name, "has no collision shape (no mesh and no child mesh parts)")
         parts = []

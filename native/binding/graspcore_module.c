@@ -1054,15 +1054,23 @@ static PyObject *module_grasp_mu_min(PyObject *mod, PyObject *args) {
 static PyObject *World_attach_serial(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
     static char *kwlist[] = {"fd", "finger_offset", "num_fingers", "transform", "force_ttl", "lost_timeout",
-                             "max_force", "ramp_time", "max_position", "stall_timeout", "priority", NULL};
+                             "max_force", "ramp_time", "max_position", "stall_timeout", "priority", "udp_host",
+                             "udp_port", NULL};
     gcSerialDef def = gc_default_serial_def();
     int fd;
     PyObject *transform = Py_None;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "i|$iiOddddddi", kwlist, &fd, &def.finger_offset,
+    const char *udp_host = "";
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "i|$iiOddddddisi", kwlist, &fd, &def.finger_offset,
                                      &def.num_fingers, &transform, &def.force_ttl, &def.lost_timeout, &def.max_force,
-                                     &def.ramp_time, &def.max_position, &def.stall_timeout, &def.priority) ||
+                                     &def.ramp_time, &def.max_position, &def.stall_timeout, &def.priority, &udp_host,
+                                     &def.udp_port) ||
         !check_world(self))
         return NULL;
+    if (strlen(udp_host) >= sizeof def.udp_host) {
+        PyErr_SetString(PyExc_ValueError, "udp_host: longer than 63 bytes");
+        return NULL;
+    }
+    strcpy(def.udp_host, udp_host);
     if (transform != Py_None && !parse_vec(transform, 16, "transform (16 numbers, row-major 4x4)", def.transform))
         return NULL;
     int32_t id;
@@ -1112,6 +1120,13 @@ static PyObject *World_serial_estop(PyObject *obj, PyObject *args) {
     return serial_result(self, id, gc_world_serial_estop(self->world, id));
 }
 
+/* d[key] = v, taking v's reference; -1 (error set) when v is NULL or the insert fails. */
+static int set_stolen(PyObject *d, const char *key, PyObject *v) {
+    int r = v ? PyDict_SetItemString(d, key, v) : -1;
+    Py_XDECREF(v);
+    return r;
+}
+
 static PyObject *World_serial_stats(PyObject *obj, PyObject *args) {
     WorldObject *self = (WorldObject *)obj;
     int32_t id;
@@ -1125,7 +1140,7 @@ static PyObject *World_serial_stats(PyObject *obj, PyObject *args) {
                                      "type", s.frame_errors[4], "length", s.frame_errors[5], "overflow",
                                      s.frame_errors[6], "range", s.frame_errors[7]);
     if (!errors) return NULL;
-    return Py_BuildValue(
+    PyObject *out = Py_BuildValue(
         "{s:s,s:N,s:i,s:N,s:i,s:d,s:d,s:d,s:s,s:d,s:d,s:K,s:K,s:K,s:K,s:N,s:K,s:K,s:K,s:K,s:K,s:K,s:d,s:d,s:d,s:d,s:N}",
         "state", states[s.state & 3], "enabled", PyBool_FromLong(s.enabled), "device_fingers", s.device_fingers,
         "renders_forces", PyBool_FromLong(s.renders_forces), "units", s.units, "device_rate", s.device_rate,
@@ -1137,6 +1152,14 @@ static PyObject *World_serial_stats(PyObject *obj, PyObject *args) {
         (unsigned long long)s.stall_zeroes, "write_errors", (unsigned long long)s.write_errors, "push_rejected",
         (unsigned long long)s.push_rejected, "latency_p50_us", s.latency_p50_us, "latency_p99_us", s.latency_p99_us,
         "latency_max_us", s.latency_max_us, "gain", s.gain, "rt_priority", PyBool_FromLong(s.rt_priority));
+    if (out && (set_stolen(out, "late_poses", PyLong_FromUnsignedLongLong(s.late_poses)) < 0 ||
+                set_stolen(out, "duplicate_poses", PyLong_FromUnsignedLongLong(s.duplicate_poses)) < 0 ||
+                set_stolen(out, "foreign_datagrams", PyLong_FromUnsignedLongLong(s.foreign_datagrams)) < 0 ||
+                set_stolen(out, "peer", PyUnicode_FromString(s.peer)) < 0)) {
+        Py_DECREF(out);
+        return NULL;
+    }
+    return out;
 }
 
 /* push_device_hips(finger_offset, float64 buffer of xyz rows) -> True if taken, False if rejected. */
@@ -1164,20 +1187,45 @@ static PyObject *World_push_device_hips(PyObject *obj, PyObject *args) {
     return result;
 }
 
-/* serial_events(device) -> [(time, name, value)], popped oldest first. */
+/* device_forces_sent(finger_offset, float64 buffer of xyz rows) -> True if stored, False if rejected. */
+static PyObject *World_device_forces_sent(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int offset;
+    PyObject *forces;
+    if (!PyArg_ParseTuple(args, "iO", &offset, &forces) || !check_world(self)) return NULL;
+    Py_buffer b;
+    if (PyObject_GetBuffer(forces, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
+    PyObject *result = NULL;
+    if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0 || b.len == 0) {
+        PyErr_SetString(PyExc_ValueError, "forces: must be a C-contiguous float64 array of xyz rows");
+    } else {
+        gcStatus st = gc_world_device_forces_sent(self->world, offset, (int)(b.len / (Py_ssize_t)(3 * sizeof(double))),
+                                                  b.buf);
+        if (st < 0)
+            raise_status(self, st);
+        else
+            result = PyBool_FromLong(st == GC_OK);
+    }
+    PyBuffer_Release(&b);
+    return result;
+}
+
+/* serial_events(device) -> [(time, name, value, session_time)], popped oldest first. */
 static PyObject *World_serial_events(PyObject *obj, PyObject *args) {
     WorldObject *self = (WorldObject *)obj;
     int32_t id;
     if (!serial_id(self, args, &id, NULL)) return NULL;
     gcSerialStats probe;
     if (gc_world_serial_stats(self->world, id, &probe) < 0) return serial_result(self, id, GC_ERR_UNKNOWN_ID);
-    static const char *names[] = {"?", "connected", "lost", "recovered", "enabled", "estop", "stall", "dropped"};
+    static const char *names[] = {"?", "connected", "lost", "recovered", "enabled", "estop", "stall", "dropped",
+                                  "foreign"};
     PyObject *list = PyList_New(0);
     gcSerialEvent ev[64];
     int n;
     while (list && (n = gc_world_serial_events(self->world, id, ev, 64)) > 0) {
         for (int i = 0; i < n; ++i) {
-            PyObject *item = Py_BuildValue("(dsi)", ev[i].time, names[ev[i].code & 7], (int)ev[i].value);
+            PyObject *item = Py_BuildValue("(dsid)", ev[i].time, names[ev[i].code >= 1 && ev[i].code <= 8 ? ev[i].code : 0], (int)ev[i].value,
+                                           ev[i].session_time);
             if (!item || PyList_Append(list, item) < 0) {
                 Py_XDECREF(item);
                 Py_DECREF(list);
@@ -1246,8 +1294,9 @@ static PyMethodDef World_methods[] = {
     {"attach_serial", (PyCFunction)(void (*)(void))World_attach_serial, METH_VARARGS | METH_KEYWORDS,
      "attach_serial(fd, *, finger_offset=0, num_fingers=1, transform=None (row-major 4x4, device metres -> world), "
      "force_ttl=0.02, lost_timeout=0.1, max_force=10.0, ramp_time=0.5, max_position=10.0, stall_timeout=0.005, "
-     "priority=70) "
-     "-> device id: a C thread speaks the Grasp Lab serial protocol on fd (docs/protocol.md)."},
+     "priority=70, udp_host='', udp_port=0) "
+     "-> device id: a C thread speaks the Grasp Lab serial protocol on fd (docs/protocol.md); with udp_port, fd is "
+     "a bound UDP socket and frames go to udp_host:udp_port until the device's hello pins its address."},
     {"detach_serial", World_detach_serial, METH_VARARGS, "detach_serial(device): stop its thread (fd stays open)."},
     {"serial_enable", World_serial_enable, METH_VARARGS, "serial_enable(device, on): forces to the device on/off."},
     {"serial_estop", World_serial_estop, METH_VARARGS, "serial_estop(device): forces off, latched until enabled."},
@@ -1255,7 +1304,10 @@ static PyMethodDef World_methods[] = {
     {"push_device_hips", World_push_device_hips, METH_VARARGS,
      "push_device_hips(finger_offset, array (n, 3) float64): HIPs from a device read in Python (SpaceMouse, glove), "
      "merged with the serial devices' fingers."},
-    {"serial_events", World_serial_events, METH_VARARGS, "serial_events(device) -> [(time, event, value)] safety events."},
+    {"device_forces_sent", World_device_forces_sent, METH_VARARGS,
+     "device_forces_sent(finger_offset, array (n, 3) float64): what a device read in Python was sent (scene axes), "
+     "recorded as those fingers' device force until the next call."},
+    {"serial_events", World_serial_events, METH_VARARGS, "serial_events(device) -> [(time, event, value, session_time)] safety events: monotonic and session clock."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -321,6 +321,13 @@ typedef struct gcSerialDef {
     double stall_timeout;       /* s, haptic-loop output older than this: zero forces, default 0.005 */
     int priority;               /* SCHED_FIFO priority tried for the device thread, default 70 (below the
                                  * haptic loop's 80); 0 = normal. Refused -> normal, said in stats */
+    /* UDP (docs/protocol.md section 7): fd is a bound datagram socket, one frame a datagram.
+     * Frames go to udp_host:udp_port until a HELLO_DEVICE pins the session to the address that
+     * sent it; datagrams from any other address are then dropped and counted (foreign). Late
+     * and duplicated poses are dropped and counted, so that a HIP never goes back in time.
+     * udp_port 0 (default): a byte stream (serial port, pty, stream socket). */
+    char udp_host[64];          /* numeric IPv4 or IPv6 address */
+    int udp_port;
 } gcSerialDef;
 gcSerialDef gc_default_serial_def(void);
 
@@ -336,12 +343,17 @@ typedef enum gcSerialEventCode {
     GC_SERIAL_EV_LOST = 2,      /* value: 1 hang-up, 0 silence */
     GC_SERIAL_EV_RECOVERED = 3, /* poses again after a loss */
     GC_SERIAL_EV_ENABLED = 4,   /* value: 1 on, 0 off */
-    GC_SERIAL_EV_ESTOP = 5,     /* value: reason (0 host, 1 device button, 2 device fault) */
+    GC_SERIAL_EV_ESTOP = 5,     /* value: reason (0 host, 1 device button, 2 device fault, other bytes as the
+                                 * device sent them; GC_ESTOP_REASON_STATUS: only a pose's status said so) */
     GC_SERIAL_EV_STALL = 6,     /* value: 1 forces zeroed for a stalled haptic loop, 0 resumed */
-    GC_SERIAL_EV_DROPPED = 7    /* value: frames dropped since the previous such event (at most 10 Hz) */
+    GC_SERIAL_EV_DROPPED = 7,   /* value: frames dropped since the previous such event (at most 10 Hz) */
+    GC_SERIAL_EV_FOREIGN = 8    /* UDP: datagrams from another address since the previous such event (at most 10 Hz) */
 } gcSerialEventCode;
+enum { GC_ESTOP_REASON_STATUS = 256 }; /* an e-stop seen in a pose's status bit 1 (its ESTOP frame was lost) */
 typedef struct gcSerialEvent {
-    double time;                /* s, CLOCK_MONOTONIC */
+    double time;                /* s, CLOCK_MONOTONIC, when the device thread observed it */
+    double session_time;        /* s, the same instant on the session clock (the latest haptic tick's
+                                 * time plus the time since it); -1 before the runtime's first tick */
     int32_t code;               /* gcSerialEventCode */
     int32_t value;
 } gcSerialEvent;
@@ -357,11 +369,14 @@ typedef struct gcSerialStats {
     uint64_t poses, forces_sent, heartbeats;
     uint64_t dropped;           /* frames dropped, the sum of the errors below */
     uint64_t frame_errors[8];   /* cobs, short, crc, version, type, length, overflow, range */
-    uint64_t sequence_gaps;     /* pose frames missing from the sequence numbers */
+    uint64_t sequence_gaps;     /* device frames (any type) missing from its sequence numbers */
     uint64_t disconnects, estops, stall_zeroes, write_errors, push_rejected;
     double latency_p50_us, latency_p99_us, latency_max_us; /* pose read -> force frame written */
     double gain;                /* current ramp gain 0..1 (0 while disabled) */
     int rt_priority;            /* 1: the device thread runs at SCHED_FIFO */
+    uint64_t late_poses, duplicate_poses; /* UDP: poses older than, or the same as, the newest taken: dropped */
+    uint64_t foreign_datagrams; /* UDP: from an address other than the pinned device's: dropped */
+    char peer[64];              /* UDP: the device's address once pinned ("" before) */
 } gcSerialStats;
 
 gcStatus gc_world_attach_serial(gcWorld *world, int fd, const gcSerialDef *def, int32_t *out_device);
@@ -377,6 +392,10 @@ int gc_world_serial_events(gcWorld *world, int32_t device, gcSerialEvent *out, i
  * the call to use instead of push_hips while serial devices are attached.
  * GC_WARN_REJECTED: a NaN/Inf position (nothing pushed). */
 gcStatus gc_world_push_device_hips(gcWorld *world, int finger_offset, int count, const double *positions);
+/* What such a device was sent for fingers finger_offset.. (3 a finger, scene axes; zeros for an
+ * input-only device), held until the next call: recorded in the tick log as their device force,
+ * as the serial devices' frames are. GC_WARN_REJECTED: a NaN/Inf force (nothing stored). */
+gcStatus gc_world_device_forces_sent(gcWorld *world, int finger_offset, int count, const double *forces);
 
 
 /* ---- Grasp quality (docs/api.md "Grasp quality") ----
@@ -385,8 +404,10 @@ gcStatus gc_world_push_device_hips(gcWorld *world, int finger_offset, int count,
  * with a the world axis of smallest |n.a| (ties: x, then y, then z), t2 = n x t1; its wrench is
  * (f, (p - center) x f / radius). A contact with mu 0 gives one wrench (its k edges coincide).
  * The GWS is the convex hull of the edge wrenches (6-D); force closure = the origin strictly
- * inside it. Exact: the hull is built facet by facet, no sampling. A workspace holds all
- * storage; it grows to the largest problem it has seen and is reused without allocating. */
+ * inside it. Exact, no sampling: closure by a linear program, epsilon and the weakest direction
+ * by a support-function search (each answer certified against the hull), the volume from the
+ * whole hull. A workspace holds all storage; it grows to the largest problem it has seen and is
+ * reused without allocating. */
 typedef struct gcGraspDef {
     int edges;              /* friction cone edges per contact, >= 3, default 8 */
     double tolerance;       /* relative to the largest wrench norm: rank, flatness, visibility and

@@ -70,7 +70,6 @@ void gc_rt_publish_display(gcRuntime *rt, int64_t now, int forces_enabled) {
 gcStatus gc_world_push_hips(gcWorld *w, const double *positions, int count_, double t) {
     if (!w) return GC_ERR_INVALID_ARGUMENT;
     if (!positions) return gc_null_argument(w, "positions");
-    gcRuntime *rt = w->runtime;
     if (!gc_runtime_running(w)) {
         gc_world_set_error(w, "push_hips: the runtime is not running (World.start / gc_world_start)");
         return GC_ERR_NOT_RUNNING;
@@ -79,6 +78,13 @@ gcStatus gc_world_push_hips(gcWorld *w, const double *positions, int count_, dou
         gc_world_set_error(w, "positions: %d rows given for %d fingers", count_, w->num_fingers);
         return GC_ERR_INVALID_ARGUMENT;
     }
+    return gc_runtime_push_input(w, positions, count_, t);
+}
+
+gcStatus gc_runtime_push_input(gcWorld *w, const double *positions, int count_, double t) {
+    if (!gc_runtime_running(w)) return GC_ERR_NOT_RUNNING;
+    if (count_ < 1 || count_ > w->num_fingers) return GC_ERR_INVALID_ARGUMENT;
+    gcRuntime *rt = w->runtime;
     int finite = isfinite(t);
     for (int i = 0; i < 3 * count_ && finite; ++i) finite = isfinite(positions[i]);
     if (!finite) {

@@ -66,16 +66,11 @@ static int update_safety(gcRuntime *rt, int64_t now) {
         rt->enabled_since_ns = NEVER;
     else if (rt->enabled_since_ns == NEVER)
         rt->enabled_since_ns = now;
-    double gain = 0.0;
-    if (ok) gain = rt->ramp_ns > 0 ? fmin(1.0, (double)(now - rt->enabled_since_ns) / (double)rt->ramp_ns) : 1.0;
+    double gain = ok ? gc_ramp_gain((double)(now - rt->enabled_since_ns), (double)rt->ramp_ns) : 0.0;
     for (int32_t i = 0; i < hw->num_fingers; ++i) {
-        gcVec3 f = gc_scale(hw->fingers[i].force, gain);
-        if (!gc_vec_finite(f)) {
-            count(&rt->nonfinite_forces);
-            f = gc_v3(0, 0, 0);
-        }
-        double norm = gc_len(f);
-        if (norm > rt->def.max_force) f = gc_scale(f, rt->def.max_force / norm);
+        int nonfinite = 0;
+        gcVec3 f = gc_gate_force(hw->fingers[i].force, gain, rt->def.max_force, &nonfinite);
+        if (nonfinite) count(&rt->nonfinite_forces);
         double *out = &rt->device_force[3 * i];
         out[0] = f.x, out[1] = f.y, out[2] = f.z;
     }
@@ -148,9 +143,10 @@ void gc_rt_haptic_tick(gcRuntime *rt, int64_t now) {
     gc_serial_hub_tick(rt->serial, hw, rt->device_force, ok, now);
     gc_rt_publish_to_object(rt);
     gc_rt_publish_display(rt, now, ok);
-    if (rt->tick_log)
-        gc_tick_log_push(rt->tick_log, hw, rt->device_force, rt->tick, rt->object_time_seen, now,
-                         rt->def.realtime, ok, atomic_load_explicit(&rt->adopted, memory_order_relaxed));
+    if (rt->tick_log) /* fingers a serial device drives: what their device was actually sent */
+        gc_tick_log_push(rt->tick_log, hw, gc_serial_hub_recorded_forces(rt->serial, rt->device_force, hw->num_fingers),
+                         rt->tick, rt->object_time_seen, now, rt->def.realtime, ok,
+                         atomic_load_explicit(&rt->adopted, memory_order_relaxed));
     store_double(&rt->haptic_time_bits, hw->time);
     count(&rt->haptic_ticks);
 }

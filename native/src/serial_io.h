@@ -105,5 +105,10 @@ void gc_serial_hub_destroy(gcSerialHub *hub);
  * god-objects and HIPs (in `hap`), for the device threads. */
 void gc_serial_hub_tick(gcSerialHub *hub, const gcWorld *hap, const double *device_force, int forces_enabled,
                         int64_t now_ns);
+/* The haptic loop, for the tick log: the device forces to record. `device_force` itself while no
+ * serial device has driven a finger; else a copy in which each such finger has what its device
+ * was last sent (scene axes), or zero once that frame's TTL is over or the device was told to
+ * stop (ENABLE(0), ESTOP) or stopped itself. Never blocks, never allocates. */
+const double *gc_serial_hub_recorded_forces(gcSerialHub *hub, const double *device_force, int num_fingers);
 
 #endif

@@ -14,6 +14,9 @@
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
+#include <arpa/inet.h>
+#include <netinet/in.h>
+#include <stdio.h>
 #include <sys/socket.h>
 #include <time.h>
 #include <unistd.h>
@@ -127,6 +130,8 @@ typedef struct Dev {
     gcFrame last_force;
     int forces, enables, hellos;
     int last_enable;
+    uint8_t status; /* the status byte of its poses */
+    float forces_seen[16384][3]; /* finger 0 of the force frames received (test_recorded_forces) */
     int ramp_frames; /* force frames with 0 < z < RAMP_TOP: a force ramping in, not jumping */
 } Dev;
 
@@ -142,7 +147,7 @@ static void dev_pose(Dev *d, double x, double y, double z) {
     uint8_t p[18];
     gc_put32(p, d->seq * 1000u);
     p[4] = 1;
-    p[5] = 0;
+    p[5] = d->status;
     gc_putf32(p + 6, (float)x), gc_putf32(p + 10, (float)y), gc_putf32(p + 14, (float)z);
     dev_send(d, GC_MSG_POSE, p, 18);
 }
@@ -157,6 +162,8 @@ static void dev_read(Dev *d, int timeout_ms) {
         for (ssize_t i = 0; i < k; ++i) {
             if (!gc_decoder_push(&d->dec, buf[i], &fr)) continue;
             if (fr.type == GC_MSG_FORCE) {
+                if (d->forces < 16384)
+                    for (int c = 0; c < 3; ++c) d->forces_seen[d->forces][c] = gc_lef32(fr.payload + 6 + 4 * c);
                 d->last_force = fr, d->forces++;
                 double z = gc_lef32(fr.payload + 6 + 8);
                 d->ramp_frames += z > 0.0 && z < RAMP_TOP;
@@ -228,7 +235,9 @@ static void test_device_thread(void) {
     int sv[2];
     GC_CHECK(socketpair(AF_UNIX, SOCK_STREAM, 0, sv) == 0, "socketpair");
     fcntl(sv[0], F_SETFL, O_NONBLOCK);
-    Dev dev = {.fd = sv[1]};
+    static Dev dev;
+    memset(&dev, 0, sizeof dev);
+    dev.fd = sv[1];
     gc_decoder_reset(&dev.dec);
 
     gcSerialDef sd = gc_default_serial_def();
@@ -393,7 +402,7 @@ static void test_two_devices(void) {
     gcRuntimeDef rd = gc_default_runtime_def();
     rd.priority = 0;
     GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start");
-    Dev dev[2];
+    static Dev dev[2];
     int sv[2][2];
     int32_t id[2];
     for (int k = 0; k < 2; ++k) {
@@ -447,12 +456,436 @@ static void test_two_devices(void) {
     for (int k = 0; k < 2; ++k) close(sv[k][0]), close(sv[k][1]);
 }
 
+/* ---- what the recording says the device got ------------------------------------------- */
+
+/* The device force the newest drained tick record holds for finger 0 (a world of one finger
+ * and one body), and how many records were drained; each record's checked by `check`. */
+typedef struct Drained {
+    int records, nonzero, unmatched;
+    double last[3];
+} Drained;
+
+/* A record's device force (scene axes) is what some force frame carried (device axes), mapped
+ * back by A^-T: for the frame below, A = 2 Rz(90 deg), so f = (-fy, fx, fz) / 2, exactly. */
+static int sent_in_some_frame(const Dev *d, const double f[3]) {
+    for (int k = 0; k < d->forces && k < 16384; ++k) {
+        const float *g = d->forces_seen[k];
+        if (f[0] == -0.5 * g[1] && f[1] == 0.5 * g[0] && f[2] == 0.5 * g[2]) return 1;
+    }
+    return 0;
+}
+
+static Drained drain(gcWorld *w, const Dev *d) {
+    Drained out = {0, 0, 0, {0, 0, 0}};
+    size_t size = gc_tick_record_size(1, 1);
+    static unsigned char buf[4096 * 1024];
+    int n;
+    while ((n = gc_world_drain_ticks(w, buf, sizeof buf, (int)(sizeof buf / size))) > 0) {
+        for (int k = 0; k < n; ++k) {
+            double f[3];
+            memcpy(f, buf + (size_t)k * size + 52 + 3 * 24, sizeof f); /* after hip, god_object, force */
+            if (f[0] != 0 || f[1] != 0 || f[2] != 0) {
+                out.nonzero++;
+                out.unmatched += !sent_in_some_frame(d, f);
+            }
+            memcpy(out.last, f, sizeof f);
+        }
+        out.records += n;
+    }
+    return out;
+}
+
+static double world_time(gcWorld *w) {
+    gcSnapshot s;
+    memset(&s, 0, sizeof s);
+    gc_world_snapshot(w, &s);
+    return s.time;
+}
+
+/* The last event of `code` among those popped (-1 when none); its value in *value. */
+static double event_time(gcWorld *w, int32_t id, int code, int *value) {
+    gcSerialEvent ev[64];
+    double t = -1;
+    int n = gc_world_serial_events(w, id, ev, 64);
+    for (int i = 0; i < n; ++i)
+        if (ev[i].code == code) t = ev[i].session_time, *value = ev[i].value;
+    return t;
+}
+
+/* The tick log records, for a finger a device drives, what the device was sent (in scene axes,
+ * through a scaled, rotated workspace), not what the haptic loop computed: zero before enable,
+ * zero from the device's ESTOP on (and from an e-stop only its poses' status reported), zero
+ * once the last frame's TTL is over. Device events carry the session time they happened at. */
+static void test_recorded_forces(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    double pts[24];
+    for (int i = 0; i < 8; ++i) {
+        pts[3 * i] = (i & 1) ? 0.1 : -0.1;
+        pts[3 * i + 1] = (i & 2) ? 0.1 : -0.1;
+        pts[3 * i + 2] = (i & 4) ? 0.0 : -0.2; /* top face at z = 0 */
+    }
+    gcPartDef part = {pts, 8, 0.0};
+    gcBodyDef bd = gc_default_body_def();
+    bd.is_static = 1;
+    int32_t ground, finger;
+    GC_CHECK(gc_world_add_body(w, &bd, &part, 1, &ground) == GC_OK, "ground");
+    gcFingerDef fd = gc_default_finger_def();
+    fd.position[2] = 0.05;
+    GC_CHECK(gc_world_add_finger(w, &fd, &finger) == GC_OK, "finger");
+    GC_CHECK(gc_world_set_tick_log(w, 1 << 15) == GC_OK, "tick log");
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    rd.ramp_time = 0.0;
+    rd.watchdog_timeout = 0.05; /* a loaded machine: this test is about the device path */
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start: %s", gc_world_last_error(w));
+
+    int sv[2];
+    GC_CHECK(socketpair(AF_UNIX, SOCK_STREAM, 0, sv) == 0, "socketpair");
+    fcntl(sv[0], F_SETFL, O_NONBLOCK);
+    static Dev dev;
+    memset(&dev, 0, sizeof dev);
+    dev.fd = sv[1];
+    gc_decoder_reset(&dev.dec);
+    gcSerialDef sd = gc_default_serial_def();
+    sd.priority = 0;
+    sd.ramp_time = 0.0;
+    sd.stall_timeout = 0.05;
+    double A[16] = {0, -2, 0, 0, 2, 0, 0, 0, 0, 0, 2, -0.1, 0, 0, 0, 1}; /* 2 Rz(90), z - 0.1 */
+    memcpy(sd.transform, A, sizeof A);
+    int32_t id = -1;
+    double singular[16] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1};
+    memcpy(sd.transform, singular, sizeof singular);
+    GC_CHECK(gc_world_attach_serial(w, sv[0], &sd, &id) == GC_ERR_INVALID_ARGUMENT &&
+                 strstr(gc_world_last_error(w), "singular"),
+             "a singular workspace frame is refused: %s", gc_world_last_error(w));
+    memcpy(sd.transform, A, sizeof A);
+    GC_CHECK(gc_world_attach_serial(w, sv[0], &sd, &id) == GC_OK, "attach: %s", gc_world_last_error(w));
+    dev_read(&dev, 200);
+    uint8_t hello[12] = {1, GC_CAP_FORCES, 0, 0};
+    gc_put16(hello + 4, 1000);
+    gc_putf32(hello + 6, 3.0f); /* device limit 3 N: the spring's 10 N is 20 N in device axes */
+    gc_put16(hello + 10, 50);
+    dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, 12);
+
+    /* HIP 2 mm into the ground (device z 0.049 -> world -0.002): 10 N up, none of it sent. */
+    stream(&dev, 200, 0.049);
+    Drained dr = drain(w, &dev);
+    GC_CHECK(dr.records > 100 && dr.nonzero == 0, "before enable: %d records, %d with a device force", dr.records,
+             dr.nonzero);
+
+    gc_world_serial_enable(w, id, 1);
+    for (int k = 0; k < 40 && fabs(force_z(&dev) - 3.0) >= 1e-6; ++k) stream(&dev, 50, 0.049);
+    GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-6, "3 N sent (clamped in device axes): %.4f", force_z(&dev));
+    stream(&dev, 100, 0.049);
+    dr = drain(w, &dev);
+    GC_CHECK(dr.nonzero > 50 && dr.unmatched == 0, "enabled: %d records with a device force, %d not sent in any frame",
+             dr.nonzero, dr.unmatched);
+    GC_CHECK(dr.last[0] == 0 && dr.last[1] == 0 && dr.last[2] == 1.5,
+             "recorded (%g %g %g): the 3 N sent, in scene axes 1.5 N (the spring is 10 N)", dr.last[0], dr.last[1],
+             dr.last[2]);
+
+    /* The device's stop button: ESTOP(1). Forces zero from then on, on both sides. */
+    double before = world_time(w);
+    uint8_t reason = 1;
+    dev_send(&dev, GC_MSG_ESTOP, &reason, 1);
+    stream(&dev, 100, 0.049);
+    double after = world_time(w);
+    dr = drain(w, &dev);
+    GC_CHECK(dr.last[2] == 0.0 && force_z(&dev) == 0.0, "after the device's e-stop: recorded %g, sent %g", dr.last[2],
+             force_z(&dev));
+    int value = -1;
+    double t_estop = event_time(w, id, GC_SERIAL_EV_ESTOP, &value);
+    GC_CHECK(value == 1 && t_estop >= before - 0.002 && t_estop <= after,
+             "estop event: value %d at session time %.4f, sent between %.4f and %.4f", value, t_estop, before, after);
+    dev_send(&dev, GC_MSG_ESTOP, &reason, 1); /* repeated while latched: no second event */
+    stream(&dev, 20, 0.049);
+    gcSerialStats st;
+    gc_world_serial_stats(w, id, &st);
+    GC_CHECK(event_time(w, id, GC_SERIAL_EV_ESTOP, &value) < 0 && st.enabled == 0, "a repeated ESTOP is one e-stop");
+
+    /* Forces on again; then an e-stop whose ESTOP frame was lost: only the poses' status says so. */
+    gc_world_serial_enable(w, id, 1);
+    for (int k = 0; k < 40 && fabs(force_z(&dev) - 3.0) >= 1e-6; ++k) stream(&dev, 50, 0.049);
+    GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-6, "re-enabled: %.4f", force_z(&dev));
+    stream(&dev, 60, 0.049); /* past the grace after ENABLE(1) */
+    dev.status = GC_STATUS_ESTOPPED;
+    stream(&dev, 50, 0.049);
+    dr = drain(w, &dev);
+    value = -1;
+    GC_CHECK(event_time(w, id, GC_SERIAL_EV_ESTOP, &value) > 0 && value == GC_ESTOP_REASON_STATUS,
+             "an e-stop seen in the status: value %d", value);
+    GC_CHECK(dr.last[2] == 0.0 && force_z(&dev) == 0.0, "and forces zero: recorded %g, sent %g", dr.last[2],
+             force_z(&dev));
+
+    /* Forces on, then silence: the record goes to zero when the last frame's TTL (20 ms) is over. */
+    dev.status = 0;
+    gc_world_serial_enable(w, id, 1);
+    for (int k = 0; k < 40 && fabs(force_z(&dev) - 3.0) >= 1e-6; ++k) stream(&dev, 50, 0.049);
+    dr = drain(w, &dev);
+    GC_CHECK(dr.last[2] == 1.5 && dr.unmatched == 0, "forces again: %g", dr.last[2]);
+    sleep_ms(60);
+    dr = drain(w, &dev);
+    GC_CHECK(dr.records > 5 && dr.last[2] == 0.0, "silent past the TTL: %d records, last %g", dr.records, dr.last[2]);
+    gc_world_stop(w);
+    gc_world_destroy(w);
+    close(sv[0]), close(sv[1]);
+}
+
+/* Host-side rules of docs/protocol.md: the device's sequence counts frames of every type (a
+ * HEARTBEAT between poses is no gap, a frame that never came is); a silent device gets a
+ * HELLO_HOST every 100 ms (so that one that restarted answers); the host's ESTOP is said
+ * again while the device's poses do not show it latched. */
+static void test_protocol_rules(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    gcFingerDef fd = gc_default_finger_def();
+    int32_t f;
+    GC_CHECK(gc_world_add_finger(w, &fd, &f) == GC_OK, "finger");
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start");
+    int sv[2];
+    GC_CHECK(socketpair(AF_UNIX, SOCK_STREAM, 0, sv) == 0, "socketpair");
+    fcntl(sv[0], F_SETFL, O_NONBLOCK);
+    static Dev dev;
+    memset(&dev, 0, sizeof dev);
+    dev.fd = sv[1];
+    gc_decoder_reset(&dev.dec);
+    gcSerialDef sd = gc_default_serial_def();
+    sd.priority = 0;
+    int32_t id;
+    GC_CHECK(gc_world_attach_serial(w, sv[0], &sd, &id) == GC_OK, "attach");
+    dev_read(&dev, 200);
+    uint8_t hello[12] = {1, GC_CAP_FORCES, 0, 0};
+    gc_put16(hello + 4, 1000);
+    gc_putf32(hello + 6, 5.0f);
+    gc_put16(hello + 10, 50);
+    dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, 12);
+    gcSerialStats st;
+    for (int i = 0; i < 100; ++i) { /* a heartbeat after every pose: its seq is the next one */
+        dev_pose(&dev, 0, 0, 0.05);
+        uint8_t hb[4] = {0};
+        dev_send(&dev, GC_MSG_HEARTBEAT, hb, 4);
+        dev_read(&dev, 0);
+        sleep_ms(1);
+    }
+    WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.poses >= 100 && st.heartbeats >= 100));
+    GC_CHECK(st.poses == 100 && st.heartbeats == 100 && st.sequence_gaps == 0,
+             "heartbeats between poses: %llu poses, %llu heartbeats, %llu gaps", (unsigned long long)st.poses,
+             (unsigned long long)st.heartbeats, (unsigned long long)st.sequence_gaps);
+    dev.seq += 3; /* three frames lost on the way */
+    stream(&dev, 20, 0.05);
+    WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.poses >= 120));
+    GC_CHECK(st.sequence_gaps == 3, "three frames missing: %llu gaps", (unsigned long long)st.sequence_gaps);
+
+    /* The host's e-stop: ESTOP(0), and again every 100 ms while the poses say "not latched". */
+    gc_world_serial_estop(w, id);
+    int estops = 0;
+    for (int k = 0; k < 5; ++k) {
+        uint8_t buf[4096];
+        for (int i = 0; i < 60; ++i) { /* poses without the e-stop bit, counting ESTOP frames */
+            dev_pose(&dev, 0, 0, 0.05);
+            struct pollfd pfd = {.fd = dev.fd, .events = POLLIN};
+            while (poll(&pfd, 1, 1) > 0) {
+                ssize_t n = read(dev.fd, buf, sizeof buf);
+                if (n <= 0) break;
+                gcFrame fr;
+                for (ssize_t j = 0; j < n; ++j)
+                    if (gc_decoder_push(&dev.dec, buf[j], &fr) && fr.type == GC_MSG_ESTOP) estops++;
+            }
+        }
+    }
+    GC_CHECK(estops >= 2, "the host's ESTOP said again while the device does not show it: %d frames", estops);
+    dev.status = GC_STATUS_ESTOPPED; /* now latched at the device: no more */
+    stream(&dev, 50, 0.05);
+    int hellos = dev.hellos;
+    sleep_ms(350); /* silent: lost after 0.1 s, then hellos */
+    dev_read(&dev, 10);
+    GC_CHECK(dev.hellos >= hellos + 2, "hellos to a silent device: %d", dev.hellos - hellos);
+    gc_world_serial_stats(w, id, &st);
+    GC_CHECK(st.state == GC_SERIAL_LOST, "state %d", st.state);
+    dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, 12); /* it restarted: its sequence starts again */
+    dev.seq = 0;
+    stream(&dev, 50, 0.05);
+    uint64_t gaps = st.sequence_gaps;
+    WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.state == GC_SERIAL_STREAMING && st.poses > 200));
+    GC_CHECK(st.state == GC_SERIAL_STREAMING && st.sequence_gaps == gaps, "streaming again, gaps %llu (were %llu)",
+             (unsigned long long)st.sequence_gaps, (unsigned long long)gaps);
+    gc_world_stop(w);
+    gc_world_destroy(w);
+    close(sv[0]), close(sv[1]);
+}
+
+/* A device attached before the runtime starts (a session connecting its devices first): its
+ * poses are refused, counted, and leave the world's last error alone (the API thread's: TSan
+ * sees any write from the device thread racing the error calls below); once the runtime runs
+ * the same thread drives the finger. */
+static void test_attach_before_start(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    gcFingerDef fd = gc_default_finger_def();
+    int32_t f;
+    GC_CHECK(gc_world_add_finger(w, &fd, &f) == GC_OK, "finger");
+    int sv[2];
+    GC_CHECK(socketpair(AF_UNIX, SOCK_STREAM, 0, sv) == 0, "socketpair");
+    fcntl(sv[0], F_SETFL, O_NONBLOCK);
+    static Dev dev;
+    memset(&dev, 0, sizeof dev);
+    dev.fd = sv[1];
+    gc_decoder_reset(&dev.dec);
+    gcSerialDef sd = gc_default_serial_def();
+    sd.priority = 0;
+    int32_t id;
+    GC_CHECK(gc_world_attach_serial(w, sv[0], &sd, &id) == GC_OK, "attach before start: %s", gc_world_last_error(w));
+    dev_read(&dev, 200);
+    uint8_t hello[12] = {1, GC_CAP_FORCES, 0, 0};
+    gc_put16(hello + 4, 1000);
+    gc_putf32(hello + 6, 5.0f);
+    gc_put16(hello + 10, 50);
+    dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, 12);
+    for (int i = 0; i < 50; ++i) { /* poses while stopped, errors set on this thread meanwhile */
+        dev_pose(&dev, 0, 0, 0.25);
+        double nan3[3] = {NAN, 0, 0};
+        GC_CHECK(gc_world_set_hip(w, f, nan3) == GC_ERR_INVALID_ARGUMENT, "a NaN HIP refused");
+        GC_CHECK(strstr(gc_world_last_error(w), "position") != NULL || strstr(gc_world_last_error(w), "finite"),
+                 "this thread's error stays: %s", gc_world_last_error(w));
+        dev_read(&dev, 0);
+        sleep_ms(1);
+    }
+    gcSerialStats st;
+    WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.poses >= 50));
+    GC_CHECK(st.poses == 50 && st.push_rejected == 50, "poses before start: %llu, refused %llu",
+             (unsigned long long)st.poses, (unsigned long long)st.push_rejected);
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start with a device streaming: %s", gc_world_last_error(w));
+    stream(&dev, 100, 0.25);
+    double hip[3] = {0, 0, 0};
+    gcSnapshot hs;
+    memset(&hs, 0, sizeof hs);
+    hs.hips = hip;
+    WAIT_UNTIL((gc_world_snapshot(w, &hs), fabs(hip[2] - 0.25) < 1e-7));
+    GC_CHECK(fabs(hip[2] - 0.25) < 1e-7, "the device drives the finger once running: z %g", hip[2]);
+    gc_world_stop(w);
+    gc_world_destroy(w);
+    close(sv[0]), close(sv[1]);
+}
+
+/* ---- UDP ---------------------------------------------------------------------------------- */
+
+static int udp_socket(int *port) {
+    int fd = socket(AF_INET, SOCK_DGRAM, 0);
+    struct sockaddr_in a = {.sin_family = AF_INET, .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+    GC_CHECK(fd >= 0 && bind(fd, (struct sockaddr *)&a, sizeof a) == 0, "udp bind");
+    socklen_t len = sizeof a;
+    getsockname(fd, (struct sockaddr *)&a, &len);
+    *port = ntohs(a.sin_port);
+    fcntl(fd, F_SETFL, O_NONBLOCK);
+    return fd;
+}
+
+static void udp_send(int fd, int port, uint8_t type, uint16_t seq, const uint8_t *p, size_t n) {
+    uint8_t wire[GC_PROTO_WIRE_MAX + 1];
+    size_t len = gc_frame_encode(type, seq, p, n, wire);
+    struct sockaddr_in to = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port),
+                             .sin_addr.s_addr = htonl(INADDR_LOOPBACK)};
+    GC_CHECK(sendto(fd, wire, len, 0, (struct sockaddr *)&to, sizeof to) == (ssize_t)len, "udp send");
+}
+
+static void udp_pose(int fd, int port, uint16_t seq, double z) {
+    uint8_t p[18] = {0};
+    p[4] = 1;
+    gc_putf32(p + 6, 0.0f), gc_putf32(p + 10, 0.0f), gc_putf32(p + 14, (float)z);
+    udp_send(fd, port, GC_MSG_POSE, seq, p, 18);
+}
+
+/* The datagram transport: hello to the configured address, the session pinned to the sender
+ * of the HELLO_DEVICE, a second sender dropped and counted, late and duplicated poses dropped
+ * (the HIP stays at the newest pose), the device's address in the stats. */
+static void test_udp(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    gcFingerDef fd = gc_default_finger_def();
+    int32_t f;
+    GC_CHECK(gc_world_add_finger(w, &fd, &f) == GC_OK, "finger");
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start");
+    int host_port, dev_port, other_port;
+    int host = udp_socket(&host_port), dev = udp_socket(&dev_port), other = udp_socket(&other_port);
+    gcSerialDef sd = gc_default_serial_def();
+    sd.priority = 0;
+    int32_t id;
+    strcpy(sd.udp_host, "not-an-address");
+    sd.udp_port = dev_port;
+    GC_CHECK(gc_world_attach_serial(w, host, &sd, &id) == GC_ERR_INVALID_ARGUMENT &&
+                 strstr(gc_world_last_error(w), "udp_host"), "a host name refused: %s", gc_world_last_error(w));
+    strcpy(sd.udp_host, "127.0.0.1");
+    GC_CHECK(gc_world_attach_serial(w, host, &sd, &id) == GC_OK, "attach udp: %s", gc_world_last_error(w));
+    uint8_t buf[512];
+    ssize_t k = -1;
+    for (int i = 0; i < 200 && k < 0; ++i, sleep_ms(1)) k = recv(dev, buf, sizeof buf, 0);
+    gcFrame fr;
+    GC_CHECK(k > 1 && gc_frame_decode(buf, (size_t)k - 1, &fr) == GC_FRAME_OK && fr.type == GC_MSG_HELLO_HOST,
+             "HELLO_HOST to the configured address (%zd bytes)", k);
+    uint8_t hello[12] = {1, GC_CAP_FORCES, 0, 0};
+    gc_put16(hello + 4, 1000);
+    gc_putf32(hello + 6, 5.0f);
+    gc_put16(hello + 10, 50);
+    udp_pose(other, host_port, 0, 0.9); /* before the hello: nobody is the device yet */
+    udp_send(dev, host_port, GC_MSG_HELLO_DEVICE, 0, hello, 12);
+    uint16_t seq = 1;
+    for (int i = 0; i < 50; ++i, sleep_ms(1)) {
+        udp_pose(dev, host_port, seq++, 0.1);
+        udp_pose(other, host_port, (uint16_t)(1000 + i), 0.9); /* a second sender: ignored */
+    }
+    udp_pose(dev, host_port, (uint16_t)(seq + 1), 0.2); /* newest */
+    udp_pose(dev, host_port, seq, 0.15);                /* late: the one before */
+    udp_pose(dev, host_port, (uint16_t)(seq + 1), 0.2); /* again */
+    gcSerialStats st;
+    WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.poses >= 51 && st.late_poses + st.duplicate_poses >= 2));
+    GC_CHECK(st.poses == 51 && st.late_poses == 1 && st.duplicate_poses == 1 && st.sequence_gaps == 1,
+             "poses %llu, late %llu, duplicate %llu, gaps %llu", (unsigned long long)st.poses,
+             (unsigned long long)st.late_poses, (unsigned long long)st.duplicate_poses,
+             (unsigned long long)st.sequence_gaps);
+    GC_CHECK(st.foreign_datagrams == 51, "foreign datagrams %llu", (unsigned long long)st.foreign_datagrams);
+    char want[64];
+    snprintf(want, sizeof want, "127.0.0.1:%d", dev_port);
+    GC_CHECK(!strcmp(st.peer, want), "peer '%s', want '%s'", st.peer, want);
+    double hip[3] = {0, 0, 0};
+    gcSnapshot hs;
+    memset(&hs, 0, sizeof hs);
+    hs.hips = hip;
+    WAIT_UNTIL((gc_world_snapshot(w, &hs), fabs(hip[2] - 0.2) < 1e-7));
+    sleep_ms(20);
+    gc_world_snapshot(w, &hs);
+    GC_CHECK(fabs(hip[2] - 0.2) < 1e-7, "the newest pose holds (not the late one, not the intruder's): %g", hip[2]);
+    k = -1;
+    int forces = 0;
+    while ((k = recv(dev, buf, sizeof buf, 0)) > 0)
+        forces += gc_frame_decode(buf, (size_t)k - 1, &fr) == GC_FRAME_OK && fr.type == GC_MSG_FORCE;
+    GC_CHECK(forces >= 50, "force frames back to the device: %d", forces);
+    GC_CHECK(recv(other, buf, sizeof buf, 0) < 0, "nothing sent to the other sender");
+    gc_world_stop(w);
+    gc_world_destroy(w);
+    close(host), close(dev), close(other);
+}
+
 int main(void) {
     test_crc_and_cobs();
     test_vectors();
     test_fuzzed_decoder();
     test_device_thread();
     test_two_devices();
+    test_recorded_forces();
+    test_protocol_rules();
+    test_attach_before_start();
+    test_udp();
     test_peer_gone_before_hello();
     return gc_test_summary("test_serial_io");
 }

@@ -220,8 +220,9 @@ def test_kill_9_during_a_realtime_recording(blend, tmp_path):
             assert proc.poll() is None, proc.stderr.read()
             assert time.monotonic() < deadline, "the session never recorded 1.5 s"
             time.sleep(0.05)
-            if rec.exists():
-                shutil.copy(rec, copy)
+            partial = tmp_path / "killed.mcap.partial"      # the name it has until it is finished
+            if partial.exists():
+                shutil.copy(partial, copy)
                 try:
                     got = recording.open_recording(copy)
                     seen = float(got.ticks["time"][-1]) if len(got.ticks) else 0.0
@@ -232,6 +233,8 @@ def test_kill_9_during_a_realtime_recording(blend, tmp_path):
     finally:
         if proc.poll() is None:
             proc.kill()
+    assert not rec.exists()                    # never under its name before it is finished
+    rec = tmp_path / "killed.mcap.partial"      # what the kill left: a readable prefix
     code, out, err = call("info", rec)
     assert code == 0 and "cut short" in err and "cut short" in out
     left = recording.open_recording(rec)

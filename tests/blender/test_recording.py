@@ -164,7 +164,8 @@ def test_a_running_session_is_on_disk_within_100_ms(core, tmp_path):
         time.sleep(0.12)
     run.advance_to(0.06)
     copy = tmp_path / "copy.mcap"
-    shutil.copy(path, copy)               # as a kill -9 would leave it
+    assert not path.exists()              # under its name only once finished
+    shutil.copy(writer.partial, copy)     # as a kill -9 would leave it
     got = recording.open_recording(copy)
     assert got.damage and "cut short" in got.damage[0]
     assert len(got.ticks) >= 51           # all but the ticks of the last 100 ms

@@ -76,11 +76,14 @@ def test_gravity_override(rec, core):
     ("Box.colour=3", "unknown property"),
     ("mass=3", "OBJECT.PROPERTY=VALUE"),
     ("Box.mass=heavy", "expects a number"),
-    ("Box.mass=0", "> 0"),
-    ("Finger 0.damping=-1", ">= 0"),
+    ("Box.mass=0", r"mass must be in 1e-06 \.\. 1e\+06 kg, got 0.0"),
+    ("Finger 0.damping=-1", r"damping must be in 0 \.\. 10000 N s/m"),
+    ("Finger 0.stiffness=0.5", r"stiffness must be in 1 \.\. 1e\+06 N/m"),
     ("gravity=0,0", "X,Y,Z"),
+    ("gravity=0,0,1e308", r"gravity must be in -1000 \.\. 1000"),
     ("gyroscopic=yes", "0 or 1"),
-    ("haptic_rate=-5", "Hz > 0"),
+    ("haptic_rate=-5", r"haptic_rate must be in 100 \.\. 10000 Hz"),
+    ("haptic_rate=1e9", r"haptic_rate must be in 100 \.\. 10000 Hz"),
 ])
 def test_bad_overrides(text, match):
     with pytest.raises(resim.OverrideError, match=match):

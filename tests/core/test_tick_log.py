@@ -85,6 +85,8 @@ def test_bad_buffers_and_calls_refused():
         w._tick_record(np.zeros(10, np.uint8), 0)
     with pytest.raises(ValueError, match="capacity"):
         w.set_tick_log(-5)
+    with pytest.raises(ValueError, match=r"capacity 4294967299 is outside 0 \.\. 2147483647"):
+        w.set_tick_log(2**32 + 3)           # would wrap to a 3-record ring in the core's C int
     w.set_tick_log(8)
     w.start(realtime=False)
     try:

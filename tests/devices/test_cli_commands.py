@@ -106,7 +106,7 @@ def test_register_with_the_grasp_lab_dispatcher():
     cli = type("Cli", (), {"register_command": staticmethod(lambda n, h, c, r, needs_blender=False: commands.update({n: (c, r)})),
                            "register_device_backend": staticmethod(lambda k, f: backends.update({k: f}))})
     C.register_with(cli)
-    assert set(commands) == {"devices", "emulate"} and set(backends) == {"serial", "spacemouse", "opengloves"}
+    assert set(commands) == {"devices", "emulate"} and set(backends) == {"serial", "udp", "spacemouse", "opengloves"}
     parser = argparse.ArgumentParser()
     sub = parser.add_subparsers(dest="command")
     for name, (configure, _) in commands.items():

@@ -95,7 +95,7 @@ def test_emulator_end_to_end_unplug_and_reconnect():
         assert time.monotonic() - t_unplug < 0.25
         assert world.running
         wait_for(lambda: dev.stats()["state"] == "hangup", 0.25, "the hang-up to show")
-        events = [name for _, name, _ in dev.events()]
+        events = [name for _, name, _, _ in dev.events()]
         assert events[:2] == ["connected", "enabled"] and "lost" in events, events
 
         # What the device saw: force frames answering poses, clamped to its 5 N, none while
@@ -108,8 +108,10 @@ def test_emulator_end_to_end_unplug_and_reconnect():
 
         # Reconnect: a new device on a new port picks the same fingers up again.
         emu = Emulator("--fingers", "2", "--motion", "grip")
+        before = dev.stats()["poses"]                   # the counters run on over the reconnection
         dev.reconnect(emu.port)
-        wait_for(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > 700, 15, "streaming again")
+        wait_for(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > before + 700, 15,
+                 "streaming again")
         np.testing.assert_allclose(springs(world), GRIP_SPRING, rtol=0.05)
         assert dev.stats()["enabled"]
         report = emu.stop()

@@ -80,6 +80,16 @@ def test_force_feedback_golden_strings():
     assert G.force_feedback_line([float("nan"), 1, 1, 1, 1], full_scale=1.0) == b"A0B1000C1000D1000E1000\n"
 
 
+def test_sent_forces_are_what_the_brake_levels_stand_for():
+    f = np.zeros((5, 3))
+    f[1] = (0.0, 0.0, 2.0013)           # level 500 of 4 N: 2 N along +z
+    f[2] = (3.0, 4.0, 0.0)              # 5 N: clipped to level 1000, 4 N along (0.6, 0.8, 0)
+    f[3] = (float("nan"), 0.0, 0.0)     # never reaches the glove
+    sent = G.sent_forces(f, full_scale=4.0)
+    np.testing.assert_allclose(sent, [(0, 0, 0), (0, 0, 2.0), (2.4, 3.2, 0), (0, 0, 0), (0, 0, 0)], atol=1e-12)
+    assert not G.sent_forces(f, full_scale=4.0, enabled=False).any()
+
+
 def test_glove_over_a_pseudo_terminal():
     master, slave = os.openpty()
     tty.setraw(master)
@@ -118,10 +128,12 @@ def test_glove_drives_fingers_of_a_running_world_and_feels_the_box():
     world.add_body(box, position=tips[1] - (0, 0, h + 0.004), static=True)   # top face 4 mm under the index tip
     for p in tips:
         world.add_finger(position=p + (0, 0, 0.05))
+    world.set_tick_log(1 << 15)
     world.start(priority=0, ramp_time=0.0, watchdog_timeout=0.5)
     master, slave = os.openpty()
     tty.setraw(master)
     devices = DeviceSet(world)
+    records = np.zeros(1 << 15, dtype=world.tick_dtype())
     try:
         glove = devices.add_source(G.OpenGlovesSource(os.ttyname(slave), hand_frame=frame, full_scale=4.0), 0, "glove")
         os.write(master, b"A0B0C0D0E0\n")
@@ -134,6 +146,9 @@ def test_glove_drives_fingers_of_a_running_world_and_feels_the_box():
         assert abs(np.linalg.norm(snap["spring_forces"][1]) - 4.0) < 0.05
         lines = os.read(master, 4096)
         assert lines.split(b"\n")[-2] == b"A0B0C0D0E0"             # forces off until enabled
+        # The recording says what the glove got: nothing, though the index presses with 4 N.
+        off = world.drain_ticks(records)["device_force"].copy()
+        assert len(off) > 50 and not off.any()
         devices.enable(True)
         # The brake line follows the core's device forces, which the watchdog holds at zero
         # after a late poll on a loaded machine: poll until the line comes (or 5 s pass).
@@ -143,6 +158,10 @@ def test_glove_drives_fingers_of_a_running_world_and_feels_the_box():
             devices.poll()
             last = os.read(master, 4096).split(b"\n")[-2]
         assert last == b"A0B1000C0D0E0", last
+        # Level 1000 of the 4 N full scale: 4 N along the index's force, in the record.
+        time.sleep(0.02)        # a few haptic ticks after the line was sent
+        on = world.drain_ticks(records)["device_force"][-1]
+        assert np.linalg.norm(on[1]) == pytest.approx(4.0, rel=1e-12) and on[1, 2] > 3.9 and not on[[0, 2, 3, 4]].any()
         assert devices.status()[0]["state"] == "streaming" and glove.stats()["poses"] == 1
     finally:
         devices.close()

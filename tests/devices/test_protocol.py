@@ -178,11 +178,36 @@ def test_protocol_doc_worked_examples_decode():
     import re
     doc = open(os.path.join(os.path.dirname(VECTORS), "..", "..", "docs", "protocol.md")).read()
     wires = re.findall(r"^    wire  ([0-9a-f ]+)$", doc, flags=re.M)
-    bodies = [b.split("(")[0] for b in re.findall(r"^    body  (.+)$", doc, flags=re.M)]
-    assert len(wires) == 2 and len(bodies) == 2
-    for wire, body in zip(wires, bodies):
+    bodies = re.findall(r"^    body  ([0-9a-f |]+?)\s+\(crc 0x([0-9A-F]{4})\)$", doc, flags=re.M)
+    assert len(wires) == len(bodies) == 7
+    types = set()
+    for wire, (body, crc) in zip(wires, bodies):
         raw = bytes.fromhex(wire.replace(" ", ""))
-        assert raw[-1] == 0
-        assert P.cobs_decode(raw[:-1]) == bytes.fromhex(body.replace("|", "").replace(" ", ""))
+        assert raw[-1] == 0 and 0 not in raw[:-1]
+        body = bytes.fromhex(body.replace("|", "").replace(" ", ""))
+        assert P.cobs_decode(raw[:-1]) == body
+        assert bitwise_crc16(body[:-2]) == int(crc, 16) == body[-2] | body[-1] << 8   # the stated CRC, little-endian
         frame = P.decode(raw[:-1])
         assert P.encode(*frame) == raw
+        types.add(frame.type)
+    assert types == set(range(1, 8)), "a worked example of every frame type"
+    # The example fields the text states.
+    frames = {P.decode(bytes.fromhex(w.replace(" ", ""))[:-1]).type: P.decode(bytes.fromhex(w.replace(" ", ""))[:-1])
+              for w in wires}
+    hello = P.parse_hello_device(frames[P.HELLO_DEVICE].payload)
+    assert (hello.n_fingers, hello.renders_forces, hello.rate_hz, hello.force_max, hello.ttl_max_ms, hello.name) == \
+        (2, True, 1000, 4.0, 50, "hand")
+    force = P.parse_force(frames[P.FORCE].payload)
+    assert (force.ack_seq, force.ttl_us, force.forces) == (7, 20000, ((0.0, 0.0, 1.5), (0.25, -0.5, 0.0)))
+    assert P.parse_u8(frames[P.ESTOP].payload) == P.ESTOP_BUTTON and P.parse_u8(frames[P.ENABLE].payload) == 1
+
+
+def test_protocol_doc_sizes_are_the_codecs():
+    """Section 1's sizes: the largest body and encoding, as the codecs define them."""
+    import re
+    doc = open(os.path.join(os.path.dirname(VECTORS), "..", "..", "docs", "protocol.md")).read()
+    assert f"a body of 4 + 390 + 2 = **{P.MAX_BODY} bytes**" in doc
+    assert f"an encoding of at most 396 + 2 = **{P.MAX_WIRE}" in doc
+    largest = P.encode(P.POSE, 0, P.pose(0, [(1.0, 2.0, 3.0)] * 32))
+    assert len(largest) - 1 <= P.MAX_WIRE and len(P.cobs_decode(largest[:-1])) == P.MAX_BODY
+    assert not re.search(r"\b398 bytes and its encoding\b", doc)

@@ -73,8 +73,22 @@ def discover(all_hid: bool = False) -> list:
 
 def parse_device_spec(spec: str) -> dict:
     """``serial:PORT[@FIRST]`` (a Grasp Lab device driving fingers FIRST.., default 0),
-    ``spacemouse[:PATH]``, ``opengloves:PORT``. Returns a dict; ValueError names what is wrong."""
+    ``udp:HOST:PORT[@FIRST]`` (the same over UDP), ``spacemouse[:PATH]``, ``opengloves:PORT``.
+    Returns a dict; ValueError names what is wrong."""
     kind, _, rest = spec.partition(":")
+    if kind == "udp":
+        where, _, first = rest.partition("@")
+        host, _, port = where.rpartition(":")
+        host = host.strip("[]")
+        if not host or not port.isdigit() or not 1 <= int(port) <= 65535:
+            raise ValueError(f"--device {spec!r}: udp needs HOST:PORT with a port 1..65535, e.g. udp:127.0.0.1:5555")
+        try:
+            offset = int(first) if first else 0
+        except ValueError:
+            raise ValueError(f"--device {spec!r}: the first finger after '@' must be an integer") from None
+        if offset < 0:
+            raise ValueError(f"--device {spec!r}: the first finger must be >= 0")
+        return {"kind": "udp", "host": host, "port": f"{host}:{port}", "udp_port": int(port), "finger_offset": offset}
     if kind == "serial":
         port, _, first = rest.partition("@")
         if not port:
@@ -92,7 +106,8 @@ def parse_device_spec(spec: str) -> dict:
         if not rest:
             raise ValueError(f"--device {spec!r}: opengloves needs a port")
         return {"kind": "opengloves", "port": rest}
-    raise ValueError(f"--device {spec!r}: unknown kind {kind!r} (serial:PORT, spacemouse[:PATH], opengloves:PORT)")
+    raise ValueError(f"--device {spec!r}: unknown kind {kind!r} (serial:PORT, udp:HOST:PORT, spacemouse[:PATH], "
+                     f"opengloves:PORT)")
 
 
 # ---- commands ---------------------------------------------------------------------------
@@ -161,7 +176,7 @@ def register_with(cli) -> None:
     from .emulator import build_parser
     cli.register_command("devices", DEVICES_HELP, configure_devices, lambda args, out, err: cmd_devices(args, out))
     cli.register_command("emulate", EMULATE_HELP, build_parser, lambda args, out, err: cmd_emulate(args))
-    for kind in ("serial", "spacemouse", "opengloves"):
+    for kind in ("serial", "udp", "spacemouse", "opengloves"):
         cli.register_device_backend(kind, lambda spec, n_fingers=None: parse_device_spec(spec))
 
 

@@ -1,7 +1,7 @@
 """The reference device emulator: a Grasp Lab serial device (docs/protocol.md) in software.
 
     python -m addon.engine.devices.emulator (--pty | PORT) [--fingers N]
-        [--motion NAME | --from SCENE.blend] [--rate HZ] [--duration S]
+        [--motion NAME | --from SCENE.blend] [--rate HZ] [--duration S] [--estop-at S] [--force-log PATH]
 
 With ``--pty`` it opens a pseudo-terminal in raw mode and prints ``PORT /dev/pts/N`` as its
 first line; the host opens that path. After the host's hello it answers with its
@@ -10,7 +10,10 @@ or the fingertip animation of a .blend. It behaves as firmware must: forces stay
 until ENABLE(1), each force frame lives for its TTL, an e-stop latches. It checks every
 force frame it gets (finger count, NaN, the force limit, the TTL limit, forces while
 disabled), measures pose-to-force latency by the acknowledged sequence number, and prints
-a report (``REPORT {json}``) when it ends (duration, SIGTERM or SIGINT).
+a report (``REPORT {json}``) when it ends (duration, SIGTERM or SIGINT). ``--estop-at S``
+presses its stop button S seconds into streaming (ESTOP(1) sent, forces latched off until
+ENABLE(1)); ``--force-log PATH`` writes every force frame it received (CSV: time since its
+streaming started, ack_seq, ttl_us, then fx fy fz per finger, exactly as sent).
 """
 from __future__ import annotations
 
@@ -102,6 +105,10 @@ def _finger_channel(obj):
     if gl is not None and hasattr(gl, "role"):
         return gl.channel if gl.role == "FINGER" else None
     raw = obj.get("grasp_lab")
+    if raw is None and hasattr(obj, "bl_system_properties_get"):
+        # Blender 5.0 keeps registered properties apart from the object's custom properties.
+        system = obj.bl_system_properties_get()
+        raw = system.get("grasp_lab") if system is not None else None
     if raw is None or raw.get("role", 0) != 3:
         return None
     return raw.get("channel", 0)
@@ -140,8 +147,9 @@ class ForceChecker:
         if len(force.forces) != self.n:
             self.violations["fingers"] += 1
             return [(0.0, 0.0, 0.0)] * self.n
-        if force.ttl_us > self.ttl_max_us or force.ttl_us == 0:
-            self.violations["ttl"] += 1
+        if (self.ttl_max_us and force.ttl_us > self.ttl_max_us) or force.ttl_us == 0:
+            self.violations["ttl"] += 1     # rejected: zero every force (protocol.md section 3)
+            return [(0.0, 0.0, 0.0)] * self.n
         out = []
         for f in force.forces:
             norm = math.sqrt(sum(c * c for c in f))
@@ -167,7 +175,8 @@ def _percentile(sorted_values, q):
 
 class Emulator:
     def __init__(self, fd, n_fingers=2, motion=motion_grip, rate=1000.0, force_max=5.0, ttl_max_ms=50,
-                 renders_forces=True, name="grasp-lab-emulator", corrupt_every=0):
+                 renders_forces=True, name="grasp-lab-emulator", corrupt_every=0, estop_at=None, log_forces=False,
+                 udp=None, drop_every=0, dup_every=0, reorder_every=0):
         self.fd = fd
         self.n = int(n_fingers)
         self.motion = motion
@@ -189,25 +198,59 @@ class Emulator:
         self.write_errors = 0
         self.stop = False
         self.started = None
+        self.estop_at = estop_at    # s into streaming: the stop button (None: never)
+        self.estop_sent_at = None
+        self.forces_after_estop = 0     # force frames with a non-zero force after the button, before ENABLE(1)
+        self.force_log = [] if log_forces else None     # (t, ack_seq, ttl_us, forces) of every force frame
+        # UDP (--udp): a bound socket; frames go to the host that said hello (others are ignored).
+        self.udp, self.host_addr, self.foreign = udp, None, 0
+        self.drop_every, self.dup_every, self.reorder_every = int(drop_every), int(dup_every), int(reorder_every)
+        self.held = None            # a pose held back, to be sent after the next one (reordering)
+        self.injected = dict.fromkeys(("dropped", "duplicated", "reordered"), 0)
 
     def _send(self, type_, payload):
         frame = P.encode(type_, self.seq, payload)
         if self.corrupt_every and type_ == P.POSE and self.seq % self.corrupt_every == 0:
             frame = frame[:2] + bytes([frame[2] ^ 0x40 or 1]) + frame[3:]   # a CRC error, still framed
-        self.seq = (self.seq + 1) & 0xFFFF
+        seq, self.seq = self.seq, (self.seq + 1) & 0xFFFF
+        if self.udp is None:
+            self._write(frame)
+            return
+        # The network's faults, injected on poses: lost, duplicated, delivered after the next one.
+        if type_ == P.POSE and self.drop_every and seq % self.drop_every == 0:
+            self.injected["dropped"] += 1
+            return
+        if type_ == P.POSE and self.reorder_every and seq % self.reorder_every == 0 and self.held is None:
+            self.held = frame
+            self.injected["reordered"] += 1
+            return
+        self._write(frame)
+        if type_ == P.POSE and self.dup_every and seq % self.dup_every == 0:
+            self._write(frame)
+            self.injected["duplicated"] += 1
+        if self.held is not None and type_ == P.POSE:
+            held, self.held = self.held, None
+            self._write(held)
+
+    def _write(self, frame):
         try:
-            os.write(self.fd, frame)
+            if self.udp is None:
+                os.write(self.fd, frame)
+            elif self.host_addr is not None:
+                self.udp.sendto(frame, self.host_addr)
         except (BlockingIOError, OSError):
             self.write_errors += 1
 
     def _on_frame(self, frame, now):
         if frame.type == P.HELLO_HOST:
-            self.host_hellos += 1
+            self.host_hellos += 1       # a (re)started host: forces off until it enables them again
+            self.enabled = False
+            self.rendered = [(0.0, 0.0, 0.0)] * self.n
             self._send(P.HELLO_DEVICE, self.hello)
             if self.started is None:
                 self.started = now
         elif frame.type == P.ENABLE:
-            self.enabled = bool(P.parse_u8(frame.payload))   # ENABLE(1) also clears a latched e-stop
+            self.enabled = P.parse_u8(frame.payload) == 1   # any other value is off; ENABLE(1) clears an e-stop
             self.estopped = self.estopped and not self.enabled
         elif frame.type == P.ESTOP:
             self.enabled, self.estopped = False, True
@@ -216,8 +259,13 @@ class Emulator:
                 force = P.parse_force(frame.payload)
             except P.ProtocolError:
                 self.checker.violations["nan"] += 1
+                self.rendered = [(0.0, 0.0, 0.0)] * self.n      # a rejected frame zeroes every force
                 return
             self.rendered = self.checker.check(force, self.enabled)
+            if self.estopped and any(any(f) for f in force.forces):
+                self.forces_after_estop += 1
+            if self.force_log is not None:
+                self.force_log.append((now - (self.started or now), force.ack_seq, force.ttl_us, force.forces))
             self.force_expiry = now + force.ttl_us * 1e-6
             sent = self.sent_at.pop(force.ack_seq, None)
             if sent is not None:
@@ -226,6 +274,9 @@ class Emulator:
     def _read(self, timeout):
         r, _, _ = select.select([self.fd], [], [], max(0.0, timeout))
         if not r:
+            return
+        if self.udp is not None:
+            self._read_datagrams()
             return
         try:
             data = os.read(self.fd, 65536)
@@ -237,6 +288,24 @@ class Emulator:
         now = time.perf_counter()
         for frame in self.decoder.feed(data):
             self._on_frame(frame, now)
+
+    def _read_datagrams(self):
+        now = time.perf_counter()
+        while True:
+            try:
+                data, addr = self.udp.recvfrom(65536)
+            except (BlockingIOError, InterruptedError):
+                return
+            except OSError:         # an ICMP error from an earlier send (the host is gone)
+                continue
+            frames = self.decoder.feed(data if data.endswith(b"\0") else data + b"\0")
+            if self.host_addr is None and any(f.type == P.HELLO_HOST for f in frames):
+                self.host_addr = addr       # the host that said hello: the only one from now on
+            if addr != self.host_addr:
+                self.foreign += 1
+                continue
+            for frame in frames:
+                self._on_frame(frame, now)
 
     def run(self, duration=None, wait_hello=30.0):
         t_open = time.perf_counter()
@@ -254,6 +323,11 @@ class Emulator:
             if self.force_expiry and now > self.force_expiry and any(any(f) for f in self.rendered):
                 self.ttl_expiries += 1        # the host went quiet: the device lets go by itself
                 self.rendered = [(0.0, 0.0, 0.0)] * self.n
+            if self.estop_at is not None and self.estop_sent_at is None and t >= self.estop_at:
+                self.estop_sent_at = t        # the stop button: forces off at once, latched, and said so
+                self.enabled, self.estopped = False, True
+                self.rendered = [(0.0, 0.0, 0.0)] * self.n
+                self._send(P.ESTOP, P.estop(P.ESTOP_BUTTON))
             status = (P.STATUS_FORCES_ON if self.enabled else 0) | (P.STATUS_ESTOPPED if self.estopped else 0)
             positions = self.motion(t, self.n)
             self._send(P.POSE, P.pose(int(t * 1e6), positions, status))
@@ -285,7 +359,14 @@ class Emulator:
             "latency_p50_ms": _ms(_percentile(lat, 0.50)), "latency_p99_ms": _ms(_percentile(lat, 0.99)),
             "latency_max_ms": _ms(lat[-1] if lat else None), "unacknowledged": self.poses_sent - len(lat),
             "host_frames_dropped": self.decoder.errors, "write_errors": self.write_errors,
+            "estop_at_s": self.estop_sent_at, "forces_after_estop": self.forces_after_estop,
+            "injected": self.injected, "foreign_datagrams": self.foreign,
         }
+
+    def write_force_log(self, path):
+        with open(path, "w") as fh:
+            for t, ack, ttl, forces in self.force_log or ():
+                fh.write(",".join([repr(t), str(ack), str(ttl)] + [repr(c) for f in forces for c in f]) + "\n")
 
 
 def _ms(v):
@@ -306,6 +387,8 @@ def build_parser(parser=None):
     where = p.add_mutually_exclusive_group(required=True)
     where.add_argument("--pty", action="store_true", help="open a pseudo-terminal and print its path")
     where.add_argument("port", nargs="?", help="a serial port to speak on (e.g. one end of a null-modem pair)")
+    where.add_argument("--udp", type=int, metavar="PORT",
+                       help="speak UDP on 127.0.0.1:PORT (0: a free port); prints 'PORT udp:127.0.0.1:N'")
     what = p.add_mutually_exclusive_group()
     what.add_argument("--motion", default="grip", choices=sorted(MOTIONS), help="named demo motion (default grip)")
     what.add_argument("--from", dest="from_blend", metavar="SCENE.blend", help="play the fingertip animation of a .blend")
@@ -314,7 +397,13 @@ def build_parser(parser=None):
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds of streaming")
     p.add_argument("--force-max", type=float, default=5.0, help="the device's force limit, N per finger (default 5)")
     p.add_argument("--ttl-max", type=int, default=50, help="longest force TTL the device accepts, ms (default 50)")
+    p.add_argument("--estop-at", type=float, default=None, metavar="S",
+                   help="press the device's stop button S seconds into streaming (ESTOP sent, forces latched off)")
+    p.add_argument("--force-log", metavar="PATH", help="write every force frame received (CSV) here at the end")
     p.add_argument("--corrupt-every", type=int, default=0, help="break the CRC of every Kth pose frame (tests)")
+    p.add_argument("--drop-every", type=int, default=0, help="UDP: lose every Kth pose (tests)")
+    p.add_argument("--dup-every", type=int, default=0, help="UDP: send every Kth pose twice (tests)")
+    p.add_argument("--reorder-every", type=int, default=0, help="UDP: send every Kth pose after the next one (tests)")
     p.add_argument("--wait", type=float, default=30.0, help="seconds to wait for the host's hello (default 30)")
     p.add_argument("--report", metavar="PATH", help="also write the report as JSON here")
     return p
@@ -329,15 +418,23 @@ def main(argv=None, args=None):
     motion, n = MOTIONS[args.motion], args.fingers
     if args.from_blend:
         motion, n = motion_from_blend(args.from_blend)
-    serial_port = slave = None
-    if args.pty:
+    serial_port = slave = udp = None
+    if args.udp is not None:
+        import socket
+        udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        udp.bind(("127.0.0.1", args.udp))
+        udp.setblocking(False)
+        fd, path = udp.fileno(), f"udp:127.0.0.1:{udp.getsockname()[1]}"
+    elif args.pty:
         fd, slave, path = open_pty()
     else:
         import serial
         serial_port = serial.Serial(args.port, 115200, timeout=0)
         fd, path = serial_port.fileno(), args.port
     print(f"PORT {path}", flush=True)
-    emu = Emulator(fd, n, motion, args.rate, args.force_max, args.ttl_max, corrupt_every=args.corrupt_every)
+    emu = Emulator(fd, n, motion, args.rate, args.force_max, args.ttl_max, corrupt_every=args.corrupt_every,
+                   estop_at=args.estop_at, log_forces=bool(args.force_log), udp=udp, drop_every=args.drop_every,
+                   dup_every=args.dup_every, reorder_every=args.reorder_every)
 
     def stop(signum, frame):
         emu.stop = True
@@ -351,6 +448,8 @@ def main(argv=None, args=None):
     finally:
         if serial_port is not None:
             serial_port.close()
+    if args.force_log:
+        emu.write_force_log(args.force_log)
     print("REPORT " + json.dumps(report), flush=True)
     if args.report:
         with open(args.report, "w") as fh:
@@ -358,6 +457,8 @@ def main(argv=None, args=None):
     if slave is not None:
         os.close(slave)
         os.close(fd)
+    if udp is not None:
+        udp.close()
     return 0
 
 

@@ -3,9 +3,10 @@ sidebar's device list and of ``grasp-lab run --device``.
 
 Each device drives its own block of fingers through its own workspace frame. While they
 are attached the core's serial threads push the HIPs, so the session's input source must
-not push as well (``DeviceInput``: not interactive, no script). A device that hangs up is
-reopened on its port every ``retry`` seconds; its fingers let go meanwhile (in the core).
-Safety events of every device are collected for the recording.
+not push as well (``DeviceInput``: not interactive; its script covers only the fingers no
+device drives). A device that hangs up is reopened on its port every ``retry`` seconds; its
+fingers let go meanwhile (in the core). Safety events of every device are collected for the
+recording, stamped on the session clock.
 """
 from __future__ import annotations
 
@@ -15,7 +16,37 @@ import numpy as np
 
 from ..inputs import InputSource
 from .cli_commands import parse_device_spec
-from .serial_device import SerialDevice
+from .serial_device import SerialDevice, UdpDevice
+
+
+def device_fingers(devices, n_fingers: int, finger_names=None) -> np.ndarray:
+    """Which device drives each finger: an (n_fingers,) array of indices into ``devices``
+    (-1: none). ``devices``: (label, first finger, finger count) per device. A device with a
+    finger the scene does not have, or two devices on one finger, is an error naming them."""
+    owner = np.full(int(n_fingers), -1, dtype=np.int64)
+    for k, (label, first, count) in enumerate(devices):
+        first, count = int(first), int(count)
+        if count < 1 or first < 0 or first + count > n_fingers:
+            have = f"fingers 0..{n_fingers - 1}" if n_fingers else "no fingers"
+            raise ValueError(f"device {label}: drives fingers {first}..{first + count - 1}, but the scene has "
+                             f"{have}" + (f" ({', '.join(finger_names)})" if finger_names else ""))
+        taken = owner[first:first + count]
+        if np.any(taken >= 0):
+            other = devices[int(taken[taken >= 0][0])][0]
+            raise ValueError(f"device {label}: fingers {first}..{first + count - 1} overlap those of device {other}")
+        owner[first:first + count] = k
+    return owner
+
+
+def without_fingers(script, driven):
+    """A scripted track ``(times, positions, mask)`` minus the fingers ``driven`` (a bool mask):
+    a device drives its fingers whatever their animation says. None when nothing is left."""
+    if script is None:
+        return None
+    times, positions, mask = script
+    n = positions.shape[1]
+    keep = (np.ones(n, dtype=bool) if mask is None else np.asarray(mask, dtype=bool).copy()) & ~np.asarray(driven)
+    return (times, positions, keep) if keep.any() else None
 
 
 class DeviceInput(InputSource):
@@ -40,7 +71,8 @@ class SourceDevice:
     """A device read in Python (SpaceMouse, OpenGloves: tens of Hz) in a DeviceSet. Its
     fingertips go in through ``push_device_hips`` at every poll, merged with the serial
     devices' fingers; a source with ``send_forces`` (a glove) gets its fingers' device
-    forces back, zero until enabled."""
+    forces back, zero until enabled. What it was sent (nothing, for an input-only device) is
+    what the recording holds as its fingers' device force (``device_forces_sent``)."""
 
     def __init__(self, world, source, finger_offset: int, label: str):
         self.world, self.source, self.label, self.port = world, source, label, label
@@ -54,11 +86,16 @@ class SourceDevice:
     def connect(self) -> None:
         self.source.open()
         self.connected = True
+        self._sent(np.zeros((self.num_fingers, 3)))     # nothing yet (an input-only device: ever)
 
     def disconnect(self) -> None:
         if self.connected:
             self.source.close()
+            self._sent(np.zeros((self.num_fingers, 3)))
         self.connected = False
+
+    def _sent(self, forces) -> None:
+        self.world.device_forces_sent(self.finger_offset, np.ascontiguousarray(forces, dtype=np.float64))
 
     def reconnect(self, port=None) -> None:
         self.disconnect()
@@ -68,6 +105,8 @@ class SourceDevice:
         self.enabled = bool(on)
 
     def poll(self, forces) -> None:
+        """``forces``: the world's device forces, the same gate (enable, ramp, clamp, watchdog)
+        as every device kind's (the runtime's, here at the display rate)."""
         if not self.connected:
             return
         hips = np.ascontiguousarray(self.source.hips_at(time.monotonic() - self._t0), dtype=np.float64)
@@ -75,7 +114,8 @@ class SourceDevice:
             self.rejected += 1
         self.polls += 1
         if hasattr(self.source, "send_forces") and forces is not None:
-            self.source.send_forces(forces[self.finger_offset:self.finger_offset + self.num_fingers], self.enabled)
+            self._sent(self.source.send_forces(forces[self.finger_offset:self.finger_offset + self.num_fingers],
+                                               self.enabled))
 
     def stats(self) -> dict:
         state = getattr(self.source, "state", None)
@@ -89,6 +129,8 @@ class SourceDevice:
 
 
 class DeviceSet:
+    """``events``: (session time s, device label, event, value), as they were observed."""
+
     def __init__(self, world, retry: float = 0.5):
         self.world = world
         self.devices: list = []
@@ -120,6 +162,14 @@ class DeviceSet:
             self.add(d["port"], first, count, frames[i] if frames else None, **limits)
             next_first = first + count
 
+    def add_udp(self, host: str, port: int, finger_offset: int, num_fingers: int, transform=None,
+                label: str | None = None, **limits) -> UdpDevice:
+        """A device (or a bridge program) speaking the protocol over UDP at host:port."""
+        dev = UdpDevice(self.world, host, port, finger_offset, num_fingers, transform, label=label, **limits)
+        dev.connect()
+        self.devices.append(dev)
+        return dev
+
     def add_source(self, source, finger_offset: int, label: str | None = None) -> SourceDevice:
         """A SpaceMouse or glove input source driving fingers finger_offset.. (opened here)."""
         dev = SourceDevice(self.world, source, finger_offset, label or source.name)
@@ -143,18 +193,24 @@ class DeviceSet:
             for d in sources:
                 d.poll(forces)
         for d in self.devices:
-            for t, name, value in d.events():
-                new.append((t, d.label, name, value))
+            for _mono, name, value, session_time in d.events():
+                new.append((max(0.0, session_time), d.label, name, value))
+                if name == "estop":
+                    d.enabled = False   # latched until the user turns forces on again (not by a reconnect)
             state = d.stats().get("state")
             if state in ("hangup", "disconnected") and now - self._last_try.get(id(d), 0.0) >= self.retry:
                 self._last_try[id(d)] = now
                 try:
                     d.reconnect()
-                    new.append((now, d.label, "reconnected", 0))
+                    new.append((self.session_time(), d.label, "reconnected", 0))
                 except (ConnectionError, ValueError):
                     pass        # still unplugged: its fingers stay let go; try again later
         self.events += new
         return new
+
+    def session_time(self) -> float:
+        """Now on the session clock: the haptic loop's latest tick (a millisecond old at most)."""
+        return float(self.world.snapshot()["time"]) if self.world.running else 0.0
 
     def status(self) -> list:
         """Per device: what the sidebar and HUD show."""
@@ -171,3 +227,72 @@ class DeviceSet:
         for d in self.devices:
             d.disconnect()
         self.devices = []
+
+
+ESTOP_REASONS = {0: "the host", 1: "the device's stop button", 2: "a device fault",
+                 256: "seen in the device's pose status (its ESTOP frame was lost)"}
+
+
+def device_event_detail(event: str, value: int) -> str:
+    """What a device event's value means (docs/recording-format.md), for the recording."""
+    value = int(value)
+    if event == "connected":
+        return f"capabilities received: the device has {value} fingers"
+    if event == "lost":
+        return "hang-up (the port closed or failed)" if value == 1 else "silence (no valid pose for lost_timeout)"
+    if event == "recovered":
+        return "valid poses again"
+    if event == "reconnected":
+        return "port reopened"
+    if event == "enabled":
+        return "forces on (ENABLE(1) sent)" if value else "forces off (ENABLE(0) sent)"
+    if event == "estop":
+        return f"e-stop by {ESTOP_REASONS.get(value, f'the device (reason {value})')}: forces zero until enabled"
+    if event == "stall":
+        return "forces zeroed: the haptic loop stalled" if value else "haptic loop running again"
+    if event == "dropped":
+        return f"{value} frames dropped"
+    if event == "foreign":
+        return f"{value} datagrams from another address ignored"
+    return f"value {value}"
+
+
+def losses(events) -> list:
+    """Each time a device was lost, from its events ((time, device, event, value), as in
+    ``DeviceSet.events``): (device, time lost, how, time back or None)."""
+    out, open_loss = [], {}
+    for t, label, name, value in sorted(events, key=lambda e: e[0]):
+        if name == "lost" and label not in open_loss:
+            open_loss[label] = len(out)
+            out.append([label, t, "hang-up" if int(value) == 1 else "silence", None])
+        elif name in ("recovered", "connected") and label in open_loss:
+            out[open_loss.pop(label)][3] = t
+    return [tuple(x) for x in out]
+
+
+def summary_line(label: str, st: dict) -> str:
+    """A device's counters at the end of a session, in one line (``grasp-lab run``)."""
+    if "poses" not in st:
+        return f"{label}: never connected"
+    kinds = ", ".join(f"{k} {v}" for k, v in st.get("frame_errors", {}).items() if v)
+    out = (f"{label}: {st.get('poses', 0)} poses, {st.get('forces_sent', 0)} force frames, "
+           f"{st.get('dropped', 0)} frames dropped" + (f" ({kinds})" if kinds else "") +
+           f", {st.get('sequence_gaps', 0)} missing, {st.get('estops', 0)} e-stops, "
+           f"{st.get('disconnects', 0)} losses, {st.get('stall_zeroes', 0)} stalls")
+    if st.get("late_poses") or st.get("duplicate_poses") or st.get("foreign_datagrams"):
+        out += (f", UDP: {st.get('late_poses', 0)} late, {st.get('duplicate_poses', 0)} duplicated, "
+                f"{st.get('foreign_datagrams', 0)} from others")
+    return out
+
+
+def recorded_device_events(events) -> list:
+    """A recording's device events (dicts, docs/recording-format.md) as ``losses`` takes them."""
+    return [(float(e.get("time", 0.0)), e.get("subject", ""), e["kind"][len("device_"):], int(e.get("value", 0)))
+            for e in events if str(e.get("kind", "")).startswith("device_")]
+
+
+def loss_lines(events) -> list:
+    """``losses`` as sentences, for the terminal and ``grasp-lab info``."""
+    return [f"{label} lost at {t:.3f} s ({how}), " + (f"back at {back:.3f} s" if back is not None
+                                                             else "not back by the end")
+            for label, t, how, back in losses(events)]

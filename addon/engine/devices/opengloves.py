@@ -158,15 +158,31 @@ class GloveState:
         return True
 
 
-def force_feedback_line(forces, full_scale: float = 4.0, enabled: bool = True) -> bytes:
-    """The haptic line for five finger forces ((5, 3) N, or five magnitudes)."""
+def brake_levels(forces, full_scale: float = 4.0, enabled: bool = True) -> np.ndarray:
+    """The five brake levels 0..1000 for five finger forces ((5, 3) N, or five magnitudes)."""
     f = np.asarray(forces, dtype=np.float64)
     mags = np.linalg.norm(f.reshape(5, 3), axis=1) if f.size == 15 else f.reshape(5)
     if not enabled or not (full_scale > 0):
         mags = np.zeros(5)
     mags = np.where(np.isfinite(mags), mags, 0.0)     # a NaN never reaches the glove
-    levels = np.clip(np.rint(1000.0 * mags / (full_scale if full_scale > 0 else 1.0)), 0, 1000).astype(int)
+    return np.clip(np.rint(1000.0 * mags / (full_scale if full_scale > 0 else 1.0)), 0, 1000).astype(int)
+
+
+def force_feedback_line(forces, full_scale: float = 4.0, enabled: bool = True) -> bytes:
+    """The haptic line for five finger forces ((5, 3) N, or five magnitudes)."""
+    levels = brake_levels(forces, full_scale, enabled)
     return ("".join(f"{k}{v}" for k, v in zip(CURL_KEYS, levels)) + "\n").encode("ascii")
+
+
+def sent_forces(forces, full_scale: float = 4.0, enabled: bool = True) -> np.ndarray:
+    """(5, 3): the forces the brake levels sent for ``forces`` (5, 3) stand for: each finger's
+    force direction at the level's magnitude (zero where its level is, or its force is not finite)."""
+    f = np.asarray(forces, dtype=np.float64).reshape(5, 3)
+    norm = np.linalg.norm(f, axis=1)
+    level = brake_levels(f, full_scale, enabled)
+    ok = (level > 0) & np.isfinite(norm) & (norm > 0)
+    scale = np.where(ok, level * (full_scale / 1000.0) / np.where(ok, norm, 1.0), 0.0)
+    return np.where(ok[:, None], f * scale[:, None], 0.0)
 
 
 class OpenGlovesSource(InputSource):
@@ -206,9 +222,13 @@ class OpenGlovesSource(InputSource):
         self.poll()
         return fingertips(self.state.curls, self.hand_frame, self.left)
 
-    def send_forces(self, forces, enabled: bool) -> None:
-        if self._serial is not None:
-            self._serial.write(force_feedback_line(forces, self.full_scale, enabled))
+    def send_forces(self, forces, enabled: bool):
+        """Writes the haptic line; returns the forces it stands for ((5, 3), ``sent_forces``; None
+        when given magnitudes only)."""
+        if self._serial is None:
+            return np.zeros((5, 3))
+        self._serial.write(force_feedback_line(forces, self.full_scale, enabled))
+        return sent_forces(forces, self.full_scale, enabled) if np.size(forces) == 15 else None
 
     def close(self) -> None:
         if self._serial is not None:

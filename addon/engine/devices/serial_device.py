@@ -3,12 +3,16 @@
 pyserial opens and configures the port (raw, 8N1, the baud rate; a pseudo-terminal
 ignores the rate); the C core's device thread then owns its I/O at the haptic rate. This
 class only holds the port open and talks to the core's API: it never reads the port.
+``UdpDevice`` is the same over UDP (docs/protocol.md section 7): a socket instead of a port.
 """
 from __future__ import annotations
 
 import numpy as np
 
 DEFAULT_BAUD = 1_000_000
+# Counters carried over a reconnection (the core's device thread starts its own from zero).
+COUNTERS = ("poses", "forces_sent", "heartbeats", "dropped", "sequence_gaps", "disconnects", "estops", "stall_zeroes",
+            "write_errors", "push_rejected", "late_poses", "duplicate_poses", "foreign_datagrams")
 
 
 def workspace_matrix(transform) -> list:
@@ -39,6 +43,7 @@ class SerialDevice:
         self.serial = None
         self.device_id = None
         self.enabled = False
+        self._past = {}             # counters of the connections before this one
 
     def connect(self) -> None:
         import serial
@@ -57,10 +62,14 @@ class SerialDevice:
         if self.enabled:
             self.world.serial_enable(self.device_id, True)
 
-    def disconnect(self) -> None:
+    def _detach(self) -> None:
         if self.device_id is not None:
+            self._past = self.stats()           # the totals so far, before the thread's go
             self.world.detach_serial(self.device_id)
             self.device_id = None
+
+    def disconnect(self) -> None:
+        self._detach()
         if self.serial is not None:
             self.serial.close()
             self.serial = None
@@ -88,9 +97,15 @@ class SerialDevice:
             self.world.serial_estop(self.device_id)
 
     def stats(self) -> dict:
+        """The core's serial_stats, its counters totalled over every connection of this device."""
         if self.device_id is None:
-            return {"state": "disconnected", "enabled": False}
-        return self.world.serial_stats(self.device_id)
+            return dict(self._past, state="disconnected", enabled=False)
+        st = self.world.serial_stats(self.device_id)
+        for k in COUNTERS:
+            st[k] = st.get(k, 0) + self._past.get(k, 0)
+        if "frame_errors" in self._past:
+            st["frame_errors"] = {k: v + self._past["frame_errors"].get(k, 0) for k, v in st["frame_errors"].items()}
+        return st
 
     def events(self) -> list:
         return [] if self.device_id is None else self.world.serial_events(self.device_id)
@@ -101,3 +116,61 @@ class SerialDevice:
 
     def __exit__(self, *exc):
         self.disconnect()
+
+
+class UdpDevice(SerialDevice):
+    """The same frames over UDP, one a datagram: a bridge program over a vendor SDK, or a device
+    on another machine, at ``host:port``. The socket is bound to the loopback interface for a
+    device on this machine, else to ``bind`` (default: every interface); the core pins the
+    session to the address that answers the hello and counts datagrams from any other."""
+
+    def __init__(self, world, host: str, port: int, finger_offset: int = 0, num_fingers: int = 1, transform=None,
+                 label: str | None = None, bind: str | None = None, **limits):
+        import ipaddress
+        import socket
+        try:
+            self.address = ipaddress.ip_address(socket.gethostbyname(host) if not _is_ip(host) else host)
+        except (OSError, ValueError) as e:
+            raise ConnectionError(f"udp:{host}:{port}: cannot resolve the host ({e})") from e
+        if not 1 <= int(port) <= 65535:
+            raise ValueError(f"udp:{host}:{port}: the port must be 1..65535")
+        super().__init__(world, f"udp:{host}:{port}", finger_offset, num_fingers, transform,
+                         label=label or f"udp:{host}:{port}", **limits)
+        self.udp_port = int(port)
+        self.bind = bind if bind is not None else ("127.0.0.1" if self.address.is_loopback else "0.0.0.0")
+        self.sock = None
+
+    def connect(self) -> None:
+        import socket
+        self.sock = socket.socket(socket.AF_INET if self.address.version == 4 else socket.AF_INET6, socket.SOCK_DGRAM)
+        try:
+            self.sock.bind((self.bind if self.address.version == 4 else "::1" if self.address.is_loopback else "::", 0))
+            self.sock.setblocking(False)
+            self.device_id = self.world.attach_serial(
+                self.sock.fileno(), finger_offset=self.finger_offset, num_fingers=self.num_fingers,
+                transform=self.transform, udp_host=str(self.address), udp_port=self.udp_port, **self.limits)
+        except Exception:
+            self.sock.close()
+            self.sock = None
+            raise
+        if self.enabled:
+            self.world.serial_enable(self.device_id, True)
+
+    def disconnect(self) -> None:
+        self._detach()
+        if self.sock is not None:
+            self.sock.close()
+            self.sock = None
+
+    @property
+    def local_port(self) -> int:
+        return self.sock.getsockname()[1] if self.sock is not None else 0
+
+
+def _is_ip(host: str) -> bool:
+    import ipaddress
+    try:
+        ipaddress.ip_address(host)
+        return True
+    except ValueError:
+        return False

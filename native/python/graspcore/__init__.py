@@ -248,8 +248,12 @@ class World(_core.World):
     def set_tick_log(self, capacity: int) -> None:
         """While stopped: keep the last ``capacity`` undrained haptic ticks (0 = off). start()
         sizes and empties the ring; a full ring drops ticks and counts them
-        (``tick_log_overflow()``), the haptic loop never waits."""
-        self._set_tick_log(int(capacity))
+        (``tick_log_overflow()``), the haptic loop never waits. A capacity outside
+        0 .. 2**31 - 1 is refused (the core takes a C int: it would wrap)."""
+        capacity = int(capacity)
+        if not 0 <= capacity <= 2**31 - 1:
+            raise ValueError(f"set_tick_log: capacity {capacity} is outside 0 .. {2**31 - 1} ticks")
+        self._set_tick_log(capacity)
 
     def drain_ticks(self, out: np.ndarray) -> np.ndarray:
         """Move the oldest undrained tick records into ``out`` (a 1-d array of

@@ -1,0 +1,148 @@
+"""A running session served live to Foxglove (``grasp-lab run --realtime --live-view``,
+docs/viewers.md): the viewer channels of engine/viewer.py over Foxglove's WebSocket protocol
+(foxglove-sdk's server).
+
+Watching only: the server advertises no capability, so the SDK refuses client publishing,
+parameters and services with an error status to the client (foxglove-sdk 0.30 does not tell
+the listener about refused requests, so they are not counted); it binds to localhost unless
+told otherwise. Never on the haptic thread: the display update hands the latest snapshot over
+(an assignment: no copy, lock or wake-up) as its last step, and the live view's own thread,
+looking every 5 ms, turns it into messages while the main thread waits for its next update;
+when it falls behind it skips snapshots, never queues them. Clients come and go; the
+session goes on.
+"""
+from __future__ import annotations
+
+import collections
+import threading
+import time
+
+import numpy as np
+
+from .recording import FLAG_FORCES_ENABLED, EventDetector, scene_to_dict, tick_dtype
+from .viewer import SceneModel, _sdk, frames_of
+
+DEFAULT_PORT = 8765
+DEFAULT_BIND = "127.0.0.1"
+POLL = 0.005        # s: how often the live view's thread looks for a new snapshot
+
+
+def header_of(desc, haptic_rate: float, runtime: dict | None = None) -> dict:
+    """What the viewer channels need of a session's scene (the recording header's keys)."""
+    return {"scene": scene_to_dict(desc), "body_names": [b.name for b in desc.bodies],
+            "finger_names": [f.name for f in desc.fingers], "runtime": runtime or {},
+            "rates": {"haptic_hz": float(haptic_rate), "display_hz": float(desc.display_rate)}, "source": "live"}
+
+
+class _Viewers:
+    """The server's listener: how many subscriptions viewers hold (for the HUD), and whether
+    one is new (it gets the body meshes with the next update, not a second later)."""
+
+    def __init__(self):
+        self.subscribed = 0
+        self.joined = False
+        self._lock = threading.Lock()
+
+    def on_subscribe(self, client, channel):
+        with self._lock:
+            self.subscribed += 1
+            self.joined = True
+
+    def on_unsubscribe(self, client, channel):
+        with self._lock:
+            self.subscribed -= 1
+
+
+class LiveView:
+    """Serves one session. ``offer(snapshot)`` from the display update; ``close()`` at the end."""
+
+    def __init__(self, header: dict, port: int = DEFAULT_PORT, bind: str = DEFAULT_BIND):
+        foxglove = _sdk()
+        from .viewer import FoxgloveChannels
+        self.model = SceneModel(header)
+        self.header = header
+        self.context = foxglove.Context()
+        self.channels = FoxgloveChannels(self.model, self.context)
+        self.viewers = _Viewers()
+        try:
+            self.server = foxglove.start_server(name="Grasp Lab", host=bind, port=int(port), capabilities=[],
+                                                server_listener=self.viewers, context=self.context)
+        except Exception as ex:         # the SDK's own error type: say what could not be bound
+            raise OSError(f"live view: cannot serve on {bind}:{port} ({ex})") from None
+        self.bind, self.port = bind, int(self.server.port)
+        self.dtype = tick_dtype(len(self.model.body_names), len(self.model.finger_names))
+        self.events = EventDetector(header)
+        self.updates = 0
+        self.dropped = 0                    # snapshots replaced before the thread took them
+        self.cost_us = []                   # per update: snapshot to messages sent, this thread's wall time
+        self.error = ""
+        self._slot = collections.deque(maxlen=1)    # (snapshot, wall time offered): the latest, unsent
+        self._stop = threading.Event()
+        self._tick = 0
+        self._thread = threading.Thread(target=self._loop, name="grasp_lab live view", daemon=True)
+        self._thread.start()
+
+    @property
+    def address(self) -> str:
+        return f"ws://{self.bind}:{self.port}"
+
+    @property
+    def pending(self) -> bool:
+        """A snapshot is offered and not yet sent."""
+        return bool(self._slot)
+
+    def status(self) -> str:
+        return (f"live view {self.address}: {self.viewers.subscribed} subscriptions, {self.updates} updates, "
+                f"{self.dropped} skipped" + (f"; {self.error}" if self.error else ""))
+
+    def offer(self, snap) -> None:
+        """The latest snapshot (engine.runner.Snapshot): one assignment, no lock, no wake-up
+        (the thread polls every ``POLL`` s), so the display update pays next to nothing."""
+        if self._slot:
+            self.dropped += 1
+        self._slot.append((snap, time.time()))     # a deque of one: the older one goes
+
+    def _row(self, snap) -> np.ndarray:
+        r = np.zeros(1, self.dtype)
+        r["tick"], r["time"] = self._tick, snap.time
+        self._tick += 1
+        r["flags"] = FLAG_FORCES_ENABLED
+        r["pose"][0], r["wrench"][0, :, :3], r["wrench"][0, :, 3:] = snap.poses, snap.force, snap.torque
+        r["hip"][0], r["god_object"][0] = snap.hips, snap.god_objects
+        r["force"][0] = r["device_force"][0] = snap.finger_forces
+        r["state"][0], r["contact"][0] = snap.finger_states, snap.contacts
+        return r
+
+    def _loop(self):
+        try:
+            while True:
+                try:
+                    snap, offered = self._slot.popleft()
+                except IndexError:
+                    if self._stop.wait(POLL):
+                        return
+                    continue
+                t0 = time.perf_counter()
+                # Stamped with the wall clock of the display update that offered it: a viewer's
+                # timeline is the wall clock, and its delay is what it receives minus the stamp.
+                self.channels.time_offset = offered - snap.time
+                if self.viewers.joined:
+                    self.viewers.joined = False
+                    self.channels.resend_bodies()
+                row = self._row(snap)
+                fr = frames_of(self.model, self, row, [snap.time], normals=False)[0]
+                for tick, t, kind, subject, detail in self.events(row):
+                    self.channels.log_event({"tick": tick, "time": t, "kind": kind, "subject": subject,
+                                             "detail": detail})
+                self.channels.log_frame(fr)
+                self.updates += 1
+                self.cost_us.append((time.perf_counter() - t0) * 1e6)
+        except Exception as ex:     # the session goes on without its viewers; close() reports it
+            self.error = f"live view stopped: {ex}"
+
+    def close(self) -> dict:
+        self._stop.set()
+        self._thread.join()
+        self.server.stop()
+        return {"updates": self.updates, "dropped": self.dropped, "error": self.error}
+

@@ -1,0 +1,230 @@
+"""Where a command writes (docs/reliability.md): nothing is lost, nothing is overwritten by halves.
+
+* ``check_paths`` refuses, before anything starts, an output that is an input of the same
+  command, two outputs that are one file, an output that is a directory (or whose folder is
+  missing or read-only), and an output that another running Grasp Lab process is writing.
+* ``AtomicFile`` writes a file as ``OUT.partial`` beside its target, locked (``flock``) while
+  it is written, and renames it to ``OUT`` only when it is finished (``commit``): a kill, a
+  full disk or an error leaves the target as it was. A recording's ``.partial`` is a valid
+  prefix at every flush, so what a crash leaves is readable (``grasp-lab info``) and is never
+  overwritten by the next run.
+
+Plain Python (no bpy): the command line, the recorder and the exports share it.
+"""
+from __future__ import annotations
+
+import errno
+import fcntl
+import os
+
+PARTIAL = ".partial"
+
+
+_committed: list = []       # outputs renamed into place by this process, in order
+_open: list = []            # AtomicFiles neither committed nor discarded
+
+
+def committed() -> list:
+    return list(_committed)
+
+
+def close_unfinished() -> list:
+    """At the end of a command: outputs still open (an error before they were finished) are
+    discarded, except a partial file worth keeping (a recording with ticks), left closed
+    beside its untouched target. Returns the partial files left."""
+    left = []
+    for f in list(_open):
+        if f.keep:
+            f.leave()
+            left.append(f.partial)
+        else:
+            f.discard()
+    return left
+
+
+class OutputError(ValueError):
+    """An output that cannot or must not be written; the message names the file(s) and why."""
+
+
+def partial_path(path: str) -> str:
+    return os.path.abspath(path) + PARTIAL
+
+
+def same_file(a: str, b: str) -> bool:
+    """One file under two names (the same path, a symlink, a hard link)."""
+    if os.path.realpath(a) == os.path.realpath(b):
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def _locker(path: str) -> str:
+    """``pid N`` of the process holding the flock on ``path`` (from /proc/locks), else ''."""
+    try:
+        inode = os.stat(path).st_ino
+        with open("/proc/locks") as fh:
+            for line in fh:
+                parts = line.split()
+                if len(parts) > 5 and parts[1] == "FLOCK" and parts[5].endswith(f":{inode}"):
+                    return f"pid {parts[4]}"
+    except OSError:
+        pass
+    return ""
+
+
+def _busy(path: str) -> str:
+    """Why ``path``'s partial file is busy ('' when it is not): another process holds its lock."""
+    partial = partial_path(path)
+    try:
+        fd = os.open(partial, os.O_RDONLY | os.O_CLOEXEC)
+    except OSError:
+        return ""
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        return ""
+    except OSError:
+        who = _locker(partial)
+        return f"another Grasp Lab process{f' ({who})' if who else ''} is writing it ({partial})"
+    finally:
+        os.close(fd)
+
+
+def check_paths(inputs: dict, outputs: dict, folders: tuple = ()) -> None:
+    """Refuse (OutputError, naming both) an output that is an input or another output, that is
+    a directory, whose folder cannot be written, or that another process is writing.
+    ``inputs``/``outputs``: {what (e.g. "--record"): path}; None values are skipped. Outputs
+    named in ``folders`` are folders (export --csv): they may exist as directories."""
+    ins = {k: v for k, v in inputs.items() if v}
+    outs = {k: v for k, v in outputs.items() if v}
+    for what, out in outs.items():
+        for src, path in ins.items():
+            if same_file(out, path):
+                raise OutputError(f"{what} {out} is {src} {path}: refusing to write over an input "
+                                  f"of this command (name another file)")
+        for other, path in outs.items():
+            if other < what and same_file(out, path):
+                raise OutputError(f"{what} {out} and {other} {path} are one file: name two files")
+        target = os.path.abspath(out)
+        if what in folders:
+            if os.path.exists(target) and not os.path.isdir(target):
+                raise OutputError(f"{what} {out}: exists and is not a folder")
+            folder = target if os.path.isdir(target) else os.path.dirname(target)
+        else:
+            if os.path.isdir(target):
+                raise OutputError(f"{what} {out}: is a folder (name a file)")
+            folder = os.path.dirname(target)
+        existing = folder
+        while existing and not os.path.isdir(existing):
+            if os.path.exists(existing):
+                raise OutputError(f"{what} {out}: {existing} is not a folder")
+            existing = os.path.dirname(existing)
+        if not os.access(existing, os.W_OK | os.X_OK):
+            raise OutputError(f"{what} {out}: cannot write in {existing} (read-only or no permission)")
+        if what not in folders:
+            busy = _busy(target)
+            if busy:
+                raise OutputError(f"{what} {out}: {busy}")
+
+
+class AtomicFile:
+    """A file written as ``PATH.partial`` (locked) and renamed to ``PATH`` by ``commit``.
+
+    ``keep_partial``: says whether a partial file left by a process that died holds
+    something worth keeping (a recording with ticks): then it is refused, not overwritten."""
+
+    def __init__(self, path: str, keep_partial=None):
+        self.path = os.path.abspath(path)
+        self.partial = self.path + PARTIAL
+        if os.path.isdir(self.path):
+            raise OutputError(f"{path}: is a folder (name a file)")
+        os.makedirs(os.path.dirname(self.path), exist_ok=True)
+        existed = os.path.exists(self.partial)
+        fd = os.open(self.partial, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        locked = False
+        try:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                locked = True
+            except OSError as ex:
+                if ex.errno not in (errno.EWOULDBLOCK, errno.EAGAIN):
+                    raise
+                who = _locker(self.partial)
+                raise OutputError(f"{path}: another Grasp Lab process{f' ({who})' if who else ''} is "
+                                  f"writing it ({self.partial})") from None
+            if keep_partial is not None and os.fstat(fd).st_size > 0 and keep_partial(self.partial):
+                raise OutputError(f"{path}: {self.partial} is left by a session that did not finish "
+                                  f"(`grasp-lab info` reads what it holds): move or delete it first")
+            os.ftruncate(fd, 0)
+            self.done = False
+            self.keep = False       # the partial file holds something worth keeping (close_unfinished)
+            self.file = os.fdopen(fd, "w+b")
+            _open.append(self)
+        except BaseException:
+            # Refused, failed or interrupted (a signal) before this object was tracked: a
+            # partial file made here for nothing goes; one that was there, or that another
+            # process holds, stays.
+            if self in _open:
+                _open.remove(self)
+            if getattr(self, "file", None) is not None:
+                self.file.close()
+            else:
+                os.close(fd)
+            if locked and not existed:
+                try:
+                    os.unlink(self.partial)
+                except OSError:
+                    pass
+            raise
+
+    def commit(self) -> str:
+        """Flush, sync and rename into place. Returns the final path."""
+        if not self.done:
+            self.file.flush()
+            os.fsync(self.file.fileno())
+            os.replace(self.partial, self.path)
+            self.file.close()           # the lock goes with it, after the rename
+            self.done = True
+            _committed.append(self.path)
+            _open.remove(self)
+        return self.path
+
+    def discard(self) -> None:
+        """Nothing worth keeping was written: remove the partial file, leave the target."""
+        if not self.done:
+            try:
+                os.unlink(self.partial)
+            except OSError:
+                pass
+            self.file.close()
+            self.done = True
+            if self in _open:
+                _open.remove(self)
+
+    def leave(self, size: int | None = None) -> None:
+        """Stop writing and leave the partial file (cut to ``size`` bytes, when given) beside
+        the untouched target: what a crash would leave, a readable prefix for a recording."""
+        if self.done:
+            return
+        try:
+            self.file.close()       # whatever the buffer holds may fail to go (a full disk)
+        except OSError:
+            pass
+        if size is not None:
+            try:
+                os.truncate(self.partial, size)
+            except OSError:
+                pass
+        self.done = True
+        if self in _open:
+            _open.remove(self)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, value, tb):
+        if kind is None:
+            self.commit()
+        else:
+            self.discard()

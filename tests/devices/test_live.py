@@ -1,0 +1,52 @@
+"""The bpy-free device-session logic of engine/devices/live.py: which device drives which
+finger, the scripted track minus those fingers, and the losses told at the end of a run."""
+import numpy as np
+import pytest
+
+from addon.engine.devices.live import (device_event_detail, device_fingers, loss_lines, losses,
+                                       recorded_device_events, without_fingers)
+
+
+def test_device_fingers_assigns_and_names_the_device_that_cannot_drive():
+    owner = device_fingers([("/dev/a", 0, 2), ("/dev/b", 3, 1)], 4)
+    assert owner.tolist() == [0, 0, -1, 1]
+    with pytest.raises(ValueError, match=r"device /dev/c: drives fingers 2\.\.2, but the scene has fingers "
+                                         r"0\.\.1 \(Finger 0, Finger 1\)"):
+        device_fingers([("/dev/c", 2, 1)], 2, ["Finger 0", "Finger 1"])
+    with pytest.raises(ValueError, match="the scene has no fingers"):
+        device_fingers([("spacemouse", 0, 1)], 0)
+    with pytest.raises(ValueError, match="device /dev/b: fingers 1..2 overlap those of device /dev/a"):
+        device_fingers([("/dev/a", 0, 2), ("/dev/b", 1, 2)], 4)
+
+
+def test_without_fingers_takes_the_devices_fingers_out_of_the_script():
+    times, positions = np.array([0.0, 1.0]), np.zeros((2, 3, 3))
+    t, p, mask = without_fingers((times, positions, None), np.array([True, False, False]))
+    assert t is times and p is positions and mask.tolist() == [False, True, True]
+    _, _, mask = without_fingers((times, positions, np.array([True, True, False])), np.array([False, True, True]))
+    assert mask.tolist() == [True, False, False]
+    assert without_fingers((times, positions, np.array([False, True, False])), np.array([False, True, False])) is None
+    assert without_fingers(None, np.array([True])) is None
+
+
+def test_losses_pair_each_loss_with_its_return():
+    events = [(2.5, "/dev/a", "connected", 2), (0.1, "/dev/a", "connected", 2), (1.0, "/dev/a", "lost", 1),
+              (1.2, "/dev/b", "lost", 0), (1.4, "/dev/b", "recovered", 0), (3.0, "/dev/b", "lost", 0),
+              (1.1, "/dev/a", "lost", 0)]     # out of order, as polled: sorted by time; a second "lost" of
+    assert losses(events) == [("/dev/a", 1.0, "hang-up", 2.5), ("/dev/b", 1.2, "silence", 1.4),
+                              ("/dev/b", 3.0, "silence", None)]   # an open loss is one loss
+    assert loss_lines(events)[2] == "/dev/b lost at 3.000 s (silence), not back by the end"
+    assert loss_lines(events)[0] == "/dev/a lost at 1.000 s (hang-up), back at 2.500 s"
+    assert loss_lines([(0.1, "/dev/a", "connected", 2)]) == []
+    recorded = [{"time": 1.0, "kind": "device_lost", "subject": "/dev/a", "value": 1},
+                {"time": 0.5, "kind": "contact_begin", "subject": "Finger 0"}]
+    assert recorded_device_events(recorded) == [(1.0, "/dev/a", "lost", 1)]
+
+
+def test_device_event_details_say_what_the_value_means():
+    assert device_event_detail("lost", 1).startswith("hang-up")
+    assert device_event_detail("lost", 0).startswith("silence")
+    assert "stop button" in device_event_detail("estop", 1)
+    assert "pose status" in device_event_detail("estop", 256)
+    assert "reason 7" in device_event_detail("estop", 7)
+    assert device_event_detail("enabled", 0).startswith("forces off")
