@@ -200,6 +200,9 @@ def compare(recorded: Recording, new_ticks: np.ndarray, tolerance: float, same_r
     return div
 
 
+STRETCH = 8192      # steps replayed in C per call (a few ms: Python handles signals in between)
+
+
 def replay(world, hips: np.ndarray, dt: float, has_start: bool = True, before: dict | None = None) -> np.ndarray:
     """Step ``world`` once per row of ``hips`` ((steps, fingers, 3): each step's HIPs) and
     return every tick's record; tick 0, the state before the first step, only ``if has_start``.
@@ -210,9 +213,10 @@ def replay(world, hips: np.ndarray, dt: float, has_start: bool = True, before: d
     world._tick_record(ticks[:1], 0)
     k = 0
     for stop in sorted(k for k in (before or ()) if 0 <= k < n) + [n]:
-        if stop > k:
-            world.step_hips(hips[k:stop], dt, ticks[k + 1:stop + 1], first_tick=k + 1)
-            k = stop
+        while k < stop:     # at most STRETCH steps a call: signals (Ctrl-C, SIGTERM) are seen between
+            end = min(stop, k + STRETCH)
+            world.step_hips(hips[k:end], dt, ticks[k + 1:end + 1], first_tick=k + 1)
+            k = end
         if stop < n:
             before[stop](world)
     return ticks if has_start else ticks[1:]

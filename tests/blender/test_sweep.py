@@ -102,15 +102,22 @@ def test_sample_seeds_depend_on_the_sweep_seed_and_the_sample_only():
     assert a != [sweep.sample_seed(8, i) for i in range(50)]
 
 
-def test_a_sample_with_nothing_varied_is_the_recording(lift, core):
+@pytest.mark.parametrize("stretch", [8192, 700])
+def test_a_sample_with_nothing_varied_is_the_recording(lift, core, monkeypatch, stretch):
     """The sweep's worlds are made with just the scene's capacities (scene.build_world(exact=
-    True)); a sample with no variation replays the recording bit for bit all the same."""
+    True)); a sample with no variation replays the recording bit for bit all the same, in one
+    stretch of C steps or in several (resim.STRETCH), with Python hooks between some steps."""
     from addon.engine import resim, scene
+    monkeypatch.setattr(resim, "STRETCH", stretch)
     job = sweep.make_job(lift, [], 0)
     desc = recording.scene_from_dict(lift.header["scene"])
     handle = scene.build_world(desc, core, exact=True)
-    ticks = resim.replay(handle.world, job.hips, 1.0 / job.rate, job.has_start)
+    called = []
+    hooks = {k: (lambda world, k=k: called.append(k)) for k in (0, 1, 699, 700, 2998, 5000)}
+    ticks = resim.replay(handle.world, job.hips, 1.0 / job.rate, job.has_start, hooks)
+    assert called == [0, 1, 699, 700, 2998]          # in order, each once; past the end: never
     np.testing.assert_array_equal(ticks["state_hash"], lift.ticks["state_hash"])
+    np.testing.assert_array_equal(ticks["tick"], lift.ticks["tick"])
     row = sweep.run_sample(job, 0, core)
     assert row["held"] == 1 and row["drop_time"] is None
     assert row["held_time"] == lift.ticks["time"][job.window[1]] - lift.ticks["time"][job.window[0]]
