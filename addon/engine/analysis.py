@@ -247,11 +247,14 @@ def _mu_min(core, point, normal, mu, quality, starts, count, centers, radii, edg
 
 
 def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_bodies, finger_radii,
-                   accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True) -> GraspTable:
+                   accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True,
+                   with_mu_min=True) -> GraspTable:
     """The measures for T snapshots at once: poses (T, nb, 7), god_objects / forces / normals
     (T, nf, 3), states / contact_bodies (T, nf), finger_radii (nf,), accelerations (T, nb, 3)
     of the centres of mass or None (0: the load is the weight). ``volume=False``: the core's
-    fast path, without the 6-D hull (volume -1: not computed; every other measure the same)."""
+    fast path, without the 6-D hull (volume -1: not computed; every other measure the same).
+    ``with_mu_min=False`` skips mu_min (a search, most of the cost; NaN in the table): the
+    sweep's samples."""
     core = _core()
     poses = np.asarray(poses, dtype=np.float64)
     god_objects = np.asarray(god_objects, dtype=np.float64)
@@ -298,7 +301,8 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
     radii = np.array([m.radius for m in models] + [1.0])[set_b]
     try:
         quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges, volume=volume)
-        mu_min = _mu_min(core, point, n_in, mu, quality, starts, count, centers, radii, edges)
+        mu_min = _mu_min(core, point, n_in, mu, quality, starts, count, centers, radii, edges) if with_mu_min \
+            else np.full(len(starts), np.nan)
     except ValueError as ex:
         # Name the snapshot and body whose contacts the core refused (the batch's message starts
         # with the set: "set 3: points: ...").
@@ -371,7 +375,8 @@ def analyse(models, poses, god_objects, forces, normals, states, contact_bodies,
     return body_grasps(table)
 
 
-def analyse_recording(rec, every: int = 1, edges: int = 8, rows=None, chunk: int = 4096) -> GraspTable:
+def analyse_recording(rec, every: int = 1, edges: int = 8, rows=None, chunk: int = 4096,
+                      with_mu_min: bool = True, volume: bool = True) -> GraspTable:
     """The measures at the tick records of a Recording whose tick number is a multiple of
     ``every`` (all of them for 1), or at its records ``rows``, with the centres of mass's
     accelerations from the recorded velocities (each tick against the record before it: read
@@ -395,7 +400,8 @@ def analyse_recording(rec, every: int = 1, edges: int = 8, rows=None, chunk: int
         acc = recorded_accelerations(models, rec.ticks, r)
         try:
             table = analyse_arrays(models, t["pose"], t["god_object"], t["force"], t["normal"], t["state"],
-                                   t["contact"], radii, acc, gravity, edges)
+                                   t["contact"], radii, acc, gravity, edges, volume=volume,
+                                   with_mu_min=with_mu_min)
         except GraspAnalysisError as ex:
             if ex.snapshot is None:
                 raise

@@ -435,6 +435,15 @@ def _register_devices():
 _register_devices()
 
 
+def _register_sweep():
+    """sweep (engine/sweep.py, docs/sweeps.md)."""
+    from . import sweep
+    register_command("sweep", sweep.HELP, sweep.configure, sweep.run_command)
+
+
+_register_sweep()
+
+
 # ------------------------------------------------------------------------ dispatch
 
 def build_parser(prog=PROG) -> argparse.ArgumentParser:

@@ -802,6 +802,46 @@ static PyObject *World_tick_record(PyObject *obj, PyObject *args) {
     Py_RETURN_NONE;
 }
 
+static PyObject *World_step_hips(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    PyObject *hips_obj, *out;
+    int steps, fingers;
+    double dt;
+    unsigned long long first_tick;
+    if (!PyArg_ParseTuple(args, "OiidOK", &hips_obj, &steps, &fingers, &dt, &out, &first_tick) || !check_ready(self))
+        return NULL;
+    if (steps < 0 || fingers < 0) {
+        PyErr_SetString(PyExc_ValueError, "hips: expected (steps, fingers, 3)");
+        return NULL;
+    }
+    Py_buffer h, b;
+    if (PyObject_GetBuffer(hips_obj, &h, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
+    if (!h.format || strcmp(h.format, "d") != 0 ||
+        (size_t)h.len < (size_t)steps * (size_t)fingers * 3 * sizeof(double)) {
+        PyBuffer_Release(&h);
+        PyErr_SetString(PyExc_ValueError, "hips: must be a C-contiguous float64 array of (steps, fingers, 3)");
+        return NULL;
+    }
+    size_t record = gc_tick_record_size(gc_world_body_count(self->world), gc_world_finger_count(self->world));
+    int records = out != Py_None;       /* None: the steps alone (benchmarks) */
+    if (records && !writable_buffer(out, &b, record * (size_t)steps, "out")) {
+        PyBuffer_Release(&h);
+        return NULL;
+    }
+    gcStatus st;
+    atomic_store(&self->busy, 1);
+    Py_BEGIN_ALLOW_THREADS
+    st = gc_world_step_hips(self->world, h.buf, fingers, steps, dt, first_tick, records ? b.buf : NULL,
+                            records ? (size_t)b.len : 0, NULL);
+    Py_END_ALLOW_THREADS
+    atomic_store(&self->busy, 0);
+    if (records) PyBuffer_Release(&b);
+    PyBuffer_Release(&h);
+    if (st < 0) return raise_status(self, st);
+    if (warn_status(self, st) < 0) return NULL;
+    Py_RETURN_NONE;
+}
+
 static PyObject *World_set_tick_log(PyObject *obj, PyObject *arg) {
     WorldObject *self = (WorldObject *)obj;
     if (!check_ready(self)) return NULL;
@@ -1255,6 +1295,7 @@ static PyMethodDef World_methods[] = {
     {"_snapshot", World_snapshot, METH_NOARGS, "Low-level snapshot; use World.snapshot."},
     {"stats", World_stats, METH_NOARGS, "stats() -> dict: rates, jitter, overruns, adoption, inputs, safety."},
     {"_tick_record", World_tick_record, METH_VARARGS, "Low-level tick_record(buffer, tick); see graspcore.tick_log."},
+    {"_step_hips", World_step_hips, METH_VARARGS, "Low-level step_hips; use World.step_hips."},
     {"_set_tick_log", World_set_tick_log, METH_O, "Low-level set_tick_log(capacity)."},
     {"_drain_ticks", World_drain_ticks, METH_O, "Low-level drain_ticks(buffer) -> records copied."},
     {"tick_log_overflow", World_tick_log_overflow, METH_NOARGS,

@@ -229,6 +229,22 @@ class World(_core.World):
         self._tick_record(out, int(tick))
         return out
 
+    def step_hips(self, hips, dt: float, out: np.ndarray | None, first_tick: int = 1) -> np.ndarray | None:
+        """A HIP stream replayed in C with the GIL released: for each row of ``hips`` ((steps,
+        fingers, 3)), ``set_hips(row)``, ``step(dt)`` and the tick record (numbered
+        ``first_tick``, ``first_tick + 1``, ...) into ``out`` (a 1-d array of ``tick_dtype()``,
+        at least steps long; None: no records, the steps alone). Bit for bit those calls one
+        by one. Returns the filled part of ``out``."""
+        # aligned too: an array rebuilt by Dask's deserialiser may sit unaligned in its frame
+        h = np.require(hips, dtype=np.float64, requirements=["C_CONTIGUOUS", "ALIGNED"])
+        if h.ndim != 3 or h.shape[2] != 3:
+            raise ValueError(f"hips: expected a (steps, fingers, 3) array, got shape {h.shape}")
+        if out is not None and (out.dtype != self.tick_dtype() or out.ndim != 1 or not out.flags.c_contiguous
+                                or len(out) < len(h)):
+            raise ValueError(f"out: expected a C-contiguous 1-d array of World.tick_dtype(), at least {len(h)} long")
+        self._step_hips(h, int(h.shape[0]), int(h.shape[1]), float(dt), out, int(first_tick))
+        return None if out is None else out[:len(h)]
+
     def set_tick_log(self, capacity: int) -> None:
         """While stopped: keep the last ``capacity`` undrained haptic ticks (0 = off). start()
         sizes and empties the ring; a full ring drops ticks and counts them
