@@ -113,7 +113,11 @@ def _cross(a, b):
     """a x b over the last axis (np.cross, without its axis handling: this runs per snapshot)."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a1 * b2 - a2 * b1
+    out[..., 1] = a2 * b0 - a0 * b2
+    out[..., 2] = a0 * b1 - a1 * b0
+    return out
 
 
 def _rotate(q, v):
@@ -320,8 +324,8 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
 
     # Sets: runs of equal (snapshot, body).
     key = t_idx * (nb + 1) + b_idx
-    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]]) if len(key) else np.zeros(0, np.int64)
-    count = np.diff(np.r_[starts, len(key)])
+    starts = np.flatnonzero(np.concatenate(([True], key[1:] != key[:-1]))) if len(key) else np.zeros(0, np.int64)
+    count = np.diff(np.append(starts, len(key)))
     set_t, set_b = t_idx[starts], b_idx[starts]
     set_of = np.repeat(np.arange(len(starts)), count)
     centers = centres_of_mass(models, poses[set_t])[np.arange(len(starts)), set_b]
@@ -349,7 +353,7 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
         friction_needed = np.maximum.reduceat(needed, starts)
         min_margin = np.minimum.reduceat(margin, starts)
         at_min = np.flatnonzero(margin == min_margin[set_of])
-        first_at_min = at_min[np.r_[True, set_of[at_min][1:] != set_of[at_min][:-1]]]
+        first_at_min = at_min[np.concatenate(([True], set_of[at_min][1:] != set_of[at_min][:-1]))]
         min_finger = f_idx[first_at_min].astype(np.int32)
     else:
         grip = friction_needed = min_margin = np.zeros(0)
