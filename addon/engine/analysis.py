@@ -243,7 +243,7 @@ def _mu_min(core, point, normal, starts, count, centers, radii, edges, sets=None
     return out
 
 
-def _remembered(core, memo, point, normal, mu, starts, count, centers, radii, edges, volume):
+def _remembered(core, memo, point, normal, mu, starts, count, centers, radii, edges, volume, reuse):
     """grasp_quality_batch and mu_min of each set, the core asked only for sets not in memo (a
     body at rest in a still hand gives the same set, bit for bit, display update after update);
     memo then holds exactly these sets' answers."""
@@ -251,12 +251,13 @@ def _remembered(core, memo, point, normal, mu, starts, count, centers, radii, ed
              float(radii[i]), edges, bool(volume)) for i, (s, c) in enumerate(zip(starts, count))]
     new = [i for i, k in enumerate(keys) if k not in memo]
     if len(new) == len(keys):
-        fresh = core.grasp_quality_batch(point, normal, mu, count, centers, radii, edges=edges, volume=volume)
+        fresh = core.grasp_quality_batch(point, normal, mu, count, centers, radii, edges=edges, volume=volume,
+                                         reuse=reuse)
     elif new:
         rows = np.repeat(np.isin(np.arange(len(keys)), new), count)
         try:
             fresh = core.grasp_quality_batch(point[rows], normal[rows], mu[rows], count[new], centers[new],
-                                             radii[new], edges=edges, volume=volume)
+                                             radii[new], edges=edges, volume=volume, reuse=reuse)
         except ValueError as ex:    # "set j: ..." of the new sets: set new[j] of the call's
             numbered = re.match(r"set (\d+): (.*)", str(ex), re.S)
             if not numbered:
@@ -278,14 +279,17 @@ def _remembered(core, memo, point, normal, mu, starts, count, centers, radii, ed
 
 
 def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_bodies, finger_radii,
-                   accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True, memo=None) -> GraspTable:
+                   accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True, memo=None,
+                   reuse=False) -> GraspTable:
     """The measures for T snapshots at once: poses (T, nb, 7), god_objects / forces / normals
     (T, nf, 3), states / contact_bodies (T, nf), finger_radii (nf,), accelerations (T, nb, 3)
     of the centres of mass or None (0: the load is the weight). ``volume=False``: the core's
     fast path, without the 6-D hull (volume -1: not computed; every other measure the same).
     ``memo``: a dict kept by the caller between calls (the live view: one per session); a set
     of contacts equal bit for bit to one of the last call's gets that call's core answers (the
-    core's answers depend on nothing else), and the dict then holds this call's sets only."""
+    core's answers depend on nothing else), and the dict then holds this call's sets only.
+    ``reuse``: graspcore.grasp_quality_batch's (with volume=False: a set within rounding of one
+    the core answered lately gets that answer re-certified, not a new search)."""
     core = _core()
     poses = np.asarray(poses, dtype=np.float64)
     god_objects = np.asarray(god_objects, dtype=np.float64)
@@ -332,11 +336,12 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
     radii = np.array([m.radius for m in models] + [1.0])[set_b]
     try:
         if memo is None:
-            quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges, volume=volume)
+            quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges, volume=volume,
+                                               reuse=reuse)
             mu_min = _mu_min(core, point, n_in, starts, count, centers, radii, edges)
         else:
             quality, mu_min = _remembered(core, memo, point, n_in, mu, starts, count, centers, radii, edges,
-                                          volume)
+                                          volume, reuse)
     except ValueError as ex:
         # Name the snapshot and body whose contacts the core refused (the batch's message starts
         # with the set: "set 3: points: ...").
@@ -396,17 +401,18 @@ def body_grasps(table: GraspTable, sets=None) -> list:
 
 
 def analyse(models, poses, god_objects, forces, normals, states, contact_bodies, finger_radii,
-            accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True, memo=None) -> list:
+            accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True, memo=None, reuse=False) -> list:
     """The measures of one snapshot: one BodyGrasp per dynamic body with at least one finger in
     contact. Arrays as in the tick record: poses (nb, 7), god_objects, forces (the coupling
     spring force the finger exerts), normals (nf, 3), states, contact_bodies (nf,), finger_radii
     (nf,); accelerations (nb, 3) of the centres of mass, or None (0: the load is the weight).
     ``volume=False`` skips the grasp wrench space's volume (-1), the live view's choice; ``memo``
-    as in analyse_arrays."""
+    and ``reuse`` as in analyse_arrays."""
     one = lambda a, dtype=np.float64: np.asarray(a, dtype=dtype)[None]  # noqa: E731
     table = analyse_arrays(models, one(poses), one(god_objects), one(forces), one(normals),
                            one(states, np.int32), one(contact_bodies, np.int32), finger_radii,
-                           None if accelerations is None else one(accelerations), gravity, edges, volume, memo)
+                           None if accelerations is None else one(accelerations), gravity, edges, volume, memo,
+                           reuse)
     return body_grasps(table)
 
 

@@ -80,7 +80,7 @@ class GraspMonitor:
                                                snap.normals, snap.finger_states, snap.contacts,
                                                self.finger_radii, accelerations=acc, gravity=self.gravity,
                                                edges=self.edges, volume=False,  # the HUD shows no volume
-                                               memo=self._memo)
+                                               memo=self._memo, reuse=True)
             except ValueError as ex:    # one display update without numbers; the session goes on
                 self.error = str(ex)
         self.cost_s = time.perf_counter() - t0

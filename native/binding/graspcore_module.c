@@ -898,13 +898,13 @@ static PyObject *grasp_quality_dict(const gcGraspQuality *q) {
                          "rank", (int)q->rank, "facets", (int)q->facets);
 }
 
-/* _grasp_quality(points, normals, mu, center, radius, edges, volume): float64 buffers of 3n, 3n, n, 3;
- * volume a bool (gcGraspDef.volume). */
+/* _grasp_quality(points, normals, mu, center, radius, edges, volume, reuse): float64 buffers of 3n,
+ * 3n, n, 3; volume and reuse bools (gcGraspDef.volume, .reuse). */
 static PyObject *module_grasp_quality(PyObject *mod, PyObject *args) {
     PyObject *po, *no, *mo, *co;
     double radius;
-    int edges, volume;
-    if (!PyArg_ParseTuple(args, "OOOOdip", &po, &no, &mo, &co, &radius, &edges, &volume)) return NULL;
+    int edges, volume, reuse;
+    if (!PyArg_ParseTuple(args, "OOOOdipp", &po, &no, &mo, &co, &radius, &edges, &volume, &reuse)) return NULL;
     GraspBuffers g = {.n = 0};
     PyObject *result = NULL;
     if (take_buffer(&g, mo, 'd', -1, "mu", 0)) {
@@ -918,6 +918,7 @@ static PyObject *module_grasp_quality(PyObject *mod, PyObject *args) {
                 gcGraspDef def = gc_default_grasp_def();
                 def.edges = edges;
                 def.volume = volume;
+                def.reuse = reuse;
                 gcGraspQuality q;
                 gcStatus st;
                 Py_BEGIN_ALLOW_THREADS
@@ -932,12 +933,13 @@ static PyObject *module_grasp_quality(PyObject *mod, PyObject *args) {
     return result;
 }
 
-/* _grasp_quality_batch(points, normals, mu, counts (int32), centers, radii, edges, volume, out): out a
- * writable buffer of len(counts) * GRASP_QUALITY_SIZE bytes, filled with gcGraspQuality records. */
+/* _grasp_quality_batch(points, normals, mu, counts (int32), centers, radii, edges, volume, reuse, out):
+ * out a writable buffer of len(counts) * GRASP_QUALITY_SIZE bytes, filled with gcGraspQuality records. */
 static PyObject *module_grasp_quality_batch(PyObject *mod, PyObject *args) {
     PyObject *po, *no, *mo, *ko, *co, *ro, *oo;
-    int edges, volume;
-    if (!PyArg_ParseTuple(args, "OOOOOOipO", &po, &no, &mo, &ko, &co, &ro, &edges, &volume, &oo)) return NULL;
+    int edges, volume, reuse;
+    if (!PyArg_ParseTuple(args, "OOOOOOippO", &po, &no, &mo, &ko, &co, &ro, &edges, &volume, &reuse, &oo))
+        return NULL;
     GraspBuffers g = {.n = 0};
     PyObject *result = NULL;
     if (take_buffer(&g, mo, 'd', -1, "mu", 0) && take_buffer(&g, ko, 'i', -1, "counts", 0)) {
@@ -963,6 +965,7 @@ static PyObject *module_grasp_quality_batch(PyObject *mod, PyObject *args) {
                     gcGraspDef def = gc_default_grasp_def();
                     def.edges = edges;
                     def.volume = volume;
+                    def.reuse = reuse;
                     gcStatus st;
                     Py_BEGIN_ALLOW_THREADS
                     st = gc_grasp_quality_batch(ws, &def, g.b[2].buf, g.b[3].buf, g.b[0].buf, counts, (int)sets,

@@ -67,8 +67,21 @@ typedef struct Facet {
     int alive;
 } Facet;
 
+/* A set's answer kept for gcGraspDef.reuse: its edge wrenches, epsilon (from a search) and the
+ * points of its nearest facet. */
+#define GC_REUSE_SLOTS 4
+typedef struct ReuseSlot {
+    int rows, edges, cap;
+    double tolerance, epsilon;
+    double *wrench;     /* rows x 6 */
+    int vertices[D];
+} ReuseSlot;
+
 struct gcGraspWorkspace {
     char error[256];
+    ReuseSlot reuse[GC_REUSE_SLOTS];
+    int reuse_next;     /* the slot the next new set takes */
+    int nearest_vertices[D];    /* of the last quality_fast answer in closure */
     int cap_points;
     double *wrench;     /* cap_points x 6 */
     double *force;      /* cap_points x 3 */
@@ -144,6 +157,7 @@ void gc_grasp_workspace_destroy(gcGraspWorkspace *ws) {
     free(ws->facet_off);
     free(ws->lp);
     free(ws->lp_basis);
+    for (int k = 0; k < GC_REUSE_SLOTS; ++k) free(ws->reuse[k].wrench);
     free(ws);
 }
 
@@ -798,6 +812,7 @@ static GC_ALWAYS_INLINE gcStatus nearest_run(Hull *h, int d, gcHullSummary *out)
                 out->result = GC_HULL_FULL;
                 out->offset_max = F->off;
                 memcpy(out->nearest_normal, F->n, sizeof(double) * (size_t)d);
+                memcpy(out->nearest_vertices, F->v, sizeof(int) * (size_t)d);
                 return GC_OK;
             }
             exact_plane(h, F);
@@ -1188,6 +1203,7 @@ static gcStatus quality_fast(gcGraspWorkspace *ws, const gcGraspDef *def, int ro
     if (closed) {
         out->epsilon = -s.offset_max;
         memcpy(out->weakest, s.nearest_normal, sizeof out->weakest);
+        memcpy(ws->nearest_vertices, s.nearest_vertices, sizeof ws->nearest_vertices);
         /* The force and torque parts of a ball of radius epsilon about the origin are balls of
          * that radius in the projections, and their scales are no larger: both 3-D conditions hold. */
         out->force_only_closure = out->torque_closure = 1;
@@ -1222,6 +1238,95 @@ static gcStatus quality_of_built(gcGraspWorkspace *ws, const gcGraspDef *def, in
     return GC_OK;
 }
 
+/* gcGraspDef.reuse: the slot whose wrenches are nearest the set's (rows of ws->wrench), and that
+ * distance delta (the largest Euclidean distance between corresponding wrenches); -1 if no slot
+ * has as many rows, or every one is further than `limit`. */
+static int reuse_nearest_slot(const gcGraspWorkspace *ws, const gcGraspDef *def, int rows, double limit,
+                              double *delta) {
+    int best = -1;
+    double best2 = limit * limit;
+    for (int k = 0; k < GC_REUSE_SLOTS; ++k) {
+        const ReuseSlot *r = &ws->reuse[k];
+        if (r->rows != rows || r->edges != def->edges || r->tolerance != def->tolerance) continue;
+        double worst = 0.0;
+        for (int i = 0; i < rows && worst <= best2; ++i) {
+            double s = 0.0;
+            for (int c = 0; c < 6; ++c) {
+                double e = ws->wrench[6 * i + c] - r->wrench[6 * i + c];
+                s += e * e;
+            }
+            worst = fmax(worst, s);
+        }
+        if (worst <= best2) best2 = worst, best = k;
+    }
+    *delta = sqrt(best2);
+    return best;
+}
+
+/* gcGraspDef.reuse. Every wrench moved by at most delta from the slot's set, so every support
+ * value did, and epsilon (the least support value over unit directions) is at least the slot's
+ * less delta. The slot's nearest facet, its plane solved from the new wrenches, supports them all
+ * within the tolerance: epsilon is at most its support value. When the two bounds are within
+ * 1e-12 relative (and the lower one is past the tolerance, so the set is closed as a search would
+ * decide), that facet is the answer. 1 when it is. */
+static int reuse_answer(gcGraspWorkspace *ws, const gcGraspDef *def, int rows, gcGraspQuality *out) {
+    double scale = 0.0, delta;
+    for (int i = 0; i < rows; ++i) scale = fmax(scale, dotd(ws->wrench + 6 * i, ws->wrench + 6 * i, 6));
+    scale = sqrt(scale);
+    int k = reuse_nearest_slot(ws, def, rows, 1e-12 * scale, &delta);
+    if (k < 0) return 0;
+    const ReuseSlot *r = &ws->reuse[k];
+    Hull h;
+    memset(&h, 0, sizeof h);
+    h.ws = ws;
+    h.pts = ws->wrench;
+    h.n = rows;
+    h.d = 6;            /* h.c = 0, the origin: inside, so the plane is oriented outwards */
+    Facet F;
+    memset(&F, 0, sizeof F);
+    memcpy(F.v, r->vertices, sizeof F.v);
+    if (!exact_plane(&h, &F)) return 0;
+    double support = -INFINITY;
+    for (int i = 0; i < rows; ++i) support = fmax(support, dotd(F.n, ws->wrench + 6 * i, 6));
+    double lower = r->epsilon - delta, tol = def->tolerance * scale;
+    if (!(support + F.off <= tol) || !(lower > tol) || !(support - lower <= 1e-12 * support)) return 0;
+    memset(out, 0, sizeof *out);
+    out->force_closure = out->force_only_closure = out->torque_closure = 1;
+    out->rank = 6;
+    out->epsilon = -F.off;
+    memcpy(out->weakest, F.n, sizeof out->weakest);
+    out->volume = -1.0;
+    out->facets = -1;
+    return 1;
+}
+
+/* Keeps a closed set's answer (quality_fast's) for gcGraspDef.reuse, in the slot of the nearest
+ * remembered set of as many rows (within 1e-6 of the scale: the same body, moved on) or the
+ * oldest. */
+static gcStatus reuse_remember(gcGraspWorkspace *ws, const gcGraspDef *def, int rows, const gcGraspQuality *q) {
+    double scale = 0.0, delta;
+    for (int i = 0; i < rows; ++i) scale = fmax(scale, dotd(ws->wrench + 6 * i, ws->wrench + 6 * i, 6));
+    int k = reuse_nearest_slot(ws, def, rows, 1e-6 * sqrt(scale), &delta);
+    if (k < 0) {
+        k = ws->reuse_next;
+        ws->reuse_next = (k + 1) % GC_REUSE_SLOTS;
+    }
+    ReuseSlot *r = &ws->reuse[k];
+    r->rows = 0;
+    if (rows > r->cap) {
+        if (!grow((void **)&r->wrench, (size_t)rows * 6, sizeof(double)))
+            return set_error(ws, GC_ERR_NO_MEMORY, "workspace: out of memory");
+        r->cap = rows;
+    }
+    memcpy(r->wrench, ws->wrench, sizeof(double) * 6 * (size_t)rows);
+    memcpy(r->vertices, ws->nearest_vertices, sizeof r->vertices);
+    r->rows = rows;
+    r->edges = def->edges;
+    r->tolerance = def->tolerance;
+    r->epsilon = q->epsilon;
+    return GC_OK;
+}
+
 gcStatus gc_grasp_quality(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
                           const double *normals, const double *mu, int num_contacts, const double center[3],
                           double radius, gcGraspQuality *out) {
@@ -1237,7 +1342,10 @@ gcStatus gc_grasp_quality(gcGraspWorkspace *ws, const gcGraspDef *def, const dou
     int rows;
     if ((st = build_wrenches(ws, def->edges, points, normals, mu, 0.0, num_contacts, center, radius, &rows)) != GC_OK)
         return st;
-    return quality_of_built(ws, def, rows, out);
+    int reuse = def->reuse && !def->volume && rows > 6;
+    if (reuse && reuse_answer(ws, def, rows, out)) return GC_OK;
+    if ((st = quality_of_built(ws, def, rows, out)) != GC_OK) return st;
+    return reuse && out->force_closure ? reuse_remember(ws, def, rows, out) : GC_OK;
 }
 
 gcStatus gc_grasp_quality_batch(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,

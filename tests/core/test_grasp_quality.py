@@ -490,3 +490,63 @@ def test_recorded_held_box_against_qhull():
                         [0.99999198, 0.0, -0.00400405], [0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
     got = check_symmetric(points, normals, 0.8, np.array([0.00059994, 0.0, -0.00042283]), 0.05196152)
     assert got["force_closure"] and got["epsilon"] == pytest.approx(0.3306, abs=1e-4)
+
+
+def dithered(a, rng, ulps=4):
+    """a with every entry moved by up to `ulps` units in the last place (a still hand in the
+    threaded session: the haptic loop dithers the contacts in the last bits)."""
+    out = a.copy()
+    for _ in range(ulps):
+        out = np.where(rng.random(a.shape) < 0.5, np.nextafter(out, np.inf), np.nextafter(out, -np.inf))
+    return out
+
+
+def held_box_sets():
+    yield box_grasp(5, False, 4e-3, seed=3)
+    yield box_grasp(4, True, 1e-8, seed=4)
+    yield three_at_120(1e-3)
+    rng = np.random.default_rng(17)
+    for _ in range(3):
+        p, n, _, c, r = random_grasp(rng, 6)
+        yield p - c, n, r
+
+
+def test_reuse_answers_as_a_fresh_call():
+    """reuse=True: a set within rounding of one answered before gets its facet re-certified; the
+    answers must be a fresh call's to 1e-12 (epsilon, flags), the weakest direction a facet normal
+    at epsilon. Sets moved further (1e-7), or out of closure, must get exactly a fresh call's
+    answer. Two sets alternate (the live view's two bodies in one batch)."""
+    rng = np.random.default_rng(3)
+    sets = list(held_box_sets())
+    for (p, n, r), (q, m, s) in zip(sets, sets[1:] + sets[:1]):
+        for step in range(6):
+            for pts, nrm, rad in ((p, n, r), (q, m, s)):
+                if step == 3:
+                    pts = pts + 1e-7 * rng.normal(size=pts.shape)
+                elif step:
+                    pts, nrm = dithered(pts, rng), dithered(nrm, rng)
+                mu = 0.8 if step != 5 else 0.02
+                got = graspcore.grasp_quality(pts, nrm, mu, np.zeros(3), rad, volume=False, reuse=True)
+                fresh = graspcore.grasp_quality(pts, nrm, mu, np.zeros(3), rad, volume=False)
+                for flag in ("force_closure", "force_only_closure", "torque_closure", "rank"):
+                    assert got[flag] == fresh[flag], flag
+                assert got["epsilon"] == pytest.approx(fresh["epsilon"], rel=1e-12, abs=0.0)
+                if step in (3, 5):
+                    assert got == fresh     # no remembered set this close: a search, as without reuse
+                elif fresh["force_closure"]:
+                    w = edge_wrenches(pts, nrm, mu, np.zeros(3), rad, 8)
+                    assert supports_at(got["weakest"], w, got["epsilon"])
+    batch = graspcore.grasp_quality_batch(np.concatenate([sets[0][0], sets[1][0]]),
+                                          np.concatenate([sets[0][1], sets[1][1]]), 0.8, [5, 4],
+                                          np.zeros((2, 3)), [sets[0][2], sets[1][2]], volume=False, reuse=True)
+    for row, (p, n, r) in zip(batch, sets[:2]):
+        assert row["epsilon"] == pytest.approx(graspcore.grasp_quality(p, n, 0.8, np.zeros(3), r,
+                                                                       volume=False)["epsilon"], rel=1e-12)
+
+
+def test_reuse_is_a_bool_and_leaves_the_full_path_alone():
+    p, n, r = box_grasp(5, True)
+    with pytest.raises(ValueError, match=r"^reuse\b"):
+        graspcore.grasp_quality(p, n, 0.8, np.zeros(3), r, volume=False, reuse=1)
+    assert graspcore.grasp_quality(p, n, 0.8, np.zeros(3), r, reuse=True) == \
+        graspcore.grasp_quality(p, n, 0.8, np.zeros(3), r)

@@ -320,7 +320,8 @@ def _flag(value, name: str) -> bool:
     return bool(value)
 
 
-def grasp_quality(points, normals, mu, center, radius, edges: int = 8, volume: bool = True) -> dict:
+def grasp_quality(points, normals, mu, center, radius, edges: int = 8, volume: bool = True,
+                  reuse: bool = False) -> dict:
     """Quality of a grasp by point contacts with friction (docs/api.md "Grasp quality").
 
     points (n, 3) contact points, normals (n, 3) inward normals (into the object), mu one number
@@ -328,18 +329,21 @@ def grasp_quality(points, normals, mu, center, radius, edges: int = 8, volume: b
     linearised friction cone. Returns force_closure, force_only_closure, torque_closure, epsilon,
     volume, weakest (6 floats), rank, facets. volume=False takes the fast path (no 6-D hull:
     closure by a linear program, epsilon and weakest by support queries, the same values) and
-    returns volume -1.0 and facets -1 (not computed). Bad input raises ValueError naming the
-    argument."""
+    returns volume -1.0 and facets -1 (not computed). reuse=True (with volume=False): a set within
+    rounding of one of the last few answered in closure gets that answer's facet re-certified
+    instead of a new search (docs/api.md, "Reusing an answer"). Bad input raises ValueError naming
+    the argument."""
     points, normals, mu = _contacts(points, normals, mu)
     return _core._grasp_quality(points, normals, mu, _vector(center, 3, "center"), _number(radius, "radius"),
-                                _number(edges, "edges", int), _flag(volume, "volume"))
+                                _number(edges, "edges", int), _flag(volume, "volume"), _flag(reuse, "reuse"))
 
 
 def grasp_quality_batch(points, normals, mu, counts, centers, radii, edges: int = 8,
-                        volume: bool = True) -> np.ndarray:
+                        volume: bool = True, reuse: bool = False) -> np.ndarray:
     """grasp_quality of many contact sets: counts[s] contacts in set s, their rows of points,
     normals and mu (one number or one per row) concatenated; centers (m, 3), radii (m,).
-    volume as in grasp_quality (False: volume -1.0 and facets -1 in every row, much faster).
+    volume and reuse as in grasp_quality (volume False: volume -1.0 and facets -1 in every row,
+    much faster).
     Returns a structured array of GRASP_QUALITY_DTYPE, one row per set."""
     points, normals, mu = _contacts(points, normals, mu)
     try:
@@ -363,7 +367,7 @@ def grasp_quality_batch(points, normals, mu, counts, centers, radii, edges: int 
     if m:
         _core._grasp_quality_batch(points, normals, mu, counts_array, np.ascontiguousarray(centers_array),
                                    radii_array, _number(edges, "edges", int), _flag(volume, "volume"),
-                                   raw.view(np.uint8))
+                                   _flag(reuse, "reuse"), raw.view(np.uint8))
     out = np.zeros(m, dtype=GRASP_QUALITY_DTYPE)
     for name in GRASP_QUALITY_DTYPE.names:
         out[name] = raw[name]
