@@ -223,7 +223,7 @@ class GraspAnalysisError(ValueError):
         self.snapshot = snapshot
 
 
-def _mu_min(core, point, normal, starts, count, centers, radii, edges, sets=None) -> np.ndarray:
+def _mu_min(core, point, normal, starts, count, centers, radii, edges, sets=None, reuse=False) -> np.ndarray:
     """graspcore.grasp_mu_min of each set (a bisection: tens of hulls), once per distinct set:
     a body at rest in a still hand gives the same set, bit for bit, tick after tick. sets: the
     indices of the sets to answer (default all); the others' entries are left unset."""
@@ -235,7 +235,7 @@ def _mu_min(core, point, normal, starts, count, centers, radii, edges, sets=None
         if key not in seen:
             try:
                 seen[key] = core.grasp_mu_min(point[s:s + c], normal[s:s + c], centers[i], radii[i], edges=edges,
-                                              mu_max=MU_MAX)
+                                              mu_max=MU_MAX, reuse=reuse)
             except ValueError as ex:
                 ex.set_index = i
                 raise
@@ -267,7 +267,7 @@ def _remembered(core, memo, point, normal, mu, starts, count, centers, radii, ed
             raise err from None
     answers = {keys[i]: memo[keys[i]] for i in range(len(keys)) if keys[i] in memo}
     if new:
-        fresh_mu_min = _mu_min(core, point, normal, starts, count, centers, radii, edges, new)
+        fresh_mu_min = _mu_min(core, point, normal, starts, count, centers, radii, edges, new, reuse)
         answers.update((keys[i], (fresh[j], fresh_mu_min[i])) for j, i in enumerate(new))
     quality = np.empty(len(keys), dtype=fresh.dtype if new else answers[keys[0]][0].dtype) if keys else fresh
     mu_min = np.empty(len(keys))
@@ -288,7 +288,7 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
     ``memo``: a dict kept by the caller between calls (the live view: one per session); a set
     of contacts equal bit for bit to one of the last call's gets that call's core answers (the
     core's answers depend on nothing else), and the dict then holds this call's sets only.
-    ``reuse``: graspcore.grasp_quality_batch's (with volume=False: a set within rounding of one
+    ``reuse``: graspcore.grasp_quality_batch's and grasp_mu_min's (a set within rounding of one
     the core answered lately gets that answer re-certified, not a new search)."""
     core = _core()
     poses = np.asarray(poses, dtype=np.float64)
@@ -338,7 +338,7 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
         if memo is None:
             quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges, volume=volume,
                                                reuse=reuse)
-            mu_min = _mu_min(core, point, n_in, starts, count, centers, radii, edges)
+            mu_min = _mu_min(core, point, n_in, starts, count, centers, radii, edges, reuse=reuse)
         else:
             quality, mu_min = _remembered(core, memo, point, n_in, mu, starts, count, centers, radii, edges,
                                           volume, reuse)

@@ -981,12 +981,12 @@ static PyObject *module_grasp_quality_batch(PyObject *mod, PyObject *args) {
     return result;
 }
 
-/* _grasp_mu_min(points, normals, center, radius, edges, mu_max) -> float. */
+/* _grasp_mu_min(points, normals, center, radius, edges, mu_max, reuse) -> float. */
 static PyObject *module_grasp_mu_min(PyObject *mod, PyObject *args) {
     PyObject *po, *no, *co;
     double radius, mu_max;
-    int edges;
-    if (!PyArg_ParseTuple(args, "OOOdid", &po, &no, &co, &radius, &edges, &mu_max)) return NULL;
+    int edges, reuse;
+    if (!PyArg_ParseTuple(args, "OOOdidp", &po, &no, &co, &radius, &edges, &mu_max, &reuse)) return NULL;
     GraspBuffers g = {.n = 0};
     PyObject *result = NULL;
     if (take_buffer(&g, po, 'd', -1, "points", 0)) {
@@ -998,6 +998,7 @@ static PyObject *module_grasp_mu_min(PyObject *mod, PyObject *args) {
             if (ws) {
                 gcGraspDef def = gc_default_grasp_def();
                 def.edges = edges;
+                def.reuse = reuse;
                 double mu = 0.0;
                 gcStatus st;
                 Py_BEGIN_ALLOW_THREADS

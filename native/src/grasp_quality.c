@@ -77,8 +77,18 @@ typedef struct ReuseSlot {
     int vertices[D];
 } ReuseSlot;
 
+/* A mu_min answer kept for gcGraspDef.reuse: the contacts it was found for (points, normals,
+ * center, radius in one row) and mu_max. */
+typedef struct MuMinSlot {
+    int contacts, edges, cap;
+    double tolerance, mu_max, answer;
+    double *input;      /* 6 x contacts + 4 */
+} MuMinSlot;
+
 struct gcGraspWorkspace {
     char error[256];
+    MuMinSlot mu_min[GC_REUSE_SLOTS];
+    int mu_min_next;
     ReuseSlot reuse[GC_REUSE_SLOTS];
     int reuse_next;     /* the slot the next new set takes */
     int nearest_vertices[D];    /* of the last quality_fast answer in closure */
@@ -157,7 +167,7 @@ void gc_grasp_workspace_destroy(gcGraspWorkspace *ws) {
     free(ws->facet_off);
     free(ws->lp);
     free(ws->lp_basis);
-    for (int k = 0; k < GC_REUSE_SLOTS; ++k) free(ws->reuse[k].wrench);
+    for (int k = 0; k < GC_REUSE_SLOTS; ++k) free(ws->reuse[k].wrench), free(ws->mu_min[k].input);
     free(ws);
 }
 
@@ -1373,6 +1383,60 @@ gcStatus gc_grasp_quality_batch(gcGraspWorkspace *ws, const gcGraspDef *def, con
     return GC_OK;
 }
 
+/* gcGraspDef.reuse for mu_min: the remembered answer for contacts within 1e-9 of these (relative
+ * to their largest coordinate), or -1 (none). 'remember' stores `answer` for them instead. */
+static int mu_min_slot(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points, const double *normals,
+                       int num_contacts, const double center[3], double radius, double mu_max) {
+    for (int k = 0; k < GC_REUSE_SLOTS; ++k) {
+        const MuMinSlot *m = &ws->mu_min[k];
+        if (m->contacts != num_contacts || m->edges != def->edges || m->tolerance != def->tolerance ||
+            m->mu_max != mu_max)
+            continue;
+        double big = 0.0, diff = 0.0;
+        const double *x = m->input;
+        for (int i = 0; i < 3 * num_contacts; ++i) {
+            big = fmax(big, fmax(fabs(points[i]), fabs(normals[i])));
+            diff = fmax(diff, fmax(fabs(points[i] - x[i]), fabs(normals[i] - x[3 * num_contacts + i])));
+        }
+        for (int i = 0; i < 3; ++i) {
+            big = fmax(big, fabs(center[i]));
+            diff = fmax(diff, fabs(center[i] - x[6 * num_contacts + i]));
+        }
+        diff = fmax(diff, fabs(radius - x[6 * num_contacts + 3]) * big / radius);
+        if (diff <= 1e-9 * big) return k;
+    }
+    return -1;
+}
+
+static void mu_min_remember(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
+                            const double *normals, int num_contacts, const double center[3], double radius,
+                            double mu_max, double answer) {
+    int k = mu_min_slot(ws, def, points, normals, num_contacts, center, radius, mu_max);
+    if (k < 0) {
+        k = ws->mu_min_next;
+        ws->mu_min_next = (k + 1) % GC_REUSE_SLOTS;
+    }
+    MuMinSlot *m = &ws->mu_min[k];
+    m->contacts = -1;
+    if (6 * num_contacts + 4 > m->cap) {
+        if (!grow((void **)&m->input, (size_t)(6 * num_contacts + 4), sizeof(double))) return;  /* not kept */
+        m->cap = 6 * num_contacts + 4;
+    }
+    memcpy(m->input, points, sizeof(double) * 3 * (size_t)num_contacts);
+    memcpy(m->input + 3 * num_contacts, normals, sizeof(double) * 3 * (size_t)num_contacts);
+    memcpy(m->input + 6 * num_contacts, center, sizeof(double) * 3);
+    m->input[6 * num_contacts + 3] = radius;
+    m->contacts = num_contacts;
+    m->edges = def->edges;
+    m->tolerance = def->tolerance;
+    m->mu_max = mu_max;
+    m->answer = answer;
+}
+
+static gcStatus mu_min_search(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
+                              const double *normals, int num_contacts, const double center[3], double radius,
+                              double mu_max, double *out_mu);
+
 gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
                          const double *normals, int num_contacts, const double center[3], double radius,
                          double mu_max, double *out_mu) {
@@ -1386,6 +1450,48 @@ gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const doub
     if (st != GC_OK) return st;
     if (!(mu_max >= 0.0) || !isfinite(mu_max))
         return set_error(ws, GC_ERR_INVALID_ARGUMENT, "mu_max: %g, expected a finite number >= 0", mu_max);
+    if (!def->reuse || num_contacts < 1 || !points || !normals || !center)
+        return mu_min_search(ws, def, points, normals, num_contacts, center, radius, mu_max, out_mu);
+    /* Reuse: the remembered answer m for nearly these contacts, checked as the search would have
+     * left it: closed at m as grasp_quality decides, and open 2e-6 below by the LP (an LP "no" is
+     * never a "yes"); 0 closed at 0; inf open at mu_max. Else the search, remembered. */
+    int k = mu_min_slot(ws, def, points, normals, num_contacts, center, radius, mu_max);
+    if (k >= 0) {
+        double m = ws->mu_min[k].answer, t;
+        int rows, closed = 0, open = 0;
+        gcHullSummary summary;
+        if ((st = build_wrenches(ws, def->edges, points, normals, NULL, isfinite(m) ? m : mu_max, num_contacts,
+                                 center, radius, &rows)) != GC_OK)
+            return st;
+        if (isfinite(m)) {
+            if ((st = closure_fast(ws, def, ws->wrench, rows, 6, 0, &closed, NULL, &summary)) != GC_OK) return st;
+            if (closed && m > 0.0) {
+                if ((st = build_wrenches(ws, def->edges, points, normals, NULL, fmax(m - 2e-6, 0.0), num_contacts,
+                                         center, radius, &rows)) != GC_OK)
+                    return st;
+                open = closure_lp(ws, ws->wrench, rows, 6, NULL, &t) == GC_OK && t <= 0.5 * def->tolerance / rows;
+                ws->error[0] = '\0';
+            }
+            if (closed && (m == 0.0 || open)) {
+                *out_mu = m;
+                return GC_OK;
+            }
+        } else {
+            open = closure_lp(ws, ws->wrench, rows, 6, NULL, &t) == GC_OK && t <= 0.5 * def->tolerance / rows;
+            ws->error[0] = '\0';
+            if (open) return GC_OK;         /* *out_mu is INFINITY */
+        }
+    }
+    if ((st = mu_min_search(ws, def, points, normals, num_contacts, center, radius, mu_max, out_mu)) != GC_OK)
+        return st;
+    mu_min_remember(ws, def, points, normals, num_contacts, center, radius, mu_max, *out_mu);
+    return GC_OK;
+}
+
+static gcStatus mu_min_search(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
+                              const double *normals, int num_contacts, const double center[3], double radius,
+                              double mu_max, double *out_mu) {
+    gcStatus st;
     int rows, closed;
     double t;
     gcHullSummary summary;

@@ -707,6 +707,11 @@ static void test_reuse(gcGraspWorkspace *ws) {
         double len = 0.0;
         for (int k = 0; k < 6; ++k) len += q.weakest[k] * q.weakest[k];
         GC_CHECK_NEAR(len, 1.0, 1e-14, "reuse: weakest is a unit vector");
+        /* mu_min: remembered and checked (closed at it, open 2e-6 below), within 2e-6 of a search's. */
+        double m = -1.0, m_fresh = -1.0;
+        GC_CHECK(gc_grasp_mu_min(ws, &def, p, N, 5, c, r, 10.0, &m) == GC_OK, "reuse: mu_min status");
+        GC_CHECK(gc_grasp_mu_min(fresh_ws, &plain, p, N, 5, c, r, 10.0, &m_fresh) == GC_OK, "reuse: mu_min fresh");
+        GC_CHECK(m > 0.0 && fabs(m - m_fresh) <= 2e-6, "reuse %d: mu_min %.9g vs %.9g", step, m, m_fresh);
     }
     gc_grasp_workspace_destroy(fresh_ws);
 }

@@ -550,3 +550,31 @@ def test_reuse_is_a_bool_and_leaves_the_full_path_alone():
         graspcore.grasp_quality(p, n, 0.8, np.zeros(3), r, volume=False, reuse=1)
     assert graspcore.grasp_quality(p, n, 0.8, np.zeros(3), r, reuse=True) == \
         graspcore.grasp_quality(p, n, 0.8, np.zeros(3), r)
+
+
+def test_mu_min_reuse_answers_as_a_search():
+    """grasp_mu_min(reuse=True) on contacts within rounding of ones it answered: an answer the
+    search could have given (closed there as grasp_quality decides, not closed 2e-6 below, within
+    2e-6 of a fresh search's); contacts moved by 1e-7: exactly a fresh search's. Includes a pinch
+    that never closes (inf) and a frictionless closure (0)."""
+    rng = np.random.default_rng(8)
+    p, n, _, c, r = random_grasp(np.random.default_rng(0), 12)      # closed without friction
+    sets = [s for s in held_box_sets()] + [box_grasp(2, False), (p - c, n, r)]
+    answers = set()
+    for p, n, r in sets:
+        first = graspcore.grasp_mu_min(p, n, np.zeros(3), r, reuse=True)
+        for step in range(4):
+            q, m = (p + 1e-7 * rng.normal(size=p.shape), n) if step == 3 else (dithered(p, rng), dithered(n, rng))
+            got = graspcore.grasp_mu_min(q, m, np.zeros(3), r, reuse=True)
+            fresh = graspcore.grasp_mu_min(q, m, np.zeros(3), r)
+            if step == 3:
+                assert got == fresh
+            elif math.isinf(fresh):
+                assert math.isinf(got)
+            else:
+                assert got == pytest.approx(fresh, abs=2e-6)
+                assert graspcore.grasp_quality(q, m, got, np.zeros(3), r, volume=False)["force_closure"]
+                if got > 2e-6:
+                    assert not graspcore.grasp_quality(q, m, got - 2e-6, np.zeros(3), r, volume=False)["force_closure"]
+        answers.add("inf" if math.isinf(first) else "0" if first == 0 else "mu")
+    assert answers == {"inf", "0", "mu"}

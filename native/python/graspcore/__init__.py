@@ -374,10 +374,13 @@ def grasp_quality_batch(points, normals, mu, counts, centers, radii, edges: int 
     return out
 
 
-def grasp_mu_min(points, normals, center, radius, edges: int = 8, mu_max: float = 10.0) -> float:
+def grasp_mu_min(points, normals, center, radius, edges: int = 8, mu_max: float = 10.0,
+                 reuse: bool = False) -> float:
     """The smallest friction coefficient (the same at every contact) at which the contact set is
     in force closure, by bisection to 1e-6 (each step the closure linear program, no hull); 0.0 for
-    frictionless closure, math.inf when not in closure at mu_max."""
+    frictionless closure, math.inf when not in closure at mu_max. reuse=True: the answer for
+    contacts within 1e-9 of one of the last few, checked (closed there, open 2e-6 below), instead
+    of a new search (docs/api.md, "Reusing an answer")."""
     points, normals, _ = _contacts(points, normals, 0.0)
     return _core._grasp_mu_min(points, normals, _vector(center, 3, "center"), _number(radius, "radius"),
-                               _number(edges, "edges", int), _number(mu_max, "mu_max"))
+                               _number(edges, "edges", int), _number(mu_max, "mu_max"), _flag(reuse, "reuse"))
