@@ -80,9 +80,10 @@ typedef struct ReuseSlot {
 /* A mu_min answer kept for gcGraspDef.reuse: the contacts it was found for (points, normals,
  * center, radius in one row) and mu_max. */
 typedef struct MuMinSlot {
-    int contacts, edges, cap;
+    int contacts, edges, cap, rows;
     double tolerance, mu_max, answer;
-    double *input;      /* 6 x contacts + 4 */
+    double margin;      /* the support search's epsilon at the answer, 0 when the LP decided there */
+    double *input;      /* 6 x contacts + 4, then rows x 6: the edge wrenches at the answer */
 } MuMinSlot;
 
 struct gcGraspWorkspace {
@@ -996,7 +997,10 @@ static gcStatus closure_lp(gcGraspWorkspace *ws, const double *points, int n, in
             obj[rhs] -= pr[rhs];
         }
         res = lp_minimise(T, basis, rows, cols, art + rows, cap);
-        if (res == 0)
+        /* -1 ("unbounded") cannot happen in exact arithmetic (the artificials' sum is >= 0); in
+         * rounding it stops phase 1 short of a feasible point and would read as "t < -1" (three
+         * fingers at 120 degrees tilted by 1e-3, mu 10, t* 0.04, did): not converged either. */
+        if (res <= 0)
             return set_error(ws, GC_ERR_DEGENERATE, "points: the closure LP did not converge in %d pivots", cap);
         if (-obj[rhs] > 1e-9 * (1.0 + n)) return GC_OK;   /* infeasible: t < -1, the origin is far outside */
         /* Artificials still basic (at zero) leave for any structural column; a row with none is
@@ -1026,7 +1030,7 @@ static gcStatus closure_lp(gcGraspWorkspace *ws, const double *points, int n, in
             obj[tau] = 0.0;
         }
     res = lp_minimise(T, basis, rows, cols, art, cap);
-    if (res == 0) return set_error(ws, GC_ERR_DEGENERATE, "points: the closure LP did not converge in %d pivots", cap);
+    if (res <= 0) return set_error(ws, GC_ERR_DEGENERATE, "points: the closure LP did not converge in %d pivots", cap);
     double tau_value = 0.0;
     int structural = 1;
     for (int r = 0; r < rows; ++r) {
@@ -1408,9 +1412,10 @@ static int mu_min_slot(gcGraspWorkspace *ws, const gcGraspDef *def, const double
     return -1;
 }
 
+/* Keeps answer (and, margin > 0, the rows edge wrenches at it in ws->wrench) for these contacts. */
 static void mu_min_remember(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
                             const double *normals, int num_contacts, const double center[3], double radius,
-                            double mu_max, double answer) {
+                            double mu_max, double answer, double margin, int rows) {
     int k = mu_min_slot(ws, def, points, normals, num_contacts, center, radius, mu_max);
     if (k < 0) {
         k = ws->mu_min_next;
@@ -1418,10 +1423,14 @@ static void mu_min_remember(gcGraspWorkspace *ws, const gcGraspDef *def, const d
     }
     MuMinSlot *m = &ws->mu_min[k];
     m->contacts = -1;
-    if (6 * num_contacts + 4 > m->cap) {
-        if (!grow((void **)&m->input, (size_t)(6 * num_contacts + 4), sizeof(double))) return;  /* not kept */
-        m->cap = 6 * num_contacts + 4;
+    int need = 6 * num_contacts + 4 + (margin > 0.0 ? 6 * rows : 0);
+    if (need > m->cap) {
+        if (!grow((void **)&m->input, (size_t)need, sizeof(double))) return;  /* not kept */
+        m->cap = need;
     }
+    m->margin = margin > 0.0 ? margin : 0.0;
+    m->rows = m->margin > 0.0 ? rows : 0;
+    memcpy(m->input + 6 * num_contacts + 4, ws->wrench, sizeof(double) * 6 * (size_t)m->rows);
     memcpy(m->input, points, sizeof(double) * 3 * (size_t)num_contacts);
     memcpy(m->input + 3 * num_contacts, normals, sizeof(double) * 3 * (size_t)num_contacts);
     memcpy(m->input + 6 * num_contacts, center, sizeof(double) * 3);
@@ -1435,7 +1444,34 @@ static void mu_min_remember(gcGraspWorkspace *ws, const gcGraspDef *def, const d
 
 static gcStatus mu_min_search(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
                               const double *normals, int num_contacts, const double center[3], double radius,
-                              double mu_max, double *out_mu);
+                              double mu_max, double *out_mu, double *margin, int *rows_at);
+
+/* Closed at the remembered answer of slot m (its wrenches now in ws->wrench, rows of them), as
+ * grasp_quality decides: when the support search decided it there (margin > 0, its epsilon) and
+ * every wrench moved by delta, epsilon is at least margin - delta now, and more than twice the
+ * tolerance of that settles it without a search; else closure_fast. */
+static gcStatus mu_min_closed_again(gcGraspWorkspace *ws, const gcGraspDef *def, const MuMinSlot *m, int rows,
+                                    int *closed) {
+    if (m->margin > 0.0 && m->rows == rows) {
+        const double *old = m->input + 6 * m->contacts + 4;
+        double scale = 0.0, delta = 0.0;
+        for (int i = 0; i < rows; ++i) {
+            double s2 = 0.0;
+            for (int c = 0; c < 6; ++c) {
+                double e = ws->wrench[6 * i + c] - old[6 * i + c];
+                s2 += e * e;
+            }
+            delta = fmax(delta, s2);
+            scale = fmax(scale, dotd(ws->wrench + 6 * i, ws->wrench + 6 * i, 6));
+        }
+        if (m->margin - sqrt(delta) > 2.0 * def->tolerance * sqrt(scale)) {
+            *closed = 1;
+            return GC_OK;
+        }
+    }
+    gcHullSummary summary;
+    return closure_fast(ws, def, ws->wrench, rows, 6, 0, closed, NULL, &summary);
+}
 
 gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
                          const double *normals, int num_contacts, const double center[3], double radius,
@@ -1450,27 +1486,32 @@ gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const doub
     if (st != GC_OK) return st;
     if (!(mu_max >= 0.0) || !isfinite(mu_max))
         return set_error(ws, GC_ERR_INVALID_ARGUMENT, "mu_max: %g, expected a finite number >= 0", mu_max);
+    double margin = 0.0;
+    int rows_at = 0;
     if (!def->reuse || num_contacts < 1 || !points || !normals || !center)
-        return mu_min_search(ws, def, points, normals, num_contacts, center, radius, mu_max, out_mu);
+        return mu_min_search(ws, def, points, normals, num_contacts, center, radius, mu_max, out_mu, &margin,
+                             &rows_at);
     /* Reuse: the remembered answer m for nearly these contacts, checked as the search would have
-     * left it: closed at m as grasp_quality decides, and open 2e-6 below by the LP (an LP "no" is
-     * never a "yes"); 0 closed at 0; inf open at mu_max. Else the search, remembered. */
+     * left it: closed at m and open 2e-6 below, as grasp_quality decides (the LP, which settles
+     * both away from the boundary); 0 closed at 0; inf open at mu_max by the LP (an LP "no" is
+     * never a "yes"). Else the search, remembered. */
     int k = mu_min_slot(ws, def, points, normals, num_contacts, center, radius, mu_max);
     if (k >= 0) {
         double m = ws->mu_min[k].answer, t;
         int rows, closed = 0, open = 0;
-        gcHullSummary summary;
         if ((st = build_wrenches(ws, def->edges, points, normals, NULL, isfinite(m) ? m : mu_max, num_contacts,
                                  center, radius, &rows)) != GC_OK)
             return st;
         if (isfinite(m)) {
-            if ((st = closure_fast(ws, def, ws->wrench, rows, 6, 0, &closed, NULL, &summary)) != GC_OK) return st;
+            if ((st = mu_min_closed_again(ws, def, &ws->mu_min[k], rows, &closed)) != GC_OK) return st;
             if (closed && m > 0.0) {
                 if ((st = build_wrenches(ws, def->edges, points, normals, NULL, fmax(m - 2e-6, 0.0), num_contacts,
                                          center, radius, &rows)) != GC_OK)
                     return st;
-                open = closure_lp(ws, ws->wrench, rows, 6, NULL, &t) == GC_OK && t <= 0.5 * def->tolerance / rows;
-                ws->error[0] = '\0';
+                gcHullSummary summary;
+                int below = 1;
+                if ((st = closure_fast(ws, def, ws->wrench, rows, 6, 0, &below, NULL, &summary)) != GC_OK) return st;
+                open = !below;
             }
             if (closed && (m == 0.0 || open)) {
                 *out_mu = m;
@@ -1482,17 +1523,22 @@ gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const doub
             if (open) return GC_OK;         /* *out_mu is INFINITY */
         }
     }
-    if ((st = mu_min_search(ws, def, points, normals, num_contacts, center, radius, mu_max, out_mu)) != GC_OK)
+    if ((st = mu_min_search(ws, def, points, normals, num_contacts, center, radius, mu_max, out_mu, &margin,
+                            &rows_at)) != GC_OK)
         return st;
-    mu_min_remember(ws, def, points, normals, num_contacts, center, radius, mu_max, *out_mu);
+    mu_min_remember(ws, def, points, normals, num_contacts, center, radius, mu_max, *out_mu, margin, rows_at);
     return GC_OK;
 }
 
+/* The search; for a finite answer, *margin is the support search's epsilon there (0 when the LP
+ * decided) and ws->wrench holds its *rows_at edge wrenches. */
 static gcStatus mu_min_search(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
                               const double *normals, int num_contacts, const double center[3], double radius,
-                              double mu_max, double *out_mu) {
+                              double mu_max, double *out_mu, double *margin, int *rows_at) {
     gcStatus st;
     int rows, closed;
+    *margin = 0.0;
+    *rows_at = 0;
     double t;
     gcHullSummary summary;
     /* In closure at mu as grasp_quality answers it (the LP, then the support search). */
@@ -1506,6 +1552,8 @@ static gcStatus mu_min_search(gcGraspWorkspace *ws, const gcGraspDef *def, const
     CLOSED_AT(0.0);     /* one wrench per contact */
     if (closed) {
         *out_mu = 0.0;
+        *margin = summary.facets == -1 ? -summary.offset_max : 0.0;
+        *rows_at = rows;
         return GC_OK;
     }
     /* The same LP with the margin it found: g(mu) = mu (t*(mu) - threshold), > 0 exactly when
@@ -1616,5 +1664,7 @@ static gcStatus mu_min_search(gcGraspWorkspace *ws, const gcGraspDef *def, const
     }
 #undef CLOSED_AT
     *out_mu = hi;
+    *margin = summary.facets == -1 ? -summary.offset_max : 0.0;   /* the search ran (facets -1) */
+    *rows_at = rows;
     return GC_OK;
 }
