@@ -883,10 +883,10 @@ static void lp_pivot(double *T, int rows, int cols, int r, int c) {
 
 /* Minimises the objective row (row `rows`) over the columns [0, allowed). 1 when optimal, 0 when
  * the cap was reached; -1 unbounded (cannot happen here: tau <= (1 + n) / n). */
-static int lp_minimise(double *T, int *basis, int rows, int cols, int allowed, int cap) {
+static int lp_minimise(double *T, int *basis, int rows, int cols, int allowed, int cap, int bland) {
     const double cost_eps = 1e-12, pivot_eps = 1e-11;
     double *obj = T + (size_t)rows * cols;
-    int rhs = cols - 1, degenerate_run = 0, bland = 0;
+    int rhs = cols - 1, degenerate_run = 0;
     for (int it = 0; it < cap; ++it) {
         int enter = -1;
         double most = -cost_eps;
@@ -985,22 +985,26 @@ static gcStatus closure_lp(gcGraspWorkspace *ws, const double *points, int n, in
     double *obj = T + (size_t)rows * cols;
     lp_fill(T, points, n, d, cols, inv);
     if (!has_warm || !lp_warm_basis(T, basis, rows, cols, start)) {
-        if (has_warm) lp_fill(T, points, n, d, cols, inv);
-        /* Phase 1: artificial a_r in row r (rows with a negative right-hand side negated first). */
-        for (int r = 0; r < rows; ++r) {
-            double *pr = T + (size_t)r * cols;
-            if (pr[rhs] < 0.0)
-                for (int k = 0; k < cols; ++k) pr[k] = -pr[k];
-            pr[art + r] = 1.0;
-            basis[r] = art + r;
-            for (int k = 0; k < art; ++k) obj[k] -= pr[k];
-            obj[rhs] -= pr[rhs];
+        /* Phase 1: artificial a_r in row r (rows with a negative right-hand side negated first).
+         * It cannot be unbounded in exact arithmetic (the artificials' sum is >= 0); a stop on
+         * "unbounded" is rounding, short of a feasible point, and would read as "t < -1" (three
+         * fingers at 120 degrees tilted by 1e-3, mu 10, t* 0.04, did): phase 1 again with
+         * Bland's rule from the start, which takes another path. */
+        for (int attempt = 0; attempt < 2; ++attempt) {
+            if (has_warm || attempt) lp_fill(T, points, n, d, cols, inv);
+            for (int r = 0; r < rows; ++r) {
+                double *pr = T + (size_t)r * cols;
+                if (pr[rhs] < 0.0)
+                    for (int k = 0; k < cols; ++k) pr[k] = -pr[k];
+                pr[art + r] = 1.0;
+                basis[r] = art + r;
+                for (int k = 0; k < art; ++k) obj[k] -= pr[k];
+                obj[rhs] -= pr[rhs];
+            }
+            res = lp_minimise(T, basis, rows, cols, art + rows, cap, attempt);
+            if (res != -1) break;
         }
-        res = lp_minimise(T, basis, rows, cols, art + rows, cap);
-        /* -1 ("unbounded") cannot happen in exact arithmetic (the artificials' sum is >= 0); in
-         * rounding it stops phase 1 short of a feasible point and would read as "t < -1" (three
-         * fingers at 120 degrees tilted by 1e-3, mu 10, t* 0.04, did): not converged either. */
-        if (res <= 0)
+        if (res == 0)
             return set_error(ws, GC_ERR_DEGENERATE, "points: the closure LP did not converge in %d pivots", cap);
         if (-obj[rhs] > 1e-9 * (1.0 + n)) return GC_OK;   /* infeasible: t < -1, the origin is far outside */
         /* Artificials still basic (at zero) leave for any structural column; a row with none is
@@ -1029,8 +1033,8 @@ static gcStatus closure_lp(gcGraspWorkspace *ws, const double *points, int n, in
             for (int k = 0; k < cols; ++k) obj[k] += pr[k];
             obj[tau] = 0.0;
         }
-    res = lp_minimise(T, basis, rows, cols, art, cap);
-    if (res <= 0) return set_error(ws, GC_ERR_DEGENERATE, "points: the closure LP did not converge in %d pivots", cap);
+    res = lp_minimise(T, basis, rows, cols, art, cap, 0);
+    if (res == 0) return set_error(ws, GC_ERR_DEGENERATE, "points: the closure LP did not converge in %d pivots", cap);
     double tau_value = 0.0;
     int structural = 1;
     for (int r = 0; r < rows; ++r) {

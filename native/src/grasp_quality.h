@@ -47,7 +47,7 @@ gcStatus gc_hull_nearest(gcGraspWorkspace *ws, const double *points, int n, int 
 /* The closure LP: *t_max = the largest t with sum lambda_i x_i = 0, sum lambda_i = 1,
  * lambda_i >= t over n points of dimension d (1..6); > 0 exactly when the origin is in the
  * relative interior of their hull. -INFINITY when t < -1 or there are no points.
- * GC_ERR_DEGENERATE if the simplex method hits its pivot cap or stops on a rounding artefact. */
+ * GC_ERR_DEGENERATE if the simplex method hits its pivot cap. */
 gcStatus gc_closure_lp(gcGraspWorkspace *ws, const double *points, int n, int d, double *t_max);
 
 #endif
