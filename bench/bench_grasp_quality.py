@@ -19,7 +19,7 @@ scipy is reported beside it.
 - mu_min: ``grasp_mu_min`` of the same contacts (mu_max 10).
 
 Per set the median of its repeats; per row the median over the sets, and the ratios of the
-medians. Target: the fast path >= 100x faster than scipy at 8 edges. Then the live analysis's
+medians. One more row: the live session's held box (HELD_BOX), the fast path's worst case here. Target: the fast path >= 100x faster than scipy at 8 edges. Then the live analysis's
 core work per display update (2 bodies x 5 contacts: grasp_quality without volume and
 grasp_mu_min for each), and the batch: grasp_quality_batch over many sets in one call beside
 a Python loop of single calls, with and without the volume.
