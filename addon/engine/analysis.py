@@ -223,19 +223,30 @@ class GraspAnalysisError(ValueError):
         self.snapshot = snapshot
 
 
-def _mu_min(core, point, normal, starts, count, centers, radii, edges, sets=None, reuse=False) -> np.ndarray:
-    """graspcore.grasp_mu_min of each set (a bisection: tens of hulls), once per distinct set:
-    a body at rest in a still hand gives the same set, bit for bit, tick after tick. sets: the
-    indices of the sets to answer (default all); the others' entries are left unset."""
+def _mu_min(core, point, normal, mu, quality, starts, count, centers, radii, edges, sets=None,
+            reuse=False) -> np.ndarray:
+    """graspcore.grasp_mu_min of each set (a root search over tens of LPs), once per distinct set:
+    a body at rest in a still hand gives the same set, bit for bit, tick after tick. What the
+    set's quality at its own friction already says is not searched again: with every mu > 0 the
+    edge wrenches span the same space at any friction, so a set of rank < 6 (two contacts, one)
+    is in closure at none (inf); a set in closure at its own mu is in closure at the largest of
+    them (closure grows with each contact's mu), which bounds the search. sets: the indices of
+    the sets to answer (default all; quality's rows of the others are not read, their entries
+    are left unset); reuse: grasp_mu_min's."""
     out = np.empty(len(starts))
     seen = {}
     for i in range(len(starts)) if sets is None else sets:
         s, c = starts[i], count[i]
-        key = (point[s:s + c].tobytes(), normal[s:s + c].tobytes(), centers[i].tobytes(), float(radii[i]))
+        mu_set = mu[s:s + c]
+        if quality["rank"][i] < 6 and np.all(mu_set > 0):
+            out[i] = np.inf
+            continue
+        bound = min(float(np.max(mu_set)) if quality["force_closure"][i] else MU_MAX, MU_MAX)
+        key = (point[s:s + c].tobytes(), normal[s:s + c].tobytes(), centers[i].tobytes(), float(radii[i]), bound)
         if key not in seen:
             try:
                 seen[key] = core.grasp_mu_min(point[s:s + c], normal[s:s + c], centers[i], radii[i], edges=edges,
-                                              mu_max=MU_MAX, reuse=reuse)
+                                              mu_max=bound, reuse=reuse)
             except ValueError as ex:
                 ex.set_index = i
                 raise
@@ -267,7 +278,9 @@ def _remembered(core, memo, point, normal, mu, starts, count, centers, radii, ed
             raise err from None
     answers = {keys[i]: memo[keys[i]] for i in range(len(keys)) if keys[i] in memo}
     if new:
-        fresh_mu_min = _mu_min(core, point, normal, starts, count, centers, radii, edges, new, reuse)
+        by_set = np.zeros(len(keys), dtype=fresh.dtype)
+        by_set[new] = fresh
+        fresh_mu_min = _mu_min(core, point, normal, mu, by_set, starts, count, centers, radii, edges, new, reuse)
         answers.update((keys[i], (fresh[j], fresh_mu_min[i])) for j, i in enumerate(new))
     quality = np.empty(len(keys), dtype=fresh.dtype if new else answers[keys[0]][0].dtype) if keys else fresh
     mu_min = np.empty(len(keys))
@@ -338,7 +351,7 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
         if memo is None:
             quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges, volume=volume,
                                                reuse=reuse)
-            mu_min = _mu_min(core, point, n_in, starts, count, centers, radii, edges, reuse=reuse)
+            mu_min = _mu_min(core, point, n_in, mu, quality, starts, count, centers, radii, edges, reuse=reuse)
         else:
             quality, mu_min = _remembered(core, memo, point, n_in, mu, starts, count, centers, radii, edges,
                                           volume, reuse)
