@@ -947,13 +947,13 @@ static PyObject *grasp_quality_dict(const gcGraspQuality *q) {
                          "rank", (int)q->rank, "facets", (int)q->facets);
 }
 
-/* _grasp_quality(points, normals, mu, center, radius, edges, volume): float64 buffers of 3n, 3n, n, 3;
- * volume a bool (gcGraspDef.volume). */
+/* _grasp_quality(points, normals, mu, center, radius, edges, volume, reuse): float64 buffers of 3n,
+ * 3n, n, 3; volume and reuse bools (gcGraspDef.volume, .reuse). */
 static PyObject *module_grasp_quality(PyObject *mod, PyObject *args) {
     PyObject *po, *no, *mo, *co;
     double radius;
-    int edges, volume;
-    if (!PyArg_ParseTuple(args, "OOOOdip", &po, &no, &mo, &co, &radius, &edges, &volume)) return NULL;
+    int edges, volume, reuse;
+    if (!PyArg_ParseTuple(args, "OOOOdipp", &po, &no, &mo, &co, &radius, &edges, &volume, &reuse)) return NULL;
     GraspBuffers g = {.n = 0};
     PyObject *result = NULL;
     if (take_buffer(&g, mo, 'd', -1, "mu", 0)) {
@@ -967,6 +967,7 @@ static PyObject *module_grasp_quality(PyObject *mod, PyObject *args) {
                 gcGraspDef def = gc_default_grasp_def();
                 def.edges = edges;
                 def.volume = volume;
+                def.reuse = reuse;
                 gcGraspQuality q;
                 gcStatus st;
                 Py_BEGIN_ALLOW_THREADS
@@ -981,12 +982,13 @@ static PyObject *module_grasp_quality(PyObject *mod, PyObject *args) {
     return result;
 }
 
-/* _grasp_quality_batch(points, normals, mu, counts (int32), centers, radii, edges, volume, out): out a
- * writable buffer of len(counts) * GRASP_QUALITY_SIZE bytes, filled with gcGraspQuality records. */
+/* _grasp_quality_batch(points, normals, mu, counts (int32), centers, radii, edges, volume, reuse, out):
+ * out a writable buffer of len(counts) * GRASP_QUALITY_SIZE bytes, filled with gcGraspQuality records. */
 static PyObject *module_grasp_quality_batch(PyObject *mod, PyObject *args) {
     PyObject *po, *no, *mo, *ko, *co, *ro, *oo;
-    int edges, volume;
-    if (!PyArg_ParseTuple(args, "OOOOOOipO", &po, &no, &mo, &ko, &co, &ro, &edges, &volume, &oo)) return NULL;
+    int edges, volume, reuse;
+    if (!PyArg_ParseTuple(args, "OOOOOOippO", &po, &no, &mo, &ko, &co, &ro, &edges, &volume, &reuse, &oo))
+        return NULL;
     GraspBuffers g = {.n = 0};
     PyObject *result = NULL;
     if (take_buffer(&g, mo, 'd', -1, "mu", 0) && take_buffer(&g, ko, 'i', -1, "counts", 0)) {
@@ -1012,6 +1014,7 @@ static PyObject *module_grasp_quality_batch(PyObject *mod, PyObject *args) {
                     gcGraspDef def = gc_default_grasp_def();
                     def.edges = edges;
                     def.volume = volume;
+                    def.reuse = reuse;
                     gcStatus st;
                     Py_BEGIN_ALLOW_THREADS
                     st = gc_grasp_quality_batch(ws, &def, g.b[2].buf, g.b[3].buf, g.b[0].buf, counts, (int)sets,
@@ -1027,12 +1030,12 @@ static PyObject *module_grasp_quality_batch(PyObject *mod, PyObject *args) {
     return result;
 }
 
-/* _grasp_mu_min(points, normals, center, radius, edges, mu_max) -> float. */
+/* _grasp_mu_min(points, normals, center, radius, edges, mu_max, reuse) -> float. */
 static PyObject *module_grasp_mu_min(PyObject *mod, PyObject *args) {
     PyObject *po, *no, *co;
     double radius, mu_max;
-    int edges;
-    if (!PyArg_ParseTuple(args, "OOOdid", &po, &no, &co, &radius, &edges, &mu_max)) return NULL;
+    int edges, reuse;
+    if (!PyArg_ParseTuple(args, "OOOdidp", &po, &no, &co, &radius, &edges, &mu_max, &reuse)) return NULL;
     GraspBuffers g = {.n = 0};
     PyObject *result = NULL;
     if (take_buffer(&g, po, 'd', -1, "points", 0)) {
@@ -1044,6 +1047,7 @@ static PyObject *module_grasp_mu_min(PyObject *mod, PyObject *args) {
             if (ws) {
                 gcGraspDef def = gc_default_grasp_def();
                 def.edges = edges;
+                def.reuse = reuse;
                 double mu = 0.0;
                 gcStatus st;
                 Py_BEGIN_ALLOW_THREADS

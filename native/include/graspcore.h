@@ -426,6 +426,15 @@ typedef struct gcGraspDef {
                              * 0: the fast path, no hull: closure flags by a linear program, epsilon
                              * and weakest by support queries (the same values); volume and facets
                              * are then -1 (not computed) */
+    int reuse;              /* 0 (default). 1, with volume 0: the workspace keeps the answers of the
+                             * last few sets it found in closure; a set whose edge wrenches are each
+                             * within delta of one of those (same count), delta so small that the
+                             * remembered epsilon less delta and the support of the same facet
+                             * re-solved from the new wrenches are within 1e-12 relative, gets that
+                             * facet (epsilon, weakest) without a new search: a held body in a still
+                             * hand, whose contacts the haptic loop dithers in the last bits. Exact to
+                             * those 1e-12; among equally near facets the weakest direction may be
+                             * another than a fresh call's */
 } gcGraspDef;
 gcGraspDef gc_default_grasp_def(void);
 

@@ -336,7 +336,8 @@ def _flag(value, name: str) -> bool:
     return bool(value)
 
 
-def grasp_quality(points, normals, mu, center, radius, edges: int = 8, volume: bool = True) -> dict:
+def grasp_quality(points, normals, mu, center, radius, edges: int = 8, volume: bool = True,
+                  reuse: bool = False) -> dict:
     """Quality of a grasp by point contacts with friction (docs/api.md "Grasp quality").
 
     points (n, 3) contact points, normals (n, 3) inward normals (into the object), mu one number
@@ -344,18 +345,21 @@ def grasp_quality(points, normals, mu, center, radius, edges: int = 8, volume: b
     linearised friction cone. Returns force_closure, force_only_closure, torque_closure, epsilon,
     volume, weakest (6 floats), rank, facets. volume=False takes the fast path (no 6-D hull:
     closure by a linear program, epsilon and weakest by support queries, the same values) and
-    returns volume -1.0 and facets -1 (not computed). Bad input raises ValueError naming the
-    argument."""
+    returns volume -1.0 and facets -1 (not computed). reuse=True (with volume=False): a set within
+    rounding of one of the last few answered in closure gets that answer's facet re-certified
+    instead of a new search (docs/api.md, "Reusing an answer"). Bad input raises ValueError naming
+    the argument."""
     points, normals, mu = _contacts(points, normals, mu)
     return _core._grasp_quality(points, normals, mu, _vector(center, 3, "center"), _number(radius, "radius"),
-                                _number(edges, "edges", int), _flag(volume, "volume"))
+                                _number(edges, "edges", int), _flag(volume, "volume"), _flag(reuse, "reuse"))
 
 
 def grasp_quality_batch(points, normals, mu, counts, centers, radii, edges: int = 8,
-                        volume: bool = True) -> np.ndarray:
+                        volume: bool = True, reuse: bool = False) -> np.ndarray:
     """grasp_quality of many contact sets: counts[s] contacts in set s, their rows of points,
     normals and mu (one number or one per row) concatenated; centers (m, 3), radii (m,).
-    volume as in grasp_quality (False: volume -1.0 and facets -1 in every row, much faster).
+    volume and reuse as in grasp_quality (volume False: volume -1.0 and facets -1 in every row,
+    much faster).
     Returns a structured array of GRASP_QUALITY_DTYPE, one row per set."""
     points, normals, mu = _contacts(points, normals, mu)
     try:
@@ -379,17 +383,20 @@ def grasp_quality_batch(points, normals, mu, counts, centers, radii, edges: int 
     if m:
         _core._grasp_quality_batch(points, normals, mu, counts_array, np.ascontiguousarray(centers_array),
                                    radii_array, _number(edges, "edges", int), _flag(volume, "volume"),
-                                   raw.view(np.uint8))
+                                   _flag(reuse, "reuse"), raw.view(np.uint8))
     out = np.zeros(m, dtype=GRASP_QUALITY_DTYPE)
     for name in GRASP_QUALITY_DTYPE.names:
         out[name] = raw[name]
     return out
 
 
-def grasp_mu_min(points, normals, center, radius, edges: int = 8, mu_max: float = 10.0) -> float:
+def grasp_mu_min(points, normals, center, radius, edges: int = 8, mu_max: float = 10.0,
+                 reuse: bool = False) -> float:
     """The smallest friction coefficient (the same at every contact) at which the contact set is
     in force closure, by bisection to 1e-6 (each step the closure linear program, no hull); 0.0 for
-    frictionless closure, math.inf when not in closure at mu_max."""
+    frictionless closure, math.inf when not in closure at mu_max. reuse=True: the answer for
+    contacts within 1e-9 of one of the last few, checked (closed there, open 2e-6 below), instead
+    of a new search (docs/api.md, "Reusing an answer")."""
     points, normals, _ = _contacts(points, normals, 0.0)
     return _core._grasp_mu_min(points, normals, _vector(center, 3, "center"), _number(radius, "radius"),
-                               _number(edges, "edges", int), _number(mu_max, "mu_max"))
+                               _number(edges, "edges", int), _number(mu_max, "mu_max"), _flag(reuse, "reuse"))
