@@ -97,18 +97,30 @@ class GRASPLAB_OT_show_curves(bpy.types.Operator):
 
 
 def _graph_editor(context):
-    """A Graph Editor of the window: one open, else the timeline or dope sheet turned into one."""
-    screen = context.window.screen if context.window is not None else None
+    """A Graph Editor of the window: one that is open, else the bottom 40 % of the largest 3D
+    viewport split off as one (the timeline is too short to read curves in)."""
+    window = context.window
+    screen = window.screen if window is not None else None
     if screen is None:
         return None
-    areas = list(screen.areas)
-    area = next((a for a in areas if a.type == "GRAPH_EDITOR"), None)
-    if area is None:
-        area = next((a for a in areas if a.type == "DOPESHEET_EDITOR"), None)
-        if area is None:
-            return None
-        area.type = "GRAPH_EDITOR"
-        area.ui_type = "FCURVES"
+    area = next((a for a in screen.areas if a.type == "GRAPH_EDITOR"), None)
+    if area is not None:
+        return area
+    views = [a for a in screen.areas if a.type == "VIEW_3D"]
+    if not views:
+        return None
+    view = max(views, key=lambda a: a.width * a.height)
+    before = set(screen.areas[:])
+    with context.temp_override(window=window, screen=screen, area=view):
+        bpy.ops.screen.area_split(direction="HORIZONTAL", factor=0.4)
+    new = [a for a in screen.areas if a not in before]
+    if not new:
+        return None
+    # The split's new area is the lower one when the factor is below a half.
+    area = min([view] + new, key=lambda a: a.y)
+    area.type = "GRAPH_EDITOR"
+    area.ui_type = "FCURVES"
+    area.spaces.active.show_region_ui = False       # the curves the whole width
     return area
 
 

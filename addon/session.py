@@ -413,6 +413,8 @@ class GRASPLAB_OT_session(bpy.types.Operator):
         return _active is None and context.scene is not None
 
     def _start(self, context, live):
+        from .ops import last_check
+        last_check.pop(context.scene.name, None)        # a session checks the scene again
         try:
             return BlenderSession(context, live=live, duration=self.duration, reset=self.reset)
         except (SceneError, ValueError) as ex:

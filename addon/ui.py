@@ -12,6 +12,8 @@ def wrapped_labels(layout, context, lines, icon_first="NONE"):
     the interface font where it can be (a window), else at about 6.5 px a character."""
     scale = context.preferences.system.ui_scale
     width = (context.region.width if context.region else 300) - 40 * scale   # panel and box margins
+    if icon_first != "NONE":
+        width -= 50 * scale             # the icon before the text and its padding (measured on screen)
     measure = None
     if not bpy.app.background:
         import blf
@@ -125,10 +127,10 @@ class GRASPLAB_PT_session(_GraspPanel, bpy.types.Panel):
         sub.prop(s, "force_scale", text="Force m/N")
         sub.prop(s, "torque_scale", text="Torque m/N·m")
         col.prop(s, "live_view")
-        sub = col.column(align=True)
-        sub.active = s.live_view
-        sub.prop(s, "live_view_port")
-        sub.prop(s, "live_view_bind")
+        if s.live_view:                     # its address only when it is on: a shorter panel
+            sub = col.column(align=True)
+            sub.prop(s, "live_view_port")
+            sub.prop(s, "live_view_bind")
         moved = session.moved_from_rest(context) if active is None else []
         if moved:
             # After a session the bodies hang where it left them: say so, and offer the way back.
