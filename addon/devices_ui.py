@@ -257,7 +257,10 @@ class GRASPLAB_PT_devices(bpy.types.Panel):
 
     def draw(self, context):
         layout = self.layout
-        layout.operator("grasp_lab.devices_refresh", icon="FILE_REFRESH")
+        row = layout.row(align=True)
+        row.operator("grasp_lab.devices_refresh", icon="FILE_REFRESH")
+        # A device by its port (an emulator's pseudo-terminal, a UDP address): typed in its entry.
+        row.operator("grasp_lab.device_add", text="Add Device", icon="ADD").port = ""
         for d in _discovered:
             row = layout.row()
             where = d.get("port") or d.get("path")
