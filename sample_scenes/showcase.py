@@ -270,7 +270,12 @@ def table_rows(entries):
         held = len(g["time"])
         closure = f"{100 * g['force_closure'].mean():.0f} % of held" if held else "never held"
         eps = g["epsilon"][g["force_closure"] > 0]
-        epsilon = f"{eps.min():.3g} (median {_median(eps):.3g})" if len(eps) else "0"
+        if len(eps) == 0:
+            epsilon = "0"
+        elif f"{eps.min():.3g}" == f"{_median(eps):.3g}":
+            epsilon = f"{eps.min():.3g}"
+        else:
+            epsilon = f"{eps.min():.3g} (median {_median(eps):.3g})"
         loaded = g["load_force"] > 1e-9
         ratio = g["grip_force"][loaded] / g["load_force"][loaded] if loaded.any() else None
         grip_load = f"{float(_median(ratio)):.1f}" if ratio is not None and len(ratio) else "–"
@@ -310,8 +315,8 @@ def write_index(out_dir, entries, rows, wall):
                  "dropped; for the hook, its swing). <i>largest slip</i>: the farthest a god-object slid over "
                  "the body's surface while touching it. <i>force closure</i>: the share of analysed ticks, while a "
                  "finger holds the body, in which the contacts resist any wrench (two point contacts never do: "
-                 "nothing resists turning about the line through them). <i>epsilon</i>: Ferrari–Canny, range "
-                 "while in closure. <i>grip / load</i>: median grip force over load force while held. "
+                 "nothing resists turning about the line through them). <i>epsilon</i>: Ferrari–Canny, the smallest "
+                 "while in closure (and the median, where it differs). <i>grip / load</i>: median grip force over load force while held. "
                  "<i>haptic rate</i>: the rate simulated; <i>steps/s achieved</i>: core steps per second of wall time, the "
                  "session's own overhead included (a live session needs the haptic rate); <i>speed</i>: simulated "
                  "time over wall time. "
