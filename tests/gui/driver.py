@@ -145,17 +145,21 @@ def region_pixels(px, region):
     return px[y0:y0 + region.height, x0:x0 + region.width]
 
 
-def find_primary_button(region):
+def find_primary_button(region, index=0):
     """Centre (region coordinates) of the highlighted (depressed) wide button in a region:
-    the Grasp panel draws its Start/Stop Session button so."""
+    the Grasp panel draws its Start/Stop Session button so (``index`` 1: the next one down,
+    Reset Bodies after a session)."""
     theme = bpy.context.preferences.themes[0].user_interface
     color = np.array(theme.wcol_tool.inner_sel[:3])
     px = region_pixels(pixels(screenshot("find_button")), region)[..., :3]
     match = np.all(np.abs(px - color) < 6 / 255, axis=2)
     rows = np.nonzero(match.sum(axis=1) > 0.5 * region.width)[0]
-    if len(rows) == 0:
-        raise AssertionError(f"no highlighted button in the sidebar (colour {color})")
-    band = rows[rows <= rows[0] + 60]         # the first button from the top
+    for _ in range(index + 1):
+        if len(rows) == 0:
+            raise AssertionError(f"no highlighted button {index} in the sidebar (colour {color})")
+        band = rows[rows <= rows[0] + 60]
+        band = band[:np.argmax(np.diff(band) > 1) + 1] if (np.diff(band) > 1).any() else band
+        rows = rows[rows > band[-1]]
     cols = np.nonzero(match[band].any(axis=0))[0]
     cy = (band[0] + band[-1]) / 2
     return (cols[0] + cols[-1]) / 2, region.height - cy
@@ -935,6 +939,18 @@ def scenario_walkthrough():
     hover(win_region, 50, 50)
     yield 1.5
     docs_picture("recorded", crop="sidebar")
+    # Reset Bodies, offered (highlighted, under Start Session) because the box was moved
+    at_end = list(box.matrix_world.translation)
+    x, y = find_primary_button(ui, index=1)
+    yield from click_at(ui, x, y)
+    yield from wait_until(lambda: not ext("session").moved_from_rest(bpy.context), 5, "Reset Bodies")
+    RESULT["reset"] = {"at_end": at_end, "after": list(box.matrix_world.translation)}
+    yield 1.0
+    try:
+        find_primary_button(ui, index=1)
+        RESULT["reset"]["still_offered"] = True
+    except AssertionError:
+        RESULT["reset"]["still_offered"] = False
     # --- bake: the file browser opens on the recording just made
     hover(ui, ui.width / 2, ui.height / 2)
     for _ in range(3):                      # the sidebar scrolled to its end: Recording, Devices

@@ -204,6 +204,11 @@ def test_the_readme_walkthrough_click_by_click(gui):
     assert "Finger 0 stick" in hud and "Finger 1 stick" in hud, hud
     # Recorded: one recording; the box left where the session ended, Reset Bodies offered
     assert len(r["recordings"]) == 1 and r["moved_after_record"] == ["Box"]
+    # Reset Bodies, clicked where it is offered, puts the box back on the table, and goes
+    reset = r["reset"]
+    assert reset["at_end"][1] == pytest.approx(0.10, abs=0.005), reset          # carried 10 cm along y
+    assert reset["after"] == pytest.approx([0.0, 0.0, 0.025], abs=1e-6), reset
+    assert reset["still_offered"] is False
     folder, name = os.path.split(r["recordings"][0])
     assert r["browser"] == {"directory": folder + os.sep, "filename": name}
     g = r["graph"]
