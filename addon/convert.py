@@ -142,7 +142,8 @@ def _frame_matrix(t, q) -> Matrix:
 def finger_desc(obj) -> FingerDesc:
     gl = obj.grasp_lab
     return FingerDesc(name=obj.name, position=np.array(obj.matrix_world.translation, dtype=np.float64),
-                      radius=gl.radius, stiffness=gl.stiffness, damping=gl.damping, channel=gl.channel)
+                      radius=gl.radius, stiffness=gl.stiffness, damping=gl.damping, channel=gl.channel,
+                      renderer=gl.renderer.lower(), cursor_mass=gl.cursor_mass)
 
 
 def scene_description(context):

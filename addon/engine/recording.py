@@ -124,7 +124,8 @@ def scene_to_dict(desc) -> dict:
             "center_of_mass": None if mp is None else arr(mp.center_of_mass),
             "inertia": None if mp is None else arr(mp.inertia)})
     fingers = [{"name": f.name, "position": arr(f.position), "radius": float(f.radius),
-                "stiffness": float(f.stiffness), "damping": float(f.damping), "channel": int(f.channel)}
+                "stiffness": float(f.stiffness), "damping": float(f.damping), "channel": int(f.channel),
+                "renderer": str(f.renderer), "cursor_mass": float(f.cursor_mass)}
                for f in desc.fingers]
     return {"gravity": [float(g) for g in desc.gravity], "gyroscopic": bool(desc.gyroscopic),
             "haptic_rate": float(desc.haptic_rate), "display_rate": float(desc.display_rate),
@@ -145,7 +146,8 @@ def scene_from_dict(data: dict):
                                orientation=np.array(b["orientation"]), mass=b.get("mass"),
                                mu_s=b["mu_s"], mu_d=b["mu_d"], viscosity=b["viscosity"], mass_properties=mp))
     fingers = [FingerDesc(name=f["name"], position=np.array(f["position"]), radius=f["radius"],
-                          stiffness=f["stiffness"], damping=f["damping"], channel=f.get("channel", 0))
+                          stiffness=f["stiffness"], damping=f["damping"], channel=f.get("channel", 0),
+                          **{k: f[k] for k in ("renderer", "cursor_mass") if k in f})
                for f in data["fingers"]]
     return SceneDesc(gravity=tuple(data["gravity"]), gyroscopic=data["gyroscopic"],
                      haptic_rate=data["haptic_rate"], display_rate=data.get("display_rate", 30.0),

@@ -73,6 +73,8 @@ class FingerDesc:
     stiffness: float = field(default_factory=lambda: defaults.finger("stiffness"))
     damping: float = field(default_factory=lambda: defaults.finger("damping"))
     channel: int = 0
+    renderer: str = field(default_factory=defaults.renderer)      # "xfca" or "cursor"
+    cursor_mass: float = field(default_factory=lambda: defaults.finger("cursor_mass"))
 
 
 @dataclass
@@ -260,6 +262,9 @@ def prepare(desc: SceneDesc) -> SceneDesc:
                                      f"(got {f.radius}, {f.stiffness}, {f.damping})")
         if not np.all(np.isfinite(f.position)):
             raise SceneError(f.name, "finger position is not finite")
+        if f.renderer not in ("xfca", "cursor") or not f.cursor_mass >= 0:
+            raise SceneError(f.name, f"finger needs renderer 'xfca' or 'cursor' and cursor mass >= 0 "
+                                     f"(got {f.renderer!r}, {f.cursor_mass})")
     return desc
 
 
@@ -306,7 +311,8 @@ def build_world(desc: SceneDesc, graspcore) -> WorldHandle:
         try:
             finger_ids.append(world.add_finger(radius=float(f.radius), stiffness=float(f.stiffness),
                                                damping=float(f.damping),
-                                               position=tuple(map(float, f.position))))
+                                               position=tuple(map(float, f.position)),
+                                               renderer=str(f.renderer), cursor_mass=float(f.cursor_mass)))
         except ValueError as ex:
             raise SceneError(f.name, f"rejected by the core: {ex}") from ex
     return WorldHandle(world=world, body_ids=body_ids, finger_ids=finger_ids, desc=desc)

@@ -255,13 +255,22 @@ done:
 
 static PyObject *World_add_finger(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
-    static char *kwlist[] = {"radius", "stiffness", "damping", "position", NULL};
+    static char *kwlist[] = {"radius", "stiffness", "damping", "position", "renderer", "cursor_mass", NULL};
     gcFingerDef def = gc_default_finger_def();
     PyObject *position = NULL;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|dddO", kwlist, &def.radius, &def.stiffness, &def.damping,
-                                     &position))
+    const char *renderer = NULL;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|dddOsd", kwlist, &def.radius, &def.stiffness, &def.damping,
+                                     &position, &renderer, &def.cursor_mass))
         return NULL;
     if (!check_ready(self)) return NULL;
+    if (renderer && strcmp(renderer, "xfca") == 0)
+        def.renderer = GC_RENDERER_XFCA;
+    else if (renderer && strcmp(renderer, "cursor") == 0)
+        def.renderer = GC_RENDERER_CURSOR;
+    else if (renderer) {
+        PyErr_Format(PyExc_ValueError, "renderer: must be 'xfca' or 'cursor' (got '%s')", renderer);
+        return NULL;
+    }
     if (position && !parse_vec(position, 3, "position", def.position)) return NULL;
     int32_t id;
     gcStatus st = gc_world_add_finger(self->world, &def, &id);
@@ -1200,7 +1209,8 @@ static PyObject *World_serial_events(PyObject *obj, PyObject *args) {
 static PyMethodDef World_methods[] = {
     {"_add_body", World_add_body, METH_VARARGS, "Low-level add_body; use World.add_body."},
     {"add_finger", (PyCFunction)(void (*)(void))World_add_finger, METH_VARARGS | METH_KEYWORDS,
-     "add_finger(radius, stiffness, damping, position=(0,0,0)) -> finger id; defaults: FINGER_DEFAULTS"},
+     "add_finger(radius, stiffness, damping, position=(0,0,0), renderer='xfca', cursor_mass) -> finger id; "
+     "defaults: FINGER_DEFAULTS"},
     {"set_hip", World_set_hip, METH_VARARGS, "set_hip(finger, (x, y, z)): the device (haptic interface) point."},
     {"set_hips", World_set_hips, METH_O, "set_hips(array (n, 3) float64): HIPs of fingers 0..n-1."},
     {"set_gravity", World_set_gravity, METH_O, "set_gravity((gx, gy, gz))"},
@@ -1297,8 +1307,8 @@ static int add_defaults(PyObject *m) {
     PyObject *body = Py_BuildValue("{s:d,s:d,s:d,s:d,s:d,s:d}", "mass", b.mass, "mu_s", b.mu_s, "mu_d", b.mu_d,
                                    "viscosity", b.viscosity, "linear_damping", b.linear_damping,
                                    "angular_damping", b.angular_damping);
-    PyObject *finger = Py_BuildValue("{s:d,s:d,s:d}", "radius", f.radius, "stiffness", f.stiffness, "damping",
-                                     f.damping);
+    PyObject *finger = Py_BuildValue("{s:d,s:d,s:d,s:s,s:d}", "radius", f.radius, "stiffness", f.stiffness, "damping",
+                                     f.damping, "renderer", "xfca", "cursor_mass", f.cursor_mass);
     int ok = body && finger && PyModule_AddObjectRef(m, "BODY_DEFAULTS", body) == 0 &&
              PyModule_AddObjectRef(m, "FINGER_DEFAULTS", finger) == 0;
     Py_XDECREF(body);

@@ -76,11 +76,18 @@ typedef struct gcBodyDef {
 } gcBodyDef;
 gcBodyDef gc_default_body_def(void);
 
+/* How a finger's force is found (docs/physics.md): the friction-cone god-objects, one per
+ * convex part touched (xFCA), or the light-mass cursor: a mass on the finger's spring and
+ * damper, kept outside all the convex parts together by a constraint solve. */
+typedef enum gcFingerRenderer { GC_RENDERER_XFCA = 0, GC_RENDERER_CURSOR = 1 } gcFingerRenderer;
+
 typedef struct gcFingerDef {
     double radius;          /* fingertip sphere, m (0 = point), default 0.008 */
     double stiffness;       /* N/m, default 1000 */
     double damping;         /* N s/m on the HIP vs god-object-point velocity, default 0 */
     double position[3];     /* initial HIP */
+    gcFingerRenderer renderer; /* default GC_RENDERER_XFCA */
+    double cursor_mass;     /* kg, the cursor renderer's mass, >= 0, default 0.002 */
 } gcFingerDef;
 gcFingerDef gc_default_finger_def(void);
 
@@ -277,7 +284,8 @@ gcStatus gc_world_debug_stall(gcWorld *world, double seconds);
  * spring), device_force (after the safety layer), normal (of the reported contact, world; 0
  * when free) as 3 f64 each; per body pose (7 f64),
  * velocity (linear of the body frame origin, angular; 6 f64), residual wrench (6 f64); per
- * finger state i32, contact body i32 (-1 free). */
+ * finger state i32, contact body i32 (-1 free); per finger parts u32 (bit i: touches part i of
+ * its body, parts past 31 on bit 31). */
 size_t gc_tick_record_size(int num_bodies, int num_fingers);
 /* The stopped world as one record (after a gc_world_step); device_force = force. */
 gcStatus gc_world_tick_record(gcWorld *world, uint64_t tick, void *out, size_t size);

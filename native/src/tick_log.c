@@ -42,7 +42,7 @@ enum { REC_HEADER = 52 };
 size_t gc_tick_record_size(int num_bodies, int num_fingers) {
     if (num_bodies < 0 || num_fingers < 0) return 0;
     return REC_HEADER + sizeof(double) * (15 * (size_t)num_fingers + 19 * (size_t)num_bodies) +
-           sizeof(int32_t) * 2 * (size_t)num_fingers;
+           sizeof(int32_t) * 3 * (size_t)num_fingers;
 }
 
 #define FNV_PRIME 1099511628211ull
@@ -123,6 +123,10 @@ static uint64_t hash_finger(uint64_t h, const gcWorld *w, int i) {
     const gcFinger *f = &w->fingers[i], *shown = w->shown ? &w->shown->fingers[i] : f;
     h = hash_bytes(h, &shown->hip, sizeof shown->hip);
     h = hash_bytes(h, &shown->force, sizeof shown->force);
+    if (f->renderer == GC_RENDERER_CURSOR) { /* its own state (xFCA fingers hash as before) */
+        h = hash_bytes(h, &f->cursor, sizeof f->cursor);
+        h = hash_bytes(h, &f->cursor_velocity, sizeof f->cursor_velocity);
+    }
     for (int c = 0; c < f->num_contacts; ++c) {
         const gcFingerContact *k = &f->contacts[c];
         h = hash_4(h, &k->part);
@@ -150,6 +154,7 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
     unsigned char *hip = out + REC_HEADER, *go = hip + 24 * nf, *force = go + 24 * nf, *dev = force + 24 * nf;
     unsigned char *normal = dev + 24 * nf, *pose = normal + 24 * nf, *vel = pose + 56 * nb;
     unsigned char *wrench = vel + 48 * nb, *state = wrench + 48 * nb, *contact = state + 4 * nf;
+    unsigned char *parts = contact + 4 * nf;
     uint64_t hash = hash_time_bodies(w);
     memcpy(out, &tick, 8);
     memcpy(out + 8, &w->time, 8);
@@ -171,6 +176,13 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
         int32_t s = (int32_t)f->state;
         memcpy(state + 4 * i, &s, 4);
         memcpy(contact + 4 * i, &f->contact_body, 4);
+        /* The convex parts touched, by index in their body: a change is a change of part. */
+        uint32_t mask = 0;
+        for (int c = 0; c < f->num_contacts; ++c) {
+            int32_t k = f->contacts[c].part - w->bodies[w->parts[f->contacts[c].part].body].first_part;
+            mask |= 1u << (k < 31 ? k : 31);
+        }
+        memcpy(parts + 4 * i, &mask, 4);
     }
     memcpy(pose, w->pose_array, 56 * nb);
     for (size_t b = 0; b < nb; ++b) { /* of the body frame origin, as gc_world_body_velocity */

@@ -58,6 +58,8 @@ gcFingerDef gc_default_finger_def(void) {
     memset(&def, 0, sizeof def);
     def.radius = 0.008;
     def.stiffness = 1000.0;
+    def.renderer = GC_RENDERER_XFCA;
+    def.cursor_mass = 0.002;
     return def;
 }
 
@@ -323,6 +325,14 @@ gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_fi
         gc_world_set_error(w, "damping: must be a finite number >= 0 (got %g)", def->damping);
         return GC_ERR_INVALID_ARGUMENT;
     }
+    if (def->renderer != GC_RENDERER_XFCA && def->renderer != GC_RENDERER_CURSOR) {
+        gc_world_set_error(w, "renderer: must be GC_RENDERER_XFCA or GC_RENDERER_CURSOR (got %d)", (int)def->renderer);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    if (!isfinite(def->cursor_mass) || def->cursor_mass < 0) {
+        gc_world_set_error(w, "cursor_mass: must be a finite number >= 0 (got %g)", def->cursor_mass);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
     if (w->num_fingers >= w->def.max_fingers) {
         gc_world_set_error(w, "max_fingers: the world holds at most %d fingers", w->def.max_fingers);
         return GC_ERR_CAPACITY;
@@ -333,7 +343,10 @@ gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_fi
     f->radius = def->radius;
     f->stiffness = def->stiffness;
     f->damping = def->damping;
+    f->renderer = def->renderer;
+    f->cursor_mass = def->cursor_mass;
     f->hip = f->hip_prev = f->god_object = gc_v3(def->position[0], def->position[1], def->position[2]);
+    f->cursor = f->hip;
     f->contact_body = -1;
     f->state = GC_FINGER_FREE;
     memcpy(&w->hip_array[3 * id], def->position, 3 * sizeof(double));

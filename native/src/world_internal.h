@@ -69,12 +69,16 @@ typedef struct gcFingerContact {
     gcVec3 normal_local;            /* contact plane normal (outward), body frame */
     gcVec3 so_local;                /* surface object, body frame */
     double depth;                   /* HIP depth below the GO plane, last step */
+    double share;                   /* weight of its spring in the finger's force (xfca.c: seams) */
 } gcFingerContact;
 
 #define GC_MAX_CONTACTS_PER_FINGER 8
 
 typedef struct gcFinger {
     double radius, stiffness, damping;
+    gcFingerRenderer renderer;      /* xFCA god-objects, or the light-mass cursor (cursor.c) */
+    double cursor_mass;             /* kg, the cursor renderer's */
+    gcVec3 cursor, cursor_velocity; /* the cursor's centre and velocity, world (cursor renderer) */
     gcVec3 hip, hip_prev, hip_velocity;
     int hip_initialised;
     int num_contacts;

@@ -7,6 +7,8 @@
  * part inflated by the finger radius, so a point finger is radius 0. */
 #include "xfca.h"
 
+#include "cursor.h"
+
 #include <string.h>
 
 /* Conservative advancement is capped; a miss after the cap is treated as no contact
@@ -148,6 +150,68 @@ static int has_contact_with(const gcFinger *f, int32_t part) {
     return 0;
 }
 
+/* Seams of a decomposed body. Where one finger touches several convex parts of one body,
+ * each part has its own GO. Two things go wrong when their springs are simply summed:
+ * near a seam between parts of one smooth surface, two GOs sit on nearly the same plane at
+ * nearly the same depth, so the force doubles; and at a seam, a part's GO on its own
+ * rounded edge lies inside the neighbouring part, off the body's surface, and pushes the
+ * finger back as a ridge would. So each spring i is weighted by
+ *   share_i = e_i / sum_j e_j max(0, n_i . n_j),   e_i = g_i d_i,
+ *   g_i = max(0, 1 - (b_i - b_min) / (GC_SEAM_BURIAL * D))
+ * over the finger's contacts on the same body: d depth, n plane normal, D the deepest d,
+ * b how deep the GO lies inside the other parts touched (inflated by the finger radius)
+ * and b_min the least b. Parallel planes at equal depth share the force (the mean); planes
+ * 90 degrees or more apart (a real crease, the two walls of a slot) add (share 1). Only a
+ * GO buried deeper than the others loses weight: in a concave crease every GO lies inside
+ * the other part (by the other's depth), so equal depths keep the plain sum there. A
+ * contact that starts or ends at zero depth, or sinks into a neighbour, weighs nothing
+ * then, so the total stays continuous. A lone contact has share exactly 1 (d / d), as
+ * before. docs/physics.md. */
+#define GC_SEAM_BURIAL 1.0
+
+static void blend_seams(const gcWorld *w, gcFinger *f) {
+    double effective[GC_MAX_CONTACTS_PER_FINGER], burial[GC_MAX_CONTACTS_PER_FINGER];
+    int shared[GC_MAX_CONTACTS_PER_FINGER];
+    for (int i = 0; i < f->num_contacts; ++i) {
+        const gcFingerContact *c = &f->contacts[i];
+        int32_t body = w->parts[c->part].body;
+        effective[i] = c->depth;
+        burial[i] = 0.0;
+        shared[i] = 0;
+        for (int j = 0; j < f->num_contacts; ++j) {
+            const gcFingerContact *o = &f->contacts[j];
+            if (j == i || w->parts[o->part].body != body) continue;
+            shared[i] = 1;
+            gcVec3 n;
+            burial[i] = fmax(burial[i], -tip_query(&w->parts[o->part].hull, c->go_local, f->radius, &n));
+        }
+    }
+    for (int i = 0; i < f->num_contacts; ++i) {
+        if (!shared[i]) continue;
+        const gcFingerContact *c = &f->contacts[i];
+        int32_t body = w->parts[c->part].body;
+        double deepest = 0.0, least = burial[i];
+        for (int j = 0; j < f->num_contacts; ++j) {
+            if (w->parts[f->contacts[j].part].body != body) continue;
+            deepest = fmax(deepest, f->contacts[j].depth);
+            least = fmin(least, burial[j]);
+        }
+        double sunk = burial[i] - least;
+        if (sunk > 0.0) effective[i] = c->depth * fmax(0.0, 1.0 - sunk / (GC_SEAM_BURIAL * deepest));
+    }
+    for (int i = 0; i < f->num_contacts; ++i) {
+        gcFingerContact *c = &f->contacts[i];
+        int32_t body = w->parts[c->part].body;
+        double overlap = 0.0;
+        for (int j = 0; j < f->num_contacts; ++j) {
+            const gcFingerContact *o = &f->contacts[j];
+            if (w->parts[o->part].body != body) continue;
+            overlap += effective[j] * (j == i ? 1.0 : fmax(0.0, gc_dot(c->normal_local, o->normal_local)));
+        }
+        c->share = overlap > 0.0 ? effective[i] / overlap : 0.0;
+    }
+}
+
 static void finger_update(gcWorld *w, gcFinger *f, double dt) {
     f->hip_velocity = gc_scale(gc_sub(f->hip, f->hip_prev), 1.0 / dt);
     /* Existing contacts, compacting away the ones that ended. */
@@ -187,6 +251,7 @@ static void finger_update(gcWorld *w, gcFinger *f, double dt) {
             if (update_contact(f, b, h, &c, to, dt)) f->contacts[f->num_contacts++] = c;
         }
     }
+    blend_seams(w, f);
 }
 
 /* Force rendered to the device and the finger's reported GO, normal and state: the deepest
@@ -204,11 +269,11 @@ static void finger_outputs(gcWorld *w, int32_t id) {
         const gcBody *b = &w->bodies[w->parts[c->part].body];
         gcTransform fr = gc_body_transform(b);
         gcVec3 go = gc_transform_point(&fr, c->go_local);
-        force = gc_madd(force, gc_sub(go, f->hip), f->stiffness);
+        force = gc_madd(force, gc_sub(go, f->hip), f->stiffness * c->share);
         if (f->damping > 0.0) {
             /* Damping on the HIP vs the body point at the god-object. */
             gcVec3 v_point = b->is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(go, b->state.com)));
-            force = gc_madd(force, gc_sub(v_point, f->hip_velocity), f->damping);
+            force = gc_madd(force, gc_sub(v_point, f->hip_velocity), f->damping * c->share);
         }
         if (c->depth > deepest) {
             deepest = c->depth;
@@ -226,9 +291,20 @@ static void finger_outputs(gcWorld *w, int32_t id) {
 }
 
 void gc_xfca_update(gcWorld *w, double dt) {
-    for (int32_t i = 0; i < w->num_fingers; ++i) finger_update(w, &w->fingers[i], dt);
+    for (int32_t i = 0; i < w->num_fingers; ++i) {
+        gcFinger *f = &w->fingers[i];
+        if (f->renderer == GC_RENDERER_CURSOR)
+            gc_cursor_finger_update(w, f, dt);
+        else
+            finger_update(w, f, dt);
+    }
 }
 
 void gc_xfca_outputs(gcWorld *w) {
-    for (int32_t i = 0; i < w->num_fingers; ++i) finger_outputs(w, i);
+    for (int32_t i = 0; i < w->num_fingers; ++i) {
+        if (w->fingers[i].renderer == GC_RENDERER_CURSOR)
+            gc_cursor_finger_outputs(w, i);
+        else
+            finger_outputs(w, i);
+    }
 }
