@@ -167,7 +167,8 @@ def check_hull_points(name: str, points: np.ndarray) -> None:
     centred = points - points.mean(axis=0)
     s = np.linalg.svd(centred, compute_uv=False)
     if s[0] <= 0 or s[-1] < 1e-9 * s[0]:
-        raise SceneError(name, "has zero volume: its vertices are flat (coplanar) or collinear")
+        raise SceneError(name, "has zero volume: its vertices are flat (coplanar) or collinear; give it "
+                                 "thickness (Solidify modifier, or extrude it)")
 
 
 def mesh_to_trimesh(mesh: MeshData):
@@ -195,7 +196,8 @@ def mesh_to_trimesh(mesh: MeshData):
     extent = float(np.max(tm.extents))
     volume = float(tm.volume)
     if abs(volume) <= MIN_VOLUME_FRACTION * extent ** 3:
-        raise SceneError(name, "has zero volume (flat or degenerate mesh)")
+        raise SceneError(name, "has zero volume (flat or degenerate mesh); give it thickness (Solidify "
+                               "modifier, or extrude it)")
     if volume < 0:
         raise SceneError(name, "mesh is inverted (normals point inward, negative volume); "
                                "recalculate normals outside")
