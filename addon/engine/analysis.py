@@ -427,8 +427,8 @@ def analyse(models, poses, god_objects, forces, normals, states, contact_bodies,
     one = lambda a, dtype=np.float64: np.asarray(a, dtype=dtype)[None]  # noqa: E731
     table = analyse_arrays(models, one(poses), one(god_objects), one(forces), one(normals),
                            one(states, np.int32), one(contact_bodies, np.int32), finger_radii,
-                           None if accelerations is None else one(accelerations), gravity, edges, volume, memo,
-                           reuse)
+                           None if accelerations is None else one(accelerations), gravity, edges, volume=volume,
+                           memo=memo, reuse=reuse)
     return body_grasps(table)
 
 
