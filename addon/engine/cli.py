@@ -538,6 +538,8 @@ def _on_signal(signum, frame):
     _stop_signal = signum
     from .recording import set_stop_reason
     set_stop_reason(SIGNAL_NAMES.get(signum, f"signal {signum}"))
+    if outputs.defer_stop(SIGNAL_NAMES.get(signum)):
+        return          # raised when the write it arrived in is whole (outputs.uninterrupted)
     raise KeyboardInterrupt(SIGNAL_NAMES.get(signum))
 
 

@@ -13,9 +13,11 @@ Plain Python (no bpy): the command line, the recorder and the exports share it.
 """
 from __future__ import annotations
 
+import contextlib
 import errno
 import fcntl
 import os
+import threading
 
 PARTIAL = ".partial"
 
@@ -228,3 +230,38 @@ class AtomicFile:
             self.commit()
         else:
             self.discard()
+
+
+# ------------------------------------------------------------------ writes a signal must not cut
+
+_uninterrupted = 0          # nesting depth of uninterrupted() on the main thread
+_deferred = None            # the stop a signal asked for inside it (its KeyboardInterrupt's text)
+
+
+@contextlib.contextmanager
+def uninterrupted():
+    """A write that a stop signal must not cut in half (a recording's block counted but its
+    chunk not written): on the main thread, where Python runs signal handlers, a stop that
+    arrives inside is raised as it ends. Other threads see no signals: nothing to do there."""
+    global _uninterrupted, _deferred
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    _uninterrupted += 1
+    try:
+        yield
+    finally:
+        _uninterrupted -= 1
+    if _uninterrupted == 0 and _deferred is not None:
+        reason, _deferred = _deferred, None
+        raise KeyboardInterrupt(reason)
+
+
+def defer_stop(reason: str) -> bool:
+    """Called by the stop-signal handler: True when the main thread is inside uninterrupted()
+    (the stop is raised when it ends), False when it may be raised now."""
+    global _deferred
+    if _uninterrupted:
+        _deferred = reason
+        return True
+    return False

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .outputs import AtomicFile
+from .outputs import AtomicFile, uninterrupted
 
 FORMAT_VERSION = 1
 PROFILE = "grasp_lab"
@@ -237,25 +237,27 @@ class RecordingWriter:
         return max(0, int(round(t * 1e9)))
 
     def _write_json(self, topic, data, t):
-        self._mcap.add_message(self._ch[topic], log_time=self._ns(t), publish_time=self._ns(t),
-                               data=json.dumps(data).encode(), sequence=self._seq)
-        self._seq += 1
+        with uninterrupted():
+            self._mcap.add_message(self._ch[topic], log_time=self._ns(t), publish_time=self._ns(t),
+                                   data=json.dumps(data).encode(), sequence=self._seq)
+            self._seq += 1
 
     def write_ticks(self, records: np.ndarray) -> None:
         """Tick records (``self.dtype``), in tick order."""
         if records.dtype != self.dtype:
             raise ValueError(f"records: dtype does not match the header's bodies and fingers")
-        for start in range(0, len(records), BLOCK_TICKS):
-            block = np.ascontiguousarray(records[start:start + BLOCK_TICKS])
-            t = float(block["time"][0])
-            self._mcap.add_message(self._ch[TOPIC_TICKS], log_time=self._ns(t), publish_time=self._ns(t),
-                                   data=block.tobytes(), sequence=self._seq)
-            self._seq += 1
-        if len(records):
-            if self.first_time is None:
-                self.first_time = float(records["time"][0])
-            self.ticks += len(records)
-            self.last_time = float(records["time"][-1])
+        with uninterrupted():       # the blocks and the count that the end record gives
+            for start in range(0, len(records), BLOCK_TICKS):
+                block = np.ascontiguousarray(records[start:start + BLOCK_TICKS])
+                t = float(block["time"][0])
+                self._mcap.add_message(self._ch[TOPIC_TICKS], log_time=self._ns(t), publish_time=self._ns(t),
+                                       data=block.tobytes(), sequence=self._seq)
+                self._seq += 1
+            if len(records):
+                if self.first_time is None:
+                    self.first_time = float(records["time"][0])
+                self.ticks += len(records)
+                self.last_time = float(records["time"][-1])
 
     def event(self, t: float, kind: str, subject: str = "", detail: str = "", tick: int = -1, **extra):
         data = {"tick": int(tick), "time": float(t), "kind": kind, "subject": subject, "detail": detail}
@@ -265,11 +267,12 @@ class RecordingWriter:
 
     def flush(self) -> None:
         """Close the chunk in progress and hand the bytes to the OS (a kill -9 keeps them)."""
-        self._mcap.flush()
-        self._file.flush()
-        self._good = self._file.tell()
-        self._flushed_ticks = self.ticks
-        self._out.keep = self.ticks > 0     # a readable prefix with ticks: kept after a crash
+        with uninterrupted():
+            self._mcap.flush()
+            self._file.flush()
+            self._good = self._file.tell()
+            self._flushed_ticks = self.ticks
+            self._out.keep = self.ticks > 0     # a readable prefix with ticks: kept after a crash
 
     def close(self, end: dict | None = None) -> None:
         """The end record (counts, overflow, how the session ended: ``clean`` false and

@@ -561,3 +561,19 @@ def test_disk_full_while_saving_a_scene(files, small_disk):
     line = one_line_error(r, 1, f"{old}: could not save", "it is as it was")
     g.check()
     assert os.listdir(disk) == ["baked.blend"], line
+
+
+def test_a_stop_inside_an_uninterrupted_write_is_raised_when_the_write_is_whole():
+    # What the SIGINT/SIGTERM handler does: inside a recording's block write the stop waits, so
+    # the end record never counts a block that the file does not hold (a SIGTERM once landed
+    # between the two: "end record counts 2048 ticks, 1792 read").
+    from addon.engine import outputs
+    done = []
+    with pytest.raises(KeyboardInterrupt, match="SIGTERM"):
+        with outputs.uninterrupted():
+            with outputs.uninterrupted():
+                assert outputs.defer_stop("SIGTERM")
+                done.append("inner")
+            done.append("outer")            # still inside the outer write: not raised yet
+    assert done == ["inner", "outer"]
+    assert not outputs.defer_stop("SIGTERM")    # outside any write: the handler raises at once
