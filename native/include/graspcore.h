@@ -76,11 +76,24 @@ typedef struct gcBodyDef {
 } gcBodyDef;
 gcBodyDef gc_default_body_def(void);
 
+/* A convex finger (a pad, a palm, a tool tip) has at most this many hull vertices. */
+#define GC_MAX_FINGER_VERTICES 32
+
 typedef struct gcFingerDef {
-    double radius;          /* fingertip sphere, m (0 = point), default 0.008 */
-    double stiffness;       /* N/m, default 1000 */
+    double radius;          /* fingertip sphere, m (0 = point), default 0.008; a convex finger's
+                             * hull is inflated by it */
+    double stiffness;       /* N/m per point of contact (a sphere has one, a convex finger one per
+                             * touching hull vertex), default 1000 */
     double damping;         /* N s/m on the HIP vs god-object-point velocity, default 0 */
     double position[3];     /* initial HIP */
+    /* Convex finger (docs/physics.md "Area contacts"): NULL / 0 = a sphere of radius. Otherwise
+     * num_points >= 4 xyz triples in the finger frame, not all coplanar, whose hull has at most
+     * GC_MAX_FINGER_VERTICES vertices. Each hull vertex is a point of contact with a god-object
+     * of its own, so a face lying on a face carries the pressure torque. */
+    const double *points;
+    int num_points;
+    double orientation[4];  /* initial finger-frame orientation (w, x, y, z), default identity;
+                             * normalised on creation */
 } gcFingerDef;
 gcFingerDef gc_default_finger_def(void);
 
@@ -100,6 +113,11 @@ int gc_world_finger_count(const gcWorld *world);
 
 gcStatus gc_world_set_gravity(gcWorld *world, const double gravity[3]);
 gcStatus gc_world_set_hip(gcWorld *world, int32_t finger, const double position[3]);
+/* The whole HIP of a finger: position and orientation (w, x, y, z, normalised here). A convex
+ * finger turns with it; a sphere finger ignores the orientation. */
+gcStatus gc_world_set_finger_pose(gcWorld *world, int32_t finger, const double position[3],
+                                  const double orientation[4]);
+gcStatus gc_world_finger_pose(const gcWorld *world, int32_t finger, double position[3], double orientation[4]);
 /* count xyz triples for fingers 0..count-1. */
 gcStatus gc_world_set_hips(gcWorld *world, const double *positions, int count);
 gcStatus gc_world_set_body_velocity(gcWorld *world, int32_t body, const double linear[3],
@@ -122,6 +140,21 @@ gcStatus gc_world_body_mass(const gcWorld *world, int32_t body, double *mass,
 gcStatus gc_world_residual_wrench(const gcWorld *world, int32_t body, double force[3],
                                   double torque[3]);
 gcStatus gc_world_finger_force(const gcWorld *world, int32_t finger, double force[3]);
+/* Convex finger: the torque of its contacts about the HIP (sum (GO_i - HIP) x f_i), what a 6-DOF
+ * device renders beside the force; 0 for a sphere finger. */
+gcStatus gc_world_finger_torque(const gcWorld *world, int32_t finger, double torque[3]);
+/* One point of a finger's contact patch (a sphere finger has at most one per part it touches). */
+typedef struct gcFingerContactPoint {
+    int32_t body;           /* the body touched */
+    int32_t sample;         /* the convex finger's hull vertex (0 for a sphere) */
+    int32_t state;          /* gcFingerState: stick or slip */
+    int32_t reserved;
+    double god_object[3];   /* world, the god-object (fingertip centre) */
+    double normal[3];       /* world, outward from the body */
+    double force[3];        /* N, on the finger (the body gets the opposite at god_object) */
+} gcFingerContactPoint;
+/* Copies up to capacity contact points of the finger; returns how many it has (-1: bad finger). */
+int gc_world_finger_contacts(const gcWorld *world, int32_t finger, gcFingerContactPoint *out, int capacity);
 gcStatus gc_world_god_object(const gcWorld *world, int32_t finger, double position[3]);
 gcStatus gc_world_finger_state(const gcWorld *world, int32_t finger, gcFingerState *state,
                                int32_t *contact_body);

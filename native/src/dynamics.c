@@ -169,9 +169,9 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
              * implicit model consistent with the explicit force. */
             gcVec3 go = gc_transform_point(&frame, c->go_local);
             gcVec3 r = gc_sub(go, b->state.com);
-            gcVec3 spring = gc_scale(gc_sub(f->hip, go), f->stiffness);
+            gcVec3 spring = gc_scale(gc_sub(gc_finger_tip(f, c->sample), go), f->stiffness);
             /* Implicit part: the velocity-dependent terms move into the matrix. */
-            gcVec3 explicit_part = gc_madd(spring, f->hip_velocity, f->damping);
+            gcVec3 explicit_part = gc_madd(spring, gc_finger_tip_velocity(f, c->sample), f->damping);
             force = gc_add(force, explicit_part);
             torque = gc_add(torque, gc_cross(r, explicit_part));
             add_point_coupling(C, r, f->stiffness * dt * dt + f->damping * dt);

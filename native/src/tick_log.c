@@ -123,8 +123,10 @@ static uint64_t hash_finger(uint64_t h, const gcWorld *w, int i) {
     const gcFinger *f = &w->fingers[i], *shown = w->shown ? &w->shown->fingers[i] : f;
     h = hash_bytes(h, &shown->hip, sizeof shown->hip);
     h = hash_bytes(h, &shown->force, sizeof shown->force);
+    if (f->num_vertices) h = hash_bytes(h, &f->q, sizeof f->q); /* a convex finger's orientation */
     for (int c = 0; c < f->num_contacts; ++c) {
         const gcFingerContact *k = &f->contacts[c];
+        if (f->num_vertices) h = hash_4(h, &k->sample);
         h = hash_4(h, &k->part);
         h = hash_4(h, &k->state);
         h = hash_bytes(h, &k->go_local, sizeof k->go_local);

@@ -58,6 +58,7 @@ gcFingerDef gc_default_finger_def(void) {
     memset(&def, 0, sizeof def);
     def.radius = 0.008;
     def.stiffness = 1000.0;
+    def.orientation[0] = 1.0;
     return def;
 }
 
@@ -305,6 +306,20 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
     return GC_OK;
 }
 
+/* A finger's orientation: finite, not zero, normalised. */
+static gcStatus finger_orientation(gcWorld *w, const double o[4], gcQuat *out) {
+    gcStatus st = gc_check_vec(w, o, 4, "orientation");
+    if (st) return st;
+    double n2 = o[0] * o[0] + o[1] * o[1] + o[2] * o[2] + o[3] * o[3];
+    if (!(n2 > 1e-20) || !isfinite(n2)) {
+        gc_world_set_error(w, "orientation: must be a non-zero quaternion (w, x, y, z)");
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    gcQuat q = {o[0], o[1], o[2], o[3]};
+    *out = gc_quat_normalize(q);
+    return GC_OK;
+}
+
 gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_finger) {
     if (!w) return GC_ERR_INVALID_ARGUMENT;
     if (!def) return gc_null_argument(w, "def");
@@ -327,9 +342,39 @@ gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_fi
         gc_world_set_error(w, "max_fingers: the world holds at most %d fingers", w->def.max_fingers);
         return GC_ERR_CAPACITY;
     }
+    gcQuat q;
+    if ((st = finger_orientation(w, def->orientation, &q))) return st;
+    gcHull hull;
+    memset(&hull, 0, sizeof hull);
+    if (def->num_points != 0 || def->points) {
+        if (!def->points) return gc_null_argument(w, "points");
+        if (def->num_points < 4) {
+            gc_world_set_error(w, "points: a convex finger needs at least 4 points that are not coplanar (got %d)",
+                               def->num_points);
+            return GC_ERR_INVALID_ARGUMENT;
+        }
+        if ((st = gc_check_vec(w, def->points, 3 * def->num_points, "points"))) return st;
+        st = gc_hull_build(def->points, def->num_points, 0.0, 0.0, &hull);
+        if (st != GC_OK) {
+            gc_world_set_error(w, "points: their convex hull is degenerate (coplanar, collinear or coincident points)");
+            gc_hull_free(&hull);
+            return st < 0 ? st : GC_ERR_DEGENERATE;
+        }
+        if (hull.num_vertices > GC_MAX_FINGER_VERTICES) {
+            gc_world_set_error(w, "points: their hull has %d vertices, a convex finger takes at most %d (decimate the mesh)",
+                               hull.num_vertices, GC_MAX_FINGER_VERTICES);
+            gc_hull_free(&hull);
+            return GC_ERR_INVALID_ARGUMENT;
+        }
+    }
     int32_t id = w->num_fingers;
     gcFinger *f = &w->fingers[id];
     memset(f, 0, sizeof *f);
+    f->num_vertices = hull.num_vertices;
+    for (int i = 0; i < hull.num_vertices; ++i) f->vertices[i] = hull.vertices[i];
+    gc_hull_free(&hull);
+    f->q = f->q_prev = q;
+    f->R = f->R_prev = gc_quat_to_mat3(q);
     f->radius = def->radius;
     f->stiffness = def->stiffness;
     f->damping = def->damping;
@@ -354,6 +399,20 @@ gcStatus gc_world_set_hip(gcWorld *w, int32_t finger, const double p[3]) {
     gcStatus st;
     if ((st = check_idle(w)) || (st = gc_check_finger(w, finger)) || (st = gc_check_vec(w, p, 3, "position"))) return st;
     w->fingers[finger].hip = gc_v3(p[0], p[1], p[2]);
+    memcpy(&w->hip_array[3 * finger], p, 3 * sizeof(double));
+    return GC_OK;
+}
+
+gcStatus gc_world_set_finger_pose(gcWorld *w, int32_t finger, const double p[3], const double o[4]) {
+    gcStatus st;
+    gcQuat q;
+    if ((st = check_idle(w)) || (st = gc_check_finger(w, finger)) || (st = gc_check_vec(w, p, 3, "position")) ||
+        (st = gc_check_vec(w, o, 4, "orientation")) || (st = finger_orientation(w, o, &q)))
+        return st;
+    gcFinger *f = &w->fingers[finger];
+    f->hip = gc_v3(p[0], p[1], p[2]);
+    f->q = q;
+    f->R = gc_quat_to_mat3(q);
     memcpy(&w->hip_array[3 * finger], p, 3 * sizeof(double));
     return GC_OK;
 }
@@ -498,6 +557,48 @@ gcStatus gc_world_finger_force(const gcWorld *w, int32_t finger, double force[3]
     if (!force) return gc_null_argument(w, "force");
     put3(force, shown_finger(w, finger)->force);
     return GC_OK;
+}
+
+gcStatus gc_world_finger_torque(const gcWorld *w, int32_t finger, double torque[3]) {
+    gcStatus st = gc_check_finger(w, finger);
+    if (st) return st;
+    if (!torque) return gc_null_argument(w, "torque");
+    put3(torque, shown_finger(w, finger)->torque);
+    return GC_OK;
+}
+
+gcStatus gc_world_finger_pose(const gcWorld *w, int32_t finger, double pos[3], double orientation[4]) {
+    gcStatus st = gc_check_finger(w, finger);
+    if (st) return st;
+    if (!pos) return gc_null_argument(w, "position");
+    if (!orientation) return gc_null_argument(w, "orientation");
+    const gcFinger *f = shown_finger(w, finger);
+    put3(pos, f->hip);
+    orientation[0] = f->q.w, orientation[1] = f->q.x, orientation[2] = f->q.y, orientation[3] = f->q.z;
+    return GC_OK;
+}
+
+int gc_world_finger_contacts(const gcWorld *w, int32_t finger, gcFingerContactPoint *out, int capacity) {
+    if (!w || finger < 0 || finger >= w->num_fingers) return -1;
+    const gcFinger *f = shown_finger(w, finger);
+    for (int i = 0; i < f->num_contacts && i < capacity && out; ++i) {
+        const gcFingerContact *c = &f->contacts[i];
+        int32_t body = w->parts[c->part].body;
+        const gcBody *b = &w->bodies[body];
+        gcBodyState state = w->shown ? w->shown->bodies[body] : b->state;
+        gcTransform fr;
+        fr.R = state.R;
+        fr.p = gc_sub(state.com, gc_mat3_mul_vec(&state.R, b->com_local));
+        gcFingerContactPoint *o = &out[i];
+        memset(o, 0, sizeof *o);
+        o->body = body;
+        o->sample = c->sample;
+        o->state = c->state;
+        put3(o->god_object, gc_transform_point(&fr, c->go_local));
+        put3(o->normal, gc_mat3_mul_vec(&fr.R, c->normal_local));
+        put3(o->force, c->force);
+    }
+    return f->num_contacts;
 }
 
 gcStatus gc_world_god_object(const gcWorld *w, int32_t finger, double pos[3]) {

@@ -69,19 +69,32 @@ typedef struct gcFingerContact {
     gcVec3 normal_local;            /* contact plane normal (outward), body frame */
     gcVec3 so_local;                /* surface object, body frame */
     double depth;                   /* HIP depth below the GO plane, last step */
+    int32_t sample;                 /* convex finger: the hull vertex whose god-object this is; 0 for a sphere */
+    gcVec3 force;                   /* output: this contact's force on the finger, world */
 } gcFingerContact;
 
+/* A sphere finger touches at most 8 parts at once; a convex finger's vertices together hold at
+ * most GC_MAX_FINGER_CONTACTS contacts (docs/physics.md "Area contacts"). */
 #define GC_MAX_CONTACTS_PER_FINGER 8
+#define GC_MAX_FINGER_CONTACTS 32
 
 typedef struct gcFinger {
     double radius, stiffness, damping;
     gcVec3 hip, hip_prev, hip_velocity;
     int hip_initialised;
+    /* Convex finger: its hull's vertices in the finger frame (0 = a sphere of radius), each a
+     * point of contact with a god-object of its own; the HIP is the frame's pose. */
+    int num_vertices;
+    gcVec3 vertices[GC_MAX_FINGER_VERTICES];
+    gcQuat q, q_prev;
+    gcMat3 R, R_prev;
+    gcVec3 hip_angular_velocity;
     int num_contacts;
-    gcFingerContact contacts[GC_MAX_CONTACTS_PER_FINGER];
+    gcFingerContact contacts[GC_MAX_FINGER_CONTACTS];
     /* Outputs. */
     gcVec3 god_object;              /* world: force-weighted GO, or the HIP when free */
     gcVec3 force;                   /* rendered to the device: k (GO - HIP) + damping */
+    gcVec3 torque;                  /* convex finger: about the HIP, sum (GO_i - HIP) x f_i; 0 for a sphere */
     int32_t contact_body;           /* -1 when free */
     gcFingerState state;
 } gcFinger;
@@ -139,6 +152,19 @@ static inline gcTransform gc_body_transform(const gcBody *b) {
     t.R = b->state.R;
     t.p = gc_sub(b->state.com, gc_mat3_mul_vec(&b->state.R, b->com_local));
     return t;
+}
+
+/* The HIP of contact sample s: a sphere finger's HIP, or vertex s of a convex finger at the
+ * finger's pose (now, at the previous step, and its velocity). */
+static inline gcVec3 gc_finger_tip(const gcFinger *f, int s) {
+    return f->num_vertices ? gc_add(f->hip, gc_mat3_mul_vec(&f->R, f->vertices[s])) : f->hip;
+}
+static inline gcVec3 gc_finger_tip_prev(const gcFinger *f, int s) {
+    return f->num_vertices ? gc_add(f->hip_prev, gc_mat3_mul_vec(&f->R_prev, f->vertices[s])) : f->hip_prev;
+}
+static inline gcVec3 gc_finger_tip_velocity(const gcFinger *f, int s) {
+    if (!f->num_vertices) return f->hip_velocity;
+    return gc_add(f->hip_velocity, gc_cross(f->hip_angular_velocity, gc_mat3_mul_vec(&f->R, f->vertices[s])));
 }
 
 #endif

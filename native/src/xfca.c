@@ -142,45 +142,47 @@ static int find_entry(const gcFinger *f, const gcHull *h, gcVec3 from, gcVec3 to
     return 0;
 }
 
-static int has_contact_with(const gcFinger *f, int32_t part) {
+static int has_contact_with(const gcFinger *f, int32_t part, int32_t sample) {
     for (int i = 0; i < f->num_contacts; ++i)
-        if (f->contacts[i].part == part) return 1;
+        if (f->contacts[i].part == part && f->contacts[i].sample == sample) return 1;
     return 0;
 }
 
-static void finger_update(gcWorld *w, gcFinger *f, double dt) {
-    f->hip_velocity = gc_scale(gc_sub(f->hip, f->hip_prev), 1.0 / dt);
-    /* Existing contacts, compacting away the ones that ended. */
-    int kept = 0;
-    for (int i = 0; i < f->num_contacts; ++i) {
-        gcFingerContact c = f->contacts[i];
-        const gcPart *part = &w->parts[c.part];
-        const gcBody *b = &w->bodies[part->body];
-        gcTransform fr = gc_body_transform(b);
-        if (update_contact(f, b, &part->hull, &c, gc_inv_transform_point(&fr, f->hip), dt)) f->contacts[kept++] = c;
-    }
-    f->num_contacts = kept;
+/* Rotation vector of q * conj(p): the finger frame's turn over the step. */
+static gcVec3 turn_between(gcQuat p, gcQuat q) {
+    gcQuat pc = {p.w, -p.x, -p.y, -p.z};
+    gcQuat d = gc_quat_mul(q, pc);
+    if (d.w < 0.0) d.w = -d.w, d.x = -d.x, d.y = -d.y, d.z = -d.z;
+    gcVec3 v = gc_v3(d.x, d.y, d.z);
+    double s = gc_len(v);
+    if (!(s > 0.0)) return gc_v3(0, 0, 0);
+    return gc_scale(v, 2.0 * atan2(s, d.w) / s);
+}
 
-    /* New contacts: broad phase on the swept fingertip box, then the sweep per part. */
-    gcVec3 lo = gc_v3(fmin(f->hip.x, f->hip_prev.x), fmin(f->hip.y, f->hip_prev.y), fmin(f->hip.z, f->hip_prev.z));
-    gcVec3 hi = gc_v3(fmax(f->hip.x, f->hip_prev.x), fmax(f->hip.y, f->hip_prev.y), fmax(f->hip.z, f->hip_prev.z));
+/* New contacts of one contact sample (a sphere finger's HIP, or one vertex of a convex finger):
+ * broad phase on its swept box, then the sweep per part. */
+static void find_new_contacts(gcWorld *w, gcFinger *f, int32_t sample, int capacity, double dt) {
+    gcVec3 now = gc_finger_tip(f, sample), prev = gc_finger_tip_prev(f, sample);
+    gcVec3 lo = gc_v3(fmin(now.x, prev.x), fmin(now.y, prev.y), fmin(now.z, prev.z));
+    gcVec3 hi = gc_v3(fmax(now.x, prev.x), fmax(now.y, prev.y), fmax(now.z, prev.z));
     gcVec3 pad = gc_v3(f->radius, f->radius, f->radius);
     lo = gc_sub(lo, pad);
     hi = gc_add(hi, pad);
-    for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < GC_MAX_CONTACTS_PER_FINGER; ++bi) {
+    for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < capacity; ++bi) {
         const gcBody *b = &w->bodies[bi];
         if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
         gcTransform fr = gc_body_transform(b);
-        gcVec3 from = gc_inv_transform_point(&fr, f->hip_prev), to = gc_inv_transform_point(&fr, f->hip);
+        gcVec3 from = gc_inv_transform_point(&fr, prev), to = gc_inv_transform_point(&fr, now);
         for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
-            if (f->num_contacts >= GC_MAX_CONTACTS_PER_FINGER) break;
-            if (has_contact_with(f, p)) continue;
+            if (f->num_contacts >= capacity) break;
+            if (has_contact_with(f, p, sample)) continue;
             const gcHull *h = &w->parts[p].hull;
             gcVec3 go, n;
             if (!find_entry(f, h, from, to, &go, &n)) continue;
             gcFingerContact c;
             memset(&c, 0, sizeof c);
             c.part = p;
+            c.sample = sample;
             c.state = GC_FINGER_STICK;
             c.go_local = go;
             c.normal_local = n;
@@ -189,24 +191,63 @@ static void finger_update(gcWorld *w, gcFinger *f, double dt) {
     }
 }
 
-/* Force rendered to the device and the finger's reported GO/state (the deepest contact). */
+static void finger_update(gcWorld *w, gcFinger *f, double dt) {
+    f->hip_velocity = gc_scale(gc_sub(f->hip, f->hip_prev), 1.0 / dt);
+    if (f->num_vertices) f->hip_angular_velocity = gc_scale(turn_between(f->q_prev, f->q), 1.0 / dt);
+    /* Existing contacts, compacting away the ones that ended. */
+    int kept = 0;
+    for (int i = 0; i < f->num_contacts; ++i) {
+        gcFingerContact c = f->contacts[i];
+        const gcPart *part = &w->parts[c.part];
+        const gcBody *b = &w->bodies[part->body];
+        gcTransform fr = gc_body_transform(b);
+        if (update_contact(f, b, &part->hull, &c, gc_inv_transform_point(&fr, gc_finger_tip(f, c.sample)), dt))
+            f->contacts[kept++] = c;
+    }
+    f->num_contacts = kept;
+    if (!f->num_vertices) {
+        find_new_contacts(w, f, 0, GC_MAX_CONTACTS_PER_FINGER, dt);
+        return;
+    }
+    /* A convex finger: every hull vertex is a fingertip of its own (docs/physics.md "Area contacts"). */
+    for (int32_t s = 0; s < f->num_vertices && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++s)
+        find_new_contacts(w, f, s, GC_MAX_FINGER_CONTACTS, dt);
+}
+
+/* Force rendered to the device and the finger's reported GO/state: a sphere finger reports its
+ * deepest contact; a convex finger the centroid of its contacts' god-objects weighted by their
+ * normal force (the chapter's pressure centroid), the torque of its contacts about the HIP, and
+ * slip when any of them slips. */
 static void finger_outputs(gcWorld *w, int32_t id) {
     gcFinger *f = &w->fingers[id];
-    gcVec3 force = gc_v3(0, 0, 0);
-    double deepest = -1.0;
+    gcVec3 force = gc_v3(0, 0, 0), torque = gc_v3(0, 0, 0), centroid = gc_v3(0, 0, 0);
+    double deepest = -1.0, weight = 0.0;
+    int slipping = 0;
     f->god_object = f->hip;
     f->contact_body = -1;
     f->state = GC_FINGER_FREE;
     for (int i = 0; i < f->num_contacts; ++i) {
-        const gcFingerContact *c = &f->contacts[i];
+        gcFingerContact *c = &f->contacts[i];
         const gcBody *b = &w->bodies[w->parts[c->part].body];
         gcTransform fr = gc_body_transform(b);
         gcVec3 go = gc_transform_point(&fr, c->go_local);
-        force = gc_madd(force, gc_sub(go, f->hip), f->stiffness);
+        gcVec3 tip = gc_finger_tip(f, c->sample);
+        gcVec3 stretch = gc_sub(go, tip);
+        gcVec3 fc = gc_scale(stretch, f->stiffness);
+        force = gc_madd(force, stretch, f->stiffness);
         if (f->damping > 0.0) {
             /* Damping on the HIP vs the body point at the god-object. */
             gcVec3 v_point = b->is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(go, b->state.com)));
-            force = gc_madd(force, gc_sub(v_point, f->hip_velocity), f->damping);
+            gcVec3 dv = gc_sub(v_point, gc_finger_tip_velocity(f, c->sample));
+            fc = gc_madd(fc, dv, f->damping);
+            force = gc_madd(force, dv, f->damping);
+        }
+        c->force = fc;
+        if (f->num_vertices) {
+            torque = gc_add(torque, gc_cross(gc_sub(go, f->hip), fc));
+            centroid = gc_madd(centroid, go, c->depth);
+            weight += c->depth;
+            slipping |= c->state == GC_FINGER_SLIP;
         }
         if (c->depth > deepest) {
             deepest = c->depth;
@@ -215,7 +256,12 @@ static void finger_outputs(gcWorld *w, int32_t id) {
             f->state = c->state;
         }
     }
+    if (f->num_vertices && f->num_contacts) {
+        if (weight > 0.0) f->god_object = gc_scale(centroid, 1.0 / weight);
+        f->state = slipping ? GC_FINGER_SLIP : GC_FINGER_STICK;
+    }
     f->force = force;
+    f->torque = torque;
     double *out = &w->force_array[3 * id];
     out[0] = force.x, out[1] = force.y, out[2] = force.z;
     out = &w->god_object_array[3 * id];
