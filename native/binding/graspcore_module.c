@@ -325,9 +325,10 @@ static PyObject *World_finger_contacts(PyObject *obj, PyObject *args) {
     if (!list) return NULL;
     for (int i = 0; i < n; ++i) {
         const gcFingerContactPoint *c = &points[i];
-        PyObject *d = Py_BuildValue("{s:i,s:i,s:s,s:(ddd),s:(ddd),s:(ddd)}", "body", c->body, "sample", c->sample,
-                                    "state", states[c->state >= 0 && c->state <= 2 ? c->state : 0],
-                                    "god_object", c->god_object[0], c->god_object[1], c->god_object[2], "normal",
+        PyObject *d = Py_BuildValue("{s:i,s:i,s:O,s:s,s:(ddd),s:(ddd),s:(ddd)}", "body", c->body, "sample",
+                                    c->sample, "reversed", c->reversed ? Py_True : Py_False, "state",
+                                    states[c->state >= 0 && c->state <= 2 ? c->state : 0],
+                                    "point", c->point[0], c->point[1], c->point[2], "normal",
                                     c->normal[0], c->normal[1], c->normal[2], "force", c->force[0], c->force[1],
                                     c->force[2]);
         if (!d) {
@@ -1282,7 +1283,7 @@ static PyMethodDef World_methods[] = {
     {"finger_torque", World_finger_torque, METH_VARARGS,
      "finger_torque(finger) -> a convex finger's contact torque about its HIP, N m (0 for a sphere)"},
     {"finger_contacts", World_finger_contacts, METH_VARARGS,
-     "finger_contacts(finger) -> [{body, sample, state, god_object, normal, force}] per contact point (first 64)"},
+     "finger_contacts(finger) -> [{body, sample, reversed, state, point, normal, force}] per contact point (first 64)"},
     {"set_hip", World_set_hip, METH_VARARGS, "set_hip(finger, (x, y, z)): the device (haptic interface) point."},
     {"set_hips", World_set_hips, METH_O, "set_hips(array (n, 3) float64): HIPs of fingers 0..n-1."},
     {"set_gravity", World_set_gravity, METH_O, "set_gravity((gx, gy, gz))"},

@@ -146,12 +146,14 @@ gcStatus gc_world_finger_torque(const gcWorld *world, int32_t finger, double tor
 /* One point of a finger's contact patch (a sphere finger has at most one per part it touches). */
 typedef struct gcFingerContactPoint {
     int32_t body;           /* the body touched */
-    int32_t sample;         /* the convex finger's hull vertex (0 for a sphere) */
+    int32_t sample;         /* not reversed: the convex finger's hull vertex (0 for a sphere);
+                             * reversed: the vertex of the body's part that entered the finger */
+    int32_t reversed;       /* 1: a body vertex inside a convex finger, its god-object on the finger */
     int32_t state;          /* gcFingerState: stick or slip */
-    int32_t reserved;
-    double god_object[3];   /* world, the god-object (fingertip centre) */
+    double point[3];        /* world, where the body receives the force: the god-object on the body
+                             * (a fingertip centre), or the body's vertex */
     double normal[3];       /* world, outward from the body */
-    double force[3];        /* N, on the finger (the body gets the opposite at god_object) */
+    double force[3];        /* N, on the finger (the body gets the opposite at point) */
 } gcFingerContactPoint;
 /* Copies up to capacity contact points of the finger; returns how many it has (-1: bad finger). */
 int gc_world_finger_contacts(const gcWorld *world, int32_t finger, gcFingerContactPoint *out, int capacity);

@@ -167,11 +167,12 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
             /* The reaction acts at the GO (docs/physics.md), which moves rigidly with the body
              * while it sticks: the same lever in the torque and in the coupling keeps the
              * implicit model consistent with the explicit force. */
-            gcVec3 go = gc_transform_point(&frame, c->go_local);
+            gcVec3 tip, tip_velocity, go;
+            gc_finger_contact_ends(f, c, &frame, &tip, &tip_velocity, &go);
             gcVec3 r = gc_sub(go, b->state.com);
-            gcVec3 spring = gc_scale(gc_sub(gc_finger_tip(f, c->sample), go), f->stiffness);
+            gcVec3 spring = gc_scale(gc_sub(tip, go), f->stiffness);
             /* Implicit part: the velocity-dependent terms move into the matrix. */
-            gcVec3 explicit_part = gc_madd(spring, gc_finger_tip_velocity(f, c->sample), f->damping);
+            gcVec3 explicit_part = gc_madd(spring, tip_velocity, f->damping);
             force = gc_add(force, explicit_part);
             torque = gc_add(torque, gc_cross(r, explicit_part));
             add_point_coupling(C, r, f->stiffness * dt * dt + f->damping * dt);

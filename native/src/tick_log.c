@@ -126,7 +126,7 @@ static uint64_t hash_finger(uint64_t h, const gcWorld *w, int i) {
     if (f->num_vertices) h = hash_bytes(h, &f->q, sizeof f->q); /* a convex finger's orientation */
     for (int c = 0; c < f->num_contacts; ++c) {
         const gcFingerContact *k = &f->contacts[c];
-        if (f->num_vertices) h = hash_4(h, &k->sample);
+        if (f->num_vertices) h = hash_4(h, &k->sample), h = hash_4(h, &k->reversed);
         h = hash_4(h, &k->part);
         h = hash_4(h, &k->state);
         h = hash_bytes(h, &k->go_local, sizeof k->go_local);
@@ -171,7 +171,7 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
         gcVec3 n = gc_v3(0, 0, 0); /* the first contact's plane normal, world (0 when free) */
         if (f->num_contacts > 0 && f->contacts[0].part >= 0) {
             const gcBody *b = &w->bodies[w->parts[f->contacts[0].part].body];
-            n = gc_mat3_mul_vec(&b->state.R, f->contacts[0].normal_local);
+            n = gc_finger_contact_normal(f, &f->contacts[0], &b->state.R);
         }
         memcpy(normal + 24 * i, &n, 24);
         int32_t s = (int32_t)f->state;

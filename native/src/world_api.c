@@ -112,12 +112,13 @@ gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world) {
     w->gravity = gc_v3(def->gravity[0], def->gravity[1], def->gravity[2]);
     w->bodies = calloc((size_t)def->max_bodies, sizeof *w->bodies);
     w->fingers = calloc((size_t)def->max_fingers, sizeof *w->fingers);
+    w->finger_hulls = calloc((size_t)def->max_fingers, sizeof *w->finger_hulls);
     w->parts = calloc((size_t)def->max_parts, sizeof *w->parts);
     w->pose_array = calloc((size_t)def->max_bodies * 7, sizeof(double));
     w->god_object_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
     w->force_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
     w->hip_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
-    if (!w->bodies || !w->fingers || !w->parts || !w->pose_array || !w->god_object_array ||
+    if (!w->bodies || !w->fingers || !w->finger_hulls || !w->parts || !w->pose_array || !w->god_object_array ||
         !w->force_array || !w->hip_array || !(w->serial = gc_serial_hub_create(w))) {
         gc_world_destroy(w);
         return create_failed(GC_ERR_NO_MEMORY, "out of memory for the capacities (max_bodies %d, max_fingers %d, max_parts %d)",
@@ -143,6 +144,9 @@ void gc_world_destroy(gcWorld *w) {
     gc_hip_track_free(w->hip_track);
     for (int i = 0; i < w->num_parts; ++i) gc_hull_free(&w->parts[i].hull);
     free(w->bodies);
+    if (w->finger_hulls)
+        for (int i = 0; i < w->num_fingers; ++i) gc_hull_free(&w->finger_hulls[i]);
+    free(w->finger_hulls);
     free(w->fingers);
     free(w->parts);
     free(w->pose_array);
@@ -354,7 +358,7 @@ gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_fi
             return GC_ERR_INVALID_ARGUMENT;
         }
         if ((st = gc_check_vec(w, def->points, 3 * def->num_points, "points"))) return st;
-        st = gc_hull_build(def->points, def->num_points, 0.0, 0.0, &hull);
+        st = gc_hull_build(def->points, def->num_points, def->radius, 0.0, &hull);
         if (st != GC_OK) {
             gc_world_set_error(w, "points: their convex hull is degenerate (coplanar, collinear or coincident points)");
             gc_hull_free(&hull);
@@ -372,7 +376,7 @@ gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_fi
     memset(f, 0, sizeof *f);
     f->num_vertices = hull.num_vertices;
     for (int i = 0; i < hull.num_vertices; ++i) f->vertices[i] = hull.vertices[i];
-    gc_hull_free(&hull);
+    w->finger_hulls[id] = hull; /* freed with the world */
     f->q = f->q_prev = q;
     f->R = f->R_prev = gc_quat_to_mat3(q);
     f->radius = def->radius;
@@ -589,13 +593,16 @@ int gc_world_finger_contacts(const gcWorld *w, int32_t finger, gcFingerContactPo
         gcTransform fr;
         fr.R = state.R;
         fr.p = gc_sub(state.com, gc_mat3_mul_vec(&state.R, b->com_local));
+        gcVec3 anchor, anchor_velocity, point;
+        gc_finger_contact_ends(f, c, &fr, &anchor, &anchor_velocity, &point);
         gcFingerContactPoint *o = &out[i];
         memset(o, 0, sizeof *o);
         o->body = body;
         o->sample = c->sample;
+        o->reversed = c->reversed;
         o->state = c->state;
-        put3(o->god_object, gc_transform_point(&fr, c->go_local));
-        put3(o->normal, gc_mat3_mul_vec(&fr.R, c->normal_local));
+        put3(o->point, point);
+        put3(o->normal, gc_finger_contact_normal(f, c, &fr.R));
         put3(o->force, c->force);
     }
     return f->num_contacts;

@@ -69,7 +69,13 @@ typedef struct gcFingerContact {
     gcVec3 normal_local;            /* contact plane normal (outward), body frame */
     gcVec3 so_local;                /* surface object, body frame */
     double depth;                   /* HIP depth below the GO plane, last step */
-    int32_t sample;                 /* convex finger: the hull vertex whose god-object this is; 0 for a sphere */
+    /* A sphere finger, or a vertex of a convex finger entering a body (sample: its index): the GO
+     * is on the body, in the body frame, and its spring pulls the vertex. Reversed: a vertex of the
+     * body (sample: its index in the part, at body_point_local) entering a convex finger: the GO is
+     * on the finger's surface, in the finger frame, and its spring pulls the body's vertex. */
+    int32_t sample;
+    int32_t reversed;
+    gcVec3 body_point_local;        /* reversed: the body's vertex, body frame */
     gcVec3 force;                   /* output: this contact's force on the finger, world */
 } gcFingerContact;
 
@@ -140,6 +146,9 @@ struct gcWorld {
     const unsigned char *body_active;
     /* Scripted HIP track (hip_input.c), sampled by the runtime's haptic loop. */
     struct gcHipTrack *hip_track;
+    /* Convex fingers' hulls in the finger frame, inflated by the finger radius (max_fingers slots,
+     * read-only once made: the runtime's shadows share them). */
+    gcHull *finger_hulls;
     /* 1 while the runtime owns the dynamic state: calls that would change it are refused. */
     int locked;
     /* The runtime's gcShown while it runs, NULL otherwise. */
@@ -165,6 +174,28 @@ static inline gcVec3 gc_finger_tip_prev(const gcFinger *f, int s) {
 static inline gcVec3 gc_finger_tip_velocity(const gcFinger *f, int s) {
     if (!f->num_vertices) return f->hip_velocity;
     return gc_add(f->hip_velocity, gc_cross(f->hip_angular_velocity, gc_mat3_mul_vec(&f->R, f->vertices[s])));
+}
+
+/* The two ends of a finger contact's spring, world: the finger's end (anchor: its HIP or vertex,
+ * or for a reversed contact the GO on its surface) with that point's velocity, and the body point
+ * (the GO on the body, or the body's vertex) where the body receives the reaction. */
+static inline void gc_finger_contact_ends(const gcFinger *f, const gcFingerContact *c, const gcTransform *body,
+                                          gcVec3 *anchor, gcVec3 *anchor_velocity, gcVec3 *body_point) {
+    if (!c->reversed) {
+        *anchor = gc_finger_tip(f, c->sample);
+        *anchor_velocity = gc_finger_tip_velocity(f, c->sample);
+        *body_point = gc_transform_point(body, c->go_local);
+        return;
+    }
+    gcVec3 arm = gc_mat3_mul_vec(&f->R, c->go_local);
+    *anchor = gc_add(f->hip, arm);
+    *anchor_velocity = gc_add(f->hip_velocity, gc_cross(f->hip_angular_velocity, arm));
+    *body_point = gc_transform_point(body, c->body_point_local);
+}
+
+/* A finger contact's normal, world, outward from the body. */
+static inline gcVec3 gc_finger_contact_normal(const gcFinger *f, const gcFingerContact *c, const gcMat3 *body_R) {
+    return c->reversed ? gc_neg(gc_mat3_mul_vec(&f->R, c->normal_local)) : gc_mat3_mul_vec(body_R, c->normal_local);
 }
 
 #endif

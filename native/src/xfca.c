@@ -51,9 +51,17 @@ static double push_depth(double rc, double dmax, double depth, double min_width)
     return fmax(push, 0.0);
 }
 
-/* Steps 4-6 for an existing contact, in the body frame. Returns 0 when contact is lost. */
-static int update_contact(const gcFinger *f, const gcBody *b, const gcHull *h, gcFingerContact *c,
-                          gcVec3 hip, double dt) {
+/* What a contact's god-object slides on: the hull (a body's part, or a convex finger for a
+ * reversed contact), the radius of the sphere that enters it, and the body's friction. */
+typedef struct gcSurface {
+    const gcHull *hull;
+    double radius;            /* of the entering sphere (the fingertip, or a body vertex's margin) */
+    double mu_s, mu_d, viscosity;
+} gcSurface;
+
+/* Steps 4-6 for an existing contact, in the hull's frame. Returns 0 when contact is lost. */
+static int update_contact(const gcSurface *sf, gcFingerContact *c, gcVec3 hip, double dt) {
+    const gcHull *h = sf->hull;
     gcVec3 n = c->normal_local;
     double depth = gc_dot(n, gc_sub(c->go_local, hip));
     if (depth <= 0.0) return 0; /* the HIP crossed the GO's plane */
@@ -65,7 +73,7 @@ static int update_contact(const gcFinger *f, const gcBody *b, const gcHull *h, g
     offset = gc_madd(offset, n, -gc_dot(offset, n));
     double dist = gc_len(offset);
     gcVec3 go = gc_add(so, offset);
-    double static_radius = b->mu_s * depth, dynamic_radius = b->mu_d * depth;
+    double static_radius = sf->mu_s * depth, dynamic_radius = sf->mu_d * depth;
     /* A GO left on the mu_d circle by the previous step is at rest on the surface: the
      * tolerance keeps re-surfacing round-off from counting as sliding. */
     int slipping;
@@ -77,8 +85,8 @@ static int update_contact(const gcFinger *f, const gcBody *b, const gcHull *h, g
         /* Onto the Coulomb (mu_d) circle; with viscosity, no further than the viscous
          * radius depth*dt/viscosity per step, so faster sliding trails further. */
         gcVec3 target = gc_madd(so, offset, dynamic_radius / dist);
-        if (b->viscosity > 0.0) {
-            double max_move = depth * dt / b->viscosity;
+        if (sf->viscosity > 0.0) {
+            double max_move = depth * dt / sf->viscosity;
             gcVec3 move = gc_sub(target, go);
             double len = gc_len(move);
             if (len > max_move) target = gc_madd(go, move, max_move / len);
@@ -90,31 +98,29 @@ static int update_contact(const gcFinger *f, const gcBody *b, const gcHull *h, g
     }
     double dmax = gc_len(gc_sub(go, c->go_local));
     /* Step 5: push toward the HIP so the GO cannot leave a convex surface. */
-    double rc = f->radius + h->radius;
+    double rc = sf->radius + h->radius;
     go = gc_madd(go, n, -push_depth(rc, dmax, depth, h->min_width + 2.0 * h->radius));
     /* Step 6: collision pass of the GO against the part, re-surface along the normal. */
     gcVec3 nn;
-    double sd = tip_query(h, go, f->radius, &nn);
+    double sd = tip_query(h, go, sf->radius, &nn);
     if (sd > GC_CONTACT_SLOP) return 0; /* the surface fell away faster than allowed */
     go = gc_madd(go, nn, -sd);
     c->go_local = go;
     c->normal_local = nn;
-    (void)dt;
     return 1;
 }
 
 /* First contact (steps 1-3): sweep the fingertip from the previous HIP to the current one
  * by conservative advancement, so a fast HIP enters through the face it crossed. */
-static int find_entry(const gcFinger *f, const gcHull *h, gcVec3 from, gcVec3 to, gcVec3 *go,
-                      gcVec3 *normal) {
+static int find_entry(double radius, const gcHull *h, gcVec3 from, gcVec3 to, gcVec3 *go, gcVec3 *normal) {
     gcVec3 seg = gc_sub(to, from);
     double len = gc_len(seg);
     gcVec3 n;
-    double d = tip_query(h, from, f->radius, &n);
+    double d = tip_query(h, from, radius, &n);
     if (d <= GC_CONTACT_SLOP) {
         /* Already inside at the start (the body moved onto the finger, or the first
          * step): leave along the least-penetration normal. */
-        d = tip_query(h, to, f->radius, &n);
+        d = tip_query(h, to, radius, &n);
         if (d > GC_CONTACT_SLOP) return 0;
         *go = gc_madd(to, n, -d);
         *normal = n;
@@ -127,12 +133,12 @@ static int find_entry(const gcFinger *f, const gcHull *h, gcVec3 from, gcVec3 to
     for (int it = 0; it < GC_SWEEP_MAX_ITERATIONS; ++it) {
         t += (d - 0.5 * GC_SWEEP_GAP) / len;
         if (t >= 1.0) {
-            d = tip_query(h, to, f->radius, &n);
+            d = tip_query(h, to, radius, &n);
             if (d > GC_CONTACT_SLOP) return 0;
             t = 1.0;
         }
         gcVec3 p = gc_madd(from, seg, t);
-        d = tip_query(h, p, f->radius, &n);
+        d = tip_query(h, p, radius, &n);
         if (d <= GC_SWEEP_GAP || t >= 1.0) {
             *go = gc_madd(p, n, -d);
             *normal = n;
@@ -142,9 +148,10 @@ static int find_entry(const gcFinger *f, const gcHull *h, gcVec3 from, gcVec3 to
     return 0;
 }
 
-static int has_contact_with(const gcFinger *f, int32_t part, int32_t sample) {
+static int has_contact_with(const gcFinger *f, int32_t part, int32_t sample, int32_t reversed) {
     for (int i = 0; i < f->num_contacts; ++i)
-        if (f->contacts[i].part == part && f->contacts[i].sample == sample) return 1;
+        if (f->contacts[i].part == part && f->contacts[i].sample == sample && f->contacts[i].reversed == reversed)
+            return 1;
     return 0;
 }
 
@@ -157,6 +164,19 @@ static gcVec3 turn_between(gcQuat p, gcQuat q) {
     double s = gc_len(v);
     if (!(s > 0.0)) return gc_v3(0, 0, 0);
     return gc_scale(v, 2.0 * atan2(s, d.w) / s);
+}
+
+static gcSurface body_surface(const gcBody *b, const gcHull *h, double radius) {
+    gcSurface sf = {h, radius, b->mu_s, b->mu_d, b->viscosity};
+    return sf;
+}
+
+/* The finger's frame as a transform (its HIP and orientation). */
+static gcTransform finger_transform(const gcFinger *f) {
+    gcTransform t;
+    t.R = f->R;
+    t.p = f->hip;
+    return t;
 }
 
 /* New contacts of one contact sample (a sphere finger's HIP, or one vertex of a convex finger):
@@ -175,10 +195,10 @@ static void find_new_contacts(gcWorld *w, gcFinger *f, int32_t sample, int capac
         gcVec3 from = gc_inv_transform_point(&fr, prev), to = gc_inv_transform_point(&fr, now);
         for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
             if (f->num_contacts >= capacity) break;
-            if (has_contact_with(f, p, sample)) continue;
+            if (has_contact_with(f, p, sample, 0)) continue;
             const gcHull *h = &w->parts[p].hull;
             gcVec3 go, n;
-            if (!find_entry(f, h, from, to, &go, &n)) continue;
+            if (!find_entry(f->radius, h, from, to, &go, &n)) continue;
             gcFingerContact c;
             memset(&c, 0, sizeof c);
             c.part = p;
@@ -186,14 +206,65 @@ static void find_new_contacts(gcWorld *w, gcFinger *f, int32_t sample, int capac
             c.state = GC_FINGER_STICK;
             c.go_local = go;
             c.normal_local = n;
-            if (update_contact(f, b, h, &c, to, dt)) f->contacts[f->num_contacts++] = c;
+            gcSurface sf = body_surface(b, h, f->radius);
+            if (update_contact(&sf, &c, to, dt)) f->contacts[f->num_contacts++] = c;
         }
     }
 }
 
-static void finger_update(gcWorld *w, gcFinger *f, double dt) {
+/* Reversed contacts of a convex finger: the vertices of the bodies' parts that are inside the
+ * finger (a box corner on a palm wider than the box, a can's side across a palm), each with a
+ * god-object on the finger's surface. Without them a body smaller than the finger's face would
+ * pass between its vertices (docs/physics.md "Area contacts"). */
+static void find_reversed_contacts(gcWorld *w, gcFinger *f, const gcHull *fh, double dt) {
+    gcTransform ff = finger_transform(f);
+    gcVec3 lo = gc_v3(INFINITY, INFINITY, INFINITY), hi = gc_neg(lo);
+    for (int s = 0; s < f->num_vertices; ++s) {
+        gcVec3 v = gc_finger_tip(f, s);
+        lo = gc_v3(fmin(lo.x, v.x), fmin(lo.y, v.y), fmin(lo.z, v.z));
+        hi = gc_v3(fmax(hi.x, v.x), fmax(hi.y, v.y), fmax(hi.z, v.z));
+    }
+    gcVec3 pad = gc_v3(fh->radius, fh->radius, fh->radius);
+    lo = gc_sub(lo, pad);
+    hi = gc_add(hi, pad);
+    for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++bi) {
+        const gcBody *b = &w->bodies[bi];
+        if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
+        gcTransform fr = gc_body_transform(b);
+        for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
+            const gcHull *h = &w->parts[p].hull;
+            for (int32_t j = 0; j < h->num_vertices && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++j) {
+                gcVec3 vw = gc_transform_point(&fr, h->vertices[j]);
+                if (vw.x < lo.x - h->radius || vw.y < lo.y - h->radius || vw.z < lo.z - h->radius ||
+                    vw.x > hi.x + h->radius || vw.y > hi.y + h->radius || vw.z > hi.z + h->radius)
+                    continue;
+                if (has_contact_with(f, p, j, 1)) continue;
+                gcVec3 v = gc_inv_transform_point(&ff, vw), go, n;
+                /* No sweep: a body's vertex moves little against the finger in a step; one found
+                 * inside leaves along the least-penetration normal. */
+                if (!find_entry(h->radius, fh, v, v, &go, &n)) continue;
+                gcFingerContact c;
+                memset(&c, 0, sizeof c);
+                c.part = p;
+                c.sample = j;
+                c.reversed = 1;
+                c.body_point_local = h->vertices[j];
+                c.state = GC_FINGER_STICK;
+                c.go_local = go;
+                c.normal_local = n;
+                gcSurface sf = body_surface(b, fh, h->radius);
+                if (update_contact(&sf, &c, v, dt)) f->contacts[f->num_contacts++] = c;
+            }
+        }
+    }
+}
+
+static void finger_update(gcWorld *w, int32_t id, double dt) {
+    gcFinger *f = &w->fingers[id];
+    const gcHull *fh = &w->finger_hulls[id];
     f->hip_velocity = gc_scale(gc_sub(f->hip, f->hip_prev), 1.0 / dt);
     if (f->num_vertices) f->hip_angular_velocity = gc_scale(turn_between(f->q_prev, f->q), 1.0 / dt);
+    gcTransform ff = finger_transform(f);
     /* Existing contacts, compacting away the ones that ended. */
     int kept = 0;
     for (int i = 0; i < f->num_contacts; ++i) {
@@ -201,17 +272,27 @@ static void finger_update(gcWorld *w, gcFinger *f, double dt) {
         const gcPart *part = &w->parts[c.part];
         const gcBody *b = &w->bodies[part->body];
         gcTransform fr = gc_body_transform(b);
-        if (update_contact(f, b, &part->hull, &c, gc_inv_transform_point(&fr, gc_finger_tip(f, c.sample)), dt))
-            f->contacts[kept++] = c;
+        int alive;
+        if (!c.reversed) {
+            gcSurface sf = body_surface(b, &part->hull, f->radius);
+            alive = update_contact(&sf, &c, gc_inv_transform_point(&fr, gc_finger_tip(f, c.sample)), dt);
+        } else {
+            gcSurface sf = body_surface(b, fh, part->hull.radius);
+            gcVec3 v = gc_inv_transform_point(&ff, gc_transform_point(&fr, c.body_point_local));
+            alive = update_contact(&sf, &c, v, dt);
+        }
+        if (alive) f->contacts[kept++] = c;
     }
     f->num_contacts = kept;
     if (!f->num_vertices) {
         find_new_contacts(w, f, 0, GC_MAX_CONTACTS_PER_FINGER, dt);
         return;
     }
-    /* A convex finger: every hull vertex is a fingertip of its own (docs/physics.md "Area contacts"). */
+    /* A convex finger: every hull vertex is a fingertip of its own, and every body vertex inside
+     * the finger a reversed one (docs/physics.md "Area contacts"). */
     for (int32_t s = 0; s < f->num_vertices && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++s)
         find_new_contacts(w, f, s, GC_MAX_FINGER_CONTACTS, dt);
+    find_reversed_contacts(w, f, fh, dt);
 }
 
 /* Force rendered to the device and the finger's reported GO/state: a sphere finger reports its
@@ -230,15 +311,15 @@ static void finger_outputs(gcWorld *w, int32_t id) {
         gcFingerContact *c = &f->contacts[i];
         const gcBody *b = &w->bodies[w->parts[c->part].body];
         gcTransform fr = gc_body_transform(b);
-        gcVec3 go = gc_transform_point(&fr, c->go_local);
-        gcVec3 tip = gc_finger_tip(f, c->sample);
+        gcVec3 tip, tip_velocity, go;
+        gc_finger_contact_ends(f, c, &fr, &tip, &tip_velocity, &go);
         gcVec3 stretch = gc_sub(go, tip);
         gcVec3 fc = gc_scale(stretch, f->stiffness);
         force = gc_madd(force, stretch, f->stiffness);
         if (f->damping > 0.0) {
             /* Damping on the HIP vs the body point at the god-object. */
             gcVec3 v_point = b->is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(go, b->state.com)));
-            gcVec3 dv = gc_sub(v_point, gc_finger_tip_velocity(f, c->sample));
+            gcVec3 dv = gc_sub(v_point, tip_velocity);
             fc = gc_madd(fc, dv, f->damping);
             force = gc_madd(force, dv, f->damping);
         }
@@ -269,7 +350,7 @@ static void finger_outputs(gcWorld *w, int32_t id) {
 }
 
 void gc_xfca_update(gcWorld *w, double dt) {
-    for (int32_t i = 0; i < w->num_fingers; ++i) finger_update(w, &w->fingers[i], dt);
+    for (int32_t i = 0; i < w->num_fingers; ++i) finger_update(w, i, dt);
 }
 
 void gc_xfca_outputs(gcWorld *w) {
