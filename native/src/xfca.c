@@ -171,6 +171,21 @@ static gcSurface body_surface(const gcBody *b, const gcHull *h, double radius) {
     return sf;
 }
 
+/* The body frame a convex finger's contacts are evaluated in: the body's pose advanced by its
+ * velocity over the step. The HIP has already moved this step and the body not yet, so on the
+ * current pose a carried body would lag its HIP by v dt, which the friction circle of a light
+ * load on several points (mu k depth is a few tenths of a millimetre) mistakes for sliding: a pad
+ * carrying a 0.5 kg box on 4 points at 10 kN/m slipped at 0.1 m/s (docs/physics.md "Area
+ * contacts"). Sphere fingers keep the current pose (their results are unchanged). */
+static gcTransform predicted_transform(const gcBody *b, double dt) {
+    if (b->is_static) return gc_body_transform(b);
+    gcQuat q = gc_quat_normalize(gc_quat_mul(gc_quat_from_rotation_vector(gc_scale(b->state.w, dt)), b->state.q));
+    gcTransform t;
+    t.R = gc_quat_to_mat3(q);
+    t.p = gc_sub(gc_madd(b->state.com, b->state.v, dt), gc_mat3_mul_vec(&t.R, b->com_local));
+    return t;
+}
+
 /* The finger's frame as a transform (its HIP and orientation). */
 static gcTransform finger_transform(const gcFinger *f) {
     gcTransform t;
@@ -191,7 +206,7 @@ static void find_new_contacts(gcWorld *w, gcFinger *f, int32_t sample, int capac
     for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < capacity; ++bi) {
         const gcBody *b = &w->bodies[bi];
         if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
-        gcTransform fr = gc_body_transform(b);
+        gcTransform fr = f->num_vertices ? predicted_transform(b, dt) : gc_body_transform(b);
         gcVec3 from = gc_inv_transform_point(&fr, prev), to = gc_inv_transform_point(&fr, now);
         for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
             if (f->num_contacts >= capacity) break;
@@ -230,7 +245,7 @@ static void find_reversed_contacts(gcWorld *w, gcFinger *f, const gcHull *fh, do
     for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++bi) {
         const gcBody *b = &w->bodies[bi];
         if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
-        gcTransform fr = gc_body_transform(b);
+        gcTransform fr = predicted_transform(b, dt);
         for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
             const gcHull *h = &w->parts[p].hull;
             for (int32_t j = 0; j < h->num_vertices && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++j) {
@@ -271,7 +286,7 @@ static void finger_update(gcWorld *w, int32_t id, double dt) {
         gcFingerContact c = f->contacts[i];
         const gcPart *part = &w->parts[c.part];
         const gcBody *b = &w->bodies[part->body];
-        gcTransform fr = gc_body_transform(b);
+        gcTransform fr = f->num_vertices ? predicted_transform(b, dt) : gc_body_transform(b);
         int alive;
         if (!c.reversed) {
             gcSurface sf = body_surface(b, &part->hull, f->radius);
