@@ -194,6 +194,18 @@ static gcTransform finger_transform(const gcFinger *f) {
     return t;
 }
 
+/* Two convex shapes touch from one side: a new contact of a convex finger with a part whose
+ * normal (out of the body, world) opposes one the finger already has with that part entered from
+ * the far side (the HIP went through a thin plate, its far vertices then met the plate's far face)
+ * and is refused; the existing god-objects keep the finger on the side it touched first. */
+static int opposes_existing(const gcFinger *f, const gcBody *b, int32_t part, gcVec3 normal_world) {
+    for (int i = 0; i < f->num_contacts; ++i) {
+        const gcFingerContact *c = &f->contacts[i];
+        if (c->part == part && gc_dot(gc_finger_contact_normal(f, c, &b->state.R), normal_world) < 0.0) return 1;
+    }
+    return 0;
+}
+
 /* New contacts of one contact sample (a sphere finger's HIP, or one vertex of a convex finger):
  * broad phase on its swept box, then the sweep per part. */
 static void find_new_contacts(gcWorld *w, gcFinger *f, int32_t sample, int capacity, double dt) {
@@ -214,6 +226,7 @@ static void find_new_contacts(gcWorld *w, gcFinger *f, int32_t sample, int capac
             const gcHull *h = &w->parts[p].hull;
             gcVec3 go, n;
             if (!find_entry(f->radius, h, from, to, &go, &n)) continue;
+            if (f->num_vertices && opposes_existing(f, b, p, gc_mat3_mul_vec(&b->state.R, n))) continue;
             gcFingerContact c;
             memset(&c, 0, sizeof c);
             c.part = p;
@@ -232,7 +245,9 @@ static void find_new_contacts(gcWorld *w, gcFinger *f, int32_t sample, int capac
  * god-object on the finger's surface. Without them a body smaller than the finger's face would
  * pass between its vertices (docs/physics.md "Area contacts"). */
 static void find_reversed_contacts(gcWorld *w, gcFinger *f, const gcHull *fh, double dt) {
-    gcTransform ff = finger_transform(f);
+    gcTransform ff = finger_transform(f), ff_prev;
+    ff_prev.R = f->R_prev;
+    ff_prev.p = f->hip_prev;
     gcVec3 lo = gc_v3(INFINITY, INFINITY, INFINITY), hi = gc_neg(lo);
     for (int s = 0; s < f->num_vertices; ++s) {
         gcVec3 v = gc_finger_tip(f, s);
@@ -245,7 +260,7 @@ static void find_reversed_contacts(gcWorld *w, gcFinger *f, const gcHull *fh, do
     for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++bi) {
         const gcBody *b = &w->bodies[bi];
         if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
-        gcTransform fr = predicted_transform(b, dt);
+        gcTransform fr = predicted_transform(b, dt), fr_prev = gc_body_transform(b);
         for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
             const gcHull *h = &w->parts[p].hull;
             for (int32_t j = 0; j < h->num_vertices && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++j) {
@@ -254,10 +269,12 @@ static void find_reversed_contacts(gcWorld *w, gcFinger *f, const gcHull *fh, do
                     vw.x > hi.x + h->radius || vw.y > hi.y + h->radius || vw.z > hi.z + h->radius)
                     continue;
                 if (has_contact_with(f, p, j, 1)) continue;
+                /* Swept in the finger's frame from where the vertex was against the finger a step
+                 * ago (the body now, the finger at its previous pose) to where it will be. */
                 gcVec3 v = gc_inv_transform_point(&ff, vw), go, n;
-                /* No sweep: a body's vertex moves little against the finger in a step; one found
-                 * inside leaves along the least-penetration normal. */
-                if (!find_entry(h->radius, fh, v, v, &go, &n)) continue;
+                gcVec3 v_prev = gc_inv_transform_point(&ff_prev, gc_transform_point(&fr_prev, h->vertices[j]));
+                if (!find_entry(h->radius, fh, v_prev, v, &go, &n)) continue;
+                if (opposes_existing(f, b, p, gc_neg(gc_mat3_mul_vec(&f->R, n)))) continue;
                 gcFingerContact c;
                 memset(&c, 0, sizeof c);
                 c.part = p;
