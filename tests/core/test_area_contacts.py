@@ -314,3 +314,32 @@ def test_plate_rests_level_on_a_palm_while_carried():
 def test_plate_on_a_point_contact_tips_when_carried():
     tilt, _ = carry_plate(area=False)
     assert tilt > 45.0
+
+
+def test_runtime_carries_a_convex_finger_as_the_synchronous_step_does():
+    """The manual-clock runtime (haptic loop adopting the plate while the palm holds it) gives the
+    synchronous steps' state bit for bit: the finger's hull and orientation reach its shadows."""
+    def scene():
+        w = graspcore.World()
+        q = (np.cos(0.05), np.sin(0.05), 0.0, 0.0)  # a palm tilted 5.7 deg
+        w.add_finger(radius=0.0, stiffness=K, damping=2.0, position=(0, 0, -0.01), orientation=q,
+                     points=box_points(0.045, 0.04, 0.01))
+        w.add_body(box_points(0.1, 0.1, PLATE_H), mass=PLATE_M, orientation=q,
+                   position=tuple(quat_to_matrix(q) @ [0, 0, PLATE_H]))
+        return w
+
+    def hips(i):
+        return np.array([[0.0, 0.0, -0.01 + 0.05 * min(i / 500, 1.0)]])
+
+    ref = scene()
+    for i in range(800):
+        ref.set_hips(hips(i))
+        ref.step(DT)
+    w = scene()
+    w.start(realtime=False, object_rate=1000)
+    for i in range(800):
+        assert w.push_hips(hips(i), i * DT)
+        w.advance(1)
+    w.stop()
+    assert w.state_hash() == ref.state_hash()
+    assert tilt_deg(ref, 0) == pytest.approx(np.degrees(0.1), abs=0.2)  # resting on the tilted palm
