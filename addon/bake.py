@@ -5,8 +5,10 @@ arrows (the "Grasp Lab" collection) get keys at the scene's frame rate, or at ev
 haptic tick as subframes. Measures for the Graph Editor are animated custom properties:
 on "GL God-object <finger>": ``gl_state`` (0 free, 1 stick, 2 slip), ``gl_force`` |F|,
 ``gl_normal_force`` |Fn|, ``gl_tangential_force`` |Ft|, ``gl_friction_use``
-|Ft|/(mu_s |Fn|); on "GL Force <body>": ``gl_grip`` (sum of |Fn| of the fingers on it),
-``gl_force`` |residual force|, ``gl_torque`` |residual torque|.
+|Ft|/(mu |Fn|) (mu of the contact's current cone); on "GL Force <body>": ``gl_grip`` (sum
+of |Fn| of the fingers on it), ``gl_force`` |residual force|, ``gl_torque`` |residual torque|,
+and the grasp analysis (engine/analysis.py, docs/analysis.md): ``gl_held``, ``gl_closure``,
+``gl_epsilon``, ``gl_mu_min``, ``gl_slip_margin``, ``gl_grip_load``.
 """
 from __future__ import annotations
 
@@ -18,6 +20,7 @@ import numpy as np
 from mathutils import Matrix, Quaternion
 
 from . import anim, display
+from .engine import analysis
 from .engine.measures import body_grip, finger_measures
 from .engine.recording import Recording, scene_from_dict
 from .engine.runner import quat_rotate
@@ -254,14 +257,20 @@ def bake_recording(context, rec: Recording, every_tick: bool = False, force_scal
         props = _custom(obj, {k: v[j] for k, v in measures.items()})
         jobs.append(partial(_point_job, obj, per["god_object"][j], _parent_inverse(obj), props))
     grip = body_grip(per["contact"].T, measures["gl_normal_force"].T, len(desc.bodies))
+    # The grasp measures of each held body (docs/analysis.md), at the baked ticks.
+    rows = np.unique(idx)
+    grasp = analysis.body_series(analysis.analyse_recording(rec, rows=rows), rows, len(desc.bodies))
+    at = np.searchsorted(rows, idx)
     for k, i in enumerate(shown.dynamic):
         force_arrow, torque_arrow = shown.force_arrows[k], shown.torque_arrows[k]
         for arrow in (force_arrow, torque_arrow):
             arrow.rotation_mode = "QUATERNION"
         for name in ("gl_grip", "gl_force", "gl_torque"):
             force_arrow[name] = 0.0
+        props = _custom(force_arrow, {name: np.ascontiguousarray(v[:, i]) for name, v in grasp.items()}, at)
         jobs.append(partial(_arrows_job, force_arrow, torque_arrow, per["pose"][i], per["wrench"][i],
-                            desc.bodies[i].mass_properties.center_of_mass, grip[:, i], force_scale, torque_scale))
+                            desc.bodies[i].mass_properties.center_of_mass, grip[:, i], force_scale, torque_scale,
+                            props))
 
     wm = context.window_manager
     wm.progress_begin(0, len(jobs))
@@ -290,9 +299,9 @@ def _point_job(obj, points, parent, extra):
     return [(obj, _point_channels(points, parent) + extra, None)]
 
 
-def _arrows_job(force_arrow, torque_arrow, pose, wrench, com_local, grip, force_scale, torque_scale):
+def _arrows_job(force_arrow, torque_arrow, pose, wrench, com_local, grip, force_scale, torque_scale, extra):
     """A body's force and torque arrows, once per run of equal poses and wrenches (a body at
-    rest: once), and the arrow's measures (grip, |force|, |torque|)."""
+    rest: once), and the arrow's measures (grip, |force|, |torque|, and ``extra``'s channels)."""
     change = _changes(pose) | _changes(wrench)
     pose, run = _distinct(pose, change)
     wrench = wrench[change]
@@ -300,5 +309,5 @@ def _arrows_job(force_arrow, torque_arrow, pose, wrench, com_local, grip, force_
     force, torque = wrench[:, :3], wrench[:, 3:]
     props = [('["gl_grip"]', 0, grip), ('["gl_force"]', 0, _norms(force), run),
              ('["gl_torque"]', 0, _norms(torque), run)]
-    return [(force_arrow, _arrow_channels(com, force, force_scale, run) + props, None),
+    return [(force_arrow, _arrow_channels(com, force, force_scale, run) + props + extra, None),
             (torque_arrow, _arrow_channels(com, torque, torque_scale, run), None)]

@@ -188,7 +188,8 @@ def _report_devices(live, out, err) -> int:
 def bake(args, out, err) -> int:
     open_blend(args.scene)
     render = bpy.context.scene.render
-    rec = open_recording(args.recording, fps=None if args.every_tick else render.fps / render.fps_base)
+    rec = open_recording(args.recording, fps=None if args.every_tick else render.fps / render.fps_base,
+                         previous=True)
     for w in rec.warnings():
         print(f"warning: {w}", file=err)
     if len(rec.ticks) == 0:

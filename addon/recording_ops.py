@@ -25,7 +25,8 @@ class GRASPLAB_OT_import_recording(bpy.types.Operator, ImportHelper):
     def execute(self, context):
         try:
             render = context.scene.render
-            rec = open_recording(self.filepath, fps=None if self.every_tick else render.fps / render.fps_base)
+            rec = open_recording(self.filepath, fps=None if self.every_tick else render.fps / render.fps_base,
+                                 previous=True)
             for warning in rec.warnings():
                 self.report({"WARNING"}, warning)
             report = bake.bake_recording(context, rec, every_tick=self.every_tick)

@@ -219,7 +219,7 @@ def main(argv=None):
         assert summary["ticks"] == n and not summary["damage"]
         scene = bake_scene(bpy)
         t0 = time.perf_counter()
-        rec = rec_mod.open_recording(path, fps=scene.render.fps)
+        rec = rec_mod.open_recording(path, fps=scene.render.fps, previous=True)   # as the operator reads it
         t_open = time.perf_counter() - t0
         t0 = time.perf_counter()
         report = bake_mod.bake_recording(bpy.context, rec)

@@ -5,7 +5,9 @@ environment, .venv-bench, created here from bench/requirements.txt on first use 
 pins its own numpy; bpy in .venv pins numpy < 2), as subprocesses serving
 bench/scenes_mujoco.py and bench/scenes_pybullet.py. Timing repeats of the engines are
 interleaved so all see the same machine load. The multi-body scenes are run by
-bench/bench_multibody.py, the haptic-loop jitter by bench/bench_jitter.py.
+bench/bench_multibody.py, the haptic-loop jitter by bench/bench_jitter.py, grasp quality
+against scipy by bench/bench_grasp_quality.py, grasp-lab analyze of a 10-minute recording by
+bench/bench_analysis.py.
 Writes docs/benchmarks.md and prints it.
 
     .venv/bin/python bench/run_bench.py [--quick] [--out docs/benchmarks.md]
@@ -18,6 +20,7 @@ import hashlib
 import json
 import os
 import platform
+import re
 import shutil
 import statistics
 import subprocess
@@ -239,6 +242,38 @@ def run_external(cmd: list[str], timeout: float) -> tuple[bool, str]:
         tail = "\n".join((r.stderr or r.stdout).strip().splitlines()[-15:])
         return False, f"`{' '.join(cmd)}` failed (exit {r.returncode}):\n\n```\n{tail}\n```"
     return True, demote_headings(r.stdout.strip())
+
+
+def grasp_analysis(quick: bool) -> tuple[bool, str, list[str]]:
+    """bench/bench_analysis.py: a 10-minute recording through grasp-lab analyze (1 minute with
+    --quick); (ok, its Markdown section, target rows for the summary)."""
+    venv_py = os.path.join(ROOT, ".venv", "bin", "python")
+    cmd = [venv_py if os.path.exists(venv_py) else sys.executable, os.path.join(HERE, "bench_analysis.py")]
+    if quick:
+        cmd += ["--minutes", "1", "--repeats", "1"]
+    try:
+        r = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=3600)
+    except subprocess.TimeoutExpired:
+        return False, "## Grasp analysis\n\n`bench/bench_analysis.py` did not finish within 3600 s.", []
+    if r.returncode != 0:
+        tail = "\n".join((r.stderr or r.stdout).strip().splitlines()[-15:])
+        return (False, f"## Grasp analysis\n\n`bench/bench_analysis.py` failed (exit {r.returncode}):\n\n```\n{tail}\n```",
+                [])
+    found = re.search(r"<!-- target (.*?) -->", r.stdout)
+    values = dict(kv.split("=") for kv in found.group(1).split()) if found else {}
+    rows = []
+    if values:
+        total, mu, snap = (float(values[k]) for k in ("analyze_s", "mu_min_s", "snapshot_ms"))
+        failed = values.get("failed") == "1"
+        rows.append(f"| `grasp-lab analyze` of a {values['minutes']}-minute recording, every display-rate tick, "
+                    f"< 10 s | {total:.1f} s (of which `grasp_mu_min` {mu:.1f} s)"
+                    + (": the command failed (see \"Grasp analysis\"), its parts timed" if failed else "")
+                    + f" | {'**met**' if total < 10 and not failed else '**MISSED**'} |")
+        fast = float(values.get("fast_ms", snap))
+        rows.append(f"| Grasp analysis of one snapshot, 2 bodies × 5 fingers, < 0.5 ms | {fast:.2f} ms without the "
+                    f"volume (the live view's call), {snap:.2f} ms with it | "
+                    f"{'**met**' if fast < 0.5 else '**MISSED**'} |")
+    return True, r.stdout.strip(), rows
 
 
 def jitter(seconds: float) -> tuple[bool, str, list[str]]:
@@ -799,12 +834,16 @@ def main(argv=None) -> int:
     log("grasp quality (bench/bench_grasp_quality.py: graspcore beside scipy ConvexHull)")
     good, grasp_md, grasp_targets = grasp_quality(args.quick)
     ok &= good
+    log("grasp analysis (bench/bench_analysis.py: a 10-minute recording through grasp-lab analyze)")
+    good, analysis_md, analysis_targets = grasp_analysis(args.quick)
+    ok &= good
     meta["load_end"] = loadavg()
     meta["wall_s"] = time.perf_counter() - t_start
     md = report(info, mjinfo, grasps, creep, profile, gjk, blender, xml3, meta, pbinfo=pbinfo,
                 extra_targets=mb.target_rows(mb_rows, mjinfo is not None) + jitter_targets + serial_targets + unplug_targets
-                + grasp_targets,
-                sections=[s for s in (held_section, mb_section, jitter_section, serial_section, grasp_md) if s])
+                + grasp_targets + analysis_targets,
+                sections=[s for s in (held_section, mb_section, jitter_section, serial_section, grasp_md,
+                                      analysis_md) if s])
     if args.quick:
         md = md.replace("# Benchmarks\n", "# Benchmarks (--quick run: too few repeats to quote)\n", 1)
     os.makedirs(os.path.dirname(args.out), exist_ok=True)

@@ -22,6 +22,8 @@ import warnings
 from dataclasses import dataclass
 from typing import Callable
 
+import numpy as np
+
 from . import limits, outputs
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
@@ -180,6 +182,23 @@ def _configure_export(p):
     p.add_argument("--every", type=_positive_int, default=1, metavar="N", help="every N-th tick (default 1)")
 
 
+def _edges(text):
+    v = _positive_int(text)
+    if v < 3:
+        raise argparse.ArgumentTypeError(f"a friction cone needs at least 3 edges, got {v}")
+    return v
+
+
+def _configure_analyze(p):
+    p.add_argument("recording", metavar="REC.mcap")
+    p.add_argument("--csv", metavar="DIR", help="write DIR/grasp.csv (per analysed tick and held body) and "
+                                                "DIR/contacts.csv (the finger contacts it used)")
+    p.add_argument("--every", type=_positive_int, default=1, metavar="N",
+                   help="analyse every N-th haptic tick (default 1: all)")
+    p.add_argument("--edges", type=_edges, default=8, metavar="K",
+                   help="edges of each linearised friction cone (>= 3, default 8)")
+
+
 # ------------------------------------------------------------------------ commands
 
 def _warn(rec_or_summary, err):
@@ -278,6 +297,28 @@ def _run_export(args, out, err):
     return EXIT_OK
 
 
+def _run_analyze(args, out, err):
+    from .analysis import analyse_recording, check_recording, summary
+    from .recording import open_recording
+    rec = open_recording(args.recording, every=args.every)
+    _warn(rec, err)
+    if len(rec.ticks) == 0:
+        raise CliError(f"{args.recording}: no tick was recorded")
+    check_recording(rec)
+    table = analyse_recording(rec, every=args.every, edges=args.edges)
+    analysed = int(np.count_nonzero(rec.ticks["tick"] % args.every == 0))
+    print(f"{args.recording}: {analysed} ticks analysed (every {args.every}), {len(table.body)} held-body "
+          f"samples, {len(table.finger)} contacts, cones of {args.edges} edges", file=out)
+    times = rec.ticks["time"][table.snapshot]
+    for line in summary(table, times, rec.body_names, rec.finger_names, args.every / rec.haptic_rate):
+        print(line, file=out)
+    if args.csv:
+        from .export import export_analysis_csv
+        for name, n in export_analysis_csv(rec, table, args.csv).items():
+            print(f"{os.path.join(args.csv, name)}: {n} rows", file=out)
+    return EXIT_OK
+
+
 def _run_run(args, out, err):
     from .. import headless
     outputs.check_paths({"SCENE.blend": args.scene}, {"--record": args.record, "--save": args.save})
@@ -332,6 +373,8 @@ register_command("bake", "bake a recording into a scene as keyframes", _configur
 register_command("resim", "re-simulate a recording (with overrides); 'identical' or the divergence report",
                  _configure_resim, _run_resim)
 register_command("export", "a recording as CSV tables or one .npz", _configure_export, _run_export)
+register_command("analyze", "grasp analysis of a recording: closure, epsilon, slip margins, grip against load "
+                            "(docs/analysis.md)", _configure_analyze, _run_analyze)
 
 
 def _register_devices():

@@ -104,3 +104,55 @@ def export_npz(rec: Recording, path: str, every: int = 1) -> int:
                 with archive.open(f"{name}.npy", "w", force_zip64=True) as member:
                     np.lib.format.write_array(member, array, allow_pickle=False)
     return len(ticks)
+
+
+# ------------------------------------------------------------------------ grasp-lab analyze
+
+GRASP_COLUMNS = ["time", "body", "contacts", "force_closure", "torque_closure", "force_only_closure", "epsilon",
+                 "volume", "weakest_fx", "weakest_fy", "weakest_fz", "weakest_tx", "weakest_ty", "weakest_tz",
+                 "mu_min", "friction_needed", "min_slip_margin", "min_slip_finger", "grip_force", "load_force",
+                 "center_x", "center_y", "center_z", "radius"]
+CONTACT_COLUMNS = ["time", "body", "finger", "px", "py", "pz", "nx", "ny", "nz", "mu", "fn", "ft", "friction_use",
+                   "slip_margin"]
+
+
+def _text(values) -> list:
+    """Numbers as the shortest repr that reads back exactly (inf as 'inf')."""
+    return list(map(repr, np.asarray(values, dtype=np.float64).tolist()))
+
+
+def _write_table(path: str, header: list, columns: list) -> int:
+    with open(path, "w", newline="") as fh:
+        fh.write(",".join(header) + "\n")
+        rows = 0
+        for row in zip(*columns):
+            fh.write(",".join(row) + "\n")
+            rows += 1
+    return rows
+
+
+def export_analysis_csv(rec: Recording, table, folder: str) -> dict:
+    """grasp.csv (one row per analysed tick per body in contact) and contacts.csv (the contacts
+    it used) of an ``analysis.GraspTable`` of ``rec`` in ``folder`` (columns: docs/cli.md).
+    Returns {name: rows written}."""
+    os.makedirs(folder, exist_ok=True)
+    names = np.array(rec.body_names + [""], dtype=object)
+    fingers = np.array(rec.finger_names + [""], dtype=object)
+    time = rec.ticks["time"][table.snapshot]
+    q = table.quality
+    flag = lambda a: np.where(a, "1", "0").tolist()  # noqa: E731
+    columns = [_text(time), names[table.body].tolist(), list(map(str, table.count.tolist())),
+               flag(q["force_closure"]), flag(q["torque_closure"]), flag(q["force_only_closure"]),
+               _text(q["epsilon"]), _text(q["volume"])]
+    columns += [_text(q["weakest"][:, k]) for k in range(6)]
+    columns += [_text(table.mu_min), _text(table.friction_needed), _text(table.min_slip_margin),
+                fingers[table.min_slip_finger].tolist(), _text(table.grip_force), _text(table.load_force)]
+    columns += [_text(table.center[:, k]) for k in range(3)] + [_text(table.radius)]
+    counts = {"grasp.csv": _write_table(os.path.join(folder, "grasp.csv"), GRASP_COLUMNS, columns)}
+    set_of = np.repeat(np.arange(len(table.body)), table.count)
+    columns = [_text(time[set_of]), names[table.body[set_of]].tolist(), fingers[table.finger].tolist()]
+    columns += [_text(table.point[:, k]) for k in range(3)] + [_text(table.normal[:, k]) for k in range(3)]
+    columns += [_text(table.mu), _text(table.fn), _text(table.ft), _text(table.friction_use),
+                _text(table.slip_margin)]
+    counts["contacts.csv"] = _write_table(os.path.join(folder, "contacts.csv"), CONTACT_COLUMNS, columns)
+    return counts

@@ -7,20 +7,21 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import analysis
+
 
 def finger_measures(rec, ticks) -> dict:
-    """Per finger (n, nf): |F|, |Fn|, |Ft|, friction use |Ft| / (mu_s |Fn|), state."""
-    f, n = np.ascontiguousarray(ticks["force"]), np.ascontiguousarray(ticks["normal"])
-    fn = np.einsum("ijk,ijk->ij", f, n)
-    tangential = f - fn[:, :, None] * n
-    ft = np.sqrt(np.einsum("ijk,ijk->ij", tangential, tangential))
+    """Per finger (n, nf): |F|, |Fn|, |Ft|, friction use |Ft| / (mu |Fn|) with the mu of its
+    current cone (mu_s sticking, mu_d slipping: analysis.friction_use; analysis.NONE where
+    unbounded, a finger pulling), state."""
+    f = np.ascontiguousarray(ticks["force"])
+    fn, ft = analysis.contact_forces(f, ticks["normal"])
     contact = ticks["contact"]
-    mu = np.array([b["mu_s"] for b in rec.header["scene"]["bodies"]] + [np.nan])
-    mu_c = mu[np.where(contact >= 0, contact, len(mu) - 1)]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        use = np.where((contact >= 0) & (np.abs(fn) > 1e-12), ft / (mu_c * np.abs(fn)), 0.0)
+    mu = analysis.cone_mu(analysis.body_models(rec.header["scene"]), ticks["state"], contact)
+    use = np.where(contact >= 0, analysis.friction_use(ft, mu, fn), 0.0)
     return {"gl_state": ticks["state"].astype(np.float64), "gl_force": np.sqrt(np.einsum("ijk,ijk->ij", f, f)),
-            "gl_normal_force": np.abs(fn), "gl_tangential_force": ft, "gl_friction_use": use}
+            "gl_normal_force": np.abs(fn), "gl_tangential_force": ft,
+            "gl_friction_use": np.where(np.isfinite(use), use, analysis.NONE)}
 
 
 def body_grip(contact: np.ndarray, normal_force: np.ndarray, n_bodies: int) -> np.ndarray:

@@ -48,11 +48,12 @@ UNITS = {"length": "m", "mass": "kg", "time": "s", "force": "N", "torque": "N m"
          "stiffness": "N/m", "damping": "N s/m", "rate": "Hz", "period_us": "us", "work_us": "us"}
 COMPRESSIONS = ("lz4", "zstd", "none")   # lz4 by default: 3x faster to read back than zstd
 
-# One tick record (graspcore.h, gc_tick_record_size): fixed fields, then per-finger and
-# per-body arrays. Kept here too so a recording opens without the core.
-FIXED_FIELDS = [("tick", "<u8", ()), ("time", "<f8", ()), ("object_time", "<f8", ()),
-                ("state_hash", "<u8", ()), ("period_us", "<f4", ()), ("work_us", "<f4", ()),
-                ("flags", "<u4", ()), ("adopted", "<u4", ()), ("log_us", "<f4", ())]
+# The tick record's layout is the core's (graspcore.tick_dtype, checked against
+# gc_tick_record_size): the writer takes it from there and stores it in the file's schema,
+# which readers build their record type from (a recording opens without the core). The
+# fields every reader needs:
+REQUIRED_FIELDS = ("tick", "time", "object_time", "state_hash", "period_us", "work_us", "flags", "adopted",
+                   "log_us")
 FLAG_FORCES_ENABLED = 1
 
 
@@ -61,11 +62,9 @@ class RecordingError(ValueError):
 
 
 def tick_dtype(n_bodies: int, n_fingers: int) -> np.dtype:
-    nb, nf = int(n_bodies), int(n_fingers)
-    return np.dtype([(n, t, s) for n, t, s in FIXED_FIELDS] + [
-        ("hip", "<f8", (nf, 3)), ("god_object", "<f8", (nf, 3)), ("force", "<f8", (nf, 3)),
-        ("device_force", "<f8", (nf, 3)), ("normal", "<f8", (nf, 3)), ("pose", "<f8", (nb, 7)), ("velocity", "<f8", (nb, 6)),
-        ("wrench", "<f8", (nb, 6)), ("state", "<i4", (nf,)), ("contact", "<i4", (nf,))])
+    """The core's tick record type (graspcore.tick_dtype): what a recording is written with."""
+    from .. import core_loader
+    return core_loader.load().tick_dtype(n_bodies, n_fingers)
 
 
 def schema_of(dtype: np.dtype) -> dict:
@@ -89,7 +88,7 @@ def dtype_of(schema: dict) -> np.dtype:
         dtype = np.dtype(spec)
     except (KeyError, TypeError, ValueError) as ex:
         raise ValueError(f"tick schema is malformed ({ex})") from None
-    missing = {n for n, _, _ in FIXED_FIELDS} - set(dtype.names)
+    missing = set(REQUIRED_FIELDS) - set(dtype.names)
     if missing:
         raise ValueError(f"tick schema lacks {sorted(missing)}")
     return dtype
@@ -767,13 +766,19 @@ def _parse_record(opcode: int, body: memoryview, copy: bool):
     return cls.read(ReadDataStream(io.BytesIO(bytes(body))))
 
 
-def _frame_ticks(ticks: np.ndarray, rate: float, fps: float) -> np.ndarray:
+def _frame_ticks(ticks: np.ndarray, rate: float, fps: float, previous: bool = False) -> np.ndarray:
     """Mask of the ticks (numbers, tick 0 at the start) a session shows at frames of ``fps``:
     for frame k the last tick at or before k / fps, on the haptic grid as the runner steps.
-    Tick t is one when the first frame at or after it, k = ceil(t fps / rate), maps back to t."""
+    Tick t is one when the first frame at or after it, k = ceil(t fps / rate), maps back to t.
+    ``previous``: the record before each too, and the block's last (the next block's first
+    record may be a frame's)."""
     t = ticks.astype(np.int64)
     k = np.ceil(t * (fps / rate) - 1e-9)
-    return np.floor(k * (rate / fps) + 1e-9).astype(np.int64) == t
+    mask = np.floor(k * (rate / fps) + 1e-9).astype(np.int64) == t
+    if previous and len(mask):
+        mask[:-1] |= mask[1:]
+        mask[-1] = True
+    return mask
 
 
 def _reuse_freed_memory() -> None:
@@ -799,13 +804,17 @@ _malloc_tuned = False
 M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3      # glibc <malloc.h>
 
 
-def open_recording(path: str, fps: float | None = None) -> Recording:
+def open_recording(path: str, fps: float | None = None, every: int | None = None,
+                   previous: bool = False) -> Recording:
     """Read a recording, all of it that is intact. Damage (a file cut short, a bad CRC, garbage)
     ends the read: what came before it is kept and ``damage`` says what and where. Raises
     RecordingError when nothing usable is there (not MCAP, no header, a newer format).
 
     ``fps``: keep only the ticks a session shows at frames of that rate (what baking at the
-    frame rate needs), instead of every tick.
+    frame rate needs), instead of every tick; with ``previous``, the tick before each of them
+    too (what the grasp analysis of a bake needs for accelerations). ``every``: keep only the ticks whose number is a
+    multiple of it and the tick before each (what ``grasp-lab analyze --every`` needs: the tick
+    and its predecessor give the acceleration).
 
     A whole file (footer, summary, data section CRC) is read without checking each chunk's CRC:
     the data section's CRC is computed on a second thread meanwhile, and only if it does not
@@ -814,19 +823,19 @@ def open_recording(path: str, fps: float | None = None) -> Recording:
     try:
         length, expected, span = _data_section(path)
     except (OSError, ValueError, IndexError, struct.error):
-        return _read_linear(path, fps, validate=True)
+        return _read_linear(path, fps, validate=True, every=every, previous=previous)
     crc = []
     check = threading.Thread(target=lambda: crc.append(_checked_crc(path, length)), name="gl-crc",
                              daemon=True)
     check.start()
     try:
-        rec = _read_linear(path, fps, validate=False, span=span)
+        rec = _read_linear(path, fps, validate=False, span=span, every=every, previous=previous)
     except RecordingError:
         rec = None          # raised again below unless the CRC says the data is damaged
     finally:
         check.join()
     if rec is None or crc[0] != expected:
-        return _read_linear(path, fps, validate=True)
+        return _read_linear(path, fps, validate=True, every=every, previous=previous)
     return rec
 
 
@@ -875,9 +884,13 @@ class _Rows:
         return used.view(dtype)[:, 0]
 
 
-def _read_linear(path: str, fps: float | None, validate: bool, span: float | None = None) -> Recording:
+def _read_linear(path: str, fps: float | None, validate: bool, span: float | None = None,
+                 every: int | None = None, previous: bool = False) -> Recording:
     """open_recording's linear read; ``validate``: check each chunk's CRC; ``span``: the
     session's length in seconds if known (to size the records' array once)."""
+    if every is not None and (fps is not None or int(every) < 1):
+        raise ValueError(f"every: expected a whole number >= 1 and no fps, got {every!r}")
+    every = None if every is None or int(every) == 1 else int(every)
     from mcap.exceptions import EndOfFile
     from mcap.records import Channel, Schema
     try:
@@ -926,12 +939,15 @@ def _read_linear(path: str, fps: float | None, validate: bool, span: float | Non
                             raise ValueError("tick numbers out of order inside a block")
                         next_tick = last + 1
                         block = np.frombuffer(data, np.uint8).reshape(count, width)
-                        if fps is None:
+                        if every is not None:
+                            phase = ticks % every
+                            rows.append(block[(phase == 0) | (phase == every - 1)])
+                        elif fps is None:
                             rows.append(block)
-                        elif consecutive:
+                        elif consecutive and not previous:
                             rows.append(block[_frame_rows(first, count, rate, fps)])
                         else:
-                            rows.append(block[_frame_ticks(ticks, rate, fps)])
+                            rows.append(block[_frame_ticks(ticks, rate, fps, previous)])
                     elif ch.topic == TOPIC_HEADER:
                         header = json.loads(bytes(data))
                         _check_version(path, header)
@@ -943,6 +959,8 @@ def _read_linear(path: str, fps: float | None, validate: bool, span: float | Non
                         tick_offset = dtype.fields["tick"][1]
                         rate = float(header["rates"]["haptic_hz"])
                         per_second = rate if fps is None else min(rate, fps)
+                        if every is not None or (previous and fps is not None):
+                            per_second = 2.0 * (rate / every if every else per_second) + rate / BLOCK_TICKS
                         rows = _Rows(dtype.itemsize, span * per_second + 16 if span else 1024)
                     elif header is None:
                         raise ValueError(f"{ch.topic} message before the header")
@@ -976,7 +994,7 @@ def _read_linear(path: str, fps: float | None, validate: bool, span: float | Non
     elif not damage and end is None:
         damage.append("no end record")
     ticks = rows.records(dtype) if rows is not None else np.zeros(0, dtype=dtype)
-    if fps is None and end is not None and not damage and end.get("ticks") not in (None, len(ticks)):
+    if fps is None and every is None and end is not None and not damage and end.get("ticks") not in (None, len(ticks)):
         damage.append(f"end record counts {end['ticks']} ticks, {len(ticks)} read")
     return Recording(path, header, dtype, ticks, events, end, damage)
 

@@ -375,7 +375,7 @@ FINGER_SCHEMA = {"type": "object", "title": "grasp_lab.FingerNumbers", "properti
     "force_norm": {"type": "number", "description": "|force|, N"},
     "normal_force": {"type": "number", "description": "|Fn| along the contact normal, N"},
     "tangential_force": {"type": "number", "description": "|Ft|, N"},
-    "friction_use": {"type": "number", "description": "|Ft| / (mu_s |Fn|): 1 at the edge of the cone"},
+    "friction_use": {"type": "number", "description": "|Ft| / (mu |Fn|), mu of the current cone (mu_s sticking, mu_d slipping): 1 at its edge, -1 a finger pulling"},
     "state": {"type": "integer", "description": "0 free, 1 stick, 2 slip"},
     "state_name": {"type": "string"},
     "contact": {"type": "string", "description": "the body touched, empty when free"},
@@ -421,7 +421,7 @@ def layout_json(model: SceneModel) -> str:
     forces = plot("Finger forces (N): normal, tangential",
                   [(f"{n} |Fn|", f"{t}.normal_force") for n, t in fingers]
                   + [(f"{n} |Ft|", f"{t}.tangential_force") for n, t in fingers], y_min=0)
-    use = plot("Friction use |Ft| / (mu_s |Fn|): slip at 1", [(n, f"{t}.friction_use") for n, t in fingers], y_min=0)
+    use = plot("Friction use |Ft| / (mu |Fn|): slip at 1", [(n, f"{t}.friction_use") for n, t in fingers], y_min=0)
     grip = plot("Bodies: grip (N) and residual force (N)",
                 [(f"{n} grip", f"{t}.grip") for n, t in bodies]
                 + [(f"{n} residual", f"{t}.residual_force") for n, t in bodies], y_min=0)

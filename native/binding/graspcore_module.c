@@ -767,16 +767,18 @@ static PyObject *World_push_hips(PyObject *obj, PyObject *args) {
 }
 
 /* _snapshot() -> (time, object_time, tick, forces_enabled, n_bodies, n_fingers, poses,
- * wrenches, adopted, god_objects, hips, forces, spring_forces, states, contact_bodies),
- * arrays as bytearrays (float64, uint8 or int32) for numpy.frombuffer. */
+ * wrenches, adopted, god_objects, hips, forces, spring_forces, states, contact_bodies,
+ * normals, velocities), arrays as bytearrays (float64, uint8 or int32) for numpy.frombuffer. */
 static PyObject *World_snapshot(PyObject *obj, PyObject *unused) {
     WorldObject *self = (WorldObject *)obj;
     if (!check_world(self)) return NULL;
     if (!gc_world_running(self->world) && !check_ready(self)) return NULL;
     int nb = gc_world_body_count(self->world), nf = gc_world_finger_count(self->world);
-    Py_ssize_t sizes[9] = {nb * 7 * 8, nb * 6 * 8, nb, nf * 3 * 8, nf * 3 * 8, nf * 3 * 8, nf * 3 * 8, nf * 4, nf * 4};
-    PyObject *arrays[9] = {NULL};
-    for (int i = 0; i < 9; ++i) {
+    enum { N_ARRAYS = 11 };
+    Py_ssize_t sizes[N_ARRAYS] = {nb * 7 * 8, nb * 6 * 8, nb,     nf * 3 * 8, nf * 3 * 8, nf * 3 * 8,
+                                  nf * 3 * 8, nf * 4,     nf * 4, nf * 3 * 8, nb * 6 * 8};
+    PyObject *arrays[N_ARRAYS] = {NULL};
+    for (int i = 0; i < N_ARRAYS; ++i) {
         arrays[i] = PyByteArray_FromStringAndSize(NULL, sizes[i]);
         if (!arrays[i]) {
             for (int j = 0; j < i; ++j) Py_DECREF(arrays[j]);
@@ -794,14 +796,16 @@ static PyObject *World_snapshot(PyObject *obj, PyObject *unused) {
     snap.spring_forces = (double *)PyByteArray_AsString(arrays[6]);
     snap.finger_states = (int32_t *)PyByteArray_AsString(arrays[7]);
     snap.contact_bodies = (int32_t *)PyByteArray_AsString(arrays[8]);
+    snap.normals = (double *)PyByteArray_AsString(arrays[9]);
+    snap.velocities = (double *)PyByteArray_AsString(arrays[10]);
     gcStatus st = gc_world_snapshot(self->world, &snap);
     if (st < 0) {
-        for (int i = 0; i < 9; ++i) Py_DECREF(arrays[i]);
+        for (int i = 0; i < N_ARRAYS; ++i) Py_DECREF(arrays[i]);
         return raise_status(self, st);
     }
-    return Py_BuildValue("(ddKiiiNNNNNNNNN)", snap.time, snap.object_time, (unsigned long long)snap.tick,
+    return Py_BuildValue("(ddKiiiNNNNNNNNNNN)", snap.time, snap.object_time, (unsigned long long)snap.tick,
                          snap.forces_enabled, nb, nf, arrays[0], arrays[1], arrays[2], arrays[3], arrays[4],
-                         arrays[5], arrays[6], arrays[7], arrays[8]);
+                         arrays[5], arrays[6], arrays[7], arrays[8], arrays[9], arrays[10]);
 }
 
 static PyObject *World_stats(PyObject *obj, PyObject *unused) {

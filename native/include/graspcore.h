@@ -271,6 +271,11 @@ typedef struct gcSnapshot {
     double *spring_forces;      /* 3 per finger: the physics spring force, unclamped */
     int32_t *finger_states;     /* gcFingerState per finger */
     int32_t *contact_bodies;    /* per finger, -1 when free */
+    double *normals;            /* 3 per finger: plane normal of the contact whose god-object, state
+                                 * and body it reports (its deepest), world, pointing out of the
+                                 * body touched (as in the tick record); 0 when free */
+    double *velocities;         /* 6 per body: linear velocity of the body frame origin, angular
+                                 * (world), as gc_world_body_velocity */
 } gcSnapshot;
 gcStatus gc_world_snapshot(gcWorld *world, gcSnapshot *snapshot);
 
@@ -304,7 +309,7 @@ gcStatus gc_world_debug_stall(gcWorld *world, double seconds);
  * time f64, object_time f64, state_hash u64, period_us f32, work_us f32, flags u32 (bit 0:
  * device forces enabled), adopted u32, log_us f32 (what recording the previous tick cost, real
  * time); then per finger hip, god_object, force (the coupling
- * spring), device_force (after the safety layer), normal (of the first contact, world; 0
+ * spring), device_force (after the safety layer), normal (of the reported contact, world; 0
  * when free) as 3 f64 each; per body pose (7 f64),
  * velocity (linear of the body frame origin, angular; 6 f64), residual wrench (6 f64); per
  * finger state i32, contact body i32 (-1 free). */

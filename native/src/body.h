@@ -37,4 +37,18 @@ gcMat3 gc_to_world(const gcMat3 *R, const gcMat3 *A);
  * gc_dynamics_velocities and gc_dynamics_positions. */
 void gc_body_inverse_effective_mass(const gcBody *body, double M[36]);
 
+/* Velocity of the body frame origin (world), as gc_world_body_velocity reports it, from
+ * a body's model and a state of it (the world's, a shadow's or a channel's copy). */
+static inline gcVec3 gc_body_origin_velocity(const gcBody *body, const gcBodyState *state) {
+    return gc_add(state->v, gc_cross(state->w, gc_mat3_mul_vec(&state->R, gc_neg(body->com_local))));
+}
+
+/* A finger's contact plane normal in world axes (outward of the body it touches), of the
+ * contact whose god-object, state and body it reports (its deepest, xfca.c), 0 when the finger
+ * is free: what the tick record and the snapshot carry per finger. */
+static inline gcVec3 gc_finger_contact_normal(const gcWorld *world, const gcFinger *finger) {
+    (void)world;
+    return finger->normal;
+}
+
 #endif

@@ -163,6 +163,7 @@ static void runtime_free_memory(gcRuntime *rt) {
         free(d->god_object);
         free(d->spring_force);
         free(d->device_force);
+        free(d->normal);
         free(d->state);
         free(d->contact_body);
     }
@@ -211,10 +212,11 @@ static gcRuntime *runtime_alloc(const gcWorld *w) {
         d->god_object = rt_calloc(rt, nf * 3, sizeof(double));
         d->spring_force = rt_calloc(rt, nf * 3, sizeof(double));
         d->device_force = rt_calloc(rt, nf * 3, sizeof(double));
+        d->normal = rt_calloc(rt, nf * 3, sizeof(double));
         d->state = rt_calloc(rt, nf, sizeof(int32_t));
         d->contact_body = rt_calloc(rt, nf, sizeof(int32_t));
         ok &= in->hips && h->want && h->has_state && h->body && h->fingers && o->released && o->body && d->body &&
-              d->adopted && d->hip && d->god_object && d->spring_force && d->device_force && d->state &&
+              d->adopted && d->hip && d->god_object && d->spring_force && d->device_force && d->normal && d->state &&
               d->contact_body;
     }
     if (!ok) {

@@ -59,6 +59,8 @@ void gc_rt_publish_display(gcRuntime *rt, int64_t now, int forces_enabled) {
         memcpy(&d->god_object[3 * i], &f->god_object, 3 * sizeof(double));
         memcpy(&d->spring_force[3 * i], &f->force, 3 * sizeof(double));
         memcpy(&d->device_force[3 * i], &rt->device_force[3 * i], 3 * sizeof(double));
+        gcVec3 n = gc_finger_contact_normal(hw, f);
+        memcpy(&d->normal[3 * i], &n, 3 * sizeof(double));
         d->state[i] = (int32_t)f->state;
         d->contact_body[i] = f->contact_body;
     }
@@ -107,11 +109,20 @@ gcStatus gc_runtime_push_input(gcWorld *w, const double *positions, int count_, 
     return GC_OK;
 }
 
-static void put_body(const gcSnapshot *s, int32_t b, const double pose[7], gcVec3 force, gcVec3 torque, int adopted) {
+/* Body b of a snapshot from its model and a copy of its state (the world's or the display
+ * channel's). */
+static void put_body(const gcSnapshot *s, const gcBody *model, int32_t b, const double pose[7],
+                     const gcBodyState *st, int adopted) {
     if (s->poses) memcpy(&s->poses[7 * b], pose, 7 * sizeof(double));
     if (s->residual_wrenches) {
         double *r = &s->residual_wrenches[6 * b];
-        r[0] = force.x, r[1] = force.y, r[2] = force.z, r[3] = torque.x, r[4] = torque.y, r[5] = torque.z;
+        gcVec3 f = st->residual_force, t = st->residual_torque;
+        r[0] = f.x, r[1] = f.y, r[2] = f.z, r[3] = t.x, r[4] = t.y, r[5] = t.z;
+    }
+    if (s->velocities) {
+        double *v = &s->velocities[6 * b];
+        gcVec3 lin = gc_body_origin_velocity(model, st);
+        v[0] = lin.x, v[1] = lin.y, v[2] = lin.z, v[3] = st->w.x, v[4] = st->w.y, v[5] = st->w.z;
     }
     if (s->adopted) s->adopted[b] = (uint8_t)adopted;
 }
@@ -129,13 +140,17 @@ static void snapshot_from_world(const gcWorld *w, gcSnapshot *s) {
     s->num_bodies = w->num_bodies;
     s->num_fingers = w->num_fingers;
     for (int32_t b = 0; b < w->num_bodies; ++b)
-        put_body(s, b, &w->pose_array[7 * b], w->bodies[b].state.residual_force, w->bodies[b].state.residual_torque, 0);
+        put_body(s, &w->bodies[b], b, &w->pose_array[7 * b], &w->bodies[b].state, 0);
     for (int32_t i = 0; i < w->num_fingers; ++i) {
         const gcFinger *f = &w->fingers[i];
         put3(s->hips, i, &w->hip_array[3 * i]);
         put3(s->god_objects, i, &w->god_object_array[3 * i]);
         put3(s->spring_forces, i, &w->force_array[3 * i]);
         put3(s->forces, i, zero);
+        if (s->normals) {
+            gcVec3 n = gc_finger_contact_normal(w, f);
+            memcpy(&s->normals[3 * i], &n, 3 * sizeof(double));
+        }
         if (s->finger_states) s->finger_states[i] = (int32_t)f->state;
         if (s->contact_bodies) s->contact_bodies[i] = f->contact_body;
     }
@@ -170,7 +185,7 @@ gcStatus gc_world_snapshot(gcWorld *w, gcSnapshot *s) {
     /* The world's queries and views answer from this snapshot while the runtime runs. */
     for (int32_t b = 0; b < w->num_bodies; ++b) {
         const gcRtBody *rb = &d->body[b];
-        put_body(s, b, rb->pose, rb->state.residual_force, rb->state.residual_torque, d->adopted[b]);
+        put_body(s, &w->bodies[b], b, rb->pose, &rb->state, d->adopted[b]);
         if (!w->bodies[b].is_static) {
             rt->shown.bodies[b] = rb->state;
             memcpy(&w->pose_array[7 * b], rb->pose, sizeof rb->pose); /* the pose view */
@@ -181,6 +196,7 @@ gcStatus gc_world_snapshot(gcWorld *w, gcSnapshot *s) {
         put3(s->god_objects, i, &d->god_object[3 * i]);
         put3(s->spring_forces, i, &d->spring_force[3 * i]);
         put3(s->forces, i, enabled ? &d->device_force[3 * i] : zero);
+        put3(s->normals, i, &d->normal[3 * i]);
         if (s->finger_states) s->finger_states[i] = d->state[i];
         if (s->contact_bodies) s->contact_bodies[i] = d->contact_body[i];
         gcFinger *f = &rt->shown.fingers[i];

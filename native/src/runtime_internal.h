@@ -114,7 +114,7 @@ typedef struct gcDisplayMsg { /* haptic loop -> gc_world_snapshot, every haptic 
     int forces_enabled;
     gcRtBody *body;
     unsigned char *adopted;
-    double *hip, *god_object, *spring_force, *device_force; /* 3 per finger */
+    double *hip, *god_object, *spring_force, *device_force, *normal; /* 3 per finger */
     int32_t *state, *contact_body;
 } gcDisplayMsg;
 

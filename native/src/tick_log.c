@@ -168,11 +168,7 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
         memcpy(go + 24 * i, &f->god_object, 24);
         memcpy(force + 24 * i, &f->force, 24);
         memcpy(dev + 24 * i, device_force ? (const void *)&device_force[3 * i] : (const void *)&f->force, 24);
-        gcVec3 n = gc_v3(0, 0, 0); /* the first contact's plane normal, world (0 when free) */
-        if (f->num_contacts > 0 && f->contacts[0].part >= 0) {
-            const gcBody *b = &w->bodies[w->parts[f->contacts[0].part].body];
-            n = gc_finger_contact_normal(f, &f->contacts[0], &b->state.R);
-        }
+        gcVec3 n = gc_finger_contact_normal(w, f);
         memcpy(normal + 24 * i, &n, 24);
         int32_t s = (int32_t)f->state;
         memcpy(state + 4 * i, &s, 4);
@@ -182,7 +178,7 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
     for (size_t b = 0; b < nb; ++b) { /* of the body frame origin, as gc_world_body_velocity */
         const gcBody *body = &w->bodies[b];
         const gcBodyState *st = &body->state;
-        gcVec3 v = gc_add(st->v, gc_cross(st->w, gc_mat3_mul_vec(&st->R, gc_neg(body->com_local))));
+        gcVec3 v = gc_body_origin_velocity(body, st);
         memcpy(vel + 48 * b, &v, 24);
         memcpy(vel + 48 * b + 24, &st->w, 24);
         memcpy(wrench + 48 * b, &st->residual_force, 24);

@@ -526,8 +526,7 @@ gcStatus gc_world_body_velocity(const gcWorld *w, int32_t body, double lin[3], d
     if (!ang) return gc_null_argument(w, "angular");
     const gcBodyState *s = shown_body(w, body);
     /* Report the velocity of the body frame origin, consistent with body_pose. */
-    gcVec3 r = gc_mat3_mul_vec(&s->R, gc_neg(w->bodies[body].com_local));
-    put3(lin, gc_add(s->v, gc_cross(s->w, r)));
+    put3(lin, gc_body_origin_velocity(&w->bodies[body], s));
     put3(ang, s->w);
     return GC_OK;
 }
@@ -602,7 +601,7 @@ int gc_world_finger_contacts(const gcWorld *w, int32_t finger, gcFingerContactPo
         o->reversed = c->reversed;
         o->state = c->state;
         put3(o->point, point);
-        put3(o->normal, gc_finger_contact_normal(f, c, &fr.R));
+        put3(o->normal, gc_finger_point_normal(f, c, &fr.R));
         put3(o->force, c->force);
     }
     return f->num_contacts;

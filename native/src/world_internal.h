@@ -101,6 +101,7 @@ typedef struct gcFinger {
     gcVec3 god_object;              /* world: force-weighted GO, or the HIP when free */
     gcVec3 force;                   /* rendered to the device: k (GO - HIP) + damping */
     gcVec3 torque;                  /* convex finger: about the HIP, sum (GO_i - HIP) x f_i; 0 for a sphere */
+    gcVec3 normal;                  /* world: the reported contact's outward normal, 0 when free */
     int32_t contact_body;           /* -1 when free */
     gcFingerState state;
 } gcFinger;
@@ -194,7 +195,7 @@ static inline void gc_finger_contact_ends(const gcFinger *f, const gcFingerConta
 }
 
 /* A finger contact's normal, world, outward from the body. */
-static inline gcVec3 gc_finger_contact_normal(const gcFinger *f, const gcFingerContact *c, const gcMat3 *body_R) {
+static inline gcVec3 gc_finger_point_normal(const gcFinger *f, const gcFingerContact *c, const gcMat3 *body_R) {
     return c->reversed ? gc_neg(gc_mat3_mul_vec(&f->R, c->normal_local)) : gc_mat3_mul_vec(body_R, c->normal_local);
 }
 

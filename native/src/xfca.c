@@ -201,7 +201,7 @@ static gcTransform finger_transform(const gcFinger *f) {
 static int opposes_existing(const gcFinger *f, const gcBody *b, int32_t part, gcVec3 normal_world) {
     for (int i = 0; i < f->num_contacts; ++i) {
         const gcFingerContact *c = &f->contacts[i];
-        if (c->part == part && gc_dot(gc_finger_contact_normal(f, c, &b->state.R), normal_world) < 0.0) return 1;
+        if (c->part == part && gc_dot(gc_finger_point_normal(f, c, &b->state.R), normal_world) < 0.0) return 1;
     }
     return 0;
 }
@@ -328,7 +328,8 @@ static void finger_update(gcWorld *w, int32_t id, double dt) {
 }
 
 /* Force rendered to the device and the finger's reported GO/state: a sphere finger reports its
- * deepest contact; a convex finger the centroid of its contacts' god-objects weighted by their
+ * deepest contact's GO, normal and state (the analysis takes the GO, the normal and the body as one
+ * contact); a convex finger the centroid of its contacts' god-objects weighted by their
  * normal force (the chapter's pressure centroid), the torque of its contacts about the HIP, and
  * slip when any of them slips. */
 static void finger_outputs(gcWorld *w, int32_t id) {
@@ -337,6 +338,7 @@ static void finger_outputs(gcWorld *w, int32_t id) {
     double deepest = -1.0, weight = 0.0;
     int slipping = 0;
     f->god_object = f->hip;
+    f->normal = gc_v3(0, 0, 0);
     f->contact_body = -1;
     f->state = GC_FINGER_FREE;
     for (int i = 0; i < f->num_contacts; ++i) {
@@ -365,6 +367,7 @@ static void finger_outputs(gcWorld *w, int32_t id) {
         if (c->depth > deepest) {
             deepest = c->depth;
             f->god_object = go;
+            f->normal = gc_finger_point_normal(f, c, &b->state.R);
             f->contact_body = w->parts[c->part].body;
             f->state = c->state;
         }

@@ -214,6 +214,92 @@ static void test_refused_while_running(void) {
     gc_world_destroy(w);
 }
 
+/* Snapshot normals and velocities, without gravity: a 6 cm box squeezed 3 mm from -x and +x
+ * (its normals point out of it: -x, +x), a free finger (normal 0), and a box whose centre of
+ * mass is 10 cm off its frame origin, moving at 0.1 m/s in x and spinning at 2 rad/s about
+ * z with an isotropic inertia (so both stay constant): its frame origin moves at
+ * v + w x (origin - com). Running (display channel) and stopped (the world) alike. */
+static void check_snapshot_normals_velocities(const gcSnapshot *s, const char *when) {
+    const double *n = s->normals;
+    GC_CHECK(fabs(n[0] + 1) < 1e-9 && fabs(n[1]) < 1e-9 && fabs(n[2]) < 1e-9, "%s: finger 0 normal (%g %g %g)",
+             when, n[0], n[1], n[2]);
+    GC_CHECK(fabs(n[3] - 1) < 1e-9 && fabs(n[4]) < 1e-9 && fabs(n[5]) < 1e-9, "%s: finger 1 normal (%g %g %g)",
+             when, n[3], n[4], n[5]);
+    GC_CHECK(n[6] == 0 && n[7] == 0 && n[8] == 0, "%s: free finger's normal is 0", when);
+    GC_CHECK(s->contact_bodies[0] == 0 && s->contact_bodies[1] == 0 && s->contact_bodies[2] == -1,
+             "%s: contacts %d %d %d", when, s->contact_bodies[0], s->contact_bodies[1], s->contact_bodies[2]);
+    const double *v = &s->velocities[6], *p = &s->poses[7];
+    /* origin - com = -(R c), R from the snapshot's own quaternion, c = (0.1, 0, 0). */
+    double qw = p[3], qx = p[4], qy = p[5], qz = p[6];
+    double rc[3] = {0.1 * (1 - 2 * (qy * qy + qz * qz)), 0.1 * 2 * (qx * qy + qw * qz), 0.1 * 2 * (qx * qz - qw * qy)};
+    /* The def's velocity is the frame origin's: the centre of mass moves at
+     * (0.1, 0, 0) + (0, 0, 2) x (0.1, 0, 0) = (0.1, 0.2, 0); the origin at that + w x (-R c). */
+    double expect[3] = {0.1 + 2.0 * rc[1], 0.2 - 2.0 * rc[0], 0.0};
+    GC_CHECK(fabs(v[0] - expect[0]) < 1e-9 && fabs(v[1] - expect[1]) < 1e-9 && fabs(v[2] - expect[2]) < 1e-9,
+             "%s: origin velocity (%g %g %g) vs (%g %g %g)", when, v[0], v[1], v[2], expect[0], expect[1], expect[2]);
+    GC_CHECK(fabs(v[3]) < 1e-12 && fabs(v[4]) < 1e-12 && fabs(v[5] - 2.0) < 1e-12, "%s: angular (%g %g %g)", when,
+             v[3], v[4], v[5]);
+    GC_CHECK(fabs(rc[1]) > 0.01, "%s: the offset body has turned (R c = %g %g)", when, rc[0], rc[1]);
+}
+
+static void test_snapshot_normals_velocities(void) {
+    gcWorldDef wd = gc_default_world_def();
+    wd.gravity[2] = 0.0;
+    gcWorld *w = NULL;
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    double at[3] = {0, 0, 0};
+    add_box(w, 0.03, at, 0, 0.2);
+    double pts[24];
+    for (int i = 0; i < 8; ++i) {
+        pts[3 * i] = (i & 1) ? 0.02 : -0.02;
+        pts[3 * i + 1] = (i & 2) ? 0.02 : -0.02;
+        pts[3 * i + 2] = (i & 4) ? 0.02 : -0.02;
+    }
+    gcPartDef part = {pts, 8, 0.0};
+    gcBodyDef bd = gc_default_body_def();
+    bd.position[0] = 1.0;
+    bd.mass = 0.1;
+    bd.has_center_of_mass = 1;
+    bd.center_of_mass[0] = 0.1;
+    bd.has_inertia = 1;
+    bd.inertia[0] = bd.inertia[4] = bd.inertia[8] = 1e-3;
+    bd.linear_velocity[0] = 0.1;
+    bd.angular_velocity[2] = 2.0;
+    int32_t spinner = -1;
+    GC_CHECK(gc_world_add_body(w, &bd, &part, 1, &spinner) == GC_OK && spinner == 1, "spinner: %s",
+             gc_world_last_error(w));
+    add_finger(w, -0.041, 0, 0);
+    add_finger(w, 0.041, 0, 0);
+    add_finger(w, 0, 0, 1.0);
+    double hips[9] = {-0.027, 0, 0, 0.027, 0, 0, 0, 0, 1.0};
+    double poses[2 * 7], vel[2 * 6], normals[3 * 3];
+    int32_t contacts[3];
+    gcSnapshot s;
+    memset(&s, 0, sizeof s);
+    s.poses = poses, s.velocities = vel, s.normals = normals, s.contact_bodies = contacts;
+    gcRuntimeDef def = manual_def(1000.0, 3);
+    GC_CHECK(gc_world_start(w, &def) == GC_OK, "start: %s", gc_world_last_error(w));
+    for (int i = 0; i < 200; ++i) {
+        GC_CHECK(gc_world_push_hips(w, hips, 3, i * DT) == GC_OK, "push");
+        gc_world_advance(w, 1, 0.0);
+    }
+    GC_CHECK(gc_world_snapshot(w, &s) == GC_OK, "snapshot while running");
+    check_snapshot_normals_velocities(&s, "running");
+    double running_normals[9];
+    memcpy(running_normals, normals, sizeof normals);
+    /* The world's own query answers from the snapshot: the same numbers. */
+    double lin[3], ang[3];
+    gc_world_body_velocity(w, 1, lin, ang);
+    GC_CHECK(lin[0] == vel[6] && lin[1] == vel[7] && ang[2] == vel[11], "body_velocity agrees with the snapshot");
+    GC_CHECK(gc_world_stop(w) == GC_OK, "stop");
+    memset(vel, 0, sizeof vel);
+    memset(normals, 0, sizeof normals);
+    GC_CHECK(gc_world_snapshot(w, &s) == GC_OK, "snapshot stopped");
+    check_snapshot_normals_velocities(&s, "stopped");
+    GC_CHECK(memcmp(running_normals, normals, sizeof normals) == 0, "stopped: the same normals as running");
+    gc_world_destroy(w);
+}
+
 static double norm3(const double *v) { return sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
 
 /* One finger pressed 5 cm into a static block: a 50 N spring. */
@@ -588,6 +674,7 @@ static void test_destroy_running(void) {
 int main(void) {
     test_manual_clock_matches_step();
     test_refused_while_running();
+    test_snapshot_normals_velocities();
     test_clamp_ramp_watchdog();
     test_start_stop_cycles();
     test_stop_while_busy();

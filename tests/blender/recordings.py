@@ -45,13 +45,19 @@ def pinch_desc():
 def record_exec(path, graspcore, seconds=6.0, fps=24, compression="lz4", flush_interval=0.1):
     """An EXEC session of the pinch scene recorded to ``path``; returns (runner, world handle)."""
     desc, S = pinch_desc()
+    return record_scene(path, graspcore, desc, S.hip_positions, seconds, fps, compression, flush_interval)
+
+
+def record_scene(path, graspcore, desc, hip_positions, seconds, fps=24, compression="lz4", flush_interval=0.1):
+    """An EXEC session of a prepared SceneDesc whose fingers follow ``hip_positions(t)``
+    (n_fingers, 3), recorded to ``path``; returns (runner, world handle)."""
     handle = scene.build_world(desc, graspcore)
     header = recording.make_header(desc, mode="exec", haptic_rate=1000.0, fps=fps)
     writer = recording.RecordingWriter(str(path), header, compression=compression,
                                        flush_interval=flush_interval)
     rec = recording.SessionRecorder(writer, handle.world)
-    run = runner.SessionRunner(handle, inputs.CallableInput(2, S.hip_positions, duration=seconds), 1000.0,
-                               recorder=rec)
+    run = runner.SessionRunner(handle, inputs.CallableInput(len(desc.fingers), hip_positions, duration=seconds),
+                               1000.0, recorder=rec)
     for k in range(1, int(round(seconds * fps)) + 1):
         run.advance_to(k / fps)
     run.stop()

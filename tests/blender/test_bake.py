@@ -76,6 +76,42 @@ def test_baked_keys_equal_the_recording(bpy, recorded):
 
 
 @pytest.mark.multiversion
+def test_baked_grasp_measures_are_the_analysis(bpy, recorded):
+    """The grasp measures plot beside the forces: on "GL Force Box", at every sampled frame,
+    the analysis of that frame's tick (as grasp-lab analyze gives it) over the whole recording,
+    read again; mid-lift the values a two-finger pinch has by hand."""
+    path, _ = recorded
+    assert bpy.ops.grasp_lab.import_recording(filepath=path) == {"FINISHED"}
+    analysis = grasp_env.submodule("engine.analysis")
+    rec = grasp_env.submodule("engine.recording").open_recording(path)      # every tick
+    table = analysis.analyse_recording(rec)
+    arrow = bpy.data.objects["GL Force Box"]
+    scene = bpy.context.scene
+    held = 0
+    for frame in range(1, 146, 3):
+        scene.frame_set(frame)
+        tick = rec.sample([(frame - 1) / 24])[0]
+        row = np.flatnonzero(table.snapshot == tick)
+        if len(row) == 0:
+            assert arrow["gl_held"] == 0.0 and arrow["gl_closure"] == 0.0 and arrow["gl_mu_min"] == -1.0
+            continue
+        held += 1
+        (g,) = analysis.body_grasps(table, row)
+        assert arrow["gl_held"] == 1.0
+        assert arrow["gl_closure"] == float(g.force_closure)
+        assert arrow["gl_epsilon"] == pytest.approx(g.epsilon, rel=1e-6, abs=1e-9)
+        assert arrow["gl_mu_min"] == (pytest.approx(g.mu_min, rel=1e-6) if np.isfinite(g.mu_min) else -1.0)
+        assert arrow["gl_slip_margin"] == pytest.approx(g.min_slip_margin, rel=1e-5, abs=1e-6)
+        assert arrow["gl_grip_load"] == pytest.approx(g.grip_ratio, rel=1e-5)
+    assert held > 10
+    # Mid-lift: 3 N a finger against the 0.1 kg box's weight (it moves slowly); two point
+    # contacts are never in force closure, at any friction.
+    scene.frame_set(43)
+    assert arrow["gl_grip_load"] == pytest.approx(6.0 / (0.1 * 9.81), rel=0.05)
+    assert arrow["gl_closure"] == 0.0 and arrow["gl_mu_min"] == -1.0 and arrow["gl_slip_margin"] > 0
+
+
+@pytest.mark.multiversion
 def test_baking_again_replaces(bpy, recorded):
     path, rec = recorded
     bake = grasp_env.submodule("bake")

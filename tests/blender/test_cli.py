@@ -62,17 +62,18 @@ def session(ext, tmp_path_factory):
 def test_launcher_help_everywhere():
     r = grasp_lab("--help")
     assert r.returncode == 0 and "usage: grasp-lab" in r.stdout
-    for name in ("run", "info", "bake", "resim", "export"):
+    for name in ("run", "info", "bake", "resim", "export", "analyze"):
         code, _, _ = call(name, "--help")
         assert code == 0
-    assert set(cli.COMMANDS) >= {"run", "info", "bake", "resim", "export", "devices", "emulate"}
+    assert set(cli.COMMANDS) >= {"run", "info", "bake", "resim", "export", "analyze", "devices", "emulate"}
 
 
 @pytest.mark.parametrize("args", [
     (), ("frobnicate",), ("info",), ("export", "x.mcap"), ("export", "x.mcap", "--csv", "d", "--npz", "f"),
     ("export", "x.mcap", "--csv", "d", "--every", "0"), ("resim", "x.mcap", "--set", "Box.mass"),
     ("resim", "x.mcap", "--tolerance", "-1"), ("run", "s.blend", "--set", "gravity=1,2"),
-    ("bake", "x.mcap", "s.blend"),
+    ("bake", "x.mcap", "s.blend"), ("analyze",), ("analyze", "x.mcap", "--edges", "2"),
+    ("analyze", "x.mcap", "--every", "0"),
 ])
 def test_usage_errors_exit_2(args, capsys):
     assert cli.main(list(args)) == 2
@@ -84,7 +85,8 @@ def test_failures_exit_1_naming_the_file(tmp_path):
     assert code == 1 and "missing.mcap: no such file" in err
     junk = tmp_path / "junk.mcap"
     junk.write_bytes(b"not a recording at all" * 50)
-    for command in (("info", junk), ("export", junk, "--npz", tmp_path / "x.npz"), ("resim", junk)):
+    for command in (("info", junk), ("export", junk, "--npz", tmp_path / "x.npz"), ("resim", junk),
+                    ("analyze", junk)):
         code, _, err = call(*command)
         assert code == 1 and "junk.mcap" in err and "not a readable Grasp Lab recording" in err
 
@@ -114,6 +116,19 @@ def test_resim_identical_then_diverged(session, tmp_path):
     assert f"new run: {new}" in out and recording.open_recording(new).header["overrides"] == ["Box.mass=0.2"]
     code, _, err = call("resim", session["recording"], "--set", "Mug.mass=1")
     assert code == 1 and "no body or finger named 'Mug'" in err
+
+
+def test_analyze_through_the_launcher(session, tmp_path):
+    """grasp-lab analyze as a user runs it: the sample session's pinch and lift, every 10th tick."""
+    r = grasp_lab("analyze", session["recording"], "--csv", tmp_path / "grasp", "--every", "10")
+    assert r.returncode == 0, r.stderr
+    assert "Box: held" in r.stdout and "in force closure 0.000 s" in r.stdout      # two fingers: never
+    assert "closest to slipping: Finger" in r.stdout and "grasp.csv" in r.stdout
+    with open(tmp_path / "grasp" / "grasp.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    carried = next(row for row in rows if float(row["time"]) >= 4.2)
+    assert carried["body"] == "Box" and carried["contacts"] == "2" and carried["mu_min"] == "inf"
+    assert float(carried["grip_force"]) > float(carried["load_force"]) > 0.9      # the 0.1 kg box, held
 
 
 def test_export_csv_and_npz(session, tmp_path):
@@ -248,4 +263,6 @@ def test_blender_cli_command_registered(bpy, sample, core, tmp_path):
     execute = grasp_env.submodule("cli_blender")._execute
     assert execute(["info", s.last_recording]) == 0
     assert execute(["resim", s.last_recording]) == 0
+    assert execute(["analyze", s.last_recording, "--csv", str(tmp_path / "grasp"), "--every", "50"]) == 0
+    assert (tmp_path / "grasp" / "grasp.csv").exists()
     assert execute(["info"]) == 2

@@ -270,9 +270,39 @@ def test_reading_only_the_ticks_frames_show(exec_rec):
     assert at24.ticks[at24.sample(frames)].tobytes() == at24.ticks.tobytes()
 
 
-def test_the_format_layout_is_the_cores(core):
+def test_reading_every_nth_tick_and_the_ticks_before(exec_rec):
+    """analyze --every N reads ticks N k and N k - 1; a bake's read at a frame rate with
+    ``previous`` also keeps the tick before each frame's (for accelerations)."""
+    full = recording.open_recording(exec_rec[0])
+    for every in (2, 7, 33, 256, 1000):
+        rec = recording.open_recording(exec_rec[0], every=every)
+        phase = full.ticks["tick"] % every
+        keep = (phase == 0) | (phase == every - 1)
+        assert rec.damage == [] and rec.ticks.tobytes() == full.ticks[keep].tobytes(), every
+    assert recording.open_recording(exec_rec[0], every=1).ticks.tobytes() == full.ticks.tobytes()
+    frames = np.arange(145) / 24
+    rec = recording.open_recording(exec_rec[0], fps=24, previous=True)
+    wanted = full.sample(frames)
+    got = rec.ticks["tick"]
+    assert rec.damage == [] and set(full.ticks["tick"][wanted]) <= set(got)
+    assert set(full.ticks["tick"][wanted[wanted > 0] - 1]) <= set(got)
+    assert len(got) <= 2 * 145 + len(full.ticks) // 256 + 1      # and a block's last at most
+    assert rec.ticks[rec.sample(frames)].tobytes() == full.ticks[wanted].tobytes()
+    with pytest.raises(ValueError):
+        recording.open_recording(exec_rec[0], fps=24, every=3)
+
+
+def test_the_format_layout_is_the_cores(core, tmp_path):
+    """One layout: the writer's is the core's (graspcore.tick_dtype, whose size the core
+    checks; test_tick_log.py checks its fields against the core's values)."""
     for nb, nf in ((0, 0), (2, 2), (20, 10), (1, 7)):
         assert recording.tick_dtype(nb, nf) == core.tick_dtype(nb, nf)
+    desc, _ = recordings.pinch_desc()
+    w = recording.RecordingWriter(str(tmp_path / "layout.mcap"), recording.make_header(desc, mode="exec",
+                                                                                        haptic_rate=1000.0))
+    w.close()
+    assert w.dtype == core.tick_dtype(2, 2)
+    assert recording.open_recording(tmp_path / "layout.mcap").dtype == core.tick_dtype(2, 2)
 
 
 

@@ -96,3 +96,21 @@ def test_bad_buffers_and_calls_refused():
             w.set_tick_log(16)
     finally:
         w.stop()
+
+
+def test_normal_is_the_reported_contacts():
+    """A finger in two bodies at once reports its deepest contact: the record's and the
+    snapshot's normal is that contact's, with its god-object and body (the grasp analysis takes
+    them as one contact), not the first contact's."""
+    w = graspcore.World()
+    w.add_body(box_points(0.05, 0.05, 0.05), static=True, position=(-0.05, 0, 0))    # face x = 0, normal +x
+    w.add_body(box_points(0.05, 0.05, 0.05), static=True, position=(0.05, 0, 0.1))   # face z = 0.05, normal -z
+    hip = (0.008, 0.0, 0.044)       # 2 mm into the first (its contact comes first), 4 mm into the second
+    w.add_finger(radius=0.01, position=hip)
+    w.set_hips(np.array([hip]))
+    w.step(1e-3)
+    r = w.tick_record(tick=1)
+    assert r["contact"][0] == 1 and r["state"][0] == 1
+    np.testing.assert_allclose(r["god_object"][0], (0.008, 0.0, 0.04), atol=1e-9)
+    np.testing.assert_allclose(r["normal"][0], (0.0, 0.0, -1.0), atol=1e-12)
+    np.testing.assert_array_equal(w.snapshot()["normals"][0], r["normal"][0])

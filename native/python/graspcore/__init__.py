@@ -186,12 +186,16 @@ class World(_core.World):
         (n, 7), ``residual_forces`` / ``residual_torques`` (n, 3), ``adopted`` (n,) bool;
         per finger ``god_objects``, ``hips``, ``forces`` (device: clamped, ramped, zero
         under the watchdog), ``spring_forces`` (physics, unclamped) (m, 3),
-        ``finger_states`` (m,) int32 (0 free, 1 stick, 2 slip) and ``contact_bodies``
-        (m,) int32 (-1 when free). While the runtime runs, the world's queries and views
-        answer from the last snapshot."""
+        ``finger_states`` (m,) int32 (0 free, 1 stick, 2 slip), ``contact_bodies``
+        (m,) int32 (-1 when free) and ``normals`` (m, 3): the plane normal of the contact
+        whose god-object it reports (the deepest), world, pointing out of the body touched (0
+        when free); per body ``linear_velocities``
+        (of the body frame origin, as ``body_velocity``) and ``angular_velocities`` (n, 3).
+        While the runtime runs, the world's queries and views answer from the last snapshot."""
         (time, object_time, tick, enabled, nb, nf, poses, wrenches, adopted, gos, hips, forces,
-         springs, states, contacts) = self._snapshot()
+         springs, states, contacts, normals, velocities) = self._snapshot()
         wrenches = np.frombuffer(wrenches, dtype=np.float64).reshape(nb, 6)
+        velocities = np.frombuffer(velocities, dtype=np.float64).reshape(nb, 6)
         return {
             "time": time,
             "object_time": object_time,
@@ -207,6 +211,9 @@ class World(_core.World):
             "spring_forces": np.frombuffer(springs, dtype=np.float64).reshape(nf, 3),
             "finger_states": np.frombuffer(states, dtype=np.int32),
             "contact_bodies": np.frombuffer(contacts, dtype=np.int32),
+            "normals": np.frombuffer(normals, dtype=np.float64).reshape(nf, 3),
+            "linear_velocities": velocities[:, :3],
+            "angular_velocities": velocities[:, 3:],
         }
 
     # ---- Tick log (docs/recording-format.md): one record per tick for recorders.

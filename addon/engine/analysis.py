@@ -1,0 +1,489 @@
+"""The measures of a grasp as it is held (docs/analysis.md): per held body and snapshot, the
+closure flags, epsilon and volume of its finger contacts (``graspcore.grasp_quality``), the
+friction they need, per finger the friction use and slip margin, and the grip force against
+the load. bpy-free: the live HUD, ``grasp-lab analyze`` and the bake call it.
+
+Conventions (xFCA, native/src/xfca.c): a finger's god-object is its fingertip sphere's
+centre, on the body's surface inflated by the finger's radius; the recorded ``normal`` is that
+contact's outward plane normal (world); ``force`` is the coupling spring force the finger
+exerts, k (GO - HIP) + damping, and the body gets its reaction (the core applies it at the GO).
+So a contact's point on the body's surface is GO - radius * normal, its inward normal is
+-normal and the force on the body is -force.
+
+One implementation for one snapshot and for many: ``analyse_arrays`` takes arrays with a
+leading snapshot axis and answers tables (one row per held body per snapshot, one per
+contact); ``analyse`` is it for one snapshot, as objects.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+
+SLIP = 2                # gcFingerState
+MU_MAX = 10.0           # mu_min searches friction up to this; above: inf (no friction closes it)
+_TINY = 1e-12           # normals shorter than this are "no normal" (a free finger records 0)
+
+
+def _core():
+    from .. import core_loader
+    return core_loader.load()
+
+
+@dataclass
+class BodyModel:
+    name: str
+    mass: float                 # kg (0 for a static body)
+    com: np.ndarray             # (3,) centre of mass, body frame
+    mu_s: float
+    mu_d: float
+    radius: float               # torque scale: largest distance from the COM to a part vertex, m
+    is_static: bool
+
+
+@dataclass
+class FingerContact:
+    finger: int
+    point: np.ndarray           # (3,) on the body's surface, world
+    normal: np.ndarray          # (3,) inward unit normal (into the body)
+    mu: float                   # of its current cone: mu_s sticking, mu_d slipping
+    fn: float                   # N, normal force on the body (> 0 pushes into it)
+    ft: float                   # N, tangential force on the body
+    friction_use: float         # |Ft| / (mu |Fn|); 1 at the cone's edge
+    slip_margin: float          # mu |Fn| - |Ft|, N; < 0 outside the cone
+    state: int                  # 1 stick, 2 slip
+
+
+@dataclass
+class BodyGrasp:
+    body: int
+    contacts: list
+    force_closure: bool
+    torque_closure: bool
+    force_only_closure: bool
+    epsilon: float
+    volume: float
+    weakest: np.ndarray         # (6,) unit wrench direction the grasp resists least
+    mu_min: float
+    friction_needed: float
+    min_slip_margin: float
+    min_slip_finger: int        # -1 if none
+    grip_force: float
+    load_force: float
+    grip_ratio: float
+    resisted_force: float
+    center: np.ndarray          # (3,) centre of mass, world
+    radius: float
+
+
+def _part_points(part) -> np.ndarray:
+    return np.asarray(part, dtype=np.float64).reshape(-1, 3)
+
+
+def body_models(scene) -> list:
+    """BodyModel per body of a recording header's ``scene`` dict or an ``engine.scene.SceneDesc``
+    (prepared: mass properties included)."""
+    models = []
+    bodies = scene["bodies"] if isinstance(scene, dict) else scene.bodies
+    for b in bodies:
+        if isinstance(b, dict):
+            name, static, parts = b["name"], bool(b["static"]), b["parts"]
+            mass, com, mu_s, mu_d = b.get("mass"), b.get("center_of_mass"), b["mu_s"], b["mu_d"]
+        else:
+            mp = b.mass_properties
+            name, static, parts, mu_s, mu_d = b.name, bool(b.static), b.parts, b.mu_s, b.mu_d
+            mass, com = (None, None) if mp is None else (mp.mass, mp.center_of_mass)
+        points = np.concatenate([_part_points(p) for p in parts]) if len(parts) else np.zeros((1, 3))
+        com = points.mean(axis=0) if com is None else np.asarray(com, dtype=np.float64).reshape(3)
+        radius = float(np.sqrt(np.max(np.einsum("ij,ij->i", points - com, points - com))))
+        models.append(BodyModel(name, 0.0 if static or mass is None else float(mass), com, float(mu_s),
+                                float(mu_d), radius, static))
+    return models
+
+
+def centres_of_mass(models, poses) -> np.ndarray:
+    """World centres of mass (..., nb, 3) of body frame poses (..., nb, 7)."""
+    com = np.array([m.com for m in models], dtype=np.float64)
+    return poses[..., :3] + _rotate(poses[..., 3:], com)
+
+
+def _cross(a, b):
+    """a x b over the last axis (np.cross, without its axis handling: this runs per snapshot)."""
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def _rotate(q, v):
+    """runner.quat_rotate's rotation of v by unit quaternions q (w, x, y, z), with _cross."""
+    u = q[..., 1:]
+    t = 2.0 * _cross(u, np.broadcast_to(v, u.shape))
+    return v + q[..., :1] * t + _cross(u, t)
+
+
+def com_velocities(models, poses, velocities) -> np.ndarray:
+    """Velocities of the centres of mass (..., nb, 3) from the recorded velocities of the body
+    frame origins and angular velocities (..., nb, 6): v_com = v_origin + w x (R com)."""
+    com = np.array([m.com for m in models], dtype=np.float64)
+    return velocities[..., :3] + _cross(velocities[..., 3:], _rotate(poses[..., 3:], com))
+
+
+def recorded_accelerations(models, ticks, rows) -> np.ndarray:
+    """Centre-of-mass accelerations (len(rows), nb, 3) at the tick records ``ticks[rows]``: the
+    change of the centre of mass's velocity from the record before (backward difference: the
+    step that ended at the tick, which the tick's forces drove), or to the record after for the
+    first record; 0 for a recording of one tick."""
+    rows = np.asarray(rows, dtype=np.int64)
+    n = len(ticks)
+    nb = len(models)
+    if n < 2:
+        return np.zeros((len(rows), nb, 3))
+    prev = np.where(rows > 0, rows - 1, 0)
+    cur = np.where(rows > 0, rows, 1)
+    both = np.concatenate([prev, cur])
+    v = com_velocities(models, ticks["pose"][both], ticks["velocity"][both])
+    t = ticks["time"][both]
+    dt = t[len(rows):] - t[:len(rows)]
+    dt = np.where(dt > 0, dt, np.inf)       # a repeated time (never recorded) gives no acceleration
+    return (v[len(rows):] - v[:len(rows)]) / dt[:, None, None]
+
+
+@dataclass
+class GraspTable:
+    """analyse_arrays's answer. Sets: one row per (snapshot, held body), in snapshot then body
+    order; contacts: one row per finger in contact, grouped by set (``first`` / ``count``)."""
+    snapshot: np.ndarray        # (m,) index of the snapshot
+    body: np.ndarray            # (m,)
+    count: np.ndarray           # (m,) contacts
+    first: np.ndarray           # (m,) first contact row
+    quality: np.ndarray         # (m,) graspcore.grasp_quality_batch's rows
+    mu_min: np.ndarray
+    friction_needed: np.ndarray
+    min_slip_margin: np.ndarray
+    min_slip_finger: np.ndarray
+    grip_force: np.ndarray
+    load_force: np.ndarray
+    grip_ratio: np.ndarray
+    resisted_force: np.ndarray
+    center: np.ndarray          # (m, 3)
+    radius: np.ndarray          # (m,)
+    # contacts
+    finger: np.ndarray
+    point: np.ndarray           # (c, 3)
+    normal: np.ndarray          # (c, 3) inward
+    mu: np.ndarray
+    fn: np.ndarray
+    ft: np.ndarray
+    friction_use: np.ndarray
+    slip_margin: np.ndarray
+    state: np.ndarray
+
+
+def contact_forces(forces, normals):
+    """(fn, ft) of the force each finger's contact puts on its body: the reaction -force of the
+    coupling force split along the inward normal -normal (recorded normals: outward, world;
+    any leading shape). fn > 0 pushes into the body; a zero normal gives fn 0, ft = |force|."""
+    forces = np.asarray(forces, dtype=np.float64)
+    normals = np.asarray(normals, dtype=np.float64)
+    length = np.sqrt(np.einsum("...k,...k->...", normals, normals))
+    unit = normals / np.where(length > _TINY, length, np.inf)[..., None]
+    fn = np.einsum("...k,...k->...", forces, unit)          # (-force) . (-normal)
+    tangential = forces - fn[..., None] * unit
+    return fn, np.sqrt(np.einsum("...k,...k->...", tangential, tangential))
+
+
+def cone_mu(models, states, bodies):
+    """The friction coefficient of each contact's current cone: mu_d while it slips, mu_s
+    otherwise (0 where ``bodies`` is not a body index)."""
+    mu_s = np.array([m.mu_s for m in models] + [0.0])
+    mu_d = np.array([m.mu_d for m in models] + [0.0])
+    bodies = np.where((bodies >= 0) & (bodies < len(models)), bodies, len(models))
+    return np.where(np.asarray(states) == SLIP, mu_d[bodies], mu_s[bodies])
+
+
+def friction_use(ft, mu, fn):
+    """|Ft| / (mu |Fn|) where the cone is open (mu fn > 0); else inf for any tangential force
+    (a finger pulling, or a frictionless one, holds none), 0 for none."""
+    cone = mu * fn
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(cone > 0, ft / np.where(cone > 0, cone, 1.0), np.where(ft > 0, np.inf, 0.0))
+
+
+class GraspAnalysisError(ValueError):
+    """The core refused a contact set; ``snapshot`` is its snapshot index (None if unknown)."""
+
+    def __init__(self, message: str, snapshot=None):
+        super().__init__(message)
+        self.snapshot = snapshot
+
+
+def _mu_min(core, point, normal, starts, count, centers, radii, edges) -> np.ndarray:
+    """graspcore.grasp_mu_min of each set (a bisection: tens of hulls), once per distinct set:
+    a body at rest in a still hand gives the same set, bit for bit, tick after tick."""
+    out = np.empty(len(starts))
+    seen = {}
+    for i, (s, c) in enumerate(zip(starts, count)):
+        key = (point[s:s + c].tobytes(), normal[s:s + c].tobytes(), centers[i].tobytes(), float(radii[i]))
+        if key not in seen:
+            try:
+                seen[key] = core.grasp_mu_min(point[s:s + c], normal[s:s + c], centers[i], radii[i], edges=edges,
+                                              mu_max=MU_MAX)
+            except ValueError as ex:
+                ex.set_index = i
+                raise
+        out[i] = seen[key]
+    return out
+
+
+def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_bodies, finger_radii,
+                   accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True) -> GraspTable:
+    """The measures for T snapshots at once: poses (T, nb, 7), god_objects / forces / normals
+    (T, nf, 3), states / contact_bodies (T, nf), finger_radii (nf,), accelerations (T, nb, 3)
+    of the centres of mass or None (0: the load is the weight). ``volume=False``: the core's
+    fast path, without the 6-D hull (volume -1: not computed; every other measure the same)."""
+    core = _core()
+    poses = np.asarray(poses, dtype=np.float64)
+    god_objects = np.asarray(god_objects, dtype=np.float64)
+    forces = np.asarray(forces, dtype=np.float64)
+    normals = np.asarray(normals, dtype=np.float64)
+    states = np.asarray(states)
+    contact_bodies = np.asarray(contact_bodies)
+    finger_radii = np.asarray(finger_radii, dtype=np.float64)
+    nb = len(models)
+    if poses.ndim != 3 or poses.shape[1:] != (nb, 7):
+        raise ValueError(f"poses: expected (snapshots, {nb}, 7), got shape {poses.shape}")
+    T, nf = god_objects.shape[0], god_objects.shape[1] if god_objects.ndim == 3 else -1
+    for name, a, shape in (("god_objects", god_objects, (T, nf, 3)), ("forces", forces, (T, nf, 3)),
+                           ("normals", normals, (T, nf, 3)), ("states", states, (T, nf)),
+                           ("contact_bodies", contact_bodies, (T, nf)), ("finger_radii", finger_radii, (nf,))):
+        if a.shape != shape or nf < 0:
+            raise ValueError(f"{name}: expected shape {shape}, got {a.shape}")
+    dynamic = np.array([not m.is_static for m in models] + [False])
+    # Contacts: a finger touching a dynamic body, with a normal.
+    body_of = np.where((contact_bodies >= 0) & (contact_bodies < nb), contact_bodies, nb)
+    n_len = np.sqrt(np.einsum("tfk,tfk->tf", normals, normals))
+    held = dynamic[body_of] & (states > 0) & (n_len > _TINY)
+    t_idx, f_idx = np.nonzero(held)
+    b_idx = body_of[t_idx, f_idx]
+    order = np.lexsort((f_idx, b_idx, t_idx))         # by snapshot, body, finger
+    t_idx, f_idx, b_idx = t_idx[order], f_idx[order], b_idx[order]
+    n_in = -normals[t_idx, f_idx] / n_len[t_idx, f_idx][:, None]
+    point = god_objects[t_idx, f_idx] + finger_radii[f_idx][:, None] * n_in
+    fn, ft = contact_forces(forces[t_idx, f_idx], normals[t_idx, f_idx])
+    state = states[t_idx, f_idx].astype(np.int32)
+    mu = cone_mu(models, state, b_idx)
+    use = friction_use(ft, mu, fn)
+    margin = mu * fn - ft
+    with np.errstate(divide="ignore", invalid="ignore"):
+        needed = np.where(fn > 0, ft / np.where(fn > 0, fn, 1.0), np.where(ft > 0, np.inf, 0.0))
+
+    # Sets: runs of equal (snapshot, body).
+    key = t_idx * (nb + 1) + b_idx
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]]) if len(key) else np.zeros(0, np.int64)
+    count = np.diff(np.r_[starts, len(key)])
+    set_t, set_b = t_idx[starts], b_idx[starts]
+    set_of = np.repeat(np.arange(len(starts)), count)
+    centers = centres_of_mass(models, poses[set_t])[np.arange(len(starts)), set_b]
+    radii = np.array([m.radius for m in models] + [1.0])[set_b]
+    try:
+        quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges, volume=volume)
+        mu_min = _mu_min(core, point, n_in, starts, count, centers, radii, edges)
+    except ValueError as ex:
+        # Name the snapshot and body whose contacts the core refused (the batch's message starts
+        # with the set: "set 3: points: ...").
+        message, i = str(ex), getattr(ex, "set_index", None)
+        numbered = re.match(r"set (\d+): (.*)", message, re.S)
+        if i is None and numbered:
+            i, message = int(numbered.group(1)), numbered.group(2)
+        if i is None or not 0 <= i < len(set_t):
+            raise
+        raise GraspAnalysisError(f"snapshot {int(set_t[i])}, body {models[set_b[i]].name}: {message}",
+                                 int(set_t[i])) from None
+    if len(starts):
+        grip = np.add.reduceat(fn, starts)
+        friction_needed = np.maximum.reduceat(needed, starts)
+        min_margin = np.minimum.reduceat(margin, starts)
+        at_min = np.flatnonzero(margin == min_margin[set_of])
+        first_at_min = at_min[np.r_[True, set_of[at_min][1:] != set_of[at_min][:-1]]]
+        min_finger = f_idx[first_at_min].astype(np.int32)
+    else:
+        grip = friction_needed = min_margin = np.zeros(0)
+        min_finger = np.zeros(0, np.int32)
+    mass = np.array([m.mass for m in models] + [0.0])[set_b]
+    a = np.zeros((len(starts), 3)) if accelerations is None else \
+        np.asarray(accelerations, dtype=np.float64)[set_t, set_b]
+    inertial = a - np.asarray(gravity, dtype=np.float64)
+    load = mass * np.sqrt(np.einsum("ij,ij->i", inertial, inertial))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(load > 0, grip / np.where(load > 0, load, 1.0), np.inf)
+    return GraspTable(snapshot=set_t, body=set_b, count=count, first=starts, quality=quality, mu_min=mu_min,
+                      friction_needed=friction_needed, min_slip_margin=min_margin, min_slip_finger=min_finger,
+                      grip_force=grip, load_force=load, grip_ratio=ratio,
+                      resisted_force=quality["epsilon"] * grip, center=centers, radius=radii,
+                      finger=f_idx.astype(np.int32), point=point, normal=n_in, mu=mu, fn=fn, ft=ft,
+                      friction_use=use, slip_margin=margin, state=state)
+
+
+def body_grasps(table: GraspTable, sets=None) -> list:
+    """BodyGrasp objects of rows ``sets`` (default all) of a GraspTable."""
+    out = []
+    for i in range(len(table.body)) if sets is None else sets:
+        s, c = int(table.first[i]), int(table.count[i])
+        q = table.quality[i]
+        contacts = [FingerContact(int(table.finger[k]), table.point[k].copy(), table.normal[k].copy(),
+                                  float(table.mu[k]), float(table.fn[k]), float(table.ft[k]),
+                                  float(table.friction_use[k]), float(table.slip_margin[k]), int(table.state[k]))
+                    for k in range(s, s + c)]
+        out.append(BodyGrasp(
+            body=int(table.body[i]), contacts=contacts, force_closure=bool(q["force_closure"]),
+            torque_closure=bool(q["torque_closure"]), force_only_closure=bool(q["force_only_closure"]),
+            epsilon=float(q["epsilon"]), volume=float(q["volume"]), weakest=np.array(q["weakest"], dtype=np.float64),
+            mu_min=float(table.mu_min[i]), friction_needed=float(table.friction_needed[i]),
+            min_slip_margin=float(table.min_slip_margin[i]), min_slip_finger=int(table.min_slip_finger[i]),
+            grip_force=float(table.grip_force[i]), load_force=float(table.load_force[i]),
+            grip_ratio=float(table.grip_ratio[i]), resisted_force=float(table.resisted_force[i]),
+            center=table.center[i].copy(), radius=float(table.radius[i])))
+    return out
+
+
+def analyse(models, poses, god_objects, forces, normals, states, contact_bodies, finger_radii,
+            accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True) -> list:
+    """The measures of one snapshot: one BodyGrasp per dynamic body with at least one finger in
+    contact. Arrays as in the tick record: poses (nb, 7), god_objects, forces (the coupling
+    spring force the finger exerts), normals (nf, 3), states, contact_bodies (nf,), finger_radii
+    (nf,); accelerations (nb, 3) of the centres of mass, or None (0: the load is the weight).
+    ``volume=False`` skips the grasp wrench space's volume (-1), the live view's choice."""
+    one = lambda a, dtype=np.float64: np.asarray(a, dtype=dtype)[None]  # noqa: E731
+    table = analyse_arrays(models, one(poses), one(god_objects), one(forces), one(normals),
+                           one(states, np.int32), one(contact_bodies, np.int32), finger_radii,
+                           None if accelerations is None else one(accelerations), gravity, edges, volume)
+    return body_grasps(table)
+
+
+def analyse_recording(rec, every: int = 1, edges: int = 8, rows=None, chunk: int = 4096) -> GraspTable:
+    """The measures at the tick records of a Recording whose tick number is a multiple of
+    ``every`` (all of them for 1), or at its records ``rows``, with the centres of mass's
+    accelerations from the recorded velocities (each tick against the record before it: read
+    with ``open_recording(path, every=every)`` or ``previous=True``, that is the tick before).
+    Snapshot indices in the answer are rows of ``rec.ticks``. Raises ValueError for a
+    recording without contact normals."""
+    check_recording(rec)
+    models = body_models(rec.header["scene"])
+    radii = np.array([f["radius"] for f in rec.header["scene"]["fingers"]], dtype=np.float64)
+    gravity = tuple(rec.header["scene"]["gravity"])
+    if rows is not None:
+        rows = np.asarray(rows, dtype=np.int64)
+    elif every > 1:
+        rows = np.flatnonzero(rec.ticks["tick"] % every == 0)
+    else:
+        rows = np.arange(len(rec.ticks))
+    parts = []
+    for lo in range(0, len(rows), chunk):
+        r = rows[lo:lo + chunk]
+        t = rec.ticks[r]
+        acc = recorded_accelerations(models, rec.ticks, r)
+        try:
+            table = analyse_arrays(models, t["pose"], t["god_object"], t["force"], t["normal"], t["state"],
+                                   t["contact"], radii, acc, gravity, edges)
+        except GraspAnalysisError as ex:
+            if ex.snapshot is None:
+                raise
+            row = int(r[ex.snapshot])
+            raise GraspAnalysisError(f"tick {int(rec.ticks['tick'][row])} (t = {rec.ticks['time'][row]:.6g} s), "
+                                     f"{str(ex).split(', ', 1)[1]}", row) from None
+        table.snapshot = r[table.snapshot]
+        parts.append(table)
+    if not parts:
+        parts.append(analyse_arrays(models, np.zeros((0, len(models), 7)), *(np.zeros((0, len(radii), 3)),) * 3,
+                                    np.zeros((0, len(radii)), np.int32), np.zeros((0, len(radii)), np.int32),
+                                    radii, None, gravity, edges))
+    return _concatenate(parts)
+
+
+def _concatenate(parts) -> GraspTable:
+    parts = [p for p in parts if len(p.body)] or parts[:1]
+    if len(parts) == 1:
+        return parts[0]
+    fields = GraspTable.__dataclass_fields__
+    offsets = np.cumsum([0] + [len(p.finger) for p in parts[:-1]])
+    merged = {}
+    for name in fields:
+        arrays = [getattr(p, name) for p in parts]
+        if name == "first":
+            arrays = [a + o for a, o in zip(arrays, offsets)]
+        merged[name] = np.concatenate(arrays)
+    return GraspTable(**merged)
+
+
+# Animated custom properties of a bake, per dynamic body (docs/analysis.md): name -> (the value
+# of a GraspTable row, the value while no finger holds the body: the measure of no contacts).
+# A value with no finite answer (mu_min when no friction up to MU_MAX closes the grasp,
+# grip/load at zero load) is keyed NONE.
+NONE = -1.0
+BAKED = {
+    "gl_held": (lambda t: np.ones(len(t.body)), 0.0),
+    "gl_closure": (lambda t: t.quality["force_closure"].astype(np.float64), 0.0),
+    "gl_epsilon": (lambda t: t.quality["epsilon"], 0.0),
+    "gl_mu_min": (lambda t: t.mu_min, NONE),
+    "gl_slip_margin": (lambda t: t.min_slip_margin, 0.0),
+    "gl_grip_load": (lambda t: t.grip_ratio, 0.0),
+}
+
+
+def body_series(table: GraspTable, rows, num_bodies: int) -> dict:
+    """BAKED's measures per body at the records ``rows`` (in order) of the recording the table
+    was made of: name -> (len(rows), num_bodies)."""
+    rows = np.asarray(rows, dtype=np.int64)
+    if np.any(rows[1:] < rows[:-1]):
+        raise ValueError("rows: expected the records in order")
+    where = np.searchsorted(rows, table.snapshot)
+    first = np.searchsorted(rows, rows)     # a repeated row (two frames on one tick) takes the first's
+    out = {}
+    for name, (value, idle) in BAKED.items():
+        series = np.full((len(rows), num_bodies), idle)
+        v = np.asarray(value(table), dtype=np.float64)
+        series[where, table.body] = np.where(np.isfinite(v), v, NONE)
+        out[name] = series[first]
+    return out
+
+
+def check_recording(rec) -> None:
+    """A recording analysis can read: its ticks carry the contact normals (recordings made by
+    Grasp Lab versions before them do not)."""
+    names = rec.ticks.dtype.names or ()
+    if "normal" not in names:
+        version = rec.header.get("versions", {}).get("grasp_lab", "unknown")
+        raise ValueError(f"{rec.path}: made by an older version of Grasp Lab ({version}): its ticks carry no "
+                         f"contact normals, which the analysis needs; record the session again")
+
+
+def summary(table: GraspTable, times, body_names, finger_names, period: float) -> list:
+    """Lines for the command line, per body: the time held and in force closure (samples times
+    the analysis period), the weakest moment (out of closure: the first time; else the
+    smallest epsilon, and when) and the finger closest to slipping (smallest slip margin)."""
+    lines = []
+    closure = table.quality["force_closure"]
+    eps = table.quality["epsilon"]
+    for b in np.unique(table.body):
+        rows = np.flatnonzero(table.body == b)
+        held = len(rows) * period
+        closed = rows[closure[rows]]
+        lines.append(f"{body_names[b]}: held {held:.3f} s, in force closure {len(closed) * period:.3f} s "
+                     f"({100.0 * len(closed) / len(rows):.1f} % of the time held)")
+        open_rows = rows[~closure[rows]]
+        if len(open_rows):
+            lines.append(f"  weakest: out of force closure (epsilon 0) for {len(open_rows) * period:.3f} s, "
+                         f"first at t = {times[open_rows[0]]:.3f} s")
+        if len(closed):
+            k = closed[np.argmin(eps[closed])]
+            lines.append(f"  weakest in closure: t = {times[k]:.3f} s, epsilon {eps[k]:.6g} (resists "
+                         f"{table.resisted_force[k]:.4g} N in its weakest direction)")
+        k = rows[np.argmin(table.min_slip_margin[rows])]
+        f = int(table.min_slip_finger[k])
+        lines.append(f"  closest to slipping: {finger_names[f] if f >= 0 else '-'} at t = {times[k]:.3f} s, "
+                     f"slip margin {table.min_slip_margin[k]:.4g} N")
+    if not lines:
+        lines.append("no finger touched a dynamic body")
+    return lines
