@@ -67,7 +67,6 @@ typedef struct gcFingerContact {
     gcFingerState state;            /* FREE, STICK or SLIP */
     gcVec3 go_local;                /* god-object centre, body frame */
     gcVec3 normal_local;            /* contact plane normal (outward), body frame */
-    gcVec3 so_local;                /* surface object, body frame */
     double depth;                   /* HIP depth below the GO plane, last step */
     /* A sphere finger, or a vertex of a convex finger entering a body (sample: its index): the GO
      * is on the body, in the body frame, and its spring pulls the vertex. Reversed: a vertex of the
@@ -80,21 +79,14 @@ typedef struct gcFingerContact {
 } gcFingerContact;
 
 /* A sphere finger touches at most 8 parts at once; a convex finger's vertices together hold at
- * most GC_MAX_FINGER_CONTACTS contacts (docs/physics.md "Area contacts"). */
+ * most GC_MAX_FINGER_CONTACTS contacts (docs/physics.md "Area contacts"): a face on a face takes 4. */
 #define GC_MAX_CONTACTS_PER_FINGER 8
-#define GC_MAX_FINGER_CONTACTS 32
+#define GC_MAX_FINGER_CONTACTS 16
 
 typedef struct gcFinger {
     double radius, stiffness, damping;
     gcVec3 hip, hip_prev, hip_velocity;
     int hip_initialised;
-    /* Convex finger: its hull's vertices in the finger frame (0 = a sphere of radius), each a
-     * point of contact with a god-object of its own; the HIP is the frame's pose. */
-    int num_vertices;
-    gcVec3 vertices[GC_MAX_FINGER_VERTICES];
-    gcQuat q, q_prev;
-    gcMat3 R, R_prev;
-    gcVec3 hip_angular_velocity;
     int num_contacts;
     gcFingerContact contacts[GC_MAX_FINGER_CONTACTS];
     /* Outputs. */
@@ -104,6 +96,14 @@ typedef struct gcFinger {
     gcVec3 normal;                  /* world: the reported contact's outward normal, 0 when free */
     int32_t contact_body;           /* -1 when free */
     gcFingerState state;
+    /* Convex finger (last: a sphere finger's step never reads it): its hull's vertices in the
+     * finger frame (0 = a sphere of radius), each a point of contact with a god-object of its
+     * own; the HIP is the frame's pose. */
+    int num_vertices;
+    gcQuat q, q_prev;
+    gcMat3 R, R_prev;
+    gcVec3 hip_angular_velocity;
+    gcVec3 vertices[GC_MAX_FINGER_VERTICES];
 } gcFinger;
 
 /* While the runtime runs: what the last gc_world_snapshot showed. The world's queries

@@ -67,7 +67,6 @@ static int update_contact(const gcSurface *sf, gcFingerContact *c, gcVec3 hip, d
     if (depth <= 0.0) return 0; /* the HIP crossed the GO's plane */
     c->depth = depth;
     gcVec3 so = gc_madd(hip, n, depth);
-    c->so_local = so;
     /* Friction circle around the SO (step 4): the GO's offset in the plane. */
     gcVec3 offset = gc_sub(c->go_local, so);
     offset = gc_madd(offset, n, -gc_dot(offset, n));
@@ -300,20 +299,23 @@ static void finger_update(gcWorld *w, int32_t id, double dt) {
     /* Existing contacts, compacting away the ones that ended. */
     int kept = 0;
     for (int i = 0; i < f->num_contacts; ++i) {
-        gcFingerContact c = f->contacts[i];
-        const gcPart *part = &w->parts[c.part];
+        gcFingerContact *c = &f->contacts[i]; /* updated in place; a lost one is overwritten */
+        const gcPart *part = &w->parts[c->part];
         const gcBody *b = &w->bodies[part->body];
         gcTransform fr = f->num_vertices ? predicted_transform(b, dt) : gc_body_transform(b);
         int alive;
-        if (!c.reversed) {
+        if (!c->reversed) {
             gcSurface sf = body_surface(b, &part->hull, f->radius);
-            alive = update_contact(&sf, &c, gc_inv_transform_point(&fr, gc_finger_tip(f, c.sample)), dt);
+            alive = update_contact(&sf, c, gc_inv_transform_point(&fr, gc_finger_tip(f, c->sample)), dt);
         } else {
             gcSurface sf = body_surface(b, fh, part->hull.radius);
-            gcVec3 v = gc_inv_transform_point(&ff, gc_transform_point(&fr, c.body_point_local));
-            alive = update_contact(&sf, &c, v, dt);
+            gcVec3 v = gc_inv_transform_point(&ff, gc_transform_point(&fr, c->body_point_local));
+            alive = update_contact(&sf, c, v, dt);
         }
-        if (alive) f->contacts[kept++] = c;
+        if (alive) {
+            if (kept != i) f->contacts[kept] = *c;
+            kept++;
+        }
     }
     f->num_contacts = kept;
     if (!f->num_vertices) {
