@@ -239,10 +239,45 @@ static void find_new_contacts(gcWorld *w, gcFinger *f, int32_t sample, int capac
     }
 }
 
-/* Reversed contacts of a convex finger: the vertices of the bodies' parts that are inside the
- * finger (a box corner on a palm wider than the box, a can's side across a palm), each with a
- * god-object on the finger's surface. Without them a body smaller than the finger's face would
- * pass between its vertices (docs/physics.md "Area contacts"). */
+/* Points along a body's feature edges, as reversed contacts: spaced no wider than the finger's
+ * thinnest width, so an edge crossing the finger (a pencil across a palm, a can's side along
+ * it) has a point inside it whenever the edge passes through the finger; at most this many per
+ * edge. A point's sample id is num_vertices + edge * GC_EDGE_SAMPLES + k. */
+#define GC_EDGE_SAMPLES 32
+
+/* The reversed candidate at body point x (body frame): swept in the finger's frame from where
+ * it was against the finger a step ago (the body now, the finger at its previous pose) to
+ * where it will be (the body's predicted pose, the finger now). */
+static void try_reversed(gcFinger *f, const gcHull *fh, const gcBody *b, int32_t part, const gcHull *h,
+                         int32_t sample, gcVec3 x, const gcTransform *fr, const gcTransform *fr_prev,
+                         const gcTransform *ff, const gcTransform *ff_prev, double dt) {
+    if (has_contact_with(f, part, sample, 1)) return;
+    gcVec3 v = gc_inv_transform_point(ff, gc_transform_point(fr, x)), go, n;
+    gcVec3 v_prev = gc_inv_transform_point(ff_prev, gc_transform_point(fr_prev, x));
+    if (!find_entry(h->radius, fh, v_prev, v, &go, &n)) return;
+    if (opposes_existing(f, b, part, gc_neg(gc_mat3_mul_vec(&f->R, n)))) return;
+    gcFingerContact c;
+    memset(&c, 0, sizeof c);
+    c.part = part;
+    c.sample = sample;
+    c.reversed = 1;
+    c.body_point_local = x;
+    c.state = GC_FINGER_STICK;
+    c.go_local = go;
+    c.normal_local = n;
+    gcSurface sf = body_surface(b, fh, h->radius);
+    if (update_contact(&sf, &c, v, dt)) f->contacts[f->num_contacts++] = c;
+}
+
+static int outside_box(gcVec3 p, gcVec3 lo, gcVec3 hi, double pad) {
+    return p.x < lo.x - pad || p.y < lo.y - pad || p.z < lo.z - pad || p.x > hi.x + pad || p.y > hi.y + pad ||
+           p.z > hi.z + pad;
+}
+
+/* Reversed contacts of a convex finger: the vertices of the bodies' parts inside the finger (a
+ * box corner on a palm wider than the box), and points along their edges (a can's side across
+ * a palm), each with a god-object on the finger's surface. Without them a body smaller than
+ * the finger's face would pass between its vertices (docs/physics.md "Area contacts"). */
 static void find_reversed_contacts(gcWorld *w, gcFinger *f, const gcHull *fh, double dt) {
     gcTransform ff = finger_transform(f), ff_prev;
     ff_prev.R = f->R_prev;
@@ -256,6 +291,7 @@ static void find_reversed_contacts(gcWorld *w, gcFinger *f, const gcHull *fh, do
     gcVec3 pad = gc_v3(fh->radius, fh->radius, fh->radius);
     lo = gc_sub(lo, pad);
     hi = gc_add(hi, pad);
+    double spacing = fh->min_width + 2.0 * fh->radius;
     for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++bi) {
         const gcBody *b = &w->bodies[bi];
         if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
@@ -263,28 +299,26 @@ static void find_reversed_contacts(gcWorld *w, gcFinger *f, const gcHull *fh, do
         for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
             const gcHull *h = &w->parts[p].hull;
             for (int32_t j = 0; j < h->num_vertices && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++j) {
-                gcVec3 vw = gc_transform_point(&fr, h->vertices[j]);
-                if (vw.x < lo.x - h->radius || vw.y < lo.y - h->radius || vw.z < lo.z - h->radius ||
-                    vw.x > hi.x + h->radius || vw.y > hi.y + h->radius || vw.z > hi.z + h->radius)
+                if (outside_box(gc_transform_point(&fr, h->vertices[j]), lo, hi, h->radius)) continue;
+                try_reversed(f, fh, b, p, h, j, h->vertices[j], &fr, &fr_prev, &ff, &ff_prev, dt);
+            }
+            for (int e = 0; e < h->num_edges && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++e) {
+                gcVec3 a = h->vertices[h->edges[2 * e]], c = h->vertices[h->edges[2 * e + 1]];
+                gcVec3 aw = gc_transform_point(&fr, a), cw = gc_transform_point(&fr, c);
+                gcVec3 elo = gc_v3(fmin(aw.x, cw.x), fmin(aw.y, cw.y), fmin(aw.z, cw.z));
+                gcVec3 ehi = gc_v3(fmax(aw.x, cw.x), fmax(aw.y, cw.y), fmax(aw.z, cw.z));
+                if (!gc_aabb_overlap(gc_sub(lo, gc_v3(h->radius, h->radius, h->radius)),
+                                     gc_add(hi, gc_v3(h->radius, h->radius, h->radius)), elo, ehi))
                     continue;
-                if (has_contact_with(f, p, j, 1)) continue;
-                /* Swept in the finger's frame from where the vertex was against the finger a step
-                 * ago (the body now, the finger at its previous pose) to where it will be. */
-                gcVec3 v = gc_inv_transform_point(&ff, vw), go, n;
-                gcVec3 v_prev = gc_inv_transform_point(&ff_prev, gc_transform_point(&fr_prev, h->vertices[j]));
-                if (!find_entry(h->radius, fh, v_prev, v, &go, &n)) continue;
-                if (opposes_existing(f, b, p, gc_neg(gc_mat3_mul_vec(&f->R, n)))) continue;
-                gcFingerContact c;
-                memset(&c, 0, sizeof c);
-                c.part = p;
-                c.sample = j;
-                c.reversed = 1;
-                c.body_point_local = h->vertices[j];
-                c.state = GC_FINGER_STICK;
-                c.go_local = go;
-                c.normal_local = n;
-                gcSurface sf = body_surface(b, fh, h->radius);
-                if (update_contact(&sf, &c, v, dt)) f->contacts[f->num_contacts++] = c;
+                int n = (int)ceil(gc_len(gc_sub(c, a)) / spacing) - 1;
+                if (n > GC_EDGE_SAMPLES) n = GC_EDGE_SAMPLES;
+                for (int k = 0; k < n && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++k) {
+                    double t = (double)(k + 1) / (double)(n + 1);
+                    gcVec3 x = gc_madd(a, gc_sub(c, a), t);
+                    if (outside_box(gc_transform_point(&fr, x), lo, hi, h->radius)) continue;
+                    try_reversed(f, fh, b, p, h, h->num_vertices + e * GC_EDGE_SAMPLES + k, x, &fr, &fr_prev, &ff,
+                                 &ff_prev, dt);
+                }
             }
         }
     }

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import graspcore
-from scenes import box_points, quat_to_matrix
+from scenes import box_points, prism_points, quat_to_matrix
 
 DT = 1e-3
 G = 9.81
@@ -209,6 +209,67 @@ def test_small_box_rests_on_a_wider_palm():
     np.testing.assert_allclose(w.body_pose(box)[0], [0.005, 0, 0.01 - W / (4 * K)], atol=1e-7)
     assert tilt_deg(w, box) < 1e-6
     np.testing.assert_allclose(w.god_object(palm), [0.005, 0, -W / (4 * K)], atol=1e-7)
+
+
+PALM = dict(radius=0.0, stiffness=K, damping=2.0)
+
+
+@pytest.mark.parametrize("kind", ["pencil", "can"])
+def test_long_body_across_a_palm_rests_on_points_along_its_edge(kind):
+    """A 15 cm pencil (a capsule) and a 12 cm can (a 16-sided prism) lying across a 9 cm palm: no
+    vertex of either is over the palm, nor any palm vertex under them. Points along the body's
+    edge, no further apart than the palm is thick (2 cm), carry it: it rests on the palm's face
+    (sunk W / n k over its n points), level and still."""
+    w = graspcore.World()
+    palm = w.add_finger(position=(0, 0, -0.01), points=box_points(0.045, 0.04, 0.01), **PALM)
+    if kind == "pencil":
+        body = w.add_body(np.array([[-0.075, 0, 0], [0.075, 0, 0]]), radius=0.004, mass=0.01, position=(0, 0, 0.004))
+        rest, mass = 0.004, 0.01
+    else:  # on a face (on an edge it would balance on one line of points and roll over)
+        rest, mass = 0.033 * np.cos(np.pi / 16), 0.35
+        half = np.pi / 32
+        body = w.add_body(prism_points(0.033, 0.06, sides=16), mass=mass, position=(0, 0, rest),
+                          orientation=(np.cos(half), np.sin(half), 0, 0))
+    w.step(DT, steps=2000)
+    contacts = w.finger_contacts(palm)
+    n = 5 if kind == "pencil" else 10  # five along each edge of the bottom face
+    assert len(contacts) == n and all(c["reversed"] for c in contacts)
+    xs = sorted(c["point"][0] for c in contacts)
+    assert xs[0] > -0.045 and xs[-1] < 0.045 and np.all(np.diff(xs) <= 0.02 + 1e-9)
+    np.testing.assert_allclose(w.finger_force(palm), [0, 0, -mass * G], atol=1e-6)
+    assert w.body_pose(body)[0][2] == pytest.approx(rest - mass * G / (n * K), abs=1e-6)
+    start = (1, 0, 0, 0) if kind == "pencil" else (np.cos(np.pi / 32), np.sin(np.pi / 32), 0, 0)
+    turned = quat_to_matrix(w.body_pose(body)[1]) @ quat_to_matrix(start).T
+    assert np.degrees(np.arccos(np.clip((np.trace(turned) - 1) / 2, -1, 1))) < 0.01
+
+
+def test_can_in_a_power_grasp_of_palm_and_fingers():
+    """A 0.35 kg can (radius 3.3 cm, 12 cm tall, upright) between a palm (on its side, 9 x 8 cm,
+    shorter than the can: no vertex of either inside the other) and three fingertips wrapping the
+    other side, squeezed 3 mm and lifted 5 cm: it rises with the hand, upright."""
+    r, squeeze = 0.033, 0.003
+    apothem = r * np.cos(np.pi / 16)
+    w = graspcore.World(gravity=(0, 0, 0))
+    c = np.cos(np.pi / 4)
+    can = w.add_body(prism_points(r, 0.06, sides=16), mass=0.35, orientation=(c, 0, -c, 0))  # axis along z
+    palm = w.add_finger(position=(-apothem - 0.01 + squeeze, 0, 0), points=box_points(0.01, 0.04, 0.045), **PALM)
+    for deg, z in ((-50, 0.03), (0, 0.0), (50, -0.03)):
+        a, d = np.radians(deg), apothem + 0.008 - squeeze
+        w.add_finger(radius=0.008, stiffness=K, damping=2.0, position=(d * np.cos(a), d * np.sin(a), z))
+    hips = np.array([w.finger_pose(i)[0] for i in range(4)])
+    w.step(DT, steps=200)
+    w.set_gravity((0, 0, -G))
+    for i in range(2000):
+        w.set_hips(hips + [0, 0, 0.05 * min(i / 1000, 1.0)])
+        w.step(DT)
+    pos, q = w.body_pose(can)
+    assert pos[2] == pytest.approx(0.05, abs=0.002)
+    assert abs(pos[0]) < 0.003 and abs(pos[1]) < 0.003
+    axis = quat_to_matrix(q) @ [1, 0, 0]
+    assert np.degrees(np.arccos(axis[2])) < 3.0
+    assert all(w.finger_state(f) == "stick" for f in range(4))
+    palm_points = w.finger_contacts(palm)
+    assert len(palm_points) >= 3 and all(p["reversed"] for p in palm_points)
 
 
 @pytest.mark.parametrize("pad_half", [0.01, 0.05])  # pad smaller, and larger, than the plate's face
