@@ -42,7 +42,7 @@ enum { REC_HEADER = 52 };
 size_t gc_tick_record_size(int num_bodies, int num_fingers) {
     if (num_bodies < 0 || num_fingers < 0) return 0;
     return REC_HEADER + sizeof(double) * (15 * (size_t)num_fingers + 19 * (size_t)num_bodies) +
-           sizeof(int32_t) * 2 * (size_t)num_fingers;
+           sizeof(int32_t) * 2 * (size_t)num_fingers + sizeof(double) * 4 * (size_t)num_fingers;
 }
 
 #define FNV_PRIME 1099511628211ull
@@ -152,6 +152,7 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
     unsigned char *hip = out + REC_HEADER, *go = hip + 24 * nf, *force = go + 24 * nf, *dev = force + 24 * nf;
     unsigned char *normal = dev + 24 * nf, *pose = normal + 24 * nf, *vel = pose + 56 * nb;
     unsigned char *wrench = vel + 48 * nb, *state = wrench + 48 * nb, *contact = state + 4 * nf;
+    unsigned char *orientation = contact + 4 * nf; /* last: older readers' fields keep their offsets */
     uint64_t hash = hash_time_bodies(w);
     memcpy(out, &tick, 8);
     memcpy(out + 8, &w->time, 8);
@@ -173,6 +174,8 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
         int32_t s = (int32_t)f->state;
         memcpy(state + 4 * i, &s, 4);
         memcpy(contact + 4 * i, &f->contact_body, 4);
+        double q[4] = {f->q.w, f->q.x, f->q.y, f->q.z};
+        memcpy(orientation + 32 * i, q, 32);
     }
     memcpy(pose, w->pose_array, 56 * nb);
     for (size_t b = 0; b < nb; ++b) { /* of the body frame origin, as gc_world_body_velocity */
