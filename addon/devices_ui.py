@@ -91,7 +91,7 @@ def status_lines(devices) -> list:
         first, n = s["fingers"]
         lines.append(f"{s['label']}: {s['state']}, fingers {first}..{first + n - 1}, {s['rate_hz']:.0f} Hz, "
                      f"dropped {s['dropped']}, p99 {s['latency_p99_us']:.0f} µs, "
-                     f"forces {'on' if s['enabled'] else 'off'}")
+                     f"forces {'enabled' if s['enabled'] else 'not enabled'}")
     for port, err in getattr(devices, "failed", {}).items():
         lines.append(f"{port}: not connected ({err})")
     return lines

@@ -12,6 +12,8 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 
+from .engine import grasp_display
+
 COLLECTION = "Grasp Lab"
 GO_MESH = "GL Sphere"
 ARROW_MESH = "GL Arrow"
@@ -27,23 +29,32 @@ _Z = Vector((0.0, 0.0, 1.0))
 
 # --------------------------------------------------------------------------- data-blocks
 
-def _material(name):
+def _material(name, color=None):
     mat = bpy.data.materials.get(name)
     if mat is None:
         mat = bpy.data.materials.new(name)
-        mat.diffuse_color = COLORS[name]
         if bpy.app.version < (5, 0, 0):
             mat.use_nodes = True        # always on (and deprecated) from 5.0
+        _set_color(mat, COLORS[name] if color is None else color)
         bsdf = mat.node_tree.nodes.get("Principled BSDF")
-        if bsdf is not None:
-            bsdf.inputs["Base Color"].default_value = COLORS[name]
-            for key in ("Emission Color", "Emission"):
-                if key in bsdf.inputs:
-                    bsdf.inputs[key].default_value = COLORS[name]
-                    break
-            if "Emission Strength" in bsdf.inputs:
-                bsdf.inputs["Emission Strength"].default_value = 0.5
+        if bsdf is not None and "Emission Strength" in bsdf.inputs:
+            bsdf.inputs["Emission Strength"].default_value = 0.5
     return mat
+
+
+def _set_color(mat, color):
+    """The viewport's (solid) colour and the shader's, base and emission."""
+    color = tuple(color)
+    if tuple(mat.diffuse_color) == color:
+        return
+    mat.diffuse_color = color
+    bsdf = mat.node_tree.nodes.get("Principled BSDF") if mat.node_tree is not None else None
+    if bsdf is not None:
+        bsdf.inputs["Base Color"].default_value = color
+        for key in ("Emission Color", "Emission"):
+            if key in bsdf.inputs:
+                bsdf.inputs[key].default_value = color
+                break
 
 
 def _sphere_mesh():
@@ -108,6 +119,10 @@ class DisplayObjects:
         self.radii = [max(f.radius, MIN_GO_RADIUS) for f in desc.fingers]
         self.god_objects = [_object(coll, f"GL God-object {f.name}", sphere)
                             for f in desc.fingers]
+        # Each god-object its own material, coloured by its finger's friction use.
+        for obj in self.god_objects:
+            obj.material_slots[0].link = "OBJECT"
+            obj.material_slots[0].material = _material(obj.name, COLORS["GL God-object"])
         self.dynamic = [i for i, b in enumerate(desc.bodies) if not b.static]
         self.force_arrows = [_object(coll, f"GL Force {desc.bodies[i].name}", arrow)
                              for i in self.dynamic]
@@ -133,11 +148,14 @@ class DisplayObjects:
         rot.translation = origin
         return rot @ Matrix.Diagonal((ARROW_WIDTH, ARROW_WIDTH, length, 1.0))
 
-    def update(self, snap, force_scale, torque_scale):
+    def update(self, snap, force_scale, torque_scale, colors=None):
+        """Place god-objects and arrows; ``colors`` (RGBA per finger) colour the god-objects."""
         for obj, r, go in zip(self.god_objects, self.radii, snap.god_objects):
             m = Matrix.Diagonal((r, r, r, 1.0))
             m.translation = go
             obj.matrix_world = m
+        for obj, color in zip(self.god_objects, colors or ()):
+            _set_color(obj.material_slots[0].material, color)
         for k, i in enumerate(self.dynamic):
             com = Vector(snap.com[i])
             self.force_arrows[k].matrix_world = self._arrow_matrix(com, snap.force[i], force_scale)
@@ -155,19 +173,16 @@ def clear_display_objects():
         me = bpy.data.meshes.get(name)
         if me is not None and me.users == 0:
             bpy.data.meshes.remove(me)
-    for name in COLORS:
-        mat = bpy.data.materials.get(name)
-        if mat is not None and mat.users == 0:
+    for mat in list(bpy.data.materials):
+        if mat.users == 0 and mat.name.startswith(tuple(COLORS)):
             bpy.data.materials.remove(mat)
 
 
 # --------------------------------------------------------------------------- overlay
 
 _handlers = []          # (space type, handle)
-_overlay = {"snap": None, "hud": "", "show_overlay": True, "show_hud": True}
+_overlay = {"snap": None, "hud": "", "grasps": (), "show_overlay": True, "show_hud": True}
 _shader = {}
-
-STATE_COLORS = ((0.6, 0.6, 0.6, 1.0), (0.1, 0.9, 0.3, 1.0), (1.0, 0.6, 0.1, 1.0))
 
 
 def _draw_view():
@@ -179,18 +194,21 @@ def _draw_view():
     sh = _shader.get("uniform")
     if sh is None:
         sh = _shader["uniform"] = gpu.shader.from_builtin("UNIFORM_COLOR")
+    fl = _shader.get("flat")
+    if fl is None:
+        fl = _shader["flat"] = gpu.shader.from_builtin("FLAT_COLOR")
     gpu.state.line_width_set(2.0)
     gpu.state.blend_set("ALPHA")
-    for state in (0, 1, 2):
-        sel = snap.finger_states == state
-        if not np.any(sel):
-            continue
-        pts = np.empty((2 * int(sel.sum()), 3), dtype=np.float32)
-        pts[0::2] = snap.hips[sel]
-        pts[1::2] = snap.god_objects[sel]
-        batch = batch_for_shader(sh, "LINES", {"pos": pts})
-        sh.uniform_float("color", STATE_COLORS[state])
-        batch.draw(sh)
+    # HIP to god-object, and a dot on the god-object, in its friction-use colour.
+    grasps = _overlay["grasps"]
+    colors = np.array(grasp_display.finger_colors(grasps, len(snap.hips)), dtype=np.float32)
+    pts = np.empty((2 * len(snap.hips), 3), dtype=np.float32)
+    pts[0::2] = snap.hips
+    pts[1::2] = snap.god_objects
+    batch_for_shader(fl, "LINES", {"pos": pts, "color": np.repeat(colors, 2, axis=0)}).draw(fl)
+    gpu.state.point_size_set(10.0)
+    batch_for_shader(fl, "POINTS", {"pos": snap.god_objects.astype(np.float32), "color": colors}).draw(fl)
+    _draw_weakest(sh, batch_for_shader, grasps)
     # Forces rendered to the device, from the god-objects (1 N = 2 cm).
     pts = np.empty((2 * len(snap.hips), 3), dtype=np.float32)
     pts[0::2] = snap.god_objects
@@ -204,6 +222,44 @@ def _draw_view():
     gpu.state.line_width_set(1.0)
     gpu.state.point_size_set(1.0)
     gpu.state.blend_set("NONE")
+
+
+def _draw_weakest(sh, batch_for_shader, grasps):
+    """Per body in closure: the weakest wrench's force part as an arrow from the centre of
+    mass, its torque part as a ring about its axis with a head showing the sense."""
+    import gpu
+    gpu.state.line_width_set(4.0)
+    sh.uniform_float("color", grasp_display.WEAKEST_COLOR)
+    for g in grasps:
+        geo = grasp_display.weakest_geometry(g)
+        if geo is None:
+            continue
+        start, end = geo["arrow"]
+        lines = [start, end] + _head(start, end)
+        if geo["ring"] is not None:
+            ring = geo["ring"]
+            lines += [p for a, b in zip(ring[:-1], ring[1:]) for p in (a, b)]
+            tip, tangent = geo["ring_tip"]
+            lines += _head(tip - 0.3 * np.linalg.norm(ring[0] - geo["arrow"][0]) * tangent, tip)
+        batch_for_shader(sh, "LINES", {"pos": np.array(lines, dtype=np.float32)}).draw(sh)
+    gpu.state.line_width_set(2.0)
+
+
+def _head(start, end, size=0.25):
+    """Four strokes of an arrowhead at ``end`` (seen from any side)."""
+    d = np.asarray(end) - np.asarray(start)
+    n = float(np.linalg.norm(d))
+    if n < 1e-9:
+        return []
+    d /= n
+    u = np.cross(d, (1.0, 0.0, 0.0) if abs(d[0]) < 0.9 else (0.0, 1.0, 0.0))
+    u /= np.linalg.norm(u)
+    v = np.cross(d, u)
+    back = np.asarray(end) - size * n * d
+    out = []
+    for side in (u, -u, v, -v):
+        out += [np.asarray(end), back + 0.4 * size * n * side]
+    return out
 
 
 def _draw_hud():
@@ -225,15 +281,16 @@ def add_overlay(show_overlay=True, show_hud=True):
     """Add the viewport draw handlers (live sessions only; never headless)."""
     if bpy.app.background or _handlers:
         return
-    _overlay.update(snap=None, hud="", show_overlay=show_overlay, show_hud=show_hud)
+    _overlay.update(snap=None, hud="", grasps=(), show_overlay=show_overlay, show_hud=show_hud)
     st = bpy.types.SpaceView3D
     _handlers.append(st.draw_handler_add(_draw_view, (), "WINDOW", "POST_VIEW"))
     _handlers.append(st.draw_handler_add(_draw_hud, (), "WINDOW", "POST_PIXEL"))
 
 
-def set_overlay(snap, hud):
+def set_overlay(snap, hud, grasps=()):
     _overlay["snap"] = snap
     _overlay["hud"] = hud
+    _overlay["grasps"] = grasps
 
 
 def remove_overlay():
@@ -242,6 +299,7 @@ def remove_overlay():
         st.draw_handler_remove(_handlers.pop(), "WINDOW")
     _overlay["snap"] = None
     _overlay["hud"] = ""
+    _overlay["grasps"] = ()
     _shader.clear()
 
 

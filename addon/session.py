@@ -25,6 +25,7 @@ import numpy as np
 from bpy.props import BoolProperty, FloatProperty
 
 from . import anim, convert, core_loader, display, record
+from .engine import analysis, grasp_display
 from .engine.devices.live import DeviceInput, device_event_detail, device_fingers, without_fingers
 from .engine.inputs import SampledTrajectory, TimelineInput
 from .engine.runner import SessionRunner
@@ -43,6 +44,7 @@ class SessionResult:
     stats: dict = field(default_factory=dict)
     recording: str = ""
     final: object = None                            # last Snapshot
+    grasps: list = field(default_factory=list)      # per display frame: analysis.BodyGrasp list
 
     def trajectory(self, body_name) -> np.ndarray:
         i = self.body_names.index(body_name)
@@ -134,6 +136,8 @@ class BlenderSession:
         self.objects = [bpy.data.objects[link.name] for link in self.links]
         self.dynamic = [i for i, link in enumerate(self.links) if not link.static]
         self.display = display.DisplayObjects(scene, desc) if s.display_objects else None
+        self.monitor = grasp_display.GraspMonitor(analysis.body_models(desc), [f.radius for f in desc.fingers],
+                                                  gravity=desc.gravity)
         self.bake = s.bake
         self._baked = {}    # object name -> (frames, values)
         self.result = SessionResult(body_names=[b.name for b in desc.bodies],
@@ -153,18 +157,21 @@ class BlenderSession:
 
     # ------------------------------------------------------------- per update
     def apply(self, snap, frame):
-        """Write body poses back and update the display objects."""
+        """Write body poses back, analyse the grasp, update the display objects."""
         self.snapshot = snap
         for i in self.dynamic:
             p = snap.poses[i]
             self.objects[i].matrix_world = self.links[i].matrix_world(p[:3], p[3:])
+        grasps = self.monitor.update(snap)
         if self.display is not None:
             s = self.settings
-            self.display.update(snap, s.force_scale, s.torque_scale)
+            self.display.update(snap, s.force_scale, s.torque_scale,
+                                grasp_display.finger_colors(grasps, len(snap.god_objects)))
         r = self.result
         r.frames.append(frame)
         r.times.append(snap.time)
         r.poses.append(snap.poses.copy())
+        r.grasps.append(grasps)
         if self.bake:
             objs = [self.objects[i] for i in self.dynamic]
             if self.display is not None:
@@ -200,7 +207,7 @@ class BlenderSession:
             self.scene.frame_current = frame
         self.apply(snap, frame)
         if display.overlay_active():
-            display.set_overlay(snap, self.hud_text())
+            display.set_overlay(snap, self.hud_text(), self.monitor.grasps)
         if self.live_view is not None:
             # Last: its thread wakes and works while this one waits for the next update,
             # not while the update still needs the interpreter.
@@ -238,38 +245,51 @@ class BlenderSession:
             out["drivers"] = drivers
         return out
 
-    def hud_text(self) -> str:
-        """What the operator needs to trust the picture: the core's own rates and timing,
-        contacts, and why forces may be off."""
+    def grasp_lines(self) -> list:
+        """The grasp as the last display update analysed it (engine.grasp_display)."""
+        lines = grasp_display.grasp_lines(self.monitor.grasps, [b.name for b in self.desc.bodies],
+                                          [f.name for f in self.desc.fingers])
+        if self.monitor.error:
+            lines.append(f"analysis: {self.monitor.error}")
+        return lines
+
+    def loop_lines(self, detail: bool = False) -> list:
+        """The loop's telemetry: what the operator needs to trust the picture. Short (one line,
+        and the safety counters only when one is not zero) or in ``detail``."""
         st = self.runner.stats()
-        snap = self.snapshot
-        n_c = snap.n_contacts if snap is not None else 0
         end = "until Esc" if self.duration == float("inf") else f"/ {self.duration:.2f} s"
-        mode = "threaded runtime" if st["threaded"] else "main thread"
-        lines = [f"Grasp Lab  t = {st['time']:.2f} {end}  ({mode})"]
-        if st["threaded"] and "runtime_haptic_rate" in st:
-            lines.append(f"haptic {st['haptic_rate']:.0f} Hz (target {st['haptic_rate_target']:.0f})   "
-                         f"object {st['runtime_object_rate']:.0f} Hz   step {st['step_us']:.0f} µs   "
-                         f"{st['steps']} steps")
-            lines.append(f"haptic loop p99 {st['runtime_jitter_p99_us']:.0f} µs   "
-                         f"late {st['runtime_late_periods']}   overruns {st['runtime_overruns']}   "
-                         f"adopted {st['runtime_adopted_bodies']}")
-            lines.append(f"contacts {n_c} / {len(self.desc.fingers)}   display {st['display_rate']:.1f} Hz   "
-                         f"forces {'on' if st['runtime_forces_enabled'] else 'off'}")
-            lines.append(f"safety: rejected inputs {st['runtime_rejected_inputs']}   "
-                         f"watchdog {st['runtime_watchdog_trips']}   stale {st['runtime_stale_inputs']}   "
-                         f"non-finite {st['runtime_nonfinite_forces']}")
-            lines.append(st["runtime_priority_note"])
-            if self.devices is not None:
-                from .devices_ui import status_lines
-                lines += status_lines(self.devices)
-        else:
-            lines.append(f"haptic {st['haptic_rate']:.0f} Hz (target {st['haptic_rate_target']:.0f})   "
-                         f"step {st['step_us']:.0f} µs   {st['steps']} steps")
+        cost = f"analysis {1e3 * self.monitor.cost_s:.2f} ms"
+        if not (st["threaded"] and "runtime_haptic_rate" in st):
             behind = (f"behind real time by {st['lag_s']:.2f} s (x{st['realtime_factor']:.2f})"
                       if st["lag_s"] > 2.0 / max(self.settings.display_rate, 1.0) else "real time")
-            lines.append(f"contacts {n_c} / {len(self.desc.fingers)}   display {st['display_rate']:.1f} Hz   "
-                         f"{behind}")
+            lines = [f"t {st['time']:.2f} {end}   main thread {st['haptic_rate']:.0f} Hz "
+                     f"(target {st['haptic_rate_target']:.0f})   display {st['display_rate']:.1f} Hz   {behind}"]
+            if detail:
+                lines.append(f"step {st['step_us']:.0f} µs   {st['steps']} steps   {cost}")
+            return lines
+        enabled = None if self.devices is None else [d["enabled"] for d in self.devices.status()]
+        forces = grasp_display.force_output(st["runtime_forces_enabled"], enabled)
+        lines = [f"t {st['time']:.2f} {end}   haptic {st['haptic_rate']:.0f} Hz   "
+                 f"display {st['display_rate']:.1f} Hz   p99 {st['runtime_jitter_p99_us']:.0f} µs   {forces}"]
+        safety = {k: st[f"runtime_{k}"] for k in ("rejected_inputs", "watchdog_trips", "stale_inputs",
+                                                  "nonfinite_forces")}
+        if detail or any(safety.values()):
+            lines.append(f"safety: rejected inputs {safety['rejected_inputs']}   watchdog {safety['watchdog_trips']}   "
+                         f"stale {safety['stale_inputs']}   non-finite {safety['nonfinite_forces']}")
+        if detail:
+            lines.append(f"haptic target {st['haptic_rate_target']:.0f} Hz   object {st['runtime_object_rate']:.0f} Hz   "
+                         f"step {st['step_us']:.0f} µs   {st['steps']} steps   {cost}")
+            lines.append(f"late {st['runtime_late_periods']}   overruns {st['runtime_overruns']}   "
+                         f"adopted {st['runtime_adopted_bodies']}")
+            lines.append(st["runtime_priority_note"])
+        if self.devices is not None:
+            from .devices_ui import status_lines
+            lines += status_lines(self.devices)
+        return lines
+
+    def hud_text(self) -> str:
+        """The viewport's HUD: the grasp first, the loop's telemetry second and shorter."""
+        lines = self.grasp_lines() + self.loop_lines()
         if self.live_view is not None:
             lines.append(self.live_view.status())
         return "\n".join(lines)

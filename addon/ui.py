@@ -4,6 +4,25 @@ from __future__ import annotations
 import bpy
 
 from . import session
+from .engine import grasp_display
+
+
+def wrapped_labels(layout, context, lines, icon_first="NONE"):
+    """Labels that wrap at the region's width instead of being cut off mid-word: measured in
+    the interface font where it can be (a window), else at about 6.5 px a character."""
+    scale = context.preferences.system.ui_scale
+    width = (context.region.width if context.region else 300) - 40 * scale   # panel and box margins
+    measure = None
+    if not bpy.app.background:
+        import blf
+        blf.size(0, context.preferences.ui_styles[0].widget.points * scale)
+        measure = lambda text: blf.dimensions(0, text)[0]  # noqa: E731
+    if measure is None:
+        width, measure = int(width / (6.5 * scale)), len
+    col = layout.column(align=True)
+    for k, line in enumerate(grasp_display.wrap(lines, width, measure)):
+        col.label(text=line, icon=icon_first if k == 0 else "NONE")
+    return col
 
 
 class _GraspPanel:
@@ -37,19 +56,19 @@ class GRASPLAB_PT_object(_GraspPanel, bpy.types.Panel):
         gl = obj.grasp_lab
         layout.prop(gl, "role")
         if gl.role in {"DYNAMIC", "STATIC"}:
-            layout.prop(gl, "shape")
+            layout.prop(gl, "shape", text="Shape")
             if gl.role == "DYNAMIC":
                 layout.prop(gl, "mass_mode")
                 layout.prop(gl, "mass" if gl.mass_mode == "MASS" else "density")
             col = layout.column(align=True)
-            col.prop(gl, "mu_s")
-            col.prop(gl, "mu_d")
+            col.prop(gl, "mu_s", text="Friction Static")
+            col.prop(gl, "mu_d", text="Dynamic")
             layout.prop(gl, "viscosity")
         elif gl.role == "FINGER":
             layout.prop(gl, "radius")
             layout.prop(gl, "stiffness")
             layout.prop(gl, "damping")
-            layout.prop(gl, "channel")
+            layout.prop(gl, "channel", text="Channel")
 
 
 class GRASPLAB_PT_scene(_GraspPanel, bpy.types.Panel):
@@ -63,7 +82,7 @@ class GRASPLAB_PT_scene(_GraspPanel, bpy.types.Panel):
         layout.use_property_decorate = False
         s = context.scene.grasp_lab
         layout.prop(s, "gravity")
-        layout.prop(s, "gyroscopic")
+        layout.prop(s, "gyroscopic", text="Gyroscopic")
         layout.prop(s, "haptic_rate")
         layout.prop(s, "display_rate")
         layout.prop(s, "input_source")
@@ -84,9 +103,7 @@ class GRASPLAB_PT_session(_GraspPanel, bpy.types.Panel):
             row.operator("grasp_lab.session", text="Start Session", icon="PLAY", depress=True)
         else:
             row.operator("grasp_lab.stop_session", text="Stop Session", icon="PAUSE", depress=True)
-            box = layout.box()
-            for line in active.hud_text().split("\n"):
-                box.label(text=line)
+            wrapped_labels(layout.box(), context, active.grasp_lines())
         col = layout.column()
         col.use_property_split = True
         col.use_property_decorate = False
@@ -108,8 +125,22 @@ class GRASPLAB_PT_session(_GraspPanel, bpy.types.Panel):
         row.operator("grasp_lab.clear_display", text="Clear Display", icon="TRASH")
         res = session.last_result
         if active is None and res is not None and res.stats:
-            layout.label(text=f"Last: {res.stats.get('time', 0):.2f} s, "
-                              f"{res.stats.get('step_us', 0):.0f} µs/step", icon="INFO")
+            wrapped_labels(layout, context, [f"Last: {res.stats.get('time', 0):.2f} s, "
+                                             f"{res.stats.get('step_us', 0):.0f} µs/step"], icon_first="INFO")
+
+
+class GRASPLAB_PT_loop(_GraspPanel, bpy.types.Panel):
+    """The loop's telemetry, one level down from the grasp (closed until asked for)."""
+    bl_label = "Loop"
+    bl_parent_id = "GRASPLAB_PT_session"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    @classmethod
+    def poll(cls, context):
+        return session.active_session() is not None
+
+    def draw(self, context):
+        wrapped_labels(self.layout, context, session.active_session().loop_lines(detail=True))
 
 
 class GRASPLAB_PT_recording(_GraspPanel, bpy.types.Panel):
@@ -123,13 +154,13 @@ class GRASPLAB_PT_recording(_GraspPanel, bpy.types.Panel):
         layout.use_property_decorate = False
         s = context.scene.grasp_lab
         layout.prop(s, "record")
-        layout.prop(s, "recording_folder")
+        layout.prop(s, "recording_folder", text="Folder")
         if s.last_recording:
             layout.label(text=bpy.path.basename(s.last_recording), icon="FILE")
 
 
 CLASSES = (GRASPLAB_PT_main, GRASPLAB_PT_object, GRASPLAB_PT_scene, GRASPLAB_PT_session,
-           GRASPLAB_PT_recording)
+           GRASPLAB_PT_loop, GRASPLAB_PT_recording)
 
 
 def register():

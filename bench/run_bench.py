@@ -406,6 +406,32 @@ def grasp_target_rows(data: dict) -> list[str]:
     return out
 
 
+def live_grasp(quick: bool) -> tuple[bool, str, list[str]]:
+    """bench/bench_live_grasp.py: the live view's grasp analysis per display update (2 bodies x 5
+    fingers) and the haptic loop with and without it: (ok, its Markdown, target rows)."""
+    script = os.path.join(HERE, "bench_live_grasp.py")
+    venv_py = os.path.join(ROOT, ".venv", "bin", "python")
+    fd, js = tempfile.mkstemp(suffix=".json")
+    os.close(fd)
+    try:
+        good, md = run_external([venv_py if os.path.exists(venv_py) else sys.executable, script, "--json", js]
+                                + (["--quick"] if quick else []), timeout=900)
+        data = json.load(open(js)) if good else {}
+    except (OSError, ValueError) as exc:
+        good, md, data = False, f"bench_live_grasp.py wrote no statistics: {exc}", {}
+    finally:
+        os.unlink(js)
+    rows = []
+    if data:
+        a, target = data["main"]["analysis"], data["target_ms"]
+        mu = data["main"]["mu_min"]
+        ok = a["median_ms"] < target and a["p99_ms"] < target
+        rows.append(f"| Live grasp analysis per display update < {target} ms, 2 bodies × 5 fingers | "
+                    f"{a['median_ms']:.2f} ms median, p99 {a['p99_ms']:.2f} ms (of it `grasp_mu_min` alone: "
+                    f"{mu['median_ms']:.2f} ms) | {'**met**' if ok else '**MISSED**'} |")
+    return good, md, rows
+
+
 # --- report ---------------------------------------------------------------------------
 def us(x: float) -> str:
     return f"{x * 1e6:.2f}"
@@ -837,13 +863,16 @@ def main(argv=None) -> int:
     log("grasp analysis (bench/bench_analysis.py: a 10-minute recording through grasp-lab analyze)")
     good, analysis_md, analysis_targets = grasp_analysis(args.quick)
     ok &= good
+    log("live grasp analysis (bench/bench_live_grasp.py: per display update, haptic loop beside it)")
+    good, live_md, live_targets = live_grasp(args.quick)
+    ok &= good
     meta["load_end"] = loadavg()
     meta["wall_s"] = time.perf_counter() - t_start
     md = report(info, mjinfo, grasps, creep, profile, gjk, blender, xml3, meta, pbinfo=pbinfo,
                 extra_targets=mb.target_rows(mb_rows, mjinfo is not None) + jitter_targets + serial_targets + unplug_targets
-                + grasp_targets + analysis_targets,
+                + grasp_targets + analysis_targets + live_targets,
                 sections=[s for s in (held_section, mb_section, jitter_section, serial_section, grasp_md,
-                                      analysis_md) if s])
+                                      analysis_md, live_md) if s])
     if args.quick:
         md = md.replace("# Benchmarks\n", "# Benchmarks (--quick run: too few repeats to quote)\n", 1)
     os.makedirs(os.path.dirname(args.out), exist_ok=True)

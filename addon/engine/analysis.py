@@ -219,17 +219,26 @@ class GraspAnalysisError(ValueError):
         self.snapshot = snapshot
 
 
-def _mu_min(core, point, normal, starts, count, centers, radii, edges) -> np.ndarray:
-    """graspcore.grasp_mu_min of each set (a bisection: tens of hulls), once per distinct set:
-    a body at rest in a still hand gives the same set, bit for bit, tick after tick."""
+def _mu_min(core, point, normal, mu, quality, starts, count, centers, radii, edges) -> np.ndarray:
+    """graspcore.grasp_mu_min of each set (a root search over tens of LPs), once per distinct set:
+    a body at rest in a still hand gives the same set, bit for bit, tick after tick. What the
+    set's quality at its own friction already says is not searched again: with every mu > 0 the
+    edge wrenches span the same space at any friction, so a set of rank < 6 (two contacts, one)
+    is in closure at none (inf); a set in closure at its own mu is in closure at the largest of
+    them (closure grows with each contact's mu), which bounds the search."""
     out = np.empty(len(starts))
     seen = {}
     for i, (s, c) in enumerate(zip(starts, count)):
+        mu_set = mu[s:s + c]
+        if quality["rank"][i] < 6 and np.all(mu_set > 0):
+            out[i] = np.inf
+            continue
+        bound = float(np.max(mu_set)) if quality["force_closure"][i] else MU_MAX
         key = (point[s:s + c].tobytes(), normal[s:s + c].tobytes(), centers[i].tobytes(), float(radii[i]))
         if key not in seen:
             try:
                 seen[key] = core.grasp_mu_min(point[s:s + c], normal[s:s + c], centers[i], radii[i], edges=edges,
-                                              mu_max=MU_MAX)
+                                              mu_max=min(bound, MU_MAX))
             except ValueError as ex:
                 ex.set_index = i
                 raise
@@ -289,7 +298,7 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
     radii = np.array([m.radius for m in models] + [1.0])[set_b]
     try:
         quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges, volume=volume)
-        mu_min = _mu_min(core, point, n_in, starts, count, centers, radii, edges)
+        mu_min = _mu_min(core, point, n_in, mu, quality, starts, count, centers, radii, edges)
     except ValueError as ex:
         # Name the snapshot and body whose contacts the core refused (the batch's message starts
         # with the set: "set 3: points: ...").

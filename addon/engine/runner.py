@@ -19,8 +19,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-STATE_CODES = {"free": 0, "stick": 1, "slip": 2}
-
 
 @dataclass
 class Snapshot:
@@ -34,6 +32,9 @@ class Snapshot:
     finger_forces: np.ndarray   # (n_fingers, 3) force rendered to the device
     finger_states: np.ndarray   # (n_fingers,) 0 free, 1 stick, 2 slip
     contacts: np.ndarray        # (n_fingers,) body index in the description, -1 none
+    spring_forces: np.ndarray   # (n_fingers, 3) coupling spring force on the body touched (physics)
+    normals: np.ndarray         # (n_fingers, 3) reported contact's plane normal, out of the body; 0 free
+    velocities: np.ndarray      # (n_bodies, 6) linear (body frame origin), angular; world
 
     @property
     def n_contacts(self) -> int:
@@ -235,29 +236,27 @@ class SessionRunner:
             self.driver.observe(snap.time)
             return snap
         n_b, n_f = len(h.body_ids), len(h.finger_ids)
-        poses = np.array(w.body_poses, dtype=np.float64).reshape(-1, 7)[:n_b].copy() if n_b else np.zeros((0, 7))
-        if n_b and h.body_ids != list(range(n_b)):
-            poses = np.array([tuple(w.body_pose(b)[0]) + tuple(w.body_pose(b)[1]) for b in h.body_ids])
-        force = np.zeros((n_b, 3))
-        torque = np.zeros((n_b, 3))
-        for i, b in enumerate(h.body_ids):
-            if not h.desc.bodies[i].static:
-                f, tq = w.residual_wrench(b)
-                force[i], torque[i] = f, tq
+        raw = w.snapshot()      # stopped: the world's own state
+        poses = np.asarray(raw["poses"])[h.body_ids].reshape(n_b, 7)
+        wrenches = np.concatenate([raw["residual_forces"], raw["residual_torques"]], axis=1)[h.body_ids]
+        wrenches[[b.static for b in h.desc.bodies]] = 0.0
         com = poses[:, :3] + quat_rotate(poses[:, 3:], self._coms) if n_b else np.zeros((0, 3))
-        if n_f:
-            fids = h.finger_ids
-            gos = np.array([w.god_object(f) for f in fids], dtype=np.float64)
-            ff = np.array([w.finger_force(f) for f in fids], dtype=np.float64)
-            hips = np.array([self.source.hips_at(self.time)], dtype=np.float64).reshape(n_f, 3)
-            states = np.array([STATE_CODES.get(w.finger_state(f), 0) for f in fids], dtype=np.int8)
-            contacts = np.array([self._body_index.get(w.finger_contact(f), -1)
-                                 if w.finger_contact(f) is not None else -1 for f in fids], dtype=np.int32)
-        else:
-            gos = ff = hips = np.zeros((0, 3))
-            states = np.zeros(0, np.int8)
-            contacts = np.zeros(0, np.int32)
-        return Snapshot(self.time, poses, com, force, torque, hips, gos, ff, states, contacts)
+        fids = h.finger_ids
+        hips = np.array([self.source.hips_at(self.time)], dtype=np.float64).reshape(n_f, 3) if n_f \
+            else np.zeros((0, 3))
+        spring = np.asarray(raw["spring_forces"])[fids].reshape(n_f, 3)
+        return Snapshot(self.time, poses, com, wrenches[:, :3], wrenches[:, 3:], hips,
+                        np.asarray(raw["god_objects"])[fids].reshape(n_f, 3), spring,
+                        np.asarray(raw["finger_states"], dtype=np.int8)[fids].reshape(n_f),
+                        self._contact_indices(raw["contact_bodies"][fids]), spring,
+                        np.asarray(raw["normals"])[fids].reshape(n_f, 3), self._velocities(raw))
+
+    def _contact_indices(self, world_bodies) -> np.ndarray:
+        return np.array([self._body_index.get(int(b), -1) for b in world_bodies], dtype=np.int32)
+
+    def _velocities(self, raw) -> np.ndarray:
+        ids = self.handle.body_ids
+        return np.concatenate([raw["linear_velocities"], raw["angular_velocities"]], axis=1)[ids].reshape(-1, 6)
 
     def _snapshot_from_runtime(self, snap: dict) -> Snapshot:
         """Map the core runtime's snapshot (graspcore.World.snapshot, docs/runtime.md)."""
@@ -265,8 +264,6 @@ class SessionRunner:
         poses = np.asarray(snap["poses"], dtype=np.float64)[h.body_ids]
         com = poses[:, :3] + quat_rotate(poses[:, 3:], self._coms)
         fids = h.finger_ids
-        contacts = np.array([self._body_index.get(int(b), -1) for b in snap["contact_bodies"][fids]],
-                            dtype=np.int32)
         return Snapshot(float(snap["time"]), poses, com,
                         np.asarray(snap["residual_forces"])[h.body_ids],
                         np.asarray(snap["residual_torques"])[h.body_ids],
@@ -274,7 +271,10 @@ class SessionRunner:
                         np.asarray(snap["god_objects"])[fids],
                         np.asarray(snap["forces"])[fids],  # what the device renders (clamped, ramped)
                         np.asarray(snap["finger_states"], dtype=np.int8)[fids],
-                        contacts)
+                        self._contact_indices(snap["contact_bodies"][fids]),
+                        np.asarray(snap["spring_forces"])[fids],
+                        np.asarray(snap["normals"])[fids],
+                        self._velocities(snap))
 
     def stats(self) -> dict:
         """What the session did, for the HUD and reports. On the threaded runtime the rates,

@@ -881,8 +881,11 @@ static int lp_minimise(double *T, int *basis, int rows, int cols, int allowed, i
             if (q < ratio || (q == ratio && basis[r] < basis[leave])) ratio = q, leave = r;
         }
         if (leave < 0) return -1;
-        degenerate_run = ratio <= 0.0 ? degenerate_run + 1 : 0;
-        if (degenerate_run > 2 * rows) bland = 1;
+        /* Near-degenerate pivots (a step of rounding size) count as degenerate: Dantzig's rule
+         * can cycle through them numerically (an antipodal pair tilted by 1e-10 did). Past
+         * rows + allowed pivots in all, Bland's rule from then on too. */
+        degenerate_run = ratio <= 1e-13 ? degenerate_run + 1 : 0;
+        if (degenerate_run > 2 * rows || it > rows + allowed) bland = 1;
         lp_pivot(T, rows, cols, leave, enter);
         basis[leave] = enter;
     }
@@ -1110,6 +1113,11 @@ static gcStatus lp_decide(gcGraspWorkspace *ws, const gcGraspDef *def, const dou
     *answer = 0;
     double t;
     gcStatus st = gc_closure_lp(ws, pts, rows, d, &t);
+    if (st == GC_ERR_DEGENERATE) {      /* the LP did not converge: the support search decides */
+        ws->error[0] = '\0';
+        *answer = -1;
+        return GC_OK;
+    }
     if (st != GC_OK || !(t > 0.5 * def->tolerance / rows)) return st;
     *answer = -1;
     double gram[D * D] = {0}, scale2 = 0.0;
@@ -1293,9 +1301,20 @@ gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const doub
 #define MARGIN_AT(m, g)                                                                                       \
     do {                                                                                                      \
         if ((st = build_wrenches(ws, def->edges, points, normals, NULL, (m), num_contacts, center, radius,     \
-                                 &rows)) != GC_OK ||                                                          \
-            (st = closure_lp(ws, ws->wrench, rows, 6, warm, &t)) != GC_OK)                                    \
+                                 &rows)) != GC_OK)                                                            \
             return st;                                                                                        \
+        st = closure_lp(ws, ws->wrench, rows, 6, warm, &t);                                                   \
+        if (st == GC_ERR_DEGENERATE) {                                                                        \
+            /* The LP did not converge: closed or not as grasp_quality decides, and a margin of     \
+             * rounding size with that sign (Brent's method then bisects). */                                \
+            ws->error[0] = '\0';                                                                              \
+            warm[0] = -1;                                                                                     \
+            if ((st = closure_fast(ws, def, ws->wrench, rows, 6, 0, &closed, NULL, &summary)) != GC_OK)       \
+                return st;                                                                                    \
+            t = closed ? def->tolerance / rows : -1.0;                                                        \
+        } else if (st != GC_OK) {                                                                             \
+            return st;                                                                                        \
+        }                                                                                                     \
         (g) = (m) * (fmax(t, -1.0) - 0.5 * def->tolerance / rows);                                            \
     } while (0)
     if (mu_max == 0.0) return GC_OK;

@@ -72,7 +72,7 @@ def test_live_session_with_an_emulated_device(bpy, sample, core):
             assert bpy.ops.grasp_lab.device_forces(on=True) == {"FINISHED"}
             time.sleep(0.1)
             lines = devices_ui.status_lines(s.devices)
-            assert lines[0].startswith(f"{port}: streaming, fingers 0..1") and "forces on" in lines[0], lines
+            assert lines[0].startswith(f"{port}: streaming, fingers 0..1") and "forces enabled" in lines[0], lines
             assert lines[0] in s.hud_text()
         finally:
             session._active = None

@@ -26,20 +26,14 @@ class FakeWorld:
     def step(self, dt):
         self.dts.append(dt)
 
-    def residual_wrench(self, b):
-        return (0, 0, -1), (0, 0, 0)
-
-    def god_object(self, f):
-        return tuple(self.hips_log[-1][f]) if self.hips_log else (0, 0, 0)
-
-    def finger_force(self, f):
-        return (0, 0, 0)
-
-    def finger_state(self, f):
-        return "free"
-
-    def finger_contact(self, f):
-        return None
+    def snapshot(self):
+        """The stopped world's snapshot, as graspcore.World.snapshot lays it out."""
+        gos = np.array(self.hips_log[-1], dtype=float) if self.hips_log else np.zeros((self.n, 3))
+        return {"poses": self.body_poses, "residual_forces": np.array([[0, 0, -1.0]]),
+                "residual_torques": np.zeros((1, 3)), "god_objects": gos, "spring_forces": np.zeros((self.n, 3)),
+                "finger_states": np.zeros(self.n, np.int32), "contact_bodies": np.full(self.n, -1, np.int32),
+                "normals": np.zeros((self.n, 3)), "linear_velocities": np.zeros((1, 3)),
+                "angular_velocities": np.zeros((1, 3))}
 
 
 def _handle(world, n_fingers=2):

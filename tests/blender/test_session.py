@@ -88,6 +88,31 @@ def test_fingers_stick_while_holding(bpy, sample, core):
     assert res.trajectory("Box")[-1, 2] > sample.BOX_Z + sample.LIFT - 0.001
 
 
+def test_each_frame_analysed_and_god_objects_coloured_by_friction_use(bpy, sample, core):
+    """Frame by frame the session analyses the grasp. Mid-lift (constant speed: no
+    acceleration) the two fingertips hold the box: two point contacts, which no friction puts
+    in force closure (nothing resists a twist about the line between them), a load of its
+    weight, a grip of the two normal forces; each god-object's material has the colour of its
+    finger's friction use."""
+    sample.build(bpy)
+    bpy.ops.grasp_lab.session(duration=(sample.MID_LIFT_FRAME - 1) / sample.FPS)
+    session = grasp_env.submodule("session")
+    gd = grasp_env.submodule("engine.grasp_display")
+    res = session.last_result
+    assert len(res.grasps) == len(res.frames)
+    assert res.grasps[0] == [] and res.frames[0] == 1                  # open hand: nothing held
+    (g,) = res.grasps[-1]
+    assert res.body_names[g.body] == "Box" and sorted(c.finger for c in g.contacts) == [0, 1]
+    assert not g.force_closure and g.epsilon == 0.0 and not any(g.weakest)
+    assert g.load_force == pytest.approx(sample.BOX_MASS * 9.81, rel=0.05)
+    assert g.grip_force == pytest.approx(sum(c.fn for c in g.contacts)) and g.grip_force > 2 * g.load_force
+    for c in g.contacts:
+        assert 0.0 < c.friction_use < 1.0 and c.state == 1
+        mat = bpy.data.objects[f"GL God-object Finger {c.finger}"].material_slots[0].material
+        np.testing.assert_allclose(mat.diffuse_color, gd.friction_color(c.friction_use), atol=1e-6)
+        assert mat.diffuse_color[1] > mat.diffuse_color[2]              # on the green-yellow-red scale
+
+
 @pytest.mark.multiversion
 def test_display_objects_and_bake(bpy, sample, core):
     sample.build(bpy)
@@ -192,7 +217,9 @@ def test_live_session_ticks_without_timers(bpy, sample, core):
     assert bpy.context.scene.frame_current == 1 + round(1.0 * 24)
     assert "real time" in s.hud_text()
     assert s.tick(5.0) is True                       # reached the duration
-    assert "contacts 2 / 2" in s.hud_text()          # closed on the box
+    hud = s.hud_text().replace("\u00a0", " ").split("\n")   # the grasp first: closed on the box
+    assert hud[0].startswith("Box: closure ") and "Finger 0 stick" in hud[3] and "Finger 1 stick" in hud[3]
+    assert hud[4].startswith("t 1.25 / 1.25 s") and len(hud) == 5
     s.finish()
     display.add_overlay()                            # no-op headless
     assert not display.overlay_active()
@@ -223,8 +250,10 @@ def test_live_session_on_the_threaded_runtime(bpy, sample, core):
     # (> 250 Hz: the loop runs at its real-time rate's order; the rate itself is benchmarked.)
     assert stats["haptic_rate"] == stats["runtime_haptic_rate"] > 250
     assert stats["steps"] > 200 and stats["step_us"] > 0
-    hud = s.hud_text()                               # the C loop's own timing and safety
-    assert "haptic loop p99" in hud and stats["runtime_priority_note"] in hud
-    assert "haptic 0 Hz" not in hud and "step 0 µs" not in hud
+    hud = s.hud_text()                               # the grasp, then the C loop's own timing
+    assert hud.startswith("Box: closure ") and "p99" in hud and "haptic 0 Hz" not in hud
+    detail = "\n".join(s.loop_lines(detail=True))   # the sidebar's Loop panel: all of it
+    assert stats["runtime_priority_note"] in detail and "safety: rejected inputs" in detail
+    assert "step 0 µs" not in detail
     s.finish()
     assert not s.runner.world.running

@@ -351,3 +351,22 @@ def test_batch_bad_input_names_the_argument():
         graspcore.grasp_quality_batch(p, n, 0.5, [2, 1], np.zeros((2, 3)), [1.0, 0.0])
     with pytest.raises(ValueError, match=r"^mu_max\b"):
         graspcore.grasp_mu_min(p, n, [0, 0, 0], 1.0, mu_max=-1.0)
+
+
+@pytest.mark.parametrize("tilt", [1.6452892242769884e-10, 1e-12, 3e-9, 1e-7, 1e-5])
+def test_mu_min_on_a_nearly_antipodal_pair_agrees_with_closure(tilt):
+    # A pinch recorded by the analysis: two contacts whose normals are antipodal up to a tilt of
+    # rounding size. The closure LP stalled on it (1250 pivots, ValueError); mu_min must answer
+    # what grasp_quality says at the same friction.
+    points = [[0.2809765885849599, 0.0, 0.2990585384659764], [0.2209765885849599, 0.0, 0.2990585384758482]]
+    normals = [[-1.0, 0.0, tilt], [1.0, 0.0, -tilt]]
+    center = [0.25097658858495986, 0.0, 0.2990584767858975]
+    radius = 0.05196152422706632
+    mu = graspcore.grasp_mu_min(points, normals, center, radius, mu_max=10.0)
+    at_max = graspcore.grasp_quality(points, normals, 10.0, center, radius, volume=False)
+    if math.isinf(mu):
+        assert not at_max["force_closure"]
+    else:
+        assert graspcore.grasp_quality(points, normals, mu, center, radius)["force_closure"]
+        if mu > 2e-6:
+            assert not graspcore.grasp_quality(points, normals, mu - 2e-6, center, radius)["force_closure"]

@@ -163,14 +163,18 @@ def find_primary_button(region):
 
 def colour_counts(px, region, sidebar):
     """Pixels in the viewport (left of its sidebar, below its header) that are god-object
-    blue, force red, or HUD white."""
+    blue (a free finger), green (a finger far from slip), force red, weakest-wrench magenta,
+    or HUD white."""
     p = region_pixels(px, region)[40:, :sidebar.x - region.x, :3]
     r, g, b = p[..., 0], p[..., 1], p[..., 2]
     blue = (b > 0.45) & (b > r + 0.25) & (b > g + 0.08)
+    green = (g > 0.45) & (g > r + 0.3) & (g > b + 0.3)
     red = (r > 0.45) & (r > g + 0.3) & (r > b + 0.3)
-    hud = p[-(60 + 6 * 20):-40, 10:700]                   # where the HUD is drawn
+    magenta = (r > 0.6) & (b > 0.55) & (r > g + 0.35) & (b > g + 0.35)
+    hud = p[-(60 + 7 * 20):-40, 10:700]                   # where the HUD is drawn
     white = (hud.min(axis=2) > 0.8)
-    return {"blue": int(blue.sum()), "red": int(red.sum()), "hud_white": int(white.sum())}
+    return {"blue": int(blue.sum()), "green": int(green.sum()), "red": int(red.sum()),
+            "magenta": int(magenta.sum()), "hud_white": int(white.sum())}
 
 
 # --------------------------------------------------------------------------- steps a person takes
@@ -312,7 +316,7 @@ def scenario_start_esc_stop():
         area, win_region, ui = view3d()
         during = colour_counts(pixels(screenshot("running")), win_region, ui)
         RESULT["hud"] = s.hud_text()                      # what the picture shows
-        if during["red"] > before["red"] + 100 and during["blue"] > before["blue"] + 200 \
+        if during["red"] > before["red"] + 100 and during["green"] > before["green"] + 100 \
                 and during["hud_white"] > 1000:
             break
         shown = len(s.runner.ticks)
@@ -343,6 +347,117 @@ def scenario_start_esc_stop():
     yield from wait_until(lambda: active_session() is None, 5, "Stop to stop the session")
     check_stopped("stop_button")
     RESULT["last_time"] = last_result().stats["time"]
+
+
+def weakest_on_screen(px, area, region, geo):
+    """Where the weakest wrench should be drawn (its ring and its arrow's tip, projected with
+    the viewport's own matrices) against the magenta of a screenshot: how many of the ring's
+    points have magenta within 4 px, and, as a control, how many of the same ring moved 10 cm
+    along y do."""
+    from bpy_extras.view3d_utils import location_3d_to_region_2d
+    p = region_pixels(px, region)[..., :3]
+    magenta = (p[..., 0] > 0.6) & (p[..., 2] > 0.55) & (p[..., 0] > p[..., 1] + 0.35) & (p[..., 2] > p[..., 1] + 0.35)
+    rv3d = area.spaces[0].region_3d
+
+    def near(point):
+        at = location_3d_to_region_2d(region, rv3d, point)
+        if at is None:
+            return False
+        col, row = int(round(at.x)), int(round(region.height - at.y))
+        return bool(magenta[max(row - 4, 0):row + 5, max(col - 4, 0):col + 5].any())
+    ring = geo["ring"][::4] if geo["ring"] is not None else []
+    return {"ring_points": len(ring), "ring_hits": sum(near(q) for q in ring),
+            "moved_ring_hits": sum(near(q + np.array([0.0, 0.1, 0.0])) for q in ring),
+            "arrow_tip_hit": near(geo["arrow"][1])}
+
+
+def scenario_grasp_hud():
+    """Three fingertips squeeze the box on the table (one on +x, two side by side on -x: a
+    grasp in force closure), steadily until Esc. Pictures are taken, one a display update,
+    until one shows the HUD, the weakest wrench (magenta) and god-objects coloured by their
+    friction use; what Blender holds is recorded beside it: the session's analysis, the HUD
+    text, each god-object's material colour, and how wide the sidebar's grasp lines are in
+    the interface font."""
+    import blf
+    setup_scene(duration=0.0, animated=False)
+    fingers = sorted((o for o in bpy.context.scene.objects if o.grasp_lab.role == "FINGER"),
+                     key=lambda o: o.name)
+    third = fingers[0].copy()
+    third.name = "Finger 2"
+    third.grasp_lab.channel = 2
+    bpy.context.scene.collection.objects.link(third)
+    z = fingers[0].location.z
+    fingers[0].location = (-0.030, -0.012, z)
+    third.location = (-0.030, 0.012, z)
+    fingers[1].location = (0.030, 0.0, z)
+    box = bpy.data.objects["Box"]
+    for o in bpy.context.scene.objects:                   # the box active: its Object panel shows
+        o.select_set(o is box)
+    bpy.context.view_layer.objects.active = box
+    bpy.context.view_layer.update()
+    yield from open_grasp_tab()
+    yield 1.0
+    area, win_region, ui = view3d()
+    before = colour_counts(pixels(screenshot("before")), win_region, ui)
+    yield from start_by_click()
+    s = active_session()
+    yield from wait_until(lambda: active_session() is not None and s.runner.time > 1.0 and s.monitor.grasps
+                          and s.monitor.grasps[0].force_closure, 15, "the box held in force closure")
+    for attempt in range(20):
+        area, win_region, ui = view3d()
+        shot = pixels(screenshot("grasp_hud"))
+        during = colour_counts(shot, win_region, ui)
+        grasps = list(s.monitor.grasps)
+        RESULT["hud"] = s.hud_text()
+        if during["magenta"] > before["magenta"] + 100 and during["green"] > before["green"] + 100 \
+                and during["hud_white"] > 1000:
+            break
+        shown = len(s.runner.ticks)
+        yield from wait_until(lambda: active_session() is None or len(s.runner.ticks) >= shown + 1, 10,
+                              "a display update")
+        if active_session() is None:
+            raise AssertionError("the session ended before its picture showed the grasp")
+    RESULT["pixels"] = {"before": before, "during": during}
+    RESULT["pictures_taken"] = attempt + 1
+    gd = ext("engine.grasp_display")
+    RESULT["weakest_on_screen"] = weakest_on_screen(shot, area, win_region, gd.weakest_geometry(grasps[0]))
+    RESULT["grasps"] = [{"body": g.body, "force_closure": bool(g.force_closure), "epsilon": g.epsilon,
+                         "weakest": [float(v) for v in g.weakest], "grip_ratio": g.grip_ratio,
+                         "contacts": [{"finger": c.finger, "friction_use": c.friction_use, "state": c.state}
+                                      for c in g.contacts]} for g in grasps]
+    # Each god-object's material: the colour of its finger's friction use in that analysis.
+    names = [f.name for f in s.desc.fingers]
+    want = gd.finger_colors(grasps, len(names))
+    RESULT["god_object_colours"] = {
+        n: {"material": [round(v, 4) for v in bpy.data.objects[f"GL God-object {n}"].material_slots[0].material
+                         .diffuse_color], "expected": [round(v, 4) for v in want[i]]}
+        for i, n in enumerate(names)}
+    # The sidebar's grasp lines, as the panel wraps them (its labels, read from the UI), measured
+    # in the interface font.
+    prefs = bpy.context.preferences
+    scale = prefs.system.ui_scale
+    blf.size(0, prefs.ui_styles[0].widget.points * scale)
+    ui_mod = ext("ui")
+    lines = []
+
+    class Recorder:
+        def column(self, align=False):
+            return self
+
+        def label(self, text="", icon="NONE"):
+            lines.append(text)
+    with bpy.context.temp_override(window=window(), area=area, region=ui):
+        ui_mod.wrapped_labels(Recorder(), bpy.context, s.grasp_lines())
+    RESULT["sidebar"] = {"region_width": ui.width, "ui_scale": scale, "lines": lines,
+                         "text_px": [blf.dimensions(0, x)[0] for x in lines]}
+    RESULT["analysis_ms"] = [1e3 * c for c in s.monitor.costs[1:]]       # the first had no contact
+    RESULT["display_rate"] = s.runner.stats()["display_rate"]
+    area, win_region, ui = view3d()
+    hover(win_region)
+    yield 0.3
+    xdo("key", "Escape")
+    yield from wait_until(lambda: active_session() is None, 5, "Esc to stop the session")
+    check_stopped("esc")
 
 
 def scenario_undo():

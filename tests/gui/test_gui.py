@@ -38,20 +38,52 @@ def test_start_session_then_esc_then_the_stop_button(gui):
     assert r["graspcore"] == "_core.abi3.so" and r["hidapi"].startswith("hid.")
     assert r["threads_running"] == ["gc-haptic", "gc-object"]
     stopped_cleanly(r)
-    # On screen while it runs: god-object spheres (blue), force arrows (red), the HUD (white).
+    # On screen while it runs: god-object spheres (green: squeezing, far from slip), force
+    # arrows (red), the HUD (white).
     before, during = r["pixels"]["before"], r["pixels"]["during"]
-    assert during["blue"] > before["blue"] + 200, r["pixels"]
+    assert during["green"] > before["green"] + 100, r["pixels"]
     assert during["red"] > before["red"] + 100, r["pixels"]
     assert before["hud_white"] < 50 < 1000 < during["hud_white"], r["pixels"]
-    # The HUD tells the C loop's truth, not the display's.
-    hud = r["hud"]
-    assert "threaded runtime" in hud and "contacts 2 / 2" in hud
-    assert "haptic 0 Hz" not in hud and "step 0 µs" not in hud and " 0 steps" not in hud
+    # The HUD leads with the grasp, then the C loop's own numbers, not the display's.
+    hud = r["hud"].replace("\u00a0", " ").split("\n")     # no-break spaces as spaces
+    assert hud[0].startswith("Box: closure ") and "Finger 0 stick" in hud[3] and "Finger 1 stick" in hud[3]
+    assert hud[4].startswith("t ") and "until Esc" in hud[4] and "haptic 0 Hz" not in hud[4]
     # Esc ends it within one display frame: no later than the longest of the last display
     # updates (Blender answers the key once the frame it is drawing is done), plus the
     # time xdotool takes to send it.
     assert r["esc_latency_s"] < max(r["frame_max_s"], r["interval"]) + 0.1, r
     assert r["last_time"] > 0.5
+
+
+def test_the_hud_and_viewport_show_a_held_grasp(gui):
+    """Three fingertips hold the box: the HUD's first line says it is in force closure with
+    its epsilon, the weakest wrench is drawn (magenta) and the god-objects are coloured by
+    their friction use, on screen and in their materials; the sidebar's grasp lines fit."""
+    r, console, _ = run(gui, "grasp_hud")
+    ok(r, console)
+    stopped_cleanly(r)
+    (g,) = r["grasps"]
+    assert g["force_closure"] and g["epsilon"] > 0 and sorted(c["finger"] for c in g["contacts"]) == [0, 1, 2]
+    assert abs(sum(w * w for w in g["weakest"]) - 1.0) < 1e-9            # a unit wrench
+    hud = r["hud"].replace("\u00a0", " ").split("\n")     # no-break spaces as spaces
+    assert hud[0].startswith(f"Box: closure yes  ε {g['epsilon']:.3f}  resists "), hud
+    assert hud[1].startswith("  grip ") and " / load " in hud[1] and hud[2].startswith("  slip margin ")
+    assert all(f"Finger {i} stick" in hud[3] for i in range(3)), hud
+    before, during = r["pixels"]["before"], r["pixels"]["during"]
+    assert during["magenta"] > before["magenta"] + 100, r["pixels"]          # the weakest wrench
+    assert during["green"] > before["green"] + 100, r["pixels"]              # god-objects far from slip
+    assert before["hud_white"] < 50 < 1000 < during["hud_white"], r["pixels"]
+    # Drawn where the grasp's weakest wrench is: its ring, projected with the viewport's matrices,
+    # lies on magenta pixels; the same ring 10 cm away does not.
+    on = r["weakest_on_screen"]
+    assert on["ring_points"] >= 10 and on["ring_hits"] >= 0.8 * on["ring_points"], on
+    assert on["moved_ring_hits"] <= 0.2 * on["ring_points"] and on["arrow_tip_hit"], on
+    for name, c in r["god_object_colours"].items():
+        assert c["material"] == c["expected"], (name, c)
+    assert all(c["friction_use"] < 0.5 for c in g["contacts"]), g       # squeezing on a table: green
+    side = r["sidebar"]
+    assert max(side["text_px"]) < side["region_width"] - 20 * side["ui_scale"], side
+    assert " ".join(side["lines"]).split()[:3] == ["Box:", "closure", "yes"]
 
 
 def test_ctrl_z_after_a_session_and_during_one(gui):
@@ -137,7 +169,7 @@ def test_a_live_session_driven_by_an_emulated_device(gui):
     stopped_cleanly(r)
     assert r["threads_running"] == ["gc-haptic", "gc-object", "gc-serial"]
     assert r["contacts"] == [0, 0]                          # the device's fingertips grip the box
-    assert f"{port}: streaming, fingers 0..1" in r["hud"] and "forces on" in r["hud"], r["hud"]
+    assert f"{port}: streaming, fingers 0..1" in r["hud"] and "forces enabled" in r["hud"], r["hud"]
     # A loaded machine may add "stall" safety events (the haptic loop ran late: forces held
     # at zero meanwhile); the device still connects first and is enabled next.
     assert [e for e in r["device_events"] if e != "stall"][:2] == ["connected", "enabled"], r["device_events"]

@@ -1,0 +1,184 @@
+"""What the live view says about the grasp, bpy-free: the analysis of each display update
+(``analysis.analyse`` on the session's snapshot), the HUD and sidebar text, the colour of a
+god-object by its friction use and the geometry of the weakest-wrench arrow and ring.
+
+The analysis runs here, on the main thread, once per display update; the haptic loop never
+waits for it (it only publishes the snapshot)."""
+from __future__ import annotations
+
+import math
+import re
+import time
+
+import numpy as np
+
+from . import analysis
+
+FREE_COLOR = (0.10, 0.45, 1.00, 1.0)     # a god-object touching nothing: the god-object blue
+# Friction use |Ft| / (mu |Fn|): 0 green (far from slip), 0.5 yellow, 1 red (at slip).
+_GREEN, _YELLOW, _RED = (0.10, 0.85, 0.25), (1.00, 0.85, 0.10), (1.00, 0.10, 0.10)
+WEAKEST_COLOR = (1.00, 0.20, 0.90, 1.0)  # magenta: no other overlay uses it
+STATE_NAMES = ("free", "stick", "slip")
+
+
+def friction_color(use: float) -> tuple:
+    """RGBA for a friction use: green at 0, yellow at 0.5, red at 1 and beyond (and when
+    the use is not a number: a contact with no normal force cannot hold anything)."""
+    u = 1.0 if not math.isfinite(use) else min(max(use, 0.0), 1.0)
+    a, b, k = (_GREEN, _YELLOW, u / 0.5) if u < 0.5 else (_YELLOW, _RED, (u - 0.5) / 0.5)
+    return tuple(a[i] + k * (b[i] - a[i]) for i in range(3)) + (1.0,)
+
+
+def finger_colors(grasps, n_fingers: int) -> list:
+    """One RGBA per finger: by friction use in contact with a held body, else FREE_COLOR."""
+    colors = [FREE_COLOR] * n_fingers
+    for g in grasps:
+        for c in g.contacts:
+            colors[c.finger] = friction_color(c.friction_use)
+    return colors
+
+
+class GraspMonitor:
+    """The analysis of a session's snapshots, one display update at a time.
+
+    The load's inertial part needs each body's centre-of-mass acceleration: it is the change
+    of the centre-of-mass velocity between two display updates over the time between them
+    (the haptic loop's simulated time), zero on the first update."""
+
+    def __init__(self, models, finger_radii, gravity=(0.0, 0.0, -9.81), edges: int = 8):
+        self.models = list(models)
+        self.finger_radii = np.asarray(finger_radii, dtype=np.float64).reshape(-1)
+        self.gravity = tuple(float(g) for g in gravity)
+        self.edges = int(edges)
+        self.grasps = []            # the last update's BodyGrasp list
+        self.cost_s = 0.0           # wall time of the last update (analysis included)
+        self.costs = []             # of every update, seconds
+        self.error = ""             # why the last update has no analysis (a refused contact set)
+        self._prev = None           # (time, centre-of-mass velocities)
+        self._acc = None
+
+    def accelerations(self, snap) -> np.ndarray:
+        if not self.models:                 # fingers only: nothing to hold
+            return np.zeros((0, 3))
+        v = analysis.com_velocities(self.models, snap.poses, np.asarray(snap.velocities, dtype=np.float64))
+        if self._prev is not None and snap.time > self._prev[0]:
+            self._acc = (v - self._prev[1]) / (snap.time - self._prev[0])
+        elif self._acc is None or self._acc.shape != v.shape:
+            self._acc = np.zeros_like(v)
+        if self._prev is None or snap.time != self._prev[0]:
+            self._prev = (snap.time, v)
+        return self._acc
+
+    def update(self, snap) -> list:
+        t0 = time.perf_counter()
+        acc = self.accelerations(snap)
+        self.grasps, self.error = [], ""
+        if np.any(snap.contacts >= 0):
+            try:
+                self.grasps = analysis.analyse(self.models, snap.poses, snap.god_objects, snap.spring_forces,
+                                               snap.normals, snap.finger_states, snap.contacts,
+                                               self.finger_radii, accelerations=acc, gravity=self.gravity,
+                                               edges=self.edges, volume=False)  # the HUD shows no volume
+            except ValueError as ex:    # one display update without numbers; the session goes on
+                self.error = str(ex)
+        self.cost_s = time.perf_counter() - t0
+        self.costs.append(self.cost_s)
+        return self.grasps
+
+
+def _ratio(x: float) -> str:
+    return "∞" if not math.isfinite(x) else f"{x:.1f}×"
+
+
+NBSP = "\u00a0"     # joins what wrapping must not split: a number and its unit, a finger's entry
+
+
+def _keep(text: str) -> str:
+    return text.replace(" ", NBSP)
+
+
+def grasp_lines(grasps, body_names, finger_names) -> list:
+    """The grasp, per held body: closure and epsilon, the force it resists in its weakest
+    direction, grip against load, the finger closest to slipping; then each finger's state
+    and friction use. Plain lines, most important first; ``wrap`` never splits a value from
+    its unit or a finger's entry (they are joined by no-break spaces)."""
+    if not grasps:
+        return ["No finger on a body"]
+    lines = []
+    for g in grasps:
+        closure = "closure yes" if g.force_closure else "closure no"
+        lines.append(f"{body_names[g.body]}: {closure}  {_keep(f'ε {g.epsilon:.3f}')}  "
+                     f"resists {_keep(f'{g.resisted_force:.2f} N')}")
+        lines.append(f"  grip {_keep(f'{g.grip_force:.2f} N')} / load {_keep(f'{g.load_force:.2f} N')} "
+                     f"= {_ratio(g.grip_ratio)}")
+        if g.min_slip_finger >= 0:
+            lines.append(f"  slip margin {_keep(f'{g.min_slip_margin:.2f} N')} at "
+                         f"{_keep(finger_names[g.min_slip_finger])}")
+        fingers = [_keep(f"{finger_names[c.finger]} {STATE_NAMES[c.state] if 0 <= c.state < 3 else c.state} "
+                         f"{_percent(c.friction_use)}") for c in g.contacts]
+        lines.append("  " + "   ".join(fingers))
+    return lines
+
+
+def _percent(use: float) -> str:
+    return "—" if not math.isfinite(use) else f"{100 * use:.0f}%"
+
+
+def force_output(runtime_enabled: bool, devices_enabled=None) -> str:
+    """One statement of whether forces reach the hand: the haptic loop's safety layer
+    (watchdog, stale input) and, with devices, whether any device has its forces enabled."""
+    if not runtime_enabled:
+        return "forces held at zero (safety: late loop or stale input)"
+    if devices_enabled is not None and len(devices_enabled) and not any(devices_enabled):
+        return "forces off (no device enabled)"
+    return "forces on"
+
+
+def wrap(lines, width, measure=len) -> list:
+    """Lines wrapped at spaces so that ``measure(line) <= width`` (characters by default; a
+    panel passes its width in pixels and the interface font's measure). A continuation is
+    indented two more spaces than its line; a word wider than the width gets a line of its
+    own, whole."""
+    out = []
+    for line in lines:
+        body = line.lstrip(" ")
+        indent = line[:len(line) - len(body)]
+        pieces = re.split(r"( +)", body)
+        current, gap = indent + pieces[0], ""
+        for k in range(1, len(pieces), 2):
+            sep, word = pieces[k], pieces[k + 1]
+            if measure(current + sep + word) <= width:
+                current += sep + word
+            else:
+                out.append(current)
+                current = indent + "  " + word
+        out.append(current)
+    return out
+
+
+def weakest_geometry(grasp, length: float | None = None, segments: int = 48):
+    """Where to draw the weakest wrench of a grasp in force closure, world coordinates:
+    ``arrow`` (start, end): from the centre of mass along its force part, ``length`` times
+    the part's norm (default twice the torque radius); ``ring`` (segments + 1, 3): a closed
+    circle about its torque part's axis, radius the radius times the part's norm, and
+    ``ring_tip`` (point, tangent): where and which way the ring turns (right hand about the
+    axis). None when the grasp is not in closure (no weakest direction)."""
+    w = np.asarray(grasp.weakest, dtype=np.float64)
+    if not grasp.force_closure or not np.all(np.isfinite(w)) or not np.any(w):
+        return None
+    center = np.asarray(grasp.center, dtype=np.float64)
+    radius = float(grasp.radius)
+    length = 2.0 * radius if length is None else float(length)
+    force, torque = w[:3], w[3:]
+    out = {"arrow": (center, center + length * force), "ring": None, "ring_tip": None}
+    t = float(np.linalg.norm(torque))
+    if t > 1e-9:
+        axis = torque / t
+        u = np.cross(axis, (1.0, 0.0, 0.0) if abs(axis[0]) < 0.9 else (0.0, 1.0, 0.0))
+        u /= np.linalg.norm(u)
+        v = np.cross(axis, u)
+        r = radius * t
+        a = np.linspace(0.0, 2.0 * math.pi, segments + 1)
+        out["ring"] = center + r * (np.cos(a)[:, None] * u + np.sin(a)[:, None] * v)
+        out["ring_tip"] = (center + r * u, v)      # d/da at a = 0: +v, counter-clockwise about axis
+    return out
