@@ -310,8 +310,8 @@ static void find_reversed_contacts(gcWorld *w, gcFinger *f, const gcHull *fh, do
                 if (!gc_aabb_overlap(gc_sub(lo, gc_v3(h->radius, h->radius, h->radius)),
                                      gc_add(hi, gc_v3(h->radius, h->radius, h->radius)), elo, ehi))
                     continue;
-                int n = (int)ceil(gc_len(gc_sub(c, a)) / spacing) - 1;
-                if (n > GC_EDGE_SAMPLES) n = GC_EDGE_SAMPLES;
+                double wanted = ceil(gc_len(gc_sub(c, a)) / spacing) - 1.0; /* capped before the cast */
+                int n = wanted < (double)GC_EDGE_SAMPLES ? (int)wanted : GC_EDGE_SAMPLES;
                 for (int k = 0; k < n && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++k) {
                     double t = (double)(k + 1) / (double)(n + 1);
                     gcVec3 x = gc_madd(a, gc_sub(c, a), t);

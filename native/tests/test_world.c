@@ -245,8 +245,69 @@ static void test_convex_finger(void) {
     gc_world_destroy(w);
 }
 
+/* Convex fingers turned and thrown through a box, a capsule, a sphere and a long prism (body
+ * vertices, feature edges, a capsule's segment), for ASan/UBSan: every output stays finite. */
+static void test_convex_finger_tumbling(void) {
+    gcWorldDef wd = gc_default_world_def();
+    wd.gravity[2] = 0.0; /* the bodies stay where the pads sweep */
+    gcWorld *w = NULL;
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    double box[24], seg[6] = {-0.08, 0, 0, 0.08, 0, 0}, dot[3] = {0, 0, 0};
+    box_points(0.03, box);
+    gcBodyDef bd = gc_default_body_def();
+    gcPartDef parts[3] = {{box, 8, 0.0}, {seg, 2, 0.005}, {dot, 1, 0.02}};
+    int32_t id;
+    for (int i = 0; i < 3; ++i) {
+        bd.position[0] = 0.1 * i;
+        GC_CHECK(gc_world_add_body(w, &bd, &parts[i], 1, &id) == GC_OK, "body %d: %s", i, gc_world_last_error(w));
+    }
+    double pad[24];
+    box_points(0.04, pad);
+    for (int i = 0; i < 8; ++i) pad[3 * i + 2] *= 0.1;
+    gcFingerDef fd = gc_default_finger_def();
+    fd.points = pad;
+    fd.num_points = 8;
+    int32_t f[2];
+    fd.radius = 0.0;
+    GC_CHECK(gc_world_add_finger(w, &fd, &f[0]) == GC_OK, "pad");
+    fd.radius = 0.004;
+    GC_CHECK(gc_world_add_finger(w, &fd, &f[1]) == GC_OK, "rounded pad");
+    uint64_t state = 12345;
+    int finite = 1, touched = 0, reversed = 0;
+    for (int step = 0; step < 3000; ++step) {
+        for (int k = 0; k < 2; ++k) {
+            double r[7];
+            for (int j = 0; j < 7; ++j) {
+                state = state * 6364136223846793005ull + 1442695040888963407ull;
+                r[j] = (double)(state >> 11) / 9007199254740992.0 - 0.5;
+            }
+            double t = 1e-3 * step, pos[3] = {0.1 + 0.15 * sin(t + k) + 0.01 * r[0], 0.02 * r[1], 0.05 * cos(2 * t) + 0.01 * r[2]};
+            double q[4] = {1.0 + r[3], r[4], r[5], r[6]};
+            GC_CHECK(gc_world_set_finger_pose(w, f[k], pos, q) == GC_OK, "pose");
+        }
+        gcStatus st = gc_world_step(w, 1e-3);
+        GC_CHECK(st == GC_OK || st == GC_WARN_STOPPED, "step %d", st);
+        const double *poses = gc_world_body_pose_array(w), *forces = gc_world_finger_force_array(w);
+        for (int i = 0; i < 21; ++i) finite &= isfinite(poses[i]) != 0;
+        for (int i = 0; i < 6; ++i) finite &= isfinite(forces[i]) != 0;
+        for (int k = 0; k < 2; ++k) {
+            gcFingerContactPoint cps[16];
+            int n = gc_world_finger_contacts(w, f[k], cps, 16);
+            touched += n > 0;
+            for (int c = 0; c < n && c < 16; ++c) {
+                reversed += cps[c].reversed;
+                for (int j = 0; j < 3; ++j) finite &= isfinite(cps[c].point[j]) && isfinite(cps[c].force[j]);
+            }
+        }
+    }
+    GC_CHECK(finite, "every pose, force and contact point finite");
+    GC_CHECK(touched > 100 && reversed > 0, "the pads touched (%d finger-steps, %d reversed points)", touched, reversed);
+    gc_world_destroy(w);
+}
+
 int main(void) {
     test_convex_finger();
+    test_convex_finger_tumbling();
     test_every_error_names_its_argument();
     test_pinch_and_determinism();
     test_bad_input_leaves_world_unchanged();
