@@ -256,11 +256,11 @@ done:
 /* points: None (a sphere finger) or a C-contiguous float64 buffer of xyz rows (a convex finger). */
 static PyObject *World_add_finger(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
-    static char *kwlist[] = {"radius", "stiffness", "damping", "position", "points", "orientation", NULL};
+    static char *kwlist[] = {"radius", "stiffness", "damping", "position", "points", "orientation", "torsion", NULL};
     gcFingerDef def = gc_default_finger_def();
     PyObject *position = NULL, *points = NULL, *orientation = NULL;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|dddOOO", kwlist, &def.radius, &def.stiffness, &def.damping,
-                                     &position, &points, &orientation))
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|dddOOOd", kwlist, &def.radius, &def.stiffness, &def.damping,
+                                     &position, &points, &orientation, &def.torsion))
         return NULL;
     if (!check_ready(self)) return NULL;
     if (position && !parse_vec(position, 3, "position", def.position)) return NULL;
@@ -1279,8 +1279,9 @@ static PyObject *World_serial_events(PyObject *obj, PyObject *args) {
 static PyMethodDef World_methods[] = {
     {"_add_body", World_add_body, METH_VARARGS, "Low-level add_body; use World.add_body."},
     {"add_finger", (PyCFunction)(void (*)(void))World_add_finger, METH_VARARGS | METH_KEYWORDS,
-     "add_finger(radius, stiffness, damping, position=(0,0,0), points=None, orientation=(1,0,0,0)) -> finger id; "
-     "points: a convex finger's (n, 3) float64 points in its frame (None: a sphere); defaults: FINGER_DEFAULTS"},
+     "add_finger(radius, stiffness, damping, position=(0,0,0), points=None, orientation=(1,0,0,0), torsion=0) -> "
+     "finger id; points: a convex finger's (n, 3) float64 points in its frame (None: a sphere); torsion: a soft "
+     "sphere fingertip's patch radius, m; defaults: FINGER_DEFAULTS"},
     {"set_finger_pose", World_set_finger_pose, METH_VARARGS,
      "set_finger_pose(finger, (x, y, z), (w, x, y, z)): the whole HIP (a convex finger turns with it)."},
     {"finger_pose", World_finger_pose, METH_VARARGS, "finger_pose(finger) -> ((x, y, z), (w, x, y, z))"},

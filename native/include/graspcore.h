@@ -94,6 +94,10 @@ typedef struct gcFingerDef {
     int num_points;
     double orientation[4];  /* initial finger-frame orientation (w, x, y, z), default identity;
                              * normalised on creation */
+    double torsion;         /* a soft sphere fingertip (docs/physics.md "Soft fingertips"): the radius
+                             * rho (m) of the patch it presses, resisting a twist about the contact
+                             * normal with stiffness k rho^2 up to mu F_n rho; default 0 = none.
+                             * Sphere fingers only (a convex finger's patch has its own) */
 } gcFingerDef;
 gcFingerDef gc_default_finger_def(void);
 

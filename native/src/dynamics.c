@@ -176,6 +176,16 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
             force = gc_add(force, explicit_part);
             torque = gc_add(torque, gc_cross(r, explicit_part));
             add_point_coupling(C, r, f->stiffness * dt * dt + f->damping * dt);
+            if (f->torsion > 0.0) {
+                /* A soft fingertip's twist spring k rho^2 about the normal, implicit as the springs:
+                 * the body's spin about n this step unwinds it by dt (n . w'). */
+                gcVec3 n = gc_mat3_mul_vec(&b->state.R, c->normal_local);
+                double kt = f->stiffness * f->torsion * f->torsion;
+                torque = gc_madd(torque, n, kt * c->twist);
+                double nv[3] = {n.x, n.y, n.z};
+                for (int i = 0; i < 3; ++i)
+                    for (int j = 0; j < 3; ++j) C[3 + i][3 + j] += kt * dt * dt * nv[i] * nv[j];
+            }
         }
     }
 

@@ -131,6 +131,7 @@ static uint64_t hash_finger(uint64_t h, const gcWorld *w, int i) {
         h = hash_4(h, &k->state);
         h = hash_bytes(h, &k->go_local, sizeof k->go_local);
         h = hash_bytes(h, &k->normal_local, sizeof k->normal_local);
+        if (f->torsion > 0.0) h = hash_bytes(h, &k->twist_local, sizeof k->twist_local);
     }
     return h;
 }

@@ -342,6 +342,10 @@ gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_fi
         gc_world_set_error(w, "damping: must be a finite number >= 0 (got %g)", def->damping);
         return GC_ERR_INVALID_ARGUMENT;
     }
+    if (!isfinite(def->torsion) || def->torsion < 0 || (def->torsion > 0 && (def->points || def->num_points))) {
+        gc_world_set_error(w, "torsion: must be a finite number >= 0, and 0 for a convex finger (got %g)", def->torsion);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
     if (w->num_fingers >= w->def.max_fingers) {
         gc_world_set_error(w, "max_fingers: the world holds at most %d fingers", w->def.max_fingers);
         return GC_ERR_CAPACITY;
@@ -380,6 +384,7 @@ gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_fi
     f->q = f->q_prev = q;
     f->R = f->R_prev = gc_quat_to_mat3(q);
     f->radius = def->radius;
+    f->torsion = def->torsion;
     f->stiffness = def->stiffness;
     f->damping = def->damping;
     f->hip = f->hip_prev = f->god_object = gc_v3(def->position[0], def->position[1], def->position[2]);

@@ -68,6 +68,14 @@ typedef struct gcFingerContact {
     gcVec3 go_local;                /* god-object centre, body frame */
     gcVec3 normal_local;            /* contact plane normal (outward), body frame */
     double depth;                   /* HIP depth below the GO plane, last step */
+    /* A soft fingertip (torsion > 0): the god-direction, the twist about the normal the body
+     * holds for the finger (a unit vector in the contact plane, body frame), and the twist of
+     * the finger's frame past it (rad, about the normal out of the body) after the last update. */
+    gcVec3 twist_local;
+    double twist;
+    int32_t twist_axis;             /* the finger-frame axis (0 x, 1 y, 2 z) whose direction in the plane is
+                                     * the finger's twist: the least aligned with the normal at touch */
+    gcFingerState twist_state;      /* the twist's own stick or slip */
     /* A sphere finger, or a vertex of a convex finger entering a body (sample: its index): the GO
      * is on the body, in the body frame, and its spring pulls the vertex. Reversed: a vertex of the
      * body (sample: its index in the part, at body_point_local) entering a convex finger: the GO is
@@ -85,6 +93,7 @@ typedef struct gcFingerContact {
 
 typedef struct gcFinger {
     double radius, stiffness, damping;
+    double torsion;                 /* soft fingertip: radius of its pressed patch (m), 0 = none */
     gcVec3 hip, hip_prev, hip_velocity;
     int hip_initialised;
     int num_contacts;

@@ -324,6 +324,61 @@ static void find_reversed_contacts(gcWorld *w, gcFinger *f, const gcHull *fh, do
     }
 }
 
+/* ---- Soft fingertips: torsional friction about the contact normal (docs/physics.md) ---- */
+
+/* v projected on the plane of unit normal n, normalised; zero when v is (nearly) along n. */
+static gcVec3 in_plane(gcVec3 v, gcVec3 n) {
+    gcVec3 p = gc_madd(v, n, -gc_dot(v, n));
+    double len = gc_len(p);
+    return len > 1e-6 ? gc_scale(p, 1.0 / len) : gc_v3(0, 0, 0);
+}
+
+static gcVec3 finger_axis(const gcFinger *f, int axis) {
+    return gc_v3(f->R.m[0][axis], f->R.m[1][axis], f->R.m[2][axis]);
+}
+
+/* The finger's twist past the body's god-direction about the normal n (world, out of the body),
+ * rad; 0 when either direction is undefined (the finger's axis turned onto the normal). */
+static double twist_angle(const gcFinger *f, const gcFingerContact *c, const gcMat3 *body_R, gcVec3 n) {
+    gcVec3 h = in_plane(finger_axis(f, c->twist_axis), n), g = in_plane(gc_mat3_mul_vec(body_R, c->twist_local), n);
+    if (gc_len2(h) == 0.0 || gc_len2(g) == 0.0) return 0.0;
+    return atan2(gc_dot(n, gc_cross(g, h)), gc_dot(g, h));
+}
+
+/* The twist's friction circle, as steps 3-4 for the god-object: the spring k rho^2 twist holds
+ * while |twist| <= mu_s depth / rho (the torque mu_s F_n rho, F_n = k depth); past it the
+ * god-direction slips to mu_d depth / rho behind the finger's, and sticks again inside that. */
+static void update_twist(const gcFinger *f, const gcBody *b, gcFingerContact *c, int fresh) {
+    gcVec3 n = gc_mat3_mul_vec(&b->state.R, c->normal_local);
+    if (fresh) {
+        double best = 2.0;
+        for (int a = 0; a < 3; ++a) {
+            double along = fabs(gc_dot(finger_axis(f, a), n));
+            if (along < best) best = along, c->twist_axis = a;
+        }
+    }
+    gcVec3 h = in_plane(finger_axis(f, c->twist_axis), n);
+    double phi = fresh ? 0.0 : twist_angle(f, c, &b->state.R, n);
+    if (fresh || gc_len2(h) == 0.0 || gc_len2(in_plane(gc_mat3_mul_vec(&b->state.R, c->twist_local), n)) == 0.0) {
+        c->twist_local = gc_mat3_tmul_vec(&b->state.R, h); /* (re)anchored where the finger points */
+        c->twist = 0.0;
+        c->twist_state = GC_FINGER_STICK;
+        return;
+    }
+    double limit_s = b->mu_s * c->depth / f->torsion, limit_d = b->mu_d * c->depth / f->torsion;
+    int slipping = c->twist_state == GC_FINGER_STICK ? fabs(phi) > limit_s
+                                                     : fabs(phi) > limit_d * (1.0 + GC_CIRCLE_TOLERANCE);
+    if (slipping) {
+        double kept = phi > 0.0 ? limit_d : -limit_d; /* the god-direction trails the finger's by this */
+        gcVec3 side = gc_cross(n, h);
+        gcVec3 g = gc_add(gc_scale(h, cos(kept)), gc_scale(side, -sin(kept)));
+        c->twist_local = gc_mat3_tmul_vec(&b->state.R, g);
+        phi = kept;
+    }
+    c->twist_state = slipping ? GC_FINGER_SLIP : GC_FINGER_STICK;
+    c->twist = phi;
+}
+
 static void finger_update(gcWorld *w, int32_t id, double dt) {
     gcFinger *f = &w->fingers[id];
     const gcHull *fh = &w->finger_hulls[id];
@@ -351,9 +406,13 @@ static void finger_update(gcWorld *w, int32_t id, double dt) {
             kept++;
         }
     }
+    int existing = kept;
     f->num_contacts = kept;
     if (!f->num_vertices) {
         find_new_contacts(w, f, 0, GC_MAX_CONTACTS_PER_FINGER, dt);
+        if (f->torsion > 0.0)
+            for (int i = 0; i < f->num_contacts; ++i)
+                update_twist(f, &w->bodies[w->parts[f->contacts[i].part].body], &f->contacts[i], i >= existing);
         return;
     }
     /* A convex finger: every hull vertex is a fingertip of its own, and every body vertex inside
@@ -394,6 +453,10 @@ static void finger_outputs(gcWorld *w, int32_t id) {
             force = gc_madd(force, dv, f->damping);
         }
         c->force = fc;
+        if (f->torsion > 0.0) { /* the soft fingertip's twist spring, on the pose the body reached */
+            gcVec3 n = gc_mat3_mul_vec(&b->state.R, c->normal_local);
+            torque = gc_madd(torque, n, -f->stiffness * f->torsion * f->torsion * twist_angle(f, c, &b->state.R, n));
+        }
         if (f->num_vertices) {
             torque = gc_add(torque, gc_cross(gc_sub(go, f->hip), fc));
             centroid = gc_madd(centroid, go, c->depth);

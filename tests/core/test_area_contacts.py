@@ -404,3 +404,76 @@ def test_runtime_carries_a_convex_finger_as_the_synchronous_step_does():
     w.stop()
     assert w.state_hash() == ref.state_hash()
     assert tilt_deg(ref, 0) == pytest.approx(np.degrees(0.1), abs=0.2)  # resting on the tilted palm
+
+
+# ---- soft fingertips: torsional friction about the normal (sphere fingers) ---------------------
+
+def test_soft_fingertip_twisted_on_a_table_slips_at_its_torsional_limit():
+    """A sphere fingertip with a pressed patch of radius rho, pressed F_n = k depth on a table and
+    turned about the normal: the torque is k rho^2 phi while it sticks, up to mu_s F_n rho
+    (phi = mu_s depth / rho), then it slides at mu_d F_n rho."""
+    mu_s, mu_d, depth, rho = 0.5, 0.3, 0.002, 0.01
+    w = graspcore.World(gravity=(0, 0, 0))
+    w.add_body(box_points(0.2, 0.2, 0.05, center=(0, 0, -0.05)), static=True, mu_s=mu_s, mu_d=mu_d)
+    f = w.add_finger(radius=0.008, stiffness=K, position=(0, 0, 0.02), torsion=rho)
+    for i in range(1, 21):
+        w.set_hip(f, (0, 0, 0.02 + (0.008 - depth - 0.02) * i / 20))
+        w.step(DT)
+    Fn = K * depth
+    peak, states = 0.0, []
+    for deg in np.arange(0.1, 12.0, 0.1):
+        phi = np.radians(deg)
+        w.set_finger_pose(f, (0, 0, 0.008 - depth), (np.cos(phi / 2), 0, 0, np.sin(phi / 2)))
+        w.step(DT)
+        tz = -w.finger_torque(f)[2]
+        states.append(tz)
+        if phi <= mu_s * depth / rho:
+            assert tz == pytest.approx(K * rho**2 * phi, rel=1e-9)
+        peak = max(peak, tz)
+    assert peak <= mu_s * Fn * rho * (1 + 1e-9) and peak > 0.97 * mu_s * Fn * rho
+    assert states[-1] == pytest.approx(mu_d * Fn * rho, rel=1e-9)
+    np.testing.assert_allclose(w.finger_force(f), [0, 0, Fn], atol=1e-9)   # the push is untouched
+
+
+def pinched_bar(torsion, seconds=8.0):
+    """A 0.1 kg bar (20 x 2 x 2 cm) pinched across its width 5 cm from its centre by two
+    fingertips (3000 N/m, squeezed 4 mm): its weight twists it about the pinch axis."""
+    w = graspcore.World()
+    bar = w.add_body(box_points(0.1, 0.01, 0.01), mass=0.1, position=(0.05, 0, 0))
+    for s in (-1, 1):
+        w.add_finger(radius=0.008, stiffness=3000.0, damping=2.0, position=(0, s * (0.01 + 0.008 - 0.004), 0),
+                     torsion=torsion)
+    largest = 0.0
+    for _ in range(int(seconds / 0.01)):
+        w.step(DT, steps=10)
+        R = quat_to_matrix(w.body_pose(bar)[1])
+        theta = -np.arctan2(R[2, 0], R[0, 0])   # the bar's turn about the pinch axis, down positive
+        largest = max(largest, abs(theta))
+    return theta, largest, w
+
+
+def test_soft_fingertips_hold_a_pinched_bar_against_its_twist():
+    """Point contacts leave the rotation about the pinch axis free: the bar swings down. Soft
+    fingertips (rho 1 cm) hold it where their twist springs carry its weight's moment,
+    2 k rho^2 theta = m g d cos theta; with rho 2 mm their limit 2 mu_s F_n rho is below that
+    moment and it swings down again."""
+    _, largest, _ = pinched_bar(0.0, seconds=2.0)
+    assert np.degrees(largest) > 90.0
+    theta, largest, w = pinched_bar(0.01)
+    from scipy.optimize import brentq
+    expected = brentq(lambda t: 2 * 3000.0 * 0.01**2 * t - 0.1 * G * 0.05 * np.cos(t), 0.0, 1.0)
+    assert theta == pytest.approx(expected, rel=0.03)
+    assert all(w.finger_state(f) == "stick" for f in range(2))
+    assert largest < 2.2 * expected   # the swing from rest overshoots at most to twice
+    _, largest, _ = pinched_bar(0.002, seconds=2.0)
+    assert 2 * 0.8 * 3000.0 * 0.004 * 0.002 < 0.1 * G * 0.05
+    assert np.degrees(largest) > 45.0
+
+
+def test_torsion_is_refused_on_a_convex_finger_and_when_negative():
+    w = graspcore.World()
+    with pytest.raises(ValueError, match="torsion"):
+        w.add_finger(torsion=-0.01)
+    with pytest.raises(ValueError, match="torsion"):
+        w.add_finger(torsion=0.01, points=box_points(0.01, 0.01, 0.01))
+    assert w.finger_count == 0
