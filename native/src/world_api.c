@@ -607,7 +607,15 @@ int gc_world_finger_contacts(const gcWorld *w, int32_t finger, gcFingerContactPo
         o->state = c->state;
         put3(o->point, point);
         put3(o->normal, gc_finger_point_normal(f, c, &fr.R));
-        put3(o->force, c->force);
+        /* The spring and damper as finger_outputs sums them (xfca.c), on the state shown. */
+        gcVec3 force = gc_scale(gc_sub(point, anchor), f->stiffness);
+        if (f->damping > 0.0 && !b->is_static) {
+            gcVec3 v_point = gc_add(state.v, gc_cross(state.w, gc_sub(point, state.com)));
+            force = gc_madd(force, gc_sub(v_point, anchor_velocity), f->damping);
+        } else if (f->damping > 0.0) {
+            force = gc_madd(force, anchor_velocity, -f->damping);
+        }
+        put3(o->force, force);
     }
     return f->num_contacts;
 }

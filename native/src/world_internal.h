@@ -83,7 +83,6 @@ typedef struct gcFingerContact {
     int32_t sample;
     int32_t reversed;
     gcVec3 body_point_local;        /* reversed: the body's vertex, body frame */
-    gcVec3 force;                   /* output: this contact's force on the finger, world */
 } gcFingerContact;
 
 /* A sphere finger touches at most 8 parts at once; a convex finger's vertices together hold at

@@ -384,7 +384,6 @@ static void finger_update(gcWorld *w, int32_t id, double dt) {
     const gcHull *fh = &w->finger_hulls[id];
     f->hip_velocity = gc_scale(gc_sub(f->hip, f->hip_prev), 1.0 / dt);
     if (f->num_vertices) f->hip_angular_velocity = gc_scale(turn_between(f->q_prev, f->q), 1.0 / dt);
-    gcTransform ff = finger_transform(f);
     /* Existing contacts, compacting away the ones that ended. */
     int kept = 0;
     for (int i = 0; i < f->num_contacts; ++i) {
@@ -398,6 +397,7 @@ static void finger_update(gcWorld *w, int32_t id, double dt) {
             alive = update_contact(&sf, c, gc_inv_transform_point(&fr, gc_finger_tip(f, c->sample)), dt);
         } else {
             gcSurface sf = body_surface(b, fh, part->hull.radius);
+            gcTransform ff = finger_transform(f);
             gcVec3 v = gc_inv_transform_point(&ff, gc_transform_point(&fr, c->body_point_local));
             alive = update_contact(&sf, c, v, dt);
         }
@@ -437,27 +437,25 @@ static void finger_outputs(gcWorld *w, int32_t id) {
     f->contact_body = -1;
     f->state = GC_FINGER_FREE;
     for (int i = 0; i < f->num_contacts; ++i) {
-        gcFingerContact *c = &f->contacts[i];
+        const gcFingerContact *c = &f->contacts[i];
         const gcBody *b = &w->bodies[w->parts[c->part].body];
         gcTransform fr = gc_body_transform(b);
         gcVec3 tip, tip_velocity, go;
         gc_finger_contact_ends(f, c, &fr, &tip, &tip_velocity, &go);
-        gcVec3 stretch = gc_sub(go, tip);
-        gcVec3 fc = gc_scale(stretch, f->stiffness);
+        gcVec3 stretch = gc_sub(go, tip), dv = gc_v3(0, 0, 0);
         force = gc_madd(force, stretch, f->stiffness);
         if (f->damping > 0.0) {
             /* Damping on the HIP vs the body point at the god-object. */
             gcVec3 v_point = b->is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(go, b->state.com)));
-            gcVec3 dv = gc_sub(v_point, tip_velocity);
-            fc = gc_madd(fc, dv, f->damping);
+            dv = gc_sub(v_point, tip_velocity);
             force = gc_madd(force, dv, f->damping);
         }
-        c->force = fc;
         if (f->torsion > 0.0) { /* the soft fingertip's twist spring, on the pose the body reached */
             gcVec3 n = gc_mat3_mul_vec(&b->state.R, c->normal_local);
             torque = gc_madd(torque, n, -f->stiffness * f->torsion * f->torsion * twist_angle(f, c, &b->state.R, n));
         }
         if (f->num_vertices) {
+            gcVec3 fc = gc_madd(gc_scale(stretch, f->stiffness), dv, f->damping);
             torque = gc_add(torque, gc_cross(gc_sub(go, f->hip), fc));
             centroid = gc_madd(centroid, go, c->depth);
             weight += c->depth;
