@@ -314,11 +314,9 @@ static PyObject *World_finger_contacts(PyObject *obj, PyObject *args) {
     int finger;
     if (!PyArg_ParseTuple(args, "i", &finger) || !check_ready(self)) return NULL;
     gcFingerContactPoint points[64];
-    int n = gc_world_finger_contacts(self->world, finger, points, 64);
-    if (n < 0) {
-        PyErr_Format(PyExc_KeyError, "finger: no finger with id %d", finger);
-        return NULL;
-    }
+    int n = 0;
+    gcStatus st = gc_world_finger_contacts(self->world, finger, points, 64, &n);
+    if (st < 0) return raise_status(self, st);
     if (n > 64) n = 64;
     static const char *states[] = {"free", "stick", "slip"};
     PyObject *list = PyList_New(n);

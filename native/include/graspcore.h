@@ -145,7 +145,8 @@ gcStatus gc_world_residual_wrench(const gcWorld *world, int32_t body, double for
                                   double torque[3]);
 gcStatus gc_world_finger_force(const gcWorld *world, int32_t finger, double force[3]);
 /* Convex finger: the torque of its contacts about the HIP (sum (GO_i - HIP) x f_i), what a 6-DOF
- * device renders beside the force; 0 for a sphere finger. */
+ * device renders beside the force; a soft sphere fingertip's twist torque; 0 for a plain sphere.
+ * GC_ERR_BUSY while the runtime runs. */
 gcStatus gc_world_finger_torque(const gcWorld *world, int32_t finger, double torque[3]);
 /* One point of a finger's contact patch (a sphere finger has at most one per part it touches). */
 typedef struct gcFingerContactPoint {
@@ -159,8 +160,11 @@ typedef struct gcFingerContactPoint {
     double normal[3];       /* world, outward from the body */
     double force[3];        /* N, on the finger (the body gets the opposite at point) */
 } gcFingerContactPoint;
-/* Copies up to capacity contact points of the finger; returns how many it has (-1: bad finger). */
-int gc_world_finger_contacts(const gcWorld *world, int32_t finger, gcFingerContactPoint *out, int capacity);
+/* Copies up to capacity contact points of the finger; *out_count: how many it has (may exceed
+ * capacity). GC_ERR_BUSY while the runtime runs (its snapshots do not carry the patch; so for
+ * gc_world_finger_torque). */
+gcStatus gc_world_finger_contacts(const gcWorld *world, int32_t finger, gcFingerContactPoint *out, int capacity,
+                                  int *out_count);
 gcStatus gc_world_god_object(const gcWorld *world, int32_t finger, double position[3]);
 gcStatus gc_world_finger_state(const gcWorld *world, int32_t finger, gcFingerState *state,
                                int32_t *contact_body);

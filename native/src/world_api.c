@@ -567,9 +567,20 @@ gcStatus gc_world_finger_force(const gcWorld *w, int32_t finger, double force[3]
     return GC_OK;
 }
 
+/* The contact patch and its torque are not in the runtime's snapshots: refused while it runs
+ * rather than answered from the state the world had at gc_world_start. */
+static gcStatus check_patch_readable(const gcWorld *w, const char *what) {
+    if (w->locked) {
+        gc_world_set_error(w, "%s: the runtime's snapshots do not carry a finger's contact patch; stop the runtime "
+                              "first (World.stop / gc_world_stop)", what);
+        return GC_ERR_BUSY;
+    }
+    return GC_OK;
+}
+
 gcStatus gc_world_finger_torque(const gcWorld *w, int32_t finger, double torque[3]) {
     gcStatus st = gc_check_finger(w, finger);
-    if (st) return st;
+    if (st || (st = check_patch_readable(w, "finger_torque"))) return st;
     if (!torque) return gc_null_argument(w, "torque");
     put3(torque, shown_finger(w, finger)->torque);
     return GC_OK;
@@ -586,14 +597,21 @@ gcStatus gc_world_finger_pose(const gcWorld *w, int32_t finger, double pos[3], d
     return GC_OK;
 }
 
-int gc_world_finger_contacts(const gcWorld *w, int32_t finger, gcFingerContactPoint *out, int capacity) {
-    if (!w || finger < 0 || finger >= w->num_fingers) return -1;
-    const gcFinger *f = shown_finger(w, finger);
+gcStatus gc_world_finger_contacts(const gcWorld *w, int32_t finger, gcFingerContactPoint *out, int capacity,
+                                  int *out_count) {
+    gcStatus st = gc_check_finger(w, finger);
+    if (st || (st = check_patch_readable(w, "finger_contacts"))) return st;
+    if (!out_count) return gc_null_argument(w, "out_count");
+    if (capacity < 0 || (capacity > 0 && !out)) {
+        gc_world_set_error(w, "out: %d entries asked for and %s", capacity, out ? "a negative capacity" : "no array");
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    const gcFinger *f = &w->fingers[finger];
     for (int i = 0; i < f->num_contacts && i < capacity && out; ++i) {
         const gcFingerContact *c = &f->contacts[i];
         int32_t body = w->parts[c->part].body;
         const gcBody *b = &w->bodies[body];
-        gcBodyState state = w->shown ? w->shown->bodies[body] : b->state;
+        gcBodyState state = b->state;
         gcTransform fr;
         fr.R = state.R;
         fr.p = gc_sub(state.com, gc_mat3_mul_vec(&state.R, b->com_local));
@@ -617,7 +635,8 @@ int gc_world_finger_contacts(const gcWorld *w, int32_t finger, gcFingerContactPo
         }
         put3(o->force, force);
     }
-    return f->num_contacts;
+    *out_count = f->num_contacts;
+    return GC_OK;
 }
 
 gcStatus gc_world_god_object(const gcWorld *w, int32_t finger, double pos[3]) {

@@ -225,14 +225,17 @@ static void test_convex_finger(void) {
         GC_CHECK_NEAR(pos[2], (i ? 0.005 : 0.01) + 0.05 - sag, 2e-4, "carried body height");
         GC_CHECK(fabs(q[1]) < 1e-4 && fabs(q[2]) < 1e-4, "level: %g %g", q[1], q[2]);
         gcFingerContactPoint cps[8];
-        int n = gc_world_finger_contacts(w, pads[i], cps, 8);
+        int n = -1;
+        GC_CHECK(gc_world_finger_contacts(w, pads[i], cps, 8, &n) == GC_OK, "contacts");
         GC_CHECK(n == 4, "4 contact points, got %d", n);
         for (int k = 0; k < n && k < 8; ++k) GC_CHECK(cps[k].reversed == (i == 0), "reversed on the small box only");
         double force[3];
         gc_world_finger_force(w, pads[i], force);
         GC_CHECK_NEAR(force[2], -0.1 * 9.81, 1e-3, "the pad feels the weight");
     }
-    GC_CHECK(gc_world_finger_contacts(w, 7, NULL, 0) == -1, "unknown finger");
+    int count;
+    GC_CHECK(gc_world_finger_contacts(w, 7, NULL, 0, &count) == GC_ERR_UNKNOWN_ID, "unknown finger");
+    GC_CHECK(gc_world_finger_contacts(w, pads[0], NULL, 4, &count) == GC_ERR_INVALID_ARGUMENT, "no array");
     double flat[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0};
     fd.points = flat;
     fd.num_points = 4;
@@ -292,7 +295,8 @@ static void test_convex_finger_tumbling(void) {
         for (int i = 0; i < 6; ++i) finite &= isfinite(forces[i]) != 0;
         for (int k = 0; k < 2; ++k) {
             gcFingerContactPoint cps[16];
-            int n = gc_world_finger_contacts(w, f[k], cps, 16);
+            int n = 0;
+            GC_CHECK(gc_world_finger_contacts(w, f[k], cps, 16, &n) == GC_OK, "contacts");
             touched += n > 0;
             for (int c = 0; c < n && c < 16; ++c) {
                 reversed += cps[c].reversed;

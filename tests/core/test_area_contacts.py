@@ -477,3 +477,19 @@ def test_torsion_is_refused_on_a_convex_finger_and_when_negative():
     with pytest.raises(ValueError, match="torsion"):
         w.add_finger(torsion=0.01, points=box_points(0.01, 0.01, 0.01))
     assert w.finger_count == 0
+
+
+def test_contact_patch_is_refused_while_the_runtime_runs():
+    """The runtime's snapshots carry one god-object per finger, not the patch: finger_contacts and
+    finger_torque say so while it runs (rather than answer from the start), and answer after stop."""
+    w = graspcore.World()
+    palm = w.add_finger(position=(0, 0, -0.01), points=box_points(0.045, 0.04, 0.01), **PALM)
+    w.add_body(box_points(0.1, 0.1, PLATE_H), mass=PLATE_M, position=(0, 0, PLATE_H))
+    w.start(realtime=False)
+    w.advance(200)
+    with pytest.raises(RuntimeError, match="finger_contacts: the runtime's snapshots do not carry"):
+        w.finger_contacts(palm)
+    with pytest.raises(RuntimeError, match="finger_torque"):
+        w.finger_torque(palm)
+    w.stop()
+    assert len(w.finger_contacts(palm)) == 4
