@@ -144,7 +144,8 @@ def finger_desc(obj, depsgraph) -> FingerDesc:
     pad, a palm: docs/physics.md "Area contacts") in its rigid frame, Radius not used."""
     gl = obj.grasp_lab
     desc = FingerDesc(name=obj.name, position=np.array(obj.matrix_world.translation, dtype=np.float64),
-                      radius=gl.radius, stiffness=gl.stiffness, damping=gl.damping, channel=gl.channel)
+                      radius=gl.radius, stiffness=gl.stiffness, damping=gl.damping, channel=gl.channel,
+                      renderer=gl.renderer.lower(), cursor_mass=gl.cursor_mass)
     if obj.type == "MESH":
         t, q = _frame(obj.matrix_world)
         mesh = mesh_in_frame(obj, depsgraph, t, q)

@@ -89,7 +89,7 @@ def apply_overrides(context, overrides) -> list:
                 if gl.role == "STATIC":
                     raise CliError(f"--set {o}: {o.obj!r} is static (it has no mass to set)")
                 gl.mass_mode = "MASS"
-            setattr(gl, o.key, o.value)
+            setattr(gl, o.key, o.value.upper() if o.key == "renderer" else o.value)   # the enum's identifiers
         done.append(str(o))
     return done
 

@@ -15,6 +15,13 @@ ROLE_ITEMS = (
     ("FINGER", "Finger", "A fingertip: its position is the HIP of one device channel"),
 )
 
+RENDERER_ITEMS = (
+    ("XFCA", "God-Objects (xFCA)", "Friction-cone god-objects, one per convex part touched, their forces "
+                                   "blended at the seams between parts"),
+    ("CURSOR", "Light-Mass Cursor", "A light mass on the finger's spring and damper, kept outside all the "
+                                    "convex parts together by a constraint solve: no seams between parts"),
+)
+
 SHAPE_ITEMS = (
     ("HULL", "Convex Hull", "Collide with the convex hull of the mesh"),
     ("CHILDREN", "Child Parts", "A compound: the convex hulls of this object's child meshes "
@@ -60,6 +67,11 @@ class GRASPLAB_PG_object(bpy.types.PropertyGroup):
                              description="Coupling spring between HIP and god-object, N/m")
     damping: FloatProperty(name="Damping", default=defaults.finger("damping"), min=0.0, soft_max=50.0,
                            description="Coupling damping, N·s/m")
+    renderer: EnumProperty(name="Renderer", items=RENDERER_ITEMS, default=defaults.renderer().upper(),
+                           description="How the finger's force is found")
+    cursor_mass: FloatProperty(name="Cursor Mass", default=defaults.finger("cursor_mass"), min=0.0, soft_max=0.05,
+                               unit="MASS", precision=4,
+                               description="The light-mass cursor's mass (felt as inertia in free space)")
     channel: IntProperty(name="Device Channel", default=0, min=0, max=63,
                          description="Which fingertip of the input device drives this finger; "
                                      "fingers are ordered by channel, then by name")

@@ -68,6 +68,9 @@ class GRASPLAB_PT_object(_GraspPanel, bpy.types.Panel):
             layout.prop(gl, "radius")
             layout.prop(gl, "stiffness")
             layout.prop(gl, "damping")
+            layout.prop(gl, "renderer")
+            if gl.renderer == "CURSOR":
+                layout.prop(gl, "cursor_mass")
             layout.prop(gl, "channel", text="Channel")
 
 

@@ -113,7 +113,8 @@ def _size(text):
 
 MAX_SIZE_HELP = (f"refuse a recording that could take more than this (500M, 2G; default "
                  f"{limits.DEFAULT_MAX_SIZE / 1e9:g}G), or more than the free space")
-SET_HELP = ("OBJECT.PROPERTY=VALUE (mass, mu_s, mu_d, viscosity, radius, stiffness, damping) or a "
+SET_HELP = ("OBJECT.PROPERTY=VALUE (mass, mu_s, mu_d, viscosity, radius, stiffness, damping, cursor_mass, "
+            "renderer=xfca|cursor) or a "
             "scene setting: haptic_rate=HZ, gravity=X,Y,Z, gyroscopic=0|1; repeatable")
 
 
@@ -153,6 +154,17 @@ def _port(text):
 
 def _configure_info(p):
     p.add_argument("recording", metavar="REC.mcap")
+
+
+def _configure_continuity(p):
+    p.add_argument("recording", metavar="REC.mcap")
+    p.add_argument("--threshold", type=_positive_float(limits.MAX_CONTINUITY_THRESHOLD), default=None,
+                   metavar="N", help="per-tick force change listed with its cause (default 0.25 N)")
+    p.add_argument("--field", choices=("device_force", "force"), default="device_force",
+                   help="the force measured: what the device got (default) or the coupling force")
+    p.add_argument("--max-jumps", type=_positive_int, default=20, metavar="N",
+                   help="list at most N changes per finger (default 20)")
+    p.add_argument("--strict", action="store_true", help="exit 1 when a change above the threshold has no cause")
 
 
 def _configure_bake(p):
@@ -245,6 +257,7 @@ def _run_info(args, out, err):
         p("device      " + line)
     p("versions    " + ", ".join(f"{k} {v}" for k, v in (s["versions"] or {}).items()))
     p("events      " + (", ".join(f"{k} {v}" for k, v in sorted(s["events"].items())) or "none"))
+    p("continuity  " + _continuity_line(args.recording, s["ticks"]))
     if s["overflow"]:
         p(f"overflow    {s['overflow']} ticks dropped by the recorder (ring full)")
     if s["recorder_error"]:
@@ -252,6 +265,40 @@ def _run_info(args, out, err):
     if s["ended_by"]:
         p(f"ended       early, by {s['ended_by']} (clean: false)")
     p("damage      " + ("; ".join(s["damage"]) if s["damage"] else "none (summary, footer and data CRC intact)"))
+    return EXIT_OK
+
+
+# info reads every tick for its continuity line up to this many (about a second of reading);
+# a longer recording names the command that measures it, so info stays quick.
+INFO_CONTINUITY_TICKS = 200_000
+
+
+def _continuity_line(path, ticks: int) -> str:
+    """The force continuity of a recording in one line (reads its ticks)."""
+    from .continuity import force_continuity, summary_line
+    from .recording import RecordingError, open_recording
+    if ticks > INFO_CONTINUITY_TICKS:
+        return (f"not measured by info for {ticks} ticks (more than {INFO_CONTINUITY_TICKS}): "
+                f"grasp-lab continuity {path}")
+    try:
+        rec = open_recording(path)
+    except (RecordingError, OSError, ValueError) as ex:
+        return f"not measured ({ex})"
+    if len(rec.ticks) < 2:
+        return "not measured (fewer than 2 ticks)"
+    return summary_line(force_continuity(rec))
+
+
+def _run_continuity(args, out, err):
+    from .continuity import DEFAULT_THRESHOLD, force_continuity, report, unexplained
+    rec = _open(args.recording, err)
+    result = force_continuity(rec, threshold=args.threshold or DEFAULT_THRESHOLD, field=args.field)
+    print(report(result, max_jumps=args.max_jumps), file=out)
+    bad = unexplained(result)
+    if args.strict and bad:
+        name, j = bad[0]
+        raise CliError(f"{args.recording}: {len(bad)} force change(s) above {result['threshold']:g} N with no "
+                       f"cause, the first: {name} {j['delta']:.3f} N at tick {j['tick']}")
     return EXIT_OK
 
 
@@ -368,6 +415,8 @@ register_command("run", "run a scene headless (EXEC, deterministic; --realtime: 
                  _configure_run, _run_run, needs_blender=True)
 register_command("info", "duration, ticks, rates, fingers, bodies, parameters, events and damage of a "
                          "recording", _configure_info, _run_info)
+register_command("continuity", "per-tick change of each finger's force: its distribution and every change "
+                               "above a threshold with its cause", _configure_continuity, _run_continuity)
 register_command("bake", "bake a recording into a scene as keyframes", _configure_bake, _run_bake,
                  needs_blender=True)
 register_command("resim", "re-simulate a recording (with overrides); 'identical' or the divergence report",

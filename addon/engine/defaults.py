@@ -12,3 +12,8 @@ def body(name: str) -> float:
 
 def finger(name: str) -> float:
     return float(load().FINGER_DEFAULTS[name])
+
+
+def renderer() -> str:
+    """The default finger renderer: ``"xfca"`` (``"cursor"``: the light-mass cursor)."""
+    return str(load().FINGER_DEFAULTS["renderer"])

@@ -19,11 +19,13 @@ SET_RANGES = {
     "radius": (0.0, 1.0, "m"),
     "stiffness": (1.0, 1e6, "N/m"),
     "damping": (0.0, 1e4, "N s/m"),
+    "cursor_mass": (0.0, 1.0, "kg"),
 }
 
 # Arguments: (low, high); low exclusive where the name says "positive".
 MAX_DURATION = 86400.0          # s: a day of session (--duration)
 MAX_TOLERANCE = 1e3             # m (--tolerance)
+MAX_CONTINUITY_THRESHOLD = 1e4  # N per tick (continuity --threshold)
 MAX_EVERY = 1 << 31             # --every
 DEFAULT_MAX_SIZE = 10e9         # bytes a recording may take (--max-size)
 

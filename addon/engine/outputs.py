@@ -140,25 +140,43 @@ class AtomicFile:
         if os.path.isdir(self.path):
             raise OutputError(f"{path}: is a folder (name a file)")
         os.makedirs(os.path.dirname(self.path), exist_ok=True)
+        existed = os.path.exists(self.partial)
         fd = os.open(self.partial, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
+        locked = False
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as ex:
-            os.close(fd)
-            if ex.errno not in (errno.EWOULDBLOCK, errno.EAGAIN):
-                raise
-            who = _locker(self.partial)
-            raise OutputError(f"{path}: another Grasp Lab process{f' ({who})' if who else ''} is "
-                              f"writing it ({self.partial})") from None
-        if keep_partial is not None and os.fstat(fd).st_size > 0 and keep_partial(self.partial):
-            os.close(fd)
-            raise OutputError(f"{path}: {self.partial} is left by a session that did not finish "
-                              f"(`grasp-lab info` reads what it holds): move or delete it first")
-        os.ftruncate(fd, 0)
-        self.file = os.fdopen(fd, "w+b")
-        self.done = False
-        self.keep = False       # the partial file holds something worth keeping (close_unfinished)
-        _open.append(self)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                locked = True
+            except OSError as ex:
+                if ex.errno not in (errno.EWOULDBLOCK, errno.EAGAIN):
+                    raise
+                who = _locker(self.partial)
+                raise OutputError(f"{path}: another Grasp Lab process{f' ({who})' if who else ''} is "
+                                  f"writing it ({self.partial})") from None
+            if keep_partial is not None and os.fstat(fd).st_size > 0 and keep_partial(self.partial):
+                raise OutputError(f"{path}: {self.partial} is left by a session that did not finish "
+                                  f"(`grasp-lab info` reads what it holds): move or delete it first")
+            os.ftruncate(fd, 0)
+            self.done = False
+            self.keep = False       # the partial file holds something worth keeping (close_unfinished)
+            self.file = os.fdopen(fd, "w+b")
+            _open.append(self)
+        except BaseException:
+            # Refused, failed or interrupted (a signal) before this object was tracked: a
+            # partial file made here for nothing goes; one that was there, or that another
+            # process holds, stays.
+            if self in _open:
+                _open.remove(self)
+            if getattr(self, "file", None) is not None:
+                self.file.close()
+            else:
+                os.close(fd)
+            if locked and not existed:
+                try:
+                    os.unlink(self.partial)
+                except OSError:
+                    pass
+            raise
 
     def commit(self) -> str:
         """Flush, sync and rename into place. Returns the final path."""

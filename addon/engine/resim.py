@@ -14,9 +14,10 @@ from .limits import DEFAULT_MAX_SIZE, check_memory, check_recording_size, check_
 from .recording import EventDetector, Recording, RecordingWriter, make_header, scene_from_dict
 from .scene import build_world
 
-OBJECT_KEYS = ("mass", "mu_s", "mu_d", "viscosity", "radius", "stiffness", "damping")
+OBJECT_KEYS = ("mass", "mu_s", "mu_d", "viscosity", "radius", "stiffness", "damping", "cursor_mass", "renderer")
 BODY_KEYS = ("mass", "mu_s", "mu_d", "viscosity")
-FINGER_KEYS = ("radius", "stiffness", "damping")
+FINGER_KEYS = ("radius", "stiffness", "damping", "cursor_mass", "renderer")
+RENDERERS = ("xfca", "cursor")
 SCENE_KEYS = ("haptic_rate", "gravity", "gyroscopic")
 
 
@@ -70,6 +71,10 @@ def parse_override(text: str) -> Override:
                             f"{', '.join(OBJECT_KEYS)}) or a scene setting ({', '.join(SCENE_KEYS)})")
     if prop not in OBJECT_KEYS:
         raise OverrideError(f"--set {text!r}: unknown property {prop!r} (one of {', '.join(OBJECT_KEYS)})")
+    if prop == "renderer":
+        if value not in RENDERERS:
+            raise OverrideError(f"--set {text!r}: renderer expects {' or '.join(RENDERERS)}")
+        return Override(prop, value, obj)
     try:
         v = float(value)
     except ValueError:

@@ -77,6 +77,8 @@ class FingerDesc:
     # frame (m, scale applied), and that frame's orientation (w, x, y, z). None: a sphere of radius.
     points: np.ndarray | None = None
     orientation: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
+    renderer: str = field(default_factory=defaults.renderer)      # "xfca" or "cursor" (sphere fingers)
+    cursor_mass: float = field(default_factory=lambda: defaults.finger("cursor_mass"))
 
 
 @dataclass
@@ -265,7 +267,13 @@ def prepare(desc: SceneDesc) -> SceneDesc:
                                      f"(got {f.radius}, {f.stiffness}, {f.damping})")
         if not np.all(np.isfinite(f.position)):
             raise SceneError(f.name, "finger position is not finite")
+        if f.renderer not in ("xfca", "cursor") or not f.cursor_mass >= 0:
+            raise SceneError(f.name, f"finger needs renderer 'xfca' or 'cursor' and cursor mass >= 0 "
+                                     f"(got {f.renderer!r}, {f.cursor_mass})")
         if f.points is not None:
+            if f.renderer == "cursor":
+                raise SceneError(f.name, "a mesh finger is a convex finger, rendered by its god-objects (xFCA): "
+                                         "the light-mass cursor takes a sphere finger (an Empty)")
             p = _as_points(f.name, f.points)
             check_scale(f.name, p)
             check_hull_points(f.name, p)
@@ -322,7 +330,8 @@ def build_world(desc: SceneDesc, graspcore) -> WorldHandle:
         try:
             finger_ids.append(world.add_finger(radius=float(f.radius), stiffness=float(f.stiffness),
                                                damping=float(f.damping),
-                                               position=tuple(map(float, f.position)), **convex))
+                                               position=tuple(map(float, f.position)), **convex,
+                                               renderer=str(f.renderer), cursor_mass=float(f.cursor_mass)))
         except ValueError as ex:
             raise SceneError(f.name, f"rejected by the core: {ex}") from ex
     return WorldHandle(world=world, body_ids=body_ids, finger_ids=finger_ids, desc=desc)

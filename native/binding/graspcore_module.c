@@ -256,13 +256,23 @@ done:
 /* points: None (a sphere finger) or a C-contiguous float64 buffer of xyz rows (a convex finger). */
 static PyObject *World_add_finger(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
-    static char *kwlist[] = {"radius", "stiffness", "damping", "position", "points", "orientation", "torsion", NULL};
+    static char *kwlist[] = {"radius",      "stiffness", "damping",  "position",    "points",
+                             "orientation", "torsion",   "renderer", "cursor_mass", NULL};
     gcFingerDef def = gc_default_finger_def();
     PyObject *position = NULL, *points = NULL, *orientation = NULL;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|dddOOOd", kwlist, &def.radius, &def.stiffness, &def.damping,
-                                     &position, &points, &orientation, &def.torsion))
+    const char *renderer = NULL;
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|dddOOOdsd", kwlist, &def.radius, &def.stiffness, &def.damping,
+                                     &position, &points, &orientation, &def.torsion, &renderer, &def.cursor_mass))
         return NULL;
     if (!check_ready(self)) return NULL;
+    if (renderer && strcmp(renderer, "xfca") == 0)
+        def.renderer = GC_RENDERER_XFCA;
+    else if (renderer && strcmp(renderer, "cursor") == 0)
+        def.renderer = GC_RENDERER_CURSOR;
+    else if (renderer) {
+        PyErr_Format(PyExc_ValueError, "renderer: must be 'xfca' or 'cursor' (got '%s')", renderer);
+        return NULL;
+    }
     if (position && !parse_vec(position, 3, "position", def.position)) return NULL;
     if (orientation && orientation != Py_None && !parse_vec(orientation, 4, "orientation", def.orientation))
         return NULL;
@@ -1277,9 +1287,10 @@ static PyObject *World_serial_events(PyObject *obj, PyObject *args) {
 static PyMethodDef World_methods[] = {
     {"_add_body", World_add_body, METH_VARARGS, "Low-level add_body; use World.add_body."},
     {"add_finger", (PyCFunction)(void (*)(void))World_add_finger, METH_VARARGS | METH_KEYWORDS,
-     "add_finger(radius, stiffness, damping, position=(0,0,0), points=None, orientation=(1,0,0,0), torsion=0) -> "
-     "finger id; points: a convex finger's (n, 3) float64 points in its frame (None: a sphere); torsion: a soft "
-     "sphere fingertip's patch radius, m; defaults: FINGER_DEFAULTS"},
+     "add_finger(radius, stiffness, damping, position=(0,0,0), points=None, orientation=(1,0,0,0), torsion=0, "
+     "renderer='xfca', cursor_mass) -> finger id; points: a convex finger's (n, 3) float64 points in its frame "
+     "(None: a sphere); torsion: a soft sphere fingertip's patch radius, m; renderer 'cursor': sphere fingers "
+     "without torsion only; defaults: FINGER_DEFAULTS"},
     {"set_finger_pose", World_set_finger_pose, METH_VARARGS,
      "set_finger_pose(finger, (x, y, z), (w, x, y, z)): the whole HIP (a convex finger turns with it)."},
     {"finger_pose", World_finger_pose, METH_VARARGS, "finger_pose(finger) -> ((x, y, z), (w, x, y, z))"},
@@ -1383,8 +1394,8 @@ static int add_defaults(PyObject *m) {
     PyObject *body = Py_BuildValue("{s:d,s:d,s:d,s:d,s:d,s:d}", "mass", b.mass, "mu_s", b.mu_s, "mu_d", b.mu_d,
                                    "viscosity", b.viscosity, "linear_damping", b.linear_damping,
                                    "angular_damping", b.angular_damping);
-    PyObject *finger = Py_BuildValue("{s:d,s:d,s:d}", "radius", f.radius, "stiffness", f.stiffness, "damping",
-                                     f.damping);
+    PyObject *finger = Py_BuildValue("{s:d,s:d,s:d,s:s,s:d}", "radius", f.radius, "stiffness", f.stiffness, "damping",
+                                     f.damping, "renderer", "xfca", "cursor_mass", f.cursor_mass);
     int ok = body && finger && PyModule_AddObjectRef(m, "BODY_DEFAULTS", body) == 0 &&
              PyModule_AddObjectRef(m, "FINGER_DEFAULTS", finger) == 0;
     Py_XDECREF(body);

@@ -79,6 +79,11 @@ gcBodyDef gc_default_body_def(void);
 /* A convex finger (a pad, a palm, a tool tip) has at most this many hull vertices. */
 #define GC_MAX_FINGER_VERTICES 32
 
+/* How a finger's force is found (docs/physics.md): the friction-cone god-objects, one per
+ * convex part touched (xFCA), or the light-mass cursor: a mass on the finger's spring and
+ * damper, kept outside all the convex parts together by a constraint solve. */
+typedef enum gcFingerRenderer { GC_RENDERER_XFCA = 0, GC_RENDERER_CURSOR = 1 } gcFingerRenderer;
+
 typedef struct gcFingerDef {
     double radius;          /* fingertip sphere, m (0 = point), default 0.008; a convex finger's
                              * hull is inflated by it */
@@ -98,6 +103,8 @@ typedef struct gcFingerDef {
                              * rho (m) of the patch it presses, resisting a twist about the contact
                              * normal with stiffness k rho^2 up to mu F_n rho; default 0 = none.
                              * Sphere fingers only (a convex finger's patch has its own) */
+    gcFingerRenderer renderer; /* default GC_RENDERER_XFCA */
+    double cursor_mass;     /* kg, the cursor renderer's mass, >= 0, default 0.002 */
 } gcFingerDef;
 gcFingerDef gc_default_finger_def(void);
 
@@ -320,7 +327,9 @@ gcStatus gc_world_debug_stall(gcWorld *world, double seconds);
  * spring), device_force (after the safety layer), normal (of the reported contact, world; 0
  * when free) as 3 f64 each; per body pose (7 f64),
  * velocity (linear of the body frame origin, angular; 6 f64), residual wrench (6 f64); per
- * finger state i32, contact body i32 (-1 free). */
+ * finger state i32, contact body i32 (-1 free); per finger parts u32 (bit i: touches part i of
+ * its body, parts past 31 on bit 31); per finger orientation (w, x, y, z) 4 f64 (the identity
+ * for a sphere finger). Each field was added at the end: older records are their prefix. */
 size_t gc_tick_record_size(int num_bodies, int num_fingers);
 /* The stopped world as one record (after a gc_world_step); device_force = force. */
 gcStatus gc_world_tick_record(gcWorld *world, uint64_t tick, void *out, size_t size);

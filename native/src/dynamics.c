@@ -170,17 +170,19 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
             gcVec3 tip, tip_velocity, go;
             gc_finger_contact_ends(f, c, &frame, &tip, &tip_velocity, &go);
             gcVec3 r = gc_sub(go, b->state.com);
-            gcVec3 spring = gc_scale(gc_sub(tip, go), f->stiffness);
+            /* Weighted as the finger's force is (xfca.c: seams of a decomposed body; cursor.c). */
+            double k = f->stiffness * c->share, damping = f->damping * c->share;
+            gcVec3 spring = gc_scale(gc_sub(tip, go), k);
             /* Implicit part: the velocity-dependent terms move into the matrix. */
-            gcVec3 explicit_part = gc_madd(spring, tip_velocity, f->damping);
+            gcVec3 explicit_part = gc_madd(spring, tip_velocity, damping);
             force = gc_add(force, explicit_part);
             torque = gc_add(torque, gc_cross(r, explicit_part));
-            add_point_coupling(C, r, f->stiffness * dt * dt + f->damping * dt);
+            add_point_coupling(C, r, k * dt * dt + damping * dt);
             if (f->torsion > 0.0) {
-                /* A soft fingertip's twist spring k rho^2 about the normal, implicit as the springs:
-                 * the body's spin about n this step unwinds it by dt (n . w'). */
+                /* A soft fingertip's twist spring k rho^2 about the normal (weighted as its spring),
+                 * implicit as the springs: the body's spin about n this step unwinds it by dt (n . w'). */
                 gcVec3 n = gc_mat3_mul_vec(&b->state.R, c->normal_local);
-                double kt = f->stiffness * f->torsion * f->torsion;
+                double kt = k * f->torsion * f->torsion;
                 torque = gc_madd(torque, n, kt * c->twist);
                 double nv[3] = {n.x, n.y, n.z};
                 for (int i = 0; i < 3; ++i)

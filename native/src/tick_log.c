@@ -42,7 +42,7 @@ enum { REC_HEADER = 52 };
 size_t gc_tick_record_size(int num_bodies, int num_fingers) {
     if (num_bodies < 0 || num_fingers < 0) return 0;
     return REC_HEADER + sizeof(double) * (15 * (size_t)num_fingers + 19 * (size_t)num_bodies) +
-           sizeof(int32_t) * 2 * (size_t)num_fingers + sizeof(double) * 4 * (size_t)num_fingers;
+           sizeof(int32_t) * 3 * (size_t)num_fingers + sizeof(double) * 4 * (size_t)num_fingers;
 }
 
 #define FNV_PRIME 1099511628211ull
@@ -124,6 +124,10 @@ static uint64_t hash_finger(uint64_t h, const gcWorld *w, int i) {
     h = hash_bytes(h, &shown->hip, sizeof shown->hip);
     h = hash_bytes(h, &shown->force, sizeof shown->force);
     if (f->num_vertices) h = hash_bytes(h, &f->q, sizeof f->q); /* a convex finger's orientation */
+    if (f->renderer == GC_RENDERER_CURSOR) { /* its own state (xFCA fingers hash as before) */
+        h = hash_bytes(h, &f->cursor, sizeof f->cursor);
+        h = hash_bytes(h, &f->cursor_velocity, sizeof f->cursor_velocity);
+    }
     for (int c = 0; c < f->num_contacts; ++c) {
         const gcFingerContact *k = &f->contacts[c];
         if (f->num_vertices) h = hash_4(h, &k->sample), h = hash_4(h, &k->reversed);
@@ -153,7 +157,9 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
     unsigned char *hip = out + REC_HEADER, *go = hip + 24 * nf, *force = go + 24 * nf, *dev = force + 24 * nf;
     unsigned char *normal = dev + 24 * nf, *pose = normal + 24 * nf, *vel = pose + 56 * nb;
     unsigned char *wrench = vel + 48 * nb, *state = wrench + 48 * nb, *contact = state + 4 * nf;
-    unsigned char *orientation = contact + 4 * nf; /* last: older readers' fields keep their offsets */
+    /* parts (main's) then orientation: each field added at the end, so older readers' fields
+     * keep their offsets */
+    unsigned char *parts = contact + 4 * nf, *orientation = parts + 4 * nf;
     uint64_t hash = hash_time_bodies(w);
     memcpy(out, &tick, 8);
     memcpy(out + 8, &w->time, 8);
@@ -175,6 +181,13 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
         int32_t s = (int32_t)f->state;
         memcpy(state + 4 * i, &s, 4);
         memcpy(contact + 4 * i, &f->contact_body, 4);
+        /* The convex parts touched, by index in their body: a change is a change of part. */
+        uint32_t mask = 0;
+        for (int c = 0; c < f->num_contacts; ++c) {
+            int32_t k = f->contacts[c].part - w->bodies[w->parts[f->contacts[c].part].body].first_part;
+            mask |= 1u << (k < 31 ? k : 31);
+        }
+        memcpy(parts + 4 * i, &mask, 4);
         double q[4] = {f->q.w, f->q.x, f->q.y, f->q.z};
         memcpy(orientation + 32 * i, q, 32);
     }

@@ -59,6 +59,8 @@ gcFingerDef gc_default_finger_def(void) {
     def.radius = 0.008;
     def.stiffness = 1000.0;
     def.orientation[0] = 1.0;
+    def.renderer = GC_RENDERER_XFCA;
+    def.cursor_mass = 0.002;
     return def;
 }
 
@@ -346,6 +348,21 @@ gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_fi
         gc_world_set_error(w, "torsion: must be a finite number >= 0, and 0 for a convex finger (got %g)", def->torsion);
         return GC_ERR_INVALID_ARGUMENT;
     }
+    if (def->renderer != GC_RENDERER_XFCA && def->renderer != GC_RENDERER_CURSOR) {
+        gc_world_set_error(w, "renderer: must be GC_RENDERER_XFCA or GC_RENDERER_CURSOR (got %d)", (int)def->renderer);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    if (!isfinite(def->cursor_mass) || def->cursor_mass < 0) {
+        gc_world_set_error(w, "cursor_mass: must be a finite number >= 0 (got %g)", def->cursor_mass);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    /* The cursor is one point mass on a sphere finger's spring: a convex finger's patch and a
+     * soft fingertip's twist are xFCA god-objects' (docs/physics.md "Renderers and finger shapes"). */
+    if (def->renderer == GC_RENDERER_CURSOR && (def->points || def->num_points || def->torsion > 0)) {
+        gc_world_set_error(w, "renderer: the cursor renderer takes a sphere finger without torsion (got %s)",
+                           def->torsion > 0 ? "torsion > 0" : "points: a convex finger");
+        return GC_ERR_INVALID_ARGUMENT;
+    }
     if (w->num_fingers >= w->def.max_fingers) {
         gc_world_set_error(w, "max_fingers: the world holds at most %d fingers", w->def.max_fingers);
         return GC_ERR_CAPACITY;
@@ -387,7 +404,10 @@ gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_fi
     f->torsion = def->torsion;
     f->stiffness = def->stiffness;
     f->damping = def->damping;
+    f->renderer = def->renderer;
+    f->cursor_mass = def->cursor_mass;
     f->hip = f->hip_prev = f->god_object = gc_v3(def->position[0], def->position[1], def->position[2]);
+    f->cursor = f->hip;
     f->contact_body = -1;
     f->state = GC_FINGER_FREE;
     memcpy(&w->hip_array[3 * id], def->position, 3 * sizeof(double));
@@ -625,13 +645,15 @@ gcStatus gc_world_finger_contacts(const gcWorld *w, int32_t finger, gcFingerCont
         o->state = c->state;
         put3(o->point, point);
         put3(o->normal, gc_finger_point_normal(f, c, &fr.R));
-        /* The spring and damper as finger_outputs sums them (xfca.c), on the state shown. */
-        gcVec3 force = gc_scale(gc_sub(point, anchor), f->stiffness);
-        if (f->damping > 0.0 && !b->is_static) {
+        /* The spring and damper as the body receives them (dynamics.c), weighted by the contact's
+         * share (a seam's blend, the cursor's part of its constraint), on the state shown. */
+        double k = f->stiffness * c->share, damping = f->damping * c->share;
+        gcVec3 force = gc_scale(gc_sub(point, anchor), k);
+        if (damping > 0.0 && !b->is_static) {
             gcVec3 v_point = gc_add(state.v, gc_cross(state.w, gc_sub(point, state.com)));
-            force = gc_madd(force, gc_sub(v_point, anchor_velocity), f->damping);
-        } else if (f->damping > 0.0) {
-            force = gc_madd(force, anchor_velocity, -f->damping);
+            force = gc_madd(force, gc_sub(v_point, anchor_velocity), damping);
+        } else if (damping > 0.0) {
+            force = gc_madd(force, anchor_velocity, -damping);
         }
         put3(o->force, force);
     }

@@ -83,6 +83,7 @@ typedef struct gcFingerContact {
     int32_t sample;
     int32_t reversed;
     gcVec3 body_point_local;        /* reversed: the body's vertex, body frame */
+    double share;                   /* weight of its spring in the finger's force (xfca.c: seams) */
 } gcFingerContact;
 
 /* A sphere finger touches at most 8 parts at once; a convex finger's vertices together hold at
@@ -93,6 +94,9 @@ typedef struct gcFingerContact {
 typedef struct gcFinger {
     double radius, stiffness, damping;
     double torsion;                 /* soft fingertip: radius of its pressed patch (m), 0 = none */
+    gcFingerRenderer renderer;      /* xFCA god-objects, or the light-mass cursor (cursor.c) */
+    double cursor_mass;             /* kg, the cursor renderer's */
+    gcVec3 cursor, cursor_velocity; /* the cursor's centre and velocity, world (cursor renderer) */
     gcVec3 hip, hip_prev, hip_velocity;
     int hip_initialised;
     int num_contacts;

@@ -7,6 +7,8 @@
  * part inflated by the finger radius, so a point finger is radius 0. */
 #include "xfca.h"
 
+#include "cursor.h"
+
 #include <string.h>
 
 /* Conservative advancement is capped; a miss after the cap is treated as no contact
@@ -191,6 +193,68 @@ static gcTransform finger_transform(const gcFinger *f) {
     t.R = f->R;
     t.p = f->hip;
     return t;
+}
+
+/* Seams of a decomposed body. Where one finger touches several convex parts of one body,
+ * each part has its own GO. Two things go wrong when their springs are simply summed:
+ * near a seam between parts of one smooth surface, two GOs sit on nearly the same plane at
+ * nearly the same depth, so the force doubles; and at a seam, a part's GO on its own
+ * rounded edge lies inside the neighbouring part, off the body's surface, and pushes the
+ * finger back as a ridge would. So each spring i is weighted by
+ *   share_i = e_i / sum_j e_j max(0, n_i . n_j),   e_i = g_i d_i,
+ *   g_i = max(0, 1 - (b_i - b_min) / (GC_SEAM_BURIAL * D))
+ * over the finger's contacts on the same body: d depth, n plane normal, D the deepest d,
+ * b how deep the GO lies inside the other parts touched (inflated by the finger radius)
+ * and b_min the least b. Parallel planes at equal depth share the force (the mean); planes
+ * 90 degrees or more apart (a real crease, the two walls of a slot) add (share 1). Only a
+ * GO buried deeper than the others loses weight: in a concave crease every GO lies inside
+ * the other part (by the other's depth), so equal depths keep the plain sum there. A
+ * contact that starts or ends at zero depth, or sinks into a neighbour, weighs nothing
+ * then, so the total stays continuous. A lone contact has share exactly 1 (d / d), as
+ * before. docs/physics.md. */
+#define GC_SEAM_BURIAL 1.0
+
+static void blend_seams(const gcWorld *w, gcFinger *f) {
+    double effective[GC_MAX_CONTACTS_PER_FINGER], burial[GC_MAX_CONTACTS_PER_FINGER];
+    int shared[GC_MAX_CONTACTS_PER_FINGER];
+    for (int i = 0; i < f->num_contacts; ++i) {
+        const gcFingerContact *c = &f->contacts[i];
+        int32_t body = w->parts[c->part].body;
+        effective[i] = c->depth;
+        burial[i] = 0.0;
+        shared[i] = 0;
+        for (int j = 0; j < f->num_contacts; ++j) {
+            const gcFingerContact *o = &f->contacts[j];
+            if (j == i || w->parts[o->part].body != body) continue;
+            shared[i] = 1;
+            gcVec3 n;
+            burial[i] = fmax(burial[i], -tip_query(&w->parts[o->part].hull, c->go_local, f->radius, &n));
+        }
+    }
+    for (int i = 0; i < f->num_contacts; ++i) {
+        if (!shared[i]) continue;
+        const gcFingerContact *c = &f->contacts[i];
+        int32_t body = w->parts[c->part].body;
+        double deepest = 0.0, least = burial[i];
+        for (int j = 0; j < f->num_contacts; ++j) {
+            if (w->parts[f->contacts[j].part].body != body) continue;
+            deepest = fmax(deepest, f->contacts[j].depth);
+            least = fmin(least, burial[j]);
+        }
+        double sunk = burial[i] - least;
+        if (sunk > 0.0) effective[i] = c->depth * fmax(0.0, 1.0 - sunk / (GC_SEAM_BURIAL * deepest));
+    }
+    for (int i = 0; i < f->num_contacts; ++i) {
+        gcFingerContact *c = &f->contacts[i];
+        int32_t body = w->parts[c->part].body;
+        double overlap = 0.0;
+        for (int j = 0; j < f->num_contacts; ++j) {
+            const gcFingerContact *o = &f->contacts[j];
+            if (w->parts[o->part].body != body) continue;
+            overlap += effective[j] * (j == i ? 1.0 : fmax(0.0, gc_dot(c->normal_local, o->normal_local)));
+        }
+        c->share = overlap > 0.0 ? effective[i] / overlap : 0.0;
+    }
 }
 
 /* Two convex shapes touch from one side: a new contact of a convex finger with a part whose
@@ -413,6 +477,7 @@ static void finger_update(gcWorld *w, int32_t id, double dt) {
         if (f->torsion > 0.0)
             for (int i = 0; i < f->num_contacts; ++i)
                 update_twist(f, &w->bodies[w->parts[f->contacts[i].part].body], &f->contacts[i], i >= existing);
+        blend_seams(w, f);
         return;
     }
     /* A convex finger: every hull vertex is a fingertip of its own, and every body vertex inside
@@ -420,6 +485,9 @@ static void finger_update(gcWorld *w, int32_t id, double dt) {
     for (int32_t s = 0; s < f->num_vertices && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++s)
         find_new_contacts(w, f, s, GC_MAX_FINGER_CONTACTS, dt);
     find_reversed_contacts(w, f, fh, dt);
+    /* Its points are a patch, not parts of one surface seen twice: no seam blend, each spring
+     * whole (docs/physics.md "Renderers and finger shapes"). */
+    for (int i = 0; i < f->num_contacts; ++i) f->contacts[i].share = 1.0;
 }
 
 /* Force rendered to the device and the finger's reported GO/state: a sphere finger reports its
@@ -442,20 +510,23 @@ static void finger_outputs(gcWorld *w, int32_t id) {
         gcTransform fr = gc_body_transform(b);
         gcVec3 tip, tip_velocity, go;
         gc_finger_contact_ends(f, c, &fr, &tip, &tip_velocity, &go);
+        /* A sphere finger's springs on one body's parts weighted at seams (blend_seams); a convex
+         * finger's share is 1. */
+        double k = f->stiffness * c->share, damping = f->damping * c->share;
         gcVec3 stretch = gc_sub(go, tip), dv = gc_v3(0, 0, 0);
-        force = gc_madd(force, stretch, f->stiffness);
+        force = gc_madd(force, stretch, k);
         if (f->damping > 0.0) {
             /* Damping on the HIP vs the body point at the god-object. */
             gcVec3 v_point = b->is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(go, b->state.com)));
             dv = gc_sub(v_point, tip_velocity);
-            force = gc_madd(force, dv, f->damping);
+            force = gc_madd(force, dv, damping);
         }
         if (f->torsion > 0.0) { /* the soft fingertip's twist spring, on the pose the body reached */
             gcVec3 n = gc_mat3_mul_vec(&b->state.R, c->normal_local);
-            torque = gc_madd(torque, n, -f->stiffness * f->torsion * f->torsion * twist_angle(f, c, &b->state.R, n));
+            torque = gc_madd(torque, n, -k * f->torsion * f->torsion * twist_angle(f, c, &b->state.R, n));
         }
         if (f->num_vertices) {
-            gcVec3 fc = gc_madd(gc_scale(stretch, f->stiffness), dv, f->damping);
+            gcVec3 fc = gc_madd(gc_scale(stretch, k), dv, damping);
             torque = gc_add(torque, gc_cross(gc_sub(go, f->hip), fc));
             centroid = gc_madd(centroid, go, c->depth);
             weight += c->depth;
@@ -482,9 +553,19 @@ static void finger_outputs(gcWorld *w, int32_t id) {
 }
 
 void gc_xfca_update(gcWorld *w, double dt) {
-    for (int32_t i = 0; i < w->num_fingers; ++i) finger_update(w, i, dt);
+    for (int32_t i = 0; i < w->num_fingers; ++i) {
+        if (w->fingers[i].renderer == GC_RENDERER_CURSOR)
+            gc_cursor_finger_update(w, &w->fingers[i], dt);
+        else
+            finger_update(w, i, dt);
+    }
 }
 
 void gc_xfca_outputs(gcWorld *w) {
-    for (int32_t i = 0; i < w->num_fingers; ++i) finger_outputs(w, i);
+    for (int32_t i = 0; i < w->num_fingers; ++i) {
+        if (w->fingers[i].renderer == GC_RENDERER_CURSOR)
+            gc_cursor_finger_outputs(w, i);
+        else
+            finger_outputs(w, i);
+    }
 }

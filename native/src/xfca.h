@@ -1,4 +1,5 @@
-/* xFCA, the friction-cone god-object algorithm (xfca.c), above the body layer and geometry. */
+/* xFCA, the friction-cone god-object algorithm (xfca.c), above the body layer, geometry and
+ * the cursor renderer (cursor.c), to which it hands the fingers that use it. */
 #ifndef GC_XFCA_H
 #define GC_XFCA_H
 

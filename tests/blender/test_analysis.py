@@ -8,9 +8,7 @@ import math
 
 import numpy as np
 import pytest
-import trimesh
 
-import graspcore
 import recordings
 from addon.engine import analysis, cli, recording, scene
 
@@ -22,6 +20,7 @@ X = HALF + R - SQUEEZE               # HIP x of a finger squeezing a side face b
 
 def box_scene(fingers, mass=MASS, mu=(0.8, 0.6), damping=2.0):
     """A box of side SIDE at the origin (no table) and fingers with HIPs at ``fingers``."""
+    import trimesh  # the dev venv's (this module is not in the multi-version set)
     d = scene.SceneDesc()
     tm = trimesh.creation.box((SIDE,) * 3)
     mesh = scene.MeshData(np.array(tm.vertices), np.array(tm.faces), source="Box")
@@ -33,6 +32,7 @@ def box_scene(fingers, mass=MASS, mu=(0.8, 0.6), damping=2.0):
 
 
 def record(path, desc, hips, seconds):
+    import graspcore  # the dev venv's (this module is not in the multi-version set)
     recordings.record_scene(path, graspcore, desc, hips, seconds)
     return recording.open_recording(str(path))
 
@@ -89,6 +89,7 @@ def test_pinch_under_gravity(pinch):
     """Held still: each finger presses k * squeeze = 3 N, carries half the weight tangentially
     (symmetry), the load is the weight; the box has sagged until the two sticking springs
     carry it: m g / (2 k) below the HIPs."""
+    import graspcore  # the dev venv's (this module is not in the multi-version set)
     table = analysis.analyse_recording(pinch)
     g = row_of(table, pinch, 2000)
     weight = MASS * G
@@ -196,6 +197,7 @@ def three(tmp_path_factory):
 def test_three_finger_grasp_in_closure(three):
     """Statically indeterminate (the box tilts a little under its weight), so the forces are
     checked to the tilt; the quality is the core routine's on the recorded contacts."""
+    import graspcore  # the dev venv's (this module is not in the multi-version set)
     table = analysis.analyse_recording(three, every=100)
     g = row_of(table, three, 1500)
     assert [c.finger for c in g.contacts] == [0, 1, 2]
@@ -309,6 +311,7 @@ def test_thinned_read_gives_the_same_numbers(lift):
 
 def test_cone_edges(three):
     """--edges K: the contacts' cones of K edges, as the core routine builds them."""
+    import graspcore  # the dev venv's (this module is not in the multi-version set)
     for k in (3, 16):
         table = analysis.analyse_recording(three, every=500, edges=k)
         g = row_of(table, three, 1500)

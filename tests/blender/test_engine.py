@@ -259,7 +259,9 @@ def test_convex_finger_desc_builds_a_convex_finger_and_round_trips_in_recordings
     assert w.finger_pose(1)[1] == (1, 0, 0, 0)
 
     data = recording.scene_to_dict(desc)
-    assert set(data["fingers"][1]) == {"name", "position", "radius", "stiffness", "damping", "channel"}
+    assert set(data["fingers"][1]) == {"name", "position", "radius", "stiffness", "damping", "channel",
+                                       "renderer", "cursor_mass"}                  # a sphere: no points
+    assert data["fingers"][0]["renderer"] == "xfca"
     back = recording.scene_from_dict(data)
     np.testing.assert_array_equal(back.fingers[0].points, desc.fingers[0].points)
     np.testing.assert_array_equal(back.fingers[0].orientation, desc.fingers[0].orientation)
@@ -274,3 +276,14 @@ def test_convex_finger_desc_builds_a_convex_finger_and_round_trips_in_recordings
 def test_bad_convex_finger_desc_names_the_finger(points, problem):
     with pytest.raises(scene.SceneError, match=f'"Palm": .*{problem}'):
         scene.prepare(scene.SceneDesc(fingers=[scene.FingerDesc("Palm", np.zeros(3), points=points)]))
+
+
+def test_convex_finger_with_the_cursor_renderer_is_refused_naming_it():
+    """The light-mass cursor renders sphere fingers; a Finger-role mesh is rendered by its
+    god-objects (docs/physics.md "Renderers and finger shapes"), and a sphere keeps the cursor."""
+    pad = np.array([[x, y, z] for x in (-0.01, 0.01) for y in (-0.01, 0.01) for z in (-0.002, 0.002)])
+    with pytest.raises(scene.SceneError, match='"Pad": .*cursor'):
+        scene.prepare(scene.SceneDesc(fingers=[scene.FingerDesc("Pad", np.zeros(3), points=pad, renderer="cursor")]))
+    desc = scene.prepare(scene.SceneDesc(fingers=[scene.FingerDesc("Pad", np.zeros(3), points=pad),
+                                                  scene.FingerDesc("Tip", np.ones(3), renderer="cursor")]))
+    assert [f.renderer for f in desc.fingers] == ["xfca", "cursor"]

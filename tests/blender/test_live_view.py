@@ -105,7 +105,8 @@ def snapshots(rec, every=33):
         t = rec.ticks[k]
         yield Snapshot(float(t["time"]), t["pose"].copy(), t["pose"][:, :3].copy(), t["wrench"][:, :3].copy(),
                        t["wrench"][:, 3:].copy(), t["hip"].copy(), t["god_object"].copy(), t["force"].copy(),
-                       t["state"].copy(), t["contact"].copy())
+                       t["state"].copy(), t["contact"].copy(), t["force"].copy(), t["normal"].copy(),
+                       t["velocity"].copy())
 
 
 def test_a_viewer_receives_the_advertised_channels_as_the_session_runs(pinch):

@@ -164,7 +164,9 @@ def test_an_output_that_is_an_input_is_refused_naming_both(files, tmp_path, comm
 
 def test_two_writers_of_one_path_the_second_is_refused(files, tmp_path):
     out = tmp_path / "two.mcap"
-    first = start("run", files["scene"], "--realtime", "--duration", "3", "--record", out)
+    # Long enough that the two refused commands (each a Blender start, seconds on a loaded
+    # machine) run while the first still writes.
+    first = start("run", files["scene"], "--realtime", "--duration", "12", "--record", out)
     try:
         partial = tmp_path / "two.mcap.partial"
         deadline = time.monotonic() + 60
