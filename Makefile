@@ -95,13 +95,17 @@ test: check-layers test-c test-c-asan test-c-tsan test-py test-blender test-gui
 
 # --- The main job -------------------------------------------------------------
 # (a) the core alone, a table in the terminal; (b) the sample scene headless in Blender
-# through the extension (EXEC session, baked .blend, recording, CSV, render) in build/demo.
-# `extension` (addon.mk) builds $(EXT_ZIP), which is defined after this point.
+# through the extension (EXEC session, baked .blend, recording, CSV, render) in build/demo;
+# (c) the showcase: every scene of the library run, recorded, baked, analysed, rendered and
+# plotted, with build/demo/index.html. `extension` (addon.mk) builds $(EXT_ZIP), which is
+# defined after this point.
 demo: core extension
 	@echo "== (a) the core alone: sample_scenes/pinch_and_lift.py"
 	$(PY) sample_scenes/pinch_and_lift.py
 	@echo "== (b) Blender, headless, through the extension: sample_scenes/demo_session.py"
 	GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) sample_scenes/demo_session.py --out $(BUILD)/demo
+	@echo "== (c) the scene library: sample_scenes/showcase.py"
+	GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) sample_scenes/showcase.py --out $(BUILD)/demo
 
 bench: core extension
 	$(PY) bench/run_bench.py

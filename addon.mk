@@ -8,7 +8,7 @@
 #                      focused subset on bpy 4.2 (.venv-bpy42) and 5.0.1 (.venv-bpy50).
 
 .PHONY: extension extension-validate test-blender test-gui test-blender-45 test-blender-42 \
-        test-blender-50 venv-bpy42 venv-bpy50 clean-extension sample-scenes scenes blender-docs-image \
+        test-blender-50 venv-bpy42 venv-bpy50 clean-extension sample-scenes scenes blender-docs-image docs-images \
         bench-blender
 
 EXT_VERSION := $(shell sed -n 's/^version *= *"\(.*\)"/\1/p' blender_manifest.toml | head -1)
@@ -96,6 +96,14 @@ scenes: $(VENV)/.core
 blender-docs-image: $(EXT_ZIP)
 	GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) sample_scenes/build_pinch_and_lift.py --frame 43 \
 	  --force-scale 0.01 --render docs/images/pinch_and_lift.png
+
+# The README's pictures (docs/images/demo_contact_sheet.png, gui_*.png): the demo's contact sheet,
+# and the GUI Blender of the tests walking through the README (tests/gui/docs_images.py).
+# Run again when the UI changes; commit the pictures.
+docs-images: $(EXT_ZIP)
+	GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) sample_scenes/showcase.py --out $(BUILD)/demo
+	@tests/gui/gui_blender.sh setup || echo "GUI Blender: not set up; docs_images.py says why"
+	GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) tests/gui/docs_images.py --demo $(BUILD)/demo --out docs/images
 
 bench-blender: $(EXT_ZIP)
 	GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) bench/bench_blender.py

@@ -104,6 +104,11 @@ def write_keys(obj, first_frame: float, arrays) -> int:
         kp.foreach_set("co", co)
         # Linear keys need no handles: no fc.update() (a quarter of a microsecond a key).
         kp.foreach_set("interpolation", np.full(n, LINEAR, dtype=np.int32))
+        # New keys come selected: thousands of selected keys make the first G or X in the
+        # Graph Editor move or delete the whole bake.
+        unselected = np.zeros(n, dtype=bool)
+        for prop in ("select_control_point", "select_left_handle", "select_right_handle"):
+            kp.foreach_set(prop, unselected)
         written += n
     return written
 

@@ -32,9 +32,14 @@ class BakeReport:
     baked: list = field(default_factory=list)       # object names keyed
     missing: list = field(default_factory=list)     # "body Box", "finger F0": not in the scene
     keys: int = 0
+    frame_end_was: int | None = None        # the scene's end frame before the bake moved it
+    frame_end: int | None = None
 
     def message(self) -> str:
         text = f"baked {len(self.baked)} objects over {self.frames} frames ({self.keys} keys)"
+        if self.frame_end_was is not None:
+            text += (f"; the scene's end frame is now {self.frame_end} (was {self.frame_end_was}): "
+                     "the recording is longer than the animation")
         if self.missing:
             text += ("; not in the scene (renamed or deleted), not baked: " + ", ".join(self.missing))
         return text
@@ -286,6 +291,7 @@ def bake_recording(context, rec: Recording, every_tick: bool = False, force_scal
         wm.progress_end()
     last = int(np.ceil(frames[-1]))
     if scene.frame_end < last:
+        report.frame_end_was, report.frame_end = scene.frame_end, last
         scene.frame_end = last
     return report
 

@@ -184,9 +184,10 @@ class GRASPLAB_OT_device_add(bpy.types.Operator):
         entry = entries.add()
         entry.kind = self.kind
         entry.port = self.port
-        if self.kind == "OPENGLOVES":
-            entry.num_fingers = 5
         entry.finger_offset = sum(e.num_fingers for e in list(entries)[:-1])
+        # A glove has five; another device drives the scene's fingers no device has yet.
+        n_fingers = sum(1 for o in context.view_layer.objects if o.grasp_lab.role == "FINGER")
+        entry.num_fingers = 5 if self.kind == "OPENGLOVES" else min(32, max(1, n_fingers - entry.finger_offset))
         frame = bpy.data.objects.new(f"Device Frame {len(entries)}", None)
         frame.empty_display_type = "ARROWS"
         frame.empty_display_size = 0.05
@@ -253,11 +254,13 @@ class GRASPLAB_PT_devices(bpy.types.Panel):
     bl_category = "Grasp"
     bl_label = "Devices"
     bl_parent_id = "GRASPLAB_PT_main"
-    bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
         layout = self.layout
-        layout.operator("grasp_lab.devices_refresh", icon="FILE_REFRESH")
+        row = layout.row(align=True)
+        row.operator("grasp_lab.devices_refresh", icon="FILE_REFRESH")
+        # A device by its port (an emulator's pseudo-terminal, a UDP address): typed in its entry.
+        row.operator("grasp_lab.device_add", text="Add Device", icon="ADD").port = ""
         for d in _discovered:
             row = layout.row()
             where = d.get("port") or d.get("path")
@@ -283,10 +286,10 @@ class GRASPLAB_PT_devices(bpy.types.Panel):
             col = layout.column()
             for line in status_lines(devices):
                 col.label(text=line)
-            row = layout.row(align=True)
+            row = layout.row(align=True)        # two to a row: "Forces On" / "Off" never cut
             row.operator("grasp_lab.device_forces", text="Forces On", icon="PLAY").on = True
             row.operator("grasp_lab.device_forces", text="Forces Off", icon="PAUSE").on = False
-            row.operator("grasp_lab.device_reconnect", icon="LINKED")
+            layout.operator("grasp_lab.device_reconnect", icon="LINKED")
         elif len(context.scene.grasp_lab_devices):
             layout.label(text="Devices connect when a live session starts", icon="INFO")
 

@@ -35,8 +35,27 @@ class GRASPLAB_OT_set_role(bpy.types.Operator):
         return {"FINISHED"}
 
 
+# The sides of a selected object a new fingertip goes to, in turn: -x, +x, -y, +y, top.
+FINGER_SIDES = ((0, -1.0), (0, 1.0), (1, -1.0), (1, 1.0), (2, 1.0))
+FINGER_SIZE_FRACTION = 0.05     # a fingertip at least this fraction of the object's size: seen
+
+
+def finger_placement(corners, n_existing, radius):
+    """(location, radius) of a new fingertip beside an object whose world bounding box has
+    ``corners``: touching the middle of one side (the n-th of FINGER_SIDES), not inside it,
+    and at least FINGER_SIZE_FRACTION of the object's size so that it is seen."""
+    lo = [min(c[i] for c in corners) for i in range(3)]
+    hi = [max(c[i] for c in corners) for i in range(3)]
+    radius = max(radius, FINGER_SIZE_FRACTION * max(h - l for h, l in zip(hi, lo)))
+    axis, sign = FINGER_SIDES[n_existing % len(FINGER_SIDES)]
+    loc = [(h + l) / 2 for h, l in zip(hi, lo)]
+    loc[axis] = (hi if sign > 0 else lo)[axis] + sign * radius
+    return loc, radius
+
+
 class GRASPLAB_OT_add_finger(bpy.types.Operator):
-    """Add a fingertip (a sphere empty with the Finger role) at the 3D cursor"""
+    """Add a fingertip (a sphere empty with the Finger role) beside the selected object, touching
+    it, or at the 3D cursor when no object is selected"""
     bl_idname = "grasp_lab.add_finger"
     bl_label = "Add Finger"
     bl_options = {"REGISTER", "UNDO"}
@@ -44,14 +63,25 @@ class GRASPLAB_OT_add_finger(bpy.types.Operator):
     def execute(self, context):
         prefs = get_prefs(context)
         fingers = [o for o in context.view_layer.objects if o.grasp_lab.role == "FINGER"]
+        target = context.active_object
+        if target is not None and (not target.select_get() or target.type != "MESH"
+                                   or target.grasp_lab.role == "FINGER"):
+            target = None
+        radius = prefs.finger_radius
+        if target is not None:
+            from mathutils import Vector
+            corners = [target.matrix_world @ Vector(c) for c in target.bound_box]
+            location, radius = finger_placement(corners, len(fingers), radius)
+        else:
+            location = context.scene.cursor.location
         obj = bpy.data.objects.new(f"Finger {len(fingers)}", None)
         obj.empty_display_type = "SPHERE"
-        obj.empty_display_size = prefs.finger_radius
-        obj.location = context.scene.cursor.location
+        obj.empty_display_size = radius
+        obj.location = location
         context.collection.objects.link(obj)
         gl = obj.grasp_lab
         gl.role = "FINGER"
-        gl.radius = prefs.finger_radius
+        gl.radius = radius
         gl.stiffness = prefs.finger_stiffness
         gl.channel = max([o.grasp_lab.channel + 1 for o in fingers], default=0)
         for o in context.selected_objects:
@@ -61,23 +91,39 @@ class GRASPLAB_OT_add_finger(bpy.types.Operator):
         return {"FINISHED"}
 
 
+# What the last Check found, shown under the Check button (a report popup would cover it):
+# scene name -> (ok, text).
+last_check = {}
+
+
 class GRASPLAB_OT_validate(bpy.types.Operator):
     """Check the grasp scene: meshes closed and outward, sane scale; report masses"""
     bl_idname = "grasp_lab.validate_scene"
     bl_label = "Check Grasp Scene"
 
+    def invoke(self, context, event):
+        return self._check(context, from_button=True)
+
     def execute(self, context):
+        return self._check(context, from_button=False)
+
+    def _check(self, context, from_button):
         try:
             desc, _, _ = convert.scene_description(context)
             prepare(desc)
         except SceneError as ex:
-            self.report({"ERROR"}, f"Grasp Lab: {ex}")
+            last_check[context.scene.name] = (False, str(ex))
+            # From the button: the panel shows it under the button, and the status bar; an
+            # error report would open a popup over the button. From a script: an error.
+            self.report({"WARNING"} if from_button else {"ERROR"}, f"Grasp Lab: {ex}")
             return {"CANCELLED"}
         n_dyn = sum(not b.static for b in desc.bodies)
         parts = ", ".join(f"{b.name} {b.mass_properties.mass * 1000:.1f} g"
                           for b in desc.bodies if not b.static)
-        self.report({"INFO"}, f"Grasp scene OK: {n_dyn} dynamic, {len(desc.bodies) - n_dyn} static, "
-                              f"{len(desc.fingers)} fingers" + (f" ({parts})" if parts else ""))
+        text = (f"Grasp scene OK: {n_dyn} dynamic, {len(desc.bodies) - n_dyn} static, "
+                f"{len(desc.fingers)} fingers" + (f" ({parts})" if parts else ""))
+        last_check[context.scene.name] = (True, text)
+        self.report({"INFO"}, text)
         return {"FINISHED"}
 
 

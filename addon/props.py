@@ -102,10 +102,10 @@ class GRASPLAB_PG_scene(bpy.types.PropertyGroup):
     display_objects: BoolProperty(name="Display Objects", default=True,
                                   description="Show god-objects and force/torque arrows as real "
                                               "objects in the 'Grasp Lab' collection (they render)")
-    force_scale: FloatProperty(name="Force Scale", default=0.02, min=0.0, soft_max=1.0,
-                               unit="LENGTH", description="Arrow length per newton")
-    torque_scale: FloatProperty(name="Torque Scale", default=1.0, min=0.0, soft_max=10.0,
-                                unit="LENGTH", description="Arrow length per newton-metre")
+    force_scale: FloatProperty(name="Force Scale (m/N)", default=0.02, min=0.0, soft_max=1.0, precision=3,
+                               description="Force arrow length in metres per newton (0.02: 1 N is a 2 cm arrow)")
+    torque_scale: FloatProperty(name="Torque Scale (m/N·m)", default=1.0, min=0.0, soft_max=10.0, precision=3,
+                                description="Torque arrow length in metres per newton-metre")
     record: BoolProperty(name="Record", default=False,
                          description="Record every haptic tick of each session to the recording folder (.mcap)")
     recording_folder: StringProperty(name="Recording Folder", default="//grasp_recordings/",

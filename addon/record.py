@@ -20,6 +20,20 @@ def default_path(settings) -> str:
     return os.path.join(folder, time.strftime("grasp_%Y%m%d_%H%M%S.mcap"))
 
 
+def latest_recording(settings) -> str:
+    """The recording a bake most likely wants: the last one made (or baked) here, else the
+    newest .mcap in the recording folder; "" when there is none."""
+    last = bpy.path.abspath(settings.last_recording) if settings.last_recording else ""
+    if last and os.path.isfile(last):
+        return last
+    folder = bpy.path.abspath(settings.recording_folder)
+    try:
+        found = [os.path.join(folder, f) for f in os.listdir(folder) if f.endswith(".mcap")]
+    except OSError:
+        return ""
+    return max(found, key=os.path.getmtime) if found else ""
+
+
 def session_recorder(session, path, threaded: bool, options: dict) -> SessionRecorder:
     """A recorder for a BlenderSession about to start (path None: the scene's recording folder)."""
     s = session.settings

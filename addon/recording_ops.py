@@ -2,11 +2,13 @@
 bake a recording (.mcap) into the scene (bake.py)."""
 from __future__ import annotations
 
+import os
+
 import bpy
 from bpy.props import BoolProperty, StringProperty
 from bpy_extras.io_utils import ImportHelper
 
-from . import bake, ui
+from . import bake, record, ui
 from .engine.recording import RecordingError, open_recording
 
 
@@ -21,6 +23,20 @@ class GRASPLAB_OT_import_recording(bpy.types.Operator, ImportHelper):
     filter_glob: StringProperty(default="*.mcap", options={"HIDDEN"})
     every_tick: BoolProperty(name="Every Tick", default=False,
                              description="A key at every haptic tick (subframes) instead of every frame")
+
+    def invoke(self, context, event):
+        # The file browser opens on the recording just made (or the newest in the recording
+        # folder), not on the .blend's folder and name.
+        s = context.scene.grasp_lab
+        latest = record.latest_recording(s)
+        if latest:
+            self.filepath = latest
+        else:
+            folder = bpy.path.abspath(s.recording_folder)
+            if os.path.isdir(folder):
+                self.filepath = os.path.join(folder, "")
+        context.window_manager.fileselect_add(self)
+        return {"RUNNING_MODAL"}
 
     def execute(self, context):
         try:
@@ -38,16 +54,89 @@ class GRASPLAB_OT_import_recording(bpy.types.Operator, ImportHelper):
         return {"FINISHED"}
 
 
+def baked_objects(context) -> list:
+    """The objects a bake keyed measures on: god-objects and force arrows (``gl_*`` properties)."""
+    return [o for o in context.view_layer.objects
+            if o.animation_data is not None and o.animation_data.action is not None
+            and any(k.startswith("gl_") for k in o.keys())]
+
+
+class GRASPLAB_OT_show_curves(bpy.types.Operator):
+    """Show the baked measures (grip, load, closure, epsilon, friction use, states: the gl_
+    properties) in a Graph Editor: selects the objects that carry them, turns the timeline into
+    a Graph Editor if none is open, and frames the curves"""
+    bl_idname = "grasp_lab.show_curves"
+    bl_label = "Show Curves"
+    bl_options = {"REGISTER", "UNDO"}
+
+    @classmethod
+    def poll(cls, context):
+        return bool(baked_objects(context))
+
+    def execute(self, context):
+        objs = baked_objects(context)
+        for o in context.selected_objects:
+            o.select_set(False)
+        for o in objs:
+            # Display objects are made unselectable by a session (a click on a fingertip goes to
+            # the finger, not its god-object); the Graph Editor lists selected objects only.
+            o.hide_select = False
+            o.select_set(True)
+        context.view_layer.objects.active = objs[0]
+        area = _graph_editor(context)
+        if area is not None:
+            space = area.spaces.active
+            space.dopesheet.show_only_selected = True
+            space.dopesheet.filter_text = "gl_"          # the measures, not the transforms
+            region = next(r for r in area.regions if r.type == "WINDOW")
+            with context.temp_override(area=area, region=region):
+                bpy.ops.graph.view_all()
+        self.report({"INFO"}, f"Grasp Lab: the measures of {len(objs)} objects" +
+                    (" in the Graph Editor" if area is not None else " selected (open a Graph Editor)"))
+        return {"FINISHED"}
+
+
+def _graph_editor(context):
+    """A Graph Editor of the window: one that is open, else the bottom 40 % of the largest 3D
+    viewport split off as one (the timeline is too short to read curves in)."""
+    window = context.window
+    screen = window.screen if window is not None else None
+    if screen is None:
+        return None
+    area = next((a for a in screen.areas if a.type == "GRAPH_EDITOR"), None)
+    if area is not None:
+        return area
+    views = [a for a in screen.areas if a.type == "VIEW_3D"]
+    if not views:
+        return None
+    view = max(views, key=lambda a: a.width * a.height)
+    before = set(screen.areas[:])
+    with context.temp_override(window=window, screen=screen, area=view):
+        bpy.ops.screen.area_split(direction="HORIZONTAL", factor=0.4)
+    new = [a for a in screen.areas if a not in before]
+    if not new:
+        return None
+    # The split's new area is the lower one when the factor is below a half.
+    area = min([view] + new, key=lambda a: a.y)
+    area.type = "GRAPH_EDITOR"
+    area.ui_type = "FCURVES"
+    area.spaces.active.show_region_ui = False       # the curves the whole width
+    return area
+
+
 def _menu(self, context):
     self.layout.operator(GRASPLAB_OT_import_recording.bl_idname, text="Grasp Lab Recording (.mcap)")
 
 
 def _panel(self, context):
-    self.layout.operator(GRASPLAB_OT_import_recording.bl_idname, text="Bake Recording", icon="IMPORT")
+    row = self.layout.row(align=True)
+    row.operator(GRASPLAB_OT_import_recording.bl_idname, text="Bake Recording", icon="IMPORT")
+    row.operator(GRASPLAB_OT_show_curves.bl_idname, icon="GRAPH")
 
 
 def register():
     bpy.utils.register_class(GRASPLAB_OT_import_recording)
+    bpy.utils.register_class(GRASPLAB_OT_show_curves)
     bpy.types.TOPBAR_MT_file_import.append(_menu)
     ui.GRASPLAB_PT_recording.append(_panel)
 
@@ -55,4 +144,5 @@ def register():
 def unregister():
     ui.GRASPLAB_PT_recording.remove(_panel)
     bpy.types.TOPBAR_MT_file_import.remove(_menu)
+    bpy.utils.unregister_class(GRASPLAB_OT_show_curves)
     bpy.utils.unregister_class(GRASPLAB_OT_import_recording)

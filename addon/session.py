@@ -365,6 +365,19 @@ def store_rest_poses(context, links):
             obj.grasp_lab.has_rest = True
 
 
+def moved_from_rest(context, tolerance: float = 1e-6) -> list:
+    """Dynamic bodies that are not where the last session started them (Reset Bodies puts
+    them back)."""
+    out = []
+    for obj in context.view_layer.objects:
+        gl = obj.grasp_lab
+        if gl.has_rest and gl.role == "DYNAMIC":
+            now = [v for row in obj.matrix_world for v in row]
+            if max(abs(a - b) for a, b in zip(now, gl.rest_matrix)) > tolerance:
+                out.append(obj)
+    return out
+
+
 def restore_rest_poses(context) -> int:
     """Put bodies back where the last session started them. Returns how many moved."""
     from mathutils import Matrix
@@ -400,6 +413,8 @@ class GRASPLAB_OT_session(bpy.types.Operator):
         return _active is None and context.scene is not None
 
     def _start(self, context, live):
+        from .ops import last_check
+        last_check.pop(context.scene.name, None)        # a session checks the scene again
         try:
             return BlenderSession(context, live=live, duration=self.duration, reset=self.reset)
         except (SceneError, ValueError) as ex:

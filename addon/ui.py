@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import bpy
 
-from . import session
+from . import ops, session
 from .engine import grasp_display
 
 
@@ -12,6 +12,8 @@ def wrapped_labels(layout, context, lines, icon_first="NONE"):
     the interface font where it can be (a window), else at about 6.5 px a character."""
     scale = context.preferences.system.ui_scale
     width = (context.region.width if context.region else 300) - 40 * scale   # panel and box margins
+    if icon_first != "NONE":
+        width -= 50 * scale             # the icon before the text and its padding (measured on screen)
     measure = None
     if not bpy.app.background:
         import blf
@@ -39,6 +41,10 @@ class GRASPLAB_PT_main(_GraspPanel, bpy.types.Panel):
         row = layout.row(align=True)
         row.operator("grasp_lab.add_finger", icon="EMPTY_AXIS")
         row.operator("grasp_lab.validate_scene", text="Check", icon="CHECKMARK")
+        check = ops.last_check.get(context.scene.name)
+        if check is not None:
+            ok, text = check
+            wrapped_labels(layout.box(), context, [text], icon_first="CHECKMARK" if ok else "ERROR")
 
 
 class GRASPLAB_PT_object(_GraspPanel, bpy.types.Panel):
@@ -111,20 +117,34 @@ class GRASPLAB_PT_session(_GraspPanel, bpy.types.Panel):
         col.use_property_split = True
         col.use_property_decorate = False
         col.prop(s, "duration")
+        if s.duration == 0:
+            scene = context.scene
+            fps = scene.render.fps / scene.render.fps_base
+            col.label(text=f"0 s: the animation, frames {scene.frame_start}–{scene.frame_end} "
+                           f"({(scene.frame_end - scene.frame_start) / fps:.1f} s)")
         col.prop(s, "loop")
         col.prop(s, "bake")
         col.prop(s, "display_objects")
         sub = col.column(align=True)
         sub.active = s.display_objects
-        sub.prop(s, "force_scale")
-        sub.prop(s, "torque_scale")
+        sub.prop(s, "force_scale", text="Force m/N")
+        sub.prop(s, "torque_scale", text="Torque m/N·m")
         col.prop(s, "live_view")
-        sub = col.column(align=True)
-        sub.active = s.live_view
-        sub.prop(s, "live_view_port")
-        sub.prop(s, "live_view_bind")
+        if s.live_view:                     # its address only when it is on: a shorter panel
+            sub = col.column(align=True)
+            sub.prop(s, "live_view_port")
+            sub.prop(s, "live_view_bind")
+        moved = session.moved_from_rest(context) if active is None else []
+        if moved:
+            # After a session the bodies hang where it left them: say so, and offer the way back.
+            box = layout.box()
+            text = (f"{moved[0].name} is where the session left it" if len(moved) == 1 else
+                    f"{len(moved)} bodies are where the session left them")
+            wrapped_labels(box, context, [text], icon_first="INFO")
+            box.operator("grasp_lab.reset", icon="LOOP_BACK", depress=True)
         row = layout.row(align=True)
-        row.operator("grasp_lab.reset", icon="LOOP_BACK")
+        if not moved:
+            row.operator("grasp_lab.reset", icon="LOOP_BACK")
         row.operator("grasp_lab.clear_display", text="Clear Display", icon="TRASH")
         res = session.last_result
         if active is None and res is not None and res.stats:
@@ -149,7 +169,6 @@ class GRASPLAB_PT_loop(_GraspPanel, bpy.types.Panel):
 class GRASPLAB_PT_recording(_GraspPanel, bpy.types.Panel):
     bl_label = "Recording"
     bl_parent_id = "GRASPLAB_PT_main"
-    bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
         layout = self.layout

@@ -611,11 +611,13 @@ def _session_module(bpy):
     raise RuntimeError("the grasp_lab extension is not enabled")
 
 
-def run(bpy):
-    """Run the current scene (built by ``build``) headless, frame by frame; returns a Result."""
+def run(bpy, display_objects=False):
+    """Run the current scene (built by ``build``) headless, frame by frame; returns a Result.
+    ``display_objects``: god-objects and force/torque arrows in the scene too (the demo's);
+    recording and baking follow the scene's settings."""
     import numpy as np
     session = _session_module(bpy)
-    bpy.context.scene.grasp_lab.display_objects = False
+    bpy.context.scene.grasp_lab.display_objects = display_objects
     s = session.BlenderSession(bpy.context, live=False)
     snaps = [s.snapshot]
     frames = [s.frame_start]

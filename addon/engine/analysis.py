@@ -113,7 +113,11 @@ def _cross(a, b):
     """a x b over the last axis (np.cross, without its axis handling: this runs per snapshot)."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a1 * b2 - a2 * b1
+    out[..., 1] = a2 * b0 - a0 * b2
+    out[..., 2] = a0 * b1 - a1 * b0
+    return out
 
 
 def _rotate(q, v):
@@ -219,26 +223,30 @@ class GraspAnalysisError(ValueError):
         self.snapshot = snapshot
 
 
-def _mu_min(core, point, normal, mu, quality, starts, count, centers, radii, edges) -> np.ndarray:
+def _mu_min(core, point, normal, mu, quality, starts, count, centers, radii, edges, sets=None,
+            reuse=False) -> np.ndarray:
     """graspcore.grasp_mu_min of each set (a root search over tens of LPs), once per distinct set:
     a body at rest in a still hand gives the same set, bit for bit, tick after tick. What the
     set's quality at its own friction already says is not searched again: with every mu > 0 the
     edge wrenches span the same space at any friction, so a set of rank < 6 (two contacts, one)
     is in closure at none (inf); a set in closure at its own mu is in closure at the largest of
-    them (closure grows with each contact's mu), which bounds the search."""
+    them (closure grows with each contact's mu), which bounds the search. sets: the indices of
+    the sets to answer (default all; quality's rows of the others are not read, their entries
+    are left unset); reuse: grasp_mu_min's."""
     out = np.empty(len(starts))
     seen = {}
-    for i, (s, c) in enumerate(zip(starts, count)):
+    for i in range(len(starts)) if sets is None else sets:
+        s, c = starts[i], count[i]
         mu_set = mu[s:s + c]
         if quality["rank"][i] < 6 and np.all(mu_set > 0):
             out[i] = np.inf
             continue
-        bound = float(np.max(mu_set)) if quality["force_closure"][i] else MU_MAX
-        key = (point[s:s + c].tobytes(), normal[s:s + c].tobytes(), centers[i].tobytes(), float(radii[i]))
+        bound = min(float(np.max(mu_set)) if quality["force_closure"][i] else MU_MAX, MU_MAX)
+        key = (point[s:s + c].tobytes(), normal[s:s + c].tobytes(), centers[i].tobytes(), float(radii[i]), bound)
         if key not in seen:
             try:
                 seen[key] = core.grasp_mu_min(point[s:s + c], normal[s:s + c], centers[i], radii[i], edges=edges,
-                                              mu_max=min(bound, MU_MAX))
+                                              mu_max=bound, reuse=reuse)
             except ValueError as ex:
                 ex.set_index = i
                 raise
@@ -246,12 +254,57 @@ def _mu_min(core, point, normal, mu, quality, starts, count, centers, radii, edg
     return out
 
 
+def _remembered(core, memo, point, normal, mu, starts, count, centers, radii, edges, volume, reuse):
+    """grasp_quality_batch and mu_min of each set, the core asked only for sets not in memo (a
+    body at rest in a still hand gives the same set, bit for bit, display update after update);
+    memo then holds exactly these sets' answers."""
+    keys = [(point[s:s + c].tobytes(), normal[s:s + c].tobytes(), mu[s:s + c].tobytes(), centers[i].tobytes(),
+             float(radii[i]), edges, bool(volume)) for i, (s, c) in enumerate(zip(starts, count))]
+    new = [i for i, k in enumerate(keys) if k not in memo]
+    if len(new) == len(keys):
+        fresh = core.grasp_quality_batch(point, normal, mu, count, centers, radii, edges=edges, volume=volume,
+                                         reuse=reuse)
+    elif new:
+        rows = np.repeat(np.isin(np.arange(len(keys)), new), count)
+        try:
+            fresh = core.grasp_quality_batch(point[rows], normal[rows], mu[rows], count[new], centers[new],
+                                             radii[new], edges=edges, volume=volume, reuse=reuse)
+        except ValueError as ex:    # "set j: ..." of the new sets: set new[j] of the call's
+            numbered = re.match(r"set (\d+): (.*)", str(ex), re.S)
+            if not numbered:
+                raise
+            err = ValueError(numbered.group(2))
+            err.set_index = new[int(numbered.group(1))]
+            raise err from None
+    answers = {keys[i]: memo[keys[i]] for i in range(len(keys)) if keys[i] in memo}
+    if new:
+        by_set = np.zeros(len(keys), dtype=fresh.dtype)
+        by_set[new] = fresh
+        fresh_mu_min = _mu_min(core, point, normal, mu, by_set, starts, count, centers, radii, edges, new, reuse)
+        answers.update((keys[i], (fresh[j], fresh_mu_min[i])) for j, i in enumerate(new))
+    quality = np.empty(len(keys), dtype=fresh.dtype if new else answers[keys[0]][0].dtype) if keys else fresh
+    mu_min = np.empty(len(keys))
+    for i, k in enumerate(keys):
+        quality[i], mu_min[i] = answers[k]
+    memo.clear()
+    memo.update(answers)
+    return quality, mu_min
+
+
 def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_bodies, finger_radii,
-                   accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True) -> GraspTable:
+                   accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True,
+                   with_mu_min=True, memo=None, reuse=False) -> GraspTable:
     """The measures for T snapshots at once: poses (T, nb, 7), god_objects / forces / normals
     (T, nf, 3), states / contact_bodies (T, nf), finger_radii (nf,), accelerations (T, nb, 3)
     of the centres of mass or None (0: the load is the weight). ``volume=False``: the core's
-    fast path, without the 6-D hull (volume -1: not computed; every other measure the same)."""
+    fast path, without the 6-D hull (volume -1: not computed; every other measure the same).
+    ``with_mu_min=False`` skips mu_min (a search, most of the cost; NaN in the table): the
+    sweep's samples.
+    ``memo``: a dict kept by the caller between calls (the live view: one per session); a set
+    of contacts equal bit for bit to one of the last call's gets that call's core answers (the
+    core's answers depend on nothing else), and the dict then holds this call's sets only.
+    ``reuse``: graspcore.grasp_quality_batch's and grasp_mu_min's (a set within rounding of one
+    the core answered lately gets that answer re-certified, not a new search)."""
     core = _core()
     poses = np.asarray(poses, dtype=np.float64)
     god_objects = np.asarray(god_objects, dtype=np.float64)
@@ -290,15 +343,21 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
 
     # Sets: runs of equal (snapshot, body).
     key = t_idx * (nb + 1) + b_idx
-    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]]) if len(key) else np.zeros(0, np.int64)
-    count = np.diff(np.r_[starts, len(key)])
+    starts = np.flatnonzero(np.concatenate(([True], key[1:] != key[:-1]))) if len(key) else np.zeros(0, np.int64)
+    count = np.diff(np.append(starts, len(key)))
     set_t, set_b = t_idx[starts], b_idx[starts]
     set_of = np.repeat(np.arange(len(starts)), count)
     centers = centres_of_mass(models, poses[set_t])[np.arange(len(starts)), set_b]
     radii = np.array([m.radius for m in models] + [1.0])[set_b]
     try:
-        quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges, volume=volume)
-        mu_min = _mu_min(core, point, n_in, mu, quality, starts, count, centers, radii, edges)
+        if memo is None:
+            quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges, volume=volume,
+                                               reuse=reuse)
+            mu_min = _mu_min(core, point, n_in, mu, quality, starts, count, centers, radii, edges, reuse=reuse) \
+                if with_mu_min else np.full(len(starts), np.nan)
+        else:
+            quality, mu_min = _remembered(core, memo, point, n_in, mu, starts, count, centers, radii, edges,
+                                          volume, reuse)
     except ValueError as ex:
         # Name the snapshot and body whose contacts the core refused (the batch's message starts
         # with the set: "set 3: points: ...").
@@ -315,7 +374,7 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
         friction_needed = np.maximum.reduceat(needed, starts)
         min_margin = np.minimum.reduceat(margin, starts)
         at_min = np.flatnonzero(margin == min_margin[set_of])
-        first_at_min = at_min[np.r_[True, set_of[at_min][1:] != set_of[at_min][:-1]]]
+        first_at_min = at_min[np.concatenate(([True], set_of[at_min][1:] != set_of[at_min][:-1]))]
         min_finger = f_idx[first_at_min].astype(np.int32)
     else:
         grip = friction_needed = min_margin = np.zeros(0)
@@ -358,20 +417,23 @@ def body_grasps(table: GraspTable, sets=None) -> list:
 
 
 def analyse(models, poses, god_objects, forces, normals, states, contact_bodies, finger_radii,
-            accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True) -> list:
+            accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True, memo=None, reuse=False) -> list:
     """The measures of one snapshot: one BodyGrasp per dynamic body with at least one finger in
     contact. Arrays as in the tick record: poses (nb, 7), god_objects, forces (the coupling
     spring force the finger exerts), normals (nf, 3), states, contact_bodies (nf,), finger_radii
     (nf,); accelerations (nb, 3) of the centres of mass, or None (0: the load is the weight).
-    ``volume=False`` skips the grasp wrench space's volume (-1), the live view's choice."""
+    ``volume=False`` skips the grasp wrench space's volume (-1), the live view's choice; ``memo``
+    and ``reuse`` as in analyse_arrays."""
     one = lambda a, dtype=np.float64: np.asarray(a, dtype=dtype)[None]  # noqa: E731
     table = analyse_arrays(models, one(poses), one(god_objects), one(forces), one(normals),
                            one(states, np.int32), one(contact_bodies, np.int32), finger_radii,
-                           None if accelerations is None else one(accelerations), gravity, edges, volume)
+                           None if accelerations is None else one(accelerations), gravity, edges, volume=volume,
+                           memo=memo, reuse=reuse)
     return body_grasps(table)
 
 
-def analyse_recording(rec, every: int = 1, edges: int = 8, rows=None, chunk: int = 4096) -> GraspTable:
+def analyse_recording(rec, every: int = 1, edges: int = 8, rows=None, chunk: int = 4096,
+                      with_mu_min: bool = True, volume: bool = True) -> GraspTable:
     """The measures at the tick records of a Recording whose tick number is a multiple of
     ``every`` (all of them for 1), or at its records ``rows``, with the centres of mass's
     accelerations from the recorded velocities (each tick against the record before it: read
@@ -395,7 +457,8 @@ def analyse_recording(rec, every: int = 1, edges: int = 8, rows=None, chunk: int
         acc = recorded_accelerations(models, rec.ticks, r)
         try:
             table = analyse_arrays(models, t["pose"], t["god_object"], t["force"], t["normal"], t["state"],
-                                   t["contact"], radii, acc, gravity, edges)
+                                   t["contact"], radii, acc, gravity, edges, volume=volume,
+                                   with_mu_min=with_mu_min)
         except GraspAnalysisError as ex:
             if ex.snapshot is None:
                 raise

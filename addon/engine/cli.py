@@ -435,6 +435,15 @@ def _register_devices():
 _register_devices()
 
 
+def _register_sweep():
+    """sweep (engine/sweep.py, docs/sweeps.md)."""
+    from . import sweep
+    register_command("sweep", sweep.HELP, sweep.configure, sweep.run_command)
+
+
+_register_sweep()
+
+
 # ------------------------------------------------------------------------ dispatch
 
 def build_parser(prog=PROG) -> argparse.ArgumentParser:
@@ -556,7 +565,9 @@ def _signals_stop():
         yield
     finally:
         for sig, handler in old.items():
-            signal.signal(sig, handler)
+            # None: the host installed its handler in C (Blender's own), which Python cannot
+            # put back; the default then (`blender -c` exits after the command).
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
         set_stop_reason("")     # a later session in this process (Blender) ends as it ends
 
 

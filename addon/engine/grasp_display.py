@@ -56,6 +56,7 @@ class GraspMonitor:
         self.error = ""             # why the last update has no analysis (a refused contact set)
         self._prev = None           # (time, centre-of-mass velocities)
         self._acc = None
+        self._memo = {}             # the last update's core answers per contact set (analysis.analyse_arrays)
 
     def accelerations(self, snap) -> np.ndarray:
         if not self.models:                 # fingers only: nothing to hold
@@ -78,7 +79,8 @@ class GraspMonitor:
                 self.grasps = analysis.analyse(self.models, snap.poses, snap.god_objects, snap.spring_forces,
                                                snap.normals, snap.finger_states, snap.contacts,
                                                self.finger_radii, accelerations=acc, gravity=self.gravity,
-                                               edges=self.edges, volume=False)  # the HUD shows no volume
+                                               edges=self.edges, volume=False,  # the HUD shows no volume
+                                               memo=self._memo, reuse=True)
             except ValueError as ex:    # one display update without numbers; the session goes on
                 self.error = str(ex)
         self.cost_s = time.perf_counter() - t0

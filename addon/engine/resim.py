@@ -205,6 +205,28 @@ def compare(recorded: Recording, new_ticks: np.ndarray, tolerance: float, same_r
     return div
 
 
+STRETCH = 8192      # steps replayed in C per call (a few ms: Python handles signals in between)
+
+
+def replay(world, hips: np.ndarray, dt: float, has_start: bool = True, before: dict | None = None) -> np.ndarray:
+    """Step ``world`` once per row of ``hips`` ((steps, fingers, 3): each step's HIPs) and
+    return every tick's record; tick 0, the state before the first step, only ``if has_start``.
+    The stretches run in C (``World.step_hips``); ``before`` ({step: f(world)}, 0-based steps)
+    runs Python before those steps: the sweep's pushes."""
+    n = len(hips)
+    ticks = np.empty(n + 1, dtype=world.tick_dtype())       # every byte of a record is written
+    world._tick_record(ticks[:1], 0)
+    k = 0
+    for stop in sorted(k for k in (before or ()) if 0 <= k < n) + [n]:
+        while k < stop:     # at most STRETCH steps a call: signals (Ctrl-C, SIGTERM) are seen between
+            end = min(stop, k + STRETCH)
+            world.step_hips(hips[k:end], dt, ticks[k + 1:end + 1], first_tick=k + 1)
+            k = end
+        if stop < n:
+            before[stop](world)
+    return ticks if has_start else ticks[1:]
+
+
 def resimulate(recorded: Recording, graspcore, overrides=(), tolerance: float = 1e-6,
                record_path: str | None = None, compression: str = "lz4",
                max_size: float = DEFAULT_MAX_SIZE) -> ResimResult:
@@ -240,16 +262,7 @@ def resimulate(recorded: Recording, graspcore, overrides=(), tolerance: float = 
     has_start = int(recorded.ticks["tick"][0]) == 0
     if same_rate and has_start:
         hips = hips[1:]
-    ticks = np.zeros(len(hips) + 1, dtype=world.tick_dtype())
-    world._tick_record(ticks[:1], 0)
-    n_f = len(handle.finger_ids)
-    for k in range(len(hips)):
-        if n_f:
-            world.set_hips(hips[k])
-        world.step(dt)
-        world._tick_record(ticks[k + 1:k + 2], k + 1)
-    if not has_start:
-        ticks = ticks[1:]
+    ticks = replay(world, hips, dt, has_start)
     div = compare(recorded, ticks, tolerance, same_rate)
     header = make_header(desc, mode="resim", haptic_rate=rate, source=recorded.path,
                          fps=recorded.header["rates"].get("fps"), device=recorded.header.get("device"),

@@ -174,7 +174,8 @@ def check_hull_points(name: str, points: np.ndarray) -> None:
     centred = points - points.mean(axis=0)
     s = np.linalg.svd(centred, compute_uv=False)
     if s[0] <= 0 or s[-1] < 1e-9 * s[0]:
-        raise SceneError(name, "has zero volume: its vertices are flat (coplanar) or collinear")
+        raise SceneError(name, "has zero volume: its vertices are flat (coplanar) or collinear; give it "
+                                 "thickness (Solidify modifier, or extrude it)")
 
 
 def mesh_to_trimesh(mesh: MeshData):
@@ -202,7 +203,8 @@ def mesh_to_trimesh(mesh: MeshData):
     extent = float(np.max(tm.extents))
     volume = float(tm.volume)
     if abs(volume) <= MIN_VOLUME_FRACTION * extent ** 3:
-        raise SceneError(name, "has zero volume (flat or degenerate mesh)")
+        raise SceneError(name, "has zero volume (flat or degenerate mesh); give it thickness (Solidify "
+                               "modifier, or extrude it)")
     if volume < 0:
         raise SceneError(name, "mesh is inverted (normals point inward, negative volume); "
                                "recalculate normals outside")
@@ -296,12 +298,24 @@ class WorldHandle:
     desc: SceneDesc
 
 
-def build_world(desc: SceneDesc, graspcore) -> WorldHandle:
-    """Create a ``graspcore.World`` from a prepared description."""
+DEFAULT_MAX_CONTACTS = 2048     # graspcore.World's (graspcore.h)
+
+
+def build_world(desc: SceneDesc, graspcore, exact: bool = False) -> WorldHandle:
+    """Create a ``graspcore.World`` from a prepared description. ``exact``: capacities for just
+    this scene (a world made a thousand times over by a sweep: the default contact storage is
+    most of a world's making); contact pairs are capped as by default, so a run is the same
+    bit for bit (part pairs, the most there can be, or the default cap if that is fewer)."""
     n_b, n_f = len(desc.bodies), len(desc.fingers)
+    size = {}
+    if exact:
+        parts = sum(len(b.parts) for b in desc.bodies)
+        size = {"max_parts": max(1, parts),
+                "max_contacts": max(1, min(DEFAULT_MAX_CONTACTS, parts * (parts - 1) // 2))}
     world = graspcore.World(gravity=tuple(float(g) for g in desc.gravity),
                             gyroscopic=bool(desc.gyroscopic),
-                            max_bodies=max(256, n_b), max_fingers=max(32, n_f))
+                            max_bodies=max(256, n_b) if not exact else max(1, n_b),
+                            max_fingers=max(32, n_f) if not exact else max(1, n_f), **size)
     body_ids, finger_ids = [], []
     for b in desc.bodies:
         kw = dict(position=tuple(map(float, b.position)),

@@ -880,6 +880,46 @@ static PyObject *World_tick_record(PyObject *obj, PyObject *args) {
     Py_RETURN_NONE;
 }
 
+static PyObject *World_step_hips(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    PyObject *hips_obj, *out;
+    int steps, fingers;
+    double dt;
+    unsigned long long first_tick;
+    if (!PyArg_ParseTuple(args, "OiidOK", &hips_obj, &steps, &fingers, &dt, &out, &first_tick) || !check_ready(self))
+        return NULL;
+    if (steps < 0 || fingers < 0) {
+        PyErr_SetString(PyExc_ValueError, "hips: expected (steps, fingers, 3)");
+        return NULL;
+    }
+    Py_buffer h, b;
+    if (PyObject_GetBuffer(hips_obj, &h, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
+    if (!h.format || strcmp(h.format, "d") != 0 ||
+        (size_t)h.len < (size_t)steps * (size_t)fingers * 3 * sizeof(double)) {
+        PyBuffer_Release(&h);
+        PyErr_SetString(PyExc_ValueError, "hips: must be a C-contiguous float64 array of (steps, fingers, 3)");
+        return NULL;
+    }
+    size_t record = gc_tick_record_size(gc_world_body_count(self->world), gc_world_finger_count(self->world));
+    int records = out != Py_None;       /* None: the steps alone (benchmarks) */
+    if (records && !writable_buffer(out, &b, record * (size_t)steps, "out")) {
+        PyBuffer_Release(&h);
+        return NULL;
+    }
+    gcStatus st;
+    atomic_store(&self->busy, 1);
+    Py_BEGIN_ALLOW_THREADS
+    st = gc_world_step_hips(self->world, h.buf, fingers, steps, dt, first_tick, records ? b.buf : NULL,
+                            records ? (size_t)b.len : 0, NULL);
+    Py_END_ALLOW_THREADS
+    atomic_store(&self->busy, 0);
+    if (records) PyBuffer_Release(&b);
+    PyBuffer_Release(&h);
+    if (st < 0) return raise_status(self, st);
+    if (warn_status(self, st) < 0) return NULL;
+    Py_RETURN_NONE;
+}
+
 static PyObject *World_set_tick_log(PyObject *obj, PyObject *arg) {
     WorldObject *self = (WorldObject *)obj;
     if (!check_ready(self)) return NULL;
@@ -985,13 +1025,13 @@ static PyObject *grasp_quality_dict(const gcGraspQuality *q) {
                          "rank", (int)q->rank, "facets", (int)q->facets);
 }
 
-/* _grasp_quality(points, normals, mu, center, radius, edges, volume): float64 buffers of 3n, 3n, n, 3;
- * volume a bool (gcGraspDef.volume). */
+/* _grasp_quality(points, normals, mu, center, radius, edges, volume, reuse): float64 buffers of 3n,
+ * 3n, n, 3; volume and reuse bools (gcGraspDef.volume, .reuse). */
 static PyObject *module_grasp_quality(PyObject *mod, PyObject *args) {
     PyObject *po, *no, *mo, *co;
     double radius;
-    int edges, volume;
-    if (!PyArg_ParseTuple(args, "OOOOdip", &po, &no, &mo, &co, &radius, &edges, &volume)) return NULL;
+    int edges, volume, reuse;
+    if (!PyArg_ParseTuple(args, "OOOOdipp", &po, &no, &mo, &co, &radius, &edges, &volume, &reuse)) return NULL;
     GraspBuffers g = {.n = 0};
     PyObject *result = NULL;
     if (take_buffer(&g, mo, 'd', -1, "mu", 0)) {
@@ -1005,6 +1045,7 @@ static PyObject *module_grasp_quality(PyObject *mod, PyObject *args) {
                 gcGraspDef def = gc_default_grasp_def();
                 def.edges = edges;
                 def.volume = volume;
+                def.reuse = reuse;
                 gcGraspQuality q;
                 gcStatus st;
                 Py_BEGIN_ALLOW_THREADS
@@ -1019,12 +1060,13 @@ static PyObject *module_grasp_quality(PyObject *mod, PyObject *args) {
     return result;
 }
 
-/* _grasp_quality_batch(points, normals, mu, counts (int32), centers, radii, edges, volume, out): out a
- * writable buffer of len(counts) * GRASP_QUALITY_SIZE bytes, filled with gcGraspQuality records. */
+/* _grasp_quality_batch(points, normals, mu, counts (int32), centers, radii, edges, volume, reuse, out):
+ * out a writable buffer of len(counts) * GRASP_QUALITY_SIZE bytes, filled with gcGraspQuality records. */
 static PyObject *module_grasp_quality_batch(PyObject *mod, PyObject *args) {
     PyObject *po, *no, *mo, *ko, *co, *ro, *oo;
-    int edges, volume;
-    if (!PyArg_ParseTuple(args, "OOOOOOipO", &po, &no, &mo, &ko, &co, &ro, &edges, &volume, &oo)) return NULL;
+    int edges, volume, reuse;
+    if (!PyArg_ParseTuple(args, "OOOOOOippO", &po, &no, &mo, &ko, &co, &ro, &edges, &volume, &reuse, &oo))
+        return NULL;
     GraspBuffers g = {.n = 0};
     PyObject *result = NULL;
     if (take_buffer(&g, mo, 'd', -1, "mu", 0) && take_buffer(&g, ko, 'i', -1, "counts", 0)) {
@@ -1050,6 +1092,7 @@ static PyObject *module_grasp_quality_batch(PyObject *mod, PyObject *args) {
                     gcGraspDef def = gc_default_grasp_def();
                     def.edges = edges;
                     def.volume = volume;
+                    def.reuse = reuse;
                     gcStatus st;
                     Py_BEGIN_ALLOW_THREADS
                     st = gc_grasp_quality_batch(ws, &def, g.b[2].buf, g.b[3].buf, g.b[0].buf, counts, (int)sets,
@@ -1065,12 +1108,12 @@ static PyObject *module_grasp_quality_batch(PyObject *mod, PyObject *args) {
     return result;
 }
 
-/* _grasp_mu_min(points, normals, center, radius, edges, mu_max) -> float. */
+/* _grasp_mu_min(points, normals, center, radius, edges, mu_max, reuse) -> float. */
 static PyObject *module_grasp_mu_min(PyObject *mod, PyObject *args) {
     PyObject *po, *no, *co;
     double radius, mu_max;
-    int edges;
-    if (!PyArg_ParseTuple(args, "OOOdid", &po, &no, &co, &radius, &edges, &mu_max)) return NULL;
+    int edges, reuse;
+    if (!PyArg_ParseTuple(args, "OOOdidp", &po, &no, &co, &radius, &edges, &mu_max, &reuse)) return NULL;
     GraspBuffers g = {.n = 0};
     PyObject *result = NULL;
     if (take_buffer(&g, po, 'd', -1, "points", 0)) {
@@ -1082,6 +1125,7 @@ static PyObject *module_grasp_mu_min(PyObject *mod, PyObject *args) {
             if (ws) {
                 gcGraspDef def = gc_default_grasp_def();
                 def.edges = edges;
+                def.reuse = reuse;
                 double mu = 0.0;
                 gcStatus st;
                 Py_BEGIN_ALLOW_THREADS
@@ -1342,6 +1386,7 @@ static PyMethodDef World_methods[] = {
     {"_snapshot", World_snapshot, METH_NOARGS, "Low-level snapshot; use World.snapshot."},
     {"stats", World_stats, METH_NOARGS, "stats() -> dict: rates, jitter, overruns, adoption, inputs, safety."},
     {"_tick_record", World_tick_record, METH_VARARGS, "Low-level tick_record(buffer, tick); see graspcore.tick_log."},
+    {"_step_hips", World_step_hips, METH_VARARGS, "Low-level step_hips; use World.step_hips."},
     {"_set_tick_log", World_set_tick_log, METH_O, "Low-level set_tick_log(capacity)."},
     {"_drain_ticks", World_drain_ticks, METH_O, "Low-level drain_ticks(buffer) -> records copied."},
     {"tick_log_overflow", World_tick_log_overflow, METH_NOARGS,

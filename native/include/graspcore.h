@@ -139,6 +139,15 @@ gcStatus gc_world_set_body_friction(gcWorld *world, int32_t body, double mu_s, d
                                     double viscosity);
 
 gcStatus gc_world_step(gcWorld *world, double dt);
+/* A HIP stream replayed: for each of `steps` rows of hips (num_fingers xyz triples: that step's
+ * HIPs), gc_world_set_hips then gc_world_step(dt), then the tick record numbered first_tick + k
+ * into records (steps records of gc_tick_record_size bytes; size bytes in all; NULL: none, the
+ * steps alone). Bit for bit
+ * what those calls one by one give (resim and sweep run it). Stops at the first error; *done
+ * (if given) says how many steps ran. A body stopped on the way answers GC_WARN_STOPPED at the
+ * end, after every step ran. */
+gcStatus gc_world_step_hips(gcWorld *world, const double *hips, int num_fingers, int steps, double dt,
+                            uint64_t first_tick, void *records, size_t size, int *done);
 
 gcStatus gc_world_body_pose(const gcWorld *world, int32_t body, double position[3],
                             double orientation[4]);
@@ -461,6 +470,15 @@ typedef struct gcGraspDef {
                              * 0: the fast path, no hull: closure flags by a linear program, epsilon
                              * and weakest by support queries (the same values); volume and facets
                              * are then -1 (not computed) */
+    int reuse;              /* 0 (default). 1, with volume 0: the workspace keeps the answers of the
+                             * last few sets it found in closure; a set whose edge wrenches are each
+                             * within delta of one of those (same count), delta so small that the
+                             * remembered epsilon less delta and the support of the same facet
+                             * re-solved from the new wrenches are within 1e-12 relative, gets that
+                             * facet (epsilon, weakest) without a new search: a held body in a still
+                             * hand, whose contacts the haptic loop dithers in the last bits. Exact to
+                             * those 1e-12; among equally near facets the weakest direction may be
+                             * another than a fresh call's */
 } gcGraspDef;
 gcGraspDef gc_default_grasp_def(void);
 

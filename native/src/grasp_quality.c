@@ -67,8 +67,32 @@ typedef struct Facet {
     int alive;
 } Facet;
 
+/* A set's answer kept for gcGraspDef.reuse: its edge wrenches, epsilon (from a search) and the
+ * points of its nearest facet. */
+#define GC_REUSE_SLOTS 4
+typedef struct ReuseSlot {
+    int rows, edges, cap;
+    double tolerance, epsilon;
+    double *wrench;     /* rows x 6 */
+    int vertices[D];
+} ReuseSlot;
+
+/* A mu_min answer kept for gcGraspDef.reuse: the contacts it was found for (points, normals,
+ * center, radius in one row) and mu_max. */
+typedef struct MuMinSlot {
+    int contacts, edges, cap, rows;
+    double tolerance, mu_max, answer;
+    double margin;      /* the support search's epsilon at the answer, 0 when the LP decided there */
+    double *input;      /* 6 x contacts + 4, then rows x 6: the edge wrenches at the answer */
+} MuMinSlot;
+
 struct gcGraspWorkspace {
     char error[256];
+    MuMinSlot mu_min[GC_REUSE_SLOTS];
+    int mu_min_next;
+    ReuseSlot reuse[GC_REUSE_SLOTS];
+    int reuse_next;     /* the slot the next new set takes */
+    int nearest_vertices[D];    /* of the last quality_fast answer in closure */
     int cap_points;
     double *wrench;     /* cap_points x 6 */
     double *force;      /* cap_points x 3 */
@@ -144,6 +168,7 @@ void gc_grasp_workspace_destroy(gcGraspWorkspace *ws) {
     free(ws->facet_off);
     free(ws->lp);
     free(ws->lp_basis);
+    for (int k = 0; k < GC_REUSE_SLOTS; ++k) free(ws->reuse[k].wrench), free(ws->mu_min[k].input);
     free(ws);
 }
 
@@ -798,6 +823,7 @@ static GC_ALWAYS_INLINE gcStatus nearest_run(Hull *h, int d, gcHullSummary *out)
                 out->result = GC_HULL_FULL;
                 out->offset_max = F->off;
                 memcpy(out->nearest_normal, F->n, sizeof(double) * (size_t)d);
+                memcpy(out->nearest_vertices, F->v, sizeof(int) * (size_t)d);
                 return GC_OK;
             }
             exact_plane(h, F);
@@ -857,10 +883,10 @@ static void lp_pivot(double *T, int rows, int cols, int r, int c) {
 
 /* Minimises the objective row (row `rows`) over the columns [0, allowed). 1 when optimal, 0 when
  * the cap was reached; -1 unbounded (cannot happen here: tau <= (1 + n) / n). */
-static int lp_minimise(double *T, int *basis, int rows, int cols, int allowed, int cap) {
+static int lp_minimise(double *T, int *basis, int rows, int cols, int allowed, int cap, int bland) {
     const double cost_eps = 1e-12, pivot_eps = 1e-11;
     double *obj = T + (size_t)rows * cols;
-    int rhs = cols - 1, degenerate_run = 0, bland = 0;
+    int rhs = cols - 1, degenerate_run = 0;
     for (int it = 0; it < cap; ++it) {
         int enter = -1;
         double most = -cost_eps;
@@ -959,18 +985,25 @@ static gcStatus closure_lp(gcGraspWorkspace *ws, const double *points, int n, in
     double *obj = T + (size_t)rows * cols;
     lp_fill(T, points, n, d, cols, inv);
     if (!has_warm || !lp_warm_basis(T, basis, rows, cols, start)) {
-        if (has_warm) lp_fill(T, points, n, d, cols, inv);
-        /* Phase 1: artificial a_r in row r (rows with a negative right-hand side negated first). */
-        for (int r = 0; r < rows; ++r) {
-            double *pr = T + (size_t)r * cols;
-            if (pr[rhs] < 0.0)
-                for (int k = 0; k < cols; ++k) pr[k] = -pr[k];
-            pr[art + r] = 1.0;
-            basis[r] = art + r;
-            for (int k = 0; k < art; ++k) obj[k] -= pr[k];
-            obj[rhs] -= pr[rhs];
+        /* Phase 1: artificial a_r in row r (rows with a negative right-hand side negated first).
+         * It cannot be unbounded in exact arithmetic (the artificials' sum is >= 0); a stop on
+         * "unbounded" is rounding, short of a feasible point, and would read as "t < -1" (three
+         * fingers at 120 degrees tilted by 1e-3, mu 10, t* 0.04, did): phase 1 again with
+         * Bland's rule from the start, which takes another path. */
+        for (int attempt = 0; attempt < 2; ++attempt) {
+            if (has_warm || attempt) lp_fill(T, points, n, d, cols, inv);
+            for (int r = 0; r < rows; ++r) {
+                double *pr = T + (size_t)r * cols;
+                if (pr[rhs] < 0.0)
+                    for (int k = 0; k < cols; ++k) pr[k] = -pr[k];
+                pr[art + r] = 1.0;
+                basis[r] = art + r;
+                for (int k = 0; k < art; ++k) obj[k] -= pr[k];
+                obj[rhs] -= pr[rhs];
+            }
+            res = lp_minimise(T, basis, rows, cols, art + rows, cap, attempt);
+            if (res != -1) break;
         }
-        res = lp_minimise(T, basis, rows, cols, art + rows, cap);
         if (res == 0)
             return set_error(ws, GC_ERR_DEGENERATE, "points: the closure LP did not converge in %d pivots", cap);
         if (-obj[rhs] > 1e-9 * (1.0 + n)) return GC_OK;   /* infeasible: t < -1, the origin is far outside */
@@ -1000,7 +1033,7 @@ static gcStatus closure_lp(gcGraspWorkspace *ws, const double *points, int n, in
             for (int k = 0; k < cols; ++k) obj[k] += pr[k];
             obj[tau] = 0.0;
         }
-    res = lp_minimise(T, basis, rows, cols, art, cap);
+    res = lp_minimise(T, basis, rows, cols, art, cap, 0);
     if (res == 0) return set_error(ws, GC_ERR_DEGENERATE, "points: the closure LP did not converge in %d pivots", cap);
     double tau_value = 0.0;
     int structural = 1;
@@ -1188,6 +1221,7 @@ static gcStatus quality_fast(gcGraspWorkspace *ws, const gcGraspDef *def, int ro
     if (closed) {
         out->epsilon = -s.offset_max;
         memcpy(out->weakest, s.nearest_normal, sizeof out->weakest);
+        memcpy(ws->nearest_vertices, s.nearest_vertices, sizeof ws->nearest_vertices);
         /* The force and torque parts of a ball of radius epsilon about the origin are balls of
          * that radius in the projections, and their scales are no larger: both 3-D conditions hold. */
         out->force_only_closure = out->torque_closure = 1;
@@ -1222,6 +1256,95 @@ static gcStatus quality_of_built(gcGraspWorkspace *ws, const gcGraspDef *def, in
     return GC_OK;
 }
 
+/* gcGraspDef.reuse: the slot whose wrenches are nearest the set's (rows of ws->wrench), and that
+ * distance delta (the largest Euclidean distance between corresponding wrenches); -1 if no slot
+ * has as many rows, or every one is further than `limit`. */
+static int reuse_nearest_slot(const gcGraspWorkspace *ws, const gcGraspDef *def, int rows, double limit,
+                              double *delta) {
+    int best = -1;
+    double best2 = limit * limit;
+    for (int k = 0; k < GC_REUSE_SLOTS; ++k) {
+        const ReuseSlot *r = &ws->reuse[k];
+        if (r->rows != rows || r->edges != def->edges || r->tolerance != def->tolerance) continue;
+        double worst = 0.0;
+        for (int i = 0; i < rows && worst <= best2; ++i) {
+            double s = 0.0;
+            for (int c = 0; c < 6; ++c) {
+                double e = ws->wrench[6 * i + c] - r->wrench[6 * i + c];
+                s += e * e;
+            }
+            worst = fmax(worst, s);
+        }
+        if (worst <= best2) best2 = worst, best = k;
+    }
+    *delta = sqrt(best2);
+    return best;
+}
+
+/* gcGraspDef.reuse. Every wrench moved by at most delta from the slot's set, so every support
+ * value did, and epsilon (the least support value over unit directions) is at least the slot's
+ * less delta. The slot's nearest facet, its plane solved from the new wrenches, supports them all
+ * within the tolerance: epsilon is at most its support value. When the two bounds are within
+ * 1e-12 relative (and the lower one is past the tolerance, so the set is closed as a search would
+ * decide), that facet is the answer. 1 when it is. */
+static int reuse_answer(gcGraspWorkspace *ws, const gcGraspDef *def, int rows, gcGraspQuality *out) {
+    double scale = 0.0, delta;
+    for (int i = 0; i < rows; ++i) scale = fmax(scale, dotd(ws->wrench + 6 * i, ws->wrench + 6 * i, 6));
+    scale = sqrt(scale);
+    int k = reuse_nearest_slot(ws, def, rows, 1e-12 * scale, &delta);
+    if (k < 0) return 0;
+    const ReuseSlot *r = &ws->reuse[k];
+    Hull h;
+    memset(&h, 0, sizeof h);
+    h.ws = ws;
+    h.pts = ws->wrench;
+    h.n = rows;
+    h.d = 6;            /* h.c = 0, the origin: inside, so the plane is oriented outwards */
+    Facet F;
+    memset(&F, 0, sizeof F);
+    memcpy(F.v, r->vertices, sizeof F.v);
+    if (!exact_plane(&h, &F)) return 0;
+    double support = -INFINITY;
+    for (int i = 0; i < rows; ++i) support = fmax(support, dotd(F.n, ws->wrench + 6 * i, 6));
+    double lower = r->epsilon - delta, tol = def->tolerance * scale;
+    if (!(support + F.off <= tol) || !(lower > tol) || !(support - lower <= 1e-12 * support)) return 0;
+    memset(out, 0, sizeof *out);
+    out->force_closure = out->force_only_closure = out->torque_closure = 1;
+    out->rank = 6;
+    out->epsilon = -F.off;
+    memcpy(out->weakest, F.n, sizeof out->weakest);
+    out->volume = -1.0;
+    out->facets = -1;
+    return 1;
+}
+
+/* Keeps a closed set's answer (quality_fast's) for gcGraspDef.reuse, in the slot of the nearest
+ * remembered set of as many rows (within 1e-6 of the scale: the same body, moved on) or the
+ * oldest. */
+static gcStatus reuse_remember(gcGraspWorkspace *ws, const gcGraspDef *def, int rows, const gcGraspQuality *q) {
+    double scale = 0.0, delta;
+    for (int i = 0; i < rows; ++i) scale = fmax(scale, dotd(ws->wrench + 6 * i, ws->wrench + 6 * i, 6));
+    int k = reuse_nearest_slot(ws, def, rows, 1e-6 * sqrt(scale), &delta);
+    if (k < 0) {
+        k = ws->reuse_next;
+        ws->reuse_next = (k + 1) % GC_REUSE_SLOTS;
+    }
+    ReuseSlot *r = &ws->reuse[k];
+    r->rows = 0;
+    if (rows > r->cap) {
+        if (!grow((void **)&r->wrench, (size_t)rows * 6, sizeof(double)))
+            return set_error(ws, GC_ERR_NO_MEMORY, "workspace: out of memory");
+        r->cap = rows;
+    }
+    memcpy(r->wrench, ws->wrench, sizeof(double) * 6 * (size_t)rows);
+    memcpy(r->vertices, ws->nearest_vertices, sizeof r->vertices);
+    r->rows = rows;
+    r->edges = def->edges;
+    r->tolerance = def->tolerance;
+    r->epsilon = q->epsilon;
+    return GC_OK;
+}
+
 gcStatus gc_grasp_quality(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
                           const double *normals, const double *mu, int num_contacts, const double center[3],
                           double radius, gcGraspQuality *out) {
@@ -1237,7 +1360,10 @@ gcStatus gc_grasp_quality(gcGraspWorkspace *ws, const gcGraspDef *def, const dou
     int rows;
     if ((st = build_wrenches(ws, def->edges, points, normals, mu, 0.0, num_contacts, center, radius, &rows)) != GC_OK)
         return st;
-    return quality_of_built(ws, def, rows, out);
+    int reuse = def->reuse && !def->volume && rows > 6;
+    if (reuse && reuse_answer(ws, def, rows, out)) return GC_OK;
+    if ((st = quality_of_built(ws, def, rows, out)) != GC_OK) return st;
+    return reuse && out->force_closure ? reuse_remember(ws, def, rows, out) : GC_OK;
 }
 
 gcStatus gc_grasp_quality_batch(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
@@ -1265,6 +1391,92 @@ gcStatus gc_grasp_quality_batch(gcGraspWorkspace *ws, const gcGraspDef *def, con
     return GC_OK;
 }
 
+/* gcGraspDef.reuse for mu_min: the remembered answer for contacts within 1e-9 of these (relative
+ * to their largest coordinate), or -1 (none). 'remember' stores `answer` for them instead. */
+static int mu_min_slot(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points, const double *normals,
+                       int num_contacts, const double center[3], double radius, double mu_max) {
+    for (int k = 0; k < GC_REUSE_SLOTS; ++k) {
+        const MuMinSlot *m = &ws->mu_min[k];
+        if (m->contacts != num_contacts || m->edges != def->edges || m->tolerance != def->tolerance ||
+            m->mu_max != mu_max)
+            continue;
+        double big = 0.0, diff = 0.0;
+        const double *x = m->input;
+        for (int i = 0; i < 3 * num_contacts; ++i) {
+            big = fmax(big, fmax(fabs(points[i]), fabs(normals[i])));
+            diff = fmax(diff, fmax(fabs(points[i] - x[i]), fabs(normals[i] - x[3 * num_contacts + i])));
+        }
+        for (int i = 0; i < 3; ++i) {
+            big = fmax(big, fabs(center[i]));
+            diff = fmax(diff, fabs(center[i] - x[6 * num_contacts + i]));
+        }
+        diff = fmax(diff, fabs(radius - x[6 * num_contacts + 3]) * big / radius);
+        if (diff <= 1e-9 * big) return k;
+    }
+    return -1;
+}
+
+/* Keeps answer (and, margin > 0, the rows edge wrenches at it in ws->wrench) for these contacts. */
+static void mu_min_remember(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
+                            const double *normals, int num_contacts, const double center[3], double radius,
+                            double mu_max, double answer, double margin, int rows) {
+    int k = mu_min_slot(ws, def, points, normals, num_contacts, center, radius, mu_max);
+    if (k < 0) {
+        k = ws->mu_min_next;
+        ws->mu_min_next = (k + 1) % GC_REUSE_SLOTS;
+    }
+    MuMinSlot *m = &ws->mu_min[k];
+    m->contacts = -1;
+    int need = 6 * num_contacts + 4 + (margin > 0.0 ? 6 * rows : 0);
+    if (need > m->cap) {
+        if (!grow((void **)&m->input, (size_t)need, sizeof(double))) return;  /* not kept */
+        m->cap = need;
+    }
+    m->margin = margin > 0.0 ? margin : 0.0;
+    m->rows = m->margin > 0.0 ? rows : 0;
+    memcpy(m->input + 6 * num_contacts + 4, ws->wrench, sizeof(double) * 6 * (size_t)m->rows);
+    memcpy(m->input, points, sizeof(double) * 3 * (size_t)num_contacts);
+    memcpy(m->input + 3 * num_contacts, normals, sizeof(double) * 3 * (size_t)num_contacts);
+    memcpy(m->input + 6 * num_contacts, center, sizeof(double) * 3);
+    m->input[6 * num_contacts + 3] = radius;
+    m->contacts = num_contacts;
+    m->edges = def->edges;
+    m->tolerance = def->tolerance;
+    m->mu_max = mu_max;
+    m->answer = answer;
+}
+
+static gcStatus mu_min_search(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
+                              const double *normals, int num_contacts, const double center[3], double radius,
+                              double mu_max, double *out_mu, double *margin, int *rows_at);
+
+/* Closed at the remembered answer of slot m (its wrenches now in ws->wrench, rows of them), as
+ * grasp_quality decides: when the support search decided it there (margin > 0, its epsilon) and
+ * every wrench moved by delta, epsilon is at least margin - delta now, and more than twice the
+ * tolerance of that settles it without a search; else closure_fast. */
+static gcStatus mu_min_closed_again(gcGraspWorkspace *ws, const gcGraspDef *def, const MuMinSlot *m, int rows,
+                                    int *closed) {
+    if (m->margin > 0.0 && m->rows == rows) {
+        const double *old = m->input + 6 * m->contacts + 4;
+        double scale = 0.0, delta = 0.0;
+        for (int i = 0; i < rows; ++i) {
+            double s2 = 0.0;
+            for (int c = 0; c < 6; ++c) {
+                double e = ws->wrench[6 * i + c] - old[6 * i + c];
+                s2 += e * e;
+            }
+            delta = fmax(delta, s2);
+            scale = fmax(scale, dotd(ws->wrench + 6 * i, ws->wrench + 6 * i, 6));
+        }
+        if (m->margin - sqrt(delta) > 2.0 * def->tolerance * sqrt(scale)) {
+            *closed = 1;
+            return GC_OK;
+        }
+    }
+    gcHullSummary summary;
+    return closure_fast(ws, def, ws->wrench, rows, 6, 0, closed, NULL, &summary);
+}
+
 gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
                          const double *normals, int num_contacts, const double center[3], double radius,
                          double mu_max, double *out_mu) {
@@ -1278,7 +1490,59 @@ gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const doub
     if (st != GC_OK) return st;
     if (!(mu_max >= 0.0) || !isfinite(mu_max))
         return set_error(ws, GC_ERR_INVALID_ARGUMENT, "mu_max: %g, expected a finite number >= 0", mu_max);
+    double margin = 0.0;
+    int rows_at = 0;
+    if (!def->reuse || num_contacts < 1 || !points || !normals || !center)
+        return mu_min_search(ws, def, points, normals, num_contacts, center, radius, mu_max, out_mu, &margin,
+                             &rows_at);
+    /* Reuse: the remembered answer m for nearly these contacts, checked as the search would have
+     * left it: closed at m and open 2e-6 below, as grasp_quality decides (the LP, which settles
+     * both away from the boundary); 0 closed at 0; inf open at mu_max by the LP (an LP "no" is
+     * never a "yes"). Else the search, remembered. */
+    int k = mu_min_slot(ws, def, points, normals, num_contacts, center, radius, mu_max);
+    if (k >= 0) {
+        double m = ws->mu_min[k].answer, t;
+        int rows, closed = 0, open = 0;
+        if ((st = build_wrenches(ws, def->edges, points, normals, NULL, isfinite(m) ? m : mu_max, num_contacts,
+                                 center, radius, &rows)) != GC_OK)
+            return st;
+        if (isfinite(m)) {
+            if ((st = mu_min_closed_again(ws, def, &ws->mu_min[k], rows, &closed)) != GC_OK) return st;
+            if (closed && m > 0.0) {
+                if ((st = build_wrenches(ws, def->edges, points, normals, NULL, fmax(m - 2e-6, 0.0), num_contacts,
+                                         center, radius, &rows)) != GC_OK)
+                    return st;
+                gcHullSummary summary;
+                int below = 1;
+                if ((st = closure_fast(ws, def, ws->wrench, rows, 6, 0, &below, NULL, &summary)) != GC_OK) return st;
+                open = !below;
+            }
+            if (closed && (m == 0.0 || open)) {
+                *out_mu = m;
+                return GC_OK;
+            }
+        } else {
+            open = closure_lp(ws, ws->wrench, rows, 6, NULL, &t) == GC_OK && t <= 0.5 * def->tolerance / rows;
+            ws->error[0] = '\0';
+            if (open) return GC_OK;         /* *out_mu is INFINITY */
+        }
+    }
+    if ((st = mu_min_search(ws, def, points, normals, num_contacts, center, radius, mu_max, out_mu, &margin,
+                            &rows_at)) != GC_OK)
+        return st;
+    mu_min_remember(ws, def, points, normals, num_contacts, center, radius, mu_max, *out_mu, margin, rows_at);
+    return GC_OK;
+}
+
+/* The search; for a finite answer, *margin is the support search's epsilon there (0 when the LP
+ * decided) and ws->wrench holds its *rows_at edge wrenches. */
+static gcStatus mu_min_search(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
+                              const double *normals, int num_contacts, const double center[3], double radius,
+                              double mu_max, double *out_mu, double *margin, int *rows_at) {
+    gcStatus st;
     int rows, closed;
+    *margin = 0.0;
+    *rows_at = 0;
     double t;
     gcHullSummary summary;
     /* In closure at mu as grasp_quality answers it (the LP, then the support search). */
@@ -1292,6 +1556,8 @@ gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const doub
     CLOSED_AT(0.0);     /* one wrench per contact */
     if (closed) {
         *out_mu = 0.0;
+        *margin = summary.facets == -1 ? -summary.offset_max : 0.0;
+        *rows_at = rows;
         return GC_OK;
     }
     /* The same LP with the margin it found: g(mu) = mu (t*(mu) - threshold), > 0 exactly when
@@ -1402,5 +1668,7 @@ gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const doub
     }
 #undef CLOSED_AT
     *out_mu = hi;
+    *margin = summary.facets == -1 ? -summary.offset_max : 0.0;   /* the search ran (facets -1) */
+    *rows_at = rows;
     return GC_OK;
 }

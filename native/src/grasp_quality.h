@@ -23,6 +23,7 @@ typedef struct gcHullSummary {
     double volume;
     double offset_max;
     double nearest_normal[GC_HULL_MAX_DIM];
+    int nearest_vertices[GC_HULL_MAX_DIM];  /* the nearest facet's points (gc_hull_nearest only) */
 } gcHullSummary;
 
 /* Hull of n points of dimension d (3..6), rows of d doubles; tolerance relative to the largest

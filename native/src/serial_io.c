@@ -17,6 +17,7 @@
 
 #include <arpa/inet.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <netinet/in.h>
 #include <poll.h>
@@ -879,7 +880,7 @@ static double det3(const double *m) {
 }
 
 static const char *check_serial_def(const gcWorld *w, int fd, const gcSerialDef *d) {
-    if (fd < 0) return "fd: must be an open file descriptor";
+    if (fd < 0 || fcntl(fd, F_GETFD) == -1) return "fd: must be an open file descriptor";
     if (d->num_fingers < 1 || d->num_fingers > GC_PROTO_MAX_FINGERS) return "num_fingers: must be 1..32";
     if (d->finger_offset < 0 || d->finger_offset + d->num_fingers > w->num_fingers)
         return "finger_offset, num_fingers: the device's fingers must be fingers of the world";

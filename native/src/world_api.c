@@ -519,6 +519,34 @@ gcStatus gc_world_step(gcWorld *w, double dt) {
     return GC_OK;
 }
 
+gcStatus gc_world_step_hips(gcWorld *w, const double *hips, int num_fingers, int steps, double dt,
+                            uint64_t first_tick, void *records, size_t size, int *done) {
+    if (done) *done = 0;
+    gcStatus idle = check_idle(w);
+    if (idle) return idle;
+    if (steps < 0 || (steps > 0 && (!hips && num_fingers > 0))) {
+        gc_world_set_error(w, "steps: %d steps of HIPs (need >= 0 and the HIPs)", steps);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    size_t record = gc_tick_record_size(w->num_bodies, w->num_fingers);
+    if (records && size / record < (size_t)steps) {
+        gc_world_set_error(w, "records: %zu bytes for %d records of %zu", size, steps, record);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    gcStatus warned = GC_OK;
+    for (int k = 0; k < steps; ++k) {
+        gcStatus st = num_fingers > 0 ? gc_world_set_hips(w, hips + 3 * (size_t)num_fingers * (size_t)k, num_fingers)
+                                       : GC_OK;
+        if (st >= 0) st = gc_world_step(w, dt);
+        if (st == GC_WARN_STOPPED) warned = st;
+        if (st >= 0 && records)
+            st = gc_world_tick_record(w, first_tick + (uint64_t)k, (char *)records + record * (size_t)k, record);
+        if (st < 0) return st;
+        if (done) *done = k + 1;
+    }
+    return warned;
+}
+
 int64_t gc_world_stopped_bodies(const gcWorld *w) { return w ? w->stopped_bodies : 0; }
 
 /* While the runtime runs, queries answer from its last snapshot (world->shown). */

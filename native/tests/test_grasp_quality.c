@@ -674,6 +674,48 @@ static void test_batch(gcGraspWorkspace *ws) {
     GC_CHECK(closed > 0, "batch: some sets in closure (%d)", closed);
 }
 
+/* gcGraspDef.reuse on the live session's held box: the set again, then dithered in the last bits
+ * (reused: epsilon within 1e-12 of a fresh search's), moved by 1e-7 (searched again: bit for bit
+ * a fresh call's), and a second body in between (its own slot). */
+static void test_reuse(gcGraspWorkspace *ws) {
+    const double P[15] = {0.0305997, 0, -0.00054295, -0.02939982, -0.015, -0.00030271, -0.02939982, 0.015,
+                          -0.00030271, 0.00059994, 0.03, -0.00042283, 0.00059994, -0.03, -0.00042283};
+    const double N[15] = {-0.99999198, 0, 0.00400405, 0.99999198, 0, -0.00400405, 0.99999198, 0, -0.00400405,
+                          0, -1, 0, 0, 1, 0};
+    const double mu[5] = {0.8, 0.8, 0.8, 0.8, 0.8}, c[3] = {0.00059994, 0, -0.00042283}, r = 0.05196152;
+    gcGraspWorkspace *fresh_ws = gc_grasp_workspace_create();
+    gcGraspDef def = gc_default_grasp_def(), plain;
+    def.volume = 0;
+    plain = def;
+    def.reuse = 1;
+    double p[15], other[15];
+    for (int k = 0; k < 15; ++k) other[k] = P[k] * 1.3;
+    for (int step = 0; step < 5; ++step) {
+        for (int k = 0; k < 15; ++k) {
+            p[k] = P[k];
+            if (step == 2 || step == 4) p[k] = nextafter(P[k], k % 2 ? 1.0 : -1.0);
+            if (step == 3) p[k] = P[k] + 1e-7 * ((k % 3) - 1);
+        }
+        gcGraspQuality q, f, o;
+        GC_CHECK(gc_grasp_quality(ws, &def, p, N, mu, 5, c, r, &q) == GC_OK, "reuse: status");
+        GC_CHECK(gc_grasp_quality(ws, &def, other, N, mu, 5, c, r * 1.3, &o) == GC_OK, "reuse: other body");
+        GC_CHECK(gc_grasp_quality(fresh_ws, &plain, p, N, mu, 5, c, r, &f) == GC_OK, "reuse: fresh status");
+        GC_CHECK(q.force_closure == 1 && f.force_closure == 1 && q.rank == 6, "reuse %d: closed", step);
+        GC_CHECK_NEAR(q.epsilon, f.epsilon, 1e-12 * f.epsilon, "reuse: epsilon as a fresh search's");
+        if (step == 0 || step == 3)
+            GC_CHECK(memcmp(&q, &f, sizeof q) == 0, "reuse %d: nothing near enough, a fresh search's answer", step);
+        double len = 0.0;
+        for (int k = 0; k < 6; ++k) len += q.weakest[k] * q.weakest[k];
+        GC_CHECK_NEAR(len, 1.0, 1e-14, "reuse: weakest is a unit vector");
+        /* mu_min: remembered and checked (closed at it, open 2e-6 below), within 2e-6 of a search's. */
+        double m = -1.0, m_fresh = -1.0;
+        GC_CHECK(gc_grasp_mu_min(ws, &def, p, N, 5, c, r, 10.0, &m) == GC_OK, "reuse: mu_min status");
+        GC_CHECK(gc_grasp_mu_min(fresh_ws, &plain, p, N, 5, c, r, 10.0, &m_fresh) == GC_OK, "reuse: mu_min fresh");
+        GC_CHECK(m > 0.0 && fabs(m - m_fresh) <= 2e-6, "reuse %d: mu_min %.9g vs %.9g", step, m, m_fresh);
+    }
+    gc_grasp_workspace_destroy(fresh_ws);
+}
+
 int main(void) {
     gcGraspWorkspace *ws = gc_grasp_workspace_create();
     GC_CHECK(ws != NULL, "workspace");
@@ -695,6 +737,7 @@ int main(void) {
     test_hull_nearest(ws);
     test_fast_path(ws);
     test_mu_min_against_hull_bisection(ws);
+    test_reuse(ws);
     gc_grasp_workspace_destroy(ws);
     return gc_test_summary("test_grasp_quality");
 }

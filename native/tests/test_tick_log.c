@@ -275,7 +275,61 @@ static void test_threads(void) {
     gc_world_destroy(w);
 }
 
+/* A HIP stream replayed by gc_world_step_hips gives the records of set_hips + step +
+ * tick_record one by one, byte for byte (the fingers squeeze the box and lift it); bad
+ * arguments are refused before any step. */
+static void pinch_hips(double *hips, int steps) {
+    for (int k = 0; k < steps; ++k) {
+        double squeeze = 0.035 - 0.004 * (k < 100 ? k / 100.0 : 1.0), lift = k < 100 ? 0.0 : 0.0005 * (k - 100);
+        double row[6] = {-squeeze, 0, 0.2 + lift, squeeze, 0, 0.2 + lift};
+        memcpy(hips + 6 * k, row, sizeof row);
+    }
+}
+
+static void test_step_hips(void) {
+    enum { STEPS = 300 };
+    size_t size = gc_tick_record_size(1, 2);
+    double *hips = malloc(sizeof(double) * 6 * STEPS);
+    unsigned char *one = calloc(STEPS, size), *all = calloc(STEPS, size);
+    pinch_hips(hips, STEPS);
+    gcWorld *a = pinch_world(), *b = pinch_world();
+    for (int k = 0; k < STEPS; ++k) {
+        gc_world_set_hips(a, hips + 6 * k, 2);
+        gc_world_step(a, 0.001);
+        gc_world_tick_record(a, 1 + (uint64_t)k, one + size * (size_t)k, size);
+    }
+    int done = -1;
+    GC_CHECK(gc_world_step_hips(b, hips, 2, STEPS, 0.001, 1, all, size * STEPS, &done) == GC_OK, "step_hips: %s",
+             gc_world_last_error(b));
+    GC_CHECK(done == STEPS, "steps done: %d", done);
+    GC_CHECK(memcmp(one, all, size * STEPS) == 0, "the same records byte for byte");
+    GC_CHECK(gc_world_state_hash(a) == gc_world_state_hash(b), "the same state");
+    GC_CHECK(rec_u64(all + size * (STEPS - 1), OFF_TICK) == STEPS, "records numbered from first_tick");
+    gcWorld *c = pinch_world();
+    GC_CHECK(gc_world_step_hips(c, hips, 2, STEPS, 0.001, 1, NULL, 0, &done) == GC_OK && done == STEPS, "no records");
+    GC_CHECK(gc_world_state_hash(c) == gc_world_state_hash(a), "the steps alone: the same state");
+    gc_world_destroy(c);
+    GC_CHECK(rec_f64(all + size * (STEPS - 1), OFF_TIME) > 0.29, "time advanced");
+    double t = gc_world_time(b);
+    GC_CHECK(gc_world_step_hips(b, hips, 2, 2, 0.001, 1, all, size, &done) == GC_ERR_INVALID_ARGUMENT && done == 0,
+             "a buffer for one record refused for two");
+    GC_CHECK(strstr(gc_world_last_error(b), "records") != NULL, "names records: %s", gc_world_last_error(b));
+    GC_CHECK(gc_world_step_hips(b, hips, 2, -1, 0.001, 1, all, size, &done) == GC_ERR_INVALID_ARGUMENT, "steps < 0");
+    GC_CHECK(gc_world_step_hips(b, hips, 2, 1, -0.001, 1, all, size, &done) == GC_ERR_INVALID_ARGUMENT && done == 0,
+             "a bad dt stops at the first step");
+    hips[2] = NAN;
+    GC_CHECK(gc_world_step_hips(b, hips, 2, 1, 0.001, 1, all, size, &done) == GC_ERR_INVALID_ARGUMENT && done == 0,
+             "a NaN HIP refused");
+    GC_CHECK(gc_world_time(b) == t, "nothing stepped by the refused calls");
+    gc_world_destroy(a);
+    gc_world_destroy(b);
+    free(hips);
+    free(one);
+    free(all);
+}
+
 int main(void) {
+    test_step_hips();
     test_layout_and_stopped_record();
     test_state_hash_reference();
     test_manual_clock_and_overflow();

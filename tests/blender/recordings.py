@@ -62,3 +62,24 @@ def record_scene(path, graspcore, desc, hip_positions, seconds, fps=24, compress
         run.advance_to(k / fps)
     run.stop()
     return run, handle
+
+
+def three_finger_lift():
+    """A 3 s three-finger lift (the sweep's tests and benchmark): the sample scene's box and table,
+    two fingertips closing on its +x face at y = +-12 mm and one on its -x face squeezing twice
+    as deep (the forces and the torques about z balance), then lifting it 8 cm and holding it.
+    Returns (prepared SceneDesc, hip_positions(t) -> (3, 3))."""
+    desc, S = pinch_desc()
+    del desc.fingers[:]
+    half, r = S.BOX_SIZE / 2, S.FINGER_RADIUS
+
+    def hip_positions(t):
+        close = float(np.interp(t, [0.3, 0.8], [0.0, 1.0]))
+        lift = float(np.interp(t, [1.0, 2.2], [0.0, 0.08]))
+        plus = half + r + S.CLEARANCE - close * (S.CLEARANCE + S.SQUEEZE)
+        minus = half + r + S.CLEARANCE - close * (S.CLEARANCE + 2 * S.SQUEEZE)
+        z = S.BOX_Z + lift
+        return np.array([[plus, 0.012, z], [plus, -0.012, z], [-minus, 0.0, z]])
+    for i, p in enumerate(hip_positions(0.0)):
+        desc.fingers.append(scene.FingerDesc(f"Finger {i}", p, r, S.STIFFNESS, S.DAMPING, i))
+    return scene.prepare(desc), hip_positions

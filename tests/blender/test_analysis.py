@@ -359,3 +359,33 @@ def test_live_options_and_rotation(three):
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     v = rng.normal(size=3)
     np.testing.assert_allclose(analysis._rotate(q, v), quat_rotate(q, v), rtol=0, atol=1e-15)
+
+
+def test_memo_gives_the_same_answers(three, lift):
+    """analyse_arrays with a memo kept between calls (the live view's): the same tables bit for
+    bit as without it, over snapshots that repeat (a still grasp) and change (a lift), two at a
+    time; the memo then holds the last call's sets, and a set the core refuses among remembered
+    ones is still located."""
+    memo = {}
+    for rec, ticks in ((three, [(1400, 1401), (1400, 1401), (1401, 1402), (1400, 1400)]),
+                       (lift, [(1200, 1201), (1201, 1400), (1200, 1400), (1200, 1201)])):
+        models = analysis.body_models(rec.header["scene"])
+        radii = [f["radius"] for f in rec.header["scene"]["fingers"]]
+        for pair in ticks:
+            t = rec.ticks[np.searchsorted(rec.ticks["tick"], pair)]
+            assert list(t["tick"]) == list(pair)
+            args = (models, t["pose"], t["god_object"], t["force"], t["normal"], t["state"], t["contact"], radii)
+            want = analysis.analyse_arrays(*args, volume=False)
+            got = analysis.analyse_arrays(*args, volume=False, memo=memo)
+            assert len(got.quality) == 2
+            np.testing.assert_array_equal(got.quality, want.quality)
+            np.testing.assert_array_equal(got.mu_min, want.mu_min)
+            (s0, s1), (c0, c1) = want.first, want.count
+            same = c0 == c1 and np.array_equal(want.center[0], want.center[1]) and all(
+                np.array_equal(a[s0:s0 + c0], a[s1:s1 + c1]) for a in (want.point, want.normal, want.mu))
+            assert len(memo) == (1 if same else 2)
+    t = lift.ticks[np.searchsorted(lift.ticks["tick"], [1200, 1201])].copy()
+    t["god_object"][1, 1, 0] = np.nan
+    with pytest.raises(analysis.GraspAnalysisError, match=r"snapshot 1, body Box: points: .*not finite"):
+        analysis.analyse_arrays(models, t["pose"], t["god_object"], t["force"], t["normal"], t["state"],
+                                t["contact"], radii, volume=False, memo=memo)

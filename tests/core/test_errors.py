@@ -58,6 +58,8 @@ def snapshot(w):
         (lambda w: w.step(0.0), "dt"),
         (lambda w: w.step(math.nan), "dt"),
         (lambda w: w.step(-1e-3), "dt"),
+        (lambda w: w.attach_serial(9999), "fd"),        # no such descriptor (was accepted)
+        (lambda w: w.attach_serial(-1), "fd"),
     ],
 )
 def test_bad_argument_names_itself_and_changes_nothing(world, call, name):

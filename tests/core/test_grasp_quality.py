@@ -370,3 +370,233 @@ def test_mu_min_on_a_nearly_antipodal_pair_agrees_with_closure(tilt):
         assert graspcore.grasp_quality(points, normals, mu, center, radius)["force_closure"]
         if mu > 2e-6:
             assert not graspcore.grasp_quality(points, normals, mu - 2e-6, center, radius)["force_closure"]
+
+
+# ---- symmetric and near-planar grasps (the live session's held box) --------------------------
+
+HALF = 0.03         # a 6 cm box
+FACES = {"+x": ([HALF, 0, 0], [-1, 0, 0]), "-x": ([-HALF, 0, 0], [1, 0, 0]),
+         "+y": ([0, HALF, 0], [0, -1, 0]), "-y": ([0, -HALF, 0], [0, 1, 0]),
+         "+z": ([0, 0, HALF], [0, 0, -1]), "-z": ([0, 0, -HALF], [0, 0, 1])}
+# Fingertips on face centres, and (second entry) on the faces but off their centres along the
+# face, as the held-box scene's 3- and 5-finger grasps have them (two fingers side by side on -x).
+BOX_GRASPS = {
+    2: (["+x", "-x"], [[0, 0, 0], [0, 0, 0]]),
+    3: (["+x", "-x", "-x"], [[0, 0, 0], [0, -0.015, 0], [0, 0.015, 0]]),
+    4: (["+x", "-x", "+y", "-y"], [[0, 0.01, 0], [0, -0.01, 0], [0.012, 0, 0], [-0.012, 0, 0]]),
+    5: (["+x", "-x", "-x", "+y", "-y"], [[0, 0, 0], [0, -0.015, 0], [0, 0.015, 0], [0, 0, 0], [0, 0, 0]]),
+    6: (["+x", "-x", "+y", "-y", "+z", "-z"], [[0, 0, 0.01], [0, 0, -0.01], [0.01, 0, 0], [-0.01, 0, 0],
+                                               [0, 0.01, 0], [0, -0.01, 0]]),
+}
+
+
+def box_grasp(fingers, off_centre, tilt=0.0, seed=0):
+    """A box held by fingertips on its faces; normals tilted by `tilt` radians about random axes."""
+    faces, shifts = BOX_GRASPS[fingers]
+    points = np.array([FACES[f][0] for f in faces], float) + (np.array(shifts, float) if off_centre else 0.0)
+    normals = np.array([FACES[f][1] for f in faces], float)
+    if tilt:
+        rng = np.random.default_rng(seed)
+        for i, n in enumerate(normals):
+            axis = np.cross(n, rng.normal(size=3))
+            axis /= np.linalg.norm(axis)
+            normals[i] = np.cos(tilt) * n + np.sin(tilt) * np.cross(axis, n)
+    return points, normals, np.sqrt(3) * HALF
+
+
+def three_at_120(tilt=0.0):
+    """Three fingers at 120 degrees round the equator of a unit sphere, normals to its centre."""
+    angles = 2 * np.pi * np.arange(3) / 3
+    points = np.stack([np.cos(angles), np.sin(angles), np.zeros(3)], axis=1)
+    normals = -points.copy()
+    normals[:, 2] += tilt * np.array([1.0, -1.0, 0.5])
+    return points, normals / np.linalg.norm(normals, axis=1)[:, None], 1.0
+
+
+def supports_at(weakest, w, epsilon):
+    """weakest is a unit facet normal of the hull of w at distance epsilon: max_i weakest.w_i."""
+    return abs(np.linalg.norm(weakest) - 1.0) < 1e-9 and np.max(w @ np.asarray(weakest)) == \
+        pytest.approx(epsilon, rel=1e-9, abs=1e-12)
+
+
+def check_symmetric(points, normals, mu, center, radius, edges=8, volume=True):
+    """Fast path = full path = qhull on a set whose nearest facet may be one of several mirror
+    images (ties): epsilon and the flags must agree; the weakest direction must be a facet normal
+    at distance epsilon, not necessarily qhull's."""
+    fast = graspcore.grasp_quality(points, normals, mu, center, radius, edges, volume=False)
+    full = graspcore.grasp_quality(points, normals, mu, center, radius, edges)
+    want = reference(points, normals, mu, center, radius, edges)
+    for flag in ("force_closure", "force_only_closure", "torque_closure"):
+        assert fast[flag] == full[flag] == want[flag], flag
+    assert fast["rank"] == full["rank"] == want["rank"]
+    assert fast["epsilon"] == pytest.approx(want["epsilon"], rel=1e-9, abs=0.0)
+    assert full["epsilon"] == pytest.approx(want["epsilon"], rel=1e-9, abs=0.0)
+    if volume:
+        assert full["volume"] == pytest.approx(want["volume"], rel=1e-9)
+    if want["force_closure"]:
+        w = edge_wrenches(points, normals, mu, center, radius, edges)
+        assert supports_at(fast["weakest"], w, fast["epsilon"])
+        assert supports_at(full["weakest"], w, full["epsilon"])
+    return fast
+
+
+@pytest.mark.parametrize("fingers", sorted(BOX_GRASPS))
+@pytest.mark.parametrize("off_centre", [False, True])
+@pytest.mark.parametrize("tilt", [0.0, 1e-3, 1e-6, 1e-8, 1e-10])
+@pytest.mark.parametrize("mu", [0.3, 0.8])
+def test_held_box_against_qhull(fingers, off_centre, tilt, mu):
+    """Boxes held by 2 to 6 fingertips on face centres and off them, normals exact and tilted:
+    contacts in one plane or nearly, symmetric normals, many equal support values."""
+    points, normals, radius = box_grasp(fingers, off_centre, tilt, seed=fingers)
+    # The full path's volume is wrong on some of the nearly flat ones (test below).
+    check_symmetric(points, normals, mu, np.zeros(3), radius, volume=tilt == 0.0 or tilt >= 1e-6)
+
+
+@pytest.mark.xfail(strict=True, reason="known bug: the full hull's volume on normals tilted by 1e-10..1e-8")
+@pytest.mark.parametrize("fingers, tilt", [(4, 1e-10), (5, 1e-8), (6, 1e-10)])
+def test_held_box_volume_with_tilts_of_rounding_size(fingers, tilt):
+    """The volume is continuous in the wrenches: tilting the normals by 1e-10 must change it by
+    about that much. qhull does; the full path gives 0.2676 for 0.2656 (4 fingers, mu 0.8), as
+    if some simplices were counted twice."""
+    points, normals, radius = box_grasp(fingers, False, tilt, seed=fingers)
+    got = graspcore.grasp_quality(points, normals, 0.8, np.zeros(3), radius)["volume"]
+    want = reference(points, normals, 0.8, np.zeros(3), radius, 8)["volume"]
+    level = graspcore.grasp_quality(*box_grasp(fingers, False)[:2], 0.8, np.zeros(3), radius)["volume"]
+    assert want == pytest.approx(level, rel=1e-6)
+    assert got == pytest.approx(want, rel=1e-9)
+
+
+@pytest.mark.parametrize("edges", [8, 16])
+@pytest.mark.parametrize("tilt", [0.0, 1e-3, 1e-7, 1e-10])
+def test_three_fingers_at_120_degrees_against_qhull(edges, tilt):
+    points, normals, radius = three_at_120(tilt)
+    check_symmetric(points, normals, 0.6, np.zeros(3), radius, edges)
+
+
+def test_held_box_cases_include_both_answers():
+    """The box grasps above are in closure (4 to 6 fingers, and 3 at mu 0.8) and not (the pinch)."""
+    answers = {graspcore.grasp_quality(*box_grasp(f, True)[:2], 0.8, np.zeros(3), box_grasp(f, True)[2],
+                                       volume=False)["force_closure"] for f in BOX_GRASPS}
+    assert answers == {True, False}
+
+
+def test_recorded_held_box_against_qhull():
+    """The live session's 5-finger held box (contacts 0.4 mm off the centre's plane, normals
+    tilted by 4e-3), the set that took the fast path 300 µs: epsilon 0.3306 as qhull has it."""
+    points = np.array([[0.0305997, 0.0, -0.00054295], [-0.02939982, -0.015, -0.00030271],
+                       [-0.02939982, 0.015, -0.00030271], [0.00059994, 0.03, -0.00042283],
+                       [0.00059994, -0.03, -0.00042283]])
+    normals = np.array([[-0.99999198, 0.0, 0.00400405], [0.99999198, 0.0, -0.00400405],
+                        [0.99999198, 0.0, -0.00400405], [0.0, -1.0, 0.0], [0.0, 1.0, 0.0]])
+    got = check_symmetric(points, normals, 0.8, np.array([0.00059994, 0.0, -0.00042283]), 0.05196152)
+    assert got["force_closure"] and got["epsilon"] == pytest.approx(0.3306, abs=1e-4)
+
+
+def dithered(a, rng, ulps=4):
+    """a with every entry moved by up to `ulps` units in the last place (a still hand in the
+    threaded session: the haptic loop dithers the contacts in the last bits)."""
+    out = a.copy()
+    for _ in range(ulps):
+        out = np.where(rng.random(a.shape) < 0.5, np.nextafter(out, np.inf), np.nextafter(out, -np.inf))
+    return out
+
+
+RECORDED_HELD_BOX = (np.array([[0.0305997, 0.0, -0.00054295], [-0.02939982, -0.015, -0.00030271],
+                                [-0.02939982, 0.015, -0.00030271], [0.00059994, 0.03, -0.00042283],
+                                [0.00059994, -0.03, -0.00042283]]) - [0.00059994, 0.0, -0.00042283],
+                     np.array([[-0.99999198, 0.0, 0.00400405], [0.99999198, 0.0, -0.00400405],
+                               [0.99999198, 0.0, -0.00400405], [0.0, -1.0, 0.0], [0.0, 1.0, 0.0]]), 0.05196152)
+
+
+def held_box_sets():
+    yield RECORDED_HELD_BOX         # mu_min 1e-6: closed at any friction, flat without
+    yield box_grasp(5, False, 4e-3, seed=3)
+    yield box_grasp(4, True, 1e-8, seed=4)
+    yield three_at_120(1e-3)
+    rng = np.random.default_rng(17)
+    for _ in range(3):
+        p, n, _, c, r = random_grasp(rng, 6)
+        yield p - c, n, r
+
+
+def test_reuse_answers_as_a_fresh_call():
+    """reuse=True: a set within rounding of one answered before gets its facet re-certified; the
+    answers must be a fresh call's to 1e-12 (epsilon, flags), the weakest direction a facet normal
+    at epsilon. Sets moved further (1e-7), or out of closure, must get exactly a fresh call's
+    answer. Two sets alternate (the live view's two bodies in one batch)."""
+    rng = np.random.default_rng(3)
+    sets = list(held_box_sets())
+    for (p, n, r), (q, m, s) in zip(sets, sets[1:] + sets[:1]):
+        for step in range(6):
+            for pts, nrm, rad in ((p, n, r), (q, m, s)):
+                if step in (3, 5):
+                    pts = pts + 1e-7 * rng.normal(size=pts.shape)
+                elif step:
+                    pts, nrm = dithered(pts, rng), dithered(nrm, rng)
+                mu = 0.8 if step != 5 else 0.02
+                got = graspcore.grasp_quality(pts, nrm, mu, np.zeros(3), rad, volume=False, reuse=True)
+                fresh = graspcore.grasp_quality(pts, nrm, mu, np.zeros(3), rad, volume=False)
+                for flag in ("force_closure", "force_only_closure", "torque_closure", "rank"):
+                    assert got[flag] == fresh[flag], flag
+                assert got["epsilon"] == pytest.approx(fresh["epsilon"], rel=1e-12, abs=0.0)
+                if step in (3, 5):
+                    assert got == fresh     # no remembered set this close: a search, as without reuse
+                elif fresh["force_closure"]:
+                    w = edge_wrenches(pts, nrm, mu, np.zeros(3), rad, 8)
+                    assert supports_at(got["weakest"], w, got["epsilon"])
+    batch = graspcore.grasp_quality_batch(np.concatenate([sets[0][0], sets[1][0]]),
+                                          np.concatenate([sets[0][1], sets[1][1]]), 0.8,
+                                          [len(sets[0][0]), len(sets[1][0])],
+                                          np.zeros((2, 3)), [sets[0][2], sets[1][2]], volume=False, reuse=True)
+    for row, (p, n, r) in zip(batch, sets[:2]):
+        assert row["epsilon"] == pytest.approx(graspcore.grasp_quality(p, n, 0.8, np.zeros(3), r,
+                                                                       volume=False)["epsilon"], rel=1e-12)
+
+
+def test_reuse_is_a_bool_and_leaves_the_full_path_alone():
+    p, n, r = box_grasp(5, True)
+    with pytest.raises(ValueError, match=r"^reuse\b"):
+        graspcore.grasp_quality(p, n, 0.8, np.zeros(3), r, volume=False, reuse=1)
+    assert graspcore.grasp_quality(p, n, 0.8, np.zeros(3), r, reuse=True) == \
+        graspcore.grasp_quality(p, n, 0.8, np.zeros(3), r)
+
+
+def test_mu_min_reuse_answers_as_a_search():
+    """grasp_mu_min(reuse=True) on contacts within rounding of ones it answered: an answer the
+    search could have given (closed there as grasp_quality decides, not closed 2e-6 below, within
+    2e-6 of a fresh search's); contacts moved by 1e-7: exactly a fresh search's. Includes a pinch
+    that never closes (inf) and a frictionless closure (0)."""
+    rng = np.random.default_rng(8)
+    p, n, _, c, r = random_grasp(np.random.default_rng(0), 12)      # closed without friction
+    sets = [s for s in held_box_sets()] + [box_grasp(2, False), (p - c, n, r)]
+    answers = set()
+    for p, n, r in sets:
+        first = graspcore.grasp_mu_min(p, n, np.zeros(3), r, reuse=True)
+        for step in range(4):
+            q, m = (p + 1e-7 * rng.normal(size=p.shape), n) if step == 3 else (dithered(p, rng), dithered(n, rng))
+            got = graspcore.grasp_mu_min(q, m, np.zeros(3), r, reuse=True)
+            fresh = graspcore.grasp_mu_min(q, m, np.zeros(3), r)
+            if step == 3:
+                assert got == fresh
+            elif math.isinf(fresh):
+                assert math.isinf(got)
+            else:
+                assert got == pytest.approx(fresh, abs=2e-6)
+                assert graspcore.grasp_quality(q, m, got, np.zeros(3), r, volume=False)["force_closure"]
+                if got > 2e-6:
+                    assert not graspcore.grasp_quality(q, m, got - 2e-6, np.zeros(3), r, volume=False)["force_closure"]
+        answers.add("inf" if math.isinf(first) else "0" if first == 0 else "mu")
+    assert answers == {"inf", "0", "mu"}
+
+
+def test_three_fingers_at_120_degrees_dithered_at_large_mu():
+    """Three fingers at 120 degrees tilted by 1e-3, in the last bits dithered, mu 10 (t* 0.04, well
+    inside): the closure LP stopped phase 1 on a rounding artefact ("unbounded") and read it as
+    "far outside" for 16 of 200 such sets; closure and epsilon as qhull has them, and mu_min
+    finite."""
+    p, n, r = three_at_120(1e-3)
+    rng = np.random.default_rng(8)
+    for _ in range(40):
+        q, m = dithered(p, rng), dithered(n, rng)
+        check_symmetric(q, m, 10.0, np.zeros(3), r, volume=False)
+        assert graspcore.grasp_mu_min(q, m, np.zeros(3), r) < 0.01

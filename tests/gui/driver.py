@@ -145,20 +145,64 @@ def region_pixels(px, region):
     return px[y0:y0 + region.height, x0:x0 + region.width]
 
 
-def find_primary_button(region):
+def find_primary_button(region, index=0):
     """Centre (region coordinates) of the highlighted (depressed) wide button in a region:
-    the Grasp panel draws its Start/Stop Session button so."""
+    the Grasp panel draws its Start/Stop Session button so (``index`` 1: the next one down,
+    Reset Bodies after a session)."""
     theme = bpy.context.preferences.themes[0].user_interface
     color = np.array(theme.wcol_tool.inner_sel[:3])
     px = region_pixels(pixels(screenshot("find_button")), region)[..., :3]
     match = np.all(np.abs(px - color) < 6 / 255, axis=2)
     rows = np.nonzero(match.sum(axis=1) > 0.5 * region.width)[0]
-    if len(rows) == 0:
-        raise AssertionError(f"no highlighted button in the sidebar (colour {color})")
-    band = rows[rows <= rows[0] + 60]         # the first button from the top
+    for _ in range(index + 1):
+        if len(rows) == 0:
+            raise AssertionError(f"no highlighted button {index} in the sidebar (colour {color})")
+        band = rows[rows <= rows[0] + 60]
+        band = band[:np.argmax(np.diff(band) > 1) + 1] if (np.diff(band) > 1).any() else band
+        rows = rows[rows > band[-1]]
     cols = np.nonzero(match[band].any(axis=0))[0]
     cy = (band[0] + band[-1]) / 2
     return (cols[0] + cols[-1]) / 2, region.height - cy
+
+
+def find_buttons(region, name="find_buttons"):
+    """The rows of operator buttons in a region from a screenshot, top to bottom: each
+    (x left, x right, y centre) in region coordinates, of the rows drawn in the theme's plain
+    button colour that start at the panel's left margin (property fields start at the
+    label split, further right). A row of n aligned buttons is n equal parts of it."""
+    theme = bpy.context.preferences.themes[0].user_interface
+    color = np.array(theme.wcol_tool.inner[:3])
+    px = region_pixels(pixels(screenshot(name)), region)[..., :3]
+    match = np.all(np.abs(px - color) < 6 / 255, axis=2)
+    wide = np.nonzero(match.sum(axis=1) > 0.2 * region.width)[0]
+    out = []
+    while len(wide):
+        band = [wide[0]]
+        for r in wide[1:]:
+            if r != band[-1] + 1:
+                break
+            band.append(r)
+        cols = np.nonzero(match[band[0]:band[-1] + 1].any(axis=0))[0]
+        if len(band) >= 8 and cols[0] < 0.12 * region.width:
+            out.append((int(cols[0]), int(cols[-1]), region.height - (band[0] + band[-1]) / 2))
+        wide = wide[wide > band[-1]]
+    return out
+
+
+def click_button(region, row, part=0, parts=1, name="find_buttons"):
+    """Click the ``part``-th of ``parts`` buttons of the ``row``-th button row of a region."""
+    rows = find_buttons(region, name)
+    if row >= len(rows):
+        raise AssertionError(f"no button row {row} in the region (rows: {rows})")
+    x0, x1, y = rows[row]
+    yield from click_at(region, x0 + (x1 - x0) * (part + 0.5) / parts, y)
+
+
+def click_at(region, x, y):
+    hover(region, x, y)
+    yield 0.3
+    xdo("click", "1")
+    yield 0.2
 
 
 def colour_counts(px, region, sidebar):
@@ -754,12 +798,206 @@ def scenario_device():
     RESULT["hud"] = s.hud_text()
     screenshot("device")
     area, win_region, ui = view3d()
+    hover(ui, ui.width / 2, ui.height / 2)
+    xdo("click", "--repeat", "15", "5")             # the sidebar scrolled to the Devices panel
+    yield 1.5
+    RESULT["device_panel_rows"] = find_buttons(ui, "device_panel")
+    docs_picture("device")
+    area, win_region, ui = view3d()
     hover(win_region)
     yield 0.3
     xdo("key", "Escape")
     yield from wait_until(lambda: active_session() is None, 5, "Esc to stop the session")
     check_stopped("esc")
     RESULT["device_events"] = [e[2] for e in last_result().stats["device_events"]]
+
+
+def docs_picture(name, crop="window"):
+    """A screenshot for the README (make docs-images): the screen, and the part of it to keep
+    (``window``: the 3D viewport with its sidebar and the editors below it; ``sidebar``:
+    the sidebar), in screenshot pixels (x, y from the top, width, height)."""
+    path = screenshot(f"docs_{name}")
+    area, win_region, ui = view3d()
+    if crop == "sidebar":
+        x, y = to_screen(ui, 0, ui.height)
+        box = (x, y, ui.width, ui.height)
+    else:
+        ox, oy = window_origin()
+        right = max(a.x + a.width for a in window().screen.areas if a.type in ("VIEW_3D", "GRAPH_EDITOR"))
+        box = (ox, oy, right, window().height)
+    RESULT.setdefault("docs_pictures", {})[name] = {"path": path, "crop": [int(v) for v in box]}
+    return path
+
+
+def _select_only(obj):
+    for o in bpy.context.scene.objects:
+        o.select_set(o is obj)
+    bpy.context.view_layer.objects.active = obj
+
+
+def _unchanged(before, after, region, x0, x1, y):
+    """Whether a button's pixels (its row, between x0 and x1) are the same in two screenshots:
+    nothing was drawn over it."""
+    a = region_pixels(before, region)
+    b = region_pixels(after, region)
+    row = int(region.height - y)
+    return float(np.abs(a[row - 6:row + 6, x0:x1, :3] - b[row - 6:row + 6, x0:x1, :3]).max())
+
+
+def scenario_walkthrough():
+    """The README's walkthrough, click by click, with its pictures: set up a grasp (Add Finger
+    beside the selected box, twice; Check, with a flat plane and without), run it live and grab
+    a fingertip with G, record the animated pinch and lift, bake the recording (the file
+    browser on it), Show Curves."""
+    # --- set up: a box on a table; fingertips added with the button, beside the selected box
+    box = setup_scene(duration=0.0, animated=False)
+    for o in [o for o in bpy.context.scene.objects if o.grasp_lab.role == "FINGER"]:
+        bpy.data.objects.remove(o)
+    _select_only(box)
+    yield from open_grasp_tab()
+    yield 1.0
+    area, win_region, ui = view3d()
+    for k in range(2):
+        _select_only(box)
+        yield 0.5
+        yield from click_button(ui, 0, part=0, parts=2)          # Add Finger
+        yield from wait_until(lambda: len([o for o in bpy.context.scene.objects
+                                           if o.grasp_lab.role == "FINGER"]) == k + 1, 5, f"finger {k}")
+    fingers = sorted((o for o in bpy.context.scene.objects if o.grasp_lab.role == "FINGER"), key=lambda o: o.name)
+    RESULT["added_fingers"] = [{"name": f.name, "location": list(f.location), "radius": f.grasp_lab.radius}
+                               for f in fingers]
+    RESULT["box"] = {"location": list(box.location), "size": list(box.dimensions)}
+    # --- Check, first with a plane that has no thickness
+    bpy.ops.mesh.primitive_plane_add(size=0.06, location=(0.0, 0.09, 0.0005))
+    plane = bpy.context.active_object
+    plane.name = "Plate"
+    plane.grasp_lab.role = "DYNAMIC"
+    yield 1.0
+    before = pixels(screenshot("before_check"))
+    rows = find_buttons(ui)
+    x0, x1, y = rows[0]
+    yield from click_button(ui, 0, part=1, parts=2)              # Check
+    yield 1.5
+    hover(win_region, 50, 50)                                     # the mouse off the button: as it is drawn
+    yield 1.0
+    after = pixels(docs_picture("check_plane", crop="sidebar"))
+    RESULT["check_plane"] = ext("ops").last_check.get(bpy.context.scene.name)
+    RESULT["check_button_change"] = _unchanged(before, after, ui, (x0 + x1) // 2 + 4, x1 - 2, y)
+    rows_after = find_buttons(ui, "rows_after_check")
+    RESULT["check_rows"] = {"before": rows, "after": rows_after}
+    bpy.data.objects.remove(plane)
+    yield 0.5
+    yield from click_button(ui, 0, part=1, parts=2)
+    yield 1.5
+    hover(win_region, 50, 50)
+    yield 1.0
+    RESULT["check_ok"] = ext("ops").last_check.get(bpy.context.scene.name)
+    _select_only(fingers[1])
+    yield 1.0
+    docs_picture("setup")
+    # --- live: finger 0 squeezes the -x face; finger 1 is grabbed with G and pushed in
+    half = box.dimensions.x / 2
+    r = fingers[0].grasp_lab.radius
+    fingers[0].location.x = box.location.x - (half + r - 0.003)
+    bpy.context.view_layer.update()
+    yield 0.5
+    yield from start_by_click()
+    yield 1.5
+    s = active_session()
+    _select_only(fingers[1])
+    yield 0.3
+    yield from press_in_viewport("g")
+    yield 0.3
+    xdo("key", "x")
+    yield 0.2
+    xdo("key", "minus", "0", "period", "0", "0", "3")
+    yield 0.3
+    xdo("key", "Return")
+    yield from wait_until(lambda: active_session() is not None and list(active_session().snapshot.contacts) == [0, 0],
+                          20, "both fingertips on the box")
+    yield 2.0
+    RESULT["live_hud"] = s.hud_text()
+    docs_picture("live_grab")
+    yield from press_in_viewport("Escape")
+    yield from wait_until(lambda: active_session() is None, 5, "Esc")
+    check_stopped("live")
+
+    # --- record: the animated pinch and lift, recorded; the session ends with the animation
+    folder = os.path.join(OUT, "recordings")
+    box = setup_scene(duration=0.0)
+    s = bpy.context.scene.grasp_lab
+    s.record = True
+    s.recording_folder = folder + os.sep
+    s.last_recording = ""
+    yield 1.0
+    yield from start_by_click()
+    yield from wait_until(lambda: active_session() is None, 60, "the recorded session to end")
+    check_stopped("record")
+    recordings = sorted(glob.glob(os.path.join(folder, "*.mcap")))
+    RESULT["recordings"] = recordings
+    RESULT["moved_after_record"] = [o.name for o in ext("session").moved_from_rest(bpy.context)]
+    hover(win_region, 50, 50)
+    yield 1.5
+    docs_picture("recorded", crop="sidebar")
+    # Reset Bodies, offered (highlighted, under Start Session) because the box was moved
+    at_end = list(box.matrix_world.translation)
+    x, y = find_primary_button(ui, index=1)
+    yield from click_at(ui, x, y)
+    yield from wait_until(lambda: not ext("session").moved_from_rest(bpy.context), 5, "Reset Bodies")
+    RESULT["reset"] = {"at_end": at_end, "after": list(box.matrix_world.translation)}
+    yield 1.0
+    try:
+        find_primary_button(ui, index=1)
+        RESULT["reset"]["still_offered"] = True
+    except AssertionError:
+        RESULT["reset"]["still_offered"] = False
+    # --- bake: the file browser opens on the recording just made
+    hover(ui, ui.width / 2, ui.height / 2)
+    for _ in range(3):                      # the sidebar scrolled to its end: Recording, Devices
+        xdo("click", "--repeat", "10", "5")
+        yield 0.4
+    rows = find_buttons(ui, "rows_after_record")
+    RESULT["rows_after_record"] = rows
+    yield from click_button(ui, len(rows) - 2, part=0, parts=2)     # Bake Recording
+    browser = {}
+
+    def file_browser():
+        for w in bpy.context.window_manager.windows:
+            for a in w.screen.areas:
+                if a.type == "FILE_BROWSER":
+                    browser["params"] = a.spaces.active.params
+                    return True
+        return False
+    yield from wait_until(file_browser, 10, "the file browser")
+    yield 1.5
+    p = browser["params"]
+    RESULT["browser"] = {"directory": p.directory.decode() if isinstance(p.directory, bytes) else p.directory,
+                         "filename": p.filename}
+    path = screenshot("docs_bake_browser")
+    RESULT.setdefault("docs_pictures", {})["bake_browser"] = {"path": path, "crop": None}
+    xdo("key", "Return")
+    yield from wait_until(lambda: "gl_closure" in bpy.data.objects["GL Force Box"].keys(), 20, "the bake")
+    yield 1.0
+    # --- Show Curves: one click, a Graph Editor with the measures
+    area, win_region, ui = view3d()
+    rows = find_buttons(ui, "rows_after_bake")
+    yield from click_button(ui, len(rows) - 2, part=1, parts=2)    # Show Curves
+    yield from wait_until(lambda: any(a.type == "GRAPH_EDITOR" for a in window().screen.areas), 10,
+                          "a Graph Editor")
+    bpy.context.scene.frame_set(43)
+    yield 2.0
+    graph = next(a for a in window().screen.areas if a.type == "GRAPH_EDITOR")
+    RESULT["graph"] = {"filter": graph.spaces.active.dopesheet.filter_text,
+                       "only_selected": graph.spaces.active.dopesheet.show_only_selected,
+                       "selected": sorted(o.name for o in bpy.context.selected_objects),
+                       "height": graph.height}
+    keys = []
+    for o in bpy.context.selected_objects:
+        for fc in ext("anim")._fcurves(o) or []:
+            keys.extend(kp.select_control_point for kp in fc.keyframe_points)
+    RESULT["graph"]["keys"] = len(keys)
+    RESULT["graph"]["selected_keys"] = int(sum(keys))
+    docs_picture("curves")
 
 
 SCENARIOS = {name[len("scenario_"):]: fn for name, fn in globals().items() if name.startswith("scenario_")}

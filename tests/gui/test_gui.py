@@ -176,3 +176,42 @@ def test_a_live_session_driven_by_an_emulated_device(gui):
     report = json.loads([line for line in out.splitlines() if line.startswith("REPORT ")][0][7:])
     assert report["max_force_n"] > 1.0, report             # forces reached the device once enabled
     assert report["violations"] == dict.fromkeys(report["violations"], 0), report
+
+
+def test_the_readme_walkthrough_click_by_click(gui):
+    """The README's walkthrough (the pictures of make docs-images come from this scenario):
+    Add Finger beside the selected box, twice; Check with a flat plane names the fix under the
+    button, without covering it; live, a fingertip grabbed with G squeezes the box; a recorded
+    session leaves the box where it ended and offers Reset Bodies; Bake Recording's browser
+    opens on that recording; Show Curves puts the measures in a Graph Editor, no key selected."""
+    r, console, _ = run(gui, "walkthrough", timeout=300)
+    ok(r, console)
+    stopped_cleanly(r)
+    # Fingertips beside the 5 cm box, touching its -x then +x face (8 mm radius: at 33 mm)
+    (f0, f1), box = r["added_fingers"], r["box"]
+    assert f0["radius"] == pytest.approx(0.008) and f1["radius"] == pytest.approx(0.008)
+    assert f0["location"] == pytest.approx([-0.033, 0.0, box["location"][2]], abs=1e-6)
+    assert f1["location"] == pytest.approx([0.033, 0.0, box["location"][2]], abs=1e-6)
+    # Check: the plane's problem and its fix, drawn under the button; the button not covered
+    ok_plane, text = r["check_plane"]
+    assert not ok_plane and '"Plate": has zero volume' in text and "give it thickness" in text
+    assert r["check_button_change"] == 0.0
+    before, after = r["check_rows"]["before"], r["check_rows"]["after"]
+    assert after[0] == before[0]                       # the Add Finger / Check row stays put
+    assert r["check_ok"][0] and r["check_ok"][1].startswith("Grasp scene OK: 1 dynamic, 1 static, 2 fingers")
+    # Live: the grabbed fingertip squeezes the box with the other
+    hud = r["live_hud"].replace("\u00a0", " ")          # no-break spaces as spaces
+    assert "Finger 0 stick" in hud and "Finger 1 stick" in hud, hud
+    # Recorded: one recording; the box left where the session ended, Reset Bodies offered
+    assert len(r["recordings"]) == 1 and r["moved_after_record"] == ["Box"]
+    # Reset Bodies, clicked where it is offered, puts the box back on the table, and goes
+    reset = r["reset"]
+    assert reset["at_end"][1] == pytest.approx(0.10, abs=0.005), reset          # carried 10 cm along y
+    assert reset["after"] == pytest.approx([0.0, 0.0, 0.025], abs=1e-6), reset
+    assert reset["still_offered"] is False
+    folder, name = os.path.split(r["recordings"][0])
+    assert r["browser"] == {"directory": folder + os.sep, "filename": name}
+    g = r["graph"]
+    assert g["filter"] == "gl_" and g["only_selected"] and g["height"] > 200
+    assert g["selected"] == ["GL Force Box", "GL God-object Finger 0", "GL God-object Finger 1"]
+    assert g["keys"] > 1000 and g["selected_keys"] == 0

@@ -230,6 +230,22 @@ class World(_core.World):
         self._tick_record(out, int(tick))
         return out
 
+    def step_hips(self, hips, dt: float, out: np.ndarray | None, first_tick: int = 1) -> np.ndarray | None:
+        """A HIP stream replayed in C with the GIL released: for each row of ``hips`` ((steps,
+        fingers, 3)), ``set_hips(row)``, ``step(dt)`` and the tick record (numbered
+        ``first_tick``, ``first_tick + 1``, ...) into ``out`` (a 1-d array of ``tick_dtype()``,
+        at least steps long; None: no records, the steps alone). Bit for bit those calls one
+        by one. Returns the filled part of ``out``."""
+        # aligned too: an array rebuilt by Dask's deserialiser may sit unaligned in its frame
+        h = np.require(hips, dtype=np.float64, requirements=["C_CONTIGUOUS", "ALIGNED"])
+        if h.ndim != 3 or h.shape[2] != 3:
+            raise ValueError(f"hips: expected a (steps, fingers, 3) array, got shape {h.shape}")
+        if out is not None and (out.dtype != self.tick_dtype() or out.ndim != 1 or not out.flags.c_contiguous
+                                or len(out) < len(h)):
+            raise ValueError(f"out: expected a C-contiguous 1-d array of World.tick_dtype(), at least {len(h)} long")
+        self._step_hips(h, int(h.shape[0]), int(h.shape[1]), float(dt), out, int(first_tick))
+        return None if out is None else out[:len(h)]
+
     def set_tick_log(self, capacity: int) -> None:
         """While stopped: keep the last ``capacity`` undrained haptic ticks (0 = off). start()
         sizes and empties the ring; a full ring drops ticks and counts them
@@ -321,7 +337,8 @@ def _flag(value, name: str) -> bool:
     return bool(value)
 
 
-def grasp_quality(points, normals, mu, center, radius, edges: int = 8, volume: bool = True) -> dict:
+def grasp_quality(points, normals, mu, center, radius, edges: int = 8, volume: bool = True,
+                  reuse: bool = False) -> dict:
     """Quality of a grasp by point contacts with friction (docs/api.md "Grasp quality").
 
     points (n, 3) contact points, normals (n, 3) inward normals (into the object), mu one number
@@ -329,18 +346,21 @@ def grasp_quality(points, normals, mu, center, radius, edges: int = 8, volume: b
     linearised friction cone. Returns force_closure, force_only_closure, torque_closure, epsilon,
     volume, weakest (6 floats), rank, facets. volume=False takes the fast path (no 6-D hull:
     closure by a linear program, epsilon and weakest by support queries, the same values) and
-    returns volume -1.0 and facets -1 (not computed). Bad input raises ValueError naming the
-    argument."""
+    returns volume -1.0 and facets -1 (not computed). reuse=True (with volume=False): a set within
+    rounding of one of the last few answered in closure gets that answer's facet re-certified
+    instead of a new search (docs/api.md, "Reusing an answer"). Bad input raises ValueError naming
+    the argument."""
     points, normals, mu = _contacts(points, normals, mu)
     return _core._grasp_quality(points, normals, mu, _vector(center, 3, "center"), _number(radius, "radius"),
-                                _number(edges, "edges", int), _flag(volume, "volume"))
+                                _number(edges, "edges", int), _flag(volume, "volume"), _flag(reuse, "reuse"))
 
 
 def grasp_quality_batch(points, normals, mu, counts, centers, radii, edges: int = 8,
-                        volume: bool = True) -> np.ndarray:
+                        volume: bool = True, reuse: bool = False) -> np.ndarray:
     """grasp_quality of many contact sets: counts[s] contacts in set s, their rows of points,
     normals and mu (one number or one per row) concatenated; centers (m, 3), radii (m,).
-    volume as in grasp_quality (False: volume -1.0 and facets -1 in every row, much faster).
+    volume and reuse as in grasp_quality (volume False: volume -1.0 and facets -1 in every row,
+    much faster).
     Returns a structured array of GRASP_QUALITY_DTYPE, one row per set."""
     points, normals, mu = _contacts(points, normals, mu)
     try:
@@ -364,17 +384,20 @@ def grasp_quality_batch(points, normals, mu, counts, centers, radii, edges: int 
     if m:
         _core._grasp_quality_batch(points, normals, mu, counts_array, np.ascontiguousarray(centers_array),
                                    radii_array, _number(edges, "edges", int), _flag(volume, "volume"),
-                                   raw.view(np.uint8))
+                                   _flag(reuse, "reuse"), raw.view(np.uint8))
     out = np.zeros(m, dtype=GRASP_QUALITY_DTYPE)
     for name in GRASP_QUALITY_DTYPE.names:
         out[name] = raw[name]
     return out
 
 
-def grasp_mu_min(points, normals, center, radius, edges: int = 8, mu_max: float = 10.0) -> float:
+def grasp_mu_min(points, normals, center, radius, edges: int = 8, mu_max: float = 10.0,
+                 reuse: bool = False) -> float:
     """The smallest friction coefficient (the same at every contact) at which the contact set is
     in force closure, by bisection to 1e-6 (each step the closure linear program, no hull); 0.0 for
-    frictionless closure, math.inf when not in closure at mu_max."""
+    frictionless closure, math.inf when not in closure at mu_max. reuse=True: the answer for
+    contacts within 1e-9 of one of the last few, checked (closed there, open 2e-6 below), instead
+    of a new search (docs/api.md, "Reusing an answer")."""
     points, normals, _ = _contacts(points, normals, 0.0)
     return _core._grasp_mu_min(points, normals, _vector(center, 3, "center"), _number(radius, "radius"),
-                               _number(edges, "edges", int), _number(mu_max, "mu_max"))
+                               _number(edges, "edges", int), _number(mu_max, "mu_max"), _flag(reuse, "reuse"))
