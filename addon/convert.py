@@ -139,11 +139,23 @@ def _frame_matrix(t, q) -> Matrix:
     return f
 
 
-def finger_desc(obj) -> FingerDesc:
+def finger_desc(obj, depsgraph) -> FingerDesc:
+    """An Empty is a fingertip sphere of Radius; a mesh is a convex finger of its mesh's hull (a
+    pad, a palm: docs/physics.md "Area contacts") in its rigid frame, Radius not used."""
     gl = obj.grasp_lab
-    return FingerDesc(name=obj.name, position=np.array(obj.matrix_world.translation, dtype=np.float64),
+    desc = FingerDesc(name=obj.name, position=np.array(obj.matrix_world.translation, dtype=np.float64),
                       radius=gl.radius, stiffness=gl.stiffness, damping=gl.damping, channel=gl.channel,
                       renderer=gl.renderer.lower(), cursor_mass=gl.cursor_mass)
+    if obj.type == "MESH":
+        t, q = _frame(obj.matrix_world)
+        mesh = mesh_in_frame(obj, depsgraph, t, q)
+        if len(mesh.triangles) == 0:
+            raise SceneError(obj.name, "a mesh finger needs faces (its hull is the finger); "
+                                       "use an Empty for a fingertip sphere")
+        desc.points = mesh.vertices
+        desc.orientation = np.array((q.w, q.x, q.y, q.z), dtype=np.float64)
+        desc.radius = 0.0
+    return desc
 
 
 def scene_description(context):
@@ -160,7 +172,7 @@ def scene_description(context):
         desc.bodies.append(b)
         links.append(link)
     for obj in fingers:
-        desc.fingers.append(finger_desc(obj))
+        desc.fingers.append(finger_desc(obj, depsgraph))
     return desc, links, fingers
 
 

@@ -123,10 +123,14 @@ def scene_to_dict(desc) -> dict:
             "volume": None if mp is None else float(mp.volume),
             "center_of_mass": None if mp is None else arr(mp.center_of_mass),
             "inertia": None if mp is None else arr(mp.inertia)})
-    fingers = [{"name": f.name, "position": arr(f.position), "radius": float(f.radius),
-                "stiffness": float(f.stiffness), "damping": float(f.damping), "channel": int(f.channel),
-                "renderer": str(f.renderer), "cursor_mass": float(f.cursor_mass)}
-               for f in desc.fingers]
+    fingers = []
+    for f in desc.fingers:
+        finger = {"name": f.name, "position": arr(f.position), "radius": float(f.radius),
+                  "stiffness": float(f.stiffness), "damping": float(f.damping), "channel": int(f.channel),
+                  "renderer": str(f.renderer), "cursor_mass": float(f.cursor_mass)}
+        if f.points is not None:  # a convex finger; a sphere's entry has no points
+            finger.update(points=arr(f.points), orientation=arr(f.orientation))
+        fingers.append(finger)
     return {"gravity": [float(g) for g in desc.gravity], "gyroscopic": bool(desc.gyroscopic),
             "haptic_rate": float(desc.haptic_rate), "display_rate": float(desc.display_rate),
             "bodies": bodies, "fingers": fingers}
@@ -147,6 +151,8 @@ def scene_from_dict(data: dict):
                                mu_s=b["mu_s"], mu_d=b["mu_d"], viscosity=b["viscosity"], mass_properties=mp))
     fingers = [FingerDesc(name=f["name"], position=np.array(f["position"]), radius=f["radius"],
                           stiffness=f["stiffness"], damping=f["damping"], channel=f.get("channel", 0),
+                          points=None if f.get("points") is None else np.array(f["points"], dtype=np.float64).reshape(-1, 3),
+                          orientation=np.array(f.get("orientation", (1.0, 0.0, 0.0, 0.0)), dtype=np.float64),
                           **{k: f[k] for k in ("renderer", "cursor_mass") if k in f})
                for f in data["fingers"]]
     return SceneDesc(gravity=tuple(data["gravity"]), gyroscopic=data["gyroscopic"],

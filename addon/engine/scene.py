@@ -73,7 +73,11 @@ class FingerDesc:
     stiffness: float = field(default_factory=lambda: defaults.finger("stiffness"))
     damping: float = field(default_factory=lambda: defaults.finger("damping"))
     channel: int = 0
-    renderer: str = field(default_factory=defaults.renderer)      # "xfca" or "cursor"
+    # A convex finger (a Finger-role mesh: a pad, a palm): its hull's points in the finger's
+    # frame (m, scale applied), and that frame's orientation (w, x, y, z). None: a sphere of radius.
+    points: np.ndarray | None = None
+    orientation: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
+    renderer: str = field(default_factory=defaults.renderer)      # "xfca" or "cursor" (sphere fingers)
     cursor_mass: float = field(default_factory=lambda: defaults.finger("cursor_mass"))
 
 
@@ -98,6 +102,9 @@ class SceneDesc:
 # most ~0.2 % of the part's size (0.15 mm on a 10 cm sphere, the worst case: every
 # vertex on the hull); mass properties always use the full mesh.
 HULL_MAX_POINTS = 1024
+# A convex finger's hull has at most this many vertices (the core's GC_MAX_FINGER_VERTICES):
+# a mesh with more is reduced to the extreme points along as many directions.
+FINGER_MAX_POINTS = 32
 
 
 def _sphere_directions(k: int) -> np.ndarray:
@@ -265,6 +272,18 @@ def prepare(desc: SceneDesc) -> SceneDesc:
         if f.renderer not in ("xfca", "cursor") or not f.cursor_mass >= 0:
             raise SceneError(f.name, f"finger needs renderer 'xfca' or 'cursor' and cursor mass >= 0 "
                                      f"(got {f.renderer!r}, {f.cursor_mass})")
+        if f.points is not None:
+            if f.renderer == "cursor":
+                raise SceneError(f.name, "a mesh finger is a convex finger, rendered by its god-objects (xFCA): "
+                                         "the light-mass cursor takes a sphere finger (an Empty)")
+            p = _as_points(f.name, f.points)
+            check_scale(f.name, p)
+            check_hull_points(f.name, p)
+            f.points = reduce_hull_points(p, FINGER_MAX_POINTS)
+            q = np.asarray(f.orientation, dtype=np.float64)
+            if q.shape != (4,) or not np.all(np.isfinite(q)) or not np.linalg.norm(q) > 0:
+                raise SceneError(f.name, f"finger orientation must be a non-zero quaternion, got {f.orientation}")
+            f.orientation = q / np.linalg.norm(q)
     return desc
 
 
@@ -320,10 +339,12 @@ def build_world(desc: SceneDesc, graspcore, exact: bool = False) -> WorldHandle:
         except ValueError as ex:
             raise SceneError(b.name, f"rejected by the core: {ex}") from ex
     for f in desc.fingers:
+        convex = {} if f.points is None else dict(points=np.ascontiguousarray(f.points, dtype=np.float64),
+                                                   orientation=tuple(map(float, f.orientation)))
         try:
             finger_ids.append(world.add_finger(radius=float(f.radius), stiffness=float(f.stiffness),
                                                damping=float(f.damping),
-                                               position=tuple(map(float, f.position)),
+                                               position=tuple(map(float, f.position)), **convex,
                                                renderer=str(f.renderer), cursor_mass=float(f.cursor_mass)))
         except ValueError as ex:
             raise SceneError(f.name, f"rejected by the core: {ex}") from ex

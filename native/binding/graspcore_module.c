@@ -253,14 +253,16 @@ done:
     return result;
 }
 
+/* points: None (a sphere finger) or a C-contiguous float64 buffer of xyz rows (a convex finger). */
 static PyObject *World_add_finger(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
-    static char *kwlist[] = {"radius", "stiffness", "damping", "position", "renderer", "cursor_mass", NULL};
+    static char *kwlist[] = {"radius",      "stiffness", "damping",  "position",    "points",
+                             "orientation", "torsion",   "renderer", "cursor_mass", NULL};
     gcFingerDef def = gc_default_finger_def();
-    PyObject *position = NULL;
+    PyObject *position = NULL, *points = NULL, *orientation = NULL;
     const char *renderer = NULL;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|dddOsd", kwlist, &def.radius, &def.stiffness, &def.damping,
-                                     &position, &renderer, &def.cursor_mass))
+    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|dddOOOdsd", kwlist, &def.radius, &def.stiffness, &def.damping,
+                                     &position, &points, &orientation, &def.torsion, &renderer, &def.cursor_mass))
         return NULL;
     if (!check_ready(self)) return NULL;
     if (renderer && strcmp(renderer, "xfca") == 0)
@@ -272,9 +274,81 @@ static PyObject *World_add_finger(PyObject *obj, PyObject *args, PyObject *kwarg
         return NULL;
     }
     if (position && !parse_vec(position, 3, "position", def.position)) return NULL;
+    if (orientation && orientation != Py_None && !parse_vec(orientation, 4, "orientation", def.orientation))
+        return NULL;
+    Py_buffer b = {0};
+    int has_points = points && points != Py_None;
+    if (has_points) {
+        if (PyObject_GetBuffer(points, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
+        if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0 ||
+            b.len / (Py_ssize_t)(3 * sizeof(double)) > (1 << 20)) {
+            PyBuffer_Release(&b);
+            PyErr_SetString(PyExc_ValueError, "points: must be a C-contiguous float64 array of xyz rows");
+            return NULL;
+        }
+        def.points = b.buf;
+        def.num_points = (int)(b.len / (Py_ssize_t)(3 * sizeof(double)));
+    }
     int32_t id;
     gcStatus st = gc_world_add_finger(self->world, &def, &id);
+    if (has_points) PyBuffer_Release(&b);
     return st < 0 ? raise_status(self, st) : PyLong_FromLong(id);
+}
+
+static PyObject *World_set_finger_pose(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int finger;
+    PyObject *pos, *orient;
+    double p[3], o[4];
+    if (!PyArg_ParseTuple(args, "iOO", &finger, &pos, &orient) || !check_ready(self) ||
+        !parse_vec(pos, 3, "position", p) || !parse_vec(orient, 4, "orientation", o))
+        return NULL;
+    gcStatus st = gc_world_set_finger_pose(self->world, finger, p, o);
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+}
+
+static PyObject *World_finger_pose(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int finger;
+    double p[3], o[4];
+    if (!PyArg_ParseTuple(args, "i", &finger) || !check_ready(self)) return NULL;
+    gcStatus st = gc_world_finger_pose(self->world, finger, p, o);
+    if (st < 0) return raise_status(self, st);
+    return Py_BuildValue("((ddd)(dddd))", p[0], p[1], p[2], o[0], o[1], o[2], o[3]);
+}
+
+/* finger_contacts(finger) -> list of dicts, one per point of the finger's contact patch. */
+static PyObject *World_finger_contacts(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int finger;
+    if (!PyArg_ParseTuple(args, "i", &finger) || !check_ready(self)) return NULL;
+    gcFingerContactPoint points[64];
+    int n = 0;
+    gcStatus st = gc_world_finger_contacts(self->world, finger, points, 64, &n);
+    if (st < 0) return raise_status(self, st);
+    if (n > 64) n = 64;
+    static const char *states[] = {"free", "stick", "slip"};
+    PyObject *list = PyList_New(n);
+    if (!list) return NULL;
+    for (int i = 0; i < n; ++i) {
+        const gcFingerContactPoint *c = &points[i];
+        PyObject *d = Py_BuildValue("{s:i,s:i,s:O,s:s,s:(ddd),s:(ddd),s:(ddd)}", "body", c->body, "sample",
+                                    c->sample, "reversed", c->reversed ? Py_True : Py_False, "state",
+                                    states[c->state >= 0 && c->state <= 2 ? c->state : 0],
+                                    "point", c->point[0], c->point[1], c->point[2], "normal",
+                                    c->normal[0], c->normal[1], c->normal[2], "force", c->force[0], c->force[1],
+                                    c->force[2]);
+        if (!d) {
+            Py_DECREF(list);
+            return NULL;
+        }
+        if (PyList_SetItem(list, i, d) < 0) {
+            Py_DECREF(list);
+            return NULL;
+        }
+    }
+    return list;
 }
 
 static PyObject *World_set_hip(PyObject *obj, PyObject *args) {
@@ -432,6 +506,10 @@ static PyObject *finger_vec(WorldObject *self, PyObject *args, FingerVecQuery qu
 
 static PyObject *World_finger_force(PyObject *obj, PyObject *args) {
     return finger_vec((WorldObject *)obj, args, gc_world_finger_force);
+}
+
+static PyObject *World_finger_torque(PyObject *obj, PyObject *args) {
+    return finger_vec((WorldObject *)obj, args, gc_world_finger_torque);
 }
 
 static PyObject *World_god_object(PyObject *obj, PyObject *args) {
@@ -1253,8 +1331,17 @@ static PyObject *World_serial_events(PyObject *obj, PyObject *args) {
 static PyMethodDef World_methods[] = {
     {"_add_body", World_add_body, METH_VARARGS, "Low-level add_body; use World.add_body."},
     {"add_finger", (PyCFunction)(void (*)(void))World_add_finger, METH_VARARGS | METH_KEYWORDS,
-     "add_finger(radius, stiffness, damping, position=(0,0,0), renderer='xfca', cursor_mass) -> finger id; "
-     "defaults: FINGER_DEFAULTS"},
+     "add_finger(radius, stiffness, damping, position=(0,0,0), points=None, orientation=(1,0,0,0), torsion=0, "
+     "renderer='xfca', cursor_mass) -> finger id; points: a convex finger's (n, 3) float64 points in its frame "
+     "(None: a sphere); torsion: a soft sphere fingertip's patch radius, m; renderer 'cursor': sphere fingers "
+     "without torsion only; defaults: FINGER_DEFAULTS"},
+    {"set_finger_pose", World_set_finger_pose, METH_VARARGS,
+     "set_finger_pose(finger, (x, y, z), (w, x, y, z)): the whole HIP (a convex finger turns with it)."},
+    {"finger_pose", World_finger_pose, METH_VARARGS, "finger_pose(finger) -> ((x, y, z), (w, x, y, z))"},
+    {"finger_torque", World_finger_torque, METH_VARARGS,
+     "finger_torque(finger) -> a convex finger's contact torque about its HIP, N m (0 for a sphere)"},
+    {"finger_contacts", World_finger_contacts, METH_VARARGS,
+     "finger_contacts(finger) -> [{body, sample, reversed, state, point, normal, force}] per contact point (first 64)"},
     {"set_hip", World_set_hip, METH_VARARGS, "set_hip(finger, (x, y, z)): the device (haptic interface) point."},
     {"set_hips", World_set_hips, METH_O, "set_hips(array (n, 3) float64): HIPs of fingers 0..n-1."},
     {"set_gravity", World_set_gravity, METH_O, "set_gravity((gx, gy, gz))"},

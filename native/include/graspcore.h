@@ -76,16 +76,33 @@ typedef struct gcBodyDef {
 } gcBodyDef;
 gcBodyDef gc_default_body_def(void);
 
+/* A convex finger (a pad, a palm, a tool tip) has at most this many hull vertices. */
+#define GC_MAX_FINGER_VERTICES 32
+
 /* How a finger's force is found (docs/physics.md): the friction-cone god-objects, one per
  * convex part touched (xFCA), or the light-mass cursor: a mass on the finger's spring and
  * damper, kept outside all the convex parts together by a constraint solve. */
 typedef enum gcFingerRenderer { GC_RENDERER_XFCA = 0, GC_RENDERER_CURSOR = 1 } gcFingerRenderer;
 
 typedef struct gcFingerDef {
-    double radius;          /* fingertip sphere, m (0 = point), default 0.008 */
-    double stiffness;       /* N/m, default 1000 */
+    double radius;          /* fingertip sphere, m (0 = point), default 0.008; a convex finger's
+                             * hull is inflated by it */
+    double stiffness;       /* N/m per point of contact (a sphere has one, a convex finger one per
+                             * touching hull vertex), default 1000 */
     double damping;         /* N s/m on the HIP vs god-object-point velocity, default 0 */
     double position[3];     /* initial HIP */
+    /* Convex finger (docs/physics.md "Area contacts"): NULL / 0 = a sphere of radius. Otherwise
+     * num_points >= 4 xyz triples in the finger frame, not all coplanar, whose hull has at most
+     * GC_MAX_FINGER_VERTICES vertices. Each hull vertex is a point of contact with a god-object
+     * of its own, so a face lying on a face carries the pressure torque. */
+    const double *points;
+    int num_points;
+    double orientation[4];  /* initial finger-frame orientation (w, x, y, z), default identity;
+                             * normalised on creation */
+    double torsion;         /* a soft sphere fingertip (docs/physics.md "Soft fingertips"): the radius
+                             * rho (m) of the patch it presses, resisting a twist about the contact
+                             * normal with stiffness k rho^2 up to mu F_n rho; default 0 = none.
+                             * Sphere fingers only (a convex finger's patch has its own) */
     gcFingerRenderer renderer; /* default GC_RENDERER_XFCA */
     double cursor_mass;     /* kg, the cursor renderer's mass, >= 0, default 0.002 */
 } gcFingerDef;
@@ -107,6 +124,11 @@ int gc_world_finger_count(const gcWorld *world);
 
 gcStatus gc_world_set_gravity(gcWorld *world, const double gravity[3]);
 gcStatus gc_world_set_hip(gcWorld *world, int32_t finger, const double position[3]);
+/* The whole HIP of a finger: position and orientation (w, x, y, z, normalised here). A convex
+ * finger turns with it; a sphere finger ignores the orientation. */
+gcStatus gc_world_set_finger_pose(gcWorld *world, int32_t finger, const double position[3],
+                                  const double orientation[4]);
+gcStatus gc_world_finger_pose(const gcWorld *world, int32_t finger, double position[3], double orientation[4]);
 /* count xyz triples for fingers 0..count-1. */
 gcStatus gc_world_set_hips(gcWorld *world, const double *positions, int count);
 gcStatus gc_world_set_body_velocity(gcWorld *world, int32_t body, const double linear[3],
@@ -138,6 +160,27 @@ gcStatus gc_world_body_mass(const gcWorld *world, int32_t body, double *mass,
 gcStatus gc_world_residual_wrench(const gcWorld *world, int32_t body, double force[3],
                                   double torque[3]);
 gcStatus gc_world_finger_force(const gcWorld *world, int32_t finger, double force[3]);
+/* Convex finger: the torque of its contacts about the HIP (sum (GO_i - HIP) x f_i), what a 6-DOF
+ * device renders beside the force; a soft sphere fingertip's twist torque; 0 for a plain sphere.
+ * GC_ERR_BUSY while the runtime runs. */
+gcStatus gc_world_finger_torque(const gcWorld *world, int32_t finger, double torque[3]);
+/* One point of a finger's contact patch (a sphere finger has at most one per part it touches). */
+typedef struct gcFingerContactPoint {
+    int32_t body;           /* the body touched */
+    int32_t sample;         /* not reversed: the convex finger's hull vertex (0 for a sphere);
+                             * reversed: the vertex of the body's part that entered the finger */
+    int32_t reversed;       /* 1: a body vertex inside a convex finger, its god-object on the finger */
+    int32_t state;          /* gcFingerState: stick or slip */
+    double point[3];        /* world, where the body receives the force: the god-object on the body
+                             * (a fingertip centre), or the body's vertex */
+    double normal[3];       /* world, outward from the body */
+    double force[3];        /* N, on the finger (the body gets the opposite at point) */
+} gcFingerContactPoint;
+/* Copies up to capacity contact points of the finger; *out_count: how many it has (may exceed
+ * capacity). GC_ERR_BUSY while the runtime runs (its snapshots do not carry the patch; so for
+ * gc_world_finger_torque). */
+gcStatus gc_world_finger_contacts(const gcWorld *world, int32_t finger, gcFingerContactPoint *out, int capacity,
+                                  int *out_count);
 gcStatus gc_world_god_object(const gcWorld *world, int32_t finger, double position[3]);
 gcStatus gc_world_finger_state(const gcWorld *world, int32_t finger, gcFingerState *state,
                                int32_t *contact_body);
@@ -294,7 +337,8 @@ gcStatus gc_world_debug_stall(gcWorld *world, double seconds);
  * when free) as 3 f64 each; per body pose (7 f64),
  * velocity (linear of the body frame origin, angular; 6 f64), residual wrench (6 f64); per
  * finger state i32, contact body i32 (-1 free); per finger parts u32 (bit i: touches part i of
- * its body, parts past 31 on bit 31). */
+ * its body, parts past 31 on bit 31); per finger orientation (w, x, y, z) 4 f64 (the identity
+ * for a sphere finger). Each field was added at the end: older records are their prefix. */
 size_t gc_tick_record_size(int num_bodies, int num_fingers);
 /* The stopped world as one record (after a gc_world_step); device_force = force. */
 gcStatus gc_world_tick_record(gcWorld *world, uint64_t tick, void *out, size_t size);

@@ -274,7 +274,6 @@ void gc_cursor_finger_update(gcWorld *w, gcFinger *f, double dt) {
         fc->state = state;
         fc->go_local = gc_inv_transform_point(&fr, x);
         fc->normal_local = gc_mat3_tmul_vec(&fr.R, planes[i].n);
-        fc->so_local = gc_inv_transform_point(&fr, xf);
         fc->depth = depth * lambda[i] / lambda_sum;
         fc->share = lambda[i] / lambda_sum;
     }

@@ -26,6 +26,8 @@ typedef struct gcHull {
     double radius;             /* margin radius (sphere/capsule) */
     gcVec3 aabb_min, aabb_max; /* of the core, local frame */
     double min_width;          /* smallest extent over the face normals (thin plates); 2*radius for spheres */
+    int num_edges;             /* feature edges (where faces meet at an angle; a capsule's segment) */
+    int *edges;                /* 2 * num_edges vertex indices; NULL when none */
     double volume;             /* of the inflated shape for spheres/capsules, of the hull otherwise */
     gcVec3 centroid;           /* volume centroid, local frame */
     gcMat3 inertia_unit;       /* inertia tensor about the centroid for unit density, local axes */

@@ -189,7 +189,13 @@ static gcStatus make_sphere_or_capsule(gcVec3 p0, gcVec3 p1, int count, double r
     if (!out->vertices) return GC_ERR_NO_MEMORY;
     out->num_vertices = count;
     out->vertices[0] = p0;
-    if (count == 2) out->vertices[1] = p1;
+    if (count == 2) {
+        out->vertices[1] = p1;
+        out->edges = (int *)malloc(2 * sizeof(int)); /* a capsule's segment is its one edge */
+        if (!out->edges) return GC_ERR_NO_MEMORY;
+        out->edges[0] = 0, out->edges[1] = 1;
+        out->num_edges = 1;
+    }
     out->radius = radius;
     out->aabb_min = gc_v3(fmin(p0.x, p1.x), fmin(p0.y, p1.y), fmin(p0.z, p1.z));
     out->aabb_max = gc_v3(fmax(p0.x, p1.x), fmax(p0.y, p1.y), fmax(p0.z, p1.z));
@@ -273,6 +279,7 @@ static gcStatus build_soa(gcHull *h) {
 
 void gc_hull_free(gcHull *hull) {
     if (!hull) return;
+    free(hull->edges);
     free(hull->soa_x);
     free(hull->vertices);
     free(hull->triangles);
@@ -281,6 +288,57 @@ void gc_hull_free(gcHull *hull) {
     free(hull->adjacency);
     free(hull->adjacency_start);
     memset(hull, 0, sizeof(*hull));
+}
+
+/* Faces within this of parallel are one face (its triangles' shared edges are not features). */
+#define GC_FEATURE_EDGE_COS (1.0 - 1e-6)
+
+typedef struct EdgeRef {
+    int64_t key; /* min * nv + max */
+    int tri;
+} EdgeRef;
+
+static int compare_edge_refs(const void *pa, const void *pb) {
+    const EdgeRef *a = pa, *b = pb;
+    if (a->key != b->key) return a->key < b->key ? -1 : 1;
+    return (a->tri > b->tri) - (a->tri < b->tri);
+}
+
+/* The hull's feature edges: each triangle edge whose two triangles are not coplanar (the
+ * diagonals that split a planar face are left out), found by sorting the 3 nt edge keys. */
+static gcStatus find_feature_edges(gcHull *out) {
+    int nt = out->num_triangles, nv = out->num_vertices;
+    if (nt == 0) return GC_OK;
+    EdgeRef *refs = (EdgeRef *)malloc((size_t)nt * 3 * sizeof(EdgeRef));
+    out->edges = (int *)malloc((size_t)nt * 3 * sizeof(int)); /* at most 3 nt / 2 edges */
+    if (!refs || !out->edges) {
+        free(refs);
+        return GC_ERR_NO_MEMORY;
+    }
+    for (int t = 0; t < nt; ++t)
+        for (int k = 0; k < 3; ++k) {
+            int a = out->triangles[3 * t + k], c = out->triangles[3 * t + (k + 1) % 3];
+            int lo = a < c ? a : c, hi = a < c ? c : a;
+            refs[3 * t + k].key = (int64_t)lo * nv + hi;
+            refs[3 * t + k].tri = t;
+        }
+    qsort(refs, (size_t)nt * 3, sizeof *refs, compare_edge_refs);
+    int ne = 0;
+    for (int i = 0; i < 3 * nt;) {
+        int j = i + 1;
+        while (j < 3 * nt && refs[j].key == refs[i].key) ++j;
+        int feature = j - i != 2 ||
+                      gc_dot(out->plane_normals[refs[i].tri], out->plane_normals[refs[i + 1].tri]) < GC_FEATURE_EDGE_COS;
+        if (feature) {
+            out->edges[2 * ne] = (int)(refs[i].key / nv);
+            out->edges[2 * ne + 1] = (int)(refs[i].key % nv);
+            ++ne;
+        }
+        i = j;
+    }
+    free(refs);
+    out->num_edges = ne;
+    return GC_OK;
 }
 
 static gcStatus finish_hull(Builder *b, double radius, gcHull *out) {
@@ -338,6 +396,7 @@ static gcStatus finish_hull(Builder *b, double radius, gcHull *out) {
         out->adjacency = NULL;
         out->adjacency_start = NULL;
     }
+    if (find_feature_edges(out) != GC_OK) return GC_ERR_NO_MEMORY;
     /* Thin faces have normals good to ~eps/width: push each plane out to its
      * farthest vertex so that no vertex is ever outside a plane. */
     for (int f = 0; f < nt; ++f) {

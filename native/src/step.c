@@ -16,7 +16,11 @@ int gc_step(gcWorld *w, double dt) {
     gc_xfca_update(w, dt);
     int stopped = gc_step_bodies(w, dt);
     gc_xfca_outputs(w);
-    for (int i = 0; i < w->num_fingers; ++i) w->fingers[i].hip_prev = w->fingers[i].hip;
+    for (int i = 0; i < w->num_fingers; ++i) {
+        gcFinger *f = &w->fingers[i];
+        f->hip_prev = f->hip;
+        if (f->num_vertices) f->q_prev = f->q, f->R_prev = f->R; /* a convex finger's turn per step */
+    }
     w->time += dt;
     return stopped;
 }

@@ -42,7 +42,7 @@ enum { REC_HEADER = 52 };
 size_t gc_tick_record_size(int num_bodies, int num_fingers) {
     if (num_bodies < 0 || num_fingers < 0) return 0;
     return REC_HEADER + sizeof(double) * (15 * (size_t)num_fingers + 19 * (size_t)num_bodies) +
-           sizeof(int32_t) * 3 * (size_t)num_fingers;
+           sizeof(int32_t) * 3 * (size_t)num_fingers + sizeof(double) * 4 * (size_t)num_fingers;
 }
 
 #define FNV_PRIME 1099511628211ull
@@ -123,16 +123,19 @@ static uint64_t hash_finger(uint64_t h, const gcWorld *w, int i) {
     const gcFinger *f = &w->fingers[i], *shown = w->shown ? &w->shown->fingers[i] : f;
     h = hash_bytes(h, &shown->hip, sizeof shown->hip);
     h = hash_bytes(h, &shown->force, sizeof shown->force);
+    if (f->num_vertices) h = hash_bytes(h, &f->q, sizeof f->q); /* a convex finger's orientation */
     if (f->renderer == GC_RENDERER_CURSOR) { /* its own state (xFCA fingers hash as before) */
         h = hash_bytes(h, &f->cursor, sizeof f->cursor);
         h = hash_bytes(h, &f->cursor_velocity, sizeof f->cursor_velocity);
     }
     for (int c = 0; c < f->num_contacts; ++c) {
         const gcFingerContact *k = &f->contacts[c];
+        if (f->num_vertices) h = hash_4(h, &k->sample), h = hash_4(h, &k->reversed);
         h = hash_4(h, &k->part);
         h = hash_4(h, &k->state);
         h = hash_bytes(h, &k->go_local, sizeof k->go_local);
         h = hash_bytes(h, &k->normal_local, sizeof k->normal_local);
+        if (f->torsion > 0.0) h = hash_bytes(h, &k->twist_local, sizeof k->twist_local);
     }
     return h;
 }
@@ -154,7 +157,9 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
     unsigned char *hip = out + REC_HEADER, *go = hip + 24 * nf, *force = go + 24 * nf, *dev = force + 24 * nf;
     unsigned char *normal = dev + 24 * nf, *pose = normal + 24 * nf, *vel = pose + 56 * nb;
     unsigned char *wrench = vel + 48 * nb, *state = wrench + 48 * nb, *contact = state + 4 * nf;
-    unsigned char *parts = contact + 4 * nf;
+    /* parts (main's) then orientation: each field added at the end, so older readers' fields
+     * keep their offsets */
+    unsigned char *parts = contact + 4 * nf, *orientation = parts + 4 * nf;
     uint64_t hash = hash_time_bodies(w);
     memcpy(out, &tick, 8);
     memcpy(out + 8, &w->time, 8);
@@ -183,6 +188,8 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
             mask |= 1u << (k < 31 ? k : 31);
         }
         memcpy(parts + 4 * i, &mask, 4);
+        double q[4] = {f->q.w, f->q.x, f->q.y, f->q.z};
+        memcpy(orientation + 32 * i, q, 32);
     }
     memcpy(pose, w->pose_array, 56 * nb);
     for (size_t b = 0; b < nb; ++b) { /* of the body frame origin, as gc_world_body_velocity */

@@ -58,6 +58,7 @@ gcFingerDef gc_default_finger_def(void) {
     memset(&def, 0, sizeof def);
     def.radius = 0.008;
     def.stiffness = 1000.0;
+    def.orientation[0] = 1.0;
     def.renderer = GC_RENDERER_XFCA;
     def.cursor_mass = 0.002;
     return def;
@@ -113,12 +114,13 @@ gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world) {
     w->gravity = gc_v3(def->gravity[0], def->gravity[1], def->gravity[2]);
     w->bodies = calloc((size_t)def->max_bodies, sizeof *w->bodies);
     w->fingers = calloc((size_t)def->max_fingers, sizeof *w->fingers);
+    w->finger_hulls = calloc((size_t)def->max_fingers, sizeof *w->finger_hulls);
     w->parts = calloc((size_t)def->max_parts, sizeof *w->parts);
     w->pose_array = calloc((size_t)def->max_bodies * 7, sizeof(double));
     w->god_object_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
     w->force_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
     w->hip_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
-    if (!w->bodies || !w->fingers || !w->parts || !w->pose_array || !w->god_object_array ||
+    if (!w->bodies || !w->fingers || !w->finger_hulls || !w->parts || !w->pose_array || !w->god_object_array ||
         !w->force_array || !w->hip_array || !(w->serial = gc_serial_hub_create(w))) {
         gc_world_destroy(w);
         return create_failed(GC_ERR_NO_MEMORY, "out of memory for the capacities (max_bodies %d, max_fingers %d, max_parts %d)",
@@ -144,6 +146,9 @@ void gc_world_destroy(gcWorld *w) {
     gc_hip_track_free(w->hip_track);
     for (int i = 0; i < w->num_parts; ++i) gc_hull_free(&w->parts[i].hull);
     free(w->bodies);
+    if (w->finger_hulls)
+        for (int i = 0; i < w->num_fingers; ++i) gc_hull_free(&w->finger_hulls[i]);
+    free(w->finger_hulls);
     free(w->fingers);
     free(w->parts);
     free(w->pose_array);
@@ -307,6 +312,20 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
     return GC_OK;
 }
 
+/* A finger's orientation: finite, not zero, normalised. */
+static gcStatus finger_orientation(gcWorld *w, const double o[4], gcQuat *out) {
+    gcStatus st = gc_check_vec(w, o, 4, "orientation");
+    if (st) return st;
+    double n2 = o[0] * o[0] + o[1] * o[1] + o[2] * o[2] + o[3] * o[3];
+    if (!(n2 > 1e-20) || !isfinite(n2)) {
+        gc_world_set_error(w, "orientation: must be a non-zero quaternion (w, x, y, z)");
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    gcQuat q = {o[0], o[1], o[2], o[3]};
+    *out = gc_quat_normalize(q);
+    return GC_OK;
+}
+
 gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_finger) {
     if (!w) return GC_ERR_INVALID_ARGUMENT;
     if (!def) return gc_null_argument(w, "def");
@@ -325,6 +344,10 @@ gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_fi
         gc_world_set_error(w, "damping: must be a finite number >= 0 (got %g)", def->damping);
         return GC_ERR_INVALID_ARGUMENT;
     }
+    if (!isfinite(def->torsion) || def->torsion < 0 || (def->torsion > 0 && (def->points || def->num_points))) {
+        gc_world_set_error(w, "torsion: must be a finite number >= 0, and 0 for a convex finger (got %g)", def->torsion);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
     if (def->renderer != GC_RENDERER_XFCA && def->renderer != GC_RENDERER_CURSOR) {
         gc_world_set_error(w, "renderer: must be GC_RENDERER_XFCA or GC_RENDERER_CURSOR (got %d)", (int)def->renderer);
         return GC_ERR_INVALID_ARGUMENT;
@@ -333,14 +356,52 @@ gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_fi
         gc_world_set_error(w, "cursor_mass: must be a finite number >= 0 (got %g)", def->cursor_mass);
         return GC_ERR_INVALID_ARGUMENT;
     }
+    /* The cursor is one point mass on a sphere finger's spring: a convex finger's patch and a
+     * soft fingertip's twist are xFCA god-objects' (docs/physics.md "Renderers and finger shapes"). */
+    if (def->renderer == GC_RENDERER_CURSOR && (def->points || def->num_points || def->torsion > 0)) {
+        gc_world_set_error(w, "renderer: the cursor renderer takes a sphere finger without torsion (got %s)",
+                           def->torsion > 0 ? "torsion > 0" : "points: a convex finger");
+        return GC_ERR_INVALID_ARGUMENT;
+    }
     if (w->num_fingers >= w->def.max_fingers) {
         gc_world_set_error(w, "max_fingers: the world holds at most %d fingers", w->def.max_fingers);
         return GC_ERR_CAPACITY;
     }
+    gcQuat q;
+    if ((st = finger_orientation(w, def->orientation, &q))) return st;
+    gcHull hull;
+    memset(&hull, 0, sizeof hull);
+    if (def->num_points != 0 || def->points) {
+        if (!def->points) return gc_null_argument(w, "points");
+        if (def->num_points < 4) {
+            gc_world_set_error(w, "points: a convex finger needs at least 4 points that are not coplanar (got %d)",
+                               def->num_points);
+            return GC_ERR_INVALID_ARGUMENT;
+        }
+        if ((st = gc_check_vec(w, def->points, 3 * def->num_points, "points"))) return st;
+        st = gc_hull_build(def->points, def->num_points, def->radius, 0.0, &hull);
+        if (st != GC_OK) {
+            gc_world_set_error(w, "points: their convex hull is degenerate (coplanar, collinear or coincident points)");
+            gc_hull_free(&hull);
+            return st < 0 ? st : GC_ERR_DEGENERATE;
+        }
+        if (hull.num_vertices > GC_MAX_FINGER_VERTICES) {
+            gc_world_set_error(w, "points: their hull has %d vertices, a convex finger takes at most %d (decimate the mesh)",
+                               hull.num_vertices, GC_MAX_FINGER_VERTICES);
+            gc_hull_free(&hull);
+            return GC_ERR_INVALID_ARGUMENT;
+        }
+    }
     int32_t id = w->num_fingers;
     gcFinger *f = &w->fingers[id];
     memset(f, 0, sizeof *f);
+    f->num_vertices = hull.num_vertices;
+    for (int i = 0; i < hull.num_vertices; ++i) f->vertices[i] = hull.vertices[i];
+    w->finger_hulls[id] = hull; /* freed with the world */
+    f->q = f->q_prev = q;
+    f->R = f->R_prev = gc_quat_to_mat3(q);
     f->radius = def->radius;
+    f->torsion = def->torsion;
     f->stiffness = def->stiffness;
     f->damping = def->damping;
     f->renderer = def->renderer;
@@ -367,6 +428,20 @@ gcStatus gc_world_set_hip(gcWorld *w, int32_t finger, const double p[3]) {
     gcStatus st;
     if ((st = check_idle(w)) || (st = gc_check_finger(w, finger)) || (st = gc_check_vec(w, p, 3, "position"))) return st;
     w->fingers[finger].hip = gc_v3(p[0], p[1], p[2]);
+    memcpy(&w->hip_array[3 * finger], p, 3 * sizeof(double));
+    return GC_OK;
+}
+
+gcStatus gc_world_set_finger_pose(gcWorld *w, int32_t finger, const double p[3], const double o[4]) {
+    gcStatus st;
+    gcQuat q;
+    if ((st = check_idle(w)) || (st = gc_check_finger(w, finger)) || (st = gc_check_vec(w, p, 3, "position")) ||
+        (st = gc_check_vec(w, o, 4, "orientation")) || (st = finger_orientation(w, o, &q)))
+        return st;
+    gcFinger *f = &w->fingers[finger];
+    f->hip = gc_v3(p[0], p[1], p[2]);
+    f->q = q;
+    f->R = gc_quat_to_mat3(q);
     memcpy(&w->hip_array[3 * finger], p, 3 * sizeof(double));
     return GC_OK;
 }
@@ -537,6 +612,80 @@ gcStatus gc_world_finger_force(const gcWorld *w, int32_t finger, double force[3]
     if (st) return st;
     if (!force) return gc_null_argument(w, "force");
     put3(force, shown_finger(w, finger)->force);
+    return GC_OK;
+}
+
+/* The contact patch and its torque are not in the runtime's snapshots: refused while it runs
+ * rather than answered from the state the world had at gc_world_start. */
+static gcStatus check_patch_readable(const gcWorld *w, const char *what) {
+    if (w->locked) {
+        gc_world_set_error(w, "%s: the runtime's snapshots do not carry a finger's contact patch; stop the runtime "
+                              "first (World.stop / gc_world_stop)", what);
+        return GC_ERR_BUSY;
+    }
+    return GC_OK;
+}
+
+gcStatus gc_world_finger_torque(const gcWorld *w, int32_t finger, double torque[3]) {
+    gcStatus st = gc_check_finger(w, finger);
+    if (st || (st = check_patch_readable(w, "finger_torque"))) return st;
+    if (!torque) return gc_null_argument(w, "torque");
+    put3(torque, shown_finger(w, finger)->torque);
+    return GC_OK;
+}
+
+gcStatus gc_world_finger_pose(const gcWorld *w, int32_t finger, double pos[3], double orientation[4]) {
+    gcStatus st = gc_check_finger(w, finger);
+    if (st) return st;
+    if (!pos) return gc_null_argument(w, "position");
+    if (!orientation) return gc_null_argument(w, "orientation");
+    const gcFinger *f = shown_finger(w, finger);
+    put3(pos, f->hip);
+    orientation[0] = f->q.w, orientation[1] = f->q.x, orientation[2] = f->q.y, orientation[3] = f->q.z;
+    return GC_OK;
+}
+
+gcStatus gc_world_finger_contacts(const gcWorld *w, int32_t finger, gcFingerContactPoint *out, int capacity,
+                                  int *out_count) {
+    gcStatus st = gc_check_finger(w, finger);
+    if (st || (st = check_patch_readable(w, "finger_contacts"))) return st;
+    if (!out_count) return gc_null_argument(w, "out_count");
+    if (capacity < 0 || (capacity > 0 && !out)) {
+        gc_world_set_error(w, "out: %d entries asked for and %s", capacity, out ? "a negative capacity" : "no array");
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    const gcFinger *f = &w->fingers[finger];
+    for (int i = 0; i < f->num_contacts && i < capacity && out; ++i) {
+        const gcFingerContact *c = &f->contacts[i];
+        int32_t body = w->parts[c->part].body;
+        const gcBody *b = &w->bodies[body];
+        gcBodyState state = b->state;
+        gcTransform fr;
+        fr.R = state.R;
+        fr.p = gc_sub(state.com, gc_mat3_mul_vec(&state.R, b->com_local));
+        gcVec3 anchor, anchor_velocity, point;
+        gc_finger_contact_ends(f, c, &fr, &anchor, &anchor_velocity, &point);
+        gcFingerContactPoint *o = &out[i];
+        memset(o, 0, sizeof *o);
+        o->body = body;
+        o->sample = c->sample;
+        o->reversed = c->reversed;
+        o->state = c->state;
+        put3(o->point, point);
+        put3(o->normal, gc_finger_point_normal(f, c, &fr.R));
+        /* The spring and damper as the body receives them (dynamics.c), weighted by the contact's
+         * share (a seam's blend, the cursor's part of its constraint), on the state shown. */
+        double k = f->stiffness * c->share, damping = f->damping * c->share;
+        gcVec3 force = gc_scale(gc_sub(point, anchor), k);
+        if (damping > 0.0 && !b->is_static) {
+            gcVec3 v_point = gc_add(state.v, gc_cross(state.w, gc_sub(point, state.com)));
+            force = gc_madd(force, gc_sub(v_point, anchor_velocity), damping);
+        } else if (damping > 0.0) {
+            force = gc_madd(force, anchor_velocity, -damping);
+        }
+        put3(o->force, force);
+    }
+    *out_count = f->num_contacts;
     return GC_OK;
 }
 

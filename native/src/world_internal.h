@@ -67,28 +67,55 @@ typedef struct gcFingerContact {
     gcFingerState state;            /* FREE, STICK or SLIP */
     gcVec3 go_local;                /* god-object centre, body frame */
     gcVec3 normal_local;            /* contact plane normal (outward), body frame */
-    gcVec3 so_local;                /* surface object, body frame */
     double depth;                   /* HIP depth below the GO plane, last step */
+    /* A soft fingertip (torsion > 0): the god-direction, the twist about the normal the body
+     * holds for the finger (a unit vector in the contact plane, body frame), and the twist of
+     * the finger's frame past it (rad, about the normal out of the body) after the last update. */
+    gcVec3 twist_local;
+    double twist;
+    int32_t twist_axis;             /* the finger-frame axis (0 x, 1 y, 2 z) whose direction in the plane is
+                                     * the finger's twist: the least aligned with the normal at touch */
+    gcFingerState twist_state;      /* the twist's own stick or slip */
+    /* A sphere finger, or a vertex of a convex finger entering a body (sample: its index): the GO
+     * is on the body, in the body frame, and its spring pulls the vertex. Reversed: a vertex of the
+     * body (sample: its index in the part, at body_point_local) entering a convex finger: the GO is
+     * on the finger's surface, in the finger frame, and its spring pulls the body's vertex. */
+    int32_t sample;
+    int32_t reversed;
+    gcVec3 body_point_local;        /* reversed: the body's vertex, body frame */
     double share;                   /* weight of its spring in the finger's force (xfca.c: seams) */
 } gcFingerContact;
 
+/* A sphere finger touches at most 8 parts at once; a convex finger's vertices together hold at
+ * most GC_MAX_FINGER_CONTACTS contacts (docs/physics.md "Area contacts"): a face on a face takes 4. */
 #define GC_MAX_CONTACTS_PER_FINGER 8
+#define GC_MAX_FINGER_CONTACTS 16
 
 typedef struct gcFinger {
     double radius, stiffness, damping;
+    double torsion;                 /* soft fingertip: radius of its pressed patch (m), 0 = none */
     gcFingerRenderer renderer;      /* xFCA god-objects, or the light-mass cursor (cursor.c) */
     double cursor_mass;             /* kg, the cursor renderer's */
     gcVec3 cursor, cursor_velocity; /* the cursor's centre and velocity, world (cursor renderer) */
     gcVec3 hip, hip_prev, hip_velocity;
     int hip_initialised;
     int num_contacts;
-    gcFingerContact contacts[GC_MAX_CONTACTS_PER_FINGER];
+    gcFingerContact contacts[GC_MAX_FINGER_CONTACTS];
     /* Outputs. */
     gcVec3 god_object;              /* world: force-weighted GO, or the HIP when free */
     gcVec3 force;                   /* rendered to the device: k (GO - HIP) + damping */
+    gcVec3 torque;                  /* convex finger: about the HIP, sum (GO_i - HIP) x f_i; 0 for a sphere */
     gcVec3 normal;                  /* world: the reported contact's outward normal, 0 when free */
     int32_t contact_body;           /* -1 when free */
     gcFingerState state;
+    /* Convex finger (last: a sphere finger's step never reads it): its hull's vertices in the
+     * finger frame (0 = a sphere of radius), each a point of contact with a god-object of its
+     * own; the HIP is the frame's pose. */
+    int num_vertices;
+    gcQuat q, q_prev;
+    gcMat3 R, R_prev;
+    gcVec3 hip_angular_velocity;
+    gcVec3 vertices[GC_MAX_FINGER_VERTICES];
 } gcFinger;
 
 /* While the runtime runs: what the last gc_world_snapshot showed. The world's queries
@@ -132,6 +159,9 @@ struct gcWorld {
     const unsigned char *body_active;
     /* Scripted HIP track (hip_input.c), sampled by the runtime's haptic loop. */
     struct gcHipTrack *hip_track;
+    /* Convex fingers' hulls in the finger frame, inflated by the finger radius (max_fingers slots,
+     * read-only once made: the runtime's shadows share them). */
+    gcHull *finger_hulls;
     /* 1 while the runtime owns the dynamic state: calls that would change it are refused. */
     int locked;
     /* The runtime's gcShown while it runs, NULL otherwise. */
@@ -144,6 +174,41 @@ static inline gcTransform gc_body_transform(const gcBody *b) {
     t.R = b->state.R;
     t.p = gc_sub(b->state.com, gc_mat3_mul_vec(&b->state.R, b->com_local));
     return t;
+}
+
+/* The HIP of contact sample s: a sphere finger's HIP, or vertex s of a convex finger at the
+ * finger's pose (now, at the previous step, and its velocity). */
+static inline gcVec3 gc_finger_tip(const gcFinger *f, int s) {
+    return f->num_vertices ? gc_add(f->hip, gc_mat3_mul_vec(&f->R, f->vertices[s])) : f->hip;
+}
+static inline gcVec3 gc_finger_tip_prev(const gcFinger *f, int s) {
+    return f->num_vertices ? gc_add(f->hip_prev, gc_mat3_mul_vec(&f->R_prev, f->vertices[s])) : f->hip_prev;
+}
+static inline gcVec3 gc_finger_tip_velocity(const gcFinger *f, int s) {
+    if (!f->num_vertices) return f->hip_velocity;
+    return gc_add(f->hip_velocity, gc_cross(f->hip_angular_velocity, gc_mat3_mul_vec(&f->R, f->vertices[s])));
+}
+
+/* The two ends of a finger contact's spring, world: the finger's end (anchor: its HIP or vertex,
+ * or for a reversed contact the GO on its surface) with that point's velocity, and the body point
+ * (the GO on the body, or the body's vertex) where the body receives the reaction. */
+static inline void gc_finger_contact_ends(const gcFinger *f, const gcFingerContact *c, const gcTransform *body,
+                                          gcVec3 *anchor, gcVec3 *anchor_velocity, gcVec3 *body_point) {
+    if (!c->reversed) {
+        *anchor = gc_finger_tip(f, c->sample);
+        *anchor_velocity = gc_finger_tip_velocity(f, c->sample);
+        *body_point = gc_transform_point(body, c->go_local);
+        return;
+    }
+    gcVec3 arm = gc_mat3_mul_vec(&f->R, c->go_local);
+    *anchor = gc_add(f->hip, arm);
+    *anchor_velocity = gc_add(f->hip_velocity, gc_cross(f->hip_angular_velocity, arm));
+    *body_point = gc_transform_point(body, c->body_point_local);
+}
+
+/* A finger contact's normal, world, outward from the body. */
+static inline gcVec3 gc_finger_point_normal(const gcFinger *f, const gcFingerContact *c, const gcMat3 *body_R) {
+    return c->reversed ? gc_neg(gc_mat3_mul_vec(&f->R, c->normal_local)) : gc_mat3_mul_vec(body_R, c->normal_local);
 }
 
 #endif

@@ -126,7 +126,22 @@ static void test_arguments(void) {
     fd.cursor_mass = -1.0;
     GC_CHECK(gc_world_add_finger(w, &fd, &id) == GC_ERR_INVALID_ARGUMENT &&
                  strncmp(gc_world_last_error(w), "cursor_mass:", 12) == 0, "mass refused: %s", gc_world_last_error(w));
+    /* The cursor renders sphere fingers without torsion (docs/physics.md "Renderers and finger shapes"). */
+    fd.cursor_mass = 0.002;
+    fd.torsion = 0.01;
+    GC_CHECK(gc_world_add_finger(w, &fd, &id) == GC_ERR_INVALID_ARGUMENT &&
+                 strncmp(gc_world_last_error(w), "renderer:", 9) == 0, "torsion refused: %s", gc_world_last_error(w));
+    fd.torsion = 0.0;
+    double pad[24];
+    for (int i = 0; i < 8; ++i)
+        pad[3 * i] = i & 1 ? 0.01 : -0.01, pad[3 * i + 1] = i & 2 ? 0.01 : -0.01, pad[3 * i + 2] = i & 4 ? 0.002 : -0.002;
+    fd.points = pad;
+    fd.num_points = 8;
+    GC_CHECK(gc_world_add_finger(w, &fd, &id) == GC_ERR_INVALID_ARGUMENT &&
+                 strncmp(gc_world_last_error(w), "renderer:", 9) == 0, "convex finger refused: %s", gc_world_last_error(w));
     GC_CHECK(gc_world_finger_count(w) == 0, "nothing added");
+    fd.renderer = GC_RENDERER_XFCA;
+    GC_CHECK(gc_world_add_finger(w, &fd, &id) == GC_OK, "the pad with xFCA: %s", gc_world_last_error(w));
     gc_world_destroy(w);
 }
 

@@ -178,7 +178,140 @@ static void test_every_error_names_its_argument(void) {
     gc_world_destroy(w);
 }
 
+/* A convex pad (a 6 x 6 x 1 cm box finger) under a small box and, beside it, under a plate wider
+ * than the pad: both rest level, carried by the pad's vertices (the plate) and by the box's
+ * corners inside the pad (the box); a lift of the pad carries both. Errors name points. */
+static void test_convex_finger(void) {
+    gcWorldDef wd = gc_default_world_def();
+    gcWorld *w = NULL;
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    double pad_pts[24], small[24], plate[24];
+    box_points(0.03, pad_pts);
+    box_points(0.01, small);
+    box_points(0.05, plate);
+    for (int i = 0; i < 8; ++i) pad_pts[3 * i + 2] /= 3.0, plate[3 * i + 2] /= 10.0; /* pad 2 cm, plate 1 cm thick */
+    gcFingerDef fd = gc_default_finger_def();
+    fd.radius = 0.0;
+    fd.damping = 2.0;
+    fd.points = pad_pts;
+    fd.num_points = 8;
+    int32_t pads[2], bodies[2];
+    for (int i = 0; i < 2; ++i) {
+        fd.position[0] = i * 0.5;
+        fd.position[2] = -0.01;
+        GC_CHECK(gc_world_add_finger(w, &fd, &pads[i]) == GC_OK, "add pad: %s", gc_world_last_error(w));
+    }
+    gcBodyDef bd = gc_default_body_def();
+    bd.mass = 0.1;
+    bd.position[2] = 0.01;
+    gcPartDef part = {small, 8, 0.0};
+    GC_CHECK(gc_world_add_body(w, &bd, &part, 1, &bodies[0]) == GC_OK, "add box");
+    bd.position[0] = 0.5;
+    bd.position[2] = 0.005;
+    part.points = plate;
+    GC_CHECK(gc_world_add_body(w, &bd, &part, 1, &bodies[1]) == GC_OK, "add plate");
+    for (int step = 0; step < 2000; ++step) {
+        double lift = step < 1000 ? 0.0 : 0.05 * (step - 1000) / 1000.0;
+        for (int i = 0; i < 2; ++i) {
+            double hip[3] = {i * 0.5, 0.0, -0.01 + lift}, q[4] = {1, 0, 0, 0};
+            GC_CHECK(gc_world_set_finger_pose(w, pads[i], hip, q) == GC_OK, "set pose");
+        }
+        GC_CHECK(gc_world_step(w, 1e-3) == GC_OK, "step");
+    }
+    double sag = 0.1 * 9.81 / 4.0 / fd.stiffness;
+    for (int i = 0; i < 2; ++i) {
+        double pos[3], q[4];
+        gc_world_body_pose(w, bodies[i], pos, q);
+        GC_CHECK_NEAR(pos[2], (i ? 0.005 : 0.01) + 0.05 - sag, 2e-4, "carried body height");
+        GC_CHECK(fabs(q[1]) < 1e-4 && fabs(q[2]) < 1e-4, "level: %g %g", q[1], q[2]);
+        gcFingerContactPoint cps[8];
+        int n = -1;
+        GC_CHECK(gc_world_finger_contacts(w, pads[i], cps, 8, &n) == GC_OK, "contacts");
+        GC_CHECK(n == 4, "4 contact points, got %d", n);
+        for (int k = 0; k < n && k < 8; ++k) GC_CHECK(cps[k].reversed == (i == 0), "reversed on the small box only");
+        double force[3];
+        gc_world_finger_force(w, pads[i], force);
+        GC_CHECK_NEAR(force[2], -0.1 * 9.81, 1e-3, "the pad feels the weight");
+    }
+    int count;
+    GC_CHECK(gc_world_finger_contacts(w, 7, NULL, 0, &count) == GC_ERR_UNKNOWN_ID, "unknown finger");
+    GC_CHECK(gc_world_finger_contacts(w, pads[0], NULL, 4, &count) == GC_ERR_INVALID_ARGUMENT, "no array");
+    double flat[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0};
+    fd.points = flat;
+    fd.num_points = 4;
+    int32_t bad;
+    GC_CHECK(gc_world_add_finger(w, &fd, &bad) == GC_ERR_DEGENERATE, "coplanar points refused");
+    GC_CHECK(strncmp(gc_world_last_error(w), "points:", 7) == 0, "message names points: %s", gc_world_last_error(w));
+    fd.points = NULL;
+    GC_CHECK(gc_world_add_finger(w, &fd, &bad) == GC_ERR_INVALID_ARGUMENT, "points NULL with num_points 4");
+    GC_CHECK(gc_world_finger_count(w) == 2, "no finger added by a failed call");
+    gc_world_destroy(w);
+}
+
+/* Convex fingers turned and thrown through a box, a capsule, a sphere and a long prism (body
+ * vertices, feature edges, a capsule's segment), for ASan/UBSan: every output stays finite. */
+static void test_convex_finger_tumbling(void) {
+    gcWorldDef wd = gc_default_world_def();
+    wd.gravity[2] = 0.0; /* the bodies stay where the pads sweep */
+    gcWorld *w = NULL;
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    double box[24], seg[6] = {-0.08, 0, 0, 0.08, 0, 0}, dot[3] = {0, 0, 0};
+    box_points(0.03, box);
+    gcBodyDef bd = gc_default_body_def();
+    gcPartDef parts[3] = {{box, 8, 0.0}, {seg, 2, 0.005}, {dot, 1, 0.02}};
+    int32_t id;
+    for (int i = 0; i < 3; ++i) {
+        bd.position[0] = 0.1 * i;
+        GC_CHECK(gc_world_add_body(w, &bd, &parts[i], 1, &id) == GC_OK, "body %d: %s", i, gc_world_last_error(w));
+    }
+    double pad[24];
+    box_points(0.04, pad);
+    for (int i = 0; i < 8; ++i) pad[3 * i + 2] *= 0.1;
+    gcFingerDef fd = gc_default_finger_def();
+    fd.points = pad;
+    fd.num_points = 8;
+    int32_t f[2];
+    fd.radius = 0.0;
+    GC_CHECK(gc_world_add_finger(w, &fd, &f[0]) == GC_OK, "pad");
+    fd.radius = 0.004;
+    GC_CHECK(gc_world_add_finger(w, &fd, &f[1]) == GC_OK, "rounded pad");
+    uint64_t state = 12345;
+    int finite = 1, touched = 0, reversed = 0;
+    for (int step = 0; step < 3000; ++step) {
+        for (int k = 0; k < 2; ++k) {
+            double r[7];
+            for (int j = 0; j < 7; ++j) {
+                state = state * 6364136223846793005ull + 1442695040888963407ull;
+                r[j] = (double)(state >> 11) / 9007199254740992.0 - 0.5;
+            }
+            double t = 1e-3 * step, pos[3] = {0.1 + 0.15 * sin(t + k) + 0.01 * r[0], 0.02 * r[1], 0.05 * cos(2 * t) + 0.01 * r[2]};
+            double q[4] = {1.0 + r[3], r[4], r[5], r[6]};
+            GC_CHECK(gc_world_set_finger_pose(w, f[k], pos, q) == GC_OK, "pose");
+        }
+        gcStatus st = gc_world_step(w, 1e-3);
+        GC_CHECK(st == GC_OK || st == GC_WARN_STOPPED, "step %d", st);
+        const double *poses = gc_world_body_pose_array(w), *forces = gc_world_finger_force_array(w);
+        for (int i = 0; i < 21; ++i) finite &= isfinite(poses[i]) != 0;
+        for (int i = 0; i < 6; ++i) finite &= isfinite(forces[i]) != 0;
+        for (int k = 0; k < 2; ++k) {
+            gcFingerContactPoint cps[16];
+            int n = 0;
+            GC_CHECK(gc_world_finger_contacts(w, f[k], cps, 16, &n) == GC_OK, "contacts");
+            touched += n > 0;
+            for (int c = 0; c < n && c < 16; ++c) {
+                reversed += cps[c].reversed;
+                for (int j = 0; j < 3; ++j) finite &= isfinite(cps[c].point[j]) && isfinite(cps[c].force[j]);
+            }
+        }
+    }
+    GC_CHECK(finite, "every pose, force and contact point finite");
+    GC_CHECK(touched > 100 && reversed > 0, "the pads touched (%d finger-steps, %d reversed points)", touched, reversed);
+    gc_world_destroy(w);
+}
+
 int main(void) {
+    test_convex_finger();
+    test_convex_finger_tumbling();
     test_every_error_names_its_argument();
     test_pinch_and_determinism();
     test_bad_input_leaves_world_unchanged();

@@ -236,3 +236,54 @@ def test_timeline_input_with_nothing_animated_is_open_ended():
     assert src.script() is None and src.duration is None and src.interactive
     with pytest.raises(ValueError, match="non-finite"):
         src.set_live([[np.nan, 0, 0], [0, 0, 0]])
+
+
+def test_convex_finger_desc_builds_a_convex_finger_and_round_trips_in_recordings():
+    """A FingerDesc with points (a Finger-role mesh) becomes a convex finger of their hull, reduced
+    to the core's 32 vertices; the recorded scene keeps its points and orientation, and a
+    sphere finger's entry is unchanged (older recordings read as spheres)."""
+    import graspcore
+    from addon.engine import recording
+    ring = np.array([[0.04 * np.cos(a), 0.04 * np.sin(a), z]
+                     for a in np.linspace(0, 2 * np.pi, 40, endpoint=False) for z in (-0.01, 0.01)])
+    s = np.sin(0.1)
+    palm = scene.FingerDesc("Palm", np.array([0.0, 0.0, -0.01]), points=ring,
+                            orientation=np.array([2 * np.cos(0.1), 2 * s, 0, 0]))
+    tip = scene.FingerDesc("Tip", np.array([0.1, 0.0, 0.0]))
+    desc = scene.prepare(scene.SceneDesc(fingers=[palm, tip]))
+    assert len(desc.fingers[0].points) <= scene.FINGER_MAX_POINTS
+    np.testing.assert_allclose(desc.fingers[0].orientation, [np.cos(0.1), s, 0, 0])
+    handle = scene.build_world(desc, graspcore)
+    w = handle.world
+    np.testing.assert_allclose(w.finger_pose(0)[1], [np.cos(0.1), s, 0, 0])
+    assert w.finger_pose(1)[1] == (1, 0, 0, 0)
+
+    data = recording.scene_to_dict(desc)
+    assert set(data["fingers"][1]) == {"name", "position", "radius", "stiffness", "damping", "channel",
+                                       "renderer", "cursor_mass"}                  # a sphere: no points
+    assert data["fingers"][0]["renderer"] == "xfca"
+    back = recording.scene_from_dict(data)
+    np.testing.assert_array_equal(back.fingers[0].points, desc.fingers[0].points)
+    np.testing.assert_array_equal(back.fingers[0].orientation, desc.fingers[0].orientation)
+    assert back.fingers[1].points is None
+    assert recording.scene_to_dict(back) == data
+
+
+@pytest.mark.parametrize("points, problem", [
+    (np.array([[0, 0, 0], [0.05, 0, 0], [0, 0.05, 0], [0.05, 0.05, 0]]), "zero volume"),
+    (np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, np.inf]]), "non-finite"),
+])
+def test_bad_convex_finger_desc_names_the_finger(points, problem):
+    with pytest.raises(scene.SceneError, match=f'"Palm": .*{problem}'):
+        scene.prepare(scene.SceneDesc(fingers=[scene.FingerDesc("Palm", np.zeros(3), points=points)]))
+
+
+def test_convex_finger_with_the_cursor_renderer_is_refused_naming_it():
+    """The light-mass cursor renders sphere fingers; a Finger-role mesh is rendered by its
+    god-objects (docs/physics.md "Renderers and finger shapes"), and a sphere keeps the cursor."""
+    pad = np.array([[x, y, z] for x in (-0.01, 0.01) for y in (-0.01, 0.01) for z in (-0.002, 0.002)])
+    with pytest.raises(scene.SceneError, match='"Pad": .*cursor'):
+        scene.prepare(scene.SceneDesc(fingers=[scene.FingerDesc("Pad", np.zeros(3), points=pad, renderer="cursor")]))
+    desc = scene.prepare(scene.SceneDesc(fingers=[scene.FingerDesc("Pad", np.zeros(3), points=pad),
+                                                  scene.FingerDesc("Tip", np.ones(3), renderer="cursor")]))
+    assert [f.renderer for f in desc.fingers] == ["xfca", "cursor"]

@@ -338,3 +338,27 @@ def test_frame_rows_by_arithmetic_equal_the_frame_mask():
             ticks = np.arange(first, first + count, dtype=np.uint64)
             assert recording._frame_rows(first, count, rate, fps) == \
                 list(np.flatnonzero(recording._frame_ticks(ticks, rate, fps))), (rate, fps, first, count)
+
+
+def test_recording_made_before_the_orientation_field_still_reads(exec_rec, tmp_path, monkeypatch):
+    """Recordings made before the ticks carried the fingers' orientation (the record without its
+    last field): the reader takes the fields the file's schema lists, every one of them as written."""
+    path, _, _ = exec_rec
+    new = recording.open_recording(path)
+    assert new.ticks["orientation"].shape[1:] == (2, 4)
+    np.testing.assert_array_equal(new.ticks["orientation"][-1], [[1, 0, 0, 0]] * 2)   # sphere fingers
+    old_dtype = np.dtype([(name, new.dtype.fields[name][0]) for name in new.dtype.names if name != "orientation"])
+    assert old_dtype.itemsize == new.dtype.itemsize - 2 * 32
+    old_ticks = np.zeros(len(new.ticks), old_dtype)
+    for name in old_dtype.names:
+        old_ticks[name] = new.ticks[name]
+    monkeypatch.setattr(recording, "tick_dtype", lambda nb, nf: old_dtype)
+    old_path = tmp_path / "before-orientation.mcap"
+    writer = recording.RecordingWriter(str(old_path), new.header)
+    writer.write_ticks(old_ticks)
+    writer.close({"clean": True, "overflow": 0})
+    monkeypatch.undo()
+    old = recording.open_recording(old_path)
+    assert old.damage == [] and "orientation" not in old.dtype.names
+    for name in old_dtype.names:
+        np.testing.assert_array_equal(old.ticks[name], new.ticks[name])

@@ -278,3 +278,42 @@ def test_large_mesh_conversion(bpy):
     assert isinstance(reference, trimesh.Trimesh) and reference.is_volume
     assert desc.bodies[0].mass_properties.volume == pytest.approx(reference.volume, rel=1e-6)
     assert reference.volume < 4 / 3 * math.pi * 0.05 ** 3
+
+
+def test_finger_role_mesh_is_a_convex_finger_of_its_hull(bpy, core):
+    """A Finger-role mesh (a scaled, tilted cube: a palm) is a convex finger whose points are its
+    corners in its rigid frame, turned as the object is; an Empty stays a sphere of Radius. A plate
+    dropped on the palm rests level on it."""
+    from mathutils import Quaternion
+    scene = grasp_env.submodule("engine.scene")
+    palm = grasp_env.add_cube(bpy, "Palm", size=2.0, location=(0.0, 0.0, -0.01))
+    palm.scale = (0.045, 0.04, 0.01)                 # 9 x 8 x 2 cm
+    palm.rotation_euler = (0.05, 0.0, 0.3)
+    palm.grasp_lab.role = "FINGER"
+    tip = bpy.data.objects.new("Tip", None)
+    bpy.context.scene.collection.objects.link(tip)
+    tip.location = (0.3, 0, 0)
+    tip.grasp_lab.role = "FINGER"
+    tip.grasp_lab.channel = 1
+    plate = grasp_env.add_cube(bpy, "Plate", size=2.0, location=(0.0, 0.0, 0.0055))
+    plate.scale = (0.1, 0.1, 0.005)
+    plate.rotation_euler = (0.05, 0.0, 0.0)
+    plate.grasp_lab.role = "DYNAMIC"
+    plate.grasp_lab.mass_mode = "MASS"
+    plate.grasp_lab.mass = 0.4
+    desc, _, fingers = _describe(bpy)
+    assert [f.name for f in fingers] == ["Palm", "Tip"]
+    p, t = desc.fingers
+    assert t.points is None and t.radius == pytest.approx(tip.grasp_lab.radius)
+    assert p.radius == 0.0 and len(p.points) == 8
+    np.testing.assert_allclose(np.sort(np.abs(p.points), axis=0), [[0.045, 0.04, 0.01]] * 8, atol=1e-7)
+    q = palm.matrix_world.to_quaternion()
+    np.testing.assert_allclose(p.orientation, (q.w, q.x, q.y, q.z), atol=1e-7)
+    handle = scene.build_world(desc, core)
+    w = handle.world
+    w.step(1e-3, steps=1500)
+    pos, quat = w.body_pose(handle.body_ids[0])
+    plate_up = np.array(Quaternion(quat).to_matrix())[:, 2]
+    palm_up = np.array(palm.matrix_world.to_3x3().normalized())[:, 2]
+    assert np.degrees(np.arccos(min(1.0, plate_up @ palm_up))) < 0.2    # lies flat on the tilted palm
+    assert len(w.finger_contacts(handle.finger_ids[0])) == 4

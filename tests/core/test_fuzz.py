@@ -179,3 +179,44 @@ def test_a_body_that_would_turn_non_finite_is_stopped_and_reported():
     w.step(1e-3, steps=10)                                    # and it carries on from rest
     assert w.stopped_bodies() == 1
     assert w.body_velocity(bad)[0][2] == pytest.approx(-9.81 * 10e-3, rel=1e-9)
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_random_convex_finger_scenes_stay_finite(seed):
+    """Random scenes with convex fingers (pads, random hulls up to 32 vertices, 1 mm to 20 cm,
+    radius 0 to 1 cm) turned to random orientations and jumping through the bodies: every
+    output, the fingers' torques and contact patches included, stays finite."""
+    rng = np.random.default_rng(2000 + seed)
+    w, bodies, fingers = build_scene(rng)
+    convex = []
+    for _ in range(int(rng.integers(1, 4))):
+        size = log_uniform(rng, 0.001, 0.2)
+        if rng.random() < 0.5:
+            pts = box_points(size, size * log_uniform(rng, 0.1, 1.0), size * log_uniform(rng, 0.02, 1.0))
+        else:
+            p = rng.standard_normal((int(rng.integers(4, 40)), 3))
+            pts = size * p / np.linalg.norm(p, axis=1, keepdims=True)
+        try:
+            f = w.add_finger(radius=float(rng.choice([0.0, log_uniform(rng, 1e-4, 0.01)])),
+                             stiffness=log_uniform(rng, 10.0, 1e5), damping=float(rng.uniform(0, 50)),
+                             position=tuple(rng.uniform(-0.3, 0.3, 3)), points=pts,
+                             orientation=random_unit_quaternion(rng))
+        except ValueError as ex:  # a random hull of more than 32 vertices
+            assert "at most 32" in str(ex)
+            continue
+        convex.append(f)
+    fingers = fingers + convex
+    stopped = []
+    for call in range(CALLS):
+        if convex and rng.random() < 0.3:
+            f = int(rng.choice(convex))
+            here = np.array(w.body_pose(int(rng.choice(bodies)))[0])
+            w.set_finger_pose(f, tuple(here + rng.uniform(-0.05, 0.05, 3)), random_unit_quaternion(rng))
+        else:
+            random_call(rng, w, bodies, fingers, stopped)
+        assert_finite(w, f"call {call}")
+        for f in convex:
+            assert np.all(np.isfinite(w.finger_torque(f)))
+            for c in w.finger_contacts(f):
+                assert np.all(np.isfinite(np.concatenate([c["point"], c["normal"], c["force"]])))
+    assert (w.stopped_bodies() > 0) == (len(stopped) > 0)

@@ -30,6 +30,7 @@ def tick_dtype(num_bodies: int, num_fingers: int) -> np.dtype:
         ("hip", "<f8", (nf, 3)), ("god_object", "<f8", (nf, 3)), ("force", "<f8", (nf, 3)),
         ("device_force", "<f8", (nf, 3)), ("normal", "<f8", (nf, 3)), ("pose", "<f8", (nb, 7)), ("velocity", "<f8", (nb, 6)),
         ("wrench", "<f8", (nb, 6)), ("state", "<i4", (nf,)), ("contact", "<i4", (nf,)), ("parts", "<u4", (nf,)),
+        ("orientation", "<f8", (nf, 4)),
     ])
     if dtype.itemsize != _core.tick_record_size(nb, nf):
         raise RuntimeError("graspcore.tick_dtype does not match the core's record layout (rebuild the core)")
