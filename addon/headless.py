@@ -180,6 +180,13 @@ def _report_devices(live, out, err) -> int:
     for label, st in live.result.stats.get("device_stats", {}).items():
         print(f"device {summary_line(label, st)}", file=out)
     lines = loss_lines(live.result.stats.get("device_events", []))
+    for label, st in live.result.stats.get("device_stats", {}).items():
+        # A serial or UDP device that answered nothing the session could use drove nothing:
+        # an error, not a quiet run of fingers that never moved.
+        if "poses" in st and not st["poses"]:
+            kinds = ", ".join(f"{k} {v}" for k, v in st.get("frame_errors", {}).items() if v)
+            lines.append(f"{label} never sent a valid pose ({st.get('dropped', 0)} frames dropped"
+                         + (f": {kinds}" if kinds else "") + "); its fingers did not follow it")
     for line in lines:
         print(f"grasp-lab run: device {line}", file=err)
     return EXIT_DEVICE_LOST if lines else 0

@@ -1,6 +1,7 @@
 """The emulator playing a .blend's fingertip animation (``--from``) over a real pty."""
 import json
 import os
+import select
 import subprocess
 import sys
 import time
@@ -278,3 +279,44 @@ def test_run_forces_on_needs_a_device(tmp_path):
     r = subprocess.run([launcher, "run", str(tmp_path / "none.blend"), "--forces", "sometimes"],
                        capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and "--forces" in r.stderr, (r.returncode, r.stderr)
+
+
+def test_a_device_that_only_sends_garbage_is_an_error(bpy, sample, core, tmp_path):
+    """A port whose device answers the hello with noise: the session runs its time, and run
+    says on standard error that the device never sent a valid pose, with what it dropped (exit
+    3, as for a device lost: its fingers never followed it)."""
+    import threading
+    sample.build(bpy)
+    blend, rec = tmp_path / "pinch.blend", tmp_path / "run.mcap"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    port = os.ttyname(slave)
+    stop = threading.Event()
+
+    def noise():
+        rng = np.random.default_rng(7)
+        while not stop.is_set():
+            try:
+                os.write(master, rng.integers(1, 256, 64, dtype=np.uint8).tobytes() + b"\x00")
+                while select.select([master], [], [], 0)[0]:
+                    os.read(master, 4096)       # the host's hellos and force frames, unanswered
+            except OSError:
+                return
+            time.sleep(0.005)
+    t = threading.Thread(target=noise, daemon=True)
+    t.start()
+    launcher = os.path.join(grasp_env.ROOT, ".venv", "bin", "grasp-lab")
+    try:
+        r = subprocess.run([launcher, "run", str(blend), "--realtime", "--device", f"serial:{port}",
+                            "--duration", "1.0", "--record", str(rec)], capture_output=True, text=True, timeout=120)
+    finally:
+        stop.set()
+        t.join(5)
+        os.close(master)
+        os.close(slave)
+    assert r.returncode == 3, r.stderr
+    line = [s for s in r.stderr.splitlines() if "never sent a valid pose" in s]
+    assert len(line) == 1 and line[0].startswith(f"grasp-lab run: device {port}") and "frames dropped" in line[0], r.stderr
+    assert int(line[0].split("(")[1].split()[0]) > 0        # the noise was dropped and counted
+    assert rec.exists()                                     # the session's recording is finished
