@@ -184,16 +184,16 @@ class SceneModel:
             yield from frames_of(self, rec, rec.ticks[rows], part, normals=with_normals, grasp=grasp)
 
     def grasp_numbers(self, rec, rows) -> dict:
-        """The grasp analysis (analysis.analyse_recording, no volume, no mu_min: the viewer
-        shows neither) at the records ``rows``, per row and body: grasp_arrays's answer."""
+        """The grasp analysis (analysis.analyse_recording without the volume: the viewer does
+        not show it) at the records ``rows``, per row and body: grasp_arrays's answer."""
         unique, back = np.unique(rows, return_inverse=True)
-        table = analysis.analyse_recording(rec, rows=unique, with_mu_min=False, volume=False)
+        table = analysis.analyse_recording(rec, rows=unique, volume=False)
         return {k: v[back] for k, v in grasp_arrays(table, np.searchsorted(unique, table.snapshot),
                                                     len(unique), len(self.body_names)).items()}
 
 
-GRASP_IDLE = {"held": 0.0, "closure": 0.0, "epsilon": 0.0, "resisted_force": 0.0, "slip_margin": 0.0,
-              "slip_finger": -1, "grip_load": 0.0}
+GRASP_IDLE = {"held": 0.0, "closure": 0.0, "epsilon": 0.0, "resisted_force": 0.0, "mu_min": analysis.NONE,
+              "slip_margin": 0.0, "slip_finger": -1, "grip_load": 0.0}
 
 
 def grasp_arrays(table, snapshots, n: int, n_bodies: int) -> dict:
@@ -203,7 +203,7 @@ def grasp_arrays(table, snapshots, n: int, n_bodies: int) -> dict:
     ``snapshots``: the table's sets' snapshot indices in 0..n-1."""
     q = table.quality
     values = {"held": np.ones(len(table.body)), "closure": q["force_closure"].astype(np.float64),
-              "epsilon": q["epsilon"], "resisted_force": table.resisted_force,
+              "epsilon": q["epsilon"], "resisted_force": table.resisted_force, "mu_min": table.mu_min,
               "slip_margin": table.min_slip_margin, "slip_finger": table.min_slip_finger,
               "grip_load": table.grip_ratio}
     out = {}
@@ -232,7 +232,7 @@ def grasp_arrays_of(grasps, n_bodies: int) -> dict:
     for g in grasps:
         b = g.body
         values = {"held": 1.0, "closure": float(g.force_closure), "epsilon": g.epsilon,
-                  "resisted_force": g.resisted_force, "slip_margin": g.min_slip_margin,
+                  "resisted_force": g.resisted_force, "mu_min": g.mu_min, "slip_margin": g.min_slip_margin,
                   "grip_load": g.grip_ratio}
         for name, v in values.items():
             out[name][0, b] = v if np.isfinite(v) else analysis.NONE
@@ -488,6 +488,7 @@ BODY_SCHEMA = {"type": "object", "title": "grasp_lab.BodyNumbers", "properties":
     "closure": {"type": "number", "description": "1 in force closure, else 0"},
     "epsilon": {"type": "number", "description": "radius of the largest ball about 0 inside the grasp wrench space (0 out of closure)"},
     "resisted_force": {"type": "number", "description": "force the grasp resists in its weakest direction, N"},
+    "mu_min": {"type": "number", "description": "least friction coefficient that closes the grasp (-1: none up to 10, or not held)"},
     "slip_margin": {"type": "number", "description": "smallest mu |Fn| - |Ft| of its fingers, N"},
     "slip_finger": {"type": "integer", "description": "index of the finger with that margin, -1 none"},
     "slip_finger_name": {"type": "string"},

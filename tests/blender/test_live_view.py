@@ -180,6 +180,7 @@ def test_a_viewer_receives_the_advertised_channels_as_the_session_runs(pinch):
             g, = g
             assert (numbers["held"], numbers["closure"]) == (1, float(g.force_closure))
             assert numbers["epsilon"] == g.epsilon and numbers["resisted_force"] == g.resisted_force
+            assert numbers["mu_min"] == (g.mu_min if np.isfinite(g.mu_min) else analysis.NONE)
             assert numbers["slip_margin"] == g.min_slip_margin and numbers["slip_finger"] == g.min_slip_finger
             assert numbers["grip_load"] == (g.grip_ratio if np.isfinite(g.grip_ratio) else analysis.NONE)
         assert held > 5

@@ -328,7 +328,8 @@ def check_grasp_channels(rec, topics) -> tuple:
         g = grasps.get((int(row), box))
         arrows = [arrow_vector(a) for a in {e.id: e for e in scenes[t].entities}["weakest/Box"].arrows]
         if g is None:
-            assert (msg["held"], msg["closure"], msg["epsilon"], msg["slip_finger"]) == (0, 0, 0, -1)
+            assert (msg["held"], msg["closure"], msg["epsilon"], msg["slip_finger"], msg["mu_min"]) == \
+                (0, 0, 0, -1, analysis.NONE)
             assert arrows == []
             continue
         held += 1
@@ -337,6 +338,7 @@ def check_grasp_channels(rec, topics) -> tuple:
         assert msg["epsilon"] == pytest.approx(g.epsilon, rel=1e-9, abs=1e-12)
         assert msg["resisted_force"] == pytest.approx(g.resisted_force, rel=1e-9, abs=1e-12)
         assert msg["slip_margin"] == pytest.approx(g.min_slip_margin, rel=1e-9, abs=1e-12)
+        assert msg["mu_min"] == pytest.approx(g.mu_min if np.isfinite(g.mu_min) else analysis.NONE, rel=1e-9)
         assert msg["slip_finger"] == g.min_slip_finger
         assert msg["slip_finger_name"] == (rec.finger_names[g.min_slip_finger] if g.min_slip_finger >= 0 else "")
         want = g.grip_ratio if np.isfinite(g.grip_ratio) else analysis.NONE
@@ -373,6 +375,8 @@ def test_grasp_channels_of_a_grasp_in_closure(tmp_path):
     topics, _, _ = read_back(tmp_path / "three_foxglove.mcap")
     held, closed = check_grasp_channels(rec, topics)
     assert closed > 10, (held, closed)
+    mu_min = [msg["mu_min"] for _, msg in topics["/grasp_lab/body/Box"] if msg["closure"]]
+    assert 0 < min(mu_min) and max(mu_min) < 0.8      # closes below the box's mu_s
 
 
 def test_events_are_logs(pinch, exported):
