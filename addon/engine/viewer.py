@@ -243,7 +243,8 @@ def grasp_arrays_of(grasps, n_bodies: int) -> dict:
     return out
 
 
-def frames_of(model: SceneModel, rec, ticks: np.ndarray, times, normals: bool = True, grasp: dict | None = None) -> list:
+def frames_of(model: SceneModel, rec, ticks: np.ndarray, times, normals: bool = True,
+              grasp: dict | None = None) -> list:
     """ViewerFrames of tick records (one per frame time), computed for all of them at once.
     ``normals=False``: the records carry no contact normals, so the finger numbers that need
     one (normal and tangential force, friction use, grip) are left out. ``grasp``:

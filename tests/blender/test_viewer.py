@@ -377,6 +377,17 @@ def test_grasp_channels_of_a_grasp_in_closure(tmp_path):
     assert closed > 10, (held, closed)
     mu_min = [msg["mu_min"] for _, msg in topics["/grasp_lab/body/Box"] if msg["closure"]]
     assert 0 < min(mu_min) and max(mu_min) < 0.8      # closes below the box's mu_s
+    # The live view's path: one snapshot's BodyGrasp list (the display update's analysis) gives
+    # the same numbers and arrows as the copy's table.
+    from addon.engine import analysis
+    model = viewer.SceneModel(rec.header)
+    row = len(rec.ticks) // 2
+    table = analysis.analyse_recording(rec, rows=[row], volume=False)
+    live = viewer.grasp_arrays_of(analysis.body_grasps(table), len(rec.body_names))
+    copy = model.grasp_numbers(rec, np.array([row]))
+    assert live["closure"][0, 0] == 1 and set(live) == set(copy)
+    for name in copy:
+        np.testing.assert_array_equal(live[name], copy[name], err_msg=name)
 
 
 def test_events_are_logs(pinch, exported):
