@@ -211,7 +211,7 @@ class BlenderSession:
         if self.live_view is not None:
             # Last: its thread wakes and works while this one waits for the next update,
             # not while the update still needs the interpreter.
-            self.live_view.offer(snap)
+            self.live_view.offer(snap, self.monitor.grasps)
         return self.settings.loop and self.runner.time >= self.duration - 1e-9
 
     def _record_device_events(self, events) -> None:

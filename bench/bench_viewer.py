@@ -88,14 +88,16 @@ def per_frame_costs(rec, tmp, repeats=3):
     return viewer_us, rec_us, rate
 
 
-def live_costs(rec, seconds=6.0, rate=30.0):
+def live_costs(rec, seconds=6.0, rate=30.0, analysed=True):
     """offer() µs, live thread µs per update, delay ms (display update -> client has the
-    scene), updates received / offered."""
+    scene), updates received / offered. ``analysed=False``: snapshots offered without their
+    grasp analysis (its channels and arrows left out)."""
     import json
     import struct
 
     from websockets.sync.client import connect
 
+    from addon.engine import analysis
     from addon.engine.live_view import LiveView
     from addon.engine.runner import Snapshot
     lv = LiveView(rec.header, port=0)
@@ -128,13 +130,23 @@ def live_costs(rec, seconds=6.0, rate=30.0):
     th.start()
     n = int(seconds * rate)
     step = max(1, int(len(rec.ticks) / n))
-    t0 = time.perf_counter()
+    # The display update's grasp analysis, handed over with its snapshot as the session does
+    # (made here beforehand: the live view does not pay for it).
+    models = analysis.body_models(rec.header["scene"])
+    radii = [f["radius"] for f in rec.header["scene"]["fingers"]]
+    snaps = []
     for k in range(n):
         t = rec.ticks[(k * step) % len(rec.ticks)]
         snap = Snapshot(float(t["time"]), t["pose"], t["pose"][:, :3], t["wrench"][:, :3], t["wrench"][:, 3:],
-                        t["hip"], t["god_object"], t["force"], t["state"], t["contact"])
+                        t["hip"], t["god_object"], t["force"], t["state"], t["contact"], t["force"], t["normal"],
+                        t["velocity"])
+        snaps.append((snap, analysis.analyse(models, snap.poses, snap.god_objects, snap.spring_forces, snap.normals,
+                                             snap.finger_states, snap.contacts, radii, volume=False)
+                      if analysed else None))
+    t0 = time.perf_counter()
+    for k, (snap, grasps) in enumerate(snaps):
         a = time.perf_counter()
-        lv.offer(snap)
+        lv.offer(snap, grasps)
         offers.append((time.perf_counter() - a) * 1e6)
         time.sleep(max(0.0, t0 + (k + 1) / rate - time.perf_counter()))
     time.sleep(0.5)
@@ -206,6 +218,27 @@ def display_updates_with_live_view(seconds=2.0, rounds=5, rate=30.0):
     return times[False], times[True]
 
 
+def export_costs(rec, out, repeats=3):
+    """Best of ``repeats`` (seconds, export_foxglove's answer) of the copy with the grasp
+    analysis, and of the same copy without it (the analysis's channels and arrows left out),
+    alternating."""
+    from addon.engine import viewer
+    full, bare = [], []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        done = viewer.export_foxglove(rec, out)
+        full.append(time.perf_counter() - t0)
+        with_analysis = viewer.SceneModel.grasp_numbers
+        viewer.SceneModel.grasp_numbers = lambda self, rec, rows: None
+        try:
+            t0 = time.perf_counter()
+            viewer.export_foxglove(rec, out)
+            bare.append(time.perf_counter() - t0)
+        finally:
+            viewer.SceneModel.grasp_numbers = with_analysis
+    return (min(full), done), (min(bare), None)
+
+
 def pct(a, q):
     return float(np.percentile(a, q))
 
@@ -239,12 +272,13 @@ def main(argv=None):
         rows.append((f"viewer channels / recorder, {label}",
                      f"{statistics.median(v) / statistics.median(r):.1f} x"))
         out = os.path.join(tmp, "copy.mcap")
-        t0 = time.perf_counter()
-        done = viewer.export_foxglove(rec, out)
-        spent = time.perf_counter() - t0
         duration = float(rec.ticks["time"][-1] - rec.ticks["time"][0])
+        (spent, done), (bare, _) = export_costs(rec, out)
         rows.append((f"export --foxglove, {label}: time per second of session",
                      f"{spent / duration * 1e3:.0f} ms ({done['frames']} frames at {rate:g} Hz)"))
+        rows.append((f"export --foxglove, {label}: of which the grasp analysis (per second of session; "
+                     "with / without it)",
+                     f"{(spent - bare) / duration * 1e3:.0f} ms; {spent / bare:.2f} x"))
         rows.append((f"file per second of session, {label}: viewer copy / recording",
                      f"{done['bytes'] / duration / 1e3:.1f} / {os.path.getsize(path) / duration / 1e3:.1f} kB"))
         offers, cost, delays, got, n = live_costs(rec)

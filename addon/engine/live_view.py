@@ -20,7 +20,7 @@ import time
 import numpy as np
 
 from .recording import FLAG_FORCES_ENABLED, EventDetector, scene_to_dict, tick_dtype
-from .viewer import SceneModel, _sdk, frames_of
+from .viewer import SceneModel, _sdk, frames_of, grasp_arrays_of
 
 DEFAULT_PORT = 8765
 DEFAULT_BIND = "127.0.0.1"
@@ -95,12 +95,14 @@ class LiveView:
         return (f"live view {self.address}: {self.viewers.subscribed} subscriptions, {self.updates} updates, "
                 f"{self.dropped} skipped" + (f"; {self.error}" if self.error else ""))
 
-    def offer(self, snap) -> None:
-        """The latest snapshot (engine.runner.Snapshot): one assignment, no lock, no wake-up
-        (the thread polls every ``POLL`` s), so the display update pays next to nothing."""
+    def offer(self, snap, grasps=None) -> None:
+        """The latest snapshot (engine.runner.Snapshot) and, if the display update analysed it,
+        its BodyGrasp list (engine.grasp_display.GraspMonitor.grasps; None: no analysis shown):
+        one assignment, no lock, no wake-up (the thread polls every ``POLL`` s), so the
+        display update pays next to nothing."""
         if self._slot:
             self.dropped += 1
-        self._slot.append((snap, time.time()))     # a deque of one: the older one goes
+        self._slot.append((snap, grasps, time.time()))     # a deque of one: the older one goes
 
     def _row(self, snap) -> np.ndarray:
         r = np.zeros(1, self.dtype)
@@ -109,7 +111,9 @@ class LiveView:
         r["flags"] = FLAG_FORCES_ENABLED
         r["pose"][0], r["wrench"][0, :, :3], r["wrench"][0, :, 3:] = snap.poses, snap.force, snap.torque
         r["hip"][0], r["god_object"][0] = snap.hips, snap.god_objects
-        r["force"][0] = r["device_force"][0] = snap.finger_forces
+        # As a recording: force is the coupling force on the contact, device_force what the device got.
+        r["force"][0], r["device_force"][0] = snap.spring_forces, snap.finger_forces
+        r["normal"][0] = snap.normals
         r["state"][0], r["contact"][0] = snap.finger_states, snap.contacts
         return r
 
@@ -117,7 +121,7 @@ class LiveView:
         try:
             while True:
                 try:
-                    snap, offered = self._slot.popleft()
+                    snap, grasps, offered = self._slot.popleft()
                 except IndexError:
                     if self._stop.wait(POLL):
                         return
@@ -130,7 +134,8 @@ class LiveView:
                     self.viewers.joined = False
                     self.channels.resend_bodies()
                 row = self._row(snap)
-                fr = frames_of(self.model, self, row, [snap.time], normals=False)[0]
+                fr = frames_of(self.model, self, row, [snap.time],
+                               grasp=None if grasps is None else grasp_arrays_of(grasps, len(self.model.body_names)))[0]
                 for tick, t, kind, subject, detail in self.events(row):
                     self.channels.log_event({"tick": tick, "time": t, "kind": kind, "subject": subject,
                                              "detail": detail})

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import analysis
 from .measures import body_grip, finger_measures
 from .recording import STATE_NAMES, Recording
 from .runner import quat_rotate
@@ -44,6 +45,8 @@ HIP_COLOR = (0.9, 0.9, 0.9, 0.8)
 FINGER_FORCE_COLOR = (1.0, 0.85, 0.1, 1.0)
 FORCE_COLOR = (1.0, 0.15, 0.10, 1.0)
 TORQUE_COLOR = (0.10, 0.85, 0.25, 1.0)
+WEAKEST_COLOR = (1.00, 0.20, 0.90, 1.0)   # magenta, as the viewport's (grasp_display.WEAKEST_COLOR)
+WEAKEST_TORQUE_COLOR = (0.65, 0.10, 1.00, 1.0)
 BODY_COLOR = (0.55, 0.6, 0.7, 0.6)
 STATIC_BODY_COLOR = (0.35, 0.35, 0.38, 0.8)
 SDK_HINT = "pip install foxglove-sdk (the version in requirements.txt)"
@@ -135,6 +138,8 @@ class ViewerFrame:
     finger_arrow: list          # nf x [tail xyz, quat xyzw, length]: the push on the body, head at the god-object
     force_arrow: list           # nb x [...]: residual force at the centre of mass
     torque_arrow: list          # nb x [...]: residual torque
+    weakest_force_arrow: list   # nb x [...]: the weakest wrench's force part (length 0: not in closure)
+    weakest_torque_arrow: list  # nb x [...]: its torque part, along the axis it turns about
     fingers: list               # nf plot dicts
     bodies: list                # nb plot dicts
 
@@ -171,15 +176,80 @@ class SceneModel:
     def frames(self, rec: Recording, times: np.ndarray, batch: int = 512):
         """ViewerFrames at ``times``, computed ``batch`` at a time (a long session's frames are
         never all in memory)."""
+        with_normals = "normal" in (rec.ticks.dtype.names or ())
         for start in range(0, len(times), batch):
             part = times[start:start + batch]
-            yield from frames_of(self, rec, rec.ticks[rec.sample(part)], part)
+            rows = rec.sample(part)
+            grasp = self.grasp_numbers(rec, rows) if with_normals else None
+            yield from frames_of(self, rec, rec.ticks[rows], part, normals=with_normals, grasp=grasp)
+
+    def grasp_numbers(self, rec, rows) -> dict:
+        """The grasp analysis (analysis.analyse_recording without the volume: the viewer does
+        not show it) at the records ``rows``, per row and body: grasp_arrays's answer."""
+        unique, back = np.unique(rows, return_inverse=True)
+        table = analysis.analyse_recording(rec, rows=unique, volume=False)
+        return {k: v[back] for k, v in grasp_arrays(table, np.searchsorted(unique, table.snapshot),
+                                                    len(unique), len(self.body_names)).items()}
 
 
-def frames_of(model: SceneModel, rec, ticks: np.ndarray, times, normals: bool = True) -> list:
+GRASP_IDLE = {"held": 0.0, "closure": 0.0, "epsilon": 0.0, "resisted_force": 0.0, "mu_min": analysis.NONE,
+              "slip_margin": 0.0, "slip_finger": -1, "grip_load": 0.0}
+
+
+def grasp_arrays(table, snapshots, n: int, n_bodies: int) -> dict:
+    """A GraspTable's per-body numbers as (n, nb) arrays (GRASP_IDLE where a body is not
+    held; analysis.NONE for a value with no finite answer) and the weakest wrench as
+    (n, nb, 6) with its centre (n, nb, 3) and torque radius (n, nb): zero out of closure.
+    ``snapshots``: the table's sets' snapshot indices in 0..n-1."""
+    q = table.quality
+    values = {"held": np.ones(len(table.body)), "closure": q["force_closure"].astype(np.float64),
+              "epsilon": q["epsilon"], "resisted_force": table.resisted_force, "mu_min": table.mu_min,
+              "slip_margin": table.min_slip_margin, "slip_finger": table.min_slip_finger,
+              "grip_load": table.grip_ratio}
+    out = {}
+    for name, v in values.items():
+        a = np.full((n, n_bodies), GRASP_IDLE[name], dtype=np.int64 if name == "slip_finger" else np.float64)
+        v = np.asarray(v)
+        a[snapshots, table.body] = np.where(np.isfinite(v), v, analysis.NONE) if a.dtype.kind == "f" else v
+        out[name] = a
+    weakest = np.zeros((n, n_bodies, 6))
+    closed = q["force_closure"].astype(bool) & np.all(np.isfinite(q["weakest"]), axis=1)
+    weakest[snapshots[closed], table.body[closed]] = q["weakest"][closed]
+    center, radius = np.zeros((n, n_bodies, 3)), np.zeros((n, n_bodies))
+    center[snapshots, table.body] = table.center
+    radius[snapshots, table.body] = table.radius
+    out.update(weakest=weakest, center=center, radius=radius)
+    return out
+
+
+def grasp_arrays_of(grasps, n_bodies: int) -> dict:
+    """grasp_arrays's answer (n = 1) from one snapshot's BodyGrasp list (the live grasp
+    monitor's: engine.grasp_display.GraspMonitor.grasps), so the live view shows the analysis
+    the display update already made instead of making it again."""
+    out = {name: np.full((1, n_bodies), v, dtype=np.int64 if name == "slip_finger" else np.float64)
+           for name, v in GRASP_IDLE.items()}
+    out.update(weakest=np.zeros((1, n_bodies, 6)), center=np.zeros((1, n_bodies, 3)), radius=np.zeros((1, n_bodies)))
+    for g in grasps:
+        b = g.body
+        values = {"held": 1.0, "closure": float(g.force_closure), "epsilon": g.epsilon,
+                  "resisted_force": g.resisted_force, "mu_min": g.mu_min, "slip_margin": g.min_slip_margin,
+                  "grip_load": g.grip_ratio}
+        for name, v in values.items():
+            out[name][0, b] = v if np.isfinite(v) else analysis.NONE
+        out["slip_finger"][0, b] = g.min_slip_finger
+        if g.force_closure and np.all(np.isfinite(g.weakest)):
+            out["weakest"][0, b] = g.weakest
+        out["center"][0, b], out["radius"][0, b] = g.center, g.radius
+    return out
+
+
+def frames_of(model: SceneModel, rec, ticks: np.ndarray, times, normals: bool = True,
+              grasp: dict | None = None) -> list:
     """ViewerFrames of tick records (one per frame time), computed for all of them at once.
-    ``normals=False``: the records carry no contact normals (a live snapshot), so the finger
-    numbers that need one (normal and tangential force, friction use, grip) are left out."""
+    ``normals=False``: the records carry no contact normals, so the finger numbers that need
+    one (normal and tangential force, friction use, grip) are left out. ``grasp``:
+    grasp_arrays's answer for these records (the analysis's per-body numbers and the
+    weakest-wrench arrows), or None to leave them out."""
     m = finger_measures(rec, ticks)
     grip = body_grip(ticks["contact"], m["gl_normal_force"], len(model.body_names))
     pose, force, go, wrench = ticks["pose"], ticks["force"], ticks["god_object"], ticks["wrench"]
@@ -188,6 +258,17 @@ def frames_of(model: SceneModel, rec, ticks: np.ndarray, times, normals: bool = 
     finger_arrow = arrows(go - push, push)
     force_arrow = arrows(com, wrench[..., :3] * model.force_scale)
     torque_arrow = arrows(com, wrench[..., 3:] * model.torque_scale)
+    n, nb = len(ticks), len(model.body_names)
+    if grasp is not None:
+        # The weakest wrench as the viewport draws it (grasp_display.weakest_geometry): its force
+        # part from the centre of mass, twice the torque radius per unit; its torque part (a
+        # ring there) as a second arrow along its axis, the same length per unit.
+        reach = 2.0 * grasp["radius"][..., None]
+        weakest_force = arrows(grasp["center"], reach * grasp["weakest"][..., :3])
+        weakest_torque = arrows(grasp["center"], reach * grasp["weakest"][..., 3:])
+    else:
+        weakest_force = weakest_torque = np.zeros((n, nb, 8))
+    finger_names = np.array(model.finger_names + [""], dtype=object)
     contact, state = ticks["contact"], ticks["state"]
     names = np.array(model.body_names + [""], dtype=object)
     contact_name = names[np.where(contact >= 0, contact, len(model.body_names))]
@@ -215,9 +296,17 @@ def frames_of(model: SceneModel, rec, ticks: np.ndarray, times, normals: bool = 
                    **({"grip": g[i]} if normals else {}),
                    "residual_force": rf[i], "residual_torque": rt[i], "fingers_in_contact": ic[i],
                    "fingers_slipping": sl[i]} for i in range(len(p))]
+        if grasp is not None:
+            for i, b in enumerate(bodies):
+                if model.static[i]:
+                    continue
+                b.update({name: grasp[name][k, i].item() for name in GRASP_IDLE})
+                b["slip_finger_name"] = str(finger_names[b["slip_finger"]])
         out.append(ViewerFrame(time=t, pose=p, hip=ticks["hip"][k].tolist(), god_object=go[k].tolist(),
                                state=st, finger_arrow=finger_arrow[k].tolist(), force_arrow=force_arrow[k].tolist(),
-                               torque_arrow=torque_arrow[k].tolist(), fingers=fingers, bodies=bodies))
+                               torque_arrow=torque_arrow[k].tolist(),
+                               weakest_force_arrow=weakest_force[k].tolist(),
+                               weakest_torque_arrow=weakest_torque[k].tolist(), fingers=fingers, bodies=bodies))
     return out
 
 
@@ -255,7 +344,9 @@ class FoxgloveChannels:
         self._state_colors = {k: c(v) for k, v in STATE_COLORS.items()}
         self._colors = {name: c(v) for name, v in (("go", GO_COLOR), ("hip", HIP_COLOR), ("push", FINGER_FORCE_COLOR),
                                                    ("force", FORCE_COLOR), ("torque", TORQUE_COLOR),
-                                                   ("body", BODY_COLOR), ("static", STATIC_BODY_COLOR))}
+                                                   ("body", BODY_COLOR), ("static", STATIC_BODY_COLOR),
+                                                   ("weakest", WEAKEST_COLOR),
+                                                   ("weakest_torque", WEAKEST_TORQUE_COLOR))}
         self._origin = self._pose((0.0, 0.0, 0.0))
         self._go_size = [fm.Vector3(x=2 * r, y=2 * r, z=2 * r) for r in model.radii.tolist()]
         self._hip_size = fm.Vector3(x=HIP_DIAMETER, y=HIP_DIAMETER, z=HIP_DIAMETER)
@@ -325,6 +416,11 @@ class FoxgloveChannels:
                 timestamp=stamp, frame_id=WORLD_FRAME, id=f"residual/{name}",
                 arrows=self._arrow(fr.force_arrow[i], colors["force"]) + self._arrow(fr.torque_arrow[i],
                                                                                     colors["torque"])))
+            weakest = (self._arrow(fr.weakest_force_arrow[i], colors["weakest"])
+                       + self._arrow(fr.weakest_torque_arrow[i], colors["weakest_torque"]))
+            # Always sent (empty out of closure), so a viewer drops the last frame's arrow.
+            entities.append(fm.SceneEntity(timestamp=stamp, frame_id=WORLD_FRAME, id=f"weakest/{name}",
+                                           arrows=weakest))
         return fm.SceneUpdate(entities=entities)
 
     def frame_transforms(self, fr: ViewerFrame):
@@ -387,7 +483,17 @@ BODY_SCHEMA = {"type": "object", "title": "grasp_lab.BodyNumbers", "properties":
     "residual_force": {"type": "number", "description": "|residual force|, N"},
     "residual_torque": {"type": "number", "description": "|residual torque| about the centre of mass, N m"},
     "fingers_in_contact": {"type": "integer"},
-    "fingers_slipping": {"type": "integer"}}}
+    "fingers_slipping": {"type": "integer"},
+    # The grasp analysis (docs/analysis.md), dynamic bodies of recordings with contact normals:
+    "held": {"type": "number", "description": "1 while a finger touches it, else 0"},
+    "closure": {"type": "number", "description": "1 in force closure, else 0"},
+    "epsilon": {"type": "number", "description": "radius of the largest ball about 0 inside the grasp wrench space (0 out of closure)"},
+    "resisted_force": {"type": "number", "description": "force the grasp resists in its weakest direction, N"},
+    "mu_min": {"type": "number", "description": "least friction coefficient that closes the grasp (-1: none up to 10, or not held)"},
+    "slip_margin": {"type": "number", "description": "smallest mu |Fn| - |Ft| of its fingers, N"},
+    "slip_finger": {"type": "integer", "description": "index of the finger with that margin, -1 none"},
+    "slip_finger_name": {"type": "string"},
+    "grip_load": {"type": "number", "description": "grip force / load force (-1: no load)"}}}
 
 
 # --------------------------------------------------------------------------- layout
@@ -425,6 +531,9 @@ def layout_json(model: SceneModel) -> str:
     grip = plot("Bodies: grip (N) and residual force (N)",
                 [(f"{n} grip", f"{t}.grip") for n, t in bodies]
                 + [(f"{n} residual", f"{t}.residual_force") for n, t in bodies], y_min=0)
+    closure = plot("Grasp: force closure (0/1) and epsilon",
+                   [(f"{n} closure", f"{t}.closure") for n, t in bodies]
+                   + [(f"{n} epsilon", f"{t}.epsilon") for n, t in bodies], y_min=0)
     states = fl.StateTransitionsPanel(title="Finger states", config=fl.StateTransitionsConfig(
         paths=[fl.StateTransitionsSeries(value=f"{t}.state_name", label=n) for n, t in fingers], is_synced=True))
     log = fl.LogPanel(title="Events", config=fl.LogConfig(topic_to_render=TOPIC_LOG, show_time=True))
@@ -433,7 +542,8 @@ def layout_json(model: SceneModel) -> str:
         item(proportion=3, content=fl.SplitContainer(direction="column", items=[
             item(proportion=3, content=three_d), item(proportion=1, content=log)])),
         item(proportion=2, content=fl.SplitContainer(direction="column", items=[
-            item(content=forces), item(content=use), item(content=grip), item(content=states)]))])
+            item(content=forces), item(content=use), item(content=grip), item(content=closure),
+            item(content=states)]))])
     return json.dumps(json.loads(fl.Layout(content=content).to_json()), indent=1) + "\n"
 
 

@@ -15,11 +15,12 @@ import subprocess
 import threading
 import time
 
+import numpy as np
 import pytest
 
 import grasp_env
 import recordings
-from addon.engine import viewer
+from addon.engine import analysis, viewer
 from addon.engine.recording import open_recording
 from addon.engine.runner import Snapshot
 
@@ -125,10 +126,16 @@ def test_a_viewer_receives_the_advertised_channels_as_the_session_runs(pinch):
         assert {t: c["schemaName"] for t, c in topics.items()} == expected
         v.subscribe_all()
         v.read(0.3)
-        shown = {}
+        shown, analysed = {}, {}
+        models = analysis.body_models(pinch.header["scene"])
+        radii = [f["radius"] for f in pinch.header["scene"]["fingers"]]
         for snap in snapshots(pinch):
             shown[round(snap.time, 9)] = snap
-            lv.offer(snap)
+            # As the session does: the display update's analysis handed over with its snapshot.
+            grasps = analysis.analyse(models, snap.poses, snap.god_objects, snap.spring_forces, snap.normals,
+                                      snap.finger_states, snap.contacts, radii, volume=False)
+            analysed[round(snap.time, 9)] = grasps
+            lv.offer(snap, grasps)
             v.read(1 / 30)
         v.read(2, until=lambda: not lv.pending and len(v.of(viewer.TOPIC_SCENE)) >= lv.updates)
         v.read(0.5)         # the last one may have been on its way when the offers ran out
@@ -143,8 +150,16 @@ def test_a_viewer_receives_the_advertised_channels_as_the_session_runs(pinch):
             numbers = json.loads(f_data)
             snap = shown[round(numbers["time"], 9)]
             assert [numbers["force"][k] for k in "xyz"] == list(snap.finger_forces[0])
-            # A snapshot has no contact normals: what needs one is left out, not shown as 0.
-            assert not {"normal_force", "tangential_force", "friction_use"} & set(numbers)
+            # Snapshots carry the contact normals: the numbers that need them, recomputed here.
+            f, n = snap.spring_forces[0], snap.normals[0]
+            fn = f @ n
+            assert numbers["normal_force"] == pytest.approx(abs(fn), rel=1e-9, abs=1e-12)
+            assert numbers["tangential_force"] == pytest.approx(np.linalg.norm(f - fn * n), rel=1e-9, abs=1e-9)
+            if snap.contacts[0] >= 0 and abs(fn) > 1e-9:
+                mu = pinch.header["scene"]["bodies"][snap.contacts[0]]["mu_" + ("d" if snap.finger_states[0] == 2
+                                                                                 else "s")]
+                assert numbers["friction_use"] == pytest.approx(np.linalg.norm(f - fn * n) / (mu * abs(fn)),
+                                                                rel=1e-9)
             tf = FrameTransforms.FromString(tf_data)
             for frame, pose in zip(tf.transforms, snap.poses):
                 assert [frame.translation.x, frame.translation.y, frame.translation.z] == list(pose[:3])
@@ -152,6 +167,23 @@ def test_a_viewer_receives_the_advertised_channels_as_the_session_runs(pinch):
             scene = {e.id: e for e in SceneUpdate.FromString(scene_data).entities}
             go = scene["finger/Finger 1"].spheres[0].pose.position
             assert [go.x, go.y, go.z] == list(snap.god_objects[1])
+        # The body numbers are the analysis handed over, not one made again.
+        box = pinch.body_names.index("Box")
+        held = 0
+        for _, data in v.of("/grasp_lab/body/Box"):
+            numbers = json.loads(data)
+            g = [g for g in analysed[round(numbers["time"], 9)] if g.body == box]
+            if not g:
+                assert numbers["held"] == 0 and numbers["slip_finger"] == -1
+                continue
+            held += 1
+            g, = g
+            assert (numbers["held"], numbers["closure"]) == (1, float(g.force_closure))
+            assert numbers["epsilon"] == g.epsilon and numbers["resisted_force"] == g.resisted_force
+            assert numbers["mu_min"] == (g.mu_min if np.isfinite(g.mu_min) else analysis.NONE)
+            assert numbers["slip_margin"] == g.min_slip_margin and numbers["slip_finger"] == g.min_slip_finger
+            assert numbers["grip_load"] == (g.grip_ratio if np.isfinite(g.grip_ratio) else analysis.NONE)
+        assert held > 5
         assert lv.error == ""
         v.close()
     finally:

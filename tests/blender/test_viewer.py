@@ -158,9 +158,11 @@ def test_channels_use_the_published_schemas(exported):
                   "/grasp_lab/body/Table"):
         channel, schema = channels[topic]
         assert schema.encoding == "jsonschema"
-        props = json.loads(schema.data)["properties"]
+        props = set(json.loads(schema.data)["properties"])
+        if topic == "/grasp_lab/body/Table":        # static: never analysed
+            props -= set(viewer.GRASP_IDLE) | {"slip_finger_name"}
         for _, msg in topics[topic]:
-            assert set(msg) == set(props)
+            assert set(msg) == props
 
 
 def test_display_rate_frames(pinch, exported):
@@ -309,6 +311,85 @@ def test_plot_channels_are_the_tick_numbers(pinch, exported):
     assert max(grips) > 0.5          # the pinch squeezes
 
 
+def check_grasp_channels(rec, topics) -> tuple:
+    """Per body closure, epsilon, resisted force, slip margin and its finger, grip/load and the
+    weakest-wrench arrows of a copy, decoded with the published schemas, against
+    analysis.analyse_recording (with volume and mu_min) at the ticks its frames show.
+    Returns (frames held, frames in closure) of the box."""
+    from addon.engine import analysis
+    box = rec.body_names.index("Box")
+    body_msgs = topics["/grasp_lab/body/Box"]
+    rows = rec.sample(np.array([t for t, _ in body_msgs]))
+    table = analysis.analyse_recording(rec, rows=np.unique(rows))
+    grasps = {(int(table.snapshot[k]), int(table.body[k])): g for k, g in enumerate(analysis.body_grasps(table))}
+    scenes = dict(topics[viewer.TOPIC_SCENE])
+    closed = held = 0
+    for (t, msg), row in zip(body_msgs, rows):
+        g = grasps.get((int(row), box))
+        arrows = [arrow_vector(a) for a in {e.id: e for e in scenes[t].entities}["weakest/Box"].arrows]
+        if g is None:
+            assert (msg["held"], msg["closure"], msg["epsilon"], msg["slip_finger"], msg["mu_min"]) == \
+                (0, 0, 0, -1, analysis.NONE)
+            assert arrows == []
+            continue
+        held += 1
+        assert msg["held"] == 1
+        assert msg["closure"] == float(g.force_closure)
+        assert msg["epsilon"] == pytest.approx(g.epsilon, rel=1e-9, abs=1e-12)
+        assert msg["resisted_force"] == pytest.approx(g.resisted_force, rel=1e-9, abs=1e-12)
+        assert msg["slip_margin"] == pytest.approx(g.min_slip_margin, rel=1e-9, abs=1e-12)
+        assert msg["mu_min"] == pytest.approx(g.mu_min if np.isfinite(g.mu_min) else analysis.NONE, rel=1e-9)
+        assert msg["slip_finger"] == g.min_slip_finger
+        assert msg["slip_finger_name"] == (rec.finger_names[g.min_slip_finger] if g.min_slip_finger >= 0 else "")
+        want = g.grip_ratio if np.isfinite(g.grip_ratio) else analysis.NONE
+        assert msg["grip_load"] == pytest.approx(want, rel=1e-9, abs=1e-12)
+        if not g.force_closure:
+            assert arrows == []
+            continue
+        closed += 1
+        # As the viewport draws it: from the centre of mass, twice the torque radius per unit.
+        expected = [v for v in (2 * g.radius * g.weakest[:3], 2 * g.radius * g.weakest[3:])
+                    if np.linalg.norm(v) > 1e-6]
+        assert len(arrows) == len(expected) >= 1
+        for (tail, vec), v in zip(arrows, expected):
+            np.testing.assert_allclose(tail, g.center, atol=1e-12)
+            np.testing.assert_allclose(vec, v, rtol=1e-6, atol=1e-9)
+    return held, closed
+
+
+def test_grasp_channels_of_a_pinch(pinch, exported):
+    """Two point fingers never close a grasp (nothing resists a turn about the line joining
+    them): the box is held, never in closure, no weakest-wrench arrow."""
+    _, _, (topics, _, _) = exported
+    held, closed = check_grasp_channels(pinch, topics)
+    assert held > 10 and closed == 0
+
+
+def test_grasp_channels_of_a_grasp_in_closure(tmp_path):
+    """Three fingers on a box (test_analysis's grasp in force closure): closure 1, epsilon and
+    the weakest wrench's arrows as the analysis gives them."""
+    from test_analysis import HALF, R, SQUEEZE, X, box_scene, record
+    hips = [(X, 0.015, 0), (-(HALF + R - 2 * SQUEEZE), 0, 0), (X, -0.015, 0)]
+    rec = record(tmp_path / "three.mcap", box_scene(hips), lambda t: hips, 1.0)
+    viewer.export_foxglove(rec, str(tmp_path / "three_foxglove.mcap"))
+    topics, _, _ = read_back(tmp_path / "three_foxglove.mcap")
+    held, closed = check_grasp_channels(rec, topics)
+    assert closed > 10, (held, closed)
+    mu_min = [msg["mu_min"] for _, msg in topics["/grasp_lab/body/Box"] if msg["closure"]]
+    assert 0 < min(mu_min) and max(mu_min) < 0.8      # closes below the box's mu_s
+    # The live view's path: one snapshot's BodyGrasp list (the display update's analysis) gives
+    # the same numbers and arrows as the copy's table.
+    from addon.engine import analysis
+    model = viewer.SceneModel(rec.header)
+    row = len(rec.ticks) // 2
+    table = analysis.analyse_recording(rec, rows=[row], volume=False)
+    live = viewer.grasp_arrays_of(analysis.body_grasps(table), len(rec.body_names))
+    copy = model.grasp_numbers(rec, np.array([row]))
+    assert live["closure"][0, 0] == 1 and set(live) == set(copy)
+    for name in copy:
+        np.testing.assert_array_equal(live[name], copy[name], err_msg=name)
+
+
 def test_events_are_logs(pinch, exported):
     _, done, (topics, _, _) = exported
     logs = topics[viewer.TOPIC_LOG]
@@ -342,7 +423,8 @@ def test_layout_shows_what_the_copy_has(exported):
     assert found["Log"]["config"]["topicToRender"] == viewer.TOPIC_LOG
     series = [s["value"] for p in panels(layout["content"]) if p["panelType"] in ("Plot", "StateTransitions")
               for s in p["config"]["paths"]]
-    assert len(series) == 2 * 2 + 2 + 2 + 2      # forces (Fn, Ft) and use per finger, Box grip and residual, states
+    # forces (Fn, Ft) and use per finger, Box grip and residual, Box closure and epsilon, states
+    assert len(series) == 2 * 2 + 2 + 2 + 2 + 2
     for value in series:
         topic, field = value.split(".", 1)
         assert topic in topics, value
