@@ -69,6 +69,12 @@ class DirectDriver:
     def step_once(self):
         t_next = (self.steps + 1) * self.dt
         hips = np.ascontiguousarray(self.source.hips_at(t_next), dtype=np.float64)
+        turns = self.source.orientations_at(t_next)
+        if turns is not None:  # the scripted fingers' whole pose, as the runtime's track gives it
+            script = self.source.script()
+            mask = np.ones(len(hips), dtype=bool) if script is None or script[2] is None else script[2]
+            for i in np.flatnonzero(mask):
+                self.world.set_finger_pose(self._finger_ids[i], tuple(hips[i]), tuple(turns[i]))
         if self._finger_ids:
             if self._contiguous:
                 self.world.set_hips(hips)
