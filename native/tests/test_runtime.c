@@ -748,6 +748,30 @@ static void test_track_orientations(void) {
     gc_world_finger_pose(ref, 0, pr, qr);
     GC_CHECK(memcmp(q, qr, sizeof q) == 0 && fabs(q[1] - sin(0.2)) < 1e-15, "pad turned 0.4 rad: x %.17g", q[1]);
     gc_world_destroy(w);
+
+    /* The same poses pushed every tick (a device): set_finger_pose + step again. */
+    gcWorld *ref2 = pad_scene();
+    w = pad_scene();
+    GC_CHECK(gc_world_start(w, &def) == GC_OK, "start");
+    double zero_q[8] = {0, 0, 0, 0, 1, 0, 0, 0};
+    GC_CHECK(gc_world_push_finger_poses(w, pos, zero_q, 2, 0.0) == GC_WARN_REJECTED, "a zero quaternion is rejected");
+    for (int i = 0; i < TICKS; ++i) {
+        double pp[6], qq[8];
+        const double a = (double)(i % 7) / 7.0, ang = 0.05 * i; /* wobbling in position and turn */
+        pp[0] = 0.001 * a, pp[1] = 0.0, pp[2] = 0.0005 * i, pp[3] = 0.3, pp[4] = 0.0, pp[5] = 0.1;
+        qq[0] = cos(ang), qq[1] = 0.0, qq[2] = sin(ang), qq[3] = 0.0;
+        if (i % 2) qq[0] = -qq[0], qq[2] = -qq[2]; /* -q: the same rotation */
+        qq[4] = 1.0, qq[5] = qq[6] = qq[7] = 0.0;
+        gc_world_set_finger_pose(ref2, 0, pp, qq);
+        gc_world_set_finger_pose(ref2, 1, &pp[3], &qq[4]);
+        gc_world_step(ref2, DT);
+        GC_CHECK(gc_world_push_finger_poses(w, pp, qq, 2, i * DT) == GC_OK, "push %d", i);
+        gc_world_advance(w, 1, 0.0);
+    }
+    gc_world_stop(w);
+    GC_CHECK(gc_world_state_hash(w) == gc_world_state_hash(ref2), "pushed orientations: hash differs from set_finger_pose");
+    gc_world_destroy(w);
+    gc_world_destroy(ref2);
     gc_world_destroy(ref);
 }
 
