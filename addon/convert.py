@@ -176,6 +176,15 @@ def scene_description(context):
     return desc, links, fingers
 
 
+def finger_rotation(obj):
+    """A finger object's rigid world rotation (w, x, y, z) as the core takes it: a mesh's, the
+    identity for an Empty (a sphere has none)."""
+    if obj.type != "MESH":
+        return (1.0, 0.0, 0.0, 0.0)
+    q = _frame(obj.matrix_world)[1]
+    return (q.w, q.x, q.y, q.z)
+
+
 def sample_fingers(context, fingers, frame_start: int, frame_end: int):
     """World poses of the finger objects at every frame (the scripted device).
 
@@ -188,14 +197,11 @@ def sample_fingers(context, fingers, frame_start: int, frame_end: int):
     frames = list(range(frame_start, max(frame_end, frame_start) + 1))
     pos = np.zeros((len(frames), len(fingers), 3))
     quat = np.zeros((len(frames), len(fingers), 4))
-    quat[..., 0] = 1.0
     for i, f in enumerate(frames):
         scene.frame_set(f)
         for j, obj in enumerate(fingers):
             pos[i, j] = obj.matrix_world.translation
-            if obj.type == "MESH":
-                q = _frame(obj.matrix_world)[1]
-                quat[i, j] = (q.w, q.x, q.y, q.z)
+            quat[i, j] = finger_rotation(obj)
     scene.frame_set(frame_start)
     bad = np.argwhere(~np.isfinite(pos).all(axis=2))
     if len(bad):

@@ -199,7 +199,10 @@ class BlenderSession:
         """Live path: the fingertips the user moved go in, the latest state comes out.
         ``budget``: wall seconds the main-thread fallback may step for. True when done."""
         if self.source.interactive:
-            self.source.set_live([tuple(o.matrix_world.translation) for o in self.finger_objects])
+            # A mesh finger (a palm) rotated in the viewport turns too; spheres have no rotation.
+            turns = [convert.finger_rotation(o) for o in self.finger_objects] \
+                if any(o.type == "MESH" for o in self.finger_objects) else None
+            self.source.set_live([tuple(o.matrix_world.translation) for o in self.finger_objects], turns)
         if self.devices is not None:
             self._record_device_events(self.devices.poll())
         self.runner.advance_to(min(wall_elapsed, self.duration), budget=budget)

@@ -9,7 +9,8 @@ at its own tick times, whatever the display rate (docs/blender.md "Live sessions
   orientations or None)``, handed to the core once (``World.set_hip_track``) and sampled by the
   haptic loop at every tick; None if nothing is scripted;
 * ``orientations_at(t)``: the scripted fingers' orientations at ``t`` (a turning palm), or
-  None when the input carries none;
+  None when the input carries none; ``live_orientations()``: the live fingers' latest ones, or
+  None;
 * ``interactive``: True when some fingers follow live samples (pushed with a time stamp at
   every display tick, walked by the haptic loop at a bounded speed).
 """
@@ -35,6 +36,9 @@ class InputSource:
         return None
 
     def orientations_at(self, t: float):
+        return None
+
+    def live_orientations(self):
         return None
 
     def hips_at(self, t: float) -> np.ndarray:  # pragma: no cover - interface
@@ -143,14 +147,25 @@ class TimelineInput(InputSource):
         self.track = track
         self.scripted = np.asarray(scripted, dtype=bool).reshape(self.n_fingers)
         self.live = np.array(track.positions[0], dtype=np.float64)
+        self.live_q = None          # (n, 4) once set_live is given orientations (mesh fingers)
         self.interactive = bool(not self.scripted.all())
         self.duration = track.duration if self.scripted.any() else None
 
-    def set_live(self, positions):
+    def set_live(self, positions, orientations=None):
+        """Where the user put the live fingers; ``orientations`` (n, 4) turn them too (a palm
+        rotated in the viewport)."""
         p = np.asarray(positions, dtype=np.float64).reshape(self.n_fingers, 3)
         if not np.all(np.isfinite(p)):
             raise ValueError("fingertip positions: non-finite value")
         self.live[~self.scripted] = p[~self.scripted]
+        if orientations is not None:
+            q = np.asarray(orientations, dtype=np.float64).reshape(self.n_fingers, 4)
+            if not (np.all(np.isfinite(q)) and np.all(np.linalg.norm(q, axis=1) > 1e-10)):
+                raise ValueError("fingertip orientations: a zero or non-finite quaternion")
+            self.live_q = q.copy()
+
+    def live_orientations(self):
+        return self.live_q
 
     def hips_at(self, t):
         if not self.interactive:

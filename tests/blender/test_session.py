@@ -323,3 +323,36 @@ def test_animated_palm_rotation_reaches_the_core(bpy, core, threaded):
     assert _tilt_deg(world.body_pose(s.handle.body_ids[0])[1]) == pytest.approx(10.0, abs=0.3)
     if not threaded:
         s.finish()
+
+
+@pytest.mark.parametrize("threaded", [True, False])
+def test_palm_rotated_in_the_viewport_turns_in_the_core(bpy, core, threaded):
+    """A live (not animated) palm the user rotates during the session: its rotation is pushed
+    with its position at every display tick and the core's palm turns to it."""
+    import time as _time
+    from mathutils import Euler
+    session = grasp_env.submodule("session")
+    prefs = grasp_env.submodule("prefs").get_prefs(bpy.context)
+    palm = grasp_env.add_cube(bpy, "Palm", size=2.0, location=(0.0, 0.0, -0.01))
+    palm.scale = (0.045, 0.04, 0.01)
+    palm.grasp_lab.role = "FINGER"
+    prefs.use_runtime = threaded
+    try:
+        s = session.BlenderSession(bpy.context, live=True, duration=10.0)
+    finally:
+        prefs.use_runtime = True
+    assert s.source.interactive and s.source.script() is None
+    palm.rotation_euler = Euler((0.0, np.radians(20.0), 0.0))
+    bpy.context.view_layer.update()
+    want = palm.matrix_world.to_quaternion().normalized()
+    world, palm_id = s.runner.world, s.handle.finger_ids[0]
+    t0 = _time.perf_counter()
+    t = 0.0
+    while t < 0.5:
+        t = _time.perf_counter() - t0 if threaded else t + 0.05
+        s.tick(t)
+        if threaded:
+            _time.sleep(0.02)
+    s.finish()
+    got = np.array(world.finger_pose(palm_id)[1])
+    np.testing.assert_allclose(np.abs(got), np.abs([want.w, want.x, want.y, want.z]), atol=1e-7)
