@@ -176,20 +176,32 @@ def scene_description(context):
     return desc, links, fingers
 
 
-def sample_fingers(context, fingers, frame_start: int, frame_end: int):
-    """World positions of the finger objects at every frame (the scripted device).
+def finger_rotation(obj):
+    """A finger object's rigid world rotation (w, x, y, z) as the core takes it: a mesh's, the
+    identity for an Empty (a sphere has none)."""
+    if obj.type != "MESH":
+        return (1.0, 0.0, 0.0, 0.0)
+    q = _frame(obj.matrix_world)[1]
+    return (q.w, q.x, q.y, q.z)
 
-    Returns (times relative to frame_start, positions (n_frames, n_fingers, 3)).
-    Leaves the scene at ``frame_start``.
+
+def sample_fingers(context, fingers, frame_start: int, frame_end: int):
+    """World poses of the finger objects at every frame (the scripted device).
+
+    Returns (times relative to frame_start, positions (n_frames, n_fingers, 3), orientations
+    (n_frames, n_fingers, 4) w x y z: a mesh finger's rigid world rotation, identity for an
+    Empty, whose sphere has none). Leaves the scene at ``frame_start``.
     """
     scene = context.scene
     fps = scene.render.fps / scene.render.fps_base
     frames = list(range(frame_start, max(frame_end, frame_start) + 1))
     pos = np.zeros((len(frames), len(fingers), 3))
+    quat = np.zeros((len(frames), len(fingers), 4))
     for i, f in enumerate(frames):
         scene.frame_set(f)
         for j, obj in enumerate(fingers):
             pos[i, j] = obj.matrix_world.translation
+            quat[i, j] = finger_rotation(obj)
     scene.frame_set(frame_start)
     bad = np.argwhere(~np.isfinite(pos).all(axis=2))
     if len(bad):
@@ -198,4 +210,4 @@ def sample_fingers(context, fingers, frame_start: int, frame_end: int):
                                           f"({tuple(pos[i, j])}; {len(bad)} frame-finger samples are "
                                           f"not): fix its animation keys")
     times = (np.array(frames, dtype=np.float64) - frame_start) / fps
-    return times, pos
+    return times, pos, quat

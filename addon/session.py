@@ -27,7 +27,7 @@ from bpy.props import BoolProperty, FloatProperty
 from . import anim, convert, core_loader, display, record
 from .engine import analysis, grasp_display
 from .engine.devices.live import DeviceInput, device_event_detail, device_fingers, without_fingers
-from .engine.inputs import SampledTrajectory, TimelineInput
+from .engine.inputs import SampledTrajectory, TimelineInput, turning_fingers
 from .engine.runner import SessionRunner
 from .engine.scene import SceneError, build_world, prepare
 from .prefs import get_prefs
@@ -91,12 +91,15 @@ class BlenderSession:
             n_frames = max(scene.frame_end - scene.frame_start, 0)
         self.duration = duration if duration > 0 else n_frames / self.fps
         self.n_frames = n_frames
-        times, pos = convert.sample_fingers(context, finger_objs, self.frame_start,
-                                            min(self.frame_start + n_frames, scene.frame_end))
-        # Fingertips that move on the timeline are scripted; the others follow the user.
-        scripted = (np.ptp(pos, axis=0).max(axis=1) > 1e-9) if len(times) > 1 else \
+        times, pos, quat = convert.sample_fingers(context, finger_objs, self.frame_start,
+                                                  min(self.frame_start + n_frames, scene.frame_end))
+        # Fingertips that move or (a mesh finger: a palm) turn on the timeline are scripted; the
+        # others follow the user. Orientations go to the core only when a finger turns, so a
+        # scene whose fingers only move runs as before, bit for bit.
+        turning = turning_fingers(quat)
+        scripted = (np.ptp(pos, axis=0).max(axis=1) > 1e-9) | turning if len(times) > 1 else \
             np.zeros(len(finger_objs), dtype=bool)
-        self.source = TimelineInput(SampledTrajectory(times, pos), scripted)
+        self.source = TimelineInput(SampledTrajectory(times, pos, quat if turning.any() else None), scripted)
         self.finger_objects = finger_objs
         if live and not scripted.any() and not duration > 0:
             self.duration = float("inf")        # nothing scripted, no length asked: until Esc or Stop
@@ -196,7 +199,10 @@ class BlenderSession:
         """Live path: the fingertips the user moved go in, the latest state comes out.
         ``budget``: wall seconds the main-thread fallback may step for. True when done."""
         if self.source.interactive:
-            self.source.set_live([tuple(o.matrix_world.translation) for o in self.finger_objects])
+            # A mesh finger (a palm) rotated in the viewport turns too; spheres have no rotation.
+            turns = [convert.finger_rotation(o) for o in self.finger_objects] \
+                if any(o.type == "MESH" for o in self.finger_objects) else None
+            self.source.set_live([tuple(o.matrix_world.translation) for o in self.finger_objects], turns)
         if self.devices is not None:
             self._record_device_events(self.devices.poll())
         self.runner.advance_to(min(wall_elapsed, self.duration), budget=budget)

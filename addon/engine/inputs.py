@@ -5,9 +5,12 @@ session time ``t`` (seconds). Scripted sources are pure functions of ``t``, whic
 headless sessions deterministic. Two more questions let the threaded runtime take the input
 at its own tick times, whatever the display rate (docs/blender.md "Live sessions"):
 
-* ``script()``: the scripted part as a whole track ``(times, positions, scripted mask)``,
-  handed to the core once and sampled by the haptic loop at every tick; None if nothing is
-  scripted;
+* ``script()``: the scripted part as a whole track ``(times, positions, scripted mask,
+  orientations or None)``, handed to the core once (``World.set_hip_track``) and sampled by the
+  haptic loop at every tick; None if nothing is scripted;
+* ``orientations_at(t)``: the scripted fingers' orientations at ``t`` (a turning palm), or
+  None when the input carries none; ``live_orientations()``: the live fingers' latest ones, or
+  None;
 * ``interactive``: True when some fingers follow live samples (pushed with a time stamp at
   every display tick, walked by the haptic loop at a bounded speed).
 """
@@ -32,6 +35,12 @@ class InputSource:
     def script(self):
         return None
 
+    def orientations_at(self, t: float):
+        return None
+
+    def live_orientations(self):
+        return None
+
     def hips_at(self, t: float) -> np.ndarray:  # pragma: no cover - interface
         raise NotImplementedError
 
@@ -52,12 +61,23 @@ class StaticInput(InputSource):
         return self._p
 
 
+def turning_fingers(orientations, tol=1e-9) -> np.ndarray:
+    """(n_fingers,) bools: the fingers whose sampled orientations (n, n_fingers, 4) change
+    (q and -q are one rotation)."""
+    q = np.asarray(orientations, dtype=np.float64)
+    if len(q) < 2:
+        return np.zeros(q.shape[1], dtype=bool)
+    return (1.0 - np.abs(np.einsum("ijk,jk->ij", q, q[0]))).max(axis=0) > tol
+
+
 class SampledTrajectory(InputSource):
     """HIPs sampled at increasing times (e.g. every animation frame), linearly
-    interpolated in between and held after the last sample: a scripted device."""
+    interpolated in between and held after the last sample: a scripted device. With
+    ``orientations`` (n, n_fingers, 4: w x y z) the fingers turn too (a palm), by the core's
+    normalised lerp along the shorter arc."""
     name = "timeline"
 
-    def __init__(self, times, positions):
+    def __init__(self, times, positions, orientations=None):
         times = np.asarray(times, dtype=np.float64)
         positions = np.asarray(positions, dtype=np.float64)
         if times.ndim != 1 or len(times) < 1:
@@ -68,16 +88,40 @@ class SampledTrajectory(InputSource):
             raise ValueError("times: must be strictly increasing")
         if not np.all(np.isfinite(positions)):
             raise ValueError("positions: non-finite fingertip position")
+        if orientations is not None:
+            orientations = np.asarray(orientations, dtype=np.float64)
+            if orientations.shape != positions.shape[:2] + (4,):
+                raise ValueError(f"orientations: expected {positions.shape[:2] + (4,)}, got {orientations.shape}")
+            if not (np.all(np.isfinite(orientations)) and np.all(np.linalg.norm(orientations, axis=2) > 1e-10)):
+                raise ValueError("orientations: a zero or non-finite quaternion")
         super().__init__(positions.shape[1])
         self.times = times
         self.positions = positions
+        self.orientations = orientations
         self.duration = float(times[-1] - times[0])
         self._t0 = float(times[0])
 
     interactive = False
 
     def script(self):
-        return self.times, self.positions, None
+        return self.times, self.positions, None, self.orientations
+
+    def orientations_at(self, t):
+        """As the core's track computes them, operation for operation (its set_finger_pose
+        normalises): set_finger_pose with these before every step is the runtime, bit for bit."""
+        q = self.orientations
+        if q is None:
+            return None
+        ts = self.times
+        tt = self._t0 + float(t)
+        if tt <= ts[0] or len(ts) == 1:
+            return q[0]
+        if tt >= ts[-1]:
+            return q[-1]
+        i = int(np.searchsorted(ts, tt, side="right")) - 1
+        a = (tt - ts[i]) / (ts[i + 1] - ts[i])
+        s = np.where(np.einsum("jk,jk->j", q[i], q[i + 1]) < 0.0, -a, a)[:, None]
+        return (1.0 - a) * q[i] + s * q[i + 1]
 
     def hips_at(self, t):
         ts = self.times
@@ -103,14 +147,25 @@ class TimelineInput(InputSource):
         self.track = track
         self.scripted = np.asarray(scripted, dtype=bool).reshape(self.n_fingers)
         self.live = np.array(track.positions[0], dtype=np.float64)
+        self.live_q = None          # (n, 4) once set_live is given orientations (mesh fingers)
         self.interactive = bool(not self.scripted.all())
         self.duration = track.duration if self.scripted.any() else None
 
-    def set_live(self, positions):
+    def set_live(self, positions, orientations=None):
+        """Where the user put the live fingers; ``orientations`` (n, 4) turn them too (a palm
+        rotated in the viewport)."""
         p = np.asarray(positions, dtype=np.float64).reshape(self.n_fingers, 3)
         if not np.all(np.isfinite(p)):
             raise ValueError("fingertip positions: non-finite value")
         self.live[~self.scripted] = p[~self.scripted]
+        if orientations is not None:
+            q = np.asarray(orientations, dtype=np.float64).reshape(self.n_fingers, 4)
+            if not (np.all(np.isfinite(q)) and np.all(np.linalg.norm(q, axis=1) > 1e-10)):
+                raise ValueError("fingertip orientations: a zero or non-finite quaternion")
+            self.live_q = q.copy()
+
+    def live_orientations(self):
+        return self.live_q
 
     def hips_at(self, t):
         if not self.interactive:
@@ -122,7 +177,10 @@ class TimelineInput(InputSource):
     def script(self):
         if not self.scripted.any():
             return None
-        return self.track.times, self.track.positions, self.scripted
+        return self.track.times, self.track.positions, self.scripted, self.track.orientations
+
+    def orientations_at(self, t):
+        return self.track.orientations_at(t)
 
 
 class CallableInput(InputSource):

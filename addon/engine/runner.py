@@ -69,6 +69,15 @@ class DirectDriver:
     def step_once(self):
         t_next = (self.steps + 1) * self.dt
         hips = np.ascontiguousarray(self.source.hips_at(t_next), dtype=np.float64)
+        # Whole poses, as the runtime's track (scripted fingers) and pushes (live ones) give them.
+        script = self.source.script()
+        scripted = np.zeros(len(hips), dtype=bool) if script is None else \
+            (np.ones(len(hips), dtype=bool) if script[2] is None else np.asarray(script[2], dtype=bool))
+        for mask, turns in ((scripted, self.source.orientations_at(t_next)),
+                            (~scripted, self.source.live_orientations())):
+            if turns is not None:
+                for i in np.flatnonzero(mask):
+                    self.world.set_finger_pose(self._finger_ids[i], tuple(hips[i]), tuple(turns[i]))
         if self._finger_ids:
             if self._contiguous:
                 self.world.set_hips(hips)
@@ -114,7 +123,8 @@ class RuntimeDriver:
 
     def push(self, t):
         if self.source.interactive:
-            self.world.push_hips(np.ascontiguousarray(self.source.hips_at(t), dtype=np.float64), t)
+            self.world.push_hips(np.ascontiguousarray(self.source.hips_at(t), dtype=np.float64), t,
+                                 orientations=self.source.live_orientations())
 
     def observe(self, snapshot_time):
         self._time = snapshot_time

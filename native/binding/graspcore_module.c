@@ -711,14 +711,16 @@ static PyObject *World_advance(PyObject *obj, PyObject *args, PyObject *kwargs) 
 }
 
 /* _push_hips(float64 buffer of xyz rows, t) -> True if taken, False if rejected (counted). */
-/* _set_hip_track(times float64 (n,), positions float64 (n, m, 3), scripted bytes (m) or None). */
+/* _set_hip_track(times float64 (n,), positions float64 (n, m, 3), scripted bytes (m) or None
+ * [, orientations float64 (n, m, 4) or None]). */
 static PyObject *World_set_hip_track(PyObject *obj, PyObject *args) {
     WorldObject *self = (WorldObject *)obj;
-    PyObject *times_obj, *pos_obj, *scripted_obj;
+    PyObject *times_obj, *pos_obj, *scripted_obj, *quat_obj = Py_None;
     int num_fingers;
-    if (!PyArg_ParseTuple(args, "OOiO", &times_obj, &pos_obj, &num_fingers, &scripted_obj) || !check_ready(self))
+    if (!PyArg_ParseTuple(args, "OOiO|O", &times_obj, &pos_obj, &num_fingers, &scripted_obj, &quat_obj) ||
+        !check_ready(self))
         return NULL;
-    Py_buffer t, p, m = {0};
+    Py_buffer t, p, m = {0}, q = {0};
     if (PyObject_GetBuffer(times_obj, &t, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
     if (PyObject_GetBuffer(pos_obj, &p, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
         PyBuffer_Release(&t);
@@ -726,6 +728,13 @@ static PyObject *World_set_hip_track(PyObject *obj, PyObject *args) {
     }
     int has_mask = scripted_obj != Py_None;
     if (has_mask && PyObject_GetBuffer(scripted_obj, &m, PyBUF_C_CONTIGUOUS) < 0) {
+        PyBuffer_Release(&t);
+        PyBuffer_Release(&p);
+        return NULL;
+    }
+    int has_quat = quat_obj != Py_None;
+    if (has_quat && PyObject_GetBuffer(quat_obj, &q, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
+        if (has_mask) PyBuffer_Release(&m);
         PyBuffer_Release(&t);
         PyBuffer_Release(&p);
         return NULL;
@@ -738,38 +747,54 @@ static PyObject *World_set_hip_track(PyObject *obj, PyObject *args) {
         PyErr_Format(PyExc_ValueError, "set_hip_track: positions must hold %zd x %d xyz rows", n, num_fingers);
     else if (has_mask && m.len != num_fingers)
         PyErr_Format(PyExc_ValueError, "set_hip_track: scripted must have %d entries", num_fingers);
+    else if (has_quat && (!q.format || strcmp(q.format, "d") != 0 ||
+                          q.len != n * num_fingers * 4 * (Py_ssize_t)sizeof(double)))
+        PyErr_Format(PyExc_ValueError, "set_hip_track: orientations must be float64 and hold %zd x %d wxyz rows", n,
+                     num_fingers);
     else {
         gcStatus st = gc_world_set_hip_track(self->world, t.buf, p.buf, (int)n, num_fingers,
                                              has_mask ? (const unsigned char *)m.buf : NULL);
-        if (st < 0)
+        if (st >= 0 && has_quat && n > 0) st = gc_world_set_hip_track_orientations(self->world, q.buf);
+        if (st < 0) {
+            if (n > 0) gc_world_set_hip_track(self->world, NULL, NULL, 0, 1, NULL); /* none half set */
             raise_status(self, st);
-        else
+        } else
             result = Py_NewRef(Py_None);
     }
+    if (has_quat) PyBuffer_Release(&q);
     if (has_mask) PyBuffer_Release(&m);
     PyBuffer_Release(&p);
     PyBuffer_Release(&t);
     return result;
 }
 
+/* _push_hips(positions float64 (n, 3), t[, orientations float64 (n, 4) or None]). */
 static PyObject *World_push_hips(PyObject *obj, PyObject *args) {
     WorldObject *self = (WorldObject *)obj;
-    PyObject *positions;
+    PyObject *positions, *quat_obj = Py_None;
     double t;
-    if (!PyArg_ParseTuple(args, "Od", &positions, &t) || !check_world(self)) return NULL;
-    Py_buffer b;
+    if (!PyArg_ParseTuple(args, "Od|O", &positions, &t, &quat_obj) || !check_world(self)) return NULL;
+    Py_buffer b, q = {0};
     if (PyObject_GetBuffer(positions, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
+    int has_quat = quat_obj != Py_None;
+    if (has_quat && PyObject_GetBuffer(quat_obj, &q, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
+        PyBuffer_Release(&b);
+        return NULL;
+    }
     PyObject *result = NULL;
+    int rows = (int)(b.len / (Py_ssize_t)(3 * sizeof(double)));
     if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0 || b.len == 0) {
         PyErr_SetString(PyExc_ValueError, "positions: must be a C-contiguous float64 array of xyz rows");
+    } else if (has_quat && (!q.format || strcmp(q.format, "d") != 0 || q.len != rows * 4 * (Py_ssize_t)sizeof(double))) {
+        PyErr_Format(PyExc_ValueError, "orientations: must be a C-contiguous float64 array of %d wxyz rows", rows);
     } else {
-        int rows = (int)(b.len / (Py_ssize_t)(3 * sizeof(double)));
-        gcStatus st = gc_world_push_hips(self->world, b.buf, rows, t);
+        gcStatus st = gc_world_push_finger_poses(self->world, b.buf, has_quat ? q.buf : NULL, rows, t);
         if (st < 0)
             raise_status(self, st);
         else
             result = PyBool_FromLong(st == GC_OK);
     }
+    if (has_quat) PyBuffer_Release(&q);
     PyBuffer_Release(&b);
     return result;
 }

@@ -267,6 +267,14 @@ gcStatus gc_world_advance(gcWorld *world, int ticks, double delay);
  * Fingers driven by the scripted track ignore pushed samples.
  * GC_OK: taken; GC_WARN_REJECTED: NaN/Inf or t older than the last push (counted, ignored). */
 gcStatus gc_world_push_hips(gcWorld *world, const double *positions, int count, double t);
+/* push_hips with each finger's orientation too (count quaternions w, x, y, z; NULL = positions
+ * only, as push_hips): a convex finger turns from where it is to the sample over the same
+ * interval as its position walks (normalised lerp, the shorter arc; max_hip_speed bounds the
+ * position only), normalised as gc_world_set_finger_pose does, so a caller pushing every tick
+ * gets set_finger_pose + step bit for bit. A push without orientations leaves them where they
+ * are. A non-finite or zero quaternion rejects the push (GC_WARN_REJECTED, counted). */
+gcStatus gc_world_push_finger_poses(gcWorld *world, const double *positions, const double *orientations, int count,
+                                    double t);
 
 /* A scripted HIP track for the runtime (set while stopped): num_samples times (s, strictly
  * increasing) and num_samples x num_fingers xyz positions for fingers 0..num_fingers-1. At its
@@ -277,6 +285,13 @@ gcStatus gc_world_push_hips(gcWorld *world, const double *positions, int count, 
  * gc_world_push_hips. num_samples 0 clears the track. GC_ERR_BUSY while running. */
 gcStatus gc_world_set_hip_track(gcWorld *world, const double *times, const double *positions, int num_samples,
                                 int num_fingers, const unsigned char *scripted);
+/* Orientations for the track just set (set while stopped; a new set_hip_track drops them):
+ * num_samples x num_fingers quaternions (w, x, y, z), finite and non-zero, so a convex finger
+ * (a palm) turns as it moves. Sampled at the same times as the positions by normalised lerp
+ * (the shorter arc), held past either end, then normalised as gc_world_set_finger_pose does:
+ * set_finger_pose before every gc_world_step of 1 / haptic_rate gives the same world, bit for
+ * bit. NULL drops them (positions only); a sphere finger ignores them. */
+gcStatus gc_world_set_hip_track_orientations(gcWorld *world, const double *orientations);
 
 /* One haptic tick's consistent view. Arrays are the caller's (NULL to skip), sized for
  * gc_world_body_count / gc_world_finger_count. When stopped: the world's state, forces 0. */

@@ -31,6 +31,36 @@ gcVec3 gc_hip_track_sample(const gcHipTrack *tr, int finger, double t) {
     return gc_v3((1.0 - a) * p0[0] + a * p1[0], (1.0 - a) * p0[1] + a * p1[1], (1.0 - a) * p0[2] + a * p1[2]);
 }
 
+int gc_hip_track_orientation(const gcHipTrack *tr, int finger, double t, gcQuat *out) {
+    if (!tr->orientations) return 0;
+    const double *ts = tr->times;
+    const int n = tr->num_samples, nf = tr->num_fingers;
+    const double tt = ts[0] + t;
+    const double *q;
+    if (tt <= ts[0] || n == 1) {
+        q = &tr->orientations[4 * finger];
+    } else if (tt >= ts[n - 1]) {
+        q = &tr->orientations[4 * ((size_t)(n - 1) * nf + finger)];
+    } else {
+        int lo = 0, hi = n - 1; /* as gc_hip_track_sample */
+        while (hi - lo > 1) {
+            int mid = lo + (hi - lo) / 2;
+            if (ts[mid] <= tt) lo = mid;
+            else hi = mid;
+        }
+        const double a = (tt - ts[lo]) / (ts[lo + 1] - ts[lo]);
+        const double *q0 = &tr->orientations[4 * ((size_t)lo * nf + finger)];
+        const double *q1 = &tr->orientations[4 * ((size_t)(lo + 1) * nf + finger)];
+        /* q and -q are one rotation: interpolate along the shorter arc. */
+        const double s = q0[0] * q1[0] + q0[1] * q1[1] + q0[2] * q1[2] + q0[3] * q1[3] < 0.0 ? -a : a;
+        *out = (gcQuat){(1.0 - a) * q0[0] + s * q1[0], (1.0 - a) * q0[1] + s * q1[1], (1.0 - a) * q0[2] + s * q1[2],
+                        (1.0 - a) * q0[3] + s * q1[3]};
+        return 1;
+    }
+    *out = (gcQuat){q[0], q[1], q[2], q[3]};
+    return 1;
+}
+
 int gc_hip_track_drives(const gcHipTrack *tr, int finger) {
     return tr && finger < tr->num_fingers && tr->scripted[finger];
 }
@@ -47,6 +77,7 @@ void gc_hip_track_free(gcHipTrack *tr) {
     free(tr->times);
     free(tr->positions);
     free(tr->scripted);
+    free(tr->orientations);
     free(tr);
 }
 
@@ -54,6 +85,7 @@ void gc_hip_follow_retarget(gcHipFollow *f, gcVec3 current, gcVec3 target, doubl
     f->from = current;
     f->to = target;
     f->elapsed = 0.0;
+    f->turns = 0;
     /* A caller pushing every tick gets its sample at the next tick, exactly (its time stamps,
      * i * dt, differ from one another by dt only up to rounding). */
     f->duration = interval <= dt * (1.0 + 1e-6) ? dt : fmin(interval, GC_HIP_MAX_SEGMENT);
@@ -72,6 +104,26 @@ gcVec3 gc_hip_follow_advance(gcHipFollow *f, gcVec3 current, double dt, double m
         if (len > cap) target = gc_add(current, gc_scale(d, cap / len));
     }
     return target;
+}
+
+void gc_hip_follow_turn_to(gcHipFollow *f, gcQuat current, gcQuat target) {
+    f->turns = 1;
+    f->q_from = current;
+    f->q_to = target;
+}
+
+int gc_hip_follow_orientation(const gcHipFollow *f, gcQuat *out) {
+    if (!f->turns) return 0;
+    if (f->elapsed >= f->duration * (1.0 - 1e-9)) { /* as gc_hip_follow_advance: reached */
+        *out = f->q_to;
+        return 1;
+    }
+    const double a = f->elapsed / f->duration;
+    const gcQuat p = f->q_from, q = f->q_to;
+    const double s = p.w * q.w + p.x * q.x + p.y * q.y + p.z * q.z < 0.0 ? -a : a;
+    *out = (gcQuat){(1.0 - a) * p.w + s * q.w, (1.0 - a) * p.x + s * q.x, (1.0 - a) * p.y + s * q.y,
+                    (1.0 - a) * p.z + s * q.z};
+    return 1;
 }
 
 /* ---- the world API ------------------------------------------------------------------ */
@@ -133,5 +185,44 @@ gcStatus gc_world_set_hip_track(gcWorld *w, const double *times, const double *p
     for (int i = 0; i < num_fingers; ++i) tr->scripted[i] = scripted ? scripted[i] != 0 : 1;
     gc_hip_track_free(w->hip_track);
     w->hip_track = tr;
+    return GC_OK;
+}
+
+gcStatus gc_world_set_hip_track_orientations(gcWorld *w, const double *orientations) {
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (w->locked) {
+        gc_world_set_error(w, "set_hip_track_orientations: the runtime is running: stop it first");
+        return GC_ERR_BUSY;
+    }
+    gcHipTrack *tr = w->hip_track;
+    if (!tr) {
+        gc_world_set_error(w, "set_hip_track_orientations: no HIP track: set_hip_track first");
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    if (!orientations) { /* positions only again */
+        free(tr->orientations);
+        tr->orientations = NULL;
+        return GC_OK;
+    }
+    size_t nq = (size_t)tr->num_samples * (size_t)tr->num_fingers;
+    for (size_t i = 0; i < nq; ++i) {
+        const double *q = &orientations[4 * i];
+        double n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+        if (!finite_all(q, 4) || !(n2 > 1e-20) || !isfinite(n2)) {
+            gc_world_set_error(w,
+                               "set_hip_track_orientations: sample %zu, finger %zu: not a finite non-zero "
+                               "quaternion (w, x, y, z)",
+                               i / (size_t)tr->num_fingers, i % (size_t)tr->num_fingers);
+            return GC_ERR_INVALID_ARGUMENT;
+        }
+    }
+    double *copy = malloc(4 * nq * sizeof(double));
+    if (!copy) {
+        gc_world_set_error(w, "set_hip_track_orientations: out of memory for %zu orientations", nq);
+        return GC_ERR_NO_MEMORY;
+    }
+    memcpy(copy, orientations, 4 * nq * sizeof(double));
+    free(tr->orientations);
+    tr->orientations = copy;
     return GC_OK;
 }

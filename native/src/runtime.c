@@ -150,6 +150,7 @@ static void runtime_free_memory(gcRuntime *rt) {
     free(rt->ostate);
     for (int i = 0; i < 3; ++i) {
         free(rt->input_msg[i].hips);
+        free(rt->input_msg[i].orientations);
         free(rt->haptic_msg[i].want);
         free(rt->haptic_msg[i].has_state);
         free(rt->haptic_msg[i].body);
@@ -200,6 +201,7 @@ static gcRuntime *runtime_alloc(const gcWorld *w) {
         gcObjectMsg *o = &rt->object_msg[i];
         gcDisplayMsg *d = &rt->display_msg[i];
         in->hips = rt_calloc(rt, nf * 3, sizeof(double));
+        in->orientations = rt_calloc(rt, nf * 4, sizeof(double));
         h->want = rt_calloc(rt, nb, 1);
         h->has_state = rt_calloc(rt, nb, 1);
         h->body = rt_calloc(rt, nb, sizeof(gcRtBody));
@@ -215,7 +217,7 @@ static gcRuntime *runtime_alloc(const gcWorld *w) {
         d->normal = rt_calloc(rt, nf * 3, sizeof(double));
         d->state = rt_calloc(rt, nf, sizeof(int32_t));
         d->contact_body = rt_calloc(rt, nf, sizeof(int32_t));
-        ok &= in->hips && h->want && h->has_state && h->body && h->fingers && o->released && o->body && d->body &&
+        ok &= in->hips && in->orientations && h->want && h->has_state && h->body && h->fingers && o->released && o->body && d->body &&
               d->adopted && d->hip && d->god_object && d->spring_force && d->device_force && d->normal && d->state &&
               d->contact_body;
     }

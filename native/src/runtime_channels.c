@@ -68,6 +68,11 @@ void gc_rt_publish_display(gcRuntime *rt, int64_t now, int forces_enabled) {
 }
 
 gcStatus gc_world_push_hips(gcWorld *w, const double *positions, int count_, double t) {
+    return gc_world_push_finger_poses(w, positions, NULL, count_, t);
+}
+
+gcStatus gc_world_push_finger_poses(gcWorld *w, const double *positions, const double *orientations, int count_,
+                                    double t) {
     if (!w) return GC_ERR_INVALID_ARGUMENT;
     if (!positions) return gc_null_argument(w, "positions");
     if (!gc_runtime_running(w)) {
@@ -78,15 +83,21 @@ gcStatus gc_world_push_hips(gcWorld *w, const double *positions, int count_, dou
         gc_world_set_error(w, "positions: %d rows given for %d fingers", count_, w->num_fingers);
         return GC_ERR_INVALID_ARGUMENT;
     }
-    return gc_runtime_push_input(w, positions, count_, t);
+    return gc_runtime_push_input(w, positions, orientations, count_, t);
 }
 
-gcStatus gc_runtime_push_input(gcWorld *w, const double *positions, int count_, double t) {
+gcStatus gc_runtime_push_input(gcWorld *w, const double *positions, const double *orientations, int count_,
+                               double t) {
     if (!gc_runtime_running(w)) return GC_ERR_NOT_RUNNING;
     if (count_ < 1 || count_ > w->num_fingers) return GC_ERR_INVALID_ARGUMENT;
     gcRuntime *rt = w->runtime;
     int finite = isfinite(t);
     for (int i = 0; i < 3 * count_ && finite; ++i) finite = isfinite(positions[i]);
+    for (int i = 0; orientations && i < count_ && finite; ++i) { /* finite and not zero */
+        const double *q = &orientations[4 * i];
+        double n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+        finite = isfinite(q[0]) && isfinite(q[1]) && isfinite(q[2]) && isfinite(q[3]) && n2 > 1e-20 && isfinite(n2);
+    }
     if (!finite) {
         count(&rt->rejected_inputs);
         return GC_WARN_REJECTED;
@@ -103,6 +114,8 @@ gcStatus gc_runtime_push_input(gcWorld *w, const double *positions, int count_, 
     m->t = t;
     m->receipt_ns = rt->def.realtime ? clock_now_ns() : atomic_load_explicit(&rt->manual_now_ns, memory_order_relaxed);
     memcpy(m->hips, positions, 3 * (size_t)count_ * sizeof(double));
+    m->has_orientations = orientations != NULL;
+    if (orientations) memcpy(m->orientations, orientations, 4 * (size_t)count_ * sizeof(double));
     triple_publish(&rt->input);
     pthread_mutex_unlock(&rt->input_mutex);
     count(&rt->accepted_inputs);

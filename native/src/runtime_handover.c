@@ -91,9 +91,13 @@ void gc_rt_haptic_tick(gcRuntime *rt, int64_t now) {
         double interval = isfinite(rt->follow_prev_t) ? in->t - rt->follow_prev_t : 0.0;
         rt->follow_prev_t = in->t;
         for (int i = 0; i < in->count; ++i)
-            if (!gc_hip_track_drives(rt->track, i))
+            if (!gc_hip_track_drives(rt->track, i)) {
                 gc_hip_follow_retarget(&rt->follow[i], hw->fingers[i].hip,
                                        gc_v3(in->hips[3 * i], in->hips[3 * i + 1], in->hips[3 * i + 2]), interval, dt);
+                const double *q = &in->orientations[4 * i];
+                if (in->has_orientations)
+                    gc_hip_follow_turn_to(&rt->follow[i], hw->fingers[i].q, (gcQuat){q[0], q[1], q[2], q[3]});
+            }
         rt->last_input_ns = in->receipt_ns;
     }
     if (gc_hip_track_covers(rt->track, hw->num_fingers)) rt->last_input_ns = now; /* the track is never stale */
@@ -103,6 +107,12 @@ void gc_rt_haptic_tick(gcRuntime *rt, int64_t now) {
                          ? gc_hip_track_sample(rt->track, i, t_next)
                          : gc_hip_follow_advance(&rt->follow[i], hw->fingers[i].hip, dt, rt->def.max_hip_speed);
         hw->fingers[i].hip = hip;
+        gcQuat q; /* the track's or the walk's orientation: normalised as gc_world_set_finger_pose does */
+        if (gc_hip_track_drives(rt->track, i) ? gc_hip_track_orientation(rt->track, i, t_next, &q)
+                                              : gc_hip_follow_orientation(&rt->follow[i], &q)) {
+            hw->fingers[i].q = gc_quat_normalize(q);
+            hw->fingers[i].R = gc_quat_to_mat3(hw->fingers[i].q);
+        }
         double *out = &hw->hip_array[3 * i];
         out[0] = hip.x, out[1] = hip.y, out[2] = hip.z;
     }

@@ -92,6 +92,8 @@ typedef struct gcInputMsg { /* push_hips -> haptic loop */
     double t;                /* device time stamp */
     int64_t receipt_ns;      /* runtime clock when pushed: staleness */
     double *hips;            /* 3 per finger */
+    int has_orientations;    /* the push carried orientations (gc_world_push_finger_poses) */
+    double *orientations;    /* 4 per finger (w x y z), as pushed */
 } gcInputMsg;
 
 typedef struct gcHapticMsg { /* haptic loop -> object manager, every haptic tick */

@@ -391,7 +391,7 @@ static gcStatus hub_push(gcSerialHub *h, int offset, int n, const double *positi
     double t = (double)now_ns() / NS;
     if (t <= h->last_push_t) t = nextafter(h->last_push_t, INFINITY);
     h->last_push_t = t;
-    gcStatus st = gc_runtime_push_input(h->world, h->hips, h->hip_count, t); /* no error message: not ours */
+    gcStatus st = gc_runtime_push_input(h->world, h->hips, NULL, h->hip_count, t); /* no error message: not ours */
     pthread_mutex_unlock(&h->hip_mutex);
     return st;
 }

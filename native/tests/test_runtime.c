@@ -671,8 +671,113 @@ static void test_destroy_running(void) {
     GC_CHECK(1, "destroyed while running");
 }
 
+/* A 4 cm cube finger (a pad) pressing a resting box; `sphere` adds a sphere finger too. */
+static gcWorld *pad_scene(void) {
+    gcWorldDef wd = gc_default_world_def();
+    gcWorld *w = NULL;
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    double box[3] = {0, 0, 0.021};
+    add_box(w, 0.02, box, 0, 0.1);
+    double pts[24];
+    for (int i = 0; i < 8; ++i)
+        pts[3 * i] = (i & 1) ? 0.02 : -0.02, pts[3 * i + 1] = (i & 2) ? 0.02 : -0.02,
+        pts[3 * i + 2] = (i & 4) ? 0.0 : -0.04;
+    gcFingerDef def = gc_default_finger_def();
+    def.damping = 2.0;
+    def.radius = 0.0;
+    def.points = pts;
+    def.num_points = 8;
+    int32_t id = -1;
+    GC_CHECK(gc_world_add_finger(w, &def, &id) == GC_OK, "add pad: %s", gc_world_last_error(w));
+    add_finger(w, 0.3, 0, 0.1);
+    return w;
+}
+
+/* A HIP track's orientations: the manual clock equals set_finger_pose + step bit for bit (the
+ * second sample given as -q: the shorter arc), and bad orientations are refused by name. */
+static void test_track_orientations(void) {
+    enum { N = 3, TICKS = 40 };
+    const double c = cos(0.1), s = sin(0.1);
+    const double times[N] = {0.0, 0.01, 0.025};
+    double pos[N * 2 * 3] = {0}, quat[N * 2 * 4] = {0};
+    const double q_pad[N][4] = {{1, 0, 0, 0}, {-c, -s, 0, 0}, {c * c - s * s, 2 * s * c, 0, 0}};
+    for (int k = 0; k < N; ++k) {
+        pos[6 * k + 2] = 0.001 * k;
+        pos[6 * k + 3] = 0.3, pos[6 * k + 5] = 0.1;
+        memcpy(&quat[8 * k], q_pad[k], sizeof q_pad[k]);
+        quat[8 * k + 4] = 1.0;
+    }
+    gcWorld *ref = pad_scene();
+    for (int i = 0; i < TICKS; ++i) {
+        double tt = (i + 1) * DT, p[3], q[4];
+        int lo = tt >= times[1] ? 1 : 0;
+        if (tt >= times[N - 1]) {
+            memcpy(p, &pos[6 * (N - 1)], sizeof p);
+            memcpy(q, q_pad[N - 1], sizeof q);
+        } else {
+            double a = (tt - times[lo]) / (times[lo + 1] - times[lo]);
+            const double *q0 = q_pad[lo], *q1 = q_pad[lo + 1];
+            double sa = q0[0] * q1[0] + q0[1] * q1[1] + q0[2] * q1[2] + q0[3] * q1[3] < 0.0 ? -a : a;
+            for (int j = 0; j < 3; ++j) p[j] = (1.0 - a) * pos[6 * lo + j] + a * pos[6 * (lo + 1) + j];
+            for (int j = 0; j < 4; ++j) q[j] = (1.0 - a) * q0[j] + sa * q1[j];
+        }
+        GC_CHECK(gc_world_set_finger_pose(ref, 0, p, q) == GC_OK, "reference pose");
+        gc_world_step(ref, DT);
+    }
+    gcWorld *w = pad_scene();
+    GC_CHECK(gc_world_set_hip_track_orientations(w, quat) == GC_ERR_INVALID_ARGUMENT &&
+                 strstr(gc_world_last_error(w), "set_hip_track first"),
+             "orientations without a track: %s", gc_world_last_error(w));
+    GC_CHECK(gc_world_set_hip_track(w, times, pos, N, 2, NULL) == GC_OK, "track");
+    quat[8 * 1 + 4] = NAN;
+    GC_CHECK(gc_world_set_hip_track_orientations(w, quat) == GC_ERR_INVALID_ARGUMENT &&
+                 strstr(gc_world_last_error(w), "sample 1, finger 1"),
+             "a NaN orientation: %s", gc_world_last_error(w));
+    quat[8 * 1 + 4] = 0.0;
+    GC_CHECK(gc_world_set_hip_track_orientations(w, quat) == GC_ERR_INVALID_ARGUMENT, "a zero orientation");
+    quat[8 * 1 + 4] = 1.0;
+    GC_CHECK(gc_world_set_hip_track_orientations(w, quat) == GC_OK, "orientations: %s", gc_world_last_error(w));
+    gcRuntimeDef def = manual_def(1000.0, 3);
+    GC_CHECK(gc_world_start(w, &def) == GC_OK, "start");
+    GC_CHECK(gc_world_set_hip_track_orientations(w, NULL) == GC_ERR_BUSY, "refused while running");
+    GC_CHECK(gc_world_advance(w, TICKS, 0.0) == GC_OK, "advance");
+    gc_world_stop(w);
+    GC_CHECK(gc_world_state_hash(w) == gc_world_state_hash(ref), "track orientations: hash differs from set_finger_pose");
+    double p[3], q[4], pr[3], qr[4];
+    gc_world_finger_pose(w, 0, p, q);
+    gc_world_finger_pose(ref, 0, pr, qr);
+    GC_CHECK(memcmp(q, qr, sizeof q) == 0 && fabs(q[1] - sin(0.2)) < 1e-15, "pad turned 0.4 rad: x %.17g", q[1]);
+    gc_world_destroy(w);
+
+    /* The same poses pushed every tick (a device): set_finger_pose + step again. */
+    gcWorld *ref2 = pad_scene();
+    w = pad_scene();
+    GC_CHECK(gc_world_start(w, &def) == GC_OK, "start");
+    double zero_q[8] = {0, 0, 0, 0, 1, 0, 0, 0};
+    GC_CHECK(gc_world_push_finger_poses(w, pos, zero_q, 2, 0.0) == GC_WARN_REJECTED, "a zero quaternion is rejected");
+    for (int i = 0; i < TICKS; ++i) {
+        double pp[6], qq[8];
+        const double a = (double)(i % 7) / 7.0, ang = 0.05 * i; /* wobbling in position and turn */
+        pp[0] = 0.001 * a, pp[1] = 0.0, pp[2] = 0.0005 * i, pp[3] = 0.3, pp[4] = 0.0, pp[5] = 0.1;
+        qq[0] = cos(ang), qq[1] = 0.0, qq[2] = sin(ang), qq[3] = 0.0;
+        if (i % 2) qq[0] = -qq[0], qq[2] = -qq[2]; /* -q: the same rotation */
+        qq[4] = 1.0, qq[5] = qq[6] = qq[7] = 0.0;
+        gc_world_set_finger_pose(ref2, 0, pp, qq);
+        gc_world_set_finger_pose(ref2, 1, &pp[3], &qq[4]);
+        gc_world_step(ref2, DT);
+        GC_CHECK(gc_world_push_finger_poses(w, pp, qq, 2, i * DT) == GC_OK, "push %d", i);
+        gc_world_advance(w, 1, 0.0);
+    }
+    gc_world_stop(w);
+    GC_CHECK(gc_world_state_hash(w) == gc_world_state_hash(ref2), "pushed orientations: hash differs from set_finger_pose");
+    gc_world_destroy(w);
+    gc_world_destroy(ref2);
+    gc_world_destroy(ref);
+}
+
 int main(void) {
     test_manual_clock_matches_step();
+    test_track_orientations();
     test_refused_while_running();
     test_snapshot_normals_velocities();
     test_clamp_ramp_watchdog();

@@ -257,3 +257,102 @@ def test_live_session_on_the_threaded_runtime(bpy, sample, core):
     assert "step 0 µs" not in detail
     s.finish()
     assert not s.runner.world.running
+
+
+def _tilting_palm(bpy):
+    """A palm (Finger-role mesh, 9 x 8 x 2 cm) keyframed level at frame 1 and tilted 10 deg
+    about x at frame 25, staying where it is; a 0.4 kg plate resting on it."""
+    palm = grasp_env.add_cube(bpy, "Palm", size=2.0, location=(0.0, 0.0, -0.01))
+    palm.scale = (0.045, 0.04, 0.01)
+    palm.grasp_lab.role = "FINGER"
+    palm.rotation_euler = (0.0, 0.0, 0.0)
+    palm.keyframe_insert("rotation_euler", frame=1)
+    palm.keyframe_insert("location", frame=1)
+    palm.rotation_euler = (np.radians(10.0), 0.0, 0.0)
+    palm.keyframe_insert("rotation_euler", frame=25)
+    plate = grasp_env.add_cube(bpy, "Plate", size=2.0, location=(0.0, 0.0, 0.0055))
+    plate.scale = (0.1, 0.1, 0.005)
+    plate.grasp_lab.role = "DYNAMIC"
+    plate.grasp_lab.mass_mode = "MASS"
+    plate.grasp_lab.mass = 0.4
+    scene = bpy.context.scene
+    scene.frame_start, scene.frame_end = 1, 48
+    scene.render.fps, scene.render.fps_base = 24, 1.0
+    return palm, plate
+
+
+def _tilt_deg(quat):
+    from mathutils import Quaternion
+    up = np.array(Quaternion(quat).to_matrix())[:, 2]
+    return float(np.degrees(np.arccos(min(1.0, up[2]))))
+
+
+@pytest.mark.parametrize("threaded", [True, False])
+def test_animated_palm_rotation_reaches_the_core(bpy, core, threaded):
+    """The palm's animated world rotation, frame by frame, is its HIP's orientation: the
+    threaded runtime gets it on the track, the synchronous steps through set_finger_pose; the
+    palm ends at the last frame's rotation and the plate resting on it tilts with it."""
+    import time as _time
+    session = grasp_env.submodule("session")
+    prefs = grasp_env.submodule("prefs").get_prefs(bpy.context)
+    palm, plate = _tilting_palm(bpy)
+    bpy.context.scene.frame_set(48)
+    q_end = palm.matrix_world.to_quaternion().normalized()
+    bpy.context.scene.frame_set(1)
+    prefs.use_runtime = threaded
+    try:
+        s = session.BlenderSession(bpy.context, live=True, duration=1.9)
+    finally:
+        prefs.use_runtime = True
+    assert s.runner.threaded == threaded
+    times, _, mask, turns = s.source.script()
+    assert list(mask) == [True] and turns.shape == (len(times), 1, 4)
+    world, palm_id = s.runner.world, s.handle.finger_ids[0]
+    if threaded:
+        t0 = _time.perf_counter()
+        while s.snapshot is None or s.snapshot.time < 1.6:
+            s.tick(_time.perf_counter() - t0)
+            _time.sleep(0.02)
+            assert _time.perf_counter() - t0 < 60.0
+        s.finish()
+    else:
+        s.tick(1.6)
+    got = np.array(world.finger_pose(palm_id)[1])
+    np.testing.assert_allclose(np.abs(got), np.abs([q_end.w, q_end.x, q_end.y, q_end.z]), atol=1e-7)
+    assert _tilt_deg(got) == pytest.approx(10.0, abs=1e-4)
+    assert _tilt_deg(world.body_pose(s.handle.body_ids[0])[1]) == pytest.approx(10.0, abs=0.3)
+    if not threaded:
+        s.finish()
+
+
+@pytest.mark.parametrize("threaded", [True, False])
+def test_palm_rotated_in_the_viewport_turns_in_the_core(bpy, core, threaded):
+    """A live (not animated) palm the user rotates during the session: its rotation is pushed
+    with its position at every display tick and the core's palm turns to it."""
+    import time as _time
+    from mathutils import Euler
+    session = grasp_env.submodule("session")
+    prefs = grasp_env.submodule("prefs").get_prefs(bpy.context)
+    palm = grasp_env.add_cube(bpy, "Palm", size=2.0, location=(0.0, 0.0, -0.01))
+    palm.scale = (0.045, 0.04, 0.01)
+    palm.grasp_lab.role = "FINGER"
+    prefs.use_runtime = threaded
+    try:
+        s = session.BlenderSession(bpy.context, live=True, duration=10.0)
+    finally:
+        prefs.use_runtime = True
+    assert s.source.interactive and s.source.script() is None
+    palm.rotation_euler = Euler((0.0, np.radians(20.0), 0.0))
+    bpy.context.view_layer.update()
+    want = palm.matrix_world.to_quaternion().normalized()
+    world, palm_id = s.runner.world, s.handle.finger_ids[0]
+    t0 = _time.perf_counter()
+    t = 0.0
+    while t < 0.5:
+        t = _time.perf_counter() - t0 if threaded else t + 0.05
+        s.tick(t)
+        if threaded:
+            _time.sleep(0.02)
+    s.finish()
+    got = np.array(world.finger_pose(palm_id)[1])
+    np.testing.assert_allclose(np.abs(got), np.abs([want.w, want.x, want.y, want.z]), atol=1e-7)

@@ -4,6 +4,8 @@ A convex finger is a hull in its own frame driven by a pose HIP; each hull verte
 contact with a god-object of its own, and each body vertex inside the finger a reversed one. The
 patch of god-objects is the chapter's pressure integral taken as a sum: its resultant acts at the
 pressure centroid, its moment is the pressure torque."""
+import time
+
 import numpy as np
 import pytest
 
@@ -493,3 +495,143 @@ def test_contact_patch_is_refused_while_the_runtime_runs():
         w.finger_torque(palm)
     w.stop()
     assert len(w.finger_contacts(palm)) == 4
+
+
+# ---- a palm's orientation driven by the runtime's HIP track -------------------------------------
+
+TILT = np.radians(10.0)
+TRACK_DT = 0.02  # 50 Hz samples: most ticks fall between two and are interpolated
+
+
+def tilt_track():
+    """A palm held level 0.3 s, tilted 10 deg about x over 1 s, then held 0.4 s; every other
+    sample given as -q (the same rotation: the interpolation must take the shorter arc)."""
+    times = np.arange(0.0, 1.7 + TRACK_DT / 2, TRACK_DT)
+    ang = TILT * np.array([min_jerk((t - 0.3) / 1.0) for t in times])
+    q = np.stack([np.cos(ang / 2), np.sin(ang / 2), np.zeros_like(ang), np.zeros_like(ang)], axis=1)
+    q[1::2] *= -1.0
+    positions = np.tile([0.0, 0.0, -0.01], (len(times), 1))
+    return times, positions[:, None, :], q[:, None, :]
+
+
+def track_sample(times, values, t, shorter_arc=False):
+    """The track's position or orientation at t as the core computes it, operation for operation:
+    the lerp of the samples around t (for a quaternion the second's sign taken into the first's
+    hemisphere), before the normalisation that set_finger_pose does."""
+    if t <= times[0]:
+        return values[0]
+    if t >= times[-1]:
+        return values[-1]
+    lo = int(np.searchsorted(times, t, side="right")) - 1
+    a = (t - times[lo]) / (times[lo + 1] - times[lo])
+    s = -a if shorter_arc and float(values[lo] @ values[lo + 1]) < 0.0 else a
+    return np.array([(1.0 - a) * values[lo][k] + s * values[lo + 1][k] for k in range(len(values[lo]))])
+
+
+def palm_under_plate():
+    w = graspcore.World()
+    palm = w.add_finger(radius=0.0, stiffness=K, damping=2.0, position=(0, 0, -0.01),
+                        points=box_points(0.045, 0.04, 0.01))
+    plate = w.add_body(box_points(0.1, 0.1, PLATE_H), mass=PLATE_M, position=(0, 0, PLATE_H))
+    return w, palm, plate
+
+
+def test_runtime_track_tilts_a_palm_as_set_finger_pose_does_bit_for_bit():
+    times, positions, q = tilt_track()
+    ticks = 1800
+    ref, palm, plate = palm_under_plate()
+    for i in range(ticks):
+        t = (i + 1) * DT
+        ref.set_finger_pose(palm, track_sample(times, positions[:, 0], t),
+                            track_sample(times, q[:, 0], t, shorter_arc=True))
+        ref.step(DT)
+    w, _, _ = palm_under_plate()
+    w.set_hip_track(times, positions, orientations=q)
+    w.start(realtime=False, object_rate=1000)
+    w.advance(ticks)
+    w.stop()
+    assert w.state_hash() == ref.state_hash()
+    assert w.finger_pose(palm) == ref.finger_pose(palm)
+    # The palm turned the whole 10 deg (the last sample, -q's sign normalised away) and the
+    # plate tilted with it, resting on it.
+    np.testing.assert_allclose(np.abs(w.finger_pose(palm)[1]), np.abs(q[-1, 0]), atol=1e-15)
+    assert tilt_deg(w, plate) == pytest.approx(10.0, abs=0.2)
+
+
+def test_threaded_runtime_track_tilts_a_palm():
+    times, positions, q = tilt_track()
+    w, palm, plate = palm_under_plate()
+    w.set_hip_track(times, positions, orientations=q)
+    w.start(object_rate=500)
+    try:
+        t0 = time.monotonic()  # a loaded machine runs late, never fast: wait for simulated time
+        while w.snapshot()["time"] < 1.9 and time.monotonic() - t0 < 30.0:
+            time.sleep(0.05)
+    finally:
+        w.stop()
+    assert w.time >= 1.9
+    np.testing.assert_allclose(np.abs(w.finger_pose(palm)[1]), np.abs(q[-1, 0]), atol=1e-15)
+    assert tilt_deg(w, plate) == pytest.approx(10.0, abs=0.3)
+
+
+def test_track_orientations_are_refused_naming_what_is_wrong():
+    times, positions, q = tilt_track()
+    w, _, _ = palm_under_plate()
+    with pytest.raises(ValueError, match=r"orientations \(86, 1, 4\)"):
+        w.set_hip_track(times, positions, orientations=q[:, :, :3])
+    bad = q.copy()
+    bad[5, 0] = 0.0
+    with pytest.raises(ValueError, match="sample 5, finger 0: not a finite non-zero quaternion"):
+        w.set_hip_track(times, positions, orientations=bad)
+    bad[5, 0] = (np.nan, 1, 0, 0)
+    with pytest.raises(ValueError, match="sample 5, finger 0"):
+        w.set_hip_track(times, positions, orientations=bad)
+    # Nothing half set: the palm is not moved by a track that was refused.
+    w.start(realtime=False)
+    w.advance(500)
+    w.stop()
+    assert w.finger_pose(0)[1] == (1.0, 0.0, 0.0, 0.0)
+
+
+def test_pushed_orientations_every_tick_tilt_a_palm_as_set_finger_pose_does_bit_for_bit():
+    """A caller pushing every tick (a device) gets set_finger_pose + step, bit for bit."""
+    times, positions, q = tilt_track()
+    ticks = 1800
+    poses = [(track_sample(times, positions[:, 0], (i + 1) * DT),
+              track_sample(times, q[:, 0], (i + 1) * DT, shorter_arc=True)) for i in range(ticks)]
+    ref, palm, plate = palm_under_plate()
+    for p, o in poses:
+        ref.set_finger_pose(palm, p, o)
+        ref.step(DT)
+    w, _, _ = palm_under_plate()
+    w.start(realtime=False, object_rate=1000)
+    for i, (p, o) in enumerate(poses):
+        assert w.push_hips([p], i * DT, orientations=[o])
+        w.advance(1)
+    w.stop()
+    assert w.state_hash() == ref.state_hash()
+    assert tilt_deg(w, plate) == pytest.approx(10.0, abs=0.2)
+
+
+def test_slow_pushed_orientations_are_turned_to_smoothly():
+    """Samples 20 ticks apart (50 Hz), every other one given as -q: the palm turns along the
+    shorter arc, one interval behind, the plate resting on it all the way; a bad quaternion
+    rejects its push."""
+    times, positions, q = tilt_track()
+    w, palm, plate = palm_under_plate()
+    w.start(realtime=False, object_rate=1000)
+    tilts = []
+    for k, t in enumerate(times):
+        assert w.push_hips(positions[k], t, orientations=q[k])
+        w.advance(20)  # sample k reached at the end of this interval
+        pose = w.snapshot()["poses"][plate]
+        tilts.append(np.degrees(np.arccos(np.clip(quat_to_matrix(pose[3:])[2, 2], -1.0, 1.0))))
+    assert not w.push_hips(positions[-1], times[-1] + 1.0, orientations=[[0.0, 0, 0, 0]])
+    assert not w.push_hips(positions[-1], times[-1] + 1.0, orientations=[[np.nan, 1, 0, 0]])
+    with pytest.raises(ValueError, match=r"orientations: expected \(1, 4\)"):
+        w.push_hips(positions[-1], times[-1] + 1.0, orientations=[1.0, 0, 0])
+    assert w.stats()["rejected_inputs"] == 2
+    w.stop()
+    np.testing.assert_allclose(np.abs(w.finger_pose(palm)[1]), np.abs(q[-1, 0]), atol=1e-15)
+    expected = np.degrees(TILT) * np.array([min_jerk((t - 0.3) / 1.0) for t in times])
+    np.testing.assert_allclose(tilts, expected, atol=0.25)

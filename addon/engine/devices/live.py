@@ -39,14 +39,15 @@ def device_fingers(devices, n_fingers: int, finger_names=None) -> np.ndarray:
 
 
 def without_fingers(script, driven):
-    """A scripted track ``(times, positions, mask)`` minus the fingers ``driven`` (a bool mask):
-    a device drives its fingers whatever their animation says. None when nothing is left."""
+    """A scripted track ``(times, positions, mask[, orientations])`` minus the fingers ``driven``
+    (a bool mask): a device drives its fingers whatever their animation says. None when nothing
+    is left."""
     if script is None:
         return None
-    times, positions, mask = script
+    times, positions, mask, *orientations = script
     n = positions.shape[1]
     keep = (np.ones(n, dtype=bool) if mask is None else np.asarray(mask, dtype=bool).copy()) & ~np.asarray(driven)
-    return (times, positions, keep) if keep.any() else None
+    return (times, positions, keep, *orientations) if keep.any() else None
 
 
 class DeviceInput(InputSource):

@@ -145,13 +145,15 @@ class World(_core.World):
 
     # ---- Runtime (docs/runtime.md): start / stop / advance / stats come from the core.
 
-    def set_hip_track(self, times, positions, scripted=None) -> None:
+    def set_hip_track(self, times, positions, scripted=None, orientations=None) -> None:
         """A scripted HIP track for the runtime (set while stopped): ``times`` (n,) strictly
         increasing seconds, ``positions`` (n, m, 3) for fingers 0..m-1. At its tick k the
         haptic loop samples it at ``times[0] + k / haptic_rate`` (linear, held past either
         end): the same HIPs as ``set_hips`` before every synchronous step. ``scripted`` (m,)
         bools says which fingers it drives (default all); the others follow ``push_hips``.
-        ``set_hip_track(None, None)`` clears it."""
+        ``orientations`` (n, m, 4) quaternions (w, x, y, z) turn convex fingers too: sampled
+        by normalised lerp (shorter arc), the same pose as ``set_finger_pose`` before every
+        step. ``set_hip_track(None, None)`` clears it."""
         if times is None:
             self._set_hip_track(np.zeros(0), np.zeros(0), 1, None)
             return
@@ -161,15 +163,24 @@ class World(_core.World):
             raise ValueError(f"set_hip_track: expected times (n,) and positions (n, m, 3), "
                              f"got {t.shape} and {p.shape}")
         mask = None if scripted is None else np.ascontiguousarray(scripted, dtype=np.uint8)
-        self._set_hip_track(t, p, int(p.shape[1]), mask)
+        q = None
+        if orientations is not None:
+            q = np.ascontiguousarray(orientations, dtype=np.float64)
+            if q.shape != p.shape[:2] + (4,):
+                raise ValueError(f"set_hip_track: expected orientations {p.shape[:2] + (4,)} "
+                                 f"(w, x, y, z per sample and finger), got {q.shape}")
+        self._set_hip_track(t, p, int(p.shape[1]), mask, q)
 
-    def push_hips(self, positions, t: float) -> bool:
+    def push_hips(self, positions, t: float, orientations=None) -> bool:
         """HIPs of fingers 0..n-1 ((n, 3) array) sampled at time ``t`` (s), from any thread
         while the runtime runs. The haptic loop walks each HIP to the sample over the interval
         since the previous one (at most 0.25 s, at most ``max_hip_speed``), so a slow caller
         gives a smooth path and a caller pushing every tick gets its HIPs at the next tick. Returns False when the input was rejected (NaN/Inf, or ``t``
         older than the last push): it is counted in ``stats()['rejected_inputs']`` and
-        ignored. Raises RuntimeError when the runtime is not running."""
+        ignored. ``orientations`` ((n, 4) quaternions w, x, y, z) turn convex fingers too, over
+        the same interval (normalised lerp, the shorter arc; a zero or non-finite one rejects
+        the push); without them the fingers keep their orientation. Raises RuntimeError when the
+        runtime is not running."""
         try:
             array = np.ascontiguousarray(positions, dtype=np.float64)
         except (TypeError, ValueError) as exc:
@@ -178,7 +189,18 @@ class World(_core.World):
             array = array.reshape(1, 3)
         if array.ndim != 2 or array.shape[1] != 3 or array.shape[0] < 1:
             raise ValueError(f"positions: expected an (n, 3) array, got shape {array.shape}")
-        return self._push_hips(array, float(t))
+        if orientations is None:
+            return self._push_hips(array, float(t))
+        try:
+            q = np.ascontiguousarray(orientations, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"orientations: expected an (n, 4) array of numbers ({exc})") from None
+        if q.ndim == 1 and q.size == 4:
+            q = q.reshape(1, 4)
+        if q.shape != (array.shape[0], 4):
+            raise ValueError(f"orientations: expected ({array.shape[0]}, 4) quaternions (w, x, y, z), "
+                             f"got shape {q.shape}")
+        return self._push_hips(array, float(t), q)
 
     def snapshot(self) -> dict:
         """A consistent copy of one haptic tick (the world's own state when stopped):
