@@ -43,12 +43,4 @@ static inline gcVec3 gc_body_origin_velocity(const gcBody *body, const gcBodySta
     return gc_add(state->v, gc_cross(state->w, gc_mat3_mul_vec(&state->R, gc_neg(body->com_local))));
 }
 
-/* A finger's contact plane normal in world axes (outward of the body it touches), of the
- * contact whose god-object, state and body it reports (its deepest, xfca.c), 0 when the finger
- * is free: what the tick record and the snapshot carry per finger. */
-static inline gcVec3 gc_finger_contact_normal(const gcWorld *world, const gcFinger *finger) {
-    (void)world;
-    return finger->normal;
-}
-
 #endif

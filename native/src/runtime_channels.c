@@ -59,8 +59,7 @@ void gc_rt_publish_display(gcRuntime *rt, int64_t now, int forces_enabled) {
         memcpy(&d->god_object[3 * i], &f->god_object, 3 * sizeof(double));
         memcpy(&d->spring_force[3 * i], &f->force, 3 * sizeof(double));
         memcpy(&d->device_force[3 * i], &rt->device_force[3 * i], 3 * sizeof(double));
-        gcVec3 n = gc_finger_contact_normal(hw, f);
-        memcpy(&d->normal[3 * i], &n, 3 * sizeof(double));
+        memcpy(&d->normal[3 * i], &f->normal, 3 * sizeof(double));
         d->state[i] = (int32_t)f->state;
         d->contact_body[i] = f->contact_body;
     }
@@ -160,10 +159,7 @@ static void snapshot_from_world(const gcWorld *w, gcSnapshot *s) {
         put3(s->god_objects, i, &w->god_object_array[3 * i]);
         put3(s->spring_forces, i, &w->force_array[3 * i]);
         put3(s->forces, i, zero);
-        if (s->normals) {
-            gcVec3 n = gc_finger_contact_normal(w, f);
-            memcpy(&s->normals[3 * i], &n, 3 * sizeof(double));
-        }
+        put3(s->normals, i, (const double *)&f->normal);
         if (s->finger_states) s->finger_states[i] = (int32_t)f->state;
         if (s->contact_bodies) s->contact_bodies[i] = f->contact_body;
     }

@@ -103,13 +103,13 @@ void gc_rt_haptic_tick(gcRuntime *rt, int64_t now) {
     if (gc_hip_track_covers(rt->track, hw->num_fingers)) rt->last_input_ns = now; /* the track is never stale */
     const double t_next = (double)(rt->tick + 1) * dt;
     for (int i = 0; i < hw->num_fingers; ++i) {
-        gcVec3 hip = gc_hip_track_drives(rt->track, i)
-                         ? gc_hip_track_sample(rt->track, i, t_next)
-                         : gc_hip_follow_advance(&rt->follow[i], hw->fingers[i].hip, dt, rt->def.max_hip_speed);
+        const int scripted = gc_hip_track_drives(rt->track, i);
+        gcVec3 hip = scripted ? gc_hip_track_sample(rt->track, i, t_next)
+                              : gc_hip_follow_advance(&rt->follow[i], hw->fingers[i].hip, dt, rt->def.max_hip_speed);
         hw->fingers[i].hip = hip;
         gcQuat q; /* the track's or the walk's orientation: normalised as gc_world_set_finger_pose does */
-        if (gc_hip_track_drives(rt->track, i) ? gc_hip_track_orientation(rt->track, i, t_next, &q)
-                                              : gc_hip_follow_orientation(&rt->follow[i], &q)) {
+        if (scripted ? gc_hip_track_orientation(rt->track, i, t_next, &q)
+                     : gc_hip_follow_orientation(&rt->follow[i], &q)) {
             hw->fingers[i].q = gc_quat_normalize(q);
             hw->fingers[i].R = gc_quat_to_mat3(hw->fingers[i].q);
         }

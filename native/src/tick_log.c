@@ -176,8 +176,7 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
         memcpy(go + 24 * i, &f->god_object, 24);
         memcpy(force + 24 * i, &f->force, 24);
         memcpy(dev + 24 * i, device_force ? (const void *)&device_force[3 * i] : (const void *)&f->force, 24);
-        gcVec3 n = gc_finger_contact_normal(w, f);
-        memcpy(normal + 24 * i, &n, 24);
+        memcpy(normal + 24 * i, &f->normal, 24);
         int32_t s = (int32_t)f->state;
         memcpy(state + 4 * i, &s, 4);
         memcpy(contact + 4 * i, &f->contact_body, 4);
