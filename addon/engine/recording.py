@@ -478,17 +478,20 @@ class SessionRecorder:
             self._write_block()
 
     def _write_block(self) -> None:
-        if self.writer.closed:
+        # Uninterrupted as a whole: a stop signal is raised only once the block is written and
+        # marked written, so finish() never writes it a second time.
+        with uninterrupted():
+            if self.writer.closed:
+                self._n = 0
+                return
+            try:
+                if self._n:
+                    self._write(self._block[:self._n])
+                self.writer.flush()
+            except OSError as ex:       # a full disk: the session goes on, the file keeps its prefix
+                self._fail(ex)
             self._n = 0
-            return
-        try:
-            if self._n:
-                self._write(self._block[:self._n])
-            self.writer.flush()
-        except OSError as ex:       # a full disk: the session goes on, the file keeps its prefix
-            self._fail(ex)
-        self._n = 0
-        self._last_flush = time.perf_counter()
+            self._last_flush = time.perf_counter()
 
     def _fail(self, ex: OSError) -> None:
         with self._lock:
