@@ -137,6 +137,12 @@ class AtomicFile:
     something worth keeping (a recording with ticks): then it is refused, not overwritten."""
 
     def __init__(self, path: str, keep_partial=None):
+        # Made whole or not at all: a stop signal arriving while the partial file is opened,
+        # locked and wrapped (os.fdopen) waits until this object tracks it.
+        with uninterrupted():
+            self._create(path, keep_partial)
+
+    def _create(self, path: str, keep_partial) -> None:
         self.path = os.path.abspath(path)
         self.partial = self.path + PARTIAL
         if os.path.isdir(self.path):
@@ -164,9 +170,8 @@ class AtomicFile:
             self.file = os.fdopen(fd, "w+b")
             _open.append(self)
         except BaseException:
-            # Refused, failed or interrupted (a signal) before this object was tracked: a
-            # partial file made here for nothing goes; one that was there, or that another
-            # process holds, stays.
+            # Refused or failed before this object was tracked: a partial file made here for
+            # nothing goes; one that was there, or that another process holds, stays.
             if self in _open:
                 _open.remove(self)
             if getattr(self, "file", None) is not None:
