@@ -159,7 +159,10 @@ def _report(args, result, end, applied, out) -> int:
           + (f"; set {', '.join(applied)}" if applied else ""), file=out)
     if st.get("live_view"):
         lv = st["live_view"]
+        refused = lv.get("refused") or {}
         print(f"live view: {lv['updates']} updates, {lv['dropped']} skipped"
+              + (f", {sum(refused.values())} client requests refused "
+                 f"({', '.join(f'{k} {n}' for k, n in sorted(refused.items()))})" if refused else "")
               + (f"; {lv['error']}" if lv["error"] else ""), file=out)
     if result.recording:
         print(f"recording: {result.recording} ({end.get('overflow', 0)} ticks lost to overflow)", file=out)

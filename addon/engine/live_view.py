@@ -2,10 +2,12 @@
 docs/viewers.md): the viewer channels of engine/viewer.py over Foxglove's WebSocket protocol
 (foxglove-sdk's server).
 
-Watching only: the server advertises no capability, so the SDK refuses client publishing,
-parameters and services with an error status to the client (foxglove-sdk 0.30 does not tell
-the listener about refused requests, so they are not counted); it binds to localhost unless
-told otherwise. Never on the haptic thread: the display update hands the latest snapshot over
+Watching only, and every refusal counted: the server lets client publishing and parameter
+requests reach its listener (foxglove-sdk refuses requests for a capability it does not
+offer by itself, without telling the listener, so they could not be counted), and the
+listener refuses each one: published messages are dropped, no parameter is read or set, and
+the client gets an error status saying so. No service is offered, so a service call has
+nothing to name. It binds to localhost unless told otherwise. Never on the haptic thread: the display update hands the latest snapshot over
 (an assignment: no copy, lock or wake-up) as its last step, and the live view's own thread,
 looking every 5 ms, turns it into messages while the main thread waits for its next update;
 when it falls behind it skips snapshots, never queues them. Clients come and go; the
@@ -35,12 +37,15 @@ def header_of(desc, haptic_rate: float, runtime: dict | None = None) -> dict:
 
 
 class _Viewers:
-    """The server's listener: how many subscriptions viewers hold (for the HUD), and whether
-    one is new (it gets the body meshes with the next update, not a second later)."""
+    """The server's listener: how many subscriptions viewers hold (for the HUD), whether one
+    is new (it gets the body meshes with the next update, not a second later), and every
+    request a watching-only server refuses (``refused``: by kind)."""
 
     def __init__(self):
         self.subscribed = 0
         self.joined = False
+        self.refused = collections.Counter()
+        self.server = None                  # set once the server runs: refusals are told to the client
         self._lock = threading.Lock()
 
     def on_subscribe(self, client, channel):
@@ -51,6 +56,34 @@ class _Viewers:
     def on_unsubscribe(self, client, channel):
         with self._lock:
             self.subscribed -= 1
+
+    def _refuse(self, kind: str, what: str) -> None:
+        with self._lock:
+            self.refused[kind] += 1
+        if self.server is not None:
+            from foxglove.websocket import StatusLevel
+            self.server.publish_status(f"Grasp Lab live view is watching only: {what} refused", StatusLevel.Error)
+
+    def on_client_advertise(self, client, channel):
+        self._refuse("publish", f"publishing on {channel.topic!r}")
+
+    def on_message_data(self, client, client_channel_id, data):
+        self._refuse("message", "a published message")
+
+    def on_get_parameters(self, client, param_names, request_id=None):
+        self._refuse("get_parameters", "reading parameters")
+        return []
+
+    def on_set_parameters(self, client, parameters, request_id=None):
+        self._refuse("set_parameters", "setting parameters")
+        return []
+
+    def on_parameters_subscribe(self, param_names):
+        self._refuse("subscribe_parameters", "subscribing to parameters")
+
+    def refused_total(self) -> int:
+        with self._lock:
+            return sum(self.refused.values())
 
 
 class LiveView:
@@ -65,10 +98,15 @@ class LiveView:
         self.channels = FoxgloveChannels(self.model, self.context)
         self.viewers = _Viewers()
         try:
-            self.server = foxglove.start_server(name="Grasp Lab", host=bind, port=int(port), capabilities=[],
+            from foxglove.websocket import Capability
+            # Offered only so that the listener sees (refuses and counts) these requests: _Viewers.
+            self.server = foxglove.start_server(name="Grasp Lab", host=bind, port=int(port),
+                                                capabilities=[Capability.ClientPublish, Capability.Parameters],
+                                                supported_encodings=["json", "protobuf"],
                                                 server_listener=self.viewers, context=self.context)
         except Exception as ex:         # the SDK's own error type: say what could not be bound
             raise OSError(f"live view: cannot serve on {bind}:{port} ({ex})") from None
+        self.viewers.server = self.server
         self.bind, self.port = bind, int(self.server.port)
         self.dtype = tick_dtype(len(self.model.body_names), len(self.model.finger_names))
         self.events = EventDetector(header)
@@ -92,8 +130,10 @@ class LiveView:
         return bool(self._slot)
 
     def status(self) -> str:
+        refused = self.viewers.refused_total()
         return (f"live view {self.address}: {self.viewers.subscribed} subscriptions, {self.updates} updates, "
-                f"{self.dropped} skipped" + (f"; {self.error}" if self.error else ""))
+                f"{self.dropped} skipped" + (f", {refused} requests refused" if refused else "")
+                + (f"; {self.error}" if self.error else ""))
 
     def offer(self, snap, grasps=None) -> None:
         """The latest snapshot (engine.runner.Snapshot) and, if the display update analysed it,
@@ -149,5 +189,6 @@ class LiveView:
         self._stop.set()
         self._thread.join()
         self.server.stop()
-        return {"updates": self.updates, "dropped": self.dropped, "error": self.error}
+        return {"updates": self.updates, "dropped": self.dropped, "error": self.error,
+                "refused": dict(self.viewers.refused)}
 

@@ -115,7 +115,8 @@ def test_a_viewer_receives_the_advertised_channels_as_the_session_runs(pinch):
     try:
         assert lv.address.startswith("ws://127.0.0.1:")        # this machine only, unless told
         v = Viewer(lv.address)
-        assert v.info["capabilities"] == []                     # watching only
+        # Offered only so that such requests reach the listener, which refuses and counts them.
+        assert sorted(v.info["capabilities"]) == ["clientPublish", "parameters", "parametersSubscribe"]
         v.read(2, until=lambda: len(v.channels) >= 8)
         topics = v.topics()
         expected = {viewer.TOPIC_SCENE: "foxglove.SceneUpdate", viewer.TOPIC_BODIES: "foxglove.SceneUpdate",
@@ -209,15 +210,24 @@ def test_viewers_come_and_go_and_cannot_publish(pinch):
         first.read(0.5)
         n_first = len(first.of(viewer.TOPIC_SCENE))
         assert n_first > 0
-        # It tries to publish, read and set parameters: refused with an error status, nothing new advertised.
+        # It tries to publish, read and set parameters: each refused with an error status and
+        # counted, nothing new advertised, nothing answered.
         first.ws.send(json.dumps({"op": "advertise", "channels": [
             {"id": 1, "topic": "/grasp_lab/scene", "encoding": "json", "schemaName": "x"}]}))
-        first.ws.send(json.dumps({"op": "getParameters", "parameterNames": ["mu_s"]}))
-        first.ws.send(json.dumps({"op": "setParameters", "parameters": [{"name": "mu_s", "value": 0.0}]}))
-        first.read(1, until=lambda: len(first.status) >= 3)
-        assert len(first.status) >= 3 and all(s["level"] == 2 for s in first.status)
-        assert any("clientPublish" in s["message"] for s in first.status)
-        assert any("parameters" in s["message"].lower() for s in first.status)
+        first.ws.send(struct.pack("<BI", 0x01, 1) + b'{"mu_s": 0}')     # clientMessageData on it
+        first.ws.send(json.dumps({"op": "getParameters", "parameterNames": ["mu_s"], "id": "g"}))
+        first.ws.send(json.dumps({"op": "setParameters", "parameters": [{"name": "mu_s", "value": 0.0}],
+                                  "id": "s"}))
+        first.ws.send(json.dumps({"op": "subscribeParameterUpdates", "parameterNames": ["mu_s"]}))
+        first.read(2, until=lambda: len(first.status) >= 5)
+        assert len(first.status) == 5 and all(s["level"] == 2 for s in first.status)
+        assert all("watching only" in s["message"] for s in first.status)
+        assert any("publishing on '/grasp_lab/scene'" in s["message"] for s in first.status)
+        assert any("setting parameters" in s["message"] for s in first.status)
+        assert dict(lv.viewers.refused) == {"publish": 1, "message": 1, "get_parameters": 1, "set_parameters": 1,
+                                            "subscribe_parameters": 1}
+        assert "5 requests refused" in lv.status()
+        assert len(first.channels) == 8                 # its channel was not advertised to anyone
         first.ws.close()                                # leaves mid-session
         updates = lv.updates
         second = Viewer(lv.address)                     # a new viewer joins
@@ -309,6 +319,9 @@ def test_cli_realtime_live_view(blend, tmp_path):
         for _, data in scenes:
             ids = {e.id for e in SceneUpdate.FromString(data).entities}
             assert {"finger/Finger 0", "finger/Finger 1", "residual/Box"} <= ids
+        v.ws.send(json.dumps({"op": "setParameters", "parameters": [{"name": "mu_s", "value": 0.0}]}))
+        v.read(2, until=lambda: v.status)
+        assert v.status and "watching only" in v.status[0]["message"]
         v.close()
         out, err = proc.communicate(timeout=120)
     finally:
@@ -317,6 +330,7 @@ def test_cli_realtime_live_view(blend, tmp_path):
     assert proc.returncode == 0, err
     m = re.search(r"live view: (\d+) updates", out)
     assert m and int(m.group(1)) >= 60, out
+    assert "1 client requests refused (set_parameters 1)" in out, out
 
 
 def test_cli_live_view_needs_realtime(blend):
