@@ -6,6 +6,7 @@ The analysis runs here, on the main thread, once per display update; the haptic 
 waits for it (it only publishes the snapshot)."""
 from __future__ import annotations
 
+import collections
 import math
 import re
 import time
@@ -38,6 +39,9 @@ def finger_colors(grasps, n_fingers: int) -> list:
     return colors
 
 
+COSTS_KEPT = 100_000           # about 55 min of display updates at 30 Hz
+
+
 class GraspMonitor:
     """The analysis of a session's snapshots, one display update at a time.
 
@@ -52,7 +56,9 @@ class GraspMonitor:
         self.edges = int(edges)
         self.grasps = []            # the last update's BodyGrasp list
         self.cost_s = 0.0           # wall time of the last update (analysis included)
-        self.costs = []             # of every update, seconds
+        # The last COSTS_KEPT updates' times, seconds: bounded, so an hour-long session keeps a
+        # few MB at most (a list grew by 7 MB an hour).
+        self.costs = collections.deque(maxlen=COSTS_KEPT)
         self.error = ""             # why the last update has no analysis (a refused contact set)
         self._prev = None           # (time, centre-of-mass velocities)
         self._acc = None

@@ -188,3 +188,14 @@ def test_monitor_on_a_held_box_gives_the_contacts_the_core_reports():
     assert g.load_force == pytest.approx(0.1 * 9.81, rel=0.02)
     assert g.grip_force == pytest.approx(sum(c.fn for c in g.contacts), rel=1e-12)
     assert len(monitor.costs) == 30 and monitor.error == ""
+
+
+def test_the_update_times_kept_are_bounded(monkeypatch):
+    """A session of any length keeps at most COSTS_KEPT update times, the latest ones."""
+    monkeypatch.setattr(grasp_display, "COSTS_KEPT", 4)
+    monitor = grasp_display.GraspMonitor([], [])
+    snap = type("Snap", (), {"time": 0.0, "contacts": np.full(0, -1)})()
+    for k in range(10):
+        snap.time = 0.01 * k
+        monitor.update(snap)
+    assert len(monitor.costs) == 4

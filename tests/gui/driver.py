@@ -494,7 +494,7 @@ def scenario_grasp_hud():
         ui_mod.wrapped_labels(Recorder(), bpy.context, s.grasp_lines())
     RESULT["sidebar"] = {"region_width": ui.width, "ui_scale": scale, "lines": lines,
                          "text_px": [blf.dimensions(0, x)[0] for x in lines]}
-    RESULT["analysis_ms"] = [1e3 * c for c in s.monitor.costs[1:]]       # the first had no contact
+    RESULT["analysis_ms"] = [1e3 * c for c in list(s.monitor.costs)[1:]]       # the first had no contact
     RESULT["display_rate"] = s.runner.stats()["display_rate"]
     area, win_region, ui = view3d()
     hover(win_region)
