@@ -161,6 +161,8 @@ class Scene:
     keys: list
     claim: object
     interpolation: str = "BEZIER"           # of the fingertip keys: BEZIER eases in and out
+    shown: str = "hold"                     # the phase whose middle frame pictures the scene
+    view: tuple = None                      # toward the camera (default VIEW_DIRECTION)
 
     @property
     def frame_end(self) -> int:
@@ -432,7 +434,8 @@ def plate_palm() -> Scene:
     return Scene("plate_palm", "Area contact: a flat palm lifts a 0.4 kg plate off two rails and carries it "
                  "sideways; the plate stays level on it",
                  rails + [plate], [palm], _lift_keys(0.10, 0.015, carry=(0.10, 0.0, 0.0)),
-                 Held("Plate", rise=0.10, max_slip=0.005, grasp_frame=25, max_tilt_deg=2.0))
+                 Held("Plate", rise=0.10, max_slip=0.005, grasp_frame=25, max_tilt_deg=2.0),
+                 view=(0.17, -0.455, 0.04))              # lower: the palm under the plate in sight
 
 
 PHONE = dict(size=(0.072, 0.150, 0.008), mass=0.18)
@@ -465,7 +468,7 @@ def phone_thumb() -> Scene:
     return Scene("phone_thumb", "Texting grasp: a phone lies across four finger pads, the thumb pressing on "
                  "it; lifted, the thumb strokes the screen and the phone stays in the fingers",
                  rails + [phone], fingers, keys,
-                 Held("Phone", rise=0.08, max_slip=0.001, grasp_frame=25, max_tilt_deg=1.0))
+                 Held("Phone", rise=0.08, max_slip=0.001, grasp_frame=25, max_tilt_deg=1.0), shown="stroke")
 
 
 SCENES.update((f.__name__, f) for f in (plate_palm, phone_thumb))
@@ -620,7 +623,7 @@ def _add_view(bpy, sc: Scene):
     distance = 1.1 * radius / math.sin(half_fov)
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     cam.data.lens = CAMERA_LENS
-    cam.location = Vector(centre) + Vector(VIEW_DIRECTION).normalized() * distance
+    cam.location = Vector(centre) + Vector(sc.view or VIEW_DIRECTION).normalized() * distance
     target = bpy.data.objects.new("Camera Target", None)
     target.location = centre
     for obj in (cam, target):
