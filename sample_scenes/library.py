@@ -2,7 +2,8 @@
 from a declarative description per scene (``SCENES``).
 
 Every scene is a table (or a stand) with the objects of the grasp on it and fingertip spheres
-(empties with role Finger) animated on the timeline: the scripted device. Each finger has a
+(empties with role Finger; a palm or a finger pad is a mesh with role Finger, a convex finger)
+animated on the timeline: the scripted device. Each finger has a
 *closed* position (its HIP inside the object by the squeeze depth) and an *outward* direction;
 a scene's timeline (``keys``) says, per key frame, how far the fingers stand open along their
 outward directions and where the hand has carried them (an offset added to every finger), with
