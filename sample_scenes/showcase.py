@@ -309,8 +309,10 @@ def write_index(out_dir, entries, rows, wall):
              f"<p>{len(entries)} scenes of <code>sample_scenes/library.py</code>, run headless in Blender through "
              f"the extension, recorded at every haptic tick, baked, analysed (<code>grasp-lab analyze --every "
              f"{ANALYZE_EVERY}</code>) and rendered, in {wall:.0f} s. God-objects are the spheres on the "
-             "surfaces, where the fingertips touch; the orange arrows are the forces rendered to each fingertip "
-             "(drawn from the sphere's surface).</p>",
+             "surfaces, where the fingertips touch, in the frame's friction-use colour (green far from slipping, "
+             "yellow half way, red sliding, blue touching nothing); palms and finger pads (area contacts) are "
+             "skin-coloured; the orange arrows are the forces rendered to each fingertip (drawn from the sphere's "
+             "surface).</p>",
              f"<p><img src='contact_sheet.png' alt='one frame per scene'></p>",
              "<h2>Summary</h2><table><tr>" + "".join(f"<th>{e(c)}</th>" for c in COLUMNS) + "</tr>"]
     for row, ent in zip(rows, entries):

@@ -130,6 +130,7 @@ def test_baking_again_replaces(bpy, recorded):
     assert after == before and len(bpy.data.actions) == actions
 
 
+@pytest.mark.multiversion
 def test_god_object_colour_is_keyed_per_frame(bpy, recorded):
     """A god-object's material has the colour of each frame (not the session's last): mid-lift
     the friction-use colour of the finger's contact as the analysis has it at that frame's tick,
