@@ -745,7 +745,8 @@ def measure(sc: Scene, r: Result) -> dict:
         out["fingers_touching"] = int(touching.sum())
         # what the finger springs alone give under the load (all in parallel): part of "slip"
         load = sum(sc.body(n).mass for n in (c.body,) + tuple(getattr(c, "riders", ()))) * G
-        out["spring_give"] = load / sum(f.stiffness for f, t in zip(sc.fingers, touching) if t)
+        if not any(f.shape is not None for f in sc.fingers):    # a palm's stiffness is per point of contact
+            out["spring_give"] = load / sum(f.stiffness for f, t in zip(sc.fingers, touching) if t)
         out["slipping_frames"] = int((r.states[hold][:, touching] == 2).any(axis=1).sum())
         if isinstance(c, Carried):
             shifts = []
