@@ -5,7 +5,9 @@ arrows (the "Grasp Lab" collection) get keys at the scene's frame rate, or at ev
 haptic tick as subframes. Measures for the Graph Editor are animated custom properties:
 on "GL God-object <finger>": ``gl_state`` (0 free, 1 stick, 2 slip), ``gl_force`` |F|,
 ``gl_normal_force`` |Fn|, ``gl_tangential_force`` |Ft|, ``gl_friction_use``
-|Ft|/(mu |Fn|) (mu of the contact's current cone); on "GL Force <body>": ``gl_grip`` (sum
+|Ft|/(mu |Fn|) (mu of the contact's current cone), and its material's colour as the live view
+shows it (by friction use on a held body, else the free blue), so that a render at any frame has
+that frame's colour; on "GL Force <body>": ``gl_grip`` (sum
 of |Fn| of the fingers on it), ``gl_force`` |residual force|, ``gl_torque`` |residual torque|,
 and the grasp analysis (engine/analysis.py, docs/analysis.md): ``gl_held``, ``gl_closure``,
 ``gl_epsilon``, ``gl_mu_min``, ``gl_slip_margin``, ``gl_grip_load``.
@@ -20,7 +22,7 @@ import numpy as np
 from mathutils import Matrix, Quaternion
 
 from . import anim, display
-from .engine import analysis
+from .engine import analysis, grasp_display
 from .engine.measures import body_grip, finger_measures
 from .engine.recording import Recording, scene_from_dict
 from .engine.runner import quat_rotate
@@ -264,8 +266,12 @@ def bake_recording(context, rec: Recording, every_tick: bool = False, force_scal
     grip = body_grip(per["contact"].T, measures["gl_normal_force"].T, len(desc.bodies))
     # The grasp measures of each held body (docs/analysis.md), at the baked ticks.
     rows = np.unique(idx)
-    grasp = analysis.body_series(analysis.analyse_recording(rec, rows=rows), rows, len(desc.bodies))
+    table = analysis.analyse_recording(rec, rows=rows)
+    grasp = analysis.body_series(table, rows, len(desc.bodies))
     at = np.searchsorted(rows, idx)
+    colors = grasp_display.finger_color_series(table, rows, len(desc.fingers))[at]    # (frames, fingers, 4)
+    for j, obj in enumerate(shown.god_objects):
+        jobs.append(partial(_color_job, obj.material_slots[0].material, np.ascontiguousarray(colors[:, j])))
     for k, i in enumerate(shown.dynamic):
         force_arrow, torque_arrow = shown.force_arrows[k], shown.torque_arrows[k]
         for arrow in (force_arrow, torque_arrow):
@@ -284,7 +290,8 @@ def bake_recording(context, rec: Recording, every_tick: bool = False, force_scal
             for obj, channels, scale in job():
                 if scale is not None:
                     obj.scale = scale       # rigid motion under a fixed parent: the scale is constant
-                report.baked.append(obj.name)
+                if isinstance(obj, bpy.types.Object):      # not a god-object's material
+                    report.baked.append(obj.name)
                 report.keys += anim.write_keys(obj, float(frames[0]), anim.key_arrays(frames, channels, reduce=True))
             wm.progress_update(n + 1)
     finally:
@@ -303,6 +310,22 @@ def _rigid_job(obj, poses, frame_to_world, parent):
 
 def _point_job(obj, points, parent, extra):
     return [(obj, _point_channels(points, parent) + extra, None)]
+
+
+def _color_job(material, colors):
+    """A god-object's material coloured per frame (colors (n, 4) RGBA): the viewport's and
+    Workbench's colour, and the shader's base and emission colour (what display._set_color
+    sets live)."""
+    colors, run = _distinct(colors)
+    rgba = [(i, np.ascontiguousarray(colors[:, i])) for i in range(4)]
+    out = [(material, [("diffuse_color", i, v, run) for i, v in rgba], None)]
+    bsdf = material.node_tree.nodes.get("Principled BSDF") if material.node_tree is not None else None
+    if bsdf is not None:
+        paths = [f'nodes["{bsdf.name}"].inputs["Base Color"].default_value']
+        paths += [f'nodes["{bsdf.name}"].inputs["{key}"].default_value'
+                  for key in ("Emission Color", "Emission") if key in bsdf.inputs][:1]
+        out.append((material.node_tree, [(path, i, v, run) for path in paths for i, v in rgba], None))
+    return out
 
 
 def _arrows_job(force_arrow, torque_arrow, pose, wrench, com_local, grip, force_scale, torque_scale, extra):

@@ -2,7 +2,8 @@
 from a declarative description per scene (``SCENES``).
 
 Every scene is a table (or a stand) with the objects of the grasp on it and fingertip spheres
-(empties with role Finger) animated on the timeline: the scripted device. Each finger has a
+(empties with role Finger; a palm or a finger pad is a mesh with role Finger, a convex finger)
+animated on the timeline: the scripted device. Each finger has a
 *closed* position (its HIP inside the object by the squeeze depth) and an *outward* direction;
 a scene's timeline (``keys``) says, per key frame, how far the fingers stand open along their
 outward directions and where the hand has carried them (an offset added to every finger), with
@@ -91,6 +92,7 @@ class Finger:
     stiffness: float = 1000.0
     damping: float = 2.0
     group: str = "hand"                     # which hand / person (several devices)
+    shape: object = None                    # a Box: a convex finger of its hull (a pad, a palm), else a sphere
 
 
 @dataclass
@@ -99,6 +101,7 @@ class Key:
     phase: str                              # the phase that starts at this frame
     opening: float                          # m along each finger's outward direction
     offset: tuple = (0.0, 0.0, 0.0)         # where the hand has carried every finger
+    moves: dict = field(default_factory=dict)   # finger name -> its own offset besides (a thumb's stroke)
 
 
 @dataclass
@@ -159,6 +162,8 @@ class Scene:
     keys: list
     claim: object
     interpolation: str = "BEZIER"           # of the fingertip keys: BEZIER eases in and out
+    shown: str = "hold"                     # the phase whose middle frame pictures the scene
+    view: tuple = None                      # toward the camera (default VIEW_DIRECTION)
 
     @property
     def frame_end(self) -> int:
@@ -305,28 +310,33 @@ def weak_grip_slide() -> Scene:
 
 
 def can_power() -> Scene:
-    # A full 330 ml can (66 mm x 115 mm, 350 g) on the table; the thumb on one side, the four
-    # fingertips round the other at four heights, squeezing 3 mm (the thumb about 4 times as
-    # deep: it balances the four), lift it 10 cm.
+    # A full 330 ml can (66 mm x 115 mm, 350 g) on the table, in a power grasp: the palm flat
+    # against one side (a convex finger, 12 x 70 x 90 mm, shorter than the can: it meets the
+    # can along the edges of the face it lies on), the four fingertips round the other side and
+    # the thumb across the front, each pressing 3 mm; they press the can into the palm and the
+    # hand lifts it 10 cm.
     rad, h = 0.033, 0.115
-    can = Body("Can", Prism(rad, h, 32), (0.0, 0.0, h / 2), mass=0.35, mu=(0.6, 0.5))
+    n_sides = 32
+    apothem = rad * math.cos(math.pi / n_sides)
+    # a face (not an edge) toward the palm, at -x
+    can = Body("Can", Prism(rad, h, n_sides, angle=math.pi / n_sides), (0.0, 0.0, h / 2), mass=0.35, mu=(0.6, 0.5))
     zc = h / 2
     r, squeeze, k = 0.008, 0.003, 1000.0
-    fingers = []
-    # Fingertips 10 deg either side of the far side, alternating so that their sideways pushes
-    # cancel in force and in moment (sum of sin = sum of z sin = 0): the can is not twisted.
-    wrap = ((("Index", 170.0, 0.03), ("Middle", 190.0, 0.01), ("Ring", 190.0, -0.01),
-             ("Little", 170.0, -0.03)))
+    palm_size = (0.012, 0.07, 0.09)
+    fingers = [Finger("Palm", (-(apothem + palm_size[0] / 2 - squeeze), 0.0, zc), (-1.0, 0.0, 0.0), radius=0.0,
+                      stiffness=k, shape=Box(palm_size))]
+    # Fingertips 45 deg either side of +x, alternating so that their sideways pushes cancel in
+    # force and in moment (sum of sin = sum of z sin = 0): the can is not twisted.
+    wrap = (("Index", 45.0, 0.03), ("Middle", -45.0, 0.01), ("Ring", -45.0, -0.01), ("Little", 45.0, -0.03))
+    r_t = 0.010
+    fingers.append(Finger("Thumb", (apothem + r_t - squeeze, 0.0, zc + 0.02), (1.0, 0.0, 0.0),
+                          radius=r_t, stiffness=k))
     for name, deg, dz in wrap:
         n = (math.cos(math.radians(deg)), math.sin(math.radians(deg)), 0.0)
         d = rad + r - squeeze
         fingers.append(Finger(name, (n[0] * d, n[1] * d, zc + dz), n, radius=r, stiffness=k))
-    balance = sum(math.cos(math.radians(d)) for _, d, _ in wrap)          # < 0
-    r_t = 0.010
-    fingers.insert(0, Finger("Thumb", (rad + r_t + balance * squeeze, 0.0, zc), (1.0, 0.0, 0.0),
-                             radius=r_t, stiffness=k))
-    return Scene("can_power", "Power grasp with fingertips: thumb and four fingertips round a full "
-                 "350 g can lift it off the table",
+    return Scene("can_power", "Power grasp: the palm against a full 350 g can, four fingertips round it "
+                 "and the thumb across, lift it off the table",
                  [_table(), can], fingers, _lift_keys(0.10, 0.015),
                  Held("Can", rise=0.10, max_slip=0.002, grasp_frame=25, max_tilt_deg=3.0))
 
@@ -402,6 +412,69 @@ SCENES = {f.__name__: f for f in (pinch_and_lift, key_pinch, tripod_pencil, weak
                                   tray_two_hands, two_people_box)}
 
 
+# Area contacts (docs/physics.md "Area contacts"): a palm and finger pads are convex fingers.
+
+PLATE = dict(size=(0.20, 0.20, 0.01), mass=0.4)
+PALM = (0.09, 0.08, 0.02)
+
+
+def plate_palm() -> Scene:
+    # A 0.4 kg plate (20 x 20 x 1 cm) across two rails; a flat palm (a convex finger, 9 x 8 x
+    # 2 cm, 1000 N/m at each of its corners) comes up between them, lifts the plate 10 cm and
+    # carries it 10 cm sideways. On one point it would be an inverted pendulum and tip over; on
+    # the palm's area the pressure centroid stays under the centre of mass and it stays level.
+    sx, sy, sz = PLATE["size"]
+    plate = Body("Plate", Box(PLATE["size"]), (0.0, 0.0, sz / 2), mass=PLATE["mass"], mu=(0.6, 0.5))
+    rail = Box((0.26, 0.025, 0.02))
+    rails = [Body(f"Rail {s}", rail, (0.0, sgn * (sy / 2 - 0.0125), -0.01), static=True)
+             for s, sgn in (("-y", -1), ("+y", 1))]
+    k = 1000.0
+    sink = PLATE["mass"] * G / (4 * k)              # the plate on four corners: it stays where it lay
+    palm = Finger("Palm", (0.0, 0.0, -PALM[2] / 2 + sink), (0.0, 0.0, -1.0), radius=0.0, stiffness=k,
+                  shape=Box(PALM))
+    return Scene("plate_palm", "Area contact: a flat palm lifts a 0.4 kg plate off two rails and carries it "
+                 "sideways; the plate stays level on it",
+                 rails + [plate], [palm], _lift_keys(0.10, 0.015, carry=(0.10, 0.0, 0.0)),
+                 Held("Plate", rise=0.10, max_slip=0.005, grasp_frame=25, max_tilt_deg=2.0),
+                 view=(0.17, -0.455, 0.04))              # lower: the palm under the plate in sight
+
+
+PHONE = dict(size=(0.072, 0.150, 0.008), mass=0.18)
+
+
+def phone_thumb() -> Scene:
+    # Texting (the chapter's Fig. 2.4): a 180 g phone (72 x 150 x 8 mm) lies across four
+    # fingers (convex pads 60 x 16 x 14 mm under its back) and the thumb presses on its screen
+    # (3 mm: 3 N). The hand lifts it 8 cm from its stand; then the thumb strokes 3 cm across the
+    # screen: it slides over the glass (3 N of press cannot hold 3 cm of stroke) while the
+    # phone stays in the fingers, whose friction has the thumb's press and the weight behind it.
+    sx, sy, sz = PHONE["size"]
+    phone = Body("Phone", Box(PHONE["size"]), (0.0, 0.0, sz / 2), mass=PHONE["mass"], mu=(0.6, 0.5))
+    rail = Box((0.10, 0.015, 0.02))
+    rails = [Body(f"Stand {s}", rail, (0.0, sgn * (sy / 2 - 0.0025), -0.01), static=True)
+             for s, sgn in (("-y", -1), ("+y", 1))]
+    k, pad = 1000.0, (0.06, 0.016, 0.014)
+    sink = 0.0003
+    fingers = [Finger(name, (0.005, y, -pad[2] / 2 + sink), (0.0, 0.0, -1.0), radius=0.0, stiffness=k,
+                      shape=Box(pad))
+               for name, y in (("Index", 0.045), ("Middle", 0.015), ("Ring", -0.015), ("Little", -0.045))]
+    r_t, d_t = 0.010, 0.003
+    fingers.append(Finger("Thumb", (-0.015, 0.0, sz + r_t - d_t), (0.0, 0.0, 1.0), radius=r_t, stiffness=k))
+    up = (0.0, 0.0, 0.08)
+    stroke = {"Thumb": (0.03, 0.0, 0.0)}            # along the pads
+    keys = [Key(1, "rest", 0.015), Key(7, "close", 0.015), Key(19, "squeeze", 0.0), Key(25, "lift", 0.0),
+            Key(49, "hold", 0.0, up), Key(73, "stroke", 0.0, up),
+            # the thumb arrives at 97 still sliding; it sticks again a frame later
+            Key(97, "stop", 0.0, up, stroke), Key(99, "hold", 0.0, up, stroke), Key(121, "end", 0.0, up, stroke)]
+    return Scene("phone_thumb", "Texting grasp: a phone lies across four finger pads, the thumb pressing on "
+                 "it; lifted, the thumb strokes the screen and the phone stays in the fingers",
+                 rails + [phone], fingers, keys,
+                 Held("Phone", rise=0.08, max_slip=0.001, grasp_frame=25, max_tilt_deg=1.0), shown="stroke")
+
+
+SCENES.update((f.__name__, f) for f in (plate_palm, phone_thumb))
+
+
 def scene(name) -> Scene:
     if name not in SCENES:
         raise KeyError(f"no scene {name!r} in the library (have {', '.join(SCENES)})")
@@ -463,8 +536,11 @@ def _mesh(bpy, name, shape):
 # --------------------------------------------------------------------------- building
 
 def finger_position(finger: Finger, key: Key):
-    """The finger's HIP at a key: closed, opened along its outward direction, carried."""
-    return tuple(c + key.opening * o + d for c, o, d in zip(finger.closed, _unit(finger.outward), key.offset))
+    """The finger's HIP at a key: closed, opened along its outward direction, carried, and moved
+    on its own (``key.moves``)."""
+    own = key.moves.get(finger.name, (0.0, 0.0, 0.0))
+    return tuple(c + key.opening * o + d + m
+                 for c, o, d, m in zip(finger.closed, _unit(finger.outward), key.offset, own))
 
 
 def build(bpy, name):
@@ -492,9 +568,12 @@ def build(bpy, name):
             gl.mass = b.mass
         gl.shape = b.collision
     for channel, f in enumerate(sc.fingers):
-        obj = bpy.data.objects.new(f.name, None)
-        obj.empty_display_type = "SPHERE"
-        obj.empty_display_size = f.radius
+        if f.shape is None:                 # a fingertip sphere of Radius
+            obj = bpy.data.objects.new(f.name, None)
+            obj.empty_display_type = "SPHERE"
+            obj.empty_display_size = f.radius
+        else:                               # a convex finger of the mesh's hull (area contacts)
+            obj = bpy.data.objects.new(f.name, _mesh(bpy, f.name, f.shape))
         bscene.collection.objects.link(obj)
         obj["grasp_lab_group"] = f.group
         gl = obj.grasp_lab
@@ -514,6 +593,10 @@ def extent(sc: Scene):
     the hand carries them, and the fingertips at every key (the tables left out)."""
     import numpy as np
     pts = [finger_position(f, k) for f in sc.fingers for k in sc.keys]
+    for f in sc.fingers:                    # a palm's or a pad's corners too
+        if f.shape is not None:
+            for k in sc.keys:
+                pts.extend(np.array(_shape_geometry(f.shape)[0]) + np.array(finger_position(f, k)))
     carried = np.array([k.offset for k in sc.keys])
     for b in sc.bodies:
         if not b.static:
@@ -541,7 +624,7 @@ def _add_view(bpy, sc: Scene):
     distance = 1.1 * radius / math.sin(half_fov)
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     cam.data.lens = CAMERA_LENS
-    cam.location = Vector(centre) + Vector(VIEW_DIRECTION).normalized() * distance
+    cam.location = Vector(centre) + Vector(sc.view or VIEW_DIRECTION).normalized() * distance
     target = bpy.data.objects.new("Camera Target", None)
     target.location = centre
     for obj in (cam, target):
@@ -651,7 +734,7 @@ def measure(sc: Scene, r: Result) -> dict:
     if isinstance(c, (Held, Carried)):
         i = r.body(c.body)
         g = fr.index(c.grasp_frame)
-        centroid = r.hips.mean(axis=1)
+        centroid = r.hips[:, _with_the_hand(sc)].mean(axis=1)
         rel = (r.com[:, i] - centroid) - (r.com[g, i] - centroid[g])
         lifted = fr.index(sc.frames_of("hold")[0])         # the first hold: lifted
         out["rise"] = float(r.com[lifted, i, 2] - r.com[0, i, 2])
@@ -662,7 +745,8 @@ def measure(sc: Scene, r: Result) -> dict:
         out["fingers_touching"] = int(touching.sum())
         # what the finger springs alone give under the load (all in parallel): part of "slip"
         load = sum(sc.body(n).mass for n in (c.body,) + tuple(getattr(c, "riders", ()))) * G
-        out["spring_give"] = load / sum(f.stiffness for f, t in zip(sc.fingers, touching) if t)
+        if not any(f.shape is not None for f in sc.fingers):    # a palm's stiffness is per point of contact
+            out["spring_give"] = load / sum(f.stiffness for f, t in zip(sc.fingers, touching) if t)
         out["slipping_frames"] = int((r.states[hold][:, touching] == 2).any(axis=1).sum())
         if isinstance(c, Carried):
             shifts = []
@@ -705,6 +789,12 @@ def measure(sc: Scene, r: Result) -> dict:
         out["touching"] = bool((r.contacts[-c.window:, f] == i).all())
         out["tilt_deg"] = float(np.mean([_angle_deg(r.poses[0, i, 3:], q) for q in r.poses[-c.window:, i, 3:]]))
     return out
+
+
+def _with_the_hand(sc: Scene) -> list:
+    """Indices of the fingers that only move with the hand (none of the keys moves them on
+    their own): what a held body's motion in the hand is measured against."""
+    return [i for i, f in enumerate(sc.fingers) if not any(f.name in k.moves for k in sc.keys)]
 
 
 def _in_frame(pose, points):

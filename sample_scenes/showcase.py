@@ -40,6 +40,7 @@ STATE_NAMES = ("free", "stick", "slip")
 STATE_COLORS = ("#d0d0d0", "#3a9a3a", "#d23c2a")
 ANALYZE_EVERY = 10                  # every 10th haptic tick: 100 Hz at 1 kHz
 RENDER_SIZE = (480, 300)
+SKIN = (0.86, 0.66, 0.55, 1.0)
 FORCE_ARROW_FRACTION = 0.35         # the largest fingertip force: this fraction of the scene's size
 
 
@@ -71,22 +72,27 @@ def _grasp_lab_command():
 
 
 def render_frame(sc, m) -> int:
-    """The frame that shows the grasp: mid first hold; for a slide, just after it starts."""
+    """The frame that shows the grasp: mid first hold (or the first of the phase the scene
+    shows); for a slide, just after it starts."""
     lib = library()
     if isinstance(sc.claim, lib.Slides) and "onset_frame" in m:
         return min(m["onset_frame"] + 4, sc.frame_end)
-    hold = sc.frames_of("hold")
+    hold = sc.frames_of(sc.shown)
     return hold[len(hold) // 2] if hold else (sc.keys[0].frame + sc.frame_end) // 2
 
 
 def _render_setup(bpy, sc):
-    """Workbench, studio light, materials: bodies a warm grey, static ones wood-coloured."""
+    """Workbench, studio light, materials: bodies a warm grey, static ones wood-coloured, palms
+    and finger pads skin."""
     pinch = _pinch()
     scene = bpy.context.scene
     for b in sc.bodies:
         obj = bpy.data.objects[b.name]
         colour = (0.78, 0.66, 0.50, 1.0) if b.static else (0.93, 0.90, 0.80, 1.0)
         obj.data.materials.append(pinch._material(bpy, "Static" if b.static else "Body", colour))
+    for f in sc.fingers:            # palms and finger pads (convex fingers) render, skin-coloured
+        if f.shape is not None:
+            bpy.data.objects[f.name].data.materials.append(pinch._material(bpy, "Hand", SKIN))
     scene.render.engine = "BLENDER_WORKBENCH"
     scene.display.shading.light = "STUDIO"
     scene.display.shading.studio_light = "studio.sl"
@@ -303,8 +309,10 @@ def write_index(out_dir, entries, rows, wall):
              f"<p>{len(entries)} scenes of <code>sample_scenes/library.py</code>, run headless in Blender through "
              f"the extension, recorded at every haptic tick, baked, analysed (<code>grasp-lab analyze --every "
              f"{ANALYZE_EVERY}</code>) and rendered, in {wall:.0f} s. God-objects are the spheres on the "
-             "surfaces, where the fingertips touch; the orange arrows are the forces rendered to each fingertip "
-             "(drawn from the sphere's surface).</p>",
+             "surfaces, where the fingertips touch, in the frame's friction-use colour (green far from slipping, "
+             "yellow half way, red sliding, blue touching nothing); palms and finger pads (area contacts) are "
+             "skin-coloured; the orange arrows are the forces rendered to each fingertip (drawn from the sphere's "
+             "surface).</p>",
              f"<p><img src='contact_sheet.png' alt='one frame per scene'></p>",
              "<h2>Summary</h2><table><tr>" + "".join(f"<th>{e(c)}</th>" for c in COLUMNS) + "</tr>"]
     for row, ent in zip(rows, entries):

@@ -30,6 +30,35 @@ def friction_color(use: float) -> tuple:
     return tuple(a[i] + k * (b[i] - a[i]) for i in range(3)) + (1.0,)
 
 
+def friction_colors(use) -> np.ndarray:
+    """friction_color of every element of ``use`` (any shape): RGBA in a last axis."""
+    use = np.asarray(use, dtype=np.float64)
+    u = np.where(np.isfinite(use), np.clip(use, 0.0, 1.0), 1.0)
+    low = (u < 0.5)[..., None]
+    a = np.where(low, _GREEN, _YELLOW)
+    b = np.where(low, _YELLOW, _RED)
+    k = np.where(low[..., 0], u / 0.5, (u - 0.5) / 0.5)[..., None]
+    return np.concatenate([a + k * (b - a), np.ones(u.shape + (1,))], axis=-1)
+
+
+def finger_color_series(table, rows, n_fingers: int) -> np.ndarray:
+    """finger_colors at each record of ``rows`` (in order, each once) of the recording that
+    ``table`` (analysis.analyse_recording) was made of: (len(rows), n_fingers, 4)."""
+    rows = np.asarray(rows, dtype=np.int64)
+    out = np.tile(np.asarray(FREE_COLOR, dtype=np.float64), (len(rows), n_fingers, 1))
+    count = np.asarray(table.count, dtype=np.int64)
+    if count.sum() == 0:
+        return out
+    set_of = np.repeat(np.arange(len(count)), count)        # each contact row's set
+    contact = (np.asarray(table.first, dtype=np.int64)[set_of]
+               + np.arange(len(set_of)) - np.repeat(np.cumsum(count) - count, count))
+    at = np.searchsorted(rows, np.asarray(table.snapshot, dtype=np.int64)[set_of])
+    # in order, so that a finger in two sets takes the last, as finger_colors does
+    for r, f, c in zip(at, np.asarray(table.finger)[contact], friction_colors(np.asarray(table.friction_use)[contact])):
+        out[r, f] = c
+    return out
+
+
 def finger_colors(grasps, n_fingers: int) -> list:
     """One RGBA per finger: by friction use in contact with a held body, else FREE_COLOR."""
     colors = [FREE_COLOR] * n_fingers

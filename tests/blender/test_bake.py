@@ -116,12 +116,51 @@ def test_baking_again_replaces(bpy, recorded):
     path, rec = recorded
     bake = grasp_env.submodule("bake")
     bake.bake_recording(bpy.context, rec)
-    before = {o.name: [(f.data_path, f.array_index, len(f.keyframe_points)) for f in _fcurves(bpy, o)]
-              for o in bpy.data.objects if o.animation_data}
+
+    def animated():             # objects, the god-objects' materials and their shader node trees
+        ids = list(bpy.data.objects) + list(bpy.data.materials)
+        ids += [m.node_tree for m in bpy.data.materials if m.node_tree is not None]
+        return {(type(i).__name__, i.name): [(f.data_path, f.array_index, len(f.keyframe_points))
+                                             for f in _fcurves(bpy, i)] for i in ids if i.animation_data}
+    before, actions = animated(), len(bpy.data.actions)
+    assert any(kind == "Material" for kind, _ in before)
     bake.bake_recording(bpy.context, rec)
-    after = {o.name: [(f.data_path, f.array_index, len(f.keyframe_points)) for f in _fcurves(bpy, o)]
-             for o in bpy.data.objects if o.animation_data}
-    assert after == before and len(bpy.data.actions) == len(before)
+    after = animated()
+    # (a material and its node tree may share an action: Blender 4.4's slots)
+    assert after == before and len(bpy.data.actions) == actions
+
+
+@pytest.mark.multiversion
+def test_god_object_colour_is_keyed_per_frame(bpy, recorded):
+    """A god-object's material has the colour of each frame (not the session's last): mid-lift
+    the friction-use colour of the finger's contact as the analysis has it at that frame's tick,
+    at the end, released, the free blue; the viewport's colour and the shader's alike."""
+    path, rec = recorded
+    assert bpy.ops.grasp_lab.import_recording(filepath=path) == {"FINISHED"}
+    grasp_display = grasp_env.submodule("engine.grasp_display")
+    table = grasp_env.submodule("engine.analysis").analyse_recording(rec)
+    scene = bpy.context.scene
+    go = bpy.data.objects["GL God-object Finger 0"]
+    mat = go.material_slots[0].material
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    seen = {}
+    for frame in (20, 43, 70, 145):
+        scene.frame_set(frame)
+        tick = rec.sample([(frame - 1) / 24])[0]
+        sets = np.flatnonzero(table.snapshot == tick)
+        uses = [table.friction_use[c] for s in sets for c in range(table.first[s], table.first[s] + table.count[s])
+                if table.finger[c] == 0]
+        want = grasp_display.friction_color(uses[-1]) if uses else grasp_display.FREE_COLOR
+        np.testing.assert_allclose(tuple(mat.diffuse_color), want, atol=1e-6, err_msg=f"frame {frame}")
+        np.testing.assert_allclose(tuple(bsdf.inputs["Base Color"].default_value), want, atol=1e-6)
+        seen[frame] = (bool(uses), tuple(mat.diffuse_color))
+    assert seen[43][0] and not seen[145][0]                   # held mid-lift, let go at the end
+    assert seen[43][1] != seen[145][1]
+    scene.frame_set(43)
+    # the colour says what the baked friction use says (green at 0, yellow at 0.5)
+    assert 0.0 < go["gl_friction_use"] < 0.5
+    np.testing.assert_allclose(tuple(mat.diffuse_color), grasp_display.friction_color(go["gl_friction_use"]),
+                               atol=0.02)
 
 
 def test_every_tick_bakes_subframes(bpy, recorded):

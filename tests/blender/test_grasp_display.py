@@ -37,6 +37,29 @@ def test_finger_colours_free_fingers_keep_the_god_object_blue():
     assert colors[2] == grasp_display.friction_color(1.0) and colors[0] == grasp_display.friction_color(0.0)
 
 
+def test_friction_colours_are_friction_color_elementwise():
+    uses = np.array([[0.0, 0.2, 0.5], [0.75, 1.0, 1.5], [math.inf, math.nan, -0.1]])
+    got = grasp_display.friction_colors(uses)
+    assert got.shape == (3, 3, 4)
+    for idx in np.ndindex(uses.shape):
+        np.testing.assert_allclose(got[idx], grasp_display.friction_color(float(uses[idx])), atol=1e-15)
+
+
+def test_finger_color_series_is_finger_colors_per_record():
+    """Per record, the colours finger_colors gives that record's sets; a record with no set:
+    all free; a finger in two sets takes the last, as finger_colors does."""
+    table = SimpleNamespace(snapshot=np.array([3, 3, 7]), count=np.array([2, 1, 1]), first=np.array([0, 2, 3]),
+                            finger=np.array([0, 2, 2, 1]), friction_use=np.array([0.1, 0.9, 0.3, math.nan]))
+    rows = np.array([1, 3, 7])
+    got = grasp_display.finger_color_series(table, rows, 3)
+    by_record = {3: [SimpleNamespace(contacts=[SimpleNamespace(finger=0, friction_use=0.1),
+                                               SimpleNamespace(finger=2, friction_use=0.9)]),
+                     SimpleNamespace(contacts=[SimpleNamespace(finger=2, friction_use=0.3)])],
+                 7: [SimpleNamespace(contacts=[SimpleNamespace(finger=1, friction_use=math.nan)])]}
+    for k, row in enumerate(rows):
+        np.testing.assert_allclose(got[k], grasp_display.finger_colors(by_record.get(row, []), 3), atol=1e-15)
+
+
 # ---------------------------------------------------------------- accelerations
 
 def _snap(t, velocities, poses):

@@ -67,7 +67,8 @@ def test_scene_keeps_its_claim(bpy, core, name):
     assert r.stats["steps"] == round((sc.frame_end - sc.keys[0].frame) / lib.FPS * 1000)
 
 
-@pytest.mark.parametrize("name", ["pinch_and_lift", "key_pinch", "tripod_pencil", "can_power", "two_people_box"])
+@pytest.mark.parametrize("name", ["pinch_and_lift", "key_pinch", "tripod_pencil", "can_power", "two_people_box",
+                                  "plate_palm", "phone_thumb"])
 def test_fingers_carry_the_weight(bpy, core, name):
     """Held at rest, the forces rendered to the fingers add up to the body's weight."""
     sc, r = _run(bpy, name)
@@ -123,10 +124,79 @@ def test_can_power_grasp_holds_a_full_can(bpy, core):
     i = r.body("Can")
     k = _frame(r, sc.frame_end)
     assert (r.contacts[k] == i).all() and (r.states[k] == 1).all()
-    # The thumb pushes as hard as the four fingertips together.
+    palm = r.finger_names.index("Palm")
+    assert sc.fingers[palm].shape is not None                # an area contact, not a fingertip
+    # The fingertips and the thumb press the can into the palm: the palm's push balances theirs
+    # and is the largest single push.
     fx = r.finger_forces[k, :, 0]
-    assert fx[0] == pytest.approx(-fx[1:].sum(), rel=0.01)
+    others = [j for j in range(len(fx)) if j != palm]
+    assert fx[palm] == pytest.approx(-fx[others].sum(), rel=0.01)
+    assert abs(fx[palm]) > np.abs(fx[others]).max()
     assert r.com[k, i, 2] - r.com[0, i, 2] == pytest.approx(0.10, abs=0.002)
+
+
+def _tilt_deg(q):
+    return math.degrees(math.acos(min(1.0, _rotate(q, (0, 0, 1))[2])))
+
+
+def test_plate_palm_stays_level_with_its_pressure_centre_under_it(bpy, core):
+    """#15's target: lifted 10 cm and carried 10 cm, the plate tilts less than 2 deg and moves
+    less than 5 mm on the palm; held still, the centroid of the palm's pressure (the god-object
+    it reports) is under the plate's centre of mass."""
+    sc, r = _run(bpy, "plate_palm")
+    i = r.body("Plate")
+    g = _frame(r, sc.claim.grasp_frame)
+    assert max(_tilt_deg(q) for q in r.poses[g:, i, 3:]) < 2.0
+    on_palm = (r.com[:, i] - r.hips[:, 0]) - (r.com[g, i] - r.hips[g, 0])
+    assert np.linalg.norm(on_palm[g:, :2], axis=1).max() < 0.005
+    np.testing.assert_allclose(r.com[-1, i] - r.com[0, i], (0.10, 0.0, 0.10), atol=0.002)
+    for f in sc.frames_of("hold")[12:]:                     # at rest in the hand
+        k = _frame(r, f)
+        assert np.linalg.norm(r.god_objects[k, 0, :2] - r.com[k, i, :2]) < 0.001, f
+
+
+def test_plate_on_one_point_tips_over(bpy, core, monkeypatch):
+    """The same lift and carry on a point contact (a 1 cm fingertip sphere at the palm's centre,
+    what Grasp Lab had before area contacts): the plate is an inverted pendulum and tips."""
+    plate = lib.plate_palm()
+    palm = plate.fingers[0]
+    sink = lib.PLATE["mass"] * G / palm.stiffness
+    plate.fingers = [lib.Finger("Palm", (0.0, 0.0, -0.01 + sink), palm.outward, radius=0.01,
+                                stiffness=palm.stiffness)]
+    monkeypatch.setitem(lib.SCENES, "plate_point", lambda: plate)
+    sc, r = _run(bpy, "plate_point")
+    i = r.body("Plate")
+    assert max(_tilt_deg(q) for q in r.poses[:, i, 3:]) > 10.0
+
+
+def test_phone_thumb_strokes_the_screen_and_the_phone_stays(bpy, core):
+    """The thumb slides over the screen during its stroke, at the friction cone's edge (between
+    mu_d and mu_s of its normal force), 3 cm less the spring's lag; the finger pads stick all
+    along and carry the phone's weight and the thumb's press."""
+    sc, r = _run(bpy, "phone_thumb")
+    i = r.body("Phone")
+    phone = sc.body("Phone")
+    thumb = r.finger_names.index("Thumb")
+    pads = [j for j, f in enumerate(sc.fingers) if f.shape is not None]
+    assert len(pads) == 4
+    g = _frame(r, sc.claim.grasp_frame)
+    assert (r.states[g:, pads] == 1).all()
+    stroke = [_frame(r, f) for f in sc.frames_of("stroke")]
+    slipping = [k for k in stroke if r.states[k, thumb] == 2]
+    assert len(slipping) > len(stroke) // 2
+    for k in slipping:
+        n = _rotate(r.poses[k, i, 3:], (0, 0, 1))
+        f = r.finger_forces[k, thumb]
+        fn = float(f @ n)
+        ft = float(np.linalg.norm(f - fn * n))
+        assert phone.mu[1] * 0.99 <= ft / abs(fn) <= phone.mu[0], (k, ft, fn)
+    # Where the thumb's god-object lies on the phone (its frame), before and after the stroke.
+    a, b = stroke[0] - 1, _frame(r, sc.frame_end)
+    on_phone = lib._in_frame(r.poses[[a, b], i], r.god_objects[[a, b], thumb])
+    travel = on_phone[1] - on_phone[0]
+    assert 0.025 < travel[0] < 0.03 and abs(travel[1]) < 1e-3, travel
+    weight = G * phone.mass
+    assert -r.finger_forces[b, pads, 2].sum() == pytest.approx(weight + r.finger_forces[b, thumb, 2], rel=0.01)
 
 
 def _mug_inertia(sc):

@@ -1,4 +1,4 @@
-"""`make demo`, showcase part (sample_scenes/showcase.py) on three scenes, in a temporary
+"""`make demo`, showcase part (sample_scenes/showcase.py) on four scenes, in a temporary
 directory: every file the index page names exists, the table says what physics says, the
 baked files reopen with their curves."""
 import csv
@@ -12,7 +12,7 @@ import pytest
 
 import grasp_env
 
-SCENES = ["pinch_and_lift", "tripod_pencil", "weak_grip_slide"]
+SCENES = ["pinch_and_lift", "tripod_pencil", "weak_grip_slide", "plate_palm"]
 
 
 def _showcase():
@@ -75,8 +75,11 @@ def test_pictures(demo, bpy):
         img.pixels.foreach_get(px)
         rgb = px.reshape(-1, 4)[:, :3]
         assert rgb.std() > 0.05
-        # the finger-force arrows' orange is in the picture (r high, b low)
-        assert ((rgb[:, 0] > 0.6) & (rgb[:, 2] < 0.25) & (rgb[:, 1] > 0.3)).sum() > 20, name
+        # the finger-force arrows' orange is in the picture, lit or in a body's shadow (the
+        # plate's over the palm's arrow): its hue, g 0.6-0.8 of r and b below 0.3 of r (not the
+        # skin of a palm, not a yellow god-object)
+        r, g, b = rgb.T
+        assert ((r > 0.3) & (b < 0.3 * r) & (g > 0.6 * r) & (g < 0.8 * r)).sum() > 20, name
         w, h = _png_size(out / "plots" / f"{name}.png")
         assert w >= 600 and h >= 300
 
@@ -87,6 +90,8 @@ def test_table_says_what_physics_says(demo):
     entries = {e["name"]: e for e in res["entries"]}
     assert all(not e["failures"] for e in entries.values())
     assert rows["pinch_and_lift"][1] == "held" and rows["weak_grip_slide"][1] == "slides out"
+    # The plate on the palm (an area contact) stays where it lies on it.
+    assert rows["plate_palm"][1] == "held" and float(rows["plate_palm"][2].split()[0]) < 5.0
     # Two point contacts never close a grasp (nothing resists turning about the line through
     # them); three fingertips round the pencil do, all the time they hold it.
     assert rows["pinch_and_lift"][4] == "0 % of held" and rows["pinch_and_lift"][5] == "0"
@@ -131,3 +136,11 @@ def test_baked_file_reopens_with_its_curves(demo, bpy):
         assert len(_fcurves(bpy, bpy.data.objects[f"Finger Force {j}"])[0].keyframe_points) == n
     scene.frame_set(e["frame"])
     assert bpy.data.objects["GL Force Pencil"]["gl_closure"] == pytest.approx(1.0)
+    # The rendered frame's god-objects have that frame's friction-use colour, not the blue of
+    # a finger touching nothing (the session's end).
+    grasp_display = grasp_env.submodule("engine.grasp_display")
+    for j in range(3):
+        go = bpy.data.objects[f"GL God-object {e['scene'].fingers[j].name}"]
+        colour = tuple(go.material_slots[0].material.diffuse_color)
+        assert colour != pytest.approx(grasp_display.FREE_COLOR)
+        np.testing.assert_allclose(colour, grasp_display.friction_color(go["gl_friction_use"]), atol=0.02)
