@@ -210,3 +210,39 @@ def test_a_raw_pty_that_is_a_controlling_terminal_is_no_candidate(raw_pty):
         holder.kill()
         holder.wait()
     assert port in D.candidate_ports()
+
+
+def test_after_a_probe_the_session_sees_the_emulator_motion_from_its_start():
+    """The probe's hello starts the emulator streaming; the session's hello, after the probe
+    has been silent, starts its motion (here: lift) again; hellos a waiting host repeats do not."""
+    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--motion", "lift",
+                            "--rate", "200"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        port = emu.stdout.readline().split()[1]
+        assert D.probe_ports([port])[0]["status"] == "grasp_lab"
+        time.sleep(1.2)                                 # lift: by 1.2 s closed to 3 cm and 3.5 cm up
+
+        def first_pose_after_hello(fd):
+            os.write(fd, P.encode(P.HELLO_HOST, 0, P.hello_host()))
+            dec, frames, end = P.StreamDecoder(), [], time.monotonic() + 5
+            while time.monotonic() < end and not any(f.type == P.POSE for f in frames):
+                if select.select([fd], [], [], 0.05)[0]:
+                    frames += dec.feed(os.read(fd, 4096))
+            seen = [f.type for f in frames]
+            return P.parse_pose(frames[seen.index(P.POSE, seen.index(P.HELLO_DEVICE))].payload)
+
+        fd = os.open(port, os.O_RDWR | os.O_NOCTTY)
+        try:
+            termios.tcflush(fd, termios.TCIFLUSH)       # what it streamed to nobody
+            pose = first_pose_after_hello(fd)
+            x, _, z = pose.positions[0]
+            assert abs(x - 0.06) < 2e-3 and abs(z) < 1e-6 and pose.time_us < 50_000, pose   # t = 0: open, down
+            time.sleep(0.1)
+            termios.tcflush(fd, termios.TCIFLUSH)
+            pose = first_pose_after_hello(fd)           # 0.1 s later: the same conversation
+            assert pose.time_us > 100_000 and pose.positions[0][0] < 0.06 - 2e-3, pose
+        finally:
+            os.close(fd)
+    finally:
+        emu.kill()
+        emu.wait()

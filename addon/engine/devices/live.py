@@ -38,6 +38,34 @@ def device_fingers(devices, n_fingers: int, finger_names=None) -> np.ndarray:
     return owner
 
 
+def free_fingers(taken, n_fingers: int, wanted: int, first: int | None = None) -> tuple:
+    """Where a new device goes: (first finger, count). ``taken``: (first, count) of the devices
+    there are; ``wanted``: the fingers the device has (its hello). The first run of ``wanted``
+    free fingers (from ``first`` when given), else the first free finger with as many free
+    fingers as follow it (the device drives its first ones). ValueError when none is free."""
+    free = np.ones(int(n_fingers), dtype=bool)
+    for a, n in taken:
+        free[max(0, int(a)):max(0, int(a) + int(n))] = False
+    starts = [int(first)] if first is not None else range(int(n_fingers))
+    best = None
+    for a in starts:
+        run = 0
+        while a + run < n_fingers and free[a + run] and run < wanted:
+            run += 1
+        if run == wanted:
+            return a, run
+        if run and best is None:
+            best = (a, run)
+    if best is None:
+        if first is not None and not 0 <= first < n_fingers:
+            raise ValueError(f"finger {first}: the scene has " +
+                             (f"fingers 0..{n_fingers - 1}" if n_fingers else "no fingers"))
+        raise ValueError(f"finger {first}: another device drives it already" if first is not None else
+                         "no free finger: another device drives every finger of the scene" if n_fingers else
+                         "the scene has no fingers (give objects the role Finger)")
+    return best
+
+
 def without_fingers(script, driven):
     """A scripted track ``(times, positions, mask[, orientations])`` minus the fingers ``driven``
     (a bool mask): a device drives its fingers whatever their animation says. None when nothing
