@@ -79,7 +79,7 @@ def connect_scene_devices(scene, world) -> DeviceSet:
     open are left out (their error is in ``failed``)."""
     devices = DeviceSet(world)
     devices.failed = {}
-    for entry in scene.grasp_lab_devices:
+    for entry in entries_in_use(scene):
         try:
             _add_entry(devices, world, entry)
         except (ConnectionError, OSError, ImportError, ValueError) as ex:
@@ -114,22 +114,49 @@ def hello_fingers(ports) -> dict:
         if ports else {}
 
 
+def entries_in_use(scene) -> list:
+    """The device list's entries a live session connects: those with a port (a SpaceMouse's
+    may be empty: the first one). An entry a scene declares without a port (the library's
+    two_people_box: a port is the machine's, not the file's) waits for one; its fingers follow
+    their animation meanwhile."""
+    return [e for e in scene.grasp_lab_devices if e.port or e.kind == "SPACEMOUSE"]
+
+
+def waiting_entry(entries, kind: str, first=None):
+    """The first entry of ``kind`` waiting for a port (at finger ``first`` when given), or None."""
+    for i, e in enumerate(entries):
+        if e.kind == kind and not e.port and (first is None or e.finger_offset == first):
+            return i
+    return None
+
+
 def add_device_specs(context, specs) -> list:
     """``--device`` specs (``serial:PORT[@FIRST]``, ``udp:HOST:PORT[@FIRST]``, ``spacemouse[:PATH]``,
-    ``opengloves:PORT``) appended to the scene's device list. A serial device drives as many
-    fingers as its hello says (asked here), from FIRST or else from the first free finger on
-    (``free_fingers``); a device that does not answer yet, a UDP device and a SpaceMouse drive
-    the free fingers from there on. Returns the entries' indices (``remove_entries`` takes them out)."""
+    ``opengloves:PORT``) into the scene's device list: a spec gives its port to the first entry
+    of its kind the scene declares without one (at FIRST, with ``@FIRST``), or is appended. An
+    appended serial device drives as many fingers as its hello says (asked here), from FIRST
+    or else from the first free finger on (``free_fingers``); a device that does not answer
+    yet, a UDP device and a SpaceMouse drive the free fingers from there on. A filled entry
+    keeps the scene's fingers (fewer when the hello says fewer). Returns what
+    ``remove_entries`` takes to put the list back as it was."""
     from .engine.devices.cli_commands import parse_device_spec
     entries = context.scene.grasp_lab_devices
     n_fingers = scene_finger_count(context)
     parsed = [(spec, parse_device_spec(spec)) for spec in specs]     # all checked before any is added
     counts = hello_fingers([d["port"] for _, d in parsed if d["kind"] == "serial"])
-    added = []
+    changed = []
     for spec, d in parsed:
         kind = d["kind"].upper()
         first = d["finger_offset"] if "@" in spec else None
         wanted = 5 if kind == "OPENGLOVES" else counts.get(d.get("port"))
+        port = d.get("port") or d.get("path") or ""
+        declared = waiting_entry(entries, kind, first) if port else None
+        if declared is not None:
+            entry = entries[declared]
+            changed.append((declared, entry.num_fingers))
+            entry.port = port
+            entry.num_fingers = min(entry.num_fingers, wanted or entry.num_fingers)
+            continue
         try:
             first, count = free_fingers(_taken(entries), n_fingers, wanted or max(1, n_fingers), first)
         except ValueError:
@@ -138,17 +165,21 @@ def add_device_specs(context, specs) -> list:
             count = wanted or max(1, n_fingers - first)
         entry = entries.add()
         entry.kind = kind
-        entry.port = d.get("port") or d.get("path") or ""
+        entry.port = port
         entry.finger_offset, entry.num_fingers = first, count
-        added.append(len(entries) - 1)
-    return added
+        changed.append((len(entries) - 1, None))
+    return changed
 
 
-def remove_entries(context, indices) -> None:
-    for i in sorted(indices, reverse=True):
-        context.scene.grasp_lab_devices.remove(i)
-
-
+def remove_entries(context, changed) -> None:
+    """Undo ``add_device_specs``: appended entries removed, declared entries without a port again
+    (with the scene's finger count)."""
+    entries = context.scene.grasp_lab_devices
+    for i, declared_fingers in sorted(changed, key=lambda c: c[0], reverse=True):
+        if declared_fingers is None:
+            entries.remove(i)
+        else:
+            entries[i].port, entries[i].num_fingers = "", declared_fingers
 def run_realtime(context, duration: float, device_specs=(), forces: bool = False, record_path=None):
     """A live session without a window (``grasp-lab run SCENE --realtime --device ...``):
     the threaded runtime in real time for ``duration`` seconds (Ctrl-C ends it early), the
@@ -219,6 +250,16 @@ class GRASPLAB_OT_device_add(bpy.types.Operator):
         wanted = self.fingers or (5 if self.kind == "OPENGLOVES" else None)
         if wanted is None and self.kind == "SERIAL" and self.port:
             wanted = hello_fingers([self.port]).get(self.port)
+        declared = waiting_entry(entries, self.kind) if self.port else None
+        if declared is not None:
+            # The scene declares this device (its fingers, its workspace frame): it gets the port.
+            entry = entries[declared]
+            entry.port = self.port
+            entry.num_fingers = min(entry.num_fingers, wanted or entry.num_fingers)
+            scene.grasp_lab_device_index = declared
+            self.report({"INFO"}, f"{self.port}: device {declared + 1} of the scene, fingers "
+                                  f"{entry.finger_offset}..{entry.finger_offset + entry.num_fingers - 1}")
+            return {"FINISHED"}
         n_fingers = scene_finger_count(context)
         try:
             # Without a hello (typed in later, a SpaceMouse): every free finger from the first free one.
@@ -332,6 +373,8 @@ class GRASPLAB_PT_devices(bpy.types.Panel):
             row.prop(entry, "finger_offset")
             row.prop(entry, "num_fingers")
             box.prop(entry, "frame")
+            if not entry.port and entry.kind != "SPACEMOUSE":
+                box.label(text="Waiting for a port (Find Devices)", icon="INFO")
         devices = _active_devices()
         if devices is not None:
             col = layout.column()

@@ -106,7 +106,8 @@ class BlenderSession:
         self.threaded = live and prefs.use_runtime
         # Devices drive their fingers from the core's own threads (docs/devices.md), whatever
         # those fingers' animation says; the animation drives the fingers no device drives.
-        entries = list(getattr(scene, "grasp_lab_devices", ()))
+        from .devices_ui import entries_in_use
+        entries = entries_in_use(scene)
         use_devices = self.threaded and len(entries) > 0
         self.driven_by = np.full(len(finger_objs), -1)      # finger -> index of the device entry
         self.device_labels, self.device_kinds = [], []

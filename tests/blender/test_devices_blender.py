@@ -384,3 +384,33 @@ def test_a_found_device_brings_its_finger_count_and_its_fingers_follow_it(bpy, s
     finally:
         emu.kill()
         emu.wait()
+
+
+def test_a_device_the_scene_declares_without_a_port_waits_for_one(bpy, sample, core):
+    """An entry without a port (a scene's declared device) is not connected: its fingers play
+    their animation; Find Devices' + and a --device spec give it a port (and fewer fingers when
+    the device's hello says fewer); after the run the entry is as the file had it."""
+    session = grasp_env.submodule("session")
+    devices_ui = grasp_env.submodule("devices_ui")
+    sample.build(bpy)
+    entries = bpy.context.scene.grasp_lab_devices
+    entry = entries.add()
+    entry.kind, entry.port, entry.finger_offset, entry.num_fingers = "SERIAL", "", 0, 2
+    s = session.BlenderSession(bpy.context, live=True, duration=2.0)
+    try:
+        assert s.devices is None and s.source.script() is not None      # the animation drives them
+    finally:
+        s.finish()
+    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--fingers", "1"],
+                           cwd=grasp_env.ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        port = emu.stdout.readline().split()[1]
+        changed = devices_ui.add_device_specs(bpy.context, [f"serial:{port}"])
+        assert [(e.port, e.finger_offset, e.num_fingers) for e in entries] == [(port, 0, 1)]   # its hello: 1
+        devices_ui.remove_entries(bpy.context, changed)
+        assert [(e.port, e.finger_offset, e.num_fingers) for e in entries] == [("", 0, 2)]
+        assert bpy.ops.grasp_lab.device_add(port=port, fingers=1) == {"FINISHED"}             # the panel's +
+        assert [(e.port, e.finger_offset, e.num_fingers) for e in entries] == [(port, 0, 1)]
+    finally:
+        emu.kill()
+        emu.wait()

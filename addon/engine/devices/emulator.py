@@ -438,9 +438,15 @@ def main(argv=None, args=None):
         raise SystemExit(f"--rate: {args.rate} Hz outside 1..10000")
     if args.first and not args.from_blend:
         raise SystemExit("--first: only with --from (a named motion has no fingers of a scene to choose from)")
-    motion, n = MOTIONS[args.motion], args.fingers or 2
+    motion, n, name = MOTIONS[args.motion], args.fingers or 2, "grasp-lab-emulator"
     if args.from_blend:
         motion, n = motion_from_blend(args.from_blend, args.first, args.fingers)
+        # Named after what it plays, so that Find Devices tells two emulators of a scene apart.
+        scene = os.path.splitext(os.path.basename(args.from_blend))[0]
+        suffix = f" fingers {args.first}..{args.first + n - 1}"
+        while len((scene + suffix).encode()) > P.NAME_MAX:
+            scene = scene[:-1]
+        name = scene + suffix
     serial_port = slave = udp = None
     if args.udp is not None:
         import socket
@@ -455,7 +461,8 @@ def main(argv=None, args=None):
         serial_port = serial.Serial(args.port, 115200, timeout=0)
         fd, path = serial_port.fileno(), args.port
     print(f"PORT {path}", flush=True)
-    emu = Emulator(fd, n, motion, args.rate, args.force_max, args.ttl_max, corrupt_every=args.corrupt_every,
+    emu = Emulator(fd, n, motion, args.rate, args.force_max, args.ttl_max, name=name,
+                   corrupt_every=args.corrupt_every,
                    estop_at=args.estop_at, log_forces=bool(args.force_log), udp=udp, drop_every=args.drop_every,
                    dup_every=args.dup_every, reorder_every=args.reorder_every)
 
