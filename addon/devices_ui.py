@@ -265,8 +265,12 @@ class GRASPLAB_OT_device_add(bpy.types.Operator):
             # Without a hello (typed in later, a SpaceMouse): every free finger from the first free one.
             first, count = free_fingers(_taken(entries), n_fingers, wanted or max(1, n_fingers))
         except ValueError as ex:
-            self.report({"ERROR"}, f"Add Device: {ex}")
-            return {"CANCELLED"}
+            # Added all the same (fingers may come later), after the driven ones; a session
+            # started before the scene has them says which device has none.
+            first = max((a + n for a, n in _taken(entries)), default=0)
+            count = wanted or 1
+            self.report({"WARNING"}, f"Add Device: {ex}; it drives fingers {first}..{first + count - 1} "
+                                     f"once the scene has them")
         entry = entries.add()
         entry.kind = self.kind
         entry.port = self.port

@@ -206,6 +206,9 @@ def test_a_raw_pty_that_is_a_controlling_terminal_is_no_candidate(raw_pty):
         stat = open(f"/proc/{holder.pid}/stat").read()
         assert int(stat[stat.rfind(")") + 2:].split()[4]) != 0      # it is its controlling terminal
         assert port not in D.candidate_ports()
+        # Named by hand (--probe, a typed-in port): still left alone.
+        (r,) = D.probe_ports([port], timeout=0.2)
+        assert r["status"] == "terminal" and drain(master) == b"", r
     finally:
         holder.kill()
         holder.wait()

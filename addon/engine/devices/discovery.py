@@ -118,8 +118,9 @@ def candidate_ports(listed=None) -> list:
 # ---- the probe ------------------------------------------------------------------------------
 
 class _Probe:
-    def __init__(self, port: str):
+    def __init__(self, port: str, terminals):
         self.port = port
+        self.terminals = terminals      # lazily: device numbers of controlling terminals
         self.fd = None
         self.saved = None           # terminal settings to put back (a UART we set to 1 Mbaud raw)
         self.decoder = P.StreamDecoder()
@@ -136,6 +137,10 @@ class _Probe:
         self.fd = fd
         if not os.isatty(fd):
             self.result = {"status": "error", "detail": "not a serial port"}
+            return
+        if _tty_nr(os.fstat(fd).st_rdev) in self.terminals():
+            # A shell's or an editor's terminal (or a serial console), even when named by hand.
+            self.result = {"status": "terminal", "detail": "a process's controlling terminal: not probed"}
             return
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -218,12 +223,19 @@ class _Probe:
 
 def probe_ports(ports, timeout: float = PROBE_TIMEOUT) -> list:
     """Say hello on every port at once; per port (in order) a dict: ``port``, ``status``
-    (``grasp_lab``, ``silent``, ``not_grasp_lab``, ``invalid``, ``busy``, ``error``), ``detail``
+    (``grasp_lab``, ``silent``, ``not_grasp_lab``, ``invalid``, ``busy``, ``terminal``: some
+    process's controlling terminal, never written to; ``error``), ``detail``
     and, for a device, ``hello`` (its capabilities, protocol.HelloDevice as a dict). Returns
     within ``timeout`` (plus the time to open and close the ports)."""
     if not timeout > 0:
         raise ValueError(f"timeout: must be > 0 s, got {timeout}")
-    probes = [_Probe(p) for p in dict.fromkeys(ports)]
+    terminals = []
+
+    def controlling():
+        if not terminals:
+            terminals.append(_controlling_terminals() if sys.platform.startswith("linux") else set())
+        return terminals[0]
+    probes = [_Probe(p, controlling) for p in dict.fromkeys(ports)]
     try:
         for p in probes:
             p.open()
