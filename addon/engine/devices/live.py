@@ -175,21 +175,33 @@ class DeviceSet:
         return dev
 
     def add_specs(self, specs, fingers_per_device=None, frames=None, **limits) -> None:
-        """``--device`` specs (serial:PORT[@FIRST]) in order; a spec without @FIRST takes the
-        fingers after the previous device's. ``frames``: optional 4x4 per spec."""
+        """``--device`` specs (serial:PORT[@FIRST]) in order. A device drives
+        ``fingers_per_device[i]`` fingers, else as many as its hello says (asked here), else
+        (no answer) every free finger from there on; from FIRST, else from the first finger no
+        device drives (``free_fingers``). ``frames``: optional 4x4 per spec."""
+        from .discovery import probe_ports
         n_world = self.world.finger_count
-        next_first = 0
-        for i, spec in enumerate(specs):
+        parsed = []
+        for spec in specs:
             d = parse_device_spec(spec)
             if d["kind"] != "serial":
                 raise ValueError(f"--device {spec!r}: only serial devices drive a runtime session from the "
                                  f"command line (SpaceMouse and OpenGloves are input sources)")
-            first = d["finger_offset"] if "@" in spec else next_first
-            count = fingers_per_device[i] if fingers_per_device else max(1, n_world - first)
-            if first + count > n_world:
-                raise ValueError(f"--device {spec!r}: fingers {first}..{first + count - 1}, the scene has {n_world}")
+            parsed.append((spec, d))
+        hellos = {} if fingers_per_device else {
+            r["port"]: r["hello"]["n_fingers"] for r in probe_ports([d["port"] for _, d in parsed])
+            if r["status"] == "grasp_lab"}
+        for i, (spec, d) in enumerate(parsed):
+            wanted = fingers_per_device[i] if fingers_per_device else hellos.get(d["port"], n_world)
+            taken = [(dev.finger_offset, dev.num_fingers) for dev in self.devices]
+            try:
+                first, count = free_fingers(taken, n_world, wanted, d["finger_offset"] if "@" in spec else None)
+            except ValueError as e:
+                raise ValueError(f"--device {spec!r}: {e}") from None
+            if fingers_per_device and count < wanted:
+                raise ValueError(f"--device {spec!r}: fingers {first}..{first + wanted - 1}, the scene has "
+                                 f"{n_world} and {count} of them free")
             self.add(d["port"], first, count, frames[i] if frames else None, **limits)
-            next_first = first + count
 
     def add_udp(self, host: str, port: int, finger_offset: int, num_fingers: int, transform=None,
                 label: str | None = None, **limits) -> UdpDevice:
