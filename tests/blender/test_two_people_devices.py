@@ -106,3 +106,20 @@ def test_two_people_box_with_two_emulators(bpy, core, tmp_path):
     print(f"two_people_box, two devices: rise {1e3 * rise.mean():.2f} mm (min {1e3 * rise.min():.2f}); per device "
           f"received (N, mean over the hold) A {np.round(sums[0], 3)}, B {np.round(sums[1], 3)}; half the weight "
           f"{weight / 2:.3f} N; frames zeroed by the host {zeroed}")
+
+
+def test_the_emulator_plays_one_person_of_a_scene_and_refuses_fingers_it_has_not(bpy, tmp_path):
+    lib = _library()
+    sc = lib.build(bpy, "two_people_box")
+    blend = tmp_path / "two_people_box.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    emulator = grasp_env.submodule("engine.devices.emulator")
+    motion, n = emulator.motion_from_blend(str(blend), first=3, count=3)
+    assert n == 3
+    key = sc.keys[0]
+    np.testing.assert_allclose(motion(0.0, n), [lib.finger_position(f, key) for f in sc.fingers[3:]], atol=1e-6)
+    out = subprocess.run([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--from", str(blend),
+                          "--first", "4", "--fingers", "3"], cwd=grasp_env.ROOT, capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode != 0 and "fingertips 4..6 asked for, the scene has 6 (channels in order: 0..5)" in \
+        out.stderr, out.stderr
