@@ -123,9 +123,10 @@ def entries_in_use(scene) -> list:
 
 
 def waiting_entry(entries, kind: str, first=None):
-    """The first entry of ``kind`` waiting for a port (at finger ``first`` when given), or None."""
+    """The first entry of ``kind`` waiting for a port (at finger ``first`` when given), or None
+    (a SpaceMouse without a path takes the first one: it never waits)."""
     for i, e in enumerate(entries):
-        if e.kind == kind and not e.port and (first is None or e.finger_offset == first):
+        if e.kind == kind != "SPACEMOUSE" and not e.port and (first is None or e.finger_offset == first):
             return i
     return None
 
@@ -180,6 +181,8 @@ def remove_entries(context, changed) -> None:
             entries.remove(i)
         else:
             entries[i].port, entries[i].num_fingers = "", declared_fingers
+
+
 def run_realtime(context, duration: float, device_specs=(), forces: bool = False, record_path=None):
     """A live session without a window (``grasp-lab run SCENE --realtime --device ...``):
     the threaded runtime in real time for ``duration`` seconds (Ctrl-C ends it early), the

@@ -216,14 +216,15 @@ def test_a_raw_pty_that_is_a_controlling_terminal_is_no_candidate(raw_pty):
 
 
 def test_after_a_probe_the_session_sees_the_emulator_motion_from_its_start():
-    """The probe's hello starts the emulator streaming; the session's hello, after the probe
-    has been silent, starts its motion (here: lift) again; hellos a waiting host repeats do not."""
+    """The probe's hello starts the emulator streaming; the session's hello starts its motion
+    (here: lift) again, however soon after the probe (a probe answers no pose); a hello from a
+    host that has been answering poses (one waiting for poses that stopped) does not."""
     emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--motion", "lift",
                             "--rate", "200"], cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         port = emu.stdout.readline().split()[1]
         assert D.probe_ports([port])[0]["status"] == "grasp_lab"
-        time.sleep(1.2)                                 # lift: by 1.2 s closed to 3 cm and 3.5 cm up
+        time.sleep(0.05)                                # a session opening the port right after
 
         def first_pose_after_hello(fd):
             os.write(fd, P.encode(P.HELLO_HOST, 0, P.hello_host()))
@@ -232,7 +233,10 @@ def test_after_a_probe_the_session_sees_the_emulator_motion_from_its_start():
                 if select.select([fd], [], [], 0.05)[0]:
                     frames += dec.feed(os.read(fd, 4096))
             seen = [f.type for f in frames]
-            return P.parse_pose(frames[seen.index(P.POSE, seen.index(P.HELLO_DEVICE))].payload)
+            pose_frame = frames[seen.index(P.POSE, seen.index(P.HELLO_DEVICE))]
+            # Answered, as a streaming host answers every pose.
+            os.write(fd, P.encode(P.FORCE, 1, P.force(pose_frame.seq, 20000, [(0.0, 0.0, 0.0)] * 2)))
+            return P.parse_pose(pose_frame.payload)
 
         fd = os.open(port, os.O_RDWR | os.O_NOCTTY)
         try:
@@ -242,7 +246,7 @@ def test_after_a_probe_the_session_sees_the_emulator_motion_from_its_start():
             assert abs(x - 0.06) < 2e-3 and abs(z) < 1e-6 and pose.time_us < 50_000, pose   # t = 0: open, down
             time.sleep(0.1)
             termios.tcflush(fd, termios.TCIFLUSH)
-            pose = first_pose_after_hello(fd)           # 0.1 s later: the same conversation
+            pose = first_pose_after_hello(fd)           # 0.1 s after its answer: the same conversation
             assert pose.time_us > 100_000 and pose.positions[0][0] < 0.06 - 2e-3, pose
         finally:
             os.close(fd)

@@ -138,7 +138,7 @@ def _sample_fingertips(scene):
 
 # ---- the device -------------------------------------------------------------------------
 
-HOST_SILENCE = 0.3      # s without a frame from the host: it is gone (it sends one every 100 ms)
+HOST_SILENCE = 0.3      # s without an answer to a pose: the host is not streaming with this device
 
 class ForceChecker:
     """Every force frame against the device's rules; counts what broke them."""
@@ -207,8 +207,8 @@ class Emulator:
         self.poses_sent = 0
         self.write_errors = 0
         self.stop = False
-        self.started = None         # the host's conversation started (its first hello after a silence)
-        self.last_from_host = None  # when the host last sent a frame
+        self.started = None         # the host's conversation started (see _on_frame)
+        self.last_answer = None     # when the host last answered a pose (a force frame)
         self.estop_at = estop_at    # s into streaming: the stop button (None: never)
         self.estop_sent_at = None
         self.forces_after_estop = 0     # force frames with a non-zero force after the button, before ENABLE(1)
@@ -253,12 +253,13 @@ class Emulator:
             self.write_errors += 1
 
     def _on_frame(self, frame, now):
-        # A host that has said nothing for HOST_SILENCE is gone (a live host sends a frame every
-        # 100 ms at least): its next hello starts a new conversation, and the motion, --estop-at
-        # and --duration count from there (a Find Devices probe, then the session, each see the
-        # motion from its start). A host re-sending hellos while it waits is the same conversation.
-        new_conversation = self.last_from_host is None or now - self.last_from_host > HOST_SILENCE
-        self.last_from_host = now
+        # A hello starts a new conversation, and the motion, --estop-at and --duration count from
+        # there, unless the host has answered a pose within HOST_SILENCE: a host that streams
+        # answers every pose, and re-says hello only while it waits for poses that stopped. A
+        # Find Devices probe never answers poses: the session after it sees the motion from its start.
+        new_conversation = self.last_answer is None or now - self.last_answer > HOST_SILENCE
+        if frame.type == P.FORCE:
+            self.last_answer = now
         if frame.type == P.HELLO_HOST:
             self.host_hellos += 1       # a (re)started host: forces off until it enables them again
             self.enabled = False
