@@ -7,10 +7,13 @@ import bpy
 from bpy.props import BoolProperty, CollectionProperty, EnumProperty, IntProperty, PointerProperty, StringProperty
 
 from . import session
-from .engine.devices.cli_commands import discover
-from .engine.devices.live import DeviceSet
+from .engine.devices.cli_commands import hid_devices
+from .engine.devices.discovery import find_devices, probe_ports
+from .engine.devices.live import DeviceSet, free_fingers
 
-_discovered: list = []
+# What Find Devices found: Grasp Lab devices (their hello and port), SpaceMice, and how many
+# ports it asked (None: not run yet).
+_discovered: dict = {"devices": [], "spacemice": [], "asked": None}
 
 
 def _is_empty(self, obj):
@@ -76,7 +79,7 @@ def connect_scene_devices(scene, world) -> DeviceSet:
     open are left out (their error is in ``failed``)."""
     devices = DeviceSet(world)
     devices.failed = {}
-    for entry in scene.grasp_lab_devices:
+    for entry in entries_in_use(scene):
         try:
             _add_entry(devices, world, entry)
         except (ConnectionError, OSError, ImportError, ValueError) as ex:
@@ -97,30 +100,87 @@ def status_lines(devices) -> list:
     return lines
 
 
+def scene_finger_count(context) -> int:
+    return sum(1 for o in context.view_layer.objects if o.grasp_lab.role == "FINGER")
+
+
+def _taken(entries) -> list:
+    return [(e.finger_offset, 5 if e.kind == "OPENGLOVES" else e.num_fingers) for e in entries]
+
+
+def hello_fingers(ports) -> dict:
+    """Finger count per port from the devices' hello (ports that do not answer are left out)."""
+    return {r["port"]: r["hello"]["n_fingers"] for r in probe_ports(ports) if r["status"] == "grasp_lab"} \
+        if ports else {}
+
+
+def entries_in_use(scene) -> list:
+    """The device list's entries a live session connects: those with a port (a SpaceMouse's
+    may be empty: the first one). An entry a scene declares without a port (the library's
+    two_people_box: a port is the machine's, not the file's) waits for one; its fingers follow
+    their animation meanwhile."""
+    return [e for e in scene.grasp_lab_devices if e.port or e.kind == "SPACEMOUSE"]
+
+
+def waiting_entry(entries, kind: str, first=None):
+    """The first entry of ``kind`` waiting for a port (at finger ``first`` when given), or None
+    (a SpaceMouse without a path takes the first one: it never waits)."""
+    for i, e in enumerate(entries):
+        if e.kind == kind != "SPACEMOUSE" and not e.port and (first is None or e.finger_offset == first):
+            return i
+    return None
+
+
 def add_device_specs(context, specs) -> list:
-    """``--device`` specs (``serial:PORT[@FIRST]``, ``spacemouse[:PATH]``, ``opengloves:PORT``)
-    appended to the scene's device list; a spec without ``@FIRST`` takes the fingers after
-    the list's last device. Returns the entries' indices (``remove_entries`` takes them out)."""
+    """``--device`` specs (``serial:PORT[@FIRST]``, ``udp:HOST:PORT[@FIRST]``, ``spacemouse[:PATH]``,
+    ``opengloves:PORT``) into the scene's device list: a spec gives its port to the first entry
+    of its kind the scene declares without one (at FIRST, with ``@FIRST``), or is appended. An
+    appended serial device drives as many fingers as its hello says (asked here), from FIRST
+    or else from the first free finger on (``free_fingers``); a device that does not answer
+    yet, a UDP device and a SpaceMouse drive the free fingers from there on. A filled entry
+    keeps the scene's fingers (fewer when the hello says fewer). Returns what
+    ``remove_entries`` takes to put the list back as it was."""
     from .engine.devices.cli_commands import parse_device_spec
     entries = context.scene.grasp_lab_devices
-    n_fingers = sum(1 for o in context.view_layer.objects if o.grasp_lab.role == "FINGER")
-    first = max((e.finger_offset + e.num_fingers for e in entries), default=0)
+    n_fingers = scene_finger_count(context)
     parsed = [(spec, parse_device_spec(spec)) for spec in specs]     # all checked before any is added
-    added = []
+    counts = hello_fingers([d["port"] for _, d in parsed if d["kind"] == "serial"])
+    changed = []
     for spec, d in parsed:
+        kind = d["kind"].upper()
+        first = d["finger_offset"] if "@" in spec else None
+        wanted = 5 if kind == "OPENGLOVES" else counts.get(d.get("port"))
+        port = d.get("port") or d.get("path") or ""
+        declared = waiting_entry(entries, kind, first) if port else None
+        if declared is not None:
+            entry = entries[declared]
+            changed.append((declared, entry.num_fingers))
+            entry.port = port
+            entry.num_fingers = min(entry.num_fingers, wanted or entry.num_fingers)
+            continue
+        try:
+            first, count = free_fingers(_taken(entries), n_fingers, wanted or max(1, n_fingers), first)
+        except ValueError:
+            # No free finger there: the entry as asked; the session names the device that cannot drive.
+            first = first if first is not None else max((a + n for a, n in _taken(entries)), default=0)
+            count = wanted or max(1, n_fingers - first)
         entry = entries.add()
-        entry.kind = d["kind"].upper()
-        entry.port = d.get("port") or d.get("path") or ""
-        entry.finger_offset = d["finger_offset"] if "@" in spec else first
-        entry.num_fingers = 5 if entry.kind == "OPENGLOVES" else max(1, n_fingers - entry.finger_offset)
-        first = entry.finger_offset + entry.num_fingers
-        added.append(len(entries) - 1)
-    return added
+        entry.kind = kind
+        entry.port = port
+        entry.finger_offset, entry.num_fingers = first, count
+        changed.append((len(entries) - 1, None))
+    return changed
 
 
-def remove_entries(context, indices) -> None:
-    for i in sorted(indices, reverse=True):
-        context.scene.grasp_lab_devices.remove(i)
+def remove_entries(context, changed) -> None:
+    """Undo ``add_device_specs``: appended entries removed, declared entries without a port again
+    (with the scene's finger count)."""
+    entries = context.scene.grasp_lab_devices
+    for i, declared_fingers in sorted(changed, key=lambda c: c[0], reverse=True):
+        if declared_fingers is None:
+            entries.remove(i)
+        else:
+            entries[i].port, entries[i].num_fingers = "", declared_fingers
 
 
 def run_realtime(context, duration: float, device_specs=(), forces: bool = False, record_path=None):
@@ -162,32 +222,65 @@ def _active_devices():
 class GRASPLAB_OT_devices_refresh(bpy.types.Operator):
     bl_idname = "grasp_lab.devices_refresh"
     bl_label = "Find Devices"
-    bl_description = "List serial ports and SpaceMice"
+    bl_description = ("Say hello on USB serial ports and on raw pseudo-terminals (a device emulator's) and "
+                      "list the Grasp Lab devices that answer, and SpaceMice")
 
     def execute(self, context):
-        _discovered[:] = discover()
-        self.report({"INFO"}, f"{len(_discovered)} ports and HID devices")
+        devices, probed = find_devices()
+        _discovered["devices"] = devices
+        _discovered["spacemice"] = hid_devices()
+        _discovered["asked"] = len(probed)
+        self.report({"INFO"}, f"{len(devices)} Grasp Lab device{'s' * (len(devices) != 1)} "
+                              f"({len(probed)} port{'s' * (len(probed) != 1)} asked), "
+                              f"{len(_discovered['spacemice'])} SpaceMice")
         return {"FINISHED"}
 
 
 class GRASPLAB_OT_device_add(bpy.types.Operator):
     bl_idname = "grasp_lab.device_add"
     bl_label = "Add Device"
-    bl_description = "Add a serial device with a workspace frame (an Empty at the 3D cursor)"
+    bl_description = ("Add a device with a workspace frame (an Empty at the 3D cursor), on the fingers no other "
+                      "device drives")
     bl_options = {"REGISTER", "UNDO"}
     port: StringProperty(name="Port")
     kind: EnumProperty(name="Kind", items=KIND_ITEMS, default="SERIAL")
+    fingers: IntProperty(name="Fingers", default=0, min=0, max=32,
+                         description="The device's finger count (0: ask a serial device for its hello)")
 
     def execute(self, context):
         scene = context.scene
         entries = scene.grasp_lab_devices
+        wanted = self.fingers or (5 if self.kind == "OPENGLOVES" else None)
+        if wanted is None and self.kind == "SERIAL" and self.port:
+            wanted = hello_fingers([self.port]).get(self.port)
+        declared = waiting_entry(entries, self.kind) if self.port else None
+        if declared is not None:
+            # The scene declares this device (its fingers, its workspace frame): it gets the port.
+            entry = entries[declared]
+            entry.port = self.port
+            entry.num_fingers = min(entry.num_fingers, wanted or entry.num_fingers)
+            scene.grasp_lab_device_index = declared
+            self.report({"INFO"}, f"{self.port}: device {declared + 1} of the scene, fingers "
+                                  f"{entry.finger_offset}..{entry.finger_offset + entry.num_fingers - 1}")
+            return {"FINISHED"}
+        n_fingers = scene_finger_count(context)
+        try:
+            # Without a hello (typed in later, a SpaceMouse): every free finger from the first free one.
+            first, count = free_fingers(_taken(entries), n_fingers, wanted or max(1, n_fingers))
+        except ValueError as ex:
+            # Added all the same (fingers may come later), after the driven ones; a session
+            # started before the scene has them says which device has none.
+            first = max((a + n for a, n in _taken(entries)), default=0)
+            count = wanted or 1
+            self.report({"WARNING"}, f"Add Device: {ex}; it drives fingers {first}..{first + count - 1} "
+                                     f"once the scene has them")
         entry = entries.add()
         entry.kind = self.kind
         entry.port = self.port
-        entry.finger_offset = sum(e.num_fingers for e in list(entries)[:-1])
-        # A glove has five; another device drives the scene's fingers no device has yet.
-        n_fingers = sum(1 for o in context.view_layer.objects if o.grasp_lab.role == "FINGER")
-        entry.num_fingers = 5 if self.kind == "OPENGLOVES" else min(32, max(1, n_fingers - entry.finger_offset))
+        entry.finger_offset, entry.num_fingers = first, count
+        if wanted and count < wanted:
+            self.report({"WARNING"}, f"{self.port or self.kind.lower()} has {wanted} fingers; only {count} of the "
+                                     f"scene's are free: it drives fingers {first}..{first + count - 1}")
         frame = bpy.data.objects.new(f"Device Frame {len(entries)}", None)
         frame.empty_display_type = "ARROWS"
         frame.empty_display_size = 0.05
@@ -261,14 +354,20 @@ class GRASPLAB_PT_devices(bpy.types.Panel):
         row.operator("grasp_lab.devices_refresh", icon="FILE_REFRESH")
         # A device by its port (an emulator's pseudo-terminal, a UDP address): typed in its entry.
         row.operator("grasp_lab.device_add", text="Add Device", icon="ADD").port = ""
-        for d in _discovered:
+        for d in _discovered["devices"]:
+            col = layout.column(align=True)      # two short lines: the sidebar never cuts them
+            row = col.row()
+            row.label(text=d["name"] or "Grasp Lab device", icon="LINKED")
+            op = row.operator("grasp_lab.device_add", text="", icon="ADD")
+            op.port, op.kind, op.fingers = d["port"], "SERIAL", d["n_fingers"]
+            col.label(text=f"{d['n_fingers']} finger{'s' * (d['n_fingers'] != 1)}, {d['port']}", icon="BLANK1")
+        for d in _discovered["spacemice"]:
             row = layout.row()
-            where = d.get("port") or d.get("path")
-            row.label(text=f"{d['kind']}: {where} {d.get('description') or ''}")
-            if d["kind"] in ("serial", "spacemouse"):
-                op = row.operator("grasp_lab.device_add", text="", icon="ADD")
-                op.port = where
-                op.kind = "SERIAL" if d["kind"] == "serial" else "SPACEMOUSE"
+            row.label(text=f"SpaceMouse: {d.get('description') or d['path']}", icon="ORIENTATION_GIMBAL")
+            op = row.operator("grasp_lab.device_add", text="", icon="ADD")
+            op.port, op.kind = d["path"], "SPACEMOUSE"
+        if _discovered["asked"] is not None and not _discovered["devices"] and not _discovered["spacemice"]:
+            layout.label(text=f"No device answered ({_discovered['asked']} ports asked)", icon="INFO")
         for i, entry in enumerate(context.scene.grasp_lab_devices):
             box = layout.box()
             row = box.row()
@@ -281,6 +380,8 @@ class GRASPLAB_PT_devices(bpy.types.Panel):
             row.prop(entry, "finger_offset")
             row.prop(entry, "num_fingers")
             box.prop(entry, "frame")
+            if not entry.port and entry.kind != "SPACEMOUSE":
+                box.label(text="Waiting for a port (Find Devices)", icon="INFO")
         devices = _active_devices()
         if devices is not None:
             col = layout.column()

@@ -106,7 +106,8 @@ class BlenderSession:
         self.threaded = live and prefs.use_runtime
         # Devices drive their fingers from the core's own threads (docs/devices.md), whatever
         # those fingers' animation says; the animation drives the fingers no device drives.
-        entries = list(getattr(scene, "grasp_lab_devices", ()))
+        from .devices_ui import entries_in_use
+        entries = entries_in_use(scene)
         use_devices = self.threaded and len(entries) > 0
         self.driven_by = np.full(len(finger_objs), -1)      # finger -> index of the device entry
         self.device_labels, self.device_kinds = [], []
@@ -165,6 +166,7 @@ class BlenderSession:
         for i in self.dynamic:
             p = snap.poses[i]
             self.objects[i].matrix_world = self.links[i].matrix_world(p[:3], p[3:])
+        self.follow_devices(snap)
         grasps = self.monitor.update(snap)
         if self.display is not None:
             s = self.settings
@@ -183,6 +185,16 @@ class BlenderSession:
                 fr, vals = self._baked.setdefault(obj.name, ([], []))
                 fr.append(frame)
                 vals.append(anim.read_transform(obj))
+
+    def follow_devices(self, snap):
+        """The Finger objects a device drives go where the device has the fingertip (its HIP),
+        turning as they were: the viewport shows the device's hand, not where the fingers stood
+        (docs/devices.md, In Blender)."""
+        for i in np.flatnonzero(self.driven_by >= 0):
+            obj = self.finger_objects[i]
+            m = obj.matrix_world.copy()
+            m.translation = snap.hips[i]
+            obj.matrix_world = m
 
     def advance_frame(self, frame):
         """EXEC path: advance to the time of ``frame`` and apply."""

@@ -481,6 +481,38 @@ def scene(name) -> Scene:
     return SCENES[name]()
 
 
+# --------------------------------------------------------------------------- devices
+
+# Scenes that several devices drive, each one person's (or one hand's) fingers: the Finger
+# groups, a device each. ``build`` declares them in the scene's device list without a port (a
+# port is the machine's, not the file's); ``grasp-lab run --device`` and Find Devices' + give them
+# theirs, and meanwhile their fingers follow the animation. Each device's workspace frame is the
+# world's, so an emulator playing its group's fingertips of the file
+# (``grasp-lab emulate --pty --from SCENE.blend --first K --fingers N``) drives them as animated.
+DEVICES = {"two_people_box": ("A", "B")}
+
+
+def device_fingers(sc: Scene, group: str) -> tuple:
+    """(first channel, count) of a group's fingers: consecutive channels, as a device drives them."""
+    channels = [i for i, f in enumerate(sc.fingers) if f.group == group]
+    if not channels or channels != list(range(channels[0], channels[0] + len(channels))):
+        raise ValueError(f"{sc.name}: the fingers of {group!r} must be consecutive, got channels {channels}")
+    return channels[0], len(channels)
+
+
+def _add_devices(bpy, sc: Scene) -> None:
+    bscene = bpy.context.scene
+    for group in DEVICES.get(sc.name, ()):
+        first, count = device_fingers(sc, group)
+        frame = bpy.data.objects.new(f"Device {group} frame", None)
+        frame.empty_display_type = "ARROWS"
+        frame.empty_display_size = 0.05
+        bscene.collection.objects.link(frame)
+        entry = bscene.grasp_lab_devices.add()
+        entry.kind, entry.port = "SERIAL", ""
+        entry.finger_offset, entry.num_fingers, entry.frame = first, count, frame
+
+
 # --------------------------------------------------------------------------- meshes
 
 def _shape_geometry(shape):
@@ -583,6 +615,7 @@ def build(bpy, name):
             obj.location = finger_position(f, key)
             obj.keyframe_insert("location", frame=key.frame)
         _set_interpolation(bpy, obj, sc.interpolation)
+    _add_devices(bpy, sc)
     _add_view(bpy, sc)
     bscene.frame_set(bscene.frame_start)
     return sc

@@ -128,8 +128,10 @@ def test_headless_realtime_run_with_a_device(bpy, sample, core, tmp_path):
         assert len(bpy.context.scene.grasp_lab_devices) == 0      # nothing added when a spec is wrong
         added = devices_ui.add_device_specs(bpy.context, ["serial:/dev/null@1", "spacemouse", "opengloves:/dev/x"])
         entries = bpy.context.scene.grasp_lab_devices
+        # /dev/null says no hello: the free fingers from 1 on; the SpaceMouse takes the free finger 0;
+        # the glove has five and none is free: asked after the others (the session says it cannot drive).
         assert [(e.kind, e.port, e.finger_offset, e.num_fingers) for e in entries] == [
-            ("SERIAL", "/dev/null", 1, 1), ("SPACEMOUSE", "", 2, 1), ("OPENGLOVES", "/dev/x", 3, 5)]
+            ("SERIAL", "/dev/null", 1, 1), ("SPACEMOUSE", "", 0, 1), ("OPENGLOVES", "/dev/x", 2, 5)]
         devices_ui.remove_entries(bpy.context, added)
         assert len(entries) == 0
     finally:
@@ -320,3 +322,96 @@ def test_a_device_that_only_sends_garbage_is_an_error(bpy, sample, core, tmp_pat
     assert len(line) == 1 and line[0].startswith(f"grasp-lab run: device {port}") and "frames dropped" in line[0], r.stderr
     assert int(line[0].split("(")[1].split()[0]) > 0        # the noise was dropped and counted
     assert rec.exists()                                     # the session's recording is finished
+
+
+def test_a_found_device_brings_its_finger_count_and_its_fingers_follow_it(bpy, sample, core):
+    """Find Devices lists the emulator by its hello; + adds it with the hello's finger count on
+    the fingers no device drives; in a live session the Finger objects it drives go where it
+    has them (not only the HIP markers), and stay there when the session ends."""
+    session = grasp_env.submodule("session")
+    devices_ui = grasp_env.submodule("devices_ui")
+    box = sample.build(bpy)
+    extra = bpy.data.objects.new("Finger 2", None)          # a third fingertip: a 3-finger scene
+    bpy.context.scene.collection.objects.link(extra)
+    extra.location = (0.0, 0.3, 0.2)
+    extra.grasp_lab.role = "FINGER"
+    extra.grasp_lab.channel = 2
+    tips = [bpy.data.objects[f"Finger {i}"] for i in (0, 1)]
+    for tip in tips:                                          # the device has them, not their keys
+        tip.animation_data_clear()
+    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--motion", "lift",
+                            "--fingers", "2"], cwd=grasp_env.ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                           text=True)
+    try:
+        port = emu.stdout.readline().split()[1]
+        assert bpy.ops.grasp_lab.devices_refresh() == {"FINISHED"}
+        found = [d for d in devices_ui._discovered["devices"] if d["port"] == port]
+        assert [(d["name"], d["n_fingers"]) for d in found] == [("grasp-lab-emulator", 2)], devices_ui._discovered
+        bpy.context.scene.cursor.location = box.matrix_world.translation
+        # What the panel's + does: the port and the hello's count.
+        assert bpy.ops.grasp_lab.device_add(port=port, fingers=found[0]["n_fingers"]) == {"FINISHED"}
+        # Typed in (no count given): the hello is asked for; the device takes the free fingers.
+        entries = bpy.context.scene.grasp_lab_devices
+        assert [(e.finger_offset, e.num_fingers) for e in entries] == [(0, 2)]
+        entries.clear()
+        assert bpy.ops.grasp_lab.device_add(port=port) == {"FINISHED"}
+        assert [(e.port, e.finger_offset, e.num_fingers) for e in entries] == [(port, 0, 2)]
+        start = [tuple(t.matrix_world.translation) for t in tips]
+        s = session.BlenderSession(bpy.context, live=True, duration=10.0)
+        try:
+            t0 = time.perf_counter()
+            while time.perf_counter() - t0 < 2.0:
+                s.tick(time.perf_counter() - t0)
+                time.sleep(0.02)
+            hips = s.snapshot.hips
+            # The emulator's lift about the workspace frame at the box: 3 cm out, 5 cm up by now.
+            frame = np.array(entries[0].frame.matrix_world.translation)
+            np.testing.assert_allclose(np.abs(hips[:2, 0] - frame[0]), 0.03, atol=2e-3)
+            np.testing.assert_allclose(hips[:2, 2] - frame[2], 0.05, atol=2e-3)
+            for i, tip in enumerate(tips):
+                np.testing.assert_allclose(tip.matrix_world.translation, hips[i], atol=1e-6)
+            np.testing.assert_allclose(extra.matrix_world.translation, (0.0, 0.3, 0.2))   # no device: stays
+        finally:
+            s.finish()
+        for i, tip in enumerate(tips):          # where the device left them, not where they started
+            np.testing.assert_allclose(tip.matrix_world.translation, hips[i], atol=2e-3)
+            assert np.linalg.norm(np.array(tip.matrix_world.translation) - start[i]) > 0.02
+        # A second device finds no free run of 2: it gets the one free finger, and says so.
+        assert bpy.ops.grasp_lab.device_add(port=port, fingers=2) == {"FINISHED"}
+        assert [(e.finger_offset, e.num_fingers) for e in entries] == [(0, 2), (2, 1)]
+        # None free: added after them all the same (fingers may come later), with a warning.
+        assert bpy.ops.grasp_lab.device_add(port=port, fingers=1) == {"FINISHED"}
+        assert [(e.finger_offset, e.num_fingers) for e in entries] == [(0, 2), (2, 1), (3, 1)]
+    finally:
+        emu.kill()
+        emu.wait()
+
+
+def test_a_device_the_scene_declares_without_a_port_waits_for_one(bpy, sample, core):
+    """An entry without a port (a scene's declared device) is not connected: its fingers play
+    their animation; Find Devices' + and a --device spec give it a port (and fewer fingers when
+    the device's hello says fewer); after the run the entry is as the file had it."""
+    session = grasp_env.submodule("session")
+    devices_ui = grasp_env.submodule("devices_ui")
+    sample.build(bpy)
+    entries = bpy.context.scene.grasp_lab_devices
+    entry = entries.add()
+    entry.kind, entry.port, entry.finger_offset, entry.num_fingers = "SERIAL", "", 0, 2
+    s = session.BlenderSession(bpy.context, live=True, duration=2.0)
+    try:
+        assert s.devices is None and s.source.script() is not None      # the animation drives them
+    finally:
+        s.finish()
+    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--fingers", "1"],
+                           cwd=grasp_env.ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        port = emu.stdout.readline().split()[1]
+        changed = devices_ui.add_device_specs(bpy.context, [f"serial:{port}"])
+        assert [(e.port, e.finger_offset, e.num_fingers) for e in entries] == [(port, 0, 1)]   # its hello: 1
+        devices_ui.remove_entries(bpy.context, changed)
+        assert [(e.port, e.finger_offset, e.num_fingers) for e in entries] == [("", 0, 2)]
+        assert bpy.ops.grasp_lab.device_add(port=port, fingers=1) == {"FINISHED"}             # the panel's +
+        assert [(e.port, e.finger_offset, e.num_fingers) for e in entries] == [(port, 0, 1)]
+    finally:
+        emu.kill()
+        emu.wait()

@@ -49,6 +49,8 @@ def test_emulate_rejects_bad_arguments():
     assert out.returncode != 0 and "--fingers: 40 outside 1..32" in out.stderr
     out = run_cli("emulate", "--pty", "--motion", "dance")
     assert out.returncode != 0 and "invalid choice: 'dance'" in out.stderr
+    out = run_cli("emulate", "--pty", "--first", "2")
+    assert out.returncode != 0 and "--first: only with --from" in out.stderr
     out = run_cli("emulate", "--pty", "--wait", "0.2")
     assert out.returncode == 2 and "no hello from the host within 0.2 s" in out.stderr
 

@@ -154,9 +154,10 @@ def test_device_set_one_of_two_unplugged_the_other_holds_on():
     left, right = Emulator("--fingers", "2", "--motion", "grip"), Emulator("--fingers", "2", "--motion", "grip")
     devices = DeviceSet(world, retry=0.05)
     try:
-        devices.add_specs([f"serial:{left.port}", f"serial:{right.port}"], fingers_per_device=[2, 2],
+        # Each takes as many fingers as its hello says (2 of the world's 4), the second after the first.
+        devices.add_specs([f"serial:{left.port}", f"serial:{right.port}"],
                           frames=[translation(-0.2), translation(0.2)])
-        assert [d.finger_offset for d in devices.devices] == [0, 2]
+        assert [(d.finger_offset, d.num_fingers) for d in devices.devices] == [(0, 2), (2, 2)]
         assert not DeviceInput(4).interactive and DeviceInput(4).script() is None
         wait_for(lambda: all(d.stats()["poses"] > 800 for d in devices.devices), 15, "both streaming")
         assert all(s["state"] == "streaming" and s["rate_hz"] > 250 for s in devices.status())

@@ -50,3 +50,26 @@ def test_device_event_details_say_what_the_value_means():
     assert "pose status" in device_event_detail("estop", 256)
     assert "reason 7" in device_event_detail("estop", 7)
     assert device_event_detail("enabled", 0).startswith("forces off")
+
+
+def test_free_fingers_puts_a_new_device_on_the_fingers_no_device_drives():
+    from addon.engine.devices.live import free_fingers
+    # A device's hello says how many fingers it has; it goes on the first run of free ones.
+    assert free_fingers([], 3, 2) == (0, 2)
+    assert free_fingers([(0, 2)], 4, 2) == (2, 2)
+    assert free_fingers([(1, 1)], 5, 2) == (2, 2)           # finger 0 alone is too short a run
+    assert free_fingers([(0, 3)], 6, 3) == (3, 3)
+    # Fewer free fingers than it has: the first free one and those after it (it drives its first ones).
+    assert free_fingers([(0, 2)], 3, 2) == (2, 1)
+    assert free_fingers([(1, 2)], 4, 5) == (0, 1)
+    # Asked for at a finger (serial:PORT@FIRST).
+    assert free_fingers([], 4, 2, first=1) == (1, 2)
+    assert free_fingers([(3, 1)], 4, 2, first=2) == (2, 1)
+    with pytest.raises(ValueError, match="no free finger: another device drives every finger of the scene"):
+        free_fingers([(0, 2), (2, 1)], 3, 1)
+    with pytest.raises(ValueError, match=r"finger 1: another device drives it already"):
+        free_fingers([(0, 2)], 3, 1, first=1)
+    with pytest.raises(ValueError, match=r"finger 4: the scene has fingers 0\.\.2"):
+        free_fingers([], 3, 1, first=4)
+    with pytest.raises(ValueError, match="the scene has no fingers"):
+        free_fingers([], 0, 2)

@@ -812,6 +812,65 @@ def scenario_device():
     RESULT["device_events"] = [e[2] for e in last_result().stats["device_events"]]
 
 
+def scenario_find_devices():
+    """Find Devices as a person uses it, with an emulator running (started by the test, its
+    pty in GRASP_LAB_GUI_DEVICE_PORT): the sidebar scrolled to the Devices panel, a click on
+    Find Devices; a row appears below it with the device's name and a + button, and a line with
+    its finger count and port (text pixels in both, each line narrower than the sidebar in the
+    interface font); a click on that + adds the device with the fingers of its hello."""
+    import blf
+    port = os.environ["GRASP_LAB_GUI_DEVICE_PORT"]
+    setup_scene(animated=False)
+    yield from open_grasp_tab()
+    area, win_region, ui = view3d()
+    hover(ui, ui.width / 2, ui.height / 2)
+    xdo("click", "--repeat", "15", "5")             # scrolled down to the Devices panel
+    yield 1.5
+    devices_ui = ext("devices_ui")
+    rows = find_buttons(ui, "before_find")
+    x0, x1, y_find = rows[-1]                       # the panel's last row: Find Devices | Add Device
+    yield from click_button(ui, len(rows) - 1, part=0, parts=2)
+    yield from wait_until(lambda: devices_ui._discovered["asked"] is not None, 10, "Find Devices to answer")
+    RESULT["discovered"] = devices_ui._discovered["devices"]
+    RESULT["asked"] = devices_ui._discovered["asked"]
+    yield 1.5                                       # redrawn with the list
+    area, win_region, ui = view3d()
+    theme = bpy.context.preferences.themes[0].user_interface
+    px = region_pixels(pixels(screenshot("after_find")), ui)[..., :3]
+    button = np.all(np.abs(px - np.array(theme.wcol_tool.inner[:3])) < 6 / 255, axis=2)
+    text = px.min(axis=2) > 0.75                    # the interface's light text
+    right = int(0.8 * ui.width)
+    has_button = [button[r, right:].sum() >= 8 for r in range(ui.height)]
+    r = int(ui.height - y_find)                     # the Find Devices row (Add Device at its right)
+    while r < ui.height and has_button[r]:
+        r += 1
+    band = [k for k in range(r, min(r + 120, ui.height)) if has_button[k]]
+    if not band:
+        raise AssertionError("no + button appeared under Find Devices")
+    plus_rows = [k for k in band if k - band[0] < 30]
+    plus_rows = plus_rows[:next((i for i in range(1, len(plus_rows)) if plus_rows[i] != plus_rows[i - 1] + 1),
+                               len(plus_rows))]
+    cy = (plus_rows[0] + plus_rows[-1]) / 2
+    cols = np.nonzero(button[plus_rows[0]:plus_rows[-1] + 1, right:].any(axis=0))[0] + right
+    cx = (cols[0] + cols[-1]) / 2
+    line_h = int(plus_rows[-1] - plus_rows[0] + 1)
+    name_row = text[plus_rows[0]:plus_rows[-1] + 1, :right]
+    count_row = text[plus_rows[-1] + 1:plus_rows[-1] + 1 + line_h + 4, :right]
+    RESULT["plus_button"] = [float(cx), float(ui.height - cy)]
+    RESULT["text_pixels"] = {"name_line": int(name_row.sum()), "count_line": int(count_row.sum())}
+    prefs = bpy.context.preferences
+    blf.size(0, prefs.ui_styles[0].widget.points * prefs.system.ui_scale)
+    found = [d for d in devices_ui._discovered["devices"] if d["port"] == port]
+    lines = [found[0]["name"], f"{found[0]['n_fingers']} fingers, {port}"] if found else []
+    RESULT["lines"] = {"region_width": ui.width, "text": lines, "text_px": [blf.dimensions(0, x)[0] for x in lines]}
+    docs_picture("find_devices", crop="sidebar")
+    yield from click_at(ui, cx, ui.height - cy)     # the device's +
+    yield 0.5
+    RESULT["entries"] = [(e.kind, e.port, e.finger_offset, e.num_fingers)
+                         for e in bpy.context.scene.grasp_lab_devices]
+    screenshot("after_add")
+
+
 def docs_picture(name, crop="window"):
     """A screenshot for the README (make docs-images): the screen, and the part of it to keep
     (``window``: the 3D viewport with its sidebar and the editors below it; ``sidebar``:

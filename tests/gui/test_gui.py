@@ -178,6 +178,27 @@ def test_a_live_session_driven_by_an_emulated_device(gui):
     assert report["violations"] == dict.fromkeys(report["violations"], 0), report
 
 
+def test_find_devices_lists_the_emulator_and_its_plus_adds_it(gui):
+    """Find Devices with an emulator running: its row (name, fingers, port) on screen under
+    the button, and its + adds it with the finger count of its hello."""
+    import subprocess
+    import sys
+    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--fingers", "2"],
+                           cwd=gui_run.ROOT, stdout=subprocess.PIPE, text=True)
+    try:
+        port = emu.stdout.readline().split()[1]
+        r, console, _ = run(dict(gui, GRASP_LAB_GUI_DEVICE_PORT=port), "find_devices")
+    finally:
+        emu.kill()
+        emu.wait()
+    ok(r, console)
+    assert [(d["name"], d["n_fingers"], d["port"]) for d in r["discovered"]] == [("grasp-lab-emulator", 2, port)], \
+        r["discovered"]
+    assert r["text_pixels"]["name_line"] > 30 and r["text_pixels"]["count_line"] > 30, r["text_pixels"]
+    assert all(px < r["lines"]["region_width"] - 60 for px in r["lines"]["text_px"]), r["lines"]   # never cut
+    assert r["entries"] == [["SERIAL", port, 0, 2]], r["entries"]
+
+
 def test_the_readme_walkthrough_click_by_click(gui):
     """The README's walkthrough (the pictures of make docs-images come from this scenario):
     Add Finger beside the selected box, twice; Check with a flat plane names the fix under the

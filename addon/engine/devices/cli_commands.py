@@ -1,27 +1,16 @@
 """The ``devices`` and ``emulate`` commands of ``grasp-lab``, and ``--device`` specs for
 ``run`` (docs/devices.md). The CLI dispatcher adds them with ``add_device_commands``;
-the Blender sidebar calls the same functions (``discover``)."""
+the Blender sidebar calls the same functions (``discovery.find_devices``)."""
 from __future__ import annotations
 
 import argparse
 import json
 import sys
-import time
 
-from . import protocol as P
+from .discovery import PROBE_TIMEOUT, candidate_ports, probe_ports, serial_ports
 
 
 # ---- discovery ---------------------------------------------------------------------------
-
-def serial_ports() -> list:
-    """Serial ports pyserial sees: dicts with port, description, hwid, vid, pid."""
-    try:
-        from serial.tools import list_ports
-    except ImportError:
-        return []
-    return [{"kind": "serial", "port": p.device, "description": p.description, "hwid": p.hwid,
-             "vid": p.vid, "pid": p.pid} for p in sorted(list_ports.comports(), key=lambda p: p.device)]
-
 
 def hid_devices(spacemice_only: bool = True) -> list:
     from .spacemouse import VENDORS, enumerate_spacemice, hid_module
@@ -43,30 +32,20 @@ def hid_devices(spacemice_only: bool = True) -> list:
     return out
 
 
-def probe(port: str, timeout: float = 1.0) -> dict:
-    """Say hello on a port and return the device's capabilities (a Grasp Lab device), or
-    raise ConnectionError. Python-side and slow: for discovery, never for streaming."""
-    import serial
-    try:
-        s = serial.Serial(port, 1_000_000, timeout=0)
-    except (serial.SerialException, OSError) as e:
-        raise ConnectionError(f"{port}: cannot open ({e})") from e
-    try:
-        s.write(b"\x00" + P.encode(P.HELLO_HOST, 0, P.hello_host(0)))
-        dec, end = P.StreamDecoder(), time.monotonic() + timeout
-        while time.monotonic() < end:
-            for frame in dec.feed(s.read(4096)):
-                if frame.type == P.HELLO_DEVICE:
-                    return P.parse_hello_device(frame.payload)._asdict()
-            time.sleep(0.005)
-        raise ConnectionError(f"{port}: no Grasp Lab hello within {timeout} s "
-                              f"({dec.frames} frames, {dec.dropped} dropped)")
-    finally:
-        s.close()
-
-
-def discover(all_hid: bool = False) -> list:
-    return serial_ports() + hid_devices(spacemice_only=not all_hid)
+def discover(all_hid: bool = False, probe: bool = True, extra_ports=(), timeout: float = PROBE_TIMEOUT) -> list:
+    """Serial ports (pyserial's list and the candidate pseudo-terminals), each candidate
+    probed for the Grasp Lab hello (``grasp_lab``: its capabilities; ``probe``: what the probe
+    found), then SpaceMice (or every HID device). ``probe=False``: the lists only, no hello."""
+    listed = serial_ports()
+    found = {d["port"]: d for d in listed}
+    ports = (candidate_ports(listed) if probe else []) + [p for p in extra_ports if p]
+    for r in probe_ports(ports, timeout) if ports else []:
+        d = found.setdefault(r["port"], {"kind": "serial", "port": r["port"], "description": "pseudo-terminal"
+                                         if r["port"].startswith("/dev/pts/") else "", "vid": None, "pid": None})
+        d["probe"] = {"status": r["status"], "detail": r["detail"]}
+        if "hello" in r:
+            d["grasp_lab"] = r["hello"]
+    return list(found.values()) + hid_devices(spacemice_only=not all_hid)
 
 
 # ---- --device specs -----------------------------------------------------------------------
@@ -114,15 +93,8 @@ def parse_device_spec(spec: str) -> dict:
 
 def cmd_devices(args, out=None) -> int:
     out = out or sys.stdout
-    found = discover(all_hid=args.all_hid)
-    if args.probe:
-        for port in args.probe:
-            entry = {"kind": "serial", "port": port}
-            try:
-                entry["grasp_lab"] = probe(port, args.timeout)
-            except ConnectionError as e:
-                entry["error"] = str(e)
-            found.append(entry)
+    found = discover(all_hid=args.all_hid, probe=not args.no_probe, extra_ports=args.probe or (),
+                     timeout=args.timeout)
     if args.json:
         print(json.dumps(found, indent=1), file=out)
         return 0
@@ -136,8 +108,10 @@ def cmd_devices(args, out=None) -> int:
             g = d["grasp_lab"]
             line += (f" Grasp Lab device '{g['name']}': {g['n_fingers']} fingers, {g['rate_hz']} Hz, "
                      f"{'forces up to %.3g N' % g['force_max'] if g['renders_forces'] else 'input only'}")
-        if "error" in d:
-            line += f" ({d['error']})"
+        elif "probe" in d:
+            line += f" ({d['probe']['detail']})"
+        elif d["kind"] == "serial":
+            line += " (not probed: no USB identity; --probe PORT says hello on it)"
         print(line, file=out)
     return 0
 
@@ -148,13 +122,16 @@ def cmd_emulate(args) -> int:
 
 
 def configure_devices(p) -> None:
-    p.add_argument("--probe", action="append", metavar="PORT", help="say hello on PORT and show its capabilities")
-    p.add_argument("--timeout", type=float, default=1.0, help="seconds to wait for a probed device's hello")
+    p.add_argument("--probe", action="append", metavar="PORT",
+                   help="also say hello on PORT (a port that is not a candidate: a platform UART)")
+    p.add_argument("--no-probe", action="store_true", help="only list the ports: say hello on none")
+    p.add_argument("--timeout", type=float, default=PROBE_TIMEOUT,
+                   help=f"seconds to wait for the devices' hello (default {PROBE_TIMEOUT})")
     p.add_argument("--all-hid", action="store_true", help="list every HID device, not only SpaceMice")
     p.add_argument("--json", action="store_true", help="machine-readable output")
 
 
-DEVICES_HELP = "list serial ports and SpaceMice (and probe Grasp Lab devices)"
+DEVICES_HELP = "find Grasp Lab devices (a hello on USB serial ports and raw pseudo-terminals) and SpaceMice"
 EMULATE_HELP = "run the reference device emulator (on a pty or a port)"
 
 

@@ -1,7 +1,7 @@
 """The reference device emulator: a Grasp Lab serial device (docs/protocol.md) in software.
 
     python -m addon.engine.devices.emulator (--pty | PORT) [--fingers N]
-        [--motion NAME | --from SCENE.blend] [--rate HZ] [--duration S] [--estop-at S] [--force-log PATH]
+        [--motion NAME | --from SCENE.blend [--first K]] [--rate HZ] [--duration S] [--estop-at S] [--force-log PATH]
 
 With ``--pty`` it opens a pseudo-terminal in raw mode and prints ``PORT /dev/pts/N`` as its
 first line; the host opens that path. After the host's hello it answers with its
@@ -72,10 +72,12 @@ MOTIONS = {"static": motion_static, "grip": motion_grip, "pinch": motion_pinch, 
            "lift": motion_lift}
 
 
-def motion_from_blend(path):
-    """The fingertip animation of a Grasp Lab .blend, looped, as (motion, finger count).
-    Positions are the fingertips' world coordinates: with an identity workspace frame the
-    device replays the scene's own animation. Needs the bpy module."""
+def motion_from_blend(path, first=0, count=None):
+    """The fingertip animation of a Grasp Lab .blend, looped, as (motion, finger count): its
+    fingertips in channel order from the ``first`` on, ``count`` of them (default: the rest;
+    one person's hand of a scene several devices drive). Positions are the fingertips' world
+    coordinates: with an identity workspace frame the device replays the scene's own
+    animation. Needs the bpy module."""
     try:
         import bpy
     except ImportError as e:
@@ -93,6 +95,12 @@ def motion_from_blend(path):
     finally:
         os.dup2(saved, 1)
         os.close(saved)
+    have = len(positions[0])
+    count = have - first if count is None else count
+    if not (0 <= first < have and 1 <= count <= have - first):
+        raise SystemExit(f"--from {path}: fingertips {first}..{first + count - 1} asked for, the scene has "
+                         f"{have} (channels in order: 0..{have - 1})")
+    positions = [p[first:first + count] for p in positions]
     track = SampledTrajectory(times, positions)
     period = max(track.duration, 1e-9)
     return (lambda t, n: [tuple(p) for p in track.hips_at(t % period)]), track.n_fingers
@@ -129,6 +137,8 @@ def _sample_fingertips(scene):
 
 
 # ---- the device -------------------------------------------------------------------------
+
+HOST_SILENCE = 0.3      # s without an answer to a pose: the host is not streaming with this device
 
 class ForceChecker:
     """Every force frame against the device's rules; counts what broke them."""
@@ -197,7 +207,8 @@ class Emulator:
         self.poses_sent = 0
         self.write_errors = 0
         self.stop = False
-        self.started = None
+        self.started = None         # the host's conversation started (see _on_frame)
+        self.last_answer = None     # when the host last answered a pose (a force frame)
         self.estop_at = estop_at    # s into streaming: the stop button (None: never)
         self.estop_sent_at = None
         self.forces_after_estop = 0     # force frames with a non-zero force after the button, before ENABLE(1)
@@ -242,12 +253,19 @@ class Emulator:
             self.write_errors += 1
 
     def _on_frame(self, frame, now):
+        # A hello starts a new conversation, and the motion, --estop-at and --duration count from
+        # there, unless the host has answered a pose within HOST_SILENCE: a host that streams
+        # answers every pose, and re-says hello only while it waits for poses that stopped. A
+        # Find Devices probe never answers poses: the session after it sees the motion from its start.
+        new_conversation = self.last_answer is None or now - self.last_answer > HOST_SILENCE
+        if frame.type == P.FORCE:
+            self.last_answer = now
         if frame.type == P.HELLO_HOST:
             self.host_hellos += 1       # a (re)started host: forces off until it enables them again
             self.enabled = False
             self.rendered = [(0.0, 0.0, 0.0)] * self.n
             self._send(P.HELLO_DEVICE, self.hello)
-            if self.started is None:
+            if new_conversation:
                 self.started = now
         elif frame.type == P.ENABLE:
             self.enabled = P.parse_u8(frame.payload) == 1   # any other value is off; ENABLE(1) clears an e-stop
@@ -392,7 +410,11 @@ def build_parser(parser=None):
     what = p.add_mutually_exclusive_group()
     what.add_argument("--motion", default="grip", choices=sorted(MOTIONS), help="named demo motion (default grip)")
     what.add_argument("--from", dest="from_blend", metavar="SCENE.blend", help="play the fingertip animation of a .blend")
-    p.add_argument("--fingers", type=int, default=2, help="fingertips (default 2)")
+    p.add_argument("--fingers", type=int, default=None,
+                   help="fingertips (default 2; with --from, the scene's from --first on)")
+    p.add_argument("--first", type=int, default=0, metavar="K",
+                   help="with --from: play the scene's fingertips from the Kth (in channel order, from 0) on: "
+                        "one of several devices of a scene")
     p.add_argument("--rate", type=float, default=1000.0, help="pose rate, Hz (default 1000)")
     p.add_argument("--duration", type=float, default=None, help="stop after this many seconds of streaming")
     p.add_argument("--force-max", type=float, default=5.0, help="the device's force limit, N per finger (default 5)")
@@ -411,13 +433,21 @@ def build_parser(parser=None):
 
 def main(argv=None, args=None):
     args = args or build_parser().parse_args(argv)
-    if not 1 <= args.fingers <= P.MAX_FINGERS:
+    if args.fingers is not None and not 1 <= args.fingers <= P.MAX_FINGERS:
         raise SystemExit(f"--fingers: {args.fingers} outside 1..{P.MAX_FINGERS}")
     if not 1.0 <= args.rate <= 10000.0:
         raise SystemExit(f"--rate: {args.rate} Hz outside 1..10000")
-    motion, n = MOTIONS[args.motion], args.fingers
+    if args.first and not args.from_blend:
+        raise SystemExit("--first: only with --from (a named motion has no fingers of a scene to choose from)")
+    motion, n, name = MOTIONS[args.motion], args.fingers or 2, "grasp-lab-emulator"
     if args.from_blend:
-        motion, n = motion_from_blend(args.from_blend)
+        motion, n = motion_from_blend(args.from_blend, args.first, args.fingers)
+        # Named after what it plays, so that Find Devices tells two emulators of a scene apart.
+        scene = os.path.splitext(os.path.basename(args.from_blend))[0]
+        suffix = f" fingers {args.first}..{args.first + n - 1}"
+        while len((scene + suffix).encode()) > P.NAME_MAX:
+            scene = scene[:-1]
+        name = scene + suffix
     serial_port = slave = udp = None
     if args.udp is not None:
         import socket
@@ -432,7 +462,8 @@ def main(argv=None, args=None):
         serial_port = serial.Serial(args.port, 115200, timeout=0)
         fd, path = serial_port.fileno(), args.port
     print(f"PORT {path}", flush=True)
-    emu = Emulator(fd, n, motion, args.rate, args.force_max, args.ttl_max, corrupt_every=args.corrupt_every,
+    emu = Emulator(fd, n, motion, args.rate, args.force_max, args.ttl_max, name=name,
+                   corrupt_every=args.corrupt_every,
                    estop_at=args.estop_at, log_forces=bool(args.force_log), udp=udp, drop_every=args.drop_every,
                    dup_every=args.dup_every, reorder_every=args.reorder_every)
 

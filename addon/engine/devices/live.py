@@ -38,6 +38,34 @@ def device_fingers(devices, n_fingers: int, finger_names=None) -> np.ndarray:
     return owner
 
 
+def free_fingers(taken, n_fingers: int, wanted: int, first: int | None = None) -> tuple:
+    """Where a new device goes: (first finger, count). ``taken``: (first, count) of the devices
+    there are; ``wanted``: the fingers the device has (its hello). The first run of ``wanted``
+    free fingers (from ``first`` when given), else the first free finger with as many free
+    fingers as follow it (the device drives its first ones). ValueError when none is free."""
+    free = np.ones(int(n_fingers), dtype=bool)
+    for a, n in taken:
+        free[max(0, int(a)):max(0, int(a) + int(n))] = False
+    starts = [int(first)] if first is not None else range(int(n_fingers))
+    best = None
+    for a in starts:
+        run = 0
+        while a + run < n_fingers and free[a + run] and run < wanted:
+            run += 1
+        if run == wanted:
+            return a, run
+        if run and best is None:
+            best = (a, run)
+    if best is None:
+        if first is not None and not 0 <= first < n_fingers:
+            raise ValueError(f"finger {first}: the scene has " +
+                             (f"fingers 0..{n_fingers - 1}" if n_fingers else "no fingers"))
+        raise ValueError(f"finger {first}: another device drives it already" if first is not None else
+                         "no free finger: another device drives every finger of the scene" if n_fingers else
+                         "the scene has no fingers (give objects the role Finger)")
+    return best
+
+
 def without_fingers(script, driven):
     """A scripted track ``(times, positions, mask[, orientations])`` minus the fingers ``driven``
     (a bool mask): a device drives its fingers whatever their animation says. None when nothing
@@ -147,21 +175,33 @@ class DeviceSet:
         return dev
 
     def add_specs(self, specs, fingers_per_device=None, frames=None, **limits) -> None:
-        """``--device`` specs (serial:PORT[@FIRST]) in order; a spec without @FIRST takes the
-        fingers after the previous device's. ``frames``: optional 4x4 per spec."""
+        """``--device`` specs (serial:PORT[@FIRST]) in order. A device drives
+        ``fingers_per_device[i]`` fingers, else as many as its hello says (asked here), else
+        (no answer) every free finger from there on; from FIRST, else from the first finger no
+        device drives (``free_fingers``). ``frames``: optional 4x4 per spec."""
+        from .discovery import probe_ports
         n_world = self.world.finger_count
-        next_first = 0
-        for i, spec in enumerate(specs):
+        parsed = []
+        for spec in specs:
             d = parse_device_spec(spec)
             if d["kind"] != "serial":
                 raise ValueError(f"--device {spec!r}: only serial devices drive a runtime session from the "
                                  f"command line (SpaceMouse and OpenGloves are input sources)")
-            first = d["finger_offset"] if "@" in spec else next_first
-            count = fingers_per_device[i] if fingers_per_device else max(1, n_world - first)
-            if first + count > n_world:
-                raise ValueError(f"--device {spec!r}: fingers {first}..{first + count - 1}, the scene has {n_world}")
+            parsed.append((spec, d))
+        hellos = {} if fingers_per_device else {
+            r["port"]: r["hello"]["n_fingers"] for r in probe_ports([d["port"] for _, d in parsed])
+            if r["status"] == "grasp_lab"}
+        for i, (spec, d) in enumerate(parsed):
+            wanted = fingers_per_device[i] if fingers_per_device else hellos.get(d["port"], n_world)
+            taken = [(dev.finger_offset, dev.num_fingers) for dev in self.devices]
+            try:
+                first, count = free_fingers(taken, n_world, wanted, d["finger_offset"] if "@" in spec else None)
+            except ValueError as e:
+                raise ValueError(f"--device {spec!r}: {e}") from None
+            if fingers_per_device and count < wanted:
+                raise ValueError(f"--device {spec!r}: fingers {first}..{first + wanted - 1}, the scene has "
+                                 f"{n_world} and {count} of them free")
             self.add(d["port"], first, count, frames[i] if frames else None, **limits)
-            next_first = first + count
 
     def add_udp(self, host: str, port: int, finger_offset: int, num_fingers: int, transform=None,
                 label: str | None = None, **limits) -> UdpDevice:

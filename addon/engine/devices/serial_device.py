@@ -52,6 +52,9 @@ class SerialDevice:
         except (serial.SerialException, OSError) as e:
             raise ConnectionError(f"{self.port}: cannot open the port ({e})") from e
         try:
+            # Bytes from before this conversation (poses a device streamed after a Find Devices
+            # probe, to nobody) are not this session's: its first pose is a fresh one.
+            self.serial.reset_input_buffer()
             self.device_id = self.world.attach_serial(
                 self.serial.fileno(), finger_offset=self.finger_offset, num_fingers=self.num_fingers,
                 transform=self.transform, **self.limits)
