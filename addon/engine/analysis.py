@@ -64,7 +64,8 @@ def wrench_contacts(point, normal, mu, finger, patches=None, torsions=None):
     if patches is None:
         corners = np.zeros((c, 0, 2))
     else:
-        corners = np.asarray(patches, dtype=np.float64).reshape(c, -1, 2)
+        corners = np.asarray(patches, dtype=np.float64)
+        corners = corners.reshape(c, corners.shape[-2] if corners.ndim >= 2 else 0, 2)
     used = np.any(corners != 0.0, axis=-1)                  # (c, corners): a zero corner is unused
     area = used.any(axis=1)
     rows = np.where(area, used.sum(axis=1), 1)
