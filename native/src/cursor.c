@@ -285,7 +285,6 @@ void gc_cursor_finger_outputs(gcWorld *w, int32_t id) {
     gcFinger *f = &w->fingers[id];
     gcVec3 x = cursor_position(w, f), v = f->cursor_velocity;
     f->normal = gc_v3(0, 0, 0);
-    memset(f->patch, 0, sizeof f->patch);
     f->contact_body = -1;
     f->state = GC_FINGER_FREE;
     double deepest = -1.0;

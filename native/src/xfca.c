@@ -555,7 +555,7 @@ static void finger_outputs(gcWorld *w, int32_t id) {
     gcVec3 surface[GC_MAX_FINGER_CONTACTS]; /* a convex finger's contact points on the bodies */
     f->god_object = f->hip;
     f->normal = gc_v3(0, 0, 0);
-    memset(f->patch, 0, sizeof f->patch);
+    if (f->num_vertices) memset(f->patch, 0, sizeof f->patch); /* a sphere's stays zero (add_finger) */
     f->contact_body = -1;
     f->state = GC_FINGER_FREE;
     for (int i = 0; i < f->num_contacts; ++i) {
