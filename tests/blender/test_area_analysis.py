@@ -260,3 +260,29 @@ def test_bad_patches_and_torsions_are_refused_naming_them(pad_pinch):
         d = scene.SceneDesc()
         d.fingers.append(scene.FingerDesc("F", np.zeros(3), points=_mesh((0.01,) * 3, "F").vertices, torsion=0.01))
         scene.prepare(d)
+
+
+def test_the_live_hud_sees_the_patch_as_the_recording_does(tmp_path):
+    """One implementation: the session's snapshot (runner.Snapshot.patches, from the core's) through
+    the HUD's GraspMonitor gives the plate on the palm the same wrench space as analyze gives the
+    recording's last tick (the load differs: the monitor's first update has no acceleration)."""
+    import graspcore
+    from addon.engine import grasp_display
+    d = scene.SceneDesc()
+    _body(d, "Plate", (PLATE_HALF, PLATE_HALF, PLATE_H), (0, 0, PLATE_H), PLATE_M)
+    d.fingers.append(scene.FingerDesc("Palm", np.array([0.0, 0.0, -PALM[2]]), 0.0, K, 2.0, 0,
+                                      points=_mesh(PALM, "Palm").vertices))
+    desc = scene.prepare(d)
+    run, _ = recordings.record_scene(tmp_path / "live.mcap", graspcore, desc, lambda t: [[0.0, 0.0, -PALM[2]]], 0.3)
+    snap = run.snapshot()
+    assert snap.patches.shape == (1, 4, 2) and np.count_nonzero(snap.patches) == 8
+    monitor = grasp_display.GraspMonitor(analysis.body_models(desc), [f.radius for f in desc.fingers],
+                                         gravity=desc.gravity, torsions=analysis.finger_torsions(desc))
+    (live,) = monitor.update(snap)
+    rec = recording.open_recording(str(tmp_path / "live.mcap"))
+    np.testing.assert_array_equal(rec.ticks["patch"][-1], snap.patches)
+    (recorded,) = analysis.body_grasps(analysis.analyse_recording(rec, rows=[len(rec.ticks) - 1], volume=False))
+    assert live.torque_closure and recorded.torque_closure and not live.force_closure
+    assert (live.force_closure, live.torque_closure, live.force_only_closure, live.epsilon, live.mu_min) == \
+        (recorded.force_closure, recorded.torque_closure, recorded.force_only_closure, recorded.epsilon,
+         recorded.mu_min)
