@@ -14,7 +14,7 @@ One implementation for one snapshot and for many: ``analyse_arrays`` takes array
 leading snapshot axis and answers tables (one row per held body per snapshot, one per
 contact); ``analyse`` is it for one snapshot, as objects.
 
-Area contacts (docs/analysis.md "Area contacts"): a convex finger's contact is its patch, the
+Area contacts (docs/analysis.md "Area contacts and soft fingertips"): a convex finger's contact is its patch, the
 tick record's ``patch`` corners about the contact point, and its friction cones stand at the
 corners in the grasp wrench space; a soft fingertip (the scene finger's ``torsion`` rho) adds
 its torsional friction +-mu rho about the normal. Recordings without ``patch`` are analysed as
@@ -57,17 +57,20 @@ def finger_torsions(scene) -> np.ndarray:
 def wrench_contacts(point, normal, mu, finger, patches=None, torsions=None):
     """The grasp wrench space's contacts of the analysis's finger contacts (c rows: point, inward
     normal, mu, finger): a point contact stays one; an area contact (a non-zero ``patches[k]``,
-    (c, corners, 2) offsets along tangent_axes) is its patch's corners, each with the contact's
-    normal and mu (a patch's cones at its corners span what the whole patch does: docs/analysis.md).
-    Returns (points, normals, mu, torsion or None, owner: the contact row of each)."""
+    (c, corners, 2) offsets along tangent_axes, a repeated corner counted once) is its patch's
+    corners, each with the contact's normal and mu (a patch's cones at its corners span what the
+    whole patch does: docs/analysis.md). Returns (points, normals, mu, torsion or None, owner: the
+    contact row of each)."""
     c = len(point)
     if patches is None:
         corners = np.zeros((c, 0, 2))
     else:
         corners = np.asarray(patches, dtype=np.float64)
         corners = corners.reshape(c, corners.shape[-2] if corners.ndim >= 2 else 0, 2)
-    used = np.any(corners != 0.0, axis=-1)                  # (c, corners): a zero corner is unused
-    area = used.any(axis=1)
+    area = np.any(corners != 0.0, axis=(1, 2))              # all zero: a point contact
+    used = np.ones(corners.shape[:2], dtype=bool)           # (c, corners): each corner but a repeat
+    for j in range(1, corners.shape[1]):
+        used[:, j] = np.all(np.any(corners[:, j:j + 1] != corners[:, :j], axis=-1), axis=1)
     rows = np.where(area, used.sum(axis=1), 1)
     owner = np.repeat(np.arange(c), rows)
     points = point[owner].copy()

@@ -109,7 +109,7 @@ typedef struct gcFinger {
     /* A convex finger's contact patch on the reported body, for the grasp analysis: up to
      * GC_FINGER_PATCH_CORNERS corners of the hull of its contact points (on the body's surface)
      * as offsets (u, v) from the reported contact point along the analysis's tangent axes t1, t2
-     * of the inward normal; unused corners (0, 0). All zero for a sphere finger. */
+     * of the inward normal; fewer corners: the last repeats. All zero for a sphere finger. */
     float patch[2 * GC_FINGER_PATCH_CORNERS];
     int32_t contact_body;           /* -1 when free */
     gcFingerState state;

@@ -538,8 +538,13 @@ static void patch_corners(double (*uv)[2], int n, float *out) {
         for (int k = drop; k + 1 < h; ++k) hull[k] = hull[k + 1];
         --h;
     }
+    /* Fewer corners than slots (a segment, a triangle): the last repeats, so that a corner at
+     * (0, 0), the contact point itself, stays a corner; no points at all: zeros. */
     memset(out, 0, 2 * GC_FINGER_PATCH_CORNERS * sizeof *out);
-    for (int k = 0; k < h; ++k) out[2 * k] = (float)uv[hull[k]][0], out[2 * k + 1] = (float)uv[hull[k]][1];
+    for (int k = 0; k < GC_FINGER_PATCH_CORNERS && h > 0; ++k) {
+        int c = hull[k < h ? k : h - 1];
+        out[2 * k] = (float)uv[c][0], out[2 * k + 1] = (float)uv[c][1];
+    }
 }
 
 /* Force rendered to the device and the finger's reported GO/state: a sphere finger reports its
@@ -599,12 +604,13 @@ static void finger_outputs(gcWorld *w, int32_t id) {
     if (f->num_vertices && f->num_contacts) {
         if (weight > 0.0) f->god_object = gc_scale(centroid, 1.0 / weight);
         f->state = slipping ? GC_FINGER_SLIP : GC_FINGER_STICK;
-        /* The patch on the reported body, about the analysis's contact point GO - radius normal. */
+        /* The patch on the reported body, about the analysis's contact point GO - radius normal
+         * (a unit normal always, from the deepest contact; checked so that no patch is ever NaN). */
         gcVec3 n_in = gc_neg(f->normal), t1, t2, p = gc_madd(f->god_object, f->normal, -f->radius);
         tangent_axes(n_in, &t1, &t2);
         double uv[GC_MAX_FINGER_CONTACTS][2];
         int m = 0;
-        for (int i = 0; i < f->num_contacts; ++i) {
+        for (int i = 0; i < f->num_contacts && gc_dot(n_in, n_in) > 0.5; ++i) {
             if (w->parts[f->contacts[i].part].body != f->contact_body) continue;
             gcVec3 r = gc_sub(surface[i], p);
             uv[m][0] = gc_dot(r, t1), uv[m][1] = gc_dot(r, t2), ++m;

@@ -286,3 +286,24 @@ def test_the_live_hud_sees_the_patch_as_the_recording_does(tmp_path):
     assert (live.force_closure, live.torque_closure, live.force_only_closure, live.epsilon, live.mu_min) == \
         (recorded.force_closure, recorded.torque_closure, recorded.force_only_closure, recorded.epsilon,
          recorded.mu_min)
+
+
+def test_wrench_contacts_takes_each_corner_once_and_zero_patches_as_points():
+    """A segment patch records its two ends and repeats the last; a corner at (0, 0) (the
+    contact point itself, when the pressure sits at a corner) is a corner like any other; an
+    all-zero patch is a point contact; a finger's torsion follows each of its rows."""
+    point = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]])
+    normal = np.array([[0.0, 0.0, 1.0]] * 3)
+    patches = np.array([[[0.01, 0.0], [-0.01, 0.0], [-0.01, 0.0], [-0.01, 0.0]],   # a segment
+                        [[0.0, 0.0], [0.02, 0.0], [0.02, 0.03], [0.02, 0.03]],     # a triangle, one corner at p
+                        [[0.0, 0.0]] * 4], dtype=np.float32)                     # a point
+    pts, nrm, mu, rho, owner = analysis.wrench_contacts(point, normal, np.array([0.5, 0.6, 0.7]), np.array([0, 1, 2]),
+                                                        patches, np.array([0.0, 0.0, 0.004]))
+    np.testing.assert_array_equal(owner, [0, 0, 1, 1, 1, 2])
+    t1, t2 = analysis.tangent_axes(normal[0])                       # n = z: t1 = y, t2 = -x
+    np.testing.assert_allclose(t1, [0, 1, 0]) and np.testing.assert_allclose(t2, [-1, 0, 0])
+    np.testing.assert_allclose(pts, [[0, 0.01, 0], [0, -0.01, 0], [1, 0, 0], [1, 0.02, 0], [0.97, 0.02, 0], [2, 0, 0]],
+                               atol=1e-8)
+    np.testing.assert_array_equal(mu, [0.5, 0.5, 0.6, 0.6, 0.6, 0.7])
+    np.testing.assert_array_equal(rho, [0, 0, 0, 0, 0, 0.004])
+    assert analysis.wrench_contacts(point, normal, np.ones(3), np.arange(3), None, np.zeros(3))[3] is None
