@@ -166,7 +166,7 @@ def soft_pinch(tmp_path_factory):
 def test_two_flat_pads_close_the_pinch_with_the_square_pads_torsional_limit(pad_pinch):
     """Two point contacts leave the rotation about the pinch axis free (never in closure); two
     square pads of half width a resist it up to mu F a sqrt(2) each (their corners' friction,
-    docs/physics.md "Torsion"): epsilon is that torque per unit normal force, mu a sqrt(2) / r,
+    docs/physics.md "Area contacts"): epsilon is that torque per unit normal force, mu a sqrt(2) / r,
     in the direction of the pinch axis, and the core's hull is Qhull's."""
     row = len(pad_pinch.ticks) - 1
     table = analysis.analyse_recording(pad_pinch, rows=[row])
