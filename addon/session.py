@@ -141,7 +141,7 @@ class BlenderSession:
         self.dynamic = [i for i, link in enumerate(self.links) if not link.static]
         self.display = display.DisplayObjects(scene, desc) if s.display_objects else None
         self.monitor = grasp_display.GraspMonitor(analysis.body_models(desc), [f.radius for f in desc.fingers],
-                                                  gravity=desc.gravity)
+                                                  gravity=desc.gravity, torsions=analysis.finger_torsions(desc))
         self.bake = s.bake
         self._baked = {}    # object name -> (frames, values)
         self.result = SessionResult(body_names=[b.name for b in desc.bodies],

@@ -13,6 +13,12 @@ So a contact's point on the body's surface is GO - radius * normal, its inward n
 One implementation for one snapshot and for many: ``analyse_arrays`` takes arrays with a
 leading snapshot axis and answers tables (one row per held body per snapshot, one per
 contact); ``analyse`` is it for one snapshot, as objects.
+
+Area contacts (docs/analysis.md "Area contacts and soft fingertips"): a convex finger's contact is its patch, the
+tick record's ``patch`` corners about the contact point, and its friction cones stand at the
+corners in the grasp wrench space; a soft fingertip (the scene finger's ``torsion`` rho) adds
+its torsional friction +-mu rho about the normal. Recordings without ``patch`` are analysed as
+point contacts.
 """
 from __future__ import annotations
 
@@ -25,6 +31,60 @@ import numpy as np
 SLIP = 2                # gcFingerState
 MU_MAX = 10.0           # mu_min searches friction up to this; above: inf (no friction closes it)
 _TINY = 1e-12           # normals shorter than this are "no normal" (a free finger records 0)
+
+
+def tangent_axes(n):
+    """The grasp wrench space's tangent axes (t1, t2) of unit inward normals n (..., 3), as the
+    core takes them (graspcore.h, gcGraspDef): t1 = normalize(n x a), a the world axis of smallest
+    |n . a| (ties: x, then y, then z), t2 = n x t1. The tick record's ``patch`` is in them."""
+    n = np.asarray(n, dtype=np.float64)
+    c = np.abs(n)
+    axis = np.where(c[..., 1] < c[..., 0], 1, 0)
+    axis = np.where(c[..., 2] < np.take_along_axis(c, axis[..., None], -1)[..., 0], 2, axis)
+    t1 = _cross(n, np.eye(3)[axis])
+    t1 /= np.sqrt(np.einsum("...k,...k->...", t1, t1))[..., None]
+    return t1, _cross(n, t1)
+
+
+def finger_torsions(scene) -> np.ndarray:
+    """Each finger's soft-contact radius rho (m; 0: none) of a recording header's ``scene`` dict
+    or an ``engine.scene.SceneDesc`` (a finger without one has none)."""
+    fingers = scene["fingers"] if isinstance(scene, dict) else scene.fingers
+    return np.array([float(f.get("torsion", 0.0) if isinstance(f, dict) else getattr(f, "torsion", 0.0))
+                     for f in fingers], dtype=np.float64)
+
+
+def wrench_contacts(point, normal, mu, finger, patches=None, torsions=None):
+    """The grasp wrench space's contacts of the analysis's finger contacts (c rows: point, inward
+    normal, mu, finger): a point contact stays one; an area contact (a non-zero ``patches[k]``,
+    (c, corners, 2) offsets along tangent_axes, a repeated corner counted once) is its patch's
+    corners, each with the contact's normal and mu (a patch's cones at its corners span what the
+    whole patch does: docs/analysis.md). Returns (points, normals, mu, torsion or None, owner: the
+    contact row of each)."""
+    c = len(point)
+    if patches is None:
+        corners = np.zeros((c, 0, 2))
+    else:
+        corners = np.asarray(patches, dtype=np.float64)
+        corners = corners.reshape(c, corners.shape[-2] if corners.ndim >= 2 else 0, 2)
+    area = np.any(corners != 0.0, axis=(1, 2))              # all zero: a point contact
+    used = np.ones(corners.shape[:2], dtype=bool)           # (c, corners): each corner but a repeat
+    for j in range(1, corners.shape[1]):
+        used[:, j] = np.all(np.any(corners[:, j:j + 1] != corners[:, :j], axis=-1), axis=1)
+    rows = np.where(area, used.sum(axis=1), 1)
+    owner = np.repeat(np.arange(c), rows)
+    points = point[owner].copy()
+    if area.any():
+        t1, t2 = tangent_axes(normal[area])
+        off = corners[area][used[area]]                     # (corner rows, 2), in contact order
+        k = np.repeat(np.arange(int(area.sum())), used[area].sum(axis=1))
+        points[area[owner]] = point[area][k] + off[:, :1] * t1[k] + off[:, 1:] * t2[k]
+    rho = None
+    if torsions is not None:
+        rho_finger = np.asarray(torsions, dtype=np.float64)
+        if np.any(rho_finger > 0):
+            rho = np.ascontiguousarray(rho_finger[finger][owner])
+    return points, normal[owner], mu[owner], rho, owner
 
 
 def _core():
@@ -224,7 +284,7 @@ class GraspAnalysisError(ValueError):
 
 
 def _mu_min(core, point, normal, mu, quality, starts, count, centers, radii, edges, sets=None,
-            reuse=False) -> np.ndarray:
+            reuse=False, torsion=None) -> np.ndarray:
     """graspcore.grasp_mu_min of each set (a root search over tens of LPs), once per distinct set:
     a body at rest in a still hand gives the same set, bit for bit, tick after tick. What the
     set's quality at its own friction already says is not searched again: with every mu > 0 the
@@ -232,7 +292,7 @@ def _mu_min(core, point, normal, mu, quality, starts, count, centers, radii, edg
     is in closure at none (inf); a set in closure at its own mu is in closure at the largest of
     them (closure grows with each contact's mu), which bounds the search. sets: the indices of
     the sets to answer (default all; quality's rows of the others are not read, their entries
-    are left unset); reuse: grasp_mu_min's."""
+    are left unset); reuse: grasp_mu_min's; torsion: the rows' soft-contact radii or None."""
     out = np.empty(len(starts))
     seen = {}
     for i in range(len(starts)) if sets is None else sets:
@@ -242,11 +302,13 @@ def _mu_min(core, point, normal, mu, quality, starts, count, centers, radii, edg
             out[i] = np.inf
             continue
         bound = min(float(np.max(mu_set)) if quality["force_closure"][i] else MU_MAX, MU_MAX)
-        key = (point[s:s + c].tobytes(), normal[s:s + c].tobytes(), centers[i].tobytes(), float(radii[i]), bound)
+        rho = None if torsion is None else torsion[s:s + c]
+        key = (point[s:s + c].tobytes(), normal[s:s + c].tobytes(), centers[i].tobytes(), float(radii[i]), bound,
+               None if rho is None else rho.tobytes())
         if key not in seen:
             try:
                 seen[key] = core.grasp_mu_min(point[s:s + c], normal[s:s + c], centers[i], radii[i], edges=edges,
-                                              mu_max=bound, reuse=reuse)
+                                              mu_max=bound, reuse=reuse, torsion=rho)
             except ValueError as ex:
                 ex.set_index = i
                 raise
@@ -254,21 +316,23 @@ def _mu_min(core, point, normal, mu, quality, starts, count, centers, radii, edg
     return out
 
 
-def _remembered(core, memo, point, normal, mu, starts, count, centers, radii, edges, volume, reuse):
+def _remembered(core, memo, point, normal, mu, starts, count, centers, radii, edges, volume, reuse, torsion=None):
     """grasp_quality_batch and mu_min of each set, the core asked only for sets not in memo (a
     body at rest in a still hand gives the same set, bit for bit, display update after update);
     memo then holds exactly these sets' answers."""
     keys = [(point[s:s + c].tobytes(), normal[s:s + c].tobytes(), mu[s:s + c].tobytes(), centers[i].tobytes(),
-             float(radii[i]), edges, bool(volume)) for i, (s, c) in enumerate(zip(starts, count))]
+             float(radii[i]), edges, bool(volume), None if torsion is None else torsion[s:s + c].tobytes())
+            for i, (s, c) in enumerate(zip(starts, count))]
     new = [i for i, k in enumerate(keys) if k not in memo]
     if len(new) == len(keys):
         fresh = core.grasp_quality_batch(point, normal, mu, count, centers, radii, edges=edges, volume=volume,
-                                         reuse=reuse)
+                                         reuse=reuse, torsion=torsion)
     elif new:
         rows = np.repeat(np.isin(np.arange(len(keys)), new), count)
         try:
             fresh = core.grasp_quality_batch(point[rows], normal[rows], mu[rows], count[new], centers[new],
-                                             radii[new], edges=edges, volume=volume, reuse=reuse)
+                                             radii[new], edges=edges, volume=volume, reuse=reuse,
+                                             torsion=None if torsion is None else torsion[rows])
         except ValueError as ex:    # "set j: ..." of the new sets: set new[j] of the call's
             numbered = re.match(r"set (\d+): (.*)", str(ex), re.S)
             if not numbered:
@@ -280,7 +344,8 @@ def _remembered(core, memo, point, normal, mu, starts, count, centers, radii, ed
     if new:
         by_set = np.zeros(len(keys), dtype=fresh.dtype)
         by_set[new] = fresh
-        fresh_mu_min = _mu_min(core, point, normal, mu, by_set, starts, count, centers, radii, edges, new, reuse)
+        fresh_mu_min = _mu_min(core, point, normal, mu, by_set, starts, count, centers, radii, edges, new, reuse,
+                               torsion)
         answers.update((keys[i], (fresh[j], fresh_mu_min[i])) for j, i in enumerate(new))
     quality = np.empty(len(keys), dtype=fresh.dtype if new else answers[keys[0]][0].dtype) if keys else fresh
     mu_min = np.empty(len(keys))
@@ -293,7 +358,7 @@ def _remembered(core, memo, point, normal, mu, starts, count, centers, radii, ed
 
 def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_bodies, finger_radii,
                    accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True,
-                   with_mu_min=True, memo=None, reuse=False) -> GraspTable:
+                   with_mu_min=True, memo=None, reuse=False, patches=None, torsions=None) -> GraspTable:
     """The measures for T snapshots at once: poses (T, nb, 7), god_objects / forces / normals
     (T, nf, 3), states / contact_bodies (T, nf), finger_radii (nf,), accelerations (T, nb, 3)
     of the centres of mass or None (0: the load is the weight). ``volume=False``: the core's
@@ -304,7 +369,10 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
     of contacts equal bit for bit to one of the last call's gets that call's core answers (the
     core's answers depend on nothing else), and the dict then holds this call's sets only.
     ``reuse``: graspcore.grasp_quality_batch's and grasp_mu_min's (a set within rounding of one
-    the core answered lately gets that answer re-certified, not a new search)."""
+    the core answered lately gets that answer re-certified, not a new search).
+    ``patches`` (T, nf, corners, 2): the tick record's ``patch`` (a convex finger's contact patch),
+    or None (every contact a point); ``torsions`` (nf,): each finger's soft-contact radius rho, or
+    None (none): see wrench_contacts."""
     core = _core()
     poses = np.asarray(poses, dtype=np.float64)
     god_objects = np.asarray(god_objects, dtype=np.float64)
@@ -317,6 +385,14 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
     if poses.ndim != 3 or poses.shape[1:] != (nb, 7):
         raise ValueError(f"poses: expected (snapshots, {nb}, 7), got shape {poses.shape}")
     T, nf = god_objects.shape[0], god_objects.shape[1] if god_objects.ndim == 3 else -1
+    if patches is not None:
+        patches = np.asarray(patches)
+        if patches.ndim != 4 or patches.shape[:2] != (T, nf) or patches.shape[3] != 2:
+            raise ValueError(f"patches: expected shape ({T}, {nf}, corners, 2), got {patches.shape}")
+    if torsions is not None:
+        torsions = np.asarray(torsions, dtype=np.float64)
+        if torsions.shape != (nf,) or not np.all(np.isfinite(torsions)) or np.any(torsions < 0):
+            raise ValueError(f"torsions: expected {nf} finite radii >= 0, got {torsions!r}")
     for name, a, shape in (("god_objects", god_objects, (T, nf, 3)), ("forces", forces, (T, nf, 3)),
                            ("normals", normals, (T, nf, 3)), ("states", states, (T, nf)),
                            ("contact_bodies", contact_bodies, (T, nf)), ("finger_radii", finger_radii, (nf,))):
@@ -349,15 +425,20 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
     set_of = np.repeat(np.arange(len(starts)), count)
     centers = centres_of_mass(models, poses[set_t])[np.arange(len(starts)), set_b]
     radii = np.array([m.radius for m in models] + [1.0])[set_b]
+    # The wrench space's contacts: an area contact's patch corners, soft contacts' torsion.
+    g_point, g_normal, g_mu, g_rho, owner = wrench_contacts(
+        point, n_in, mu, f_idx, None if patches is None else patches[t_idx, f_idx], torsions)
+    g_count = np.bincount(set_of[owner], minlength=len(starts)) if len(owner) else np.zeros(len(starts), np.int64)
+    g_starts = np.concatenate(([0], np.cumsum(g_count)[:-1])).astype(np.int64) if len(starts) else g_count
     try:
         if memo is None:
-            quality = core.grasp_quality_batch(point, n_in, mu, count, centers, radii, edges=edges, volume=volume,
-                                               reuse=reuse)
-            mu_min = _mu_min(core, point, n_in, mu, quality, starts, count, centers, radii, edges, reuse=reuse) \
-                if with_mu_min else np.full(len(starts), np.nan)
+            quality = core.grasp_quality_batch(g_point, g_normal, g_mu, g_count, centers, radii, edges=edges,
+                                               volume=volume, reuse=reuse, torsion=g_rho)
+            mu_min = _mu_min(core, g_point, g_normal, g_mu, quality, g_starts, g_count, centers, radii, edges,
+                             reuse=reuse, torsion=g_rho) if with_mu_min else np.full(len(starts), np.nan)
         else:
-            quality, mu_min = _remembered(core, memo, point, n_in, mu, starts, count, centers, radii, edges,
-                                          volume, reuse)
+            quality, mu_min = _remembered(core, memo, g_point, g_normal, g_mu, g_starts, g_count, centers, radii,
+                                          edges, volume, reuse, g_rho)
     except ValueError as ex:
         # Name the snapshot and body whose contacts the core refused (the batch's message starts
         # with the set: "set 3: points: ...").
@@ -417,18 +498,20 @@ def body_grasps(table: GraspTable, sets=None) -> list:
 
 
 def analyse(models, poses, god_objects, forces, normals, states, contact_bodies, finger_radii,
-            accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True, memo=None, reuse=False) -> list:
+            accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True, memo=None, reuse=False,
+            patches=None, torsions=None) -> list:
     """The measures of one snapshot: one BodyGrasp per dynamic body with at least one finger in
     contact. Arrays as in the tick record: poses (nb, 7), god_objects, forces (the coupling
     spring force the finger exerts), normals (nf, 3), states, contact_bodies (nf,), finger_radii
     (nf,); accelerations (nb, 3) of the centres of mass, or None (0: the load is the weight).
-    ``volume=False`` skips the grasp wrench space's volume (-1), the live view's choice; ``memo``
-    and ``reuse`` as in analyse_arrays."""
+    ``volume=False`` skips the grasp wrench space's volume (-1), the live view's choice; ``memo``,
+    ``reuse``, ``patches`` (nf, corners, 2: the snapshot's) and ``torsions`` as in analyse_arrays."""
     one = lambda a, dtype=np.float64: np.asarray(a, dtype=dtype)[None]  # noqa: E731
     table = analyse_arrays(models, one(poses), one(god_objects), one(forces), one(normals),
                            one(states, np.int32), one(contact_bodies, np.int32), finger_radii,
                            None if accelerations is None else one(accelerations), gravity, edges, volume=volume,
-                           memo=memo, reuse=reuse)
+                           memo=memo, reuse=reuse, patches=None if patches is None else one(patches, np.float32),
+                           torsions=torsions)
     return body_grasps(table)
 
 
@@ -439,9 +522,12 @@ def analyse_recording(rec, every: int = 1, edges: int = 8, rows=None, chunk: int
     accelerations from the recorded velocities (each tick against the record before it: read
     with ``open_recording(path, every=every)`` or ``previous=True``, that is the tick before).
     Snapshot indices in the answer are rows of ``rec.ticks``. Raises ValueError for a
-    recording without contact normals."""
+    recording without contact normals. A recording without ``patch`` (made before it) is analysed
+    with point contacts (point_contacts_note says so)."""
     check_recording(rec)
     models = body_models(rec.header["scene"])
+    torsions = finger_torsions(rec.header["scene"])
+    with_patch = "patch" in (rec.ticks.dtype.names or ())
     radii = np.array([f["radius"] for f in rec.header["scene"]["fingers"]], dtype=np.float64)
     gravity = tuple(rec.header["scene"]["gravity"])
     if rows is not None:
@@ -458,7 +544,8 @@ def analyse_recording(rec, every: int = 1, edges: int = 8, rows=None, chunk: int
         try:
             table = analyse_arrays(models, t["pose"], t["god_object"], t["force"], t["normal"], t["state"],
                                    t["contact"], radii, acc, gravity, edges, volume=volume,
-                                   with_mu_min=with_mu_min)
+                                   with_mu_min=with_mu_min, patches=t["patch"] if with_patch else None,
+                                   torsions=torsions)
         except GraspAnalysisError as ex:
             if ex.snapshot is None:
                 raise
@@ -529,6 +616,16 @@ def check_recording(rec) -> None:
         version = rec.header.get("versions", {}).get("grasp_lab", "unknown")
         raise ValueError(f"{rec.path}: made by an older version of Grasp Lab ({version}): its ticks carry no "
                          f"contact normals, which the analysis needs; record the session again")
+
+
+def point_contacts_note(rec):
+    """A line for a recording whose convex fingers are analysed as point contacts (made before the
+    tick record's ``patch``), else None."""
+    convex = [f["name"] for f in rec.header["scene"]["fingers"] if f.get("points") is not None]
+    if convex and "patch" not in (rec.ticks.dtype.names or ()):
+        return (f"note: recorded before contact patches: {', '.join(convex)} analysed as point contacts "
+                f"(the pressure centroid), without their area contacts' pressure torque")
+    return None
 
 
 def summary(table: GraspTable, times, body_names, finger_names, period: float) -> list:

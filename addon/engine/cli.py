@@ -345,7 +345,7 @@ def _run_export(args, out, err):
 
 
 def _run_analyze(args, out, err):
-    from .analysis import analyse_recording, check_recording, summary
+    from .analysis import analyse_recording, check_recording, point_contacts_note, summary
     from .recording import open_recording
     rec = open_recording(args.recording, every=args.every)
     _warn(rec, err)
@@ -359,6 +359,9 @@ def _run_analyze(args, out, err):
     times = rec.ticks["time"][table.snapshot]
     for line in summary(table, times, rec.body_names, rec.finger_names, args.every / rec.haptic_rate):
         print(line, file=out)
+    note = point_contacts_note(rec)
+    if note:
+        print(note, file=out)
     if args.csv:
         from .export import export_analysis_csv
         for name, n in export_analysis_csv(rec, table, args.csv).items():

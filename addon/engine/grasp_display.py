@@ -78,9 +78,10 @@ class GraspMonitor:
     of the centre-of-mass velocity between two display updates over the time between them
     (the haptic loop's simulated time), zero on the first update."""
 
-    def __init__(self, models, finger_radii, gravity=(0.0, 0.0, -9.81), edges: int = 8):
+    def __init__(self, models, finger_radii, gravity=(0.0, 0.0, -9.81), edges: int = 8, torsions=None):
         self.models = list(models)
         self.finger_radii = np.asarray(finger_radii, dtype=np.float64).reshape(-1)
+        self.torsions = None if torsions is None else np.asarray(torsions, dtype=np.float64)  # soft fingertips' rho
         self.gravity = tuple(float(g) for g in gravity)
         self.edges = int(edges)
         self.grasps = []            # the last update's BodyGrasp list
@@ -115,7 +116,8 @@ class GraspMonitor:
                                                snap.normals, snap.finger_states, snap.contacts,
                                                self.finger_radii, accelerations=acc, gravity=self.gravity,
                                                edges=self.edges, volume=False,  # the HUD shows no volume
-                                               memo=self._memo, reuse=True)
+                                               memo=self._memo, reuse=True,
+                                               patches=getattr(snap, "patches", None), torsions=self.torsions)
             except ValueError as ex:    # one display update without numbers; the session goes on
                 self.error = str(ex)
         self.cost_s = time.perf_counter() - t0

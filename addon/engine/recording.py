@@ -130,6 +130,8 @@ def scene_to_dict(desc) -> dict:
                   "renderer": str(f.renderer), "cursor_mass": float(f.cursor_mass)}
         if f.points is not None:  # a convex finger; a sphere's entry has no points
             finger.update(points=arr(f.points), orientation=arr(f.orientation))
+        if f.torsion:             # a soft fingertip; others have no entry (their fingerprints unchanged)
+            finger["torsion"] = float(f.torsion)
         fingers.append(finger)
     return {"gravity": [float(g) for g in desc.gravity], "gyroscopic": bool(desc.gyroscopic),
             "haptic_rate": float(desc.haptic_rate), "display_rate": float(desc.display_rate),
@@ -153,7 +155,7 @@ def scene_from_dict(data: dict):
                           stiffness=f["stiffness"], damping=f["damping"], channel=f.get("channel", 0),
                           points=None if f.get("points") is None else np.array(f["points"], dtype=np.float64).reshape(-1, 3),
                           orientation=np.array(f.get("orientation", (1.0, 0.0, 0.0, 0.0)), dtype=np.float64),
-                          **{k: f[k] for k in ("renderer", "cursor_mass") if k in f})
+                          **{k: f[k] for k in ("renderer", "cursor_mass", "torsion") if k in f})
                for f in data["fingers"]]
     return SceneDesc(gravity=tuple(data["gravity"]), gyroscopic=data["gyroscopic"],
                      haptic_rate=data["haptic_rate"], display_rate=data.get("display_rate", 30.0),

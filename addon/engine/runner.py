@@ -35,6 +35,7 @@ class Snapshot:
     spring_forces: np.ndarray   # (n_fingers, 3) coupling spring force on the body touched (physics)
     normals: np.ndarray         # (n_fingers, 3) reported contact's plane normal, out of the body; 0 free
     velocities: np.ndarray      # (n_bodies, 6) linear (body frame origin), angular; world
+    patches: np.ndarray | None = None   # (n_fingers, 4, 2) float32 convex fingers' contact patches (tick record's)
 
     @property
     def n_contacts(self) -> int:
@@ -259,7 +260,8 @@ class SessionRunner:
                         np.asarray(raw["god_objects"])[fids].reshape(n_f, 3), spring,
                         np.asarray(raw["finger_states"], dtype=np.int8)[fids].reshape(n_f),
                         self._contact_indices(raw["contact_bodies"][fids]), spring,
-                        np.asarray(raw["normals"])[fids].reshape(n_f, 3), self._velocities(raw))
+                        np.asarray(raw["normals"])[fids].reshape(n_f, 3), self._velocities(raw),
+                        np.asarray(raw["patches"])[fids])
 
     def _contact_indices(self, world_bodies) -> np.ndarray:
         return np.array([self._body_index.get(int(b), -1) for b in world_bodies], dtype=np.int32)
@@ -284,7 +286,7 @@ class SessionRunner:
                         self._contact_indices(snap["contact_bodies"][fids]),
                         np.asarray(snap["spring_forces"])[fids],
                         np.asarray(snap["normals"])[fids],
-                        self._velocities(snap))
+                        self._velocities(snap), np.asarray(snap["patches"])[fids])
 
     def stats(self) -> dict:
         """What the session did, for the HUD and reports. On the threaded runtime the rates,

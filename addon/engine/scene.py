@@ -79,6 +79,9 @@ class FingerDesc:
     orientation: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))
     renderer: str = field(default_factory=defaults.renderer)      # "xfca" or "cursor" (sphere fingers)
     cursor_mass: float = field(default_factory=lambda: defaults.finger("cursor_mass"))
+    # A soft sphere fingertip (docs/physics.md "Soft fingertips"): the radius rho (m) of the patch it
+    # presses, its torsional friction up to mu Fn rho; 0: none.
+    torsion: float = 0.0
 
 
 @dataclass
@@ -272,6 +275,9 @@ def prepare(desc: SceneDesc) -> SceneDesc:
         if f.renderer not in ("xfca", "cursor") or not f.cursor_mass >= 0:
             raise SceneError(f.name, f"finger needs renderer 'xfca' or 'cursor' and cursor mass >= 0 "
                                      f"(got {f.renderer!r}, {f.cursor_mass})")
+        if not (np.isfinite(f.torsion) and f.torsion >= 0) or (f.torsion and f.points is not None):
+            raise SceneError(f.name, f"torsion (a soft sphere fingertip's patch radius) must be a finite number >= 0 "
+                                     f"and 0 on a mesh finger, whose patch has its own (got {f.torsion})")
         if f.points is not None:
             if f.renderer == "cursor":
                 raise SceneError(f.name, "a mesh finger is a convex finger, rendered by its god-objects (xFCA): "
@@ -341,6 +347,8 @@ def build_world(desc: SceneDesc, graspcore, exact: bool = False) -> WorldHandle:
     for f in desc.fingers:
         convex = {} if f.points is None else dict(points=np.ascontiguousarray(f.points, dtype=np.float64),
                                                    orientation=tuple(map(float, f.orientation)))
+        if f.torsion:
+            convex["torsion"] = float(f.torsion)
         try:
             finger_ids.append(world.add_finger(radius=float(f.radius), stiffness=float(f.stiffness),
                                                damping=float(f.damping),

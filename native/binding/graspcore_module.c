@@ -801,15 +801,17 @@ static PyObject *World_push_hips(PyObject *obj, PyObject *args) {
 
 /* _snapshot() -> (time, object_time, tick, forces_enabled, n_bodies, n_fingers, poses,
  * wrenches, adopted, god_objects, hips, forces, spring_forces, states, contact_bodies,
- * normals, velocities), arrays as bytearrays (float64, uint8 or int32) for numpy.frombuffer. */
+ * normals, velocities, patches), arrays as bytearrays (float64, uint8, int32; patches float32) for
+ * numpy.frombuffer. */
 static PyObject *World_snapshot(PyObject *obj, PyObject *unused) {
     WorldObject *self = (WorldObject *)obj;
     if (!check_world(self)) return NULL;
     if (!gc_world_running(self->world) && !check_ready(self)) return NULL;
     int nb = gc_world_body_count(self->world), nf = gc_world_finger_count(self->world);
-    enum { N_ARRAYS = 11 };
+    enum { N_ARRAYS = 12 };
     Py_ssize_t sizes[N_ARRAYS] = {nb * 7 * 8, nb * 6 * 8, nb,     nf * 3 * 8, nf * 3 * 8, nf * 3 * 8,
-                                  nf * 3 * 8, nf * 4,     nf * 4, nf * 3 * 8, nb * 6 * 8};
+                                  nf * 3 * 8, nf * 4,     nf * 4, nf * 3 * 8, nb * 6 * 8,
+                                  nf * 2 * GC_FINGER_PATCH_CORNERS * 4};
     PyObject *arrays[N_ARRAYS] = {NULL};
     for (int i = 0; i < N_ARRAYS; ++i) {
         arrays[i] = PyByteArray_FromStringAndSize(NULL, sizes[i]);
@@ -831,14 +833,15 @@ static PyObject *World_snapshot(PyObject *obj, PyObject *unused) {
     snap.contact_bodies = (int32_t *)PyByteArray_AsString(arrays[8]);
     snap.normals = (double *)PyByteArray_AsString(arrays[9]);
     snap.velocities = (double *)PyByteArray_AsString(arrays[10]);
+    snap.patches = (float *)PyByteArray_AsString(arrays[11]);
     gcStatus st = gc_world_snapshot(self->world, &snap);
     if (st < 0) {
         for (int i = 0; i < N_ARRAYS; ++i) Py_DECREF(arrays[i]);
         return raise_status(self, st);
     }
-    return Py_BuildValue("(ddKiiiNNNNNNNNNNN)", snap.time, snap.object_time, (unsigned long long)snap.tick,
+    return Py_BuildValue("(ddKiiiNNNNNNNNNNNN)", snap.time, snap.object_time, (unsigned long long)snap.tick,
                          snap.forces_enabled, nb, nf, arrays[0], arrays[1], arrays[2], arrays[3], arrays[4],
-                         arrays[5], arrays[6], arrays[7], arrays[8], arrays[9], arrays[10]);
+                         arrays[5], arrays[6], arrays[7], arrays[8], arrays[9], arrays[10], arrays[11]);
 }
 
 static PyObject *World_stats(PyObject *obj, PyObject *unused) {
@@ -1050,13 +1053,24 @@ static PyObject *grasp_quality_dict(const gcGraspQuality *q) {
                          "rank", (int)q->rank, "facets", (int)q->facets);
 }
 
-/* _grasp_quality(points, normals, mu, center, radius, edges, volume, reuse): float64 buffers of 3n,
- * 3n, n, 3; volume and reuse bools (gcGraspDef.volume, .reuse). */
+/* Soft contacts (gcGraspDef.torsion): an optional trailing argument of the three grasp calls, None
+ * or a float64 buffer of one rho per contact row; 1 on success. */
+static int take_torsion(GraspBuffers *g, PyObject *to, Py_ssize_t rows, gcGraspDef *def) {
+    if (!to || to == Py_None) return 1;
+    if (!take_buffer(g, to, 'd', rows, "torsion", 0)) return 0;
+    def->torsion = g->b[g->n - 1].buf;
+    return 1;
+}
+
+/* _grasp_quality(points, normals, mu, center, radius, edges, volume, reuse[, torsion]): float64
+ * buffers of 3n, 3n, n, 3 (torsion n); volume and reuse bools (gcGraspDef.volume, .reuse). */
 static PyObject *module_grasp_quality(PyObject *mod, PyObject *args) {
-    PyObject *po, *no, *mo, *co;
+    PyObject *po, *no, *mo, *co, *to = NULL;
     double radius;
     int edges, volume, reuse;
-    if (!PyArg_ParseTuple(args, "OOOOdipp", &po, &no, &mo, &co, &radius, &edges, &volume, &reuse)) return NULL;
+    if (!PyArg_ParseTuple(args, "OOOOdipp|O", &po, &no, &mo, &co, &radius, &edges, &volume, &reuse, &to))
+        return NULL;
+    gcGraspDef def = gc_default_grasp_def();
     GraspBuffers g = {.n = 0};
     PyObject *result = NULL;
     if (take_buffer(&g, mo, 'd', -1, "mu", 0)) {
@@ -1064,10 +1078,9 @@ static PyObject *module_grasp_quality(PyObject *mod, PyObject *args) {
         if (n > INT_MAX / 3) {
             PyErr_SetString(PyExc_ValueError, "points: too many contacts");
         } else if (take_buffer(&g, po, 'd', 3 * n, "points", 0) && take_buffer(&g, no, 'd', 3 * n, "normals", 0) &&
-                   take_buffer(&g, co, 'd', 3, "center", 0)) {
+                   take_buffer(&g, co, 'd', 3, "center", 0) && take_torsion(&g, to, n, &def)) {
             gcGraspWorkspace *ws = workspace_take();
             if (ws) {
-                gcGraspDef def = gc_default_grasp_def();
                 def.edges = edges;
                 def.volume = volume;
                 def.reuse = reuse;
@@ -1085,13 +1098,15 @@ static PyObject *module_grasp_quality(PyObject *mod, PyObject *args) {
     return result;
 }
 
-/* _grasp_quality_batch(points, normals, mu, counts (int32), centers, radii, edges, volume, reuse, out):
- * out a writable buffer of len(counts) * GRASP_QUALITY_SIZE bytes, filled with gcGraspQuality records. */
+/* _grasp_quality_batch(points, normals, mu, counts (int32), centers, radii, edges, volume, reuse, out
+ * [, torsion]): out a writable buffer of len(counts) * GRASP_QUALITY_SIZE bytes, filled with
+ * gcGraspQuality records. */
 static PyObject *module_grasp_quality_batch(PyObject *mod, PyObject *args) {
-    PyObject *po, *no, *mo, *ko, *co, *ro, *oo;
+    PyObject *po, *no, *mo, *ko, *co, *ro, *oo, *to = NULL;
     int edges, volume, reuse;
-    if (!PyArg_ParseTuple(args, "OOOOOOippO", &po, &no, &mo, &ko, &co, &ro, &edges, &volume, &reuse, &oo))
+    if (!PyArg_ParseTuple(args, "OOOOOOippO|O", &po, &no, &mo, &ko, &co, &ro, &edges, &volume, &reuse, &oo, &to))
         return NULL;
+    gcGraspDef def = gc_default_grasp_def();
     GraspBuffers g = {.n = 0};
     PyObject *result = NULL;
     if (take_buffer(&g, mo, 'd', -1, "mu", 0) && take_buffer(&g, ko, 'i', -1, "counts", 0)) {
@@ -1102,7 +1117,7 @@ static PyObject *module_grasp_quality_batch(PyObject *mod, PyObject *args) {
         } else if (take_buffer(&g, po, 'd', 3 * rows, "points", 0) &&
                    take_buffer(&g, no, 'd', 3 * rows, "normals", 0) &&
                    take_buffer(&g, co, 'd', 3 * sets, "centers", 0) && take_buffer(&g, ro, 'd', sets, "radii", 0) &&
-                   take_buffer(&g, oo, 'd', -1, "out", 1)) {
+                   take_buffer(&g, oo, 'd', -1, "out", 1) && take_torsion(&g, to, rows, &def)) {
             const int32_t *counts = g.b[1].buf;
             long long total = 0;
             for (Py_ssize_t s = 0; s < sets; ++s) total += counts[s] > 0 ? counts[s] : 0;
@@ -1114,7 +1129,6 @@ static PyObject *module_grasp_quality_batch(PyObject *mod, PyObject *args) {
             } else {
                 gcGraspWorkspace *ws = workspace_take();
                 if (ws) {
-                    gcGraspDef def = gc_default_grasp_def();
                     def.edges = edges;
                     def.volume = volume;
                     def.reuse = reuse;
@@ -1133,22 +1147,23 @@ static PyObject *module_grasp_quality_batch(PyObject *mod, PyObject *args) {
     return result;
 }
 
-/* _grasp_mu_min(points, normals, center, radius, edges, mu_max, reuse) -> float. */
+/* _grasp_mu_min(points, normals, center, radius, edges, mu_max, reuse[, torsion]) -> float. */
 static PyObject *module_grasp_mu_min(PyObject *mod, PyObject *args) {
-    PyObject *po, *no, *co;
+    PyObject *po, *no, *co, *to = NULL;
     double radius, mu_max;
     int edges, reuse;
-    if (!PyArg_ParseTuple(args, "OOOdidp", &po, &no, &co, &radius, &edges, &mu_max, &reuse)) return NULL;
+    if (!PyArg_ParseTuple(args, "OOOdidp|O", &po, &no, &co, &radius, &edges, &mu_max, &reuse, &to)) return NULL;
+    gcGraspDef def = gc_default_grasp_def();
     GraspBuffers g = {.n = 0};
     PyObject *result = NULL;
     if (take_buffer(&g, po, 'd', -1, "points", 0)) {
         Py_ssize_t n = g.b[0].len / (Py_ssize_t)(3 * sizeof(double));
         if (n > INT_MAX / 3 || g.b[0].len % (Py_ssize_t)(3 * sizeof(double)) != 0) {
             PyErr_SetString(PyExc_ValueError, "points: expected xyz rows");
-        } else if (take_buffer(&g, no, 'd', 3 * n, "normals", 0) && take_buffer(&g, co, 'd', 3, "center", 0)) {
+        } else if (take_buffer(&g, no, 'd', 3 * n, "normals", 0) && take_buffer(&g, co, 'd', 3, "center", 0) &&
+                   take_torsion(&g, to, n, &def)) {
             gcGraspWorkspace *ws = workspace_take();
             if (ws) {
-                gcGraspDef def = gc_default_grasp_def();
                 def.edges = edges;
                 def.reuse = reuse;
                 double mu = 0.0;
@@ -1479,6 +1494,8 @@ static int module_exec(PyObject *m) {
     if (PyModule_AddIntConstant(m, "GRASP_QUALITY_SIZE", (long)sizeof(gcGraspQuality)) < 0 ||
         PyModule_AddIntConstant(m, "GRASP_DEFAULT_EDGES", grasp.edges) < 0)
         return -1;
+    /* Area contacts (docs/recording-format.md `patch`): corners per finger in records and snapshots. */
+    if (PyModule_AddIntConstant(m, "FINGER_PATCH_CORNERS", GC_FINGER_PATCH_CORNERS) < 0) return -1;
     World_Type = PyType_FromSpec(&World_spec);
     if (!World_Type || PyModule_AddObjectRef(m, "World", World_Type) < 0) return -1;
     View_Type = PyType_FromSpec(&View_spec);

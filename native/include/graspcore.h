@@ -78,6 +78,8 @@ gcBodyDef gc_default_body_def(void);
 
 /* A convex finger (a pad, a palm, a tool tip) has at most this many hull vertices. */
 #define GC_MAX_FINGER_VERTICES 32
+/* Corners of a finger's contact patch in the tick record and snapshots (docs/recording-format.md). */
+#define GC_FINGER_PATCH_CORNERS 4
 
 /* How a finger's force is found (docs/physics.md): the friction-cone god-objects, one per
  * convex part touched (xFCA), or the light-mass cursor: a mass on the finger's spring and
@@ -315,6 +317,9 @@ typedef struct gcSnapshot {
                                  * body touched (as in the tick record); 0 when free */
     double *velocities;         /* 6 per body: linear velocity of the body frame origin, angular
                                  * (world), as gc_world_body_velocity */
+    float *patches;             /* 2 GC_FINGER_PATCH_CORNERS per finger: a convex finger's contact
+                                 * patch as in the tick record's `patch` (docs/recording-format.md);
+                                 * zeros for a sphere finger or when free */
 } gcSnapshot;
 gcStatus gc_world_snapshot(gcWorld *world, gcSnapshot *snapshot);
 
@@ -494,6 +499,11 @@ typedef struct gcGraspDef {
                              * hand, whose contacts the haptic loop dithers in the last bits. Exact to
                              * those 1e-12; among equally near facets the weakest direction may be
                              * another than a fresh call's */
+    const double *torsion;  /* NULL (default): point contacts. Else one value per contact (a batch: per
+                             * row of its concatenated contacts): rho >= 0 (m), the radius of a soft
+                             * contact's pressed patch; rho > 0 adds the wrenches (n, ((p - center) x n
+                             * +- mu rho n) / radius): torsional friction about the normal up to
+                             * mu rho Fn (GraspIt's soft contacts, docs/analysis.md) */
 } gcGraspDef;
 gcGraspDef gc_default_grasp_def(void);
 

@@ -1063,8 +1063,9 @@ static gcStatus check_def(gcGraspWorkspace *ws, const gcGraspDef *def) {
 }
 
 /* Checks one contact set and writes its edge wrenches, forces and torques; *count = rows.
- * mu NULL: every contact has mu_all. */
-static gcStatus build_wrenches(gcGraspWorkspace *ws, int edges, const double *points, const double *normals,
+ * mu NULL: every contact has mu_all. A soft contact (def->torsion[i] = rho > 0) adds its two
+ * torsion generators after its cone's edges. */
+static gcStatus build_wrenches(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points, const double *normals,
                                const double *mu, double mu_all, int num_contacts, const double center[3],
                                double radius, int *count) {
     if (num_contacts < 0)
@@ -1076,10 +1077,12 @@ static gcStatus build_wrenches(gcGraspWorkspace *ws, int edges, const double *po
         if (!isfinite(center[k])) return set_error(ws, GC_ERR_INVALID_ARGUMENT, "center: not finite");
     if (!(radius > 0.0) || !isfinite(radius))
         return set_error(ws, GC_ERR_INVALID_ARGUMENT, "radius: %g, expected a finite number > 0", radius);
+    const int edges = def->edges;
+    const double *torsion = def->torsion;
     if ((long long)num_contacts * edges > 1000000)
         return set_error(ws, GC_ERR_INVALID_ARGUMENT, "points: %d contacts x %d edges is too many", num_contacts,
                          edges);
-    gcStatus st = ensure_points(ws, num_contacts * edges);
+    gcStatus st = ensure_points(ws, num_contacts * (edges + (torsion ? 2 : 0)));
     if (st != GC_OK) return st;
     if (ws->edges_cached != edges) {
         for (int j = 0; j < edges; ++j) {
@@ -1102,6 +1105,9 @@ static gcStatus build_wrenches(gcGraspWorkspace *ws, int edges, const double *po
             return set_error(ws, GC_ERR_INVALID_ARGUMENT, "normals: row %d is a zero vector", i);
         if (!isfinite(m) || m < 0.0)
             return set_error(ws, GC_ERR_INVALID_ARGUMENT, "mu: %g at contact %d, expected a finite number >= 0", m, i);
+        if (torsion && (!isfinite(torsion[i]) || torsion[i] < 0.0))
+            return set_error(ws, GC_ERR_INVALID_ARGUMENT, "torsion: %g at contact %d, expected a finite number >= 0",
+                             torsion[i], i);
         double n[3] = {nn[0] / len, nn[1] / len, nn[2] / len};
         /* t1 = normalize(n x a), a the world axis least aligned with n (ties: x, y, z). */
         int axis = 0;
@@ -1123,6 +1129,17 @@ static gcStatus build_wrenches(gcGraspWorkspace *ws, int edges, const double *po
                            (r[0] * f[1] - r[1] * f[0]) * inv_r};
             double *w = ws->wrench + 6 * rows, *fo = ws->force + 3 * rows, *to = ws->torque + 3 * rows;
             for (int k = 0; k < 3; ++k) w[k] = fo[k] = f[k], w[3 + k] = to[k] = t[k];
+            ++rows;
+        }
+        /* Soft contact: the normal force with a torque of +-mu rho about the normal (GraspIt's
+         * soft-contact generators): torsional friction up to mu rho Fn. */
+        double twist = torsion ? m * torsion[i] * inv_r : 0.0;
+        for (int sign = -1; twist > 0.0 && sign <= 1; sign += 2) {
+            double t[3] = {(r[1] * n[2] - r[2] * n[1]) * inv_r + sign * twist * n[0],
+                           (r[2] * n[0] - r[0] * n[2]) * inv_r + sign * twist * n[1],
+                           (r[0] * n[1] - r[1] * n[0]) * inv_r + sign * twist * n[2]};
+            double *w = ws->wrench + 6 * rows, *fo = ws->force + 3 * rows, *to = ws->torque + 3 * rows;
+            for (int k = 0; k < 3; ++k) w[k] = fo[k] = n[k], w[3 + k] = to[k] = t[k];
             ++rows;
         }
     }
@@ -1358,7 +1375,7 @@ gcStatus gc_grasp_quality(gcGraspWorkspace *ws, const gcGraspDef *def, const dou
     if (st != GC_OK) return st;
     if (num_contacts > 0 && !mu) return set_error(ws, GC_ERR_INVALID_ARGUMENT, "mu: NULL");
     int rows;
-    if ((st = build_wrenches(ws, def->edges, points, normals, mu, 0.0, num_contacts, center, radius, &rows)) != GC_OK)
+    if ((st = build_wrenches(ws, def, points, normals, mu, 0.0, num_contacts, center, radius, &rows)) != GC_OK)
         return st;
     int reuse = def->reuse && !def->volume && rows > 6;
     if (reuse && reuse_answer(ws, def, rows, out)) return GC_OK;
@@ -1379,8 +1396,11 @@ gcStatus gc_grasp_quality_batch(gcGraspWorkspace *ws, const gcGraspDef *def, con
     for (int s = 0; s < num_sets; ++s) {
         if (counts[s] < 0)
             return set_error(ws, GC_ERR_INVALID_ARGUMENT, "counts: %d at set %d, expected >= 0", counts[s], s);
-        gcStatus st = gc_grasp_quality(ws, def, points ? points + 3 * row : NULL, normals ? normals + 3 * row : NULL,
-                                       mu ? mu + row : NULL, counts[s], centers + 3 * s, radii[s], &out[s]);
+        gcGraspDef set_def = def ? *def : gc_default_grasp_def();
+        if (set_def.torsion) set_def.torsion += row;
+        gcStatus st = gc_grasp_quality(ws, &set_def, points ? points + 3 * row : NULL,
+                                       normals ? normals + 3 * row : NULL, mu ? mu + row : NULL, counts[s],
+                                       centers + 3 * s, radii[s], &out[s]);
         if (st != GC_OK) {
             char inner[sizeof ws->error];
             memcpy(inner, ws->error, sizeof inner);
@@ -1492,7 +1512,7 @@ gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const doub
         return set_error(ws, GC_ERR_INVALID_ARGUMENT, "mu_max: %g, expected a finite number >= 0", mu_max);
     double margin = 0.0;
     int rows_at = 0;
-    if (!def->reuse || num_contacts < 1 || !points || !normals || !center)
+    if (!def->reuse || def->torsion || num_contacts < 1 || !points || !normals || !center)
         return mu_min_search(ws, def, points, normals, num_contacts, center, radius, mu_max, out_mu, &margin,
                              &rows_at);
     /* Reuse: the remembered answer m for nearly these contacts, checked as the search would have
@@ -1503,13 +1523,13 @@ gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const doub
     if (k >= 0) {
         double m = ws->mu_min[k].answer, t;
         int rows, closed = 0, open = 0;
-        if ((st = build_wrenches(ws, def->edges, points, normals, NULL, isfinite(m) ? m : mu_max, num_contacts,
+        if ((st = build_wrenches(ws, def, points, normals, NULL, isfinite(m) ? m : mu_max, num_contacts,
                                  center, radius, &rows)) != GC_OK)
             return st;
         if (isfinite(m)) {
             if ((st = mu_min_closed_again(ws, def, &ws->mu_min[k], rows, &closed)) != GC_OK) return st;
             if (closed && m > 0.0) {
-                if ((st = build_wrenches(ws, def->edges, points, normals, NULL, fmax(m - 2e-6, 0.0), num_contacts,
+                if ((st = build_wrenches(ws, def, points, normals, NULL, fmax(m - 2e-6, 0.0), num_contacts,
                                          center, radius, &rows)) != GC_OK)
                     return st;
                 gcHullSummary summary;
@@ -1548,7 +1568,7 @@ static gcStatus mu_min_search(gcGraspWorkspace *ws, const gcGraspDef *def, const
     /* In closure at mu as grasp_quality answers it (the LP, then the support search). */
 #define CLOSED_AT(m)                                                                                          \
     do {                                                                                                      \
-        if ((st = build_wrenches(ws, def->edges, points, normals, NULL, (m), num_contacts, center, radius,     \
+        if ((st = build_wrenches(ws, def, points, normals, NULL, (m), num_contacts, center, radius,     \
                                  &rows)) != GC_OK ||                                                          \
             (st = closure_fast(ws, def, ws->wrench, rows, 6, 0, &closed, NULL, &summary)) != GC_OK)           \
             return st;                                                                                        \
@@ -1566,7 +1586,7 @@ static gcStatus mu_min_search(gcGraspWorkspace *ws, const gcGraspDef *def, const
      * few secant steps. */
 #define MARGIN_AT(m, g)                                                                                       \
     do {                                                                                                      \
-        if ((st = build_wrenches(ws, def->edges, points, normals, NULL, (m), num_contacts, center, radius,     \
+        if ((st = build_wrenches(ws, def, points, normals, NULL, (m), num_contacts, center, radius,     \
                                  &rows)) != GC_OK)                                                            \
             return st;                                                                                        \
         st = closure_lp(ws, ws->wrench, rows, 6, warm, &t);                                                   \

@@ -165,6 +165,7 @@ static void runtime_free_memory(gcRuntime *rt) {
         free(d->spring_force);
         free(d->device_force);
         free(d->normal);
+        free(d->patch);
         free(d->state);
         free(d->contact_body);
     }
@@ -215,10 +216,11 @@ static gcRuntime *runtime_alloc(const gcWorld *w) {
         d->spring_force = rt_calloc(rt, nf * 3, sizeof(double));
         d->device_force = rt_calloc(rt, nf * 3, sizeof(double));
         d->normal = rt_calloc(rt, nf * 3, sizeof(double));
+        d->patch = rt_calloc(rt, nf * 2 * GC_FINGER_PATCH_CORNERS, sizeof(float));
         d->state = rt_calloc(rt, nf, sizeof(int32_t));
         d->contact_body = rt_calloc(rt, nf, sizeof(int32_t));
         ok &= in->hips && in->orientations && h->want && h->has_state && h->body && h->fingers && o->released && o->body && d->body &&
-              d->adopted && d->hip && d->god_object && d->spring_force && d->device_force && d->normal && d->state &&
+              d->adopted && d->hip && d->god_object && d->spring_force && d->device_force && d->normal && d->patch && d->state &&
               d->contact_body;
     }
     if (!ok) {

@@ -60,6 +60,7 @@ void gc_rt_publish_display(gcRuntime *rt, int64_t now, int forces_enabled) {
         memcpy(&d->spring_force[3 * i], &f->force, 3 * sizeof(double));
         memcpy(&d->device_force[3 * i], &rt->device_force[3 * i], 3 * sizeof(double));
         memcpy(&d->normal[3 * i], &f->normal, 3 * sizeof(double));
+        memcpy(&d->patch[2 * GC_FINGER_PATCH_CORNERS * i], f->patch, sizeof f->patch);
         d->state[i] = (int32_t)f->state;
         d->contact_body[i] = f->contact_body;
     }
@@ -143,6 +144,10 @@ static void put3(double *array, int32_t i, const double *v) {
     if (array) memcpy(&array[3 * i], v, 3 * sizeof(double));
 }
 
+static void put_patch(float *array, int32_t i, const float *patch) {
+    if (array) memcpy(&array[2 * GC_FINGER_PATCH_CORNERS * i], patch, 2 * GC_FINGER_PATCH_CORNERS * sizeof(float));
+}
+
 /* Stopped: the world's own state; nothing is rendered to a device. */
 static void snapshot_from_world(const gcWorld *w, gcSnapshot *s) {
     static const double zero[3] = {0, 0, 0};
@@ -160,6 +165,7 @@ static void snapshot_from_world(const gcWorld *w, gcSnapshot *s) {
         put3(s->spring_forces, i, &w->force_array[3 * i]);
         put3(s->forces, i, zero);
         put3(s->normals, i, (const double *)&f->normal);
+        put_patch(s->patches, i, f->patch);
         if (s->finger_states) s->finger_states[i] = (int32_t)f->state;
         if (s->contact_bodies) s->contact_bodies[i] = f->contact_body;
     }
@@ -206,6 +212,7 @@ gcStatus gc_world_snapshot(gcWorld *w, gcSnapshot *s) {
         put3(s->spring_forces, i, &d->spring_force[3 * i]);
         put3(s->forces, i, enabled ? &d->device_force[3 * i] : zero);
         put3(s->normals, i, &d->normal[3 * i]);
+        put_patch(s->patches, i, &d->patch[2 * GC_FINGER_PATCH_CORNERS * i]);
         if (s->finger_states) s->finger_states[i] = d->state[i];
         if (s->contact_bodies) s->contact_bodies[i] = d->contact_body[i];
         gcFinger *f = &rt->shown.fingers[i];

@@ -117,6 +117,7 @@ typedef struct gcDisplayMsg { /* haptic loop -> gc_world_snapshot, every haptic 
     gcRtBody *body;
     unsigned char *adopted;
     double *hip, *god_object, *spring_force, *device_force, *normal; /* 3 per finger */
+    float *patch;                   /* 2 GC_FINGER_PATCH_CORNERS per finger: gcFinger.patch */
     int32_t *state, *contact_body;
 } gcDisplayMsg;
 

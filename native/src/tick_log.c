@@ -42,7 +42,8 @@ enum { REC_HEADER = 52 };
 size_t gc_tick_record_size(int num_bodies, int num_fingers) {
     if (num_bodies < 0 || num_fingers < 0) return 0;
     return REC_HEADER + sizeof(double) * (15 * (size_t)num_fingers + 19 * (size_t)num_bodies) +
-           sizeof(int32_t) * 3 * (size_t)num_fingers + sizeof(double) * 4 * (size_t)num_fingers;
+           sizeof(int32_t) * 3 * (size_t)num_fingers + sizeof(double) * 4 * (size_t)num_fingers +
+           sizeof(float) * 2 * GC_FINGER_PATCH_CORNERS * (size_t)num_fingers;
 }
 
 #define FNV_PRIME 1099511628211ull
@@ -159,7 +160,7 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
     unsigned char *wrench = vel + 48 * nb, *state = wrench + 48 * nb, *contact = state + 4 * nf;
     /* parts (main's) then orientation: each field added at the end, so older readers' fields
      * keep their offsets */
-    unsigned char *parts = contact + 4 * nf, *orientation = parts + 4 * nf;
+    unsigned char *parts = contact + 4 * nf, *orientation = parts + 4 * nf, *patch = orientation + 32 * nf;
     uint64_t hash = hash_time_bodies(w);
     memcpy(out, &tick, 8);
     memcpy(out + 8, &w->time, 8);
@@ -189,6 +190,7 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
         memcpy(parts + 4 * i, &mask, 4);
         double q[4] = {f->q.w, f->q.x, f->q.y, f->q.z};
         memcpy(orientation + 32 * i, q, 32);
+        memcpy(patch + sizeof f->patch * i, f->patch, sizeof f->patch);
     }
     memcpy(pose, w->pose_array, 56 * nb);
     for (size_t b = 0; b < nb; ++b) { /* of the body frame origin, as gc_world_body_velocity */

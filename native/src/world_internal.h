@@ -106,6 +106,11 @@ typedef struct gcFinger {
     gcVec3 force;                   /* rendered to the device: k (GO - HIP) + damping */
     gcVec3 torque;                  /* convex finger: about the HIP, sum (GO_i - HIP) x f_i; 0 for a sphere */
     gcVec3 normal;                  /* world: the reported contact's outward normal, 0 when free */
+    /* A convex finger's contact patch on the reported body, for the grasp analysis: up to
+     * GC_FINGER_PATCH_CORNERS corners of the hull of its contact points (on the body's surface)
+     * as offsets (u, v) from the reported contact point along the analysis's tangent axes t1, t2
+     * of the inward normal; fewer corners: the last repeats. All zero for a sphere finger. */
+    float patch[2 * GC_FINGER_PATCH_CORNERS];
     int32_t contact_body;           /* -1 when free */
     gcFingerState state;
     /* Convex finger (last: a sphere finger's step never reads it): its hull's vertices in the

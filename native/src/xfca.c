@@ -490,6 +490,63 @@ static void finger_update(gcWorld *w, int32_t id, double dt) {
     for (int i = 0; i < f->num_contacts; ++i) f->contacts[i].share = 1.0;
 }
 
+/* The analysis's tangent axes of an inward normal n (unit): t1 = normalize(n x a), a the world
+ * axis of smallest |n.a| (ties: x, then y, then z), t2 = n x t1 (graspcore.h, gcGraspDef). */
+static void tangent_axes(gcVec3 n, gcVec3 *t1, gcVec3 *t2) {
+    double c[3] = {fabs(n.x), fabs(n.y), fabs(n.z)};
+    int axis = 0;
+    if (c[1] < c[axis]) axis = 1;
+    if (c[2] < c[axis]) axis = 2;
+    *t1 = gc_cross(n, gc_v3(axis == 0, axis == 1, axis == 2));
+    *t1 = gc_scale(*t1, 1.0 / gc_len(*t1));
+    *t2 = gc_cross(n, *t1);
+}
+
+static double cross2(const double *o, const double *a, const double *b) {
+    return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+}
+
+/* A convex finger's patch (gcFinger.patch): the n points (u, v) in the tangent plane, their 2-D
+ * hull (monotone chain), then while it has more than GC_FINGER_PATCH_CORNERS corners the one
+ * whose triangle with its neighbours is smallest dropped (the kept polygon loses the least area;
+ * it lies inside the patch, so the analysis never overstates what the patch resists). */
+static void patch_corners(double (*uv)[2], int n, float *out) {
+    for (int i = 1; i < n; ++i) /* sort by u, then v (n <= GC_MAX_FINGER_CONTACTS) */
+        for (int j = i; j > 0 && (uv[j][0] < uv[j - 1][0] || (uv[j][0] == uv[j - 1][0] && uv[j][1] < uv[j - 1][1]));
+             --j) {
+            double t0 = uv[j][0], t1 = uv[j][1];
+            uv[j][0] = uv[j - 1][0], uv[j][1] = uv[j - 1][1], uv[j - 1][0] = t0, uv[j - 1][1] = t1;
+        }
+    int hull[2 * GC_MAX_FINGER_CONTACTS + 1], h = 0;
+    for (int i = 0; i < n; ++i) { /* lower chain */
+        while (h >= 2 && cross2(uv[hull[h - 2]], uv[hull[h - 1]], uv[i]) <= 0.0) --h;
+        hull[h++] = i;
+    }
+    for (int i = n - 2, lower = h + 1; i >= 0; --i) { /* upper chain */
+        while (h >= lower && cross2(uv[hull[h - 2]], uv[hull[h - 1]], uv[i]) <= 0.0) --h;
+        hull[h++] = i;
+    }
+    if (h > 1) --h; /* the last repeats the first */
+    if (n == 1) h = 1;
+    while (h > GC_FINGER_PATCH_CORNERS) {
+        int drop = 0;
+        double least = INFINITY;
+        for (int k = 0; k < h; ++k) {
+            double area = fabs(cross2(uv[hull[(k + h - 1) % h]], uv[hull[k]], uv[hull[(k + 1) % h]]));
+            if (area < least) least = area, drop = k;
+        }
+        for (int k = drop; k + 1 < h; ++k) hull[k] = hull[k + 1];
+        --h;
+    }
+    /* Fewer corners than slots (a segment, a triangle): the last repeats, so that a corner at
+     * (0, 0), the contact point itself, stays a corner; no points at all: zeros. */
+    memset(out, 0, 2 * GC_FINGER_PATCH_CORNERS * sizeof *out);
+    for (int k = 0; k < GC_FINGER_PATCH_CORNERS && h > 0; ++k) {
+        int c = hull[k < h ? k : h - 1];
+        out[2 * k] = (float)uv[c][0], out[2 * k + 1] = (float)uv[c][1];
+    }
+}
+
 /* Force rendered to the device and the finger's reported GO/state: a sphere finger reports its
  * deepest contact's GO, normal and state (the analysis takes the GO, the normal and the body as one
  * contact); a convex finger the centroid of its contacts' god-objects weighted by their
@@ -500,8 +557,10 @@ static void finger_outputs(gcWorld *w, int32_t id) {
     gcVec3 force = gc_v3(0, 0, 0), torque = gc_v3(0, 0, 0), centroid = gc_v3(0, 0, 0);
     double deepest = -1.0, weight = 0.0;
     int slipping = 0;
+    gcVec3 surface[GC_MAX_FINGER_CONTACTS]; /* a convex finger's contact points on the bodies */
     f->god_object = f->hip;
     f->normal = gc_v3(0, 0, 0);
+    if (f->num_vertices) memset(f->patch, 0, sizeof f->patch); /* a sphere's stays zero (add_finger) */
     f->contact_body = -1;
     f->state = GC_FINGER_FREE;
     for (int i = 0; i < f->num_contacts; ++i) {
@@ -529,6 +588,8 @@ static void finger_outputs(gcWorld *w, int32_t id) {
             gcVec3 fc = gc_madd(gc_scale(stretch, k), dv, damping);
             torque = gc_add(torque, gc_cross(gc_sub(go, f->hip), fc));
             centroid = gc_madd(centroid, go, c->depth);
+            /* on the body's surface: a fingertip centre less the radius, or the body's vertex */
+            surface[i] = c->reversed ? go : gc_madd(go, gc_finger_point_normal(f, c, &b->state.R), -f->radius);
             weight += c->depth;
             slipping |= c->state == GC_FINGER_SLIP;
         }
@@ -543,6 +604,18 @@ static void finger_outputs(gcWorld *w, int32_t id) {
     if (f->num_vertices && f->num_contacts) {
         if (weight > 0.0) f->god_object = gc_scale(centroid, 1.0 / weight);
         f->state = slipping ? GC_FINGER_SLIP : GC_FINGER_STICK;
+        /* The patch on the reported body, about the analysis's contact point GO - radius normal
+         * (a unit normal always, from the deepest contact; checked so that no patch is ever NaN). */
+        gcVec3 n_in = gc_neg(f->normal), t1, t2, p = gc_madd(f->god_object, f->normal, -f->radius);
+        tangent_axes(n_in, &t1, &t2);
+        double uv[GC_MAX_FINGER_CONTACTS][2];
+        int m = 0;
+        for (int i = 0; i < f->num_contacts && gc_dot(n_in, n_in) > 0.5; ++i) {
+            if (w->parts[f->contacts[i].part].body != f->contact_body) continue;
+            gcVec3 r = gc_sub(surface[i], p);
+            uv[m][0] = gc_dot(r, t1), uv[m][1] = gc_dot(r, t2), ++m;
+        }
+        patch_corners(uv, m, f->patch);
     }
     f->force = force;
     f->torque = torque;

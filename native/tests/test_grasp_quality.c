@@ -272,6 +272,50 @@ static void test_antipodal(gcGraspWorkspace *ws) {
              "one contact: rank %d", q.rank);
 }
 
+/* The antipodal pair as soft contacts (gcGraspDef.torsion rho): the torque generators +-mu rho about
+ * each normal close it; the ray along the pure torque about x leaves the GWS at mu rho / radius
+ * (the point (0, 0, 0, mu rho, 0, 0) is the average of the two + generators, on the supporting
+ * plane tx = mu rho), so epsilon is positive and at most that. */
+static void test_soft_antipodal(gcGraspWorkspace *ws) {
+    const double p[6] = {1, 0, 0, -1, 0, 0}, n[6] = {-1, 0, 0, 1, 0, 0}, mu[2] = {0.5, 0.5}, c[3] = {0, 0, 0};
+    const double rho[2] = {0.1, 0.1};
+    gcGraspDef def = gc_default_grasp_def();
+    def.torsion = rho;
+    gcGraspQuality q;
+    GC_CHECK(gc_grasp_quality(ws, &def, p, n, mu, 2, c, 1.0, &q) == GC_OK, "soft antipodal: status");
+    GC_CHECK(q.rank == 6 && q.force_closure && q.torque_closure, "soft antipodal: rank %d, closure %d", q.rank,
+             q.force_closure);
+    GC_CHECK(q.epsilon > 0.0 && q.epsilon <= 0.5 * 0.1 * (1 + 1e-12), "soft antipodal: epsilon %g, <= mu rho = 0.05",
+             q.epsilon);
+    GC_CHECK(fabs(q.weakest[3]) > 0.9, "soft antipodal: weakest mostly the torque about x (%g)", q.weakest[3]);
+    double mu_min = INFINITY;
+    GC_CHECK(gc_grasp_mu_min(ws, &def, p, n, 2, c, 1.0, 10.0, &mu_min) == GC_OK && mu_min > 0.0 && mu_min <= 2e-6,
+             "soft antipodal: mu_min %g, closed at any mu > 0", mu_min);
+    /* The fast path gives the same. */
+    gcGraspQuality fast;
+    def.volume = 0;
+    GC_CHECK(gc_grasp_quality(ws, &def, p, n, mu, 2, c, 1.0, &fast) == GC_OK && fast.force_closure &&
+                 fabs(fast.epsilon - q.epsilon) <= 1e-12,
+             "soft antipodal fast: epsilon %g against %g", fast.epsilon, q.epsilon);
+    /* A batch offsets the torsion rows with the sets: the point pair, then the soft one. */
+    const double pp[12] = {1, 0, 0, -1, 0, 0, 1, 0, 0, -1, 0, 0}, nn[12] = {-1, 0, 0, 1, 0, 0, -1, 0, 0, 1, 0, 0};
+    const double mm[4] = {0.5, 0.5, 0.5, 0.5}, rr[4] = {0, 0, 0.1, 0.1}, cc[6] = {0}, radii[2] = {1, 1};
+    const int32_t counts[2] = {2, 2};
+    gcGraspQuality two[2];
+    def.volume = 1;
+    def.torsion = rr;
+    GC_CHECK(gc_grasp_quality_batch(ws, &def, pp, nn, mm, counts, 2, cc, radii, two) == GC_OK &&
+                 !two[0].force_closure && two[0].rank == 5 && two[1].force_closure &&
+                 fabs(two[1].epsilon - q.epsilon) <= 1e-12,
+             "soft batch: closure %d %d", two[0].force_closure, two[1].force_closure);
+    /* A negative or non-finite radius is refused, naming it. */
+    const double bad[2] = {0.1, -0.1};
+    def.torsion = bad;
+    GC_CHECK(gc_grasp_quality(ws, &def, p, n, mu, 2, c, 1.0, &q) == GC_ERR_INVALID_ARGUMENT &&
+                 strstr(gc_grasp_workspace_error(ws), "torsion: -0.1 at contact 1"),
+             "soft: bad torsion refused (%s)", gc_grasp_workspace_error(ws));
+}
+
 /* Face-centre frictionless contacts on a cube: normals through the centre, no torque at all. */
 static void test_cube_face_centres(gcGraspWorkspace *ws) {
     double p[18] = {0}, n[18] = {0}, mu[6] = {0}, c[3] = {0, 0, 0};
@@ -728,6 +772,7 @@ int main(void) {
     test_frictionless_simplex(ws);
     test_frictionless_few(ws);
     test_antipodal(ws);
+    test_soft_antipodal(ws);
     test_cube_face_centres(ws);
     test_three_fingers(ws);
     test_degenerate_but_valid(ws);

@@ -62,7 +62,7 @@ static gcWorld *pinch_world(void) {
 }
 
 static void test_layout_and_stopped_record(void) {
-    GC_CHECK(gc_tick_record_size(2, 3) == 52 + 8 * (15 * 3 + 19 * 2) + 4 * 3 * 3 + 8 * 4 * 3, "size %zu",
+    GC_CHECK(gc_tick_record_size(2, 3) == 52 + 8 * (15 * 3 + 19 * 2) + 4 * 3 * 3 + 8 * 4 * 3 + 4 * 8 * 3, "size %zu",
              gc_tick_record_size(2, 3));
     GC_CHECK(gc_tick_record_size(0, 0) == 52, "empty world: the fixed fields only");
     gcWorld *w = pinch_world();
@@ -89,7 +89,8 @@ static void test_layout_and_stopped_record(void) {
     int32_t body;
     gc_world_finger_state(w, 1, &st, &body);
     int32_t rs, rb;
-    const size_t ints = size - 8 * 4 * nf; /* state, contact and parts, then the fingers' orientations */
+    const size_t patch = size - 4 * 2 * GC_FINGER_PATCH_CORNERS * nf; /* the fingers' patches, last */
+    const size_t ints = patch - 8 * 4 * nf; /* state, contact and parts, then the fingers' orientations */
     uint32_t rp;
     memcpy(&rs, r + ints - 4 * 3 * nf + 4, 4);
     memcpy(&rb, r + ints - 4 * 2 * nf + 4, 4);
@@ -99,6 +100,10 @@ static void test_layout_and_stopped_record(void) {
     GC_CHECK(rec_f64(r, ints + 32) == 1.0 && rec_f64(r, ints + 40) == 0.0, "finger 1's orientation: identity");
     double normal_x = rec_f64(r, arrays + 8 * 12 * nf + 24);                                    /* normal[1].x */
     GC_CHECK(normal_x > 0.99, "finger 1's contact normal is +x (%g)", normal_x);
+    float corners[2 * GC_FINGER_PATCH_CORNERS];
+    memcpy(corners, r + patch + sizeof corners, sizeof corners);
+    for (int k = 0; k < 2 * GC_FINGER_PATCH_CORNERS; ++k)
+        GC_CHECK(corners[k] == 0.0f, "a sphere finger's patch is zero (%g)", (double)corners[k]);
     free(r);
     gc_world_destroy(w);
 }

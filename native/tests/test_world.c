@@ -233,6 +233,17 @@ static void test_convex_finger(void) {
         gc_world_finger_force(w, pads[i], force);
         GC_CHECK_NEAR(force[2], -0.1 * 9.81, 1e-3, "the pad feels the weight");
     }
+    /* The patches for the analysis (gcSnapshot.patches): the small box's 4 bottom corners (+-1 cm,
+     * reversed contacts) on the first pad, the second pad's 4 top corners (+-3 cm) under the plate. */
+    float patches[2 * 2 * GC_FINGER_PATCH_CORNERS];
+    gcSnapshot snap;
+    memset(&snap, 0, sizeof snap);
+    snap.patches = patches;
+    GC_CHECK(gc_world_snapshot(w, &snap) == GC_OK, "snapshot");
+    for (int i = 0; i < 2; ++i)
+        for (int k = 0; k < 2 * GC_FINGER_PATCH_CORNERS; ++k)
+            GC_CHECK(fabs(fabs(patches[2 * GC_FINGER_PATCH_CORNERS * i + k]) - (i ? 0.03 : 0.01)) < 1e-6,
+                     "pad %d's patch corner coordinate %d: %g", i, k, (double)patches[2 * GC_FINGER_PATCH_CORNERS * i + k]);
     int count;
     GC_CHECK(gc_world_finger_contacts(w, 7, NULL, 0, &count) == GC_ERR_UNKNOWN_ID, "unknown finger");
     GC_CHECK(gc_world_finger_contacts(w, pads[0], NULL, 4, &count) == GC_ERR_INVALID_ARGUMENT, "no array");

@@ -33,7 +33,7 @@ class FakeWorld:
                 "residual_torques": np.zeros((1, 3)), "god_objects": gos, "spring_forces": np.zeros((self.n, 3)),
                 "finger_states": np.zeros(self.n, np.int32), "contact_bodies": np.full(self.n, -1, np.int32),
                 "normals": np.zeros((self.n, 3)), "linear_velocities": np.zeros((1, 3)),
-                "angular_velocities": np.zeros((1, 3))}
+                "angular_velocities": np.zeros((1, 3)), "patches": np.zeros((self.n, 4, 2), np.float32)}
 
 
 def _handle(world, n_fingers=2):

@@ -403,9 +403,15 @@ def test_runtime_carries_a_convex_finger_as_the_synchronous_step_does():
     for i in range(800):
         assert w.push_hips(hips(i), i * DT)
         w.advance(1)
+    running = w.snapshot()      # the display channel's, from the haptic loop
     w.stop()
     assert w.state_hash() == ref.state_hash()
     assert tilt_deg(ref, 0) == pytest.approx(np.degrees(0.1), abs=0.2)  # resting on the tilted palm
+    # The palm's patch for the analysis, as the stopped world reports it: its four top corners
+    # (about the pressure centroid, which the tilt moves off the palm's centre): 8 x 9 cm.
+    np.testing.assert_array_equal(running["patches"], ref.snapshot()["patches"])
+    corners = running["patches"][0]
+    np.testing.assert_allclose(np.sort(np.ptp(corners, axis=0)), [0.08, 0.09], atol=1e-6)
 
 
 # ---- soft fingertips: torsional friction about the normal (sphere fingers) ---------------------

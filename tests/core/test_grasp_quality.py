@@ -600,3 +600,73 @@ def test_three_fingers_at_120_degrees_dithered_at_large_mu():
         q, m = dithered(p, rng), dithered(n, rng)
         check_symmetric(q, m, 10.0, np.zeros(3), r, volume=False)
         assert graspcore.grasp_mu_min(q, m, np.zeros(3), r) < 0.01
+
+
+SOFT_SEEDS = range(16)
+
+
+def soft_grasp(seed):
+    """Odd seeds: a nearly antipodal pair (closed by its torsion alone); even: 3-4 random
+    contacts. About one contact in five has no torsion."""
+    rng = np.random.default_rng(100 + seed)
+    if seed % 2:
+        d = rng.normal(size=3)
+        d /= np.linalg.norm(d)
+        points = np.array([d, -d]) + 0.05 * rng.normal(size=(2, 3))
+        normals = -np.array([d, -d]) + 0.05 * rng.normal(size=(2, 3))
+        mu, center, radius = rng.uniform(0.3, 1.0, size=2), 0.05 * rng.normal(size=3), 1.0
+    else:
+        points, normals, mu, center, radius = random_grasp(rng, int(rng.integers(3, 5)))
+    rho = rng.uniform(0.05, 0.3, size=len(points)) * (rng.random(len(points)) < 0.8)
+    return points, normals, mu, center, radius, rho
+
+
+@pytest.mark.parametrize("seed", SOFT_SEEDS)
+def test_soft_contacts_against_qhull(seed):
+    """Soft contacts (torsion rho): each contact's cone edges and its two generators (n, ((p - c) x n
+    +- mu rho n) / radius), as docs/api.md defines them, through Qhull give the core's closure,
+    epsilon, weakest direction and volume, on the full path and the fast path; mu_min is where
+    that set closes (grasp_quality at mu_min closed, 2e-6 below open)."""
+    points, normals, mu, center, radius, rho = soft_grasp(seed)
+    w = edge_wrenches(points, normals, mu, center, radius, 8)
+    unit = normals / np.linalg.norm(normals, axis=1)[:, None]
+    extra = [np.concatenate([n, (np.cross(p - center, n) + s * m * r * n) / radius])
+             for p, n, m, r in zip(points, unit, mu, rho) if m * r > 0 for s in (-1, 1)]
+    w = np.vstack([w] + ([np.array(extra)] if extra else []))
+    closed, hull = strictly_inside(w)
+    for volume in (True, False):
+        q = graspcore.grasp_quality(points, normals, mu, center, radius, volume=volume, torsion=rho)
+        assert q["force_closure"] == closed
+        if closed:
+            nearest = int(np.argmax(hull.equations[:, -1]))
+            assert q["epsilon"] == pytest.approx(-hull.equations[nearest, -1], rel=1e-7, abs=1e-12)
+            if volume:
+                assert q["volume"] == pytest.approx(hull.volume, rel=1e-7)
+    point = graspcore.grasp_quality(points, normals, mu, center, radius)
+    assert not point["force_closure"] or closed     # torsion only adds wrenches
+    m = graspcore.grasp_mu_min(points, normals, center, radius, torsion=rho)
+    if np.isfinite(m) and m > 0:
+        assert graspcore.grasp_quality(points, normals, m, center, radius, torsion=rho)["force_closure"]
+        assert not graspcore.grasp_quality(points, normals, max(m - 2e-6, 0.0), center, radius,
+                                           torsion=rho)["force_closure"]
+
+
+def test_soft_contact_cases_include_closure_by_torsion_alone():
+    """The antipodal pairs above are closed with their torsion and open without it."""
+    closed_by_torsion = 0
+    for seed in SOFT_SEEDS[1::2]:
+        points, normals, mu, center, radius, rho = soft_grasp(seed)
+        soft = graspcore.grasp_quality(points, normals, mu, center, radius, torsion=rho)["force_closure"]
+        hard = graspcore.grasp_quality(points, normals, mu, center, radius)["force_closure"]
+        closed_by_torsion += soft and not hard
+    assert closed_by_torsion >= 6
+
+
+def test_soft_contacts_bad_torsion_names_it():
+    p, n = [[1, 0, 0], [-1, 0, 0]], [[-1, 0, 0], [1, 0, 0]]
+    with pytest.raises(ValueError, match="torsion: expected finite numbers >= 0"):
+        graspcore.grasp_quality(p, n, 0.5, [0, 0, 0], 1.0, torsion=[0.1, -0.1])
+    with pytest.raises(ValueError, match=r"torsion: expected a number or shape \(2,\)"):
+        graspcore.grasp_quality_batch(p, n, 0.5, [2], [[0, 0, 0]], [1.0], torsion=[0.1, 0.1, 0.1])
+    with pytest.raises(ValueError, match="torsion"):
+        graspcore.grasp_mu_min(p, n, [0, 0, 0], 1.0, torsion=[np.nan, 0.1])

@@ -30,7 +30,7 @@ def tick_dtype(num_bodies: int, num_fingers: int) -> np.dtype:
         ("hip", "<f8", (nf, 3)), ("god_object", "<f8", (nf, 3)), ("force", "<f8", (nf, 3)),
         ("device_force", "<f8", (nf, 3)), ("normal", "<f8", (nf, 3)), ("pose", "<f8", (nb, 7)), ("velocity", "<f8", (nb, 6)),
         ("wrench", "<f8", (nb, 6)), ("state", "<i4", (nf,)), ("contact", "<i4", (nf,)), ("parts", "<u4", (nf,)),
-        ("orientation", "<f8", (nf, 4)),
+        ("orientation", "<f8", (nf, 4)), ("patch", "<f4", (nf, _core.FINGER_PATCH_CORNERS, 2)),
     ])
     if dtype.itemsize != _core.tick_record_size(nb, nf):
         raise RuntimeError("graspcore.tick_dtype does not match the core's record layout (rebuild the core)")
@@ -212,11 +212,12 @@ class World(_core.World):
         ``finger_states`` (m,) int32 (0 free, 1 stick, 2 slip), ``contact_bodies``
         (m,) int32 (-1 when free) and ``normals`` (m, 3): the plane normal of the contact
         whose god-object it reports (the deepest), world, pointing out of the body touched (0
-        when free); per body ``linear_velocities``
+        when free), ``patches`` (m, 4, 2) float32: a convex finger's contact patch (the tick
+        record's ``patch``, docs/recording-format.md; zeros for a sphere); per body ``linear_velocities``
         (of the body frame origin, as ``body_velocity``) and ``angular_velocities`` (n, 3).
         While the runtime runs, the world's queries and views answer from the last snapshot."""
         (time, object_time, tick, enabled, nb, nf, poses, wrenches, adopted, gos, hips, forces,
-         springs, states, contacts, normals, velocities) = self._snapshot()
+         springs, states, contacts, normals, velocities, patches) = self._snapshot()
         wrenches = np.frombuffer(wrenches, dtype=np.float64).reshape(nb, 6)
         velocities = np.frombuffer(velocities, dtype=np.float64).reshape(nb, 6)
         return {
@@ -237,6 +238,7 @@ class World(_core.World):
             "normals": np.frombuffer(normals, dtype=np.float64).reshape(nf, 3),
             "linear_velocities": velocities[:, :3],
             "angular_velocities": velocities[:, 3:],
+            "patches": np.frombuffer(patches, dtype=np.float32).reshape(nf, _core.FINGER_PATCH_CORNERS, 2),
         }
 
     # ---- Tick log (docs/recording-format.md): one record per tick for recorders.
@@ -342,6 +344,23 @@ def _contacts(points, normals, mu):
     return points, normals, np.ascontiguousarray(mu_array)
 
 
+def _torsion(torsion, n: int):
+    """None (point contacts), or one soft-contact radius rho >= 0 (m) per contact row."""
+    if torsion is None:
+        return None
+    try:
+        array = np.asarray(torsion, dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"torsion: expected a number or {n} numbers ({exc})") from None
+    if array.ndim == 0:
+        array = np.full(n, float(array))
+    if array.shape != (n,):
+        raise ValueError(f"torsion: expected a number or shape ({n},), got {array.shape}")
+    if not np.all(np.isfinite(array)) or np.any(array < 0):
+        raise ValueError("torsion: expected finite numbers >= 0 (the soft contacts' patch radii, m)")
+    return np.ascontiguousarray(array)
+
+
 def _number(value, name: str, kind=float):
     try:
         if kind is int:
@@ -360,7 +379,7 @@ def _flag(value, name: str) -> bool:
 
 
 def grasp_quality(points, normals, mu, center, radius, edges: int = 8, volume: bool = True,
-                  reuse: bool = False) -> dict:
+                  reuse: bool = False, torsion=None) -> dict:
     """Quality of a grasp by point contacts with friction (docs/api.md "Grasp quality").
 
     points (n, 3) contact points, normals (n, 3) inward normals (into the object), mu one number
@@ -370,19 +389,23 @@ def grasp_quality(points, normals, mu, center, radius, edges: int = 8, volume: b
     closure by a linear program, epsilon and weakest by support queries, the same values) and
     returns volume -1.0 and facets -1 (not computed). reuse=True (with volume=False): a set within
     rounding of one of the last few answered in closure gets that answer's facet re-certified
-    instead of a new search (docs/api.md, "Reusing an answer"). Bad input raises ValueError naming
-    the argument."""
+    instead of a new search (docs/api.md, "Reusing an answer"). torsion: None (point contacts) or a
+    number or (n,) of soft-contact patch radii rho (m): each contact with mu rho > 0 also has the
+    wrenches (n, ((p - center) x n +- mu rho n) / radius), torsional friction about its normal up to
+    mu rho Fn (GraspIt's soft contacts; docs/analysis.md). Bad input raises ValueError naming the
+    argument."""
     points, normals, mu = _contacts(points, normals, mu)
     return _core._grasp_quality(points, normals, mu, _vector(center, 3, "center"), _number(radius, "radius"),
-                                _number(edges, "edges", int), _flag(volume, "volume"), _flag(reuse, "reuse"))
+                                _number(edges, "edges", int), _flag(volume, "volume"), _flag(reuse, "reuse"),
+                                _torsion(torsion, len(mu)))
 
 
 def grasp_quality_batch(points, normals, mu, counts, centers, radii, edges: int = 8,
-                        volume: bool = True, reuse: bool = False) -> np.ndarray:
+                        volume: bool = True, reuse: bool = False, torsion=None) -> np.ndarray:
     """grasp_quality of many contact sets: counts[s] contacts in set s, their rows of points,
     normals and mu (one number or one per row) concatenated; centers (m, 3), radii (m,).
     volume and reuse as in grasp_quality (volume False: volume -1.0 and facets -1 in every row,
-    much faster).
+    much faster); torsion as in grasp_quality, one per row.
     Returns a structured array of GRASP_QUALITY_DTYPE, one row per set."""
     points, normals, mu = _contacts(points, normals, mu)
     try:
@@ -406,7 +429,7 @@ def grasp_quality_batch(points, normals, mu, counts, centers, radii, edges: int 
     if m:
         _core._grasp_quality_batch(points, normals, mu, counts_array, np.ascontiguousarray(centers_array),
                                    radii_array, _number(edges, "edges", int), _flag(volume, "volume"),
-                                   _flag(reuse, "reuse"), raw.view(np.uint8))
+                                   _flag(reuse, "reuse"), raw.view(np.uint8), _torsion(torsion, len(mu)))
     out = np.zeros(m, dtype=GRASP_QUALITY_DTYPE)
     for name in GRASP_QUALITY_DTYPE.names:
         out[name] = raw[name]
@@ -414,12 +437,14 @@ def grasp_quality_batch(points, normals, mu, counts, centers, radii, edges: int 
 
 
 def grasp_mu_min(points, normals, center, radius, edges: int = 8, mu_max: float = 10.0,
-                 reuse: bool = False) -> float:
+                 reuse: bool = False, torsion=None) -> float:
     """The smallest friction coefficient (the same at every contact) at which the contact set is
     in force closure, by bisection to 1e-6 (each step the closure linear program, no hull); 0.0 for
     frictionless closure, math.inf when not in closure at mu_max. reuse=True: the answer for
     contacts within 1e-9 of one of the last few, checked (closed there, open 2e-6 below), instead
-    of a new search (docs/api.md, "Reusing an answer")."""
+    of a new search (docs/api.md, "Reusing an answer"; not with torsion). torsion as in
+    grasp_quality: the soft contacts' torsional friction mu rho grows with the searched mu."""
     points, normals, _ = _contacts(points, normals, 0.0)
     return _core._grasp_mu_min(points, normals, _vector(center, 3, "center"), _number(radius, "radius"),
-                               _number(edges, "edges", int), _number(mu_max, "mu_max"), _flag(reuse, "reuse"))
+                               _number(edges, "edges", int), _number(mu_max, "mu_max"), _flag(reuse, "reuse"),
+                               _torsion(torsion, len(points)))
