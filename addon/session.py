@@ -24,8 +24,8 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, FloatProperty
 
-from . import anim, convert, core_loader, display, record
-from .engine import analysis, grasp_display
+from . import anim, convert, display, record
+from .engine import analysis, core_loader, grasp_display
 from .engine.devices.live import DeviceInput, device_event_detail, device_fingers, without_fingers
 from .engine.inputs import SampledTrajectory, TimelineInput, turning_fingers
 from .engine.runner import SessionRunner

@@ -28,7 +28,7 @@ _TINY = 1e-12           # normals shorter than this are "no normal" (a free fing
 
 
 def _core():
-    from .. import core_loader
+    from . import core_loader
     return core_loader.load()
 
 

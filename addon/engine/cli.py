@@ -303,7 +303,7 @@ def _run_continuity(args, out, err):
 
 
 def _load_core():
-    from .. import core_loader
+    from . import core_loader
     return core_loader.load()
 
 

@@ -505,9 +505,9 @@ def _analysis_outcomes(job, ticks, desc, start, stop, held):
 
 def run_chunk(job, indices) -> list:
     """Samples ``indices``, each on its own; their rows. ``job``: a Job or its state()."""
-    from .. import core_loader
+    from . import core_loader
     gc = core_loader.load()
-    _recording._reuse_freed_memory()       # each sample's records: heap, not a fresh mapping each
+    _recording.reuse_freed_memory()       # each sample's records: heap, not a fresh mapping each
     if isinstance(job, dict):
         job = Job.from_state(job)
     return [run_sample(job, int(i), gc) for i in indices]
@@ -549,7 +549,7 @@ def run_local(job: Job, todo, workers: int, on_rows) -> None:
     """On this machine: in this process for one worker, else a pool of ``workers`` processes
     (spawned: they import this module, numpy and the core, never bpy). The first sample runs
     here while the pool starts, so a scene the core refuses fails at once."""
-    from .. import core_loader
+    from . import core_loader
     if __name__.startswith("bl_ext."):
         # Inside Blender the engine is a module of Blender's extension package, which a plain
         # worker process cannot import: the sweep runs in this process (docs/sweeps.md).
@@ -579,14 +579,14 @@ def run_local(job: Job, todo, workers: int, on_rows) -> None:
 
 
 def engine_zip(folder: str) -> tuple[str, str]:
-    """This package's bpy-free part (engine/ and core_loader) as an importable zip for Dask
-    workers, under a name with its content hash (a changed engine is a new module). Returns
-    (path, package name)."""
+    """This package's bpy-free part (engine/, without a vendored core: workers have the graspcore
+    wheel) as an importable zip for Dask workers, under a name with its content hash (a changed
+    engine is a new module). Returns (path, package name)."""
     import zipfile
     addon = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    files = [("core_loader.py", os.path.join(addon, "core_loader.py"))]
+    files = []
     for root, dirs, names in os.walk(os.path.join(addon, "engine")):
-        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+        dirs[:] = sorted(d for d in dirs if d not in ("__pycache__", "graspcore"))
         for n in sorted(names):
             if n.endswith(".py"):
                 full = os.path.join(root, n)
@@ -620,7 +620,7 @@ def run_dask(job: Job, todo, address: str, on_rows, folder: str) -> None:
     (and to any that joins later), the samples in tasks of at least CHUNK_SECONDS_DASK of work
     (the first sample, run here, says how many that is). A worker lost mid-sweep has its tasks
     run again elsewhere: the same rows."""
-    from .. import core_loader
+    from . import core_loader
     try:
         from distributed import Client, as_completed
         from distributed.diagnostics.plugin import UploadFile

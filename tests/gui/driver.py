@@ -1021,7 +1021,7 @@ def finish():
 
 def main():
     try:
-        core = ext("core_loader").load()
+        core = ext("engine.core_loader").load()
         RESULT["graspcore"] = os.path.basename(core._core.__file__)
         import hid  # noqa: F401 - the bundled hidapi wheel for this Python
         RESULT["hidapi"] = os.path.basename(hid.__file__)
