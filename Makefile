@@ -39,9 +39,9 @@ $(VENV)/.core: $(VENV)/.deps $(CORE_SRC) $(CORE_HDR) $(BINDING) $(PY_SRC) native
 	touch $@
 
 # `grasp-lab` in the venv (docs/cli.md): the command line of this checkout's extension.
-$(VENV)/bin/grasp-lab: $(VENV)/.deps
+$(VENV)/bin/grasp-lab: $(VENV)/.deps Makefile
 	printf '%s\n' '#!/bin/sh' '# grasp-lab (docs/cli.md), written by make' \
-	  'exec "$(CURDIR)/$(PY)" -c "import sys; sys.path.insert(0, \"$(CURDIR)\"); from addon.engine.cli import launch; sys.exit(launch())" "$$@"' > $@
+	  'exec "$(CURDIR)/$(PY)" -c "import sys; sys.path.insert(0, \"$(CURDIR)\"); from addon.launcher import launch; sys.exit(launch())" "$$@"' > $@
 	chmod +x $@
 
 core: $(VENV)/.core $(VENV)/bin/grasp-lab

@@ -8,7 +8,7 @@ from bpy.props import BoolProperty, CollectionProperty, EnumProperty, IntPropert
 
 from . import session
 from .engine.devices.cli_commands import discover
-from .engine.devices.live import DeviceSet
+from .scene_devices import status_lines
 
 _discovered: list = []
 
@@ -35,123 +35,6 @@ class GRASPLAB_PG_device(bpy.types.PropertyGroup):
                              description="How many fingers the device drives")
     frame: PointerProperty(name="Workspace Frame", type=bpy.types.Object, poll=_is_empty,
                            description="An Empty whose transform maps device coordinates (m) into the scene")
-
-
-def workspace_matrix(entry):
-    """The entry's workspace frame as a 4x4 list (identity without an Empty)."""
-    if entry.frame is None:
-        return None
-    return [list(row) for row in entry.frame.matrix_world]
-
-
-def _add_entry(devices, world, entry):
-    frame = workspace_matrix(entry)
-    if entry.kind == "SERIAL":
-        devices.add(entry.port, entry.finger_offset, entry.num_fingers, frame, label=entry.port)
-        return
-    if entry.kind == "UDP":
-        host, _, port = entry.port.rpartition(":")
-        if not port.isdigit():
-            raise ValueError(f"{entry.port}: a UDP device needs HOST:PORT")
-        devices.add_udp(host.strip("[]"), int(port), entry.finger_offset, entry.num_fingers, frame,
-                        label=entry.port)
-        return
-    first, n = entry.finger_offset, entry.num_fingers
-    if first + n > world.finger_count:
-        raise ValueError(f"fingers {first}..{first + n - 1}: the scene has {world.finger_count}")
-    if entry.kind == "SPACEMOUSE":
-        from .engine.devices.spacemouse import SpaceMouseSource, hand_from_fingertips
-        hand = hand_from_fingertips(world.snapshot()["hips"][first:first + n], frame)
-        source = SpaceMouseSource(hand, path=entry.port.encode() if entry.port else None)
-    else:
-        from .engine.devices.opengloves import OpenGlovesSource
-        if n != 5:
-            raise ValueError("a glove drives 5 fingers (thumb to pinky)")
-        source = OpenGlovesSource(entry.port, hand_frame=frame, left=entry.left_hand)
-    devices.add_source(source, first, entry.port or entry.kind.lower())
-
-
-def connect_scene_devices(scene, world) -> DeviceSet:
-    """Attach every device of the scene's list to a running world; entries that fail to
-    open are left out (their error is in ``failed``)."""
-    devices = DeviceSet(world)
-    devices.failed = {}
-    for entry in scene.grasp_lab_devices:
-        try:
-            _add_entry(devices, world, entry)
-        except (ConnectionError, OSError, ImportError, ValueError) as ex:
-            devices.failed[entry.port or entry.kind.lower()] = str(ex)
-    return devices
-
-
-def status_lines(devices) -> list:
-    """One line a device, for the sidebar and the HUD."""
-    lines = []
-    for s in devices.status():
-        first, n = s["fingers"]
-        lines.append(f"{s['label']}: {s['state']}, fingers {first}..{first + n - 1}, {s['rate_hz']:.0f} Hz, "
-                     f"dropped {s['dropped']}, p99 {s['latency_p99_us']:.0f} µs, "
-                     f"forces {'enabled' if s['enabled'] else 'not enabled'}")
-    for port, err in getattr(devices, "failed", {}).items():
-        lines.append(f"{port}: not connected ({err})")
-    return lines
-
-
-def add_device_specs(context, specs) -> list:
-    """``--device`` specs (``serial:PORT[@FIRST]``, ``spacemouse[:PATH]``, ``opengloves:PORT``)
-    appended to the scene's device list; a spec without ``@FIRST`` takes the fingers after
-    the list's last device. Returns the entries' indices (``remove_entries`` takes them out)."""
-    from .engine.devices.cli_commands import parse_device_spec
-    entries = context.scene.grasp_lab_devices
-    n_fingers = sum(1 for o in context.view_layer.objects if o.grasp_lab.role == "FINGER")
-    first = max((e.finger_offset + e.num_fingers for e in entries), default=0)
-    parsed = [(spec, parse_device_spec(spec)) for spec in specs]     # all checked before any is added
-    added = []
-    for spec, d in parsed:
-        entry = entries.add()
-        entry.kind = d["kind"].upper()
-        entry.port = d.get("port") or d.get("path") or ""
-        entry.finger_offset = d["finger_offset"] if "@" in spec else first
-        entry.num_fingers = 5 if entry.kind == "OPENGLOVES" else max(1, n_fingers - entry.finger_offset)
-        first = entry.finger_offset + entry.num_fingers
-        added.append(len(entries) - 1)
-    return added
-
-
-def remove_entries(context, indices) -> None:
-    for i in sorted(indices, reverse=True):
-        context.scene.grasp_lab_devices.remove(i)
-
-
-def run_realtime(context, duration: float, device_specs=(), forces: bool = False, record_path=None):
-    """A live session without a window (``grasp-lab run SCENE --realtime --device ...``):
-    the threaded runtime in real time for ``duration`` seconds (Ctrl-C ends it early), the
-    devices of the scene's list and of ``device_specs`` (added for this session only),
-    forces enabled when ``forces``. Returns the finished BlenderSession."""
-    import time
-
-    added = add_device_specs(context, device_specs)
-    try:
-        live = session.BlenderSession(context, live=True, duration=duration, record_path=record_path)
-        try:
-            if live.devices is not None and live.devices.failed:
-                raise ConnectionError("; ".join(f"{p}: {e}" for p, e in live.devices.failed.items()))
-            if forces and live.devices is not None:
-                live.devices.enable(True)
-            interval = 1.0 / max(context.scene.grasp_lab.display_rate, 1.0)
-            t0 = time.perf_counter()
-            while True:
-                elapsed = time.perf_counter() - t0
-                if live.tick(elapsed) or elapsed >= duration:
-                    break
-                time.sleep(interval)
-        except KeyboardInterrupt:
-            live.ended_by = "Ctrl-C"
-        finally:
-            live.finish()
-        return live
-    finally:
-        remove_entries(context, added)
 
 
 def _active_devices():

@@ -236,7 +236,7 @@ def test_emulator_plays_a_scene_that_holds_live(bpy, core, tmp_path):
     driving the scene's fingertips in a real-time session: the card is drawn out of its slot
     and held, as in the headless run."""
     import subprocess
-    devices_ui = grasp_env.submodule("devices_ui")
+    session = grasp_env.submodule("session")
     sc = lib.build(bpy, "key_pinch")
     path = str(tmp_path / "key_pinch.blend")
     bpy.ops.wm.save_as_mainfile(filepath=path)
@@ -249,7 +249,7 @@ def test_emulator_plays_a_scene_that_holds_live(bpy, core, tmp_path):
         assert line.startswith("PORT "), emu.stderr.read()
         # half a second into the hold, well before the emulator loops the animation
         held_at = (sc.frames_of("hold")[0] - sc.keys[0].frame) / lib.FPS + 0.5
-        live = devices_ui.run_realtime(bpy.context, held_at, [f"serial:{line.split()[1]}"])
+        live = session.run_realtime(bpy.context, held_at, [f"serial:{line.split()[1]}"])
         res = live.result
         i = res.body_names.index("Card")
         z = res.trajectory("Card")[:, 2]

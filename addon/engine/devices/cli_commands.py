@@ -172,7 +172,7 @@ def register_with(cli) -> None:
     """Plug into the grasp-lab dispatcher (addon/engine/cli.py: ``register_command``,
     ``register_device_backend``): the two commands, and the --device kinds whose specs
     ``parse_device_spec`` reads (headless runs add them to the scene's device list with
-    ``devices_ui.add_device_specs``)."""
+    ``scene_devices.add_device_specs``)."""
     from .emulator import build_parser
     cli.register_command("devices", DEVICES_HELP, configure_devices, lambda args, out, err: cmd_devices(args, out))
     cli.register_command("emulate", EMULATE_HELP, build_parser, lambda args, out, err: cmd_emulate(args))

@@ -19,6 +19,28 @@ from .cli_commands import parse_device_spec
 from .serial_device import SerialDevice, UdpDevice
 
 
+GLOVE_FINGERS = 5       # a glove drives thumb to pinky
+
+
+def assign_specs(specs, n_fingers: int, first: int = 0, counts=None) -> list:
+    """``--device`` specs, all read (``parse_device_spec``) before any is used, each with the
+    fingers it drives: ``finger_offset``, its ``@FIRST`` or else the finger after the previous
+    device's (the first device's: ``first``), and ``num_fingers``, ``counts[i]`` when given, a
+    glove's five, else the rest of the scene's ``n_fingers`` (at least one). The one place specs
+    become fingers: the scene's device list (scene_devices.add_device_specs) and
+    ``DeviceSet.add_specs``; ``device_fingers`` then checks what they ask for."""
+    parsed = [(spec, parse_device_spec(spec)) for spec in specs]
+    out = []
+    for i, (spec, d) in enumerate(parsed):
+        d = dict(d, spec=spec)
+        d["finger_offset"] = d.get("finger_offset", first) if "@" in spec else first
+        d["num_fingers"] = int(counts[i]) if counts else \
+            GLOVE_FINGERS if d["kind"] == "opengloves" else max(1, n_fingers - d["finger_offset"])
+        first = d["finger_offset"] + d["num_fingers"]
+        out.append(d)
+    return out
+
+
 def device_fingers(devices, n_fingers: int, finger_names=None) -> np.ndarray:
     """Which device drives each finger: an (n_fingers,) array of indices into ``devices``
     (-1: none). ``devices``: (label, first finger, finger count) per device. A device with a
@@ -150,18 +172,14 @@ class DeviceSet:
         """``--device`` specs (serial:PORT[@FIRST]) in order; a spec without @FIRST takes the
         fingers after the previous device's. ``frames``: optional 4x4 per spec."""
         n_world = self.world.finger_count
-        next_first = 0
-        for i, spec in enumerate(specs):
-            d = parse_device_spec(spec)
+        for i, d in enumerate(assign_specs(specs, n_world, counts=fingers_per_device)):
+            spec, first, count = d["spec"], d["finger_offset"], d["num_fingers"]
             if d["kind"] != "serial":
                 raise ValueError(f"--device {spec!r}: only serial devices drive a runtime session from the "
                                  f"command line (SpaceMouse and OpenGloves are input sources)")
-            first = d["finger_offset"] if "@" in spec else next_first
-            count = fingers_per_device[i] if fingers_per_device else max(1, n_world - first)
             if first + count > n_world:
                 raise ValueError(f"--device {spec!r}: fingers {first}..{first + count - 1}, the scene has {n_world}")
             self.add(d["port"], first, count, frames[i] if frames else None, **limits)
-            next_first = first + count
 
     def add_udp(self, host: str, port: int, finger_offset: int, num_fingers: int, transform=None,
                 label: str | None = None, **limits) -> UdpDevice:

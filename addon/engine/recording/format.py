@@ -117,7 +117,7 @@ def scene_to_dict(desc) -> dict:
 
 def scene_from_dict(data: dict):
     """The ``SceneDesc`` a recording was made with (prepared: mass properties included)."""
-    from .scene import BodyDesc, FingerDesc, MassProperties, SceneDesc
+    from ..scene import BodyDesc, FingerDesc, MassProperties, SceneDesc
     bodies = []
     for b in data["bodies"]:
         mp = None if b.get("mass") is None else MassProperties(
