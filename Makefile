@@ -69,9 +69,12 @@ $(foreach v,c c-asan c-tsan,$(eval $(call core_library,$(v))))
 
 lib: $(BUILD)/c/libgraspcore.a
 
-# No file of native/src calls a file above it (the order is docs/architecture.md's table).
+# No file of native/src calls a file above it (the order is docs/architecture.md's table); the
+# add-on's engine/ imports neither bpy nor the add-on above it, and no add-on modules import each
+# other in a circle.
 check-layers: $(BUILD)/c/libgraspcore.a native/check_layers.py docs/architecture.md
 	$(PYTHON) native/check_layers.py docs/architecture.md $(BUILD)/c/obj $(CORE_SRC)
+	$(PYTHON) native/check_layers.py --addon addon
 
 test-c: $(addprefix $(BUILD)/c/,$(C_TESTS))
 	@for t in $^; do echo "== $$t"; $$t || exit 1; done

@@ -8,6 +8,7 @@ import os
 import bpy
 
 from . import bake as baking
+from . import emulate_blend
 from .engine import limits
 from .engine.cli import CliError
 from .engine.outputs import AtomicFile
@@ -203,4 +204,4 @@ def bake(args, out, err) -> int:
 
 # The Blender commands' work, by name: the command line (engine/cli.py) checks their arguments,
 # then dispatches here through its BLENDER_COMMANDS table (cli_blender.py fills it).
-COMMANDS = {"run": run, "bake": bake}
+COMMANDS = {"run": run, "bake": bake, "emulate": emulate_blend.emulate}

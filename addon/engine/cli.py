@@ -42,11 +42,11 @@ class Command:
     help: str
     configure: Callable      # (argparse.ArgumentParser) -> None
     run: Callable            # (args, out) -> int | None
-    needs_blender: bool = False
+    needs_blender: bool | Callable = False      # or (args) -> bool: whether these arguments need it
 
 
 COMMANDS: dict[str, Command] = {}
-# The work of the commands that need Blender (``needs_blender``: run, bake), by name: the bpy side
+# The work of the commands that need Blender (``needs_blender``: run, bake, emulate --from), by name: the bpy side
 # fills this table when the extension registers (cli_blender.py); their checks run here first.
 # Outside Blender the launcher (launcher.py) sets ``load_extension``: it loads the extension into
 # the bpy module and returns the extension's own ``main``, which such a command is handed to.
@@ -540,7 +540,8 @@ def main(argv=None, prog=PROG, out=None, err=None) -> int:
     cmd = COMMANDS[args.command]
     with _signals_stop(), _warnings_once(prog, cmd.name, err):
         try:
-            if cmd.needs_blender and cmd.name not in BLENDER_COMMANDS:
+            needs_blender = cmd.needs_blender(args) if callable(cmd.needs_blender) else cmd.needs_blender
+            if needs_blender and cmd.name not in BLENDER_COMMANDS:
                 try:
                     if load_extension is None:
                         raise RuntimeError("run it with grasp-lab or blender -c grasp_lab")

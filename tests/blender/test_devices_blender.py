@@ -22,7 +22,7 @@ def test_emulator_plays_the_fingertips_of_a_blend(bpy, sample, tmp_path):
     expected = [tuple(bpy.data.objects[f"Finger {i}"].matrix_world.translation) for i in (0, 1)]
     path = str(tmp_path / "pinch.blend")
     bpy.ops.wm.save_as_mainfile(filepath=path)
-    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--from", path,
+    emu = subprocess.Popen([sys.executable, "-m", "addon.emulate_blend", "--pty", "--from", path,
                             "--duration", "0.3"], cwd=grasp_env.ROOT, stdout=subprocess.PIPE,
                            stderr=subprocess.PIPE, text=True)
     try:

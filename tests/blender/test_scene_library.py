@@ -217,12 +217,12 @@ def test_make_scenes_files_play_on_the_emulator(bpy, tmp_path):
     """`make scenes` writes every scene; each file keeps its description, and the device
     emulator's --from plays its fingertips where the scene puts them at every key."""
     assert lib.main(["--out", str(tmp_path)]) == 0
-    emulator = grasp_env.submodule("engine.devices.emulator")
+    emulate_blend = grasp_env.submodule("emulate_blend")
     for name in lib.SCENES:
         sc = lib.scene(name)
         path = tmp_path / f"{name}.blend"
         assert path.stat().st_size < 150_000
-        motion, n = emulator.motion_from_blend(str(path))
+        motion, n = emulate_blend.motion_from_blend(str(path))
         assert bpy.context.scene[lib.DESCRIPTION_KEY] == sc.description
         assert n == len(sc.fingers)
         for key in sc.keys[:-1]:                              # the last key wraps to the first
@@ -242,7 +242,7 @@ def test_emulator_plays_a_scene_that_holds_live(bpy, core, tmp_path):
     bpy.ops.wm.save_as_mainfile(filepath=path)
     for f in sc.fingers:                                      # the device has the fingertips now
         bpy.data.objects[f.name].animation_data_clear()
-    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--from", path],
+    emu = subprocess.Popen([sys.executable, "-m", "addon.emulate_blend", "--pty", "--from", path],
                            cwd=grasp_env.ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         line = emu.stdout.readline()
