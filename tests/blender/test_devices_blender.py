@@ -321,3 +321,19 @@ def test_a_device_that_only_sends_garbage_is_an_error(bpy, sample, core, tmp_pat
     assert len(line) == 1 and line[0].startswith(f"grasp-lab run: device {port}") and "frames dropped" in line[0], r.stderr
     assert int(line[0].split("(")[1].split()[0]) > 0        # the noise was dropped and counted
     assert rec.exists()                                     # the session's recording is finished
+
+
+def test_emulate_from_a_blend_is_a_blender_command(bpy, sample, tmp_path):
+    """`grasp-lab emulate --from SCENE.blend` reads the .blend in Blender (the launcher loads the
+    extension, emulate_blend.py plays it); the engine's emulator alone refuses --from, saying where."""
+    sample.build(bpy)
+    path = str(tmp_path / "pinch.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    launcher = os.path.join(os.path.dirname(sys.executable), "grasp-lab")
+    r = subprocess.run([launcher, "emulate", "--pty", "--from", path, "--wait", "0.5"], capture_output=True,
+                       text=True, timeout=120)
+    ports = [line for line in r.stdout.splitlines() if line.startswith("PORT /dev/")]
+    assert r.returncode == 2 and len(ports) == 1 and "no hello from the host" in r.stderr, (r.stdout, r.stderr)
+    r = subprocess.run([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--from", path],
+                       cwd=grasp_env.ROOT, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1 and "reading a .blend needs Blender: grasp-lab emulate --from" in r.stderr, r.stderr
