@@ -67,4 +67,3 @@ class EventDetector:
             kind = "clamp_begin" if k2[k + 1, f] else "clamp_end"
             yield (int(ticks[k]), float(times[k]), kind, self.fingers[f], f"max_force {self.max_force} N")
         self._last = (state[-1].copy(), contact[-1].copy(), enabled[-1].copy(), clamped[-1].copy())
-

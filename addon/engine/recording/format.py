@@ -26,7 +26,6 @@ STATE_NAMES = ("free", "stick", "slip")
 UNITS = {"length": "m", "mass": "kg", "time": "s", "force": "N", "torque": "N m",
          "velocity": "m/s", "angular_velocity": "rad/s (world)", "orientation": "quaternion w x y z",
          "stiffness": "N/m", "damping": "N s/m", "rate": "Hz", "period_us": "us", "work_us": "us"}
-
 # The tick record's layout is the core's (graspcore.tick_dtype, checked against
 # gc_tick_record_size): the writer takes it from there and stores it in the file's schema,
 # which readers build their record type from (a recording opens without the core). The
@@ -72,8 +71,6 @@ def dtype_of(schema: dict) -> np.dtype:
         raise ValueError(f"tick schema lacks {sorted(missing)}")
     return dtype
 
-
-# --------------------------------------------------------------------------- header
 
 def addon_version() -> str:
     here = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))    # addon/
@@ -172,7 +169,6 @@ def make_header(desc, *, mode: str, haptic_rate: float, source: str = "", fps: f
     }
     header.update(extra or {})
     return header
-
 
 
 def check_version(path, header):

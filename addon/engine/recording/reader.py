@@ -61,7 +61,6 @@ class Recording:
         return np.clip(np.searchsorted(ticks, wanted, side="right") - 1, 0, len(ticks) - 1)
 
 
-
 MAX_CHUNK = 1 << 30         # bytes: a chunk claiming more is damage, not a reason to allocate it
 
 

@@ -334,4 +334,3 @@ class SessionRecorder:
             except OSError as ex:
                 self.error = end["recorder_error"] = str(ex.strerror or ex)
         return end
-
