@@ -39,9 +39,9 @@ $(VENV)/.core: $(VENV)/.deps $(CORE_SRC) $(CORE_HDR) $(BINDING) $(PY_SRC) native
 	touch $@
 
 # `grasp-lab` in the venv (docs/cli.md): the command line of this checkout's extension.
-$(VENV)/bin/grasp-lab: $(VENV)/.deps
+$(VENV)/bin/grasp-lab: $(VENV)/.deps Makefile
 	printf '%s\n' '#!/bin/sh' '# grasp-lab (docs/cli.md), written by make' \
-	  'exec "$(CURDIR)/$(PY)" -c "import sys; sys.path.insert(0, \"$(CURDIR)\"); from addon.engine.cli import launch; sys.exit(launch())" "$$@"' > $@
+	  'exec "$(CURDIR)/$(PY)" -c "import sys; sys.path.insert(0, \"$(CURDIR)\"); from addon.launcher import launch; sys.exit(launch())" "$$@"' > $@
 	chmod +x $@
 
 core: $(VENV)/.core $(VENV)/bin/grasp-lab
@@ -69,9 +69,12 @@ $(foreach v,c c-asan c-tsan,$(eval $(call core_library,$(v))))
 
 lib: $(BUILD)/c/libgraspcore.a
 
-# No file of native/src calls a file above it (the order is docs/architecture.md's table).
+# No file of native/src calls a file above it (the order is docs/architecture.md's table); the
+# add-on's engine/ imports neither bpy nor the add-on above it, and no add-on modules import each
+# other in a circle.
 check-layers: $(BUILD)/c/libgraspcore.a native/check_layers.py docs/architecture.md
 	$(PYTHON) native/check_layers.py docs/architecture.md $(BUILD)/c/obj $(CORE_SRC)
+	$(PYTHON) native/check_layers.py --addon addon
 
 test-c: $(addprefix $(BUILD)/c/,$(C_TESTS))
 	@for t in $^; do echo "== $$t"; $$t || exit 1; done

@@ -31,12 +31,13 @@ $(EXT_WHEELS)/.done: addon.mk | $(VENV)/.deps
 	$(PIPDL) --python-version 3.13 --implementation cp --abi cp313 --platform manylinux2014_x86_64 $(EXT_BINARY_WHEELS)
 	touch $@
 
-# Stage: the add-on package + manifest + vendored core (from the core's abi3 wheel) + wheels.
+# Stage: the add-on package + manifest + vendored core (from the core's abi3 wheel, in engine/: the
+# bpy-free side loads it) + wheels.
 $(EXT_ZIP): $(VENV)/.core $(EXT_WHEELS)/.done blender_manifest.toml $(ADDON_SRC) addon.mk
 	rm -rf $(BUILD)/extension && mkdir -p $(EXT_STAGE)/wheels dist
 	cp -r addon/. $(EXT_STAGE)/
 	find $(EXT_STAGE) -name __pycache__ -prune -exec rm -rf {} +
-	$(PY) -c "import zipfile,glob,sys; w=sorted(glob.glob('$(BUILD)/wheel/graspcore-*.whl'))[-1]; z=zipfile.ZipFile(w); [z.extract(n,'$(EXT_STAGE)') for n in z.namelist() if n.startswith('graspcore/')]"
+	$(PY) -c "import zipfile,glob,sys; w=sorted(glob.glob('$(BUILD)/wheel/graspcore-*.whl'))[-1]; z=zipfile.ZipFile(w); [z.extract(n,'$(EXT_STAGE)/engine') for n in z.namelist() if n.startswith('graspcore/')]"
 	cp $(EXT_WHEELS)/*.whl $(EXT_STAGE)/wheels/
 	cp blender_manifest.toml $(EXT_STAGE)/
 	$(PY) $(BLENDER_EXT) build --source-dir $(EXT_STAGE) --output-dir dist --split-platforms

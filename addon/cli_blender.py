@@ -1,8 +1,10 @@
-"""``blender -c grasp_lab ...``: the grasp-lab command line inside Blender (4.2+)."""
+"""The command line inside Blender: the Blender commands' work (headless.py) in the command
+line's table, and ``blender -c grasp_lab ...`` (Blender 4.2+)."""
 from __future__ import annotations
 
 import bpy
 
+from . import headless
 from .engine import cli
 
 _handle = None
@@ -14,6 +16,7 @@ def _execute(argv):
 
 def register():
     global _handle
+    cli.BLENDER_COMMANDS.update(headless.COMMANDS)
     if hasattr(bpy.utils, "register_cli_command"):
         _handle = bpy.utils.register_cli_command("grasp_lab", _execute)
 
@@ -23,3 +26,5 @@ def unregister():
     if _handle is not None:
         bpy.utils.unregister_cli_command(_handle)
         _handle = None
+    for name in headless.COMMANDS:
+        cli.BLENDER_COMMANDS.pop(name, None)

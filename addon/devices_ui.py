@@ -8,8 +8,9 @@ from bpy.props import BoolProperty, CollectionProperty, EnumProperty, IntPropert
 
 from . import session
 from .engine.devices.cli_commands import hid_devices
-from .engine.devices.discovery import find_devices, probe_ports
-from .engine.devices.live import DeviceSet, free_fingers
+from .engine.devices.discovery import find_devices, hello_fingers
+from .engine.devices.live import free_fingers
+from .scene_devices import scene_finger_count, status_lines, taken_fingers, waiting_entry
 
 # What Find Devices found: Grasp Lab devices (their hello and port), SpaceMice, and how many
 # ports it asked (None: not run yet).
@@ -38,180 +39,6 @@ class GRASPLAB_PG_device(bpy.types.PropertyGroup):
                              description="How many fingers the device drives")
     frame: PointerProperty(name="Workspace Frame", type=bpy.types.Object, poll=_is_empty,
                            description="An Empty whose transform maps device coordinates (m) into the scene")
-
-
-def workspace_matrix(entry):
-    """The entry's workspace frame as a 4x4 list (identity without an Empty)."""
-    if entry.frame is None:
-        return None
-    return [list(row) for row in entry.frame.matrix_world]
-
-
-def _add_entry(devices, world, entry):
-    frame = workspace_matrix(entry)
-    if entry.kind == "SERIAL":
-        devices.add(entry.port, entry.finger_offset, entry.num_fingers, frame, label=entry.port)
-        return
-    if entry.kind == "UDP":
-        host, _, port = entry.port.rpartition(":")
-        if not port.isdigit():
-            raise ValueError(f"{entry.port}: a UDP device needs HOST:PORT")
-        devices.add_udp(host.strip("[]"), int(port), entry.finger_offset, entry.num_fingers, frame,
-                        label=entry.port)
-        return
-    first, n = entry.finger_offset, entry.num_fingers
-    if first + n > world.finger_count:
-        raise ValueError(f"fingers {first}..{first + n - 1}: the scene has {world.finger_count}")
-    if entry.kind == "SPACEMOUSE":
-        from .engine.devices.spacemouse import SpaceMouseSource, hand_from_fingertips
-        hand = hand_from_fingertips(world.snapshot()["hips"][first:first + n], frame)
-        source = SpaceMouseSource(hand, path=entry.port.encode() if entry.port else None)
-    else:
-        from .engine.devices.opengloves import OpenGlovesSource
-        if n != 5:
-            raise ValueError("a glove drives 5 fingers (thumb to pinky)")
-        source = OpenGlovesSource(entry.port, hand_frame=frame, left=entry.left_hand)
-    devices.add_source(source, first, entry.port or entry.kind.lower())
-
-
-def connect_scene_devices(scene, world) -> DeviceSet:
-    """Attach every device of the scene's list to a running world; entries that fail to
-    open are left out (their error is in ``failed``)."""
-    devices = DeviceSet(world)
-    devices.failed = {}
-    for entry in entries_in_use(scene):
-        try:
-            _add_entry(devices, world, entry)
-        except (ConnectionError, OSError, ImportError, ValueError) as ex:
-            devices.failed[entry.port or entry.kind.lower()] = str(ex)
-    return devices
-
-
-def status_lines(devices) -> list:
-    """One line a device, for the sidebar and the HUD."""
-    lines = []
-    for s in devices.status():
-        first, n = s["fingers"]
-        lines.append(f"{s['label']}: {s['state']}, fingers {first}..{first + n - 1}, {s['rate_hz']:.0f} Hz, "
-                     f"dropped {s['dropped']}, p99 {s['latency_p99_us']:.0f} µs, "
-                     f"forces {'enabled' if s['enabled'] else 'not enabled'}")
-    for port, err in getattr(devices, "failed", {}).items():
-        lines.append(f"{port}: not connected ({err})")
-    return lines
-
-
-def scene_finger_count(context) -> int:
-    return sum(1 for o in context.view_layer.objects if o.grasp_lab.role == "FINGER")
-
-
-def _taken(entries) -> list:
-    return [(e.finger_offset, 5 if e.kind == "OPENGLOVES" else e.num_fingers) for e in entries]
-
-
-def hello_fingers(ports) -> dict:
-    """Finger count per port from the devices' hello (ports that do not answer are left out)."""
-    return {r["port"]: r["hello"]["n_fingers"] for r in probe_ports(ports) if r["status"] == "grasp_lab"} \
-        if ports else {}
-
-
-def entries_in_use(scene) -> list:
-    """The device list's entries a live session connects: those with a port (a SpaceMouse's
-    may be empty: the first one). An entry a scene declares without a port (the library's
-    two_people_box: a port is the machine's, not the file's) waits for one; its fingers follow
-    their animation meanwhile."""
-    return [e for e in scene.grasp_lab_devices if e.port or e.kind == "SPACEMOUSE"]
-
-
-def waiting_entry(entries, kind: str, first=None):
-    """The first entry of ``kind`` waiting for a port (at finger ``first`` when given), or None
-    (a SpaceMouse without a path takes the first one: it never waits)."""
-    for i, e in enumerate(entries):
-        if e.kind == kind != "SPACEMOUSE" and not e.port and (first is None or e.finger_offset == first):
-            return i
-    return None
-
-
-def add_device_specs(context, specs) -> list:
-    """``--device`` specs (``serial:PORT[@FIRST]``, ``udp:HOST:PORT[@FIRST]``, ``spacemouse[:PATH]``,
-    ``opengloves:PORT``) into the scene's device list: a spec gives its port to the first entry
-    of its kind the scene declares without one (at FIRST, with ``@FIRST``), or is appended. An
-    appended serial device drives as many fingers as its hello says (asked here), from FIRST
-    or else from the first free finger on (``free_fingers``); a device that does not answer
-    yet, a UDP device and a SpaceMouse drive the free fingers from there on. A filled entry
-    keeps the scene's fingers (fewer when the hello says fewer). Returns what
-    ``remove_entries`` takes to put the list back as it was."""
-    from .engine.devices.cli_commands import parse_device_spec
-    entries = context.scene.grasp_lab_devices
-    n_fingers = scene_finger_count(context)
-    parsed = [(spec, parse_device_spec(spec)) for spec in specs]     # all checked before any is added
-    counts = hello_fingers([d["port"] for _, d in parsed if d["kind"] == "serial"])
-    changed = []
-    for spec, d in parsed:
-        kind = d["kind"].upper()
-        first = d["finger_offset"] if "@" in spec else None
-        wanted = 5 if kind == "OPENGLOVES" else counts.get(d.get("port"))
-        port = d.get("port") or d.get("path") or ""
-        declared = waiting_entry(entries, kind, first) if port else None
-        if declared is not None:
-            entry = entries[declared]
-            changed.append((declared, entry.num_fingers))
-            entry.port = port
-            entry.num_fingers = min(entry.num_fingers, wanted or entry.num_fingers)
-            continue
-        try:
-            first, count = free_fingers(_taken(entries), n_fingers, wanted or max(1, n_fingers), first)
-        except ValueError:
-            # No free finger there: the entry as asked; the session names the device that cannot drive.
-            first = first if first is not None else max((a + n for a, n in _taken(entries)), default=0)
-            count = wanted or max(1, n_fingers - first)
-        entry = entries.add()
-        entry.kind = kind
-        entry.port = port
-        entry.finger_offset, entry.num_fingers = first, count
-        changed.append((len(entries) - 1, None))
-    return changed
-
-
-def remove_entries(context, changed) -> None:
-    """Undo ``add_device_specs``: appended entries removed, declared entries without a port again
-    (with the scene's finger count)."""
-    entries = context.scene.grasp_lab_devices
-    for i, declared_fingers in sorted(changed, key=lambda c: c[0], reverse=True):
-        if declared_fingers is None:
-            entries.remove(i)
-        else:
-            entries[i].port, entries[i].num_fingers = "", declared_fingers
-
-
-def run_realtime(context, duration: float, device_specs=(), forces: bool = False, record_path=None):
-    """A live session without a window (``grasp-lab run SCENE --realtime --device ...``):
-    the threaded runtime in real time for ``duration`` seconds (Ctrl-C ends it early), the
-    devices of the scene's list and of ``device_specs`` (added for this session only),
-    forces enabled when ``forces``. Returns the finished BlenderSession."""
-    import time
-
-    added = add_device_specs(context, device_specs)
-    try:
-        live = session.BlenderSession(context, live=True, duration=duration, record_path=record_path)
-        try:
-            if live.devices is not None and live.devices.failed:
-                raise ConnectionError("; ".join(f"{p}: {e}" for p, e in live.devices.failed.items()))
-            if forces and live.devices is not None:
-                live.devices.enable(True)
-            interval = 1.0 / max(context.scene.grasp_lab.display_rate, 1.0)
-            t0 = time.perf_counter()
-            while True:
-                elapsed = time.perf_counter() - t0
-                if live.tick(elapsed) or elapsed >= duration:
-                    break
-                time.sleep(interval)
-        except KeyboardInterrupt:
-            live.ended_by = "Ctrl-C"
-        finally:
-            live.finish()
-        return live
-    finally:
-        remove_entries(context, added)
 
 
 def _active_devices():
@@ -266,11 +93,11 @@ class GRASPLAB_OT_device_add(bpy.types.Operator):
         n_fingers = scene_finger_count(context)
         try:
             # Without a hello (typed in later, a SpaceMouse): every free finger from the first free one.
-            first, count = free_fingers(_taken(entries), n_fingers, wanted or max(1, n_fingers))
+            first, count = free_fingers(taken_fingers(entries), n_fingers, wanted or max(1, n_fingers))
         except ValueError as ex:
             # Added all the same (fingers may come later), after the driven ones; a session
             # started before the scene has them says which device has none.
-            first = max((a + n for a, n in _taken(entries)), default=0)
+            first = max((a + n for a, n in taken_fingers(entries)), default=0)
             count = wanted or 1
             self.report({"WARNING"}, f"Add Device: {ex}; it drives fingers {first}..{first + count - 1} "
                                      f"once the scene has them")

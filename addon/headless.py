@@ -1,13 +1,14 @@
-"""The Blender half of ``grasp-lab run`` and ``grasp-lab bake`` (engine/cli.py parses and
-dispatches; this runs them in the loaded extension, headless or in a Blender)."""
+"""The Blender half of ``grasp-lab run`` and ``grasp-lab bake`` (engine/cli.py parses, checks and
+dispatches through its BLENDER_COMMANDS table; this runs them in the loaded extension, headless
+or in a Blender)."""
 from __future__ import annotations
 
 import os
-import time
 
 import bpy
 
 from . import bake as baking
+from . import emulate_blend
 from .engine import limits
 from .engine.cli import CliError
 from .engine.outputs import AtomicFile
@@ -95,7 +96,7 @@ def apply_overrides(context, overrides) -> list:
 
 
 def run(args, out, err) -> int:
-    from .session import BlenderSession
+    from .session import BlenderSession, live_session
     open_blend(args.scene)
     context = bpy.context
     applied = apply_overrides(context, args.set)
@@ -104,39 +105,31 @@ def run(args, out, err) -> int:
         check_channels(context)
     record = os.path.abspath(args.record) if args.record else None
     if args.device:
-        from .devices_ui import run_realtime
         if not args.duration:
             raise CliError("--device: give --duration S (a device session has no end of its own)")
-        live = run_realtime(context, args.duration, device_specs=args.device, record_path=record,
-                            forces=args.forces == "on")
-        code = _report(args, live.finish(), live.runner.recording_end, applied, out)
-        return _report_devices(live, out, err) or code
-    session = BlenderSession(context, live=args.realtime,
-                             duration=args.duration if args.duration else None, record_path=record)
-    if session.duration == float("inf"):
-        session.finish()
-        raise CliError(f"{args.scene}: no fingertip is animated, so a real-time session has no end: "
-                       f"give --duration S")
-    if getattr(args, "live_view", None) is not None:
-        _serve_live(session, args, out)
-    if session.recorder is not None:
-        for o in args.set:          # in the header's scene already; the events say they were set
-            session.recorder.parameter_change(0.0, o.obj or "scene", o.key, o.value)
+        session = live_session(context, args.device, args.forces == "on", duration=args.duration,
+                               record_path=record)
+    else:
+        session = BlenderSession(context, live=args.realtime,
+                                 duration=args.duration if args.duration else None, record_path=record)
+        if session.duration == float("inf"):
+            session.finish()
+            raise CliError(f"{args.scene}: no fingertip is animated, so a real-time session has no end: "
+                           f"give --duration S")
+        if getattr(args, "live_view", None) is not None:
+            _serve_live(session, args, out)
+        if session.recorder is not None:
+            for o in args.set:          # in the header's scene already; the events say they were set
+                session.recorder.parameter_change(0.0, o.obj or "scene", o.key, o.value)
     try:
         if args.realtime:
-            period = 1.0 / context.scene.grasp_lab.display_rate
-            t0 = time.perf_counter()
-            while True:
-                wall = time.perf_counter() - t0
-                session.tick(wall)
-                if session.runner.time >= session.duration - 1e-9:
-                    break
-                time.sleep(max(0.0, period - (time.perf_counter() - t0 - wall)))
+            session.run_live()
         else:
             session.run_to_end()
     finally:
         result = session.finish()
-    return _report(args, result, session.runner.recording_end, applied, out)
+    code = _report(args, result, session.runner.recording_end, applied, out)
+    return (_report_devices(session, out, err) or code) if args.device else code
 
 
 def _serve_live(session, args, out) -> None:
@@ -210,3 +203,8 @@ def bake(args, out, err) -> int:
     print(f"{args.recording}: {report.message()}", file=out)
     print(f"saved: {save_blend(args.save)}", file=out)
     return 0
+
+
+# The Blender commands' work, by name: the command line (engine/cli.py) checks their arguments,
+# then dispatches here through its BLENDER_COMMANDS table (cli_blender.py fills it).
+COMMANDS = {"run": run, "bake": bake, "emulate": emulate_blend.emulate}

@@ -4,7 +4,7 @@ from __future__ import annotations
 import bpy
 from bpy.props import EnumProperty
 
-from . import convert, display
+from . import convert, display, rest_poses
 from .engine.scene import SceneError, prepare
 from .prefs import get_prefs
 from .props import ROLE_ITEMS
@@ -134,8 +134,7 @@ class GRASPLAB_OT_reset(bpy.types.Operator):
     bl_options = {"REGISTER", "UNDO"}
 
     def execute(self, context):
-        from .session import restore_rest_poses
-        n = restore_rest_poses(context)
+        n = rest_poses.restore_rest_poses(context)
         self.report({"INFO"}, f"{n} body(ies) reset")
         return {"FINISHED"}
 

@@ -1,5 +1,5 @@
 """Recording a Blender session: where the file goes and what its header says
-(the format and the recorder are bpy-free: engine/recording.py)."""
+(the format and the recorder are bpy-free: engine/recording/)."""
 from __future__ import annotations
 
 import os

@@ -24,13 +24,15 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, FloatProperty
 
-from . import anim, convert, core_loader, display, record
-from .engine import analysis, grasp_display
+from . import anim, convert, display, record
+from .engine import analysis, core_loader, grasp_display
 from .engine.devices.live import DeviceInput, device_event_detail, device_fingers, without_fingers
 from .engine.inputs import SampledTrajectory, TimelineInput, turning_fingers
 from .engine.runner import SessionRunner
 from .engine.scene import SceneError, build_world, prepare
 from .prefs import get_prefs
+from .rest_poses import restore_rest_poses, store_rest_poses
+from .scene_devices import add_device_specs, connect_scene_devices, entries_in_use, remove_entries, status_lines
 
 
 @dataclass
@@ -106,13 +108,12 @@ class BlenderSession:
         self.threaded = live and prefs.use_runtime
         # Devices drive their fingers from the core's own threads (docs/devices.md), whatever
         # those fingers' animation says; the animation drives the fingers no device drives.
-        from .devices_ui import entries_in_use
         entries = entries_in_use(scene)
         use_devices = self.threaded and len(entries) > 0
         self.driven_by = np.full(len(finger_objs), -1)      # finger -> index of the device entry
         self.device_labels, self.device_kinds = [], []
         if use_devices:
-            # Labelled as their events are (devices_ui.connect_scene_devices): the port, else the kind.
+            # Labelled as their events are (scene_devices.connect_scene_devices): the port, else the kind.
             self.device_labels = [e.port or e.kind.lower() for e in entries]
             self.device_kinds = [e.kind.lower() for e in entries]
             self.driven_by = device_fingers(
@@ -151,11 +152,11 @@ class BlenderSession:
         self.finished = False
         self.error = ""             # why a live session stopped early
         self.ended_by = "Stop"      # how it ended, for the report
+        self.stop_at_end = False    # True: the live loop ends at the end whatever the scene's Stop at End
         self.timer = None
         self.runner.start()
         self.devices = None
         if use_devices:
-            from .devices_ui import connect_scene_devices
             self.devices = connect_scene_devices(scene, self.handle.world)
         self.apply(self.runner.snapshot(), self.frame_start)
 
@@ -230,7 +231,38 @@ class BlenderSession:
             # Last: its thread wakes and works while this one waits for the next update,
             # not while the update still needs the interpreter.
             self.live_view.offer(snap, self.monitor.grasps)
-        return self.settings.loop and self.runner.time >= self.duration - 1e-9
+        return (self.stop_at_end or self.settings.loop) and self.runner.time >= self.duration - 1e-9
+
+    # ------------------------------------------------------------- the live loop
+    def start_live(self, display_rate: float, budget: float | None = None) -> None:
+        """The live loop's clock starts now: a display update every 1 / ``display_rate`` s,
+        each stepping the main-thread fallback for ``budget`` wall seconds at most."""
+        self.interval = 1.0 / max(display_rate, 1.0)
+        self.budget = budget
+        self.t0 = time.perf_counter()
+
+    def live_update(self) -> float | None:
+        """One turn of the live loop, the one loop of every live session (the operator's
+        application timer, ``run_live`` without a window): a display update at the wall time
+        since ``start_live``. Returns the seconds to wait for the next, None at the end."""
+        t = time.perf_counter()
+        if self.tick(t - self.t0, budget=self.budget):
+            return None
+        return max(0.0, self.interval - (time.perf_counter() - t))
+
+    def run_live(self) -> None:
+        """A live session without a window (``grasp-lab run --realtime``, with or without
+        devices): the live loop until the session's end (always: no one is there to stop it)
+        or Ctrl-C, then finished."""
+        self.stop_at_end = True
+        self.start_live(self.settings.display_rate)
+        try:
+            while (wait := self.live_update()) is not None:
+                time.sleep(wait)
+        except KeyboardInterrupt:
+            self.ended_by = "Ctrl-C"
+        finally:
+            self.finish()
 
     def _record_device_events(self, events) -> None:
         """Device events (connected, lost, enabled, ...) into the recording as they come, at
@@ -301,7 +333,6 @@ class BlenderSession:
                          f"adopted {st['runtime_adopted_bodies']}")
             lines.append(st["runtime_priority_note"])
         if self.devices is not None:
-            from .devices_ui import status_lines
             lines += status_lines(self.devices)
         return lines
 
@@ -364,7 +395,7 @@ class BlenderSession:
                 f"{len(self.desc.fingers)} fingers, {st.get('step_us', 0):.0f} µs/step")
 
 
-# --------------------------------------------------------------------------- rest poses
+# --------------------------------------------------------------------------- live view
 
 def start_live_view(session, port: int, bind: str):
     """Serve a live session to Foxglove (engine/live_view.py): the session panel's Live View
@@ -375,38 +406,29 @@ def start_live_view(session, port: int, bind: str):
     return session.live_view
 
 
-def store_rest_poses(context, links):
-    for link in links:
-        obj = bpy.data.objects.get(link.name)
-        if obj is not None and not link.static:
-            obj.grasp_lab.rest_matrix = [v for row in obj.matrix_world for v in row]
-            obj.grasp_lab.has_rest = True
+def live_session(context, device_specs=(), forces: bool = False, **options) -> BlenderSession:
+    """A live BlenderSession driven by the devices of the scene's list and of ``device_specs``
+    (added for this session only), forces enabled when ``forces``; a device that does not
+    open is an error naming it. ``options`` go to BlenderSession (duration, record_path)."""
+    added = add_device_specs(context, device_specs)
+    try:
+        live = BlenderSession(context, live=True, **options)
+    finally:
+        remove_entries(context, added)
+    if live.devices is not None and live.devices.failed:
+        live.finish()
+        raise ConnectionError("; ".join(f"{p}: {e}" for p, e in live.devices.failed.items()))
+    if forces and live.devices is not None:
+        live.devices.enable(True)
+    return live
 
 
-def moved_from_rest(context, tolerance: float = 1e-6) -> list:
-    """Dynamic bodies that are not where the last session started them (Reset Bodies puts
-    them back)."""
-    out = []
-    for obj in context.view_layer.objects:
-        gl = obj.grasp_lab
-        if gl.has_rest and gl.role == "DYNAMIC":
-            now = [v for row in obj.matrix_world for v in row]
-            if max(abs(a - b) for a, b in zip(now, gl.rest_matrix)) > tolerance:
-                out.append(obj)
-    return out
-
-
-def restore_rest_poses(context) -> int:
-    """Put bodies back where the last session started them. Returns how many moved."""
-    from mathutils import Matrix
-    n = 0
-    for obj in context.view_layer.objects:
-        gl = obj.grasp_lab
-        if gl.has_rest and gl.role == "DYNAMIC":
-            v = list(gl.rest_matrix)
-            obj.matrix_world = Matrix([v[0:4], v[4:8], v[8:12], v[12:16]])
-            n += 1
-    return n
+def run_realtime(context, duration: float, device_specs=(), forces: bool = False, record_path=None):
+    """A device session without a window for ``duration`` seconds (``live_session`` and its
+    ``run_live``). Returns the finished BlenderSession."""
+    live = live_session(context, device_specs, forces, duration=duration, record_path=record_path)
+    live.run_live()
+    return live
 
 
 # --------------------------------------------------------------------------- operators
@@ -467,15 +489,13 @@ class GRASPLAB_OT_session(bpy.types.Operator):
                     start_live_view(session, s.live_view_port, s.live_view_bind)
                 except (ImportError, OSError) as ex:       # the session runs without it
                     self.report({"WARNING"}, f"Grasp Lab: no live view: {ex}")
-            session.interval = 1.0 / s.display_rate
-            session.budget = prefs.max_step_ms * 1e-3
+            session.start_live(s.display_rate, budget=prefs.max_step_ms * 1e-3)
             session.wm = context.window_manager
             # Wakes this handler to notice an end it did not see (timer, Stop button).
             session.timer = session.wm.event_timer_add(session.interval, window=context.window)
             _active = session
             display.add_overlay(prefs.show_overlay, prefs.show_hud)
             s.running = True
-            session.t0 = time.perf_counter()
             bpy.app.timers.register(_live_tick, first_interval=0.0)
         except Exception:
             stop_session(session)
@@ -514,21 +534,20 @@ def _live_tick():
     session = _active
     if session is None or session.finished:
         return None
-    t_tick = time.perf_counter()
     try:
-        done = session.tick(t_tick - session.t0, budget=session.budget)
+        wait = session.live_update()
         display.tag_redraw()
     except Exception as ex:  # noqa: BLE001 - whatever it was, stop and say so
         traceback.print_exc()
         session.error = f"{type(ex).__name__}: {ex}"
         session.ended_by = "an error"
-        done = True
-    if done:
+        wait = None
+    if wait is None:
         if not session.error:
             session.ended_by = "the end of the animation"
         stop_session(session, from_timer=True)
         return None
-    return max(0.0, session.interval - (time.perf_counter() - t_tick))
+    return wait
 
 
 def stop_session(session, from_timer=False):

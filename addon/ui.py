@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import bpy
 
-from . import ops, session
+from . import ops, rest_poses, session
 from .engine import grasp_display
 
 
@@ -134,7 +134,7 @@ class GRASPLAB_PT_session(_GraspPanel, bpy.types.Panel):
             sub = col.column(align=True)
             sub.prop(s, "live_view_port")
             sub.prop(s, "live_view_bind")
-        moved = session.moved_from_rest(context) if active is None else []
+        moved = rest_poses.moved_from_rest(context) if active is None else []
         if moved:
             # After a session the bodies hang where it left them: say so, and offer the way back.
             box = layout.box()

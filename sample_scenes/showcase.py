@@ -67,7 +67,7 @@ def _grasp_lab_command():
     exe = os.path.join(os.path.dirname(sys.executable), "grasp-lab")
     if os.path.exists(exe):
         return [exe]
-    return [sys.executable, "-c", "import sys; sys.path.insert(0, %r); from addon.engine.cli import launch; "
+    return [sys.executable, "-c", "import sys; sys.path.insert(0, %r); from addon.launcher import launch; "
             "sys.exit(launch())" % ROOT]
 
 

@@ -88,7 +88,7 @@ def wrench_contacts(point, normal, mu, finger, patches=None, torsions=None):
 
 
 def _core():
-    from .. import core_loader
+    from . import core_loader
     return core_loader.load()
 
 

@@ -1,14 +1,15 @@
 """The ``grasp-lab`` command line (docs/cli.md).
 
-One implementation, two entry points: ``grasp-lab`` in the development venv (the launcher
-``make`` writes calls ``launch()``) and ``blender -c grasp_lab ...`` inside Blender 4.2+
-(``cli_blender.py`` registers ``main`` with ``bpy.utils.register_cli_command``).
+One implementation, two entry points: ``grasp-lab`` in the development venv (``launcher.py``,
+which the launcher ``make`` writes calls) and ``blender -c grasp_lab ...`` inside Blender 4.2+
+(``cli_blender.py`` registers ``main`` with ``bpy.utils.register_cli_command``). No bpy here.
 
-Commands live in ``COMMANDS`` (``register_command``); commands that need Blender (``run``,
-``bake``) are carried out by the extension's ``headless`` module, so when the launcher
-runs outside Blender it first loads the extension into the ``bpy`` module and hands the
-command line to the extension's own copy of this module. The device work registers
-``devices``, ``emulate`` and the ``--device`` kinds (``register_device_backend``).
+Commands live in ``COMMANDS`` (``register_command``). The commands that need Blender (``run``,
+``bake``) are checked here and carried out through ``BLENDER_COMMANDS``, which the extension's
+bpy side fills when it registers; outside Blender the launcher loads the extension into the
+``bpy`` module first and hands the command line to the extension's own copy of this module.
+The device work registers ``devices``, ``emulate`` and the ``--device`` kinds
+(``register_device_backend``).
 """
 from __future__ import annotations
 
@@ -41,10 +42,16 @@ class Command:
     help: str
     configure: Callable      # (argparse.ArgumentParser) -> None
     run: Callable            # (args, out) -> int | None
-    needs_blender: bool = False
+    needs_blender: bool | Callable = False      # or (args) -> bool: whether these arguments need it
 
 
 COMMANDS: dict[str, Command] = {}
+# The work of the commands that need Blender (``needs_blender``: run, bake, emulate --from), by name: the bpy side
+# fills this table when the extension registers (cli_blender.py); their checks run here first.
+# Outside Blender the launcher (launcher.py) sets ``load_extension``: it loads the extension into
+# the bpy module and returns the extension's own ``main``, which such a command is handed to.
+BLENDER_COMMANDS: dict[str, Callable] = {}
+load_extension: Callable | None = None
 # Device backends by SPEC kind ("serial", "spacemouse", "opengloves"): kind -> factory(spec, n_fingers).
 DEVICE_BACKENDS: dict[str, Callable] = {}
 
@@ -303,7 +310,7 @@ def _run_continuity(args, out, err):
 
 
 def _load_core():
-    from .. import core_loader
+    from . import core_loader
     return core_loader.load()
 
 
@@ -370,7 +377,6 @@ def _run_analyze(args, out, err):
 
 
 def _run_run(args, out, err):
-    from .. import headless
     outputs.check_paths({"SCENE.blend": args.scene}, {"--record": args.record, "--save": args.save})
     for spec in args.device:
         check_device(spec)
@@ -384,7 +390,7 @@ def _run_run(args, out, err):
         raise CliError("--forces on needs --device (device forces go to the devices of the session)")
     for spec in args.device:
         check_port(spec)
-    return headless.run(args, out, err)
+    return BLENDER_COMMANDS["run"](args, out, err)
 
 
 def check_port(spec: str) -> None:
@@ -409,9 +415,8 @@ def check_port(spec: str) -> None:
 
 
 def _run_bake(args, out, err):
-    from .. import headless
     outputs.check_paths({"REC.mcap": args.recording, "SCENE.blend": args.scene}, {"--save": args.save})
-    return headless.bake(args, out, err)
+    return BLENDER_COMMANDS["bake"](args, out, err)
 
 
 register_command("run", "run a scene headless (EXEC, deterministic; --realtime: the threaded runtime)",
@@ -438,13 +443,78 @@ def _register_devices():
 _register_devices()
 
 
-def _register_sweep():
-    """sweep (engine/sweep.py, docs/sweeps.md)."""
-    from . import sweep
-    register_command("sweep", sweep.HELP, sweep.configure, sweep.run_command)
+# sweep (engine/sweep.py, docs/sweeps.md)
+SWEEP_HELP = "robustness: re-simulate a recording many times with varied parameters; how likely it holds"
 
 
-_register_sweep()
+def _vary_arg(text):
+    from .sweep import SweepError, parse_vary
+    try:
+        return parse_vary(text)
+    except SweepError as ex:
+        raise argparse.ArgumentTypeError(str(ex)) from None
+
+
+def _configure_sweep(p) -> None:
+    from .sweep import ANALYSIS_PERIOD
+    p.add_argument("recording", metavar="REC.mcap", help="a recording (or SCENE.blend: recorded first)")
+    p.add_argument("--samples", type=_positive_int, required=True, metavar="N",
+                   help="samples (per cell of the grid axes, if any)")
+    p.add_argument("--seed", type=int, default=0, metavar="S", help="the sweep's seed (default 0)")
+    p.add_argument("--vary", action="append", default=[], type=_vary_arg, metavar="SPEC",
+                   help="KEY=LO:HI (uniform), KEY=MEAN~SD (normal), KEY=A,B,C (grid); keys: OBJECT.PROPERTY "
+                        "as in --set, gravity, OBJECT.com=SD, hip_noise=SD, hip_offset=SD, push=N@T; repeatable")
+    p.add_argument("--out", required=True, metavar="DIR", help="samples.csv, summary.json, map.png, outcomes.png "
+                                                              "(a sweep there already is resumed)")
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1, metavar="K",
+                       help="local worker processes (default: the core count)")
+    where.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="an existing Dask scheduler")
+    p.add_argument("--body", metavar="NAME", help="the held body (default: the one the recording holds longest)")
+    p.add_argument("--no-analysis", action="store_true",
+                   help="skip the grasp measures (time in force closure, smallest epsilon)")
+    p.add_argument("--analysis-period", type=_positive_float, default=ANALYSIS_PERIOD, metavar="S",
+                   help=f"the grasp measures every S seconds while held (default {ANALYSIS_PERIOD})")
+
+
+def _run_sweep(args, out, err) -> int:
+    from .recording import open_recording
+    from .sweep import sweep
+    path = args.recording
+    if path.endswith(".blend"):
+        recorded = os.path.join(args.out, "recording.mcap")
+        if not os.path.exists(recorded):
+            os.makedirs(args.out, exist_ok=True)
+            if main(["run", path, "--record", recorded], out=err, err=err) != 0:
+                raise CliError(f"{path}: could not record the scene to sweep")
+        path = recorded
+    rec = open_recording(path)
+    for d in rec.damage:
+        print(f"grasp-lab: warning: {path}: {d}", file=err)
+    last = [0.0]
+
+    def progress(done, total, seconds):
+        if seconds - last[0] >= 2.0 or done == total:
+            last[0] = seconds
+            print(f"sweep: {done}/{total} samples, {seconds:.1f} s", file=err, flush=True)
+    result = sweep(rec, args.vary, args.samples, args.seed, args.out, workers=args.workers,
+                   scheduler=args.scheduler, body=args.body, analysis=not args.no_analysis,
+                   analysis_period=args.analysis_period, progress=progress)
+    s = result.summary
+    print(f"{s['held']} of {s['samples']} samples held {s['body']!r}: p = {s['p_held']:.3f}, "
+          f"95 % interval {s['ci95'][0]:.3f} .. {s['ci95'][1]:.3f}", file=out)
+    if result.ran:
+        print(f"{result.ran} samples re-simulated in {result.seconds:.1f} s "
+              f"({result.ran / max(result.seconds, 1e-9):.1f} samples/s)", file=out)
+    for name, entry in s["sensitivity"].items():
+        c = entry["correlation_with_held"]
+        print(f"  {name:<24} correlation with holding {'-' if c is None else f'{c:+.2f}'}", file=out)
+    for p_ in result.paths:
+        print(p_, file=out)
+    return 0
+
+
+register_command("sweep", SWEEP_HELP, _configure_sweep, _run_sweep)
 
 
 # ------------------------------------------------------------------------ dispatch
@@ -461,11 +531,6 @@ def build_parser(prog=PROG) -> argparse.ArgumentParser:
     return parser
 
 
-def in_extension() -> bool:
-    """This module is the copy inside the enabled extension (Blender or the bpy module)."""
-    return __name__.startswith("bl_ext.")
-
-
 def main(argv=None, prog=PROG, out=None, err=None) -> int:
     out = out or sys.stdout
     err = err or sys.stderr
@@ -478,15 +543,17 @@ def main(argv=None, prog=PROG, out=None, err=None) -> int:
     cmd = COMMANDS[args.command]
     with _signals_stop(), _warnings_once(prog, cmd.name, err):
         try:
-            if cmd.needs_blender and not in_extension():
+            needs_blender = cmd.needs_blender(args) if callable(cmd.needs_blender) else cmd.needs_blender
+            if needs_blender and cmd.name not in BLENDER_COMMANDS:
                 try:
-                    module = boot_extension()
+                    if load_extension is None:
+                        raise RuntimeError("run it with grasp-lab or blender -c grasp_lab")
+                    extension_main = load_extension()
                 except (ImportError, RuntimeError, OSError) as ex:
                     print(f"{prog} {cmd.name}: error: Blender (the bpy module) with the Grasp Lab extension "
                           f"is needed: {ex}", file=err)
                     return EXIT_FAILED
-                import importlib
-                return importlib.import_module(f"{module}.engine.cli").main(argv, prog, out, err)
+                return extension_main(argv, prog, out, err)
             return _run_command(cmd, args, prog, out, err)
         except KeyboardInterrupt:       # a signal while Blender was loading
             return _stopped(prog, cmd.name, err)
@@ -596,69 +663,3 @@ def _warnings_once(prog, name, err):
             for text, n in seen.items():
                 if n > 1:
                     print(f"{prog} {name}: warning: {text} ({n - 1} more times)", file=err)
-
-
-# ------------------------------------------------------------------------ outside Blender
-
-ADDON_DIR = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-DEV_REPO = "grasp_cli"
-
-
-def boot_extension() -> str:
-    """Load the extension into the ``bpy`` module (isolated user resources): the zip in
-    $GRASP_LAB_ZIP, else this checkout's addon/ as a development repository. Returns the
-    extension's module name."""
-    import atexit
-    import re
-    import shutil
-    import tempfile
-    if "bpy" not in sys.modules:
-        # Always a private folder, even when BLENDER_USER_RESOURCES is set: installing the zip
-        # takes the repository's lock, and a command killed while holding it (kill -9) would
-        # leave every later command sharing that folder refused ("lock exists").
-        tmp = tempfile.mkdtemp(prefix="grasp_lab_cli_")
-        os.environ["BLENDER_USER_RESOURCES"] = tmp
-        atexit.register(shutil.rmtree, tmp, True)
-    import bpy
-    import addon_utils      # Blender's, importable once bpy is
-    for name in bpy.context.preferences.addons.keys():
-        if name.startswith("bl_ext.") and name.endswith(".grasp_lab"):
-            return name
-    zip_path = os.environ.get("GRASP_LAB_ZIP")
-    if zip_path:
-        res = bpy.ops.extensions.package_install_files(filepath=os.path.abspath(zip_path),
-                                                       repo="user_default", enable_on_install=True)
-        if res != {"FINISHED"}:
-            raise RuntimeError(f"{zip_path}: could not install the extension ({res})")
-        return "bl_ext.user_default.grasp_lab"
-    manifest = os.path.join(os.path.dirname(ADDON_DIR), "blender_manifest.toml")
-    if not os.path.exists(manifest):
-        raise RuntimeError(f"no extension to load: set GRASP_LAB_ZIP or run from a checkout ({manifest} missing)")
-    repo_dir = tempfile.mkdtemp(prefix="grasp_lab_cli_repo_")
-    atexit.register(shutil.rmtree, repo_dir, True)
-    pkg = os.path.join(repo_dir, "grasp_lab")
-    os.makedirs(pkg)
-    for name in os.listdir(ADDON_DIR):
-        if name != "__pycache__":
-            os.symlink(os.path.join(ADDON_DIR, name), os.path.join(pkg, name))
-    with open(manifest) as fh:       # the venv provides the wheels
-        text = re.sub(r"(?ms)^wheels = \[.*?^\]\n", "", fh.read())
-    with open(os.path.join(pkg, "blender_manifest.toml"), "w") as fh:
-        fh.write(text)
-    bpy.context.preferences.extensions.repos.new(name="Grasp Lab CLI", module=DEV_REPO,
-                                                 custom_directory=repo_dir, source="USER")
-    module = f"bl_ext.{DEV_REPO}.grasp_lab"
-
-    def fail(ex):
-        raise ex
-    addon_utils.enable(module, default_set=True, handle_error=fail)
-    return module
-
-
-def launch() -> int:
-    """``grasp-lab`` in the venv. Outside a command (loading, exiting) SIGTERM exits through
-    ``sys.exit``, so the temporary folders are removed then too."""
-    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
-    return main(sys.argv[1:])
-
-

@@ -3,7 +3,7 @@
 read from the core rather than written again here."""
 from __future__ import annotations
 
-from ..core_loader import load
+from .core_loader import load
 
 
 def body(name: str) -> float:

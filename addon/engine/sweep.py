@@ -505,9 +505,9 @@ def _analysis_outcomes(job, ticks, desc, start, stop, held):
 
 def run_chunk(job, indices) -> list:
     """Samples ``indices``, each on its own; their rows. ``job``: a Job or its state()."""
-    from .. import core_loader
+    from . import core_loader
     gc = core_loader.load()
-    _recording._reuse_freed_memory()       # each sample's records: heap, not a fresh mapping each
+    _recording.reuse_freed_memory()       # each sample's records: heap, not a fresh mapping each
     if isinstance(job, dict):
         job = Job.from_state(job)
     return [run_sample(job, int(i), gc) for i in indices]
@@ -549,7 +549,7 @@ def run_local(job: Job, todo, workers: int, on_rows) -> None:
     """On this machine: in this process for one worker, else a pool of ``workers`` processes
     (spawned: they import this module, numpy and the core, never bpy). The first sample runs
     here while the pool starts, so a scene the core refuses fails at once."""
-    from .. import core_loader
+    from . import core_loader
     if __name__.startswith("bl_ext."):
         # Inside Blender the engine is a module of Blender's extension package, which a plain
         # worker process cannot import: the sweep runs in this process (docs/sweeps.md).
@@ -579,14 +579,14 @@ def run_local(job: Job, todo, workers: int, on_rows) -> None:
 
 
 def engine_zip(folder: str) -> tuple[str, str]:
-    """This package's bpy-free part (engine/ and core_loader) as an importable zip for Dask
-    workers, under a name with its content hash (a changed engine is a new module). Returns
-    (path, package name)."""
+    """This package's bpy-free part (engine/, without a vendored core: workers have the graspcore
+    wheel) as an importable zip for Dask workers, under a name with its content hash (a changed
+    engine is a new module). Returns (path, package name)."""
     import zipfile
     addon = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-    files = [("core_loader.py", os.path.join(addon, "core_loader.py"))]
+    files = []
     for root, dirs, names in os.walk(os.path.join(addon, "engine")):
-        dirs[:] = sorted(d for d in dirs if d != "__pycache__")
+        dirs[:] = sorted(d for d in dirs if d not in ("__pycache__", "graspcore"))
         for n in sorted(names):
             if n.endswith(".py"):
                 full = os.path.join(root, n)
@@ -620,7 +620,7 @@ def run_dask(job: Job, todo, address: str, on_rows, folder: str) -> None:
     (and to any that joins later), the samples in tasks of at least CHUNK_SECONDS_DASK of work
     (the first sample, run here, says how many that is). A worker lost mid-sweep has its tasks
     run again elsewhere: the same rows."""
-    from .. import core_loader
+    from . import core_loader
     try:
         from distributed import Client, as_completed
         from distributed.diagnostics.plugin import UploadFile
@@ -962,72 +962,3 @@ def sweep(rec, varies, samples: int, seed: int, folder: str, workers: int = 1, s
 
 
 # ------------------------------------------------------------------------ command line
-
-HELP = "robustness: re-simulate a recording many times with varied parameters; how likely it holds"
-
-
-def _vary_arg(text):
-    import argparse
-    try:
-        return parse_vary(text)
-    except SweepError as ex:
-        raise argparse.ArgumentTypeError(str(ex)) from None
-
-
-def configure(p) -> None:
-    from .cli import _positive_float, _positive_int
-    p.add_argument("recording", metavar="REC.mcap", help="a recording (or SCENE.blend: recorded first)")
-    p.add_argument("--samples", type=_positive_int, required=True, metavar="N",
-                   help="samples (per cell of the grid axes, if any)")
-    p.add_argument("--seed", type=int, default=0, metavar="S", help="the sweep's seed (default 0)")
-    p.add_argument("--vary", action="append", default=[], type=_vary_arg, metavar="SPEC",
-                   help="KEY=LO:HI (uniform), KEY=MEAN~SD (normal), KEY=A,B,C (grid); keys: OBJECT.PROPERTY "
-                        "as in --set, gravity, OBJECT.com=SD, hip_noise=SD, hip_offset=SD, push=N@T; repeatable")
-    p.add_argument("--out", required=True, metavar="DIR", help="samples.csv, summary.json, map.png, outcomes.png "
-                                                              "(a sweep there already is resumed)")
-    where = p.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1, metavar="K",
-                       help="local worker processes (default: the core count)")
-    where.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="an existing Dask scheduler")
-    p.add_argument("--body", metavar="NAME", help="the held body (default: the one the recording holds longest)")
-    p.add_argument("--no-analysis", action="store_true",
-                   help="skip the grasp measures (time in force closure, smallest epsilon)")
-    p.add_argument("--analysis-period", type=_positive_float, default=ANALYSIS_PERIOD, metavar="S",
-                   help=f"the grasp measures every S seconds while held (default {ANALYSIS_PERIOD})")
-
-
-def run_command(args, out, err) -> int:
-    from .cli import CliError, main as cli_main
-    from .recording import open_recording
-    path = args.recording
-    if path.endswith(".blend"):
-        recorded = os.path.join(args.out, "recording.mcap")
-        if not os.path.exists(recorded):
-            os.makedirs(args.out, exist_ok=True)
-            if cli_main(["run", path, "--record", recorded], out=err, err=err) != 0:
-                raise CliError(f"{path}: could not record the scene to sweep")
-        path = recorded
-    rec = open_recording(path)
-    for d in rec.damage:
-        print(f"grasp-lab: warning: {path}: {d}", file=err)
-    last = [0.0]
-
-    def progress(done, total, seconds):
-        if seconds - last[0] >= 2.0 or done == total:
-            last[0] = seconds
-            print(f"sweep: {done}/{total} samples, {seconds:.1f} s", file=err, flush=True)
-    result = sweep(rec, args.vary, args.samples, args.seed, args.out, workers=args.workers,
-                   scheduler=args.scheduler, body=args.body, analysis=not args.no_analysis,
-                   analysis_period=args.analysis_period, progress=progress)
-    s = result.summary
-    print(f"{s['held']} of {s['samples']} samples held {s['body']!r}: p = {s['p_held']:.3f}, "
-          f"95 % interval {s['ci95'][0]:.3f} .. {s['ci95'][1]:.3f}", file=out)
-    if result.ran:
-        print(f"{result.ran} samples re-simulated in {result.seconds:.1f} s "
-              f"({result.ran / max(result.seconds, 1e-9):.1f} samples/s)", file=out)
-    for name, entry in s["sensitivity"].items():
-        c = entry["correlation_with_held"]
-        print(f"  {name:<24} correlation with holding {'-' if c is None else f'{c:+.2f}'}", file=out)
-    for p_ in result.paths:
-        print(p_, file=out)
-    return 0

@@ -95,7 +95,7 @@ def submodule(name):
 
 def graspcore():
     """The core the extension uses (vendored in the zip, or the venv's)."""
-    return submodule("core_loader").load()
+    return submodule("engine.core_loader").load()
 
 
 def add_cube(bpy, name, size=1.0, location=(0, 0, 0)):

@@ -281,7 +281,7 @@ def test_analyze_refuses_a_recording_without_normals(tmp_path, monkeypatch):
         dt = old(nb, nf)
         names = [n for n in dt.names if n != "normal"]
         return np.dtype([(n, dt.fields[n][0]) for n in names])
-    monkeypatch.setattr(recording, "tick_dtype", without_normals)
+    monkeypatch.setattr(recording.writer, "tick_dtype", without_normals)
     desc = box_scene([(X, 0, 0), (-X, 0, 0)])
     header = recording.make_header(desc, mode="exec", haptic_rate=1000.0)
     w = recording.RecordingWriter(str(tmp_path / "old.mcap"), header)

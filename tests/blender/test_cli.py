@@ -266,3 +266,32 @@ def test_blender_cli_command_registered(bpy, sample, core, tmp_path):
     assert execute(["analyze", s.last_recording, "--csv", str(tmp_path / "grasp"), "--every", "50"]) == 0
     assert (tmp_path / "grasp" / "grasp.csv").exists()
     assert execute(["info"]) == 2
+
+
+# The command line of a Python where `import bpy` fails: only engine/ is imported.
+WITHOUT_BPY = ("import sys; sys.modules['bpy'] = None; sys.path.insert(0, {root!r}); "
+               "from addon.engine import cli; code = cli.main(sys.argv[1:]); "
+               "above = sorted(m for m in sys.modules if m.startswith('addon.') and not m.startswith('addon.engine')); "
+               "print('ABOVE', above, file=sys.stderr); sys.exit(code)")
+
+
+def test_recording_commands_run_without_bpy(core, tmp_path):
+    """info, export, resim, analyze, continuity and sweep of a recording in a Python that has no
+    bpy: none imports it, nor any module of the add-on above engine/. run needs Blender and says so."""
+    import recordings
+    rec = tmp_path / "pinch.mcap"
+    recordings.record_exec(rec, core, seconds=1.0)
+    prelude = WITHOUT_BPY.format(root=grasp_env.ROOT)
+    for args in (["info", rec], ["export", rec, "--npz", tmp_path / "pinch.npz"], ["resim", rec],
+                 ["analyze", rec, "--every", "100"], ["continuity", rec],
+                 ["sweep", rec, "--samples", "2", "--vary", "Box.mass=0.05:0.2", "--out", tmp_path / "sweep",
+                  "--workers", "1", "--no-analysis"]):
+        r = subprocess.run([sys.executable, "-c", prelude, *map(str, args)], capture_output=True, text=True,
+                           timeout=300)
+        assert r.returncode == 0, (args[0], r.stderr)
+        assert "ABOVE []" in r.stderr, (args[0], r.stderr)
+    assert (tmp_path / "pinch.npz").exists() and (tmp_path / "sweep" / "samples.csv").exists()
+    r = subprocess.run([sys.executable, "-c", prelude, "run", str(tmp_path / "none.blend")], capture_output=True,
+                       text=True, timeout=60)
+    assert r.returncode == 1 and "Blender (the bpy module) with the Grasp Lab extension is needed" in r.stderr, \
+        r.stderr

@@ -11,13 +11,14 @@ import pytest
 import grasp_env
 
 sys.path.insert(0, grasp_env.ROOT)
-from addon.engine import cli, continuity, recording  # noqa: E402
+from addon import launcher  # noqa: E402
+from addon.engine import continuity, recording  # noqa: E402
 from test_scene_library import lib  # noqa: E402
 
 
 def call(*args):
     out, err = io.StringIO(), io.StringIO()
-    code = cli.main([str(a) for a in args], out=out, err=err)
+    code = launcher.main([str(a) for a in args], out=out, err=err)   # run needs Blender: as grasp-lab does
     return code, out.getvalue(), err.getvalue()
 
 

@@ -22,7 +22,7 @@ def test_emulator_plays_the_fingertips_of_a_blend(bpy, sample, tmp_path):
     expected = [tuple(bpy.data.objects[f"Finger {i}"].matrix_world.translation) for i in (0, 1)]
     path = str(tmp_path / "pinch.blend")
     bpy.ops.wm.save_as_mainfile(filepath=path)
-    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--from", path,
+    emu = subprocess.Popen([sys.executable, "-m", "addon.emulate_blend", "--pty", "--from", path,
                             "--duration", "0.3"], cwd=grasp_env.ROOT, stdout=subprocess.PIPE,
                            stderr=subprocess.PIPE, text=True)
     try:
@@ -49,7 +49,7 @@ def test_live_session_with_an_emulated_device(bpy, sample, core):
     """A device in the scene's list drives the fingertips through its workspace frame; the
     panel's status and the HUD show it; finishing detaches it and keeps its events."""
     session = grasp_env.submodule("session")
-    devices_ui = grasp_env.submodule("devices_ui")
+    scene_devices = grasp_env.submodule("scene_devices")
     box = sample.build(bpy)
     for i in (0, 1):                                   # fingertips without animation: the device has them
         bpy.data.objects[f"Finger {i}"].animation_data_clear()
@@ -72,7 +72,7 @@ def test_live_session_with_an_emulated_device(bpy, sample, core):
             assert list(s.snapshot.contacts) == [0, 0], s.snapshot.contacts   # both grip the box
             assert bpy.ops.grasp_lab.device_forces(on=True) == {"FINISHED"}
             time.sleep(0.1)
-            lines = devices_ui.status_lines(s.devices)
+            lines = scene_devices.status_lines(s.devices)
             assert lines[0].startswith(f"{port}: streaming, fingers 0..1") and "forces enabled" in lines[0], lines
             assert lines[0] in s.hud_text()
         finally:
@@ -87,7 +87,8 @@ def test_live_session_with_an_emulated_device(bpy, sample, core):
 
 
 def test_headless_realtime_run_with_a_device(bpy, sample, core, tmp_path):
-    devices_ui = grasp_env.submodule("devices_ui")
+    scene_devices = grasp_env.submodule("scene_devices")
+    session = grasp_env.submodule("session")
     box = sample.build(bpy)
     for i in (0, 1):
         bpy.data.objects[f"Finger {i}"].animation_data_clear()
@@ -101,7 +102,7 @@ def test_headless_realtime_run_with_a_device(bpy, sample, core, tmp_path):
         bpy.ops.grasp_lab.device_add(port=ports[0])
         bpy.context.scene.grasp_lab.record = True
         bpy.context.scene.grasp_lab.recording_folder = str(tmp_path)
-        live = devices_ui.run_realtime(bpy.context, 1.5, forces=True)
+        live = session.run_realtime(bpy.context, 1.5, forces=True)
         rec = grasp_env.submodule("engine.recording").open_recording(live.result.recording)
         dev = [e for e in rec.events if e["kind"].startswith("device_")]   # in the recording too
         # Forces were turned on as the session started, maybe before the device's hello came.
@@ -120,19 +121,22 @@ def test_headless_realtime_run_with_a_device(bpy, sample, core, tmp_path):
 
         # A --device spec is added for the session only (after the list's own devices).
         bpy.context.scene.grasp_lab_devices.clear()
-        live = devices_ui.run_realtime(bpy.context, 0.5, [f"serial:{ports[1]}"])
+        live = session.run_realtime(bpy.context, 0.5, [f"serial:{ports[1]}"])
         assert len(bpy.context.scene.grasp_lab_devices) == 0
         assert [e[2] for e in live.result.stats["device_events"]][:1] == ["connected"]
         with pytest.raises(ValueError, match="unknown kind"):
-            devices_ui.run_realtime(bpy.context, 0.1, [f"serial:{ports[1]}", "tcp:1234"])
+            session.run_realtime(bpy.context, 0.1, [f"serial:{ports[1]}", "tcp:1234"])
         assert len(bpy.context.scene.grasp_lab_devices) == 0      # nothing added when a spec is wrong
-        added = devices_ui.add_device_specs(bpy.context, ["serial:/dev/null@1", "spacemouse", "opengloves:/dev/x"])
+        added = scene_devices.add_device_specs(bpy.context, ["serial:/dev/null@1", "spacemouse"])
         entries = bpy.context.scene.grasp_lab_devices
-        # /dev/null says no hello: the free fingers from 1 on; the SpaceMouse takes the free finger 0;
-        # the glove has five and none is free: asked after the others (the session says it cannot drive).
+        # /dev/null says no hello: the free fingers from 1 on; the SpaceMouse takes the free finger 0.
         assert [(e.kind, e.port, e.finger_offset, e.num_fingers) for e in entries] == [
-            ("SERIAL", "/dev/null", 1, 1), ("SPACEMOUSE", "", 0, 1), ("OPENGLOVES", "/dev/x", 2, 5)]
-        devices_ui.remove_entries(bpy.context, added)
+            ("SERIAL", "/dev/null", 1, 1), ("SPACEMOUSE", "", 0, 1)]
+        # A glove (five fingers) has none free: refused by its spec, the list left as it was.
+        with pytest.raises(ValueError, match="opengloves:/dev/x.*no free finger"):
+            scene_devices.add_device_specs(bpy.context, ["opengloves:/dev/x"])
+        assert len(entries) == 2
+        scene_devices.remove_entries(bpy.context, added)
         assert len(entries) == 0
     finally:
         for e in emus:
@@ -264,11 +268,11 @@ def test_run_device_drives_animated_fingers_forces_on_recording_is_the_truth(bpy
 
 
 def test_a_device_with_no_finger_to_drive_is_an_error_naming_it(bpy, sample, core):
-    devices_ui = grasp_env.submodule("devices_ui")
+    session = grasp_env.submodule("session")
     sample.build(bpy)
     with pytest.raises(ValueError, match=r"device /dev/null: drives fingers 2\.\.2, but the scene has fingers "
                                          r"0\.\.1 \(Finger 0, Finger 1\)"):
-        devices_ui.run_realtime(bpy.context, 0.1, ["serial:/dev/null@2"])
+        session.run_realtime(bpy.context, 0.1, ["serial:/dev/null@2"])
     assert len(bpy.context.scene.grasp_lab_devices) == 0
     assert grasp_env.submodule("session").active_session() is None
 
@@ -392,7 +396,7 @@ def test_a_device_the_scene_declares_without_a_port_waits_for_one(bpy, sample, c
     their animation; Find Devices' + and a --device spec give it a port (and fewer fingers when
     the device's hello says fewer); after the run the entry is as the file had it."""
     session = grasp_env.submodule("session")
-    devices_ui = grasp_env.submodule("devices_ui")
+    scene_devices = grasp_env.submodule("scene_devices")
     sample.build(bpy)
     entries = bpy.context.scene.grasp_lab_devices
     entry = entries.add()
@@ -406,12 +410,28 @@ def test_a_device_the_scene_declares_without_a_port_waits_for_one(bpy, sample, c
                            cwd=grasp_env.ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         port = emu.stdout.readline().split()[1]
-        changed = devices_ui.add_device_specs(bpy.context, [f"serial:{port}"])
+        changed = scene_devices.add_device_specs(bpy.context, [f"serial:{port}"])
         assert [(e.port, e.finger_offset, e.num_fingers) for e in entries] == [(port, 0, 1)]   # its hello: 1
-        devices_ui.remove_entries(bpy.context, changed)
+        scene_devices.remove_entries(bpy.context, changed)
         assert [(e.port, e.finger_offset, e.num_fingers) for e in entries] == [("", 0, 2)]
         assert bpy.ops.grasp_lab.device_add(port=port, fingers=1) == {"FINISHED"}             # the panel's +
         assert [(e.port, e.finger_offset, e.num_fingers) for e in entries] == [(port, 0, 1)]
     finally:
         emu.kill()
         emu.wait()
+
+
+def test_emulate_from_a_blend_is_a_blender_command(bpy, sample, tmp_path):
+    """`grasp-lab emulate --from SCENE.blend` reads the .blend in Blender (the launcher loads the
+    extension, emulate_blend.py plays it); the engine's emulator alone refuses --from, saying where."""
+    sample.build(bpy)
+    path = str(tmp_path / "pinch.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=path)
+    launcher = os.path.join(os.path.dirname(sys.executable), "grasp-lab")
+    r = subprocess.run([launcher, "emulate", "--pty", "--from", path, "--wait", "0.5"], capture_output=True,
+                       text=True, timeout=120)
+    ports = [line for line in r.stdout.splitlines() if line.startswith("PORT /dev/")]
+    assert r.returncode == 2 and len(ports) == 1 and "no hello from the host" in r.stderr, (r.stdout, r.stderr)
+    r = subprocess.run([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--from", path],
+                       cwd=grasp_env.ROOT, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 1 and "reading a .blend needs Blender: grasp-lab emulate --from" in r.stderr, r.stderr

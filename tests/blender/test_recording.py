@@ -336,8 +336,8 @@ def test_frame_rows_by_arithmetic_equal_the_frame_mask():
         for _ in range(200):
             first, count = int(rng.integers(0, 10 ** 7)), int(rng.integers(1, 300))
             ticks = np.arange(first, first + count, dtype=np.uint64)
-            assert recording._frame_rows(first, count, rate, fps) == \
-                list(np.flatnonzero(recording._frame_ticks(ticks, rate, fps))), (rate, fps, first, count)
+            assert recording.reader._frame_rows(first, count, rate, fps) == \
+                list(np.flatnonzero(recording.reader._frame_ticks(ticks, rate, fps))), (rate, fps, first, count)
 
 
 def test_recording_made_before_the_orientation_field_still_reads(exec_rec, tmp_path, monkeypatch):
@@ -352,7 +352,7 @@ def test_recording_made_before_the_orientation_field_still_reads(exec_rec, tmp_p
     old_ticks = np.zeros(len(new.ticks), old_dtype)
     for name in old_dtype.names:
         old_ticks[name] = new.ticks[name]
-    monkeypatch.setattr(recording, "tick_dtype", lambda nb, nf: old_dtype)
+    monkeypatch.setattr(recording.writer, "tick_dtype", lambda nb, nf: old_dtype)
     old_path = tmp_path / "before-orientation.mcap"
     writer = recording.RecordingWriter(str(old_path), new.header)
     writer.write_ticks(old_ticks)

@@ -77,6 +77,6 @@ def test_core_and_wheels_come_with_the_extension(ext, core):
     import trimesh
     import serial
     if grasp_env.source() == "zip":
-        assert core.__name__ == f"{ext}.graspcore"           # vendored abi3 core
+        assert core.__name__ == f"{ext}.engine.graspcore"    # vendored abi3 core
     assert hasattr(core, "World")
     assert trimesh.__version__ and serial.VERSION

@@ -287,12 +287,12 @@ def test_make_scenes_files_play_on_the_emulator(bpy, tmp_path):
     """`make scenes` writes every scene; each file keeps its description, and the device
     emulator's --from plays its fingertips where the scene puts them at every key."""
     assert lib.main(["--out", str(tmp_path)]) == 0
-    emulator = grasp_env.submodule("engine.devices.emulator")
+    emulate_blend = grasp_env.submodule("emulate_blend")
     for name in lib.SCENES:
         sc = lib.scene(name)
         path = tmp_path / f"{name}.blend"
         assert path.stat().st_size < 150_000
-        motion, n = emulator.motion_from_blend(str(path))
+        motion, n = emulate_blend.motion_from_blend(str(path))
         assert bpy.context.scene[lib.DESCRIPTION_KEY] == sc.description
         assert n == len(sc.fingers)
         for key in sc.keys[:-1]:                              # the last key wraps to the first
@@ -306,20 +306,20 @@ def test_emulator_plays_a_scene_that_holds_live(bpy, core, tmp_path):
     driving the scene's fingertips in a real-time session: the card is drawn out of its slot
     and held, as in the headless run."""
     import subprocess
-    devices_ui = grasp_env.submodule("devices_ui")
+    session = grasp_env.submodule("session")
     sc = lib.build(bpy, "key_pinch")
     path = str(tmp_path / "key_pinch.blend")
     bpy.ops.wm.save_as_mainfile(filepath=path)
     for f in sc.fingers:                                      # the device has the fingertips now
         bpy.data.objects[f.name].animation_data_clear()
-    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--from", path],
+    emu = subprocess.Popen([sys.executable, "-m", "addon.emulate_blend", "--pty", "--from", path],
                            cwd=grasp_env.ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         line = emu.stdout.readline()
         assert line.startswith("PORT "), emu.stderr.read()
         # half a second into the hold, well before the emulator loops the animation
         held_at = (sc.frames_of("hold")[0] - sc.keys[0].frame) / lib.FPS + 0.5
-        live = devices_ui.run_realtime(bpy.context, held_at, [f"serial:{line.split()[1]}"])
+        live = session.run_realtime(bpy.context, held_at, [f"serial:{line.split()[1]}"])
         res = live.result
         i = res.body_names.index("Card")
         z = res.trajectory("Card")[:, 2]

@@ -45,7 +45,7 @@ def test_two_people_box_with_two_emulators(bpy, core, tmp_path):
     bpy.ops.wm.save_as_mainfile(filepath=str(blend))
 
     logs = [tmp_path / "forces_a.csv", tmp_path / "forces_b.csv"]
-    emus = [subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--from", str(blend),
+    emus = [subprocess.Popen([sys.executable, "-m", "addon.emulate_blend", "--pty", "--from", str(blend),
                               "--first", str(first), "--fingers", "3", "--rate", "500", "--force-max", "20",
                               "--force-log", str(log)],
                              cwd=grasp_env.ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -113,12 +113,12 @@ def test_the_emulator_plays_one_person_of_a_scene_and_refuses_fingers_it_has_not
     sc = lib.build(bpy, "two_people_box")
     blend = tmp_path / "two_people_box.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(blend))
-    emulator = grasp_env.submodule("engine.devices.emulator")
-    motion, n = emulator.motion_from_blend(str(blend), first=3, count=3)
+    emulate_blend = grasp_env.submodule("emulate_blend")
+    motion, n = emulate_blend.motion_from_blend(str(blend), first=3, count=3)
     assert n == 3
     key = sc.keys[0]
     np.testing.assert_allclose(motion(0.0, n), [lib.finger_position(f, key) for f in sc.fingers[3:]], atol=1e-6)
-    out = subprocess.run([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--from", str(blend),
+    out = subprocess.run([sys.executable, "-m", "addon.emulate_blend", "--pty", "--from", str(blend),
                           "--first", "4", "--fingers", "3"], cwd=grasp_env.ROOT, capture_output=True, text=True,
                          timeout=120)
     assert out.returncode != 0 and "fingertips 4..6 asked for, the scene has 6 (channels in order: 0..5)" in \

@@ -171,10 +171,10 @@ def test_new_device_drives_the_fingers_left(bpy):
 
 
 def test_bodies_moved_by_a_session_are_offered_a_reset(bpy, sample, core):
-    session = grasp_env.submodule("session")
+    rest_poses = grasp_env.submodule("rest_poses")
     sample.build(bpy)
-    assert session.moved_from_rest(bpy.context) == []
+    assert rest_poses.moved_from_rest(bpy.context) == []
     assert bpy.ops.grasp_lab.session(duration=3.0) == {"FINISHED"}       # the box is up and carried
-    assert [o.name for o in session.moved_from_rest(bpy.context)] == ["Box"]
+    assert [o.name for o in rest_poses.moved_from_rest(bpy.context)] == ["Box"]
     assert bpy.ops.grasp_lab.reset() == {"FINISHED"}
-    assert session.moved_from_rest(bpy.context) == []
+    assert rest_poses.moved_from_rest(bpy.context) == []

@@ -994,7 +994,7 @@ def scenario_walkthrough():
     check_stopped("record")
     recordings = sorted(glob.glob(os.path.join(folder, "*.mcap")))
     RESULT["recordings"] = recordings
-    RESULT["moved_after_record"] = [o.name for o in ext("session").moved_from_rest(bpy.context)]
+    RESULT["moved_after_record"] = [o.name for o in ext("rest_poses").moved_from_rest(bpy.context)]
     hover(win_region, 50, 50)
     yield 1.5
     docs_picture("recorded", crop="sidebar")
@@ -1002,7 +1002,7 @@ def scenario_walkthrough():
     at_end = list(box.matrix_world.translation)
     x, y = find_primary_button(ui, index=1)
     yield from click_at(ui, x, y)
-    yield from wait_until(lambda: not ext("session").moved_from_rest(bpy.context), 5, "Reset Bodies")
+    yield from wait_until(lambda: not ext("rest_poses").moved_from_rest(bpy.context), 5, "Reset Bodies")
     RESULT["reset"] = {"at_end": at_end, "after": list(box.matrix_world.translation)}
     yield 1.0
     try:
@@ -1080,7 +1080,7 @@ def finish():
 
 def main():
     try:
-        core = ext("core_loader").load()
+        core = ext("engine.core_loader").load()
         RESULT["graspcore"] = os.path.basename(core._core.__file__)
         import hid  # noqa: F401 - the bundled hidapi wheel for this Python
         RESULT["hidapi"] = os.path.basename(hid.__file__)

@@ -149,10 +149,13 @@ def register_with(cli) -> None:
     """Plug into the grasp-lab dispatcher (addon/engine/cli.py: ``register_command``,
     ``register_device_backend``): the two commands, and the --device kinds whose specs
     ``parse_device_spec`` reads (headless runs add them to the scene's device list with
-    ``devices_ui.add_device_specs``)."""
+    ``scene_devices.add_device_specs``)."""
     from .emulator import build_parser
     cli.register_command("devices", DEVICES_HELP, configure_devices, lambda args, out, err: cmd_devices(args, out))
-    cli.register_command("emulate", EMULATE_HELP, build_parser, lambda args, out, err: cmd_emulate(args))
+    # --from SCENE.blend needs Blender to read the .blend: then a Blender command (emulate_blend.py).
+    cli.register_command("emulate", EMULATE_HELP, build_parser,
+                         lambda args, out, err: cli.BLENDER_COMMANDS["emulate"](args, out, err) if args.from_blend
+                         else cmd_emulate(args), needs_blender=lambda args: bool(args.from_blend))
     for kind in ("serial", "udp", "spacemouse", "opengloves"):
         cli.register_device_backend(kind, lambda spec, n_fingers=None: parse_device_spec(spec))
 

@@ -262,6 +262,14 @@ def probe_ports(ports, timeout: float = PROBE_TIMEOUT) -> list:
     return [p.outcome(timeout) for p in probes]
 
 
+def hello_fingers(ports, timeout: float = PROBE_TIMEOUT) -> dict:
+    """Finger count per port from the devices' hello (ports that do not answer are left out):
+    how many fingers a device added by its port drives."""
+    ports = [p for p in ports if p]
+    return {r["port"]: r["hello"]["n_fingers"] for r in probe_ports(ports, timeout) if r["status"] == "grasp_lab"} \
+        if ports else {}
+
+
 def find_devices(timeout: float = PROBE_TIMEOUT, extra_ports=()) -> list:
     """Grasp Lab devices on the candidate ports (and ``extra_ports``): dicts with ``port``,
     ``name``, ``n_fingers`` and the rest of the hello, in port order; and every probe's result

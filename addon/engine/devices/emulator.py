@@ -72,70 +72,6 @@ MOTIONS = {"static": motion_static, "grip": motion_grip, "pinch": motion_pinch, 
            "lift": motion_lift}
 
 
-def motion_from_blend(path, first=0, count=None):
-    """The fingertip animation of a Grasp Lab .blend, looped, as (motion, finger count): its
-    fingertips in channel order from the ``first`` on, ``count`` of them (default: the rest;
-    one person's hand of a scene several devices drive). Positions are the fingertips' world
-    coordinates: with an identity workspace frame the device replays the scene's own
-    animation. Needs the bpy module."""
-    try:
-        import bpy
-    except ImportError as e:
-        raise SystemExit(f"--from {path}: reading a .blend needs the bpy module ({e})")
-    from ..inputs import SampledTrajectory
-    if not os.path.exists(path):
-        raise SystemExit(f"--from {path}: no such file")
-    # Blender prints to the C stdout while reading; the first line of ours must be "PORT ...".
-    sys.stdout.flush()
-    saved = os.dup(1)
-    os.dup2(2, 1)
-    try:
-        bpy.ops.wm.open_mainfile(filepath=os.path.abspath(path))
-        times, positions = _sample_fingertips(bpy.context.scene)
-    finally:
-        os.dup2(saved, 1)
-        os.close(saved)
-    have = len(positions[0])
-    count = have - first if count is None else count
-    if not (0 <= first < have and 1 <= count <= have - first):
-        raise SystemExit(f"--from {path}: fingertips {first}..{first + count - 1} asked for, the scene has "
-                         f"{have} (channels in order: 0..{have - 1})")
-    positions = [p[first:first + count] for p in positions]
-    track = SampledTrajectory(times, positions)
-    period = max(track.duration, 1e-9)
-    return (lambda t, n: [tuple(p) for p in track.hips_at(t % period)]), track.n_fingers
-
-
-def _finger_channel(obj):
-    """The device channel of a fingertip object, None for other objects. Reads the add-on's
-    properties, or their stored values when the add-on is not registered (role FINGER = 3)."""
-    gl = getattr(obj, "grasp_lab", None)
-    if gl is not None and hasattr(gl, "role"):
-        return gl.channel if gl.role == "FINGER" else None
-    raw = obj.get("grasp_lab")
-    if raw is None and hasattr(obj, "bl_system_properties_get"):
-        # Blender 5.0 keeps registered properties apart from the object's custom properties.
-        system = obj.bl_system_properties_get()
-        raw = system.get("grasp_lab") if system is not None else None
-    if raw is None or raw.get("role", 0) != 3:
-        return None
-    return raw.get("channel", 0)
-
-
-def _sample_fingertips(scene):
-    tips = sorted((o for o in scene.objects if _finger_channel(o) is not None),
-                  key=lambda o: (_finger_channel(o), o.name))
-    if not tips:
-        raise SystemExit("--from: the .blend has no fingertip objects (role Finger)")
-    fps = scene.render.fps / scene.render.fps_base
-    times, positions = [], []
-    for frame in range(scene.frame_start, max(scene.frame_end, scene.frame_start + 1) + 1):
-        scene.frame_set(frame)
-        times.append((frame - scene.frame_start) / fps)
-        positions.append([tuple(o.matrix_world.translation) for o in tips])
-    return times, positions
-
-
 # ---- the device -------------------------------------------------------------------------
 
 HOST_SILENCE = 0.3      # s without an answer to a pose: the host is not streaming with this device
@@ -431,7 +367,9 @@ def build_parser(parser=None):
     return p
 
 
-def main(argv=None, args=None):
+def main(argv=None, args=None, motion=None):
+    """``motion``: (motion, finger count) for ``--from`` (the bpy side reads the .blend:
+    emulate_blend.py)."""
     args = args or build_parser().parse_args(argv)
     if args.fingers is not None and not 1 <= args.fingers <= P.MAX_FINGERS:
         raise SystemExit(f"--fingers: {args.fingers} outside 1..{P.MAX_FINGERS}")
@@ -439,15 +377,20 @@ def main(argv=None, args=None):
         raise SystemExit(f"--rate: {args.rate} Hz outside 1..10000")
     if args.first and not args.from_blend:
         raise SystemExit("--first: only with --from (a named motion has no fingers of a scene to choose from)")
-    motion, n, name = MOTIONS[args.motion], args.fingers or 2, "grasp-lab-emulator"
+    name = "grasp-lab-emulator"
     if args.from_blend:
-        motion, n = motion_from_blend(args.from_blend, args.first, args.fingers)
+        if motion is None:
+            raise SystemExit(f"--from {args.from_blend}: reading a .blend needs Blender: grasp-lab emulate --from, "
+                             f"or python -m addon.emulate_blend")
+        motion, n = motion
         # Named after what it plays, so that Find Devices tells two emulators of a scene apart.
         scene = os.path.splitext(os.path.basename(args.from_blend))[0]
         suffix = f" fingers {args.first}..{args.first + n - 1}"
         while len((scene + suffix).encode()) > P.NAME_MAX:
             scene = scene[:-1]
         name = scene + suffix
+    else:
+        motion, n = MOTIONS[args.motion], args.fingers or 2
     serial_port = slave = udp = None
     if args.udp is not None:
         import socket

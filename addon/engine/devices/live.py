@@ -19,6 +19,38 @@ from .cli_commands import parse_device_spec
 from .serial_device import SerialDevice, UdpDevice
 
 
+GLOVE_FINGERS = 5       # a glove drives thumb to pinky
+
+
+def assign_specs(specs, n_fingers: int, taken=(), counts=None, hellos=None) -> list:
+    """``--device`` specs, all read (``parse_device_spec``) before any is used, each with the
+    fingers it drives: ``finger_offset`` and ``num_fingers``. A device wants ``counts[i]``
+    fingers when given, a glove five, a serial device as many as its hello says (``hellos``:
+    port -> finger count), else every finger from where it goes on; it goes at its ``@FIRST``,
+    else on the first fingers no device drives (``free_fingers``; ``taken``: (first, count) of
+    the devices there are). The one place specs become fingers: the scene's device list
+    (scene_devices.add_device_specs) and ``DeviceSet.add_specs``. ValueError names the spec
+    that has no finger to drive, or fewer than ``counts`` asks for."""
+    parsed = [(spec, parse_device_spec(spec)) for spec in specs]
+    taken, hellos, out = list(taken), hellos or {}, []
+    for i, (spec, d) in enumerate(parsed):
+        d = dict(d, spec=spec)
+        wanted = int(counts[i]) if counts else GLOVE_FINGERS if d["kind"] == "opengloves" else \
+            hellos.get(d.get("port"))
+        try:
+            first, count = free_fingers(taken, n_fingers, wanted or max(1, n_fingers),
+                                        d.get("finger_offset", 0) if "@" in spec else None)
+        except ValueError as e:
+            raise ValueError(f"--device {spec!r}: {e}") from None
+        if counts and count < wanted:
+            raise ValueError(f"--device {spec!r}: fingers {first}..{first + wanted - 1}, the scene has "
+                             f"{n_fingers} and {count} of them free")
+        d["finger_offset"], d["num_fingers"] = first, count
+        taken.append((first, count))
+        out.append(d)
+    return out
+
+
 def device_fingers(devices, n_fingers: int, finger_names=None) -> np.ndarray:
     """Which device drives each finger: an (n_fingers,) array of indices into ``devices``
     (-1: none). ``devices``: (label, first finger, finger count) per device. A device with a
@@ -179,28 +211,16 @@ class DeviceSet:
         ``fingers_per_device[i]`` fingers, else as many as its hello says (asked here), else
         (no answer) every free finger from there on; from FIRST, else from the first finger no
         device drives (``free_fingers``). ``frames``: optional 4x4 per spec."""
-        from .discovery import probe_ports
+        from .discovery import hello_fingers
         n_world = self.world.finger_count
-        parsed = []
-        for spec in specs:
-            d = parse_device_spec(spec)
-            if d["kind"] != "serial":
+        for spec in specs:      # all read, and only serial ones, before any port is asked
+            if parse_device_spec(spec)["kind"] != "serial":
                 raise ValueError(f"--device {spec!r}: only serial devices drive a runtime session from the "
                                  f"command line (SpaceMouse and OpenGloves are input sources)")
-            parsed.append((spec, d))
-        hellos = {} if fingers_per_device else {
-            r["port"]: r["hello"]["n_fingers"] for r in probe_ports([d["port"] for _, d in parsed])
-            if r["status"] == "grasp_lab"}
-        for i, (spec, d) in enumerate(parsed):
-            wanted = fingers_per_device[i] if fingers_per_device else hellos.get(d["port"], n_world)
-            taken = [(dev.finger_offset, dev.num_fingers) for dev in self.devices]
-            try:
-                first, count = free_fingers(taken, n_world, wanted, d["finger_offset"] if "@" in spec else None)
-            except ValueError as e:
-                raise ValueError(f"--device {spec!r}: {e}") from None
-            if fingers_per_device and count < wanted:
-                raise ValueError(f"--device {spec!r}: fingers {first}..{first + wanted - 1}, the scene has "
-                                 f"{n_world} and {count} of them free")
+        hellos = {} if fingers_per_device else hello_fingers([parse_device_spec(s)["port"] for s in specs])
+        taken = [(dev.finger_offset, dev.num_fingers) for dev in self.devices]
+        for i, d in enumerate(assign_specs(specs, n_world, taken, counts=fingers_per_device, hellos=hellos)):
+            first, count = d["finger_offset"], d["num_fingers"]
             self.add(d["port"], first, count, frames[i] if frames else None, **limits)
 
     def add_udp(self, host: str, port: int, finger_offset: int, num_fingers: int, transform=None,

@@ -1,5 +1,5 @@
-"""Find the graspcore module: the copy vendored inside the extension package (built
-zip), else an installed ``graspcore`` (development venv)."""
+"""Find the graspcore module: the copy vendored beside this file (engine/graspcore/, in the
+built zip), else an installed ``graspcore`` (development venv)."""
 from __future__ import annotations
 
 _core = None
