@@ -7,6 +7,7 @@
 
 #include <stdatomic.h>
 #include <limits.h>
+#include <stddef.h>
 #include <string.h>
 
 #include "graspcore.h"
@@ -70,6 +71,15 @@ static int check_ready(WorldObject *self) {
     return 1;
 }
 
+/* The world exists (a call the core serialises itself may come while another thread steps). */
+static int check_world(WorldObject *self) {
+    if (!self->world) {
+        PyErr_SetString(PyExc_RuntimeError, "World is not initialised");
+        return 0;
+    }
+    return 1;
+}
+
 /* Convert a sequence of n numbers; ValueError naming the argument on failure. */
 static int parse_vec(PyObject *obj, int n, const char *name, double *out) {
     if (obj == NULL || !PySequence_Check(obj) || PySequence_Size(obj) != n) {
@@ -93,6 +103,305 @@ static int parse_vec(PyObject *obj, int n, const char *name, double *out) {
 }
 
 static PyObject *tuple3(const double *v) { return Py_BuildValue("(ddd)", v[0], v[1], v[2]); }
+
+/* A C-contiguous float64 buffer of xyz rows (at most max_rows; at least one when nonempty): its
+ * rows, or -1 with "<name>: must be a C-contiguous float64 array of xyz rows" (nothing held). */
+static Py_ssize_t xyz_rows(PyObject *obj, Py_buffer *b, const char *name, int nonempty, Py_ssize_t max_rows) {
+    if (PyObject_GetBuffer(obj, b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return -1;
+    const Py_ssize_t row = 3 * (Py_ssize_t)sizeof(double);
+    if (!b->format || strcmp(b->format, "d") != 0 || b->len % row != 0 || (nonempty && b->len == 0) ||
+        b->len / row > max_rows) {
+        PyBuffer_Release(b);
+        PyErr_Format(PyExc_ValueError, "%s: must be a C-contiguous float64 array of xyz rows", name);
+        return -1;
+    }
+    return b->len / row;
+}
+
+/* ---- Names the core's enums go by in Python (exported as FINGER_STATES etc.) ------- */
+
+static const char *const finger_state_names[] = {
+    [GC_FINGER_FREE] = "free", [GC_FINGER_STICK] = "stick", [GC_FINGER_SLIP] = "slip"};
+static const char *const renderer_names[] = {[GC_RENDERER_XFCA] = "xfca", [GC_RENDERER_CURSOR] = "cursor"};
+static const char *const serial_state_names[] = {[GC_SERIAL_WAITING] = "waiting", [GC_SERIAL_STREAMING] = "streaming",
+                                                 [GC_SERIAL_LOST] = "lost", [GC_SERIAL_HANGUP] = "hangup"};
+static const char *const serial_event_names[] = {
+    "?", [GC_SERIAL_EV_CONNECTED] = "connected", [GC_SERIAL_EV_LOST] = "lost",
+    [GC_SERIAL_EV_RECOVERED] = "recovered", [GC_SERIAL_EV_ENABLED] = "enabled", [GC_SERIAL_EV_ESTOP] = "estop",
+    [GC_SERIAL_EV_STALL] = "stall", [GC_SERIAL_EV_DROPPED] = "dropped", [GC_SERIAL_EV_FOREIGN] = "foreign"};
+#define COUNT_OF(a) ((int)(sizeof(a) / sizeof((a)[0])))
+
+/* names[i], or names[fallback] for a value outside the table (never an out-of-bounds read). */
+static const char *enum_name(const char *const *names, int count, int i, int fallback) {
+    return i >= 0 && i < count && names[i] ? names[i] : names[fallback];
+}
+
+/* ---- Parameters: the keyword arguments of World(), add_finger, _add_body, start and
+ * attach_serial, one table row each -----------------------------------------------------
+ * A row names a field of a gc*Def and how Python gives it; parse_params reads a call's
+ * positional and keyword arguments into the definition the core's gc_default_*_def filled,
+ * and params_dict exports those defaults as WORLD_DEFAULTS, BODY_DEFAULTS, ... so Python never
+ * types a default twice. Adding a parameter to a definition is one row (docs/architecture.md). */
+typedef enum ParamKind {
+    PARAM_DOUBLE,   /* double, from any real number */
+    PARAM_INT,      /* int, from an integer in C int range */
+    PARAM_BOOL,     /* int 0/1, from any object's truth */
+    PARAM_VEC,      /* double[n], from a sequence of n numbers */
+    PARAM_OPT_VEC,  /* as PARAM_VEC, or None for the default; the int at `flag` (if any) is set when given */
+    PARAM_TEXT,     /* char[n], from a str shorter than n bytes */
+    PARAM_RENDERER, /* gcFingerRenderer, from its name (renderer_names) */
+    PARAM_OBJECT,   /* not a field: the object itself, left to the caller (a buffer, a descriptor) */
+} ParamKind;
+
+typedef struct Param {
+    const char *name; /* the Python keyword, and the name an error message starts with */
+    ParamKind kind;
+    size_t offset;    /* of the field in the definition */
+    int n;            /* PARAM_VEC, PARAM_OPT_VEC: numbers; PARAM_TEXT: bytes of the array */
+    size_t flag;      /* PARAM_OPT_VEC: offset of the int set to 1 when given; 0: none */
+} Param;
+
+#define PARAM(def, field, kind) {#field, PARAM_##kind, offsetof(def, field), 0, 0}
+#define PARAM_N(def, field, kind, n) {#field, PARAM_##kind, offsetof(def, field), n, 0}
+#define PARAM_OBJ(name) {name, PARAM_OBJECT, 0, 0, 0}
+enum { MAX_PARAMS = 24 };
+
+static const Param world_params[] = {
+    PARAM_N(gcWorldDef, gravity, VEC, 3), PARAM(gcWorldDef, gyroscopic, BOOL),
+    PARAM(gcWorldDef, max_bodies, INT),   PARAM(gcWorldDef, max_fingers, INT),
+    PARAM(gcWorldDef, max_parts, INT),    PARAM(gcWorldDef, threads, INT), /* threads, max_contacts: docs/solver.md */
+    PARAM(gcWorldDef, max_contacts, INT),
+};
+
+/* _add_body(parts, radii, **params); parts: C-contiguous float64 buffers of shape (n, 3). */
+static const Param body_params[] = {
+    PARAM_OBJ("parts"),
+    PARAM_OBJ("radii"),
+    PARAM(gcBodyDef, mass, DOUBLE),
+    PARAM_N(gcBodyDef, position, VEC, 3),
+    PARAM_N(gcBodyDef, orientation, VEC, 4),
+    {"static", PARAM_BOOL, offsetof(gcBodyDef, is_static), 0, 0},
+    PARAM(gcBodyDef, mu_s, DOUBLE),
+    PARAM(gcBodyDef, mu_d, DOUBLE),
+    PARAM(gcBodyDef, viscosity, DOUBLE),
+    {"inertia", PARAM_OPT_VEC, offsetof(gcBodyDef, inertia), 9, offsetof(gcBodyDef, has_inertia)},
+    {"center_of_mass", PARAM_OPT_VEC, offsetof(gcBodyDef, center_of_mass), 3,
+     offsetof(gcBodyDef, has_center_of_mass)},
+    PARAM_N(gcBodyDef, linear_velocity, VEC, 3),
+    PARAM_N(gcBodyDef, angular_velocity, VEC, 3),
+    PARAM(gcBodyDef, linear_damping, DOUBLE),
+    PARAM(gcBodyDef, angular_damping, DOUBLE),
+};
+
+/* add_finger's arguments, in their positional order. points: None (a sphere finger) or a
+ * C-contiguous float64 buffer of xyz rows (a convex finger). */
+static const Param finger_params[] = {
+    PARAM(gcFingerDef, radius, DOUBLE),
+    PARAM(gcFingerDef, stiffness, DOUBLE),
+    PARAM(gcFingerDef, damping, DOUBLE),
+    PARAM_N(gcFingerDef, position, VEC, 3),
+    PARAM_OBJ("points"),
+    PARAM_N(gcFingerDef, orientation, OPT_VEC, 4),
+    PARAM(gcFingerDef, torsion, DOUBLE),
+    PARAM(gcFingerDef, renderer, RENDERER),
+    PARAM(gcFingerDef, cursor_mass, DOUBLE),
+};
+
+static const Param runtime_params[] = {
+    PARAM(gcRuntimeDef, haptic_rate, DOUBLE),   PARAM(gcRuntimeDef, object_rate, DOUBLE),
+    PARAM(gcRuntimeDef, max_adopted_bodies, INT), PARAM(gcRuntimeDef, max_force, DOUBLE),
+    PARAM(gcRuntimeDef, ramp_time, DOUBLE),     PARAM(gcRuntimeDef, watchdog_timeout, DOUBLE),
+    PARAM(gcRuntimeDef, hip_timeout, DOUBLE),   PARAM(gcRuntimeDef, release_delay, DOUBLE),
+    PARAM(gcRuntimeDef, realtime, BOOL),        PARAM(gcRuntimeDef, priority, INT),
+    PARAM(gcRuntimeDef, max_hip_speed, DOUBLE),
+};
+
+/* attach_serial(fd, *, **params) */
+static const Param serial_params[] = {
+    PARAM_OBJ("fd"),
+    PARAM(gcSerialDef, finger_offset, INT),
+    PARAM(gcSerialDef, num_fingers, INT),
+    PARAM_N(gcSerialDef, transform, OPT_VEC, 16), /* row-major 4x4, device metres -> world */
+    PARAM(gcSerialDef, force_ttl, DOUBLE),
+    PARAM(gcSerialDef, lost_timeout, DOUBLE),
+    PARAM(gcSerialDef, max_force, DOUBLE),
+    PARAM(gcSerialDef, ramp_time, DOUBLE),
+    PARAM(gcSerialDef, max_position, DOUBLE),
+    PARAM(gcSerialDef, stall_timeout, DOUBLE),
+    PARAM(gcSerialDef, priority, INT),
+    PARAM_N(gcSerialDef, udp_host, TEXT, sizeof(((gcSerialDef *)0)->udp_host)),
+    PARAM(gcSerialDef, udp_port, INT),
+};
+
+/* A TypeError naming the parameter and what it wants, after a conversion failed with one
+ * (another error, an overflow say, is left as it is). */
+static int wrong_type(const char *name, const char *want, PyObject *value) {
+    if (!PyErr_ExceptionMatches(PyExc_TypeError)) return 0;
+    PyErr_Clear();
+    PyObject *type_name = PyType_GetName(Py_TYPE(value));
+    if (type_name) {
+        PyErr_Format(PyExc_TypeError, "%s: must be %s, not %U", name, want, type_name);
+        Py_DECREF(type_name);
+    }
+    return 0;
+}
+
+/* One argument into its field; 0 with a Python error naming the parameter. */
+static int set_param(const Param *p, PyObject *value, void *def) {
+    char *field = (char *)def + p->offset;
+    switch (p->kind) {
+    case PARAM_DOUBLE: {
+        double v = PyFloat_AsDouble(value);
+        if (v == -1.0 && PyErr_Occurred()) return wrong_type(p->name, "a real number", value);
+        memcpy(field, &v, sizeof v);
+        return 1;
+    }
+    case PARAM_INT: {
+        int overflow = 0;
+        long v = PyLong_AsLongAndOverflow(value, &overflow);
+        if (v == -1 && PyErr_Occurred()) return wrong_type(p->name, "an integer", value);
+        if (overflow || v < INT_MIN || v > INT_MAX) {
+            PyErr_Format(PyExc_OverflowError, "%s: outside the range of a C int", p->name);
+            return 0;
+        }
+        int i = (int)v;
+        memcpy(field, &i, sizeof i);
+        return 1;
+    }
+    case PARAM_BOOL: {
+        int truth = PyObject_IsTrue(value);
+        if (truth < 0) return 0;
+        memcpy(field, &truth, sizeof truth);
+        return 1;
+    }
+    case PARAM_OPT_VEC:
+        if (value == Py_None) return 1;
+        if (p->flag) {
+            int one = 1;
+            memcpy((char *)def + p->flag, &one, sizeof one);
+        }
+        /* fall through */
+    case PARAM_VEC: {
+        double v[16];
+        if (!parse_vec(value, p->n, p->name, v)) return 0;
+        memcpy(field, v, sizeof(double) * (size_t)p->n);
+        return 1;
+    }
+    case PARAM_TEXT:
+    case PARAM_RENDERER: {
+        Py_ssize_t len;
+        if (!PyUnicode_Check(value)) {
+            PyErr_SetString(PyExc_TypeError, "");
+            return wrong_type(p->name, "a str", value);
+        }
+        const char *s = PyUnicode_AsUTF8AndSize(value, &len);
+        if (!s) return 0;
+        if ((size_t)len != strlen(s)) {
+            PyErr_Format(PyExc_ValueError, "%s: contains a NUL character", p->name);
+            return 0;
+        }
+        if (p->kind == PARAM_TEXT) {
+            if (len >= p->n) {
+                PyErr_Format(PyExc_ValueError, "%s: longer than %d bytes", p->name, p->n - 1);
+                return 0;
+            }
+            memcpy(field, s, (size_t)len + 1);
+            return 1;
+        }
+        for (int i = 0; i < COUNT_OF(renderer_names); ++i)
+            if (strcmp(s, renderer_names[i]) == 0) {
+                gcFingerRenderer r = (gcFingerRenderer)i;
+                memcpy(field, &r, sizeof r);
+                return 1;
+            }
+        PyErr_Format(PyExc_ValueError, "%s: must be 'xfca' or 'cursor' (got '%s')", p->name, s);
+        return 0;
+    }
+    case PARAM_OBJECT: return 1;
+    }
+    return 1;
+}
+
+/* A call's arguments into def (filled with the core's defaults by the caller): positional ones
+ * (at most max_positional) in the table's order, then keywords. given[i] is the object for
+ * params[i] or NULL (the caller reads its PARAM_OBJECT rows there). 0 with an error set. */
+static int parse_params(const char *func, PyObject *args, PyObject *kwargs, const Param *params, int count,
+                        int max_positional, void *def, PyObject **given) {
+    Py_ssize_t nargs = PyTuple_Size(args);
+    if (nargs > max_positional) {
+        PyErr_Format(PyExc_TypeError, "%s() takes at most %d positional arguments (%zd given)", func,
+                     max_positional, nargs);
+        return 0;
+    }
+    for (int i = 0; i < count; ++i) given[i] = i < nargs ? PyTuple_GetItem(args, i) : NULL;
+    Py_ssize_t pos = 0;
+    PyObject *key, *value;
+    while (kwargs && PyDict_Next(kwargs, &pos, &key, &value)) {
+        const char *name = PyUnicode_Check(key) ? PyUnicode_AsUTF8AndSize(key, NULL) : NULL;
+        if (!name) {
+            PyErr_Clear();
+            PyErr_Format(PyExc_TypeError, "%s() keywords must be strings", func);
+            return 0;
+        }
+        int i = 0;
+        while (i < count && strcmp(params[i].name, name) != 0) ++i;
+        if (i == count) {
+            PyErr_Format(PyExc_TypeError, "%s() got an unexpected keyword argument '%s'", func, name);
+            return 0;
+        }
+        if (given[i]) {
+            PyErr_Format(PyExc_TypeError, "%s() got multiple values for argument '%s'", func, name);
+            return 0;
+        }
+        given[i] = value;
+    }
+    for (int i = 0; i < count; ++i)
+        if (given[i] && !set_param(&params[i], given[i], def)) return 0;
+    return 1;
+}
+
+/* A definition's fields as a dict (PARAM_OBJECT rows left out): the core's defaults for Python. */
+static PyObject *params_dict(const Param *params, int count, const void *def) {
+    PyObject *d = PyDict_New();
+    for (int i = 0; d && i < count; ++i) {
+        const Param *p = &params[i];
+        const char *field = (const char *)def + p->offset;
+        PyObject *v = NULL;
+        double x[16];
+        int k;
+        switch (p->kind) {
+        case PARAM_DOUBLE: memcpy(x, field, sizeof x[0]), v = PyFloat_FromDouble(x[0]); break;
+        case PARAM_INT: memcpy(&k, field, sizeof k), v = PyLong_FromLong(k); break;
+        case PARAM_BOOL: memcpy(&k, field, sizeof k), v = PyBool_FromLong(k); break;
+        case PARAM_OPT_VEC:
+            if (p->flag && (memcpy(&k, (const char *)def + p->flag, sizeof k), !k)) {
+                v = Py_NewRef(Py_None);
+                break;
+            }
+            /* fall through */
+        case PARAM_VEC: {
+            memcpy(x, field, sizeof(double) * (size_t)p->n);
+            v = PyTuple_New(p->n);
+            for (int j = 0; v && j < p->n; ++j) {
+                PyObject *item = PyFloat_FromDouble(x[j]);
+                if (!item || PyTuple_SetItem(v, j, item) < 0) Py_CLEAR(v);
+            }
+            break;
+        }
+        case PARAM_TEXT: v = PyUnicode_FromString(field); break;
+        case PARAM_RENDERER: {
+            gcFingerRenderer r;
+            memcpy(&r, field, sizeof r);
+            v = PyUnicode_FromString(enum_name(renderer_names, COUNT_OF(renderer_names), (int)r, 0));
+            break;
+        }
+        case PARAM_OBJECT: continue;
+        }
+        if (!v || PyDict_SetItemString(d, p->name, v) < 0) Py_CLEAR(d);
+        Py_XDECREF(v);
+    }
+    return d;
+}
 
 /* ---- View: a read-only (rows, cols) float64 buffer into world storage ------------- */
 
@@ -142,16 +451,11 @@ static PyType_Spec View_spec = {"graspcore._core.View", sizeof(ViewObject), 0, P
 
 static int World_init(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
-    static char *kwlist[] = {"gravity", "gyroscopic", "max_bodies", "max_fingers", "max_parts",
-                             "threads", "max_contacts", NULL}; /* threads, max_contacts: docs/solver.md */
     gcWorldDef def = gc_default_world_def();
-    PyObject *gravity = NULL;
-    int gyroscopic = 1;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|Opiiiii", kwlist, &gravity, &gyroscopic, &def.max_bodies,
-                                     &def.max_fingers, &def.max_parts, &def.threads, &def.max_contacts))
+    PyObject *given[MAX_PARAMS];
+    if (!parse_params("World", args, kwargs, world_params, COUNT_OF(world_params), COUNT_OF(world_params), &def,
+                      given))
         return -1;
-    if (gravity && !parse_vec(gravity, 3, "gravity", def.gravity)) return -1;
-    def.gyroscopic = gyroscopic;
     if (self->world) {
         PyErr_SetString(PyExc_RuntimeError, "World is already initialised");
         return -1;
@@ -174,34 +478,18 @@ static void World_dealloc(PyObject *obj) {
     Py_DECREF(tp);
 }
 
-/* _add_body(parts, radii, mass, position, orientation, static, mu_s, mu_d, viscosity,
- *           inertia, center_of_mass, linear_velocity, angular_velocity,
- *           linear_damping, angular_damping)
- * parts: sequence of C-contiguous float64 buffers of shape (n, 3). */
-static PyObject *World_add_body(PyObject *obj, PyObject *args) {
+/* _add_body(parts, radii, **body_params): the parts' points stay the caller's (zero-copy). */
+static PyObject *World_add_body(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
-    PyObject *parts, *radii, *position, *orientation, *inertia, *com, *lin, *ang;
     gcBodyDef def = gc_default_body_def();
-    int is_static;
-    if (!PyArg_ParseTuple(args, "OOdOOpdddOOOOdd", &parts, &radii, &def.mass, &position, &orientation,
-                          &is_static, &def.mu_s, &def.mu_d, &def.viscosity, &inertia, &com, &lin, &ang,
-                          &def.linear_damping, &def.angular_damping))
+    PyObject *given[MAX_PARAMS];
+    if (!parse_params("_add_body", args, kwargs, body_params, COUNT_OF(body_params), 2, &def, given)) return NULL;
+    PyObject *parts = given[0], *radii = given[1];
+    if (!parts || !radii) {
+        PyErr_SetString(PyExc_TypeError, "_add_body() needs parts and radii");
         return NULL;
+    }
     if (!check_ready(self)) return NULL;
-    def.is_static = is_static;
-    if (!parse_vec(position, 3, "position", def.position) ||
-        !parse_vec(orientation, 4, "orientation", def.orientation) ||
-        !parse_vec(lin, 3, "linear_velocity", def.linear_velocity) ||
-        !parse_vec(ang, 3, "angular_velocity", def.angular_velocity))
-        return NULL;
-    if (inertia != Py_None) {
-        if (!parse_vec(inertia, 9, "inertia", def.inertia)) return NULL;
-        def.has_inertia = 1;
-    }
-    if (com != Py_None) {
-        if (!parse_vec(com, 3, "center_of_mass", def.center_of_mass)) return NULL;
-        def.has_center_of_mass = 1;
-    }
     Py_ssize_t n = PySequence_Size(parts);
     if (n < 1 || n > 65536 || PySequence_Size(radii) != n) {
         PyErr_Clear();
@@ -253,41 +541,22 @@ done:
     return result;
 }
 
-/* points: None (a sphere finger) or a C-contiguous float64 buffer of xyz rows (a convex finger). */
 static PyObject *World_add_finger(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
-    static char *kwlist[] = {"radius",      "stiffness", "damping",  "position",    "points",
-                             "orientation", "torsion",   "renderer", "cursor_mass", NULL};
     gcFingerDef def = gc_default_finger_def();
-    PyObject *position = NULL, *points = NULL, *orientation = NULL;
-    const char *renderer = NULL;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|dddOOOdsd", kwlist, &def.radius, &def.stiffness, &def.damping,
-                                     &position, &points, &orientation, &def.torsion, &renderer, &def.cursor_mass))
+    PyObject *given[MAX_PARAMS];
+    if (!parse_params("add_finger", args, kwargs, finger_params, COUNT_OF(finger_params), COUNT_OF(finger_params),
+                      &def, given) ||
+        !check_ready(self))
         return NULL;
-    if (!check_ready(self)) return NULL;
-    if (renderer && strcmp(renderer, "xfca") == 0)
-        def.renderer = GC_RENDERER_XFCA;
-    else if (renderer && strcmp(renderer, "cursor") == 0)
-        def.renderer = GC_RENDERER_CURSOR;
-    else if (renderer) {
-        PyErr_Format(PyExc_ValueError, "renderer: must be 'xfca' or 'cursor' (got '%s')", renderer);
-        return NULL;
-    }
-    if (position && !parse_vec(position, 3, "position", def.position)) return NULL;
-    if (orientation && orientation != Py_None && !parse_vec(orientation, 4, "orientation", def.orientation))
-        return NULL;
+    PyObject *points = given[4];
     Py_buffer b = {0};
     int has_points = points && points != Py_None;
     if (has_points) {
-        if (PyObject_GetBuffer(points, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
-        if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0 ||
-            b.len / (Py_ssize_t)(3 * sizeof(double)) > (1 << 20)) {
-            PyBuffer_Release(&b);
-            PyErr_SetString(PyExc_ValueError, "points: must be a C-contiguous float64 array of xyz rows");
-            return NULL;
-        }
+        Py_ssize_t rows = xyz_rows(points, &b, "points", 0, 1 << 20);
+        if (rows < 0) return NULL;
         def.points = b.buf;
-        def.num_points = (int)(b.len / (Py_ssize_t)(3 * sizeof(double)));
+        def.num_points = (int)rows;
     }
     int32_t id;
     gcStatus st = gc_world_add_finger(self->world, &def, &id);
@@ -295,28 +564,217 @@ static PyObject *World_add_finger(PyObject *obj, PyObject *args, PyObject *kwarg
     return st < 0 ? raise_status(self, st) : PyLong_FromLong(id);
 }
 
-static PyObject *World_set_finger_pose(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int finger;
-    PyObject *pos, *orient;
-    double p[3], o[4];
-    if (!PyArg_ParseTuple(args, "iOO", &finger, &pos, &orient) || !check_ready(self) ||
-        !parse_vec(pos, 3, "position", p) || !parse_vec(orient, 4, "orientation", o))
-        return NULL;
-    gcStatus st = gc_world_set_finger_pose(self->world, finger, p, o);
+/* ---- Accessors: queries and setters of one body or finger, and the world's numbers -------
+ * One row each: the Python name, the core call, the shape of its arguments or result, the
+ * docstring. A shape's one function (query_*, set_*, below) parses the id, checks the world,
+ * calls the core and maps its status; the rows expand into the World_<name> methods and their
+ * World_methods entries. Adding an accessor of a shape that exists is one row; a new shape is
+ * one function (docs/architecture.md). */
+
+#define ID_QUERIES(X)                                                                                            \
+    X(body_pose, gc_world_body_pose, POSE, "body_pose(body) -> ((x, y, z), (w, x, y, z))")                      \
+    X(body_velocity, gc_world_body_velocity, PAIR, "body_velocity(body) -> (linear, angular), world frame")     \
+    X(body_mass, gc_world_body_mass, MASS, "body_mass(body) -> (mass, center_of_mass, inertia 3x3)")            \
+    X(residual_wrench, gc_world_residual_wrench, PAIR,                                                           \
+      "residual_wrench(body) -> (force, torque about the centre of mass)")                                       \
+    X(body_chain, gc_world_body_chain, OPTIONAL_ID,                                                              \
+      "body_chain(body) -> index of the body's collision chain (last step), None for a static body")            \
+    X(finger_pose, gc_world_finger_pose, POSE, "finger_pose(finger) -> ((x, y, z), (w, x, y, z))")              \
+    X(finger_force, gc_world_finger_force, VEC, "finger_force(finger) -> force rendered to the device, N")      \
+    X(finger_torque, gc_world_finger_torque, VEC,                                                                \
+      "finger_torque(finger) -> a convex finger's contact torque about its HIP, N m (0 for a sphere)")          \
+    X(god_object, gc_world_god_object, VEC, "god_object(finger) -> world position")                             \
+    X(finger_state, gc_world_finger_state, STATE, "finger_state(finger) -> 'free' | 'stick' | 'slip'")          \
+    X(finger_contact, gc_world_finger_state, CONTACT, "finger_contact(finger) -> body id or None")
+
+/* Setters: name, core call, shape, the names of its two arguments (for errors), docstring. */
+#define ID_SETTERS(X)                                                                                            \
+    X(set_hip, gc_world_set_hip, VEC, "position", NULL, "set_hip(finger, (x, y, z)): the device (haptic interface) point.") \
+    X(set_finger_pose, gc_world_set_finger_pose, POSE, "position", "orientation",                               \
+      "set_finger_pose(finger, (x, y, z), (w, x, y, z)): the whole HIP (a convex finger turns with it).")        \
+    X(set_body_velocity, gc_world_set_body_velocity, PAIR, "linear", "angular",                                 \
+      "set_body_velocity(body, linear, angular): world frame, of the body origin's COM.")                      \
+    X(set_body_pose, gc_world_set_body_pose, POSE, "position", "orientation",                                   \
+      "set_body_pose(body, position, orientation_wxyz)")                                                         \
+    X(set_body_friction, gc_world_set_body_friction, FRICTION, NULL, NULL,                                      \
+      "set_body_friction(body, mu_s, mu_d, viscosity)")
+
+/* Numbers of the whole world: name, core call, Python type, the guard (ready: not while a step
+ * runs; world: any time, the core serialises it), docstring. NUMBERS are methods, PROPERTIES
+ * read-only attributes. */
+#define WORLD_NUMBERS(X)                                                                                         \
+    X(state_hash, gc_world_state_hash, U64, ready, "64-bit hash of the full dynamic state.")                    \
+    X(chain_count, gc_world_chain_count, INT, ready, "chain_count() -> number of collision chains, last step")  \
+    X(stopped_bodies, gc_world_stopped_bodies, I64, ready,                                                       \
+      "stopped_bodies() -> bodies stopped since creation because their state would have become non-finite")     \
+    X(contact_overflow, gc_world_contact_overflow, I64, ready,                                                   \
+      "contact_overflow() -> contact pairs dropped since creation for want of max_contacts")                    \
+    X(tick_log_overflow, gc_world_tick_log_overflow, U64, world,                                                 \
+      "tick_log_overflow() -> ticks dropped on a full tick log since the last start().")
+
+#define WORLD_PROPERTIES(X)                                                                                      \
+    X(time, gc_world_time, DOUBLE, ready, "Simulated time, s")                                                   \
+    X(body_count, gc_world_body_count, INT, ready, "Number of bodies")                                           \
+    X(finger_count, gc_world_finger_count, INT, ready, "Number of fingers")                                      \
+    X(running, gc_world_running, BOOL, world, "True between start() and stop()")
+
+/* The shapes. */
+typedef gcStatus (*QueryVec)(const gcWorld *, int32_t, double[3]);
+typedef gcStatus (*QueryPair)(const gcWorld *, int32_t, double[3], double[3]);
+typedef gcStatus (*QueryPose)(const gcWorld *, int32_t, double[3], double[4]);
+typedef gcStatus (*QueryMass)(const gcWorld *, int32_t, double *, double[3], double[9]);
+typedef gcStatus (*QueryOptionalId)(const gcWorld *, int32_t, int32_t *);
+typedef gcStatus (*QueryState)(const gcWorld *, int32_t, gcFingerState *, int32_t *);
+typedef gcStatus (*SetVec)(gcWorld *, int32_t, const double[3]);
+typedef gcStatus (*SetPair)(gcWorld *, int32_t, const double[3], const double[3]);
+typedef gcStatus (*SetPose)(gcWorld *, int32_t, const double[3], const double[4]);
+typedef gcStatus (*SetFriction)(gcWorld *, int32_t, double, double, double);
+
+/* The id argument of a query or setter, and the world ready for it. */
+static int parse_id(WorldObject *self, PyObject *args, int *id) {
+    return PyArg_ParseTuple(args, "i", id) && check_ready(self);
+}
+
+static PyObject *query_VEC(WorldObject *self, PyObject *args, QueryVec query) {
+    int id;
+    double v[3];
+    if (!parse_id(self, args, &id)) return NULL;
+    gcStatus st = query(self->world, id, v);
+    return st < 0 ? raise_status(self, st) : tuple3(v);
+}
+
+static PyObject *query_PAIR(WorldObject *self, PyObject *args, QueryPair query) {
+    int id;
+    double a[3], b[3];
+    if (!parse_id(self, args, &id)) return NULL;
+    gcStatus st = query(self->world, id, a, b);
+    if (st < 0) return raise_status(self, st);
+    return Py_BuildValue("((ddd)(ddd))", a[0], a[1], a[2], b[0], b[1], b[2]);
+}
+
+static PyObject *query_POSE(WorldObject *self, PyObject *args, QueryPose query) {
+    int id;
+    double p[3], q[4];
+    if (!parse_id(self, args, &id)) return NULL;
+    gcStatus st = query(self->world, id, p, q);
+    if (st < 0) return raise_status(self, st);
+    return Py_BuildValue("((ddd)(dddd))", p[0], p[1], p[2], q[0], q[1], q[2], q[3]);
+}
+
+static PyObject *query_MASS(WorldObject *self, PyObject *args, QueryMass query) {
+    int id;
+    double m, c[3], I[9];
+    if (!parse_id(self, args, &id)) return NULL;
+    gcStatus st = query(self->world, id, &m, c, I);
+    if (st < 0) return raise_status(self, st);
+    return Py_BuildValue("(d(ddd)((ddd)(ddd)(ddd)))", m, c[0], c[1], c[2], I[0], I[1], I[2], I[3], I[4], I[5], I[6],
+                         I[7], I[8]);
+}
+
+/* An id or None (a negative id: a static body's chain). */
+static PyObject *optional_id(int32_t id) {
+    if (id < 0) Py_RETURN_NONE;
+    return PyLong_FromLong(id);
+}
+
+static PyObject *query_OPTIONAL_ID(WorldObject *self, PyObject *args, QueryOptionalId query) {
+    int id;
+    int32_t out;
+    if (!parse_id(self, args, &id)) return NULL;
+    gcStatus st = query(self->world, id, &out);
+    return st < 0 ? raise_status(self, st) : optional_id(out);
+}
+
+static PyObject *query_STATE(WorldObject *self, PyObject *args, QueryState query) {
+    int id;
+    gcFingerState state;
+    int32_t body;
+    if (!parse_id(self, args, &id)) return NULL;
+    gcStatus st = query(self->world, id, &state, &body);
+    if (st < 0) return raise_status(self, st);
+    return PyUnicode_FromString(enum_name(finger_state_names, COUNT_OF(finger_state_names), (int)state, 0));
+}
+
+static PyObject *query_CONTACT(WorldObject *self, PyObject *args, QueryState query) {
+    int id;
+    gcFingerState state;
+    int32_t body;
+    if (!parse_id(self, args, &id)) return NULL;
+    gcStatus st = query(self->world, id, &state, &body);
+    return st < 0 ? raise_status(self, st) : optional_id(body);
+}
+
+static PyObject *set_VEC(WorldObject *self, PyObject *args, SetVec set, const char *name, const char *unused) {
+    int id;
+    PyObject *a;
+    double v[3];
+    if (!PyArg_ParseTuple(args, "iO", &id, &a) || !check_ready(self) || !parse_vec(a, 3, name, v)) return NULL;
+    gcStatus st = set(self->world, id, v);
     if (st < 0) return raise_status(self, st);
     Py_RETURN_NONE;
 }
 
-static PyObject *World_finger_pose(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int finger;
-    double p[3], o[4];
-    if (!PyArg_ParseTuple(args, "i", &finger) || !check_ready(self)) return NULL;
-    gcStatus st = gc_world_finger_pose(self->world, finger, p, o);
+static PyObject *set_PAIR(WorldObject *self, PyObject *args, SetPair set, const char *name_a, const char *name_b) {
+    int id;
+    PyObject *a, *b;
+    double u[3], v[3];
+    if (!PyArg_ParseTuple(args, "iOO", &id, &a, &b) || !check_ready(self) || !parse_vec(a, 3, name_a, u) ||
+        !parse_vec(b, 3, name_b, v))
+        return NULL;
+    gcStatus st = set(self->world, id, u, v);
     if (st < 0) return raise_status(self, st);
-    return Py_BuildValue("((ddd)(dddd))", p[0], p[1], p[2], o[0], o[1], o[2], o[3]);
+    Py_RETURN_NONE;
 }
+
+static PyObject *set_POSE(WorldObject *self, PyObject *args, SetPose set, const char *name_p, const char *name_q) {
+    int id;
+    PyObject *a, *b;
+    double p[3], q[4];
+    if (!PyArg_ParseTuple(args, "iOO", &id, &a, &b) || !check_ready(self) || !parse_vec(a, 3, name_p, p) ||
+        !parse_vec(b, 4, name_q, q))
+        return NULL;
+    gcStatus st = set(self->world, id, p, q);
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+}
+
+static PyObject *set_FRICTION(WorldObject *self, PyObject *args, SetFriction set, const char *unused_a,
+                              const char *unused_b) {
+    int id;
+    double mu_s, mu_d, viscosity;
+    if (!PyArg_ParseTuple(args, "iddd", &id, &mu_s, &mu_d, &viscosity) || !check_ready(self)) return NULL;
+    gcStatus st = set(self->world, id, mu_s, mu_d, viscosity);
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+}
+
+#define NUMBER_U64(v) PyLong_FromUnsignedLongLong(v)
+#define NUMBER_I64(v) PyLong_FromLongLong((long long)(v))
+#define NUMBER_INT(v) PyLong_FromLong(v)
+#define NUMBER_DOUBLE(v) PyFloat_FromDouble(v)
+#define NUMBER_BOOL(v) PyBool_FromLong(v)
+
+/* The rows, expanded into methods. */
+#define QUERY_METHOD(name, call, shape, doc)                                                                     \
+    static PyObject *World_##name(PyObject *obj, PyObject *args) { return query_##shape((WorldObject *)obj, args, call); }
+ID_QUERIES(QUERY_METHOD)
+#define SETTER_METHOD(name, call, shape, arg_a, arg_b, doc)                                                      \
+    static PyObject *World_##name(PyObject *obj, PyObject *args) {                                               \
+        return set_##shape((WorldObject *)obj, args, call, arg_a, arg_b);                                        \
+    }
+ID_SETTERS(SETTER_METHOD)
+#define NUMBER_METHOD(name, call, type, guard, doc)                                                              \
+    static PyObject *World_##name(PyObject *obj, PyObject *unused) {                                             \
+        WorldObject *self = (WorldObject *)obj;                                                                  \
+        return check_##guard(self) ? NUMBER_##type(call(self->world)) : NULL;                                    \
+    }
+WORLD_NUMBERS(NUMBER_METHOD)
+#define PROPERTY_GETTER(name, call, type, guard, doc)                                                            \
+    static PyObject *World_get_##name(PyObject *obj, void *closure) {                                            \
+        WorldObject *self = (WorldObject *)obj;                                                                  \
+        return check_##guard(self) ? NUMBER_##type(call(self->world)) : NULL;                                    \
+    }
+WORLD_PROPERTIES(PROPERTY_GETTER)
 
 /* finger_contacts(finger) -> list of dicts, one per point of the finger's contact patch. */
 static PyObject *World_finger_contacts(PyObject *obj, PyObject *args) {
@@ -328,14 +786,13 @@ static PyObject *World_finger_contacts(PyObject *obj, PyObject *args) {
     gcStatus st = gc_world_finger_contacts(self->world, finger, points, 64, &n);
     if (st < 0) return raise_status(self, st);
     if (n > 64) n = 64;
-    static const char *states[] = {"free", "stick", "slip"};
     PyObject *list = PyList_New(n);
     if (!list) return NULL;
     for (int i = 0; i < n; ++i) {
         const gcFingerContactPoint *c = &points[i];
         PyObject *d = Py_BuildValue("{s:i,s:i,s:O,s:s,s:(ddd),s:(ddd),s:(ddd)}", "body", c->body, "sample",
                                     c->sample, "reversed", c->reversed ? Py_True : Py_False, "state",
-                                    states[c->state >= 0 && c->state <= 2 ? c->state : 0],
+                                    enum_name(finger_state_names, COUNT_OF(finger_state_names), (int)c->state, 0),
                                     "point", c->point[0], c->point[1], c->point[2], "normal",
                                     c->normal[0], c->normal[1], c->normal[2], "force", c->force[0], c->force[1],
                                     c->force[2]);
@@ -351,35 +808,16 @@ static PyObject *World_finger_contacts(PyObject *obj, PyObject *args) {
     return list;
 }
 
-static PyObject *World_set_hip(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int finger;
-    PyObject *pos;
-    double p[3];
-    if (!PyArg_ParseTuple(args, "iO", &finger, &pos) || !check_ready(self) || !parse_vec(pos, 3, "position", p))
-        return NULL;
-    gcStatus st = gc_world_set_hip(self->world, finger, p);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
-}
-
 static PyObject *World_set_hips(PyObject *obj, PyObject *arg) {
     WorldObject *self = (WorldObject *)obj;
     if (!check_ready(self)) return NULL;
     Py_buffer b;
-    if (PyObject_GetBuffer(arg, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
-    PyObject *result = NULL;
-    if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0) {
-        PyErr_SetString(PyExc_ValueError, "positions: must be a C-contiguous float64 array of xyz rows");
-    } else {
-        gcStatus st = gc_world_set_hips(self->world, b.buf, (int)(b.len / (Py_ssize_t)(3 * sizeof(double))));
-        if (st < 0)
-            raise_status(self, st);
-        else
-            result = Py_NewRef(Py_None);
-    }
+    Py_ssize_t rows = xyz_rows(arg, &b, "positions", 0, INT_MAX);
+    if (rows < 0) return NULL;
+    gcStatus st = gc_world_set_hips(self->world, b.buf, (int)rows);
     PyBuffer_Release(&b);
-    return result;
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
 }
 
 static PyObject *World_set_gravity(PyObject *obj, PyObject *arg) {
@@ -387,42 +825,6 @@ static PyObject *World_set_gravity(PyObject *obj, PyObject *arg) {
     double g[3];
     if (!check_ready(self) || !parse_vec(arg, 3, "gravity", g)) return NULL;
     gcStatus st = gc_world_set_gravity(self->world, g);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
-}
-
-static PyObject *World_set_body_velocity(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int body;
-    PyObject *lin, *ang;
-    double l[3], a[3];
-    if (!PyArg_ParseTuple(args, "iOO", &body, &lin, &ang) || !check_ready(self) ||
-        !parse_vec(lin, 3, "linear", l) || !parse_vec(ang, 3, "angular", a))
-        return NULL;
-    gcStatus st = gc_world_set_body_velocity(self->world, body, l, a);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
-}
-
-static PyObject *World_set_body_pose(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int body;
-    PyObject *pos, *quat;
-    double p[3], q[4];
-    if (!PyArg_ParseTuple(args, "iOO", &body, &pos, &quat) || !check_ready(self) ||
-        !parse_vec(pos, 3, "position", p) || !parse_vec(quat, 4, "orientation", q))
-        return NULL;
-    gcStatus st = gc_world_set_body_pose(self->world, body, p, q);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
-}
-
-static PyObject *World_set_body_friction(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int body;
-    double mu_s, mu_d, viscosity;
-    if (!PyArg_ParseTuple(args, "iddd", &body, &mu_s, &mu_d, &viscosity) || !check_ready(self)) return NULL;
-    gcStatus st = gc_world_set_body_friction(self->world, body, mu_s, mu_d, viscosity);
     if (st < 0) return raise_status(self, st);
     Py_RETURN_NONE;
 }
@@ -452,93 +854,6 @@ static PyObject *World_step(PyObject *obj, PyObject *args, PyObject *kwargs) {
     Py_RETURN_NONE;
 }
 
-static PyObject *World_body_pose(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int body;
-    double p[3], q[4];
-    if (!PyArg_ParseTuple(args, "i", &body) || !check_ready(self)) return NULL;
-    gcStatus st = gc_world_body_pose(self->world, body, p, q);
-    if (st < 0) return raise_status(self, st);
-    return Py_BuildValue("((ddd)(dddd))", p[0], p[1], p[2], q[0], q[1], q[2], q[3]);
-}
-
-static PyObject *World_body_velocity(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int body;
-    double l[3], a[3];
-    if (!PyArg_ParseTuple(args, "i", &body) || !check_ready(self)) return NULL;
-    gcStatus st = gc_world_body_velocity(self->world, body, l, a);
-    if (st < 0) return raise_status(self, st);
-    return Py_BuildValue("((ddd)(ddd))", l[0], l[1], l[2], a[0], a[1], a[2]);
-}
-
-static PyObject *World_body_mass(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int body;
-    double m, c[3], I[9];
-    if (!PyArg_ParseTuple(args, "i", &body) || !check_ready(self)) return NULL;
-    gcStatus st = gc_world_body_mass(self->world, body, &m, c, I);
-    if (st < 0) return raise_status(self, st);
-    return Py_BuildValue("(d(ddd)((ddd)(ddd)(ddd)))", m, c[0], c[1], c[2], I[0], I[1], I[2], I[3], I[4], I[5], I[6],
-                         I[7], I[8]);
-}
-
-static PyObject *World_residual_wrench(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int body;
-    double f[3], t[3];
-    if (!PyArg_ParseTuple(args, "i", &body) || !check_ready(self)) return NULL;
-    gcStatus st = gc_world_residual_wrench(self->world, body, f, t);
-    if (st < 0) return raise_status(self, st);
-    return Py_BuildValue("((ddd)(ddd))", f[0], f[1], f[2], t[0], t[1], t[2]);
-}
-
-typedef gcStatus (*FingerVecQuery)(const gcWorld *, int32_t, double[3]);
-
-static PyObject *finger_vec(WorldObject *self, PyObject *args, FingerVecQuery query) {
-    int finger;
-    double v[3];
-    if (!PyArg_ParseTuple(args, "i", &finger) || !check_ready(self)) return NULL;
-    gcStatus st = query(self->world, finger, v);
-    if (st < 0) return raise_status(self, st);
-    return tuple3(v);
-}
-
-static PyObject *World_finger_force(PyObject *obj, PyObject *args) {
-    return finger_vec((WorldObject *)obj, args, gc_world_finger_force);
-}
-
-static PyObject *World_finger_torque(PyObject *obj, PyObject *args) {
-    return finger_vec((WorldObject *)obj, args, gc_world_finger_torque);
-}
-
-static PyObject *World_god_object(PyObject *obj, PyObject *args) {
-    return finger_vec((WorldObject *)obj, args, gc_world_god_object);
-}
-
-static PyObject *finger_state_query(WorldObject *self, PyObject *args, int want_body) {
-    int finger;
-    gcFingerState state;
-    int32_t body;
-    if (!PyArg_ParseTuple(args, "i", &finger) || !check_ready(self)) return NULL;
-    gcStatus st = gc_world_finger_state(self->world, finger, &state, &body);
-    if (st < 0) return raise_status(self, st);
-    if (want_body) {
-        if (body < 0) Py_RETURN_NONE;
-        return PyLong_FromLong(body);
-    }
-    static const char *names[] = {"free", "stick", "slip"};
-    return PyUnicode_FromString(names[state]);
-}
-
-static PyObject *World_finger_state(PyObject *obj, PyObject *args) {
-    return finger_state_query((WorldObject *)obj, args, 0);
-}
-
-static PyObject *World_finger_contact(PyObject *obj, PyObject *args) {
-    return finger_state_query((WorldObject *)obj, args, 1);
-}
-
 /* _view(kind): 0 body poses (n,7), 1 god-objects, 2 finger forces, 3 HIPs (n,3). */
 static PyObject *World_view(PyObject *obj, PyObject *arg) {
     WorldObject *self = (WorldObject *)obj;
@@ -564,12 +879,6 @@ static PyObject *World_view(PyObject *obj, PyObject *arg) {
     view->strides[0] = cols * (Py_ssize_t)sizeof(double);
     view->strides[1] = sizeof(double);
     return (PyObject *)view;
-}
-
-static PyObject *World_state_hash(PyObject *obj, PyObject *unused) {
-    WorldObject *self = (WorldObject *)obj;
-    if (!check_ready(self)) return NULL;
-    return PyLong_FromUnsignedLongLong(gc_world_state_hash(self->world));
 }
 
 /* ---- Body-body contacts and collision chains (contacts.c, chains.c) ---------------- */
@@ -601,79 +910,17 @@ static PyObject *World_contacts(PyObject *obj, PyObject *unused) {
     return list;
 }
 
-static PyObject *World_chain_count(PyObject *obj, PyObject *unused) {
-    WorldObject *self = (WorldObject *)obj;
-    if (!check_ready(self)) return NULL;
-    return PyLong_FromLong(gc_world_chain_count(self->world));
-}
-
-static PyObject *World_body_chain(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int body;
-    if (!PyArg_ParseTuple(args, "i", &body) || !check_ready(self)) return NULL;
-    int32_t chain;
-    gcStatus st = gc_world_body_chain(self->world, body, &chain);
-    if (st != GC_OK) return raise_status(self, st);
-    if (chain < 0) Py_RETURN_NONE;
-    return PyLong_FromLong(chain);
-}
-
-static PyObject *World_stopped_bodies(PyObject *obj, PyObject *unused) {
-    WorldObject *self = (WorldObject *)obj;
-    if (!check_ready(self)) return NULL;
-    return PyLong_FromLongLong((long long)gc_world_stopped_bodies(self->world));
-}
-
-static PyObject *World_contact_overflow(PyObject *obj, PyObject *unused) {
-    WorldObject *self = (WorldObject *)obj;
-    if (!check_ready(self)) return NULL;
-    return PyLong_FromLongLong((long long)gc_world_contact_overflow(self->world));
-}
-
-static PyObject *World_get_time(PyObject *obj, void *closure) {
-    WorldObject *self = (WorldObject *)obj;
-    if (!check_ready(self)) return NULL;
-    return PyFloat_FromDouble(gc_world_time(self->world));
-}
-
-static PyObject *World_get_body_count(PyObject *obj, void *closure) {
-    WorldObject *self = (WorldObject *)obj;
-    if (!check_ready(self)) return NULL;
-    return PyLong_FromLong(gc_world_body_count(self->world));
-}
-
-static PyObject *World_get_finger_count(PyObject *obj, void *closure) {
-    WorldObject *self = (WorldObject *)obj;
-    if (!check_ready(self)) return NULL;
-    return PyLong_FromLong(gc_world_finger_count(self->world));
-}
-
 /* ---- Runtime: haptic loop and object manager threads (runtime*.c, docs/runtime.md) ----
  * push_hips, _snapshot and stats may run while another thread is inside advance/stop: the
  * core serialises them itself. */
 
-static int check_world(WorldObject *self) {
-    if (!self->world) {
-        PyErr_SetString(PyExc_RuntimeError, "World is not initialised");
-        return 0;
-    }
-    return 1;
-}
-
 static PyObject *World_start(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
-    static char *kwlist[] = {"haptic_rate", "object_rate", "max_adopted_bodies", "max_force", "ramp_time",
-                             "watchdog_timeout", "hip_timeout", "release_delay", "realtime", "priority",
-                             "max_hip_speed", NULL};
     gcRuntimeDef def = gc_default_runtime_def();
-    int realtime = def.realtime;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|$ddidddddpid", kwlist, &def.haptic_rate, &def.object_rate,
-                                     &def.max_adopted_bodies, &def.max_force, &def.ramp_time,
-                                     &def.watchdog_timeout, &def.hip_timeout, &def.release_delay, &realtime,
-                                     &def.priority, &def.max_hip_speed) ||
+    PyObject *given[MAX_PARAMS];
+    if (!parse_params("start", args, kwargs, runtime_params, COUNT_OF(runtime_params), 0, &def, given) ||
         !check_ready(self))
         return NULL;
-    def.realtime = realtime;
     gcStatus st = gc_world_start(self->world, &def);
     if (st < 0) return raise_status(self, st);
     Py_RETURN_NONE;
@@ -775,20 +1022,18 @@ static PyObject *World_push_hips(PyObject *obj, PyObject *args) {
     double t;
     if (!PyArg_ParseTuple(args, "Od|O", &positions, &t, &quat_obj) || !check_world(self)) return NULL;
     Py_buffer b, q = {0};
-    if (PyObject_GetBuffer(positions, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
+    Py_ssize_t rows = xyz_rows(positions, &b, "positions", 1, INT_MAX / 4);
+    if (rows < 0) return NULL;
     int has_quat = quat_obj != Py_None;
     if (has_quat && PyObject_GetBuffer(quat_obj, &q, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
         PyBuffer_Release(&b);
         return NULL;
     }
     PyObject *result = NULL;
-    int rows = (int)(b.len / (Py_ssize_t)(3 * sizeof(double)));
-    if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0 || b.len == 0) {
-        PyErr_SetString(PyExc_ValueError, "positions: must be a C-contiguous float64 array of xyz rows");
-    } else if (has_quat && (!q.format || strcmp(q.format, "d") != 0 || q.len != rows * 4 * (Py_ssize_t)sizeof(double))) {
-        PyErr_Format(PyExc_ValueError, "orientations: must be a C-contiguous float64 array of %d wxyz rows", rows);
+    if (has_quat && (!q.format || strcmp(q.format, "d") != 0 || q.len != rows * 4 * (Py_ssize_t)sizeof(double))) {
+        PyErr_Format(PyExc_ValueError, "orientations: must be a C-contiguous float64 array of %zd wxyz rows", rows);
     } else {
-        gcStatus st = gc_world_push_finger_poses(self->world, b.buf, has_quat ? q.buf : NULL, rows, t);
+        gcStatus st = gc_world_push_finger_poses(self->world, b.buf, has_quat ? q.buf : NULL, (int)rows, t);
         if (st < 0)
             raise_status(self, st);
         else
@@ -870,12 +1115,6 @@ static PyObject *World_debug_stall(PyObject *obj, PyObject *arg) {
     gcStatus st = gc_world_debug_stall(self->world, seconds);
     if (st < 0) return raise_status(self, st);
     Py_RETURN_NONE;
-}
-
-static PyObject *World_get_running(PyObject *obj, void *closure) {
-    WorldObject *self = (WorldObject *)obj;
-    if (!check_world(self)) return NULL;
-    return PyBool_FromLong(gc_world_running(self->world));
 }
 
 /* ---- Tick log (tick_log.c, docs/recording-format.md) --------------------------------- */
@@ -969,12 +1208,6 @@ static PyObject *World_drain_ticks(PyObject *obj, PyObject *arg) {
     PyBuffer_Release(&b);
     if (n < 0) return raise_status(self, (gcStatus)n);
     return PyLong_FromLong(n);
-}
-
-static PyObject *World_tick_log_overflow(PyObject *obj, PyObject *unused) {
-    WorldObject *self = (WorldObject *)obj;
-    if (!check_world(self)) return NULL;
-    return PyLong_FromUnsignedLongLong(gc_world_tick_log_overflow(self->world));
 }
 
 static PyObject *module_tick_record_size(PyObject *mod, PyObject *args) {
@@ -1169,26 +1402,17 @@ static PyObject *module_grasp_mu_min(PyObject *mod, PyObject *args) {
 
 static PyObject *World_attach_serial(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
-    static char *kwlist[] = {"fd", "finger_offset", "num_fingers", "transform", "force_ttl", "lost_timeout",
-                             "max_force", "ramp_time", "max_position", "stall_timeout", "priority", "udp_host",
-                             "udp_port", NULL};
+    static const Param fd_param = {"fd", PARAM_INT, 0, 0, 0};
     gcSerialDef def = gc_default_serial_def();
+    PyObject *given[MAX_PARAMS];
     int fd;
-    PyObject *transform = Py_None;
-    const char *udp_host = "";
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "i|$iiOddddddisi", kwlist, &fd, &def.finger_offset,
-                                     &def.num_fingers, &transform, &def.force_ttl, &def.lost_timeout, &def.max_force,
-                                     &def.ramp_time, &def.max_position, &def.stall_timeout, &def.priority, &udp_host,
-                                     &def.udp_port) ||
-        !check_world(self))
+    if (!parse_params("attach_serial", args, kwargs, serial_params, COUNT_OF(serial_params), 1, &def, given))
         return NULL;
-    if (strlen(udp_host) >= sizeof def.udp_host) {
-        PyErr_SetString(PyExc_ValueError, "udp_host: longer than 63 bytes");
+    if (!given[0]) {
+        PyErr_SetString(PyExc_TypeError, "attach_serial() missing required argument 'fd'");
         return NULL;
     }
-    strcpy(def.udp_host, udp_host);
-    if (transform != Py_None && !parse_vec(transform, 16, "transform (16 numbers, row-major 4x4)", def.transform))
-        return NULL;
+    if (!set_param(&fd_param, given[0], &fd) || !check_world(self)) return NULL;
     int32_t id;
     gcStatus st = gc_world_attach_serial(self->world, fd, &def, &id);
     if (st < 0) return raise_status(self, st);
@@ -1250,7 +1474,6 @@ static PyObject *World_serial_stats(PyObject *obj, PyObject *args) {
     gcSerialStats s;
     gcStatus st = gc_world_serial_stats(self->world, id, &s);
     if (st < 0) return serial_result(self, id, st);
-    static const char *states[] = {"waiting", "streaming", "lost", "hangup"};
     PyObject *errors = Py_BuildValue("{s:K,s:K,s:K,s:K,s:K,s:K,s:K,s:K}", "cobs", s.frame_errors[0], "short",
                                      s.frame_errors[1], "crc", s.frame_errors[2], "version", s.frame_errors[3],
                                      "type", s.frame_errors[4], "length", s.frame_errors[5], "overflow",
@@ -1258,7 +1481,7 @@ static PyObject *World_serial_stats(PyObject *obj, PyObject *args) {
     if (!errors) return NULL;
     PyObject *out = Py_BuildValue(
         "{s:s,s:N,s:i,s:N,s:i,s:d,s:d,s:d,s:s,s:d,s:d,s:K,s:K,s:K,s:K,s:N,s:K,s:K,s:K,s:K,s:K,s:K,s:d,s:d,s:d,s:d,s:N}",
-        "state", states[s.state & 3], "enabled", PyBool_FromLong(s.enabled), "device_fingers", s.device_fingers,
+        "state", enum_name(serial_state_names, COUNT_OF(serial_state_names), (int)s.state, GC_SERIAL_HANGUP), "enabled", PyBool_FromLong(s.enabled), "device_fingers", s.device_fingers,
         "renders_forces", PyBool_FromLong(s.renders_forces), "units", s.units, "device_rate", s.device_rate,
         "device_force_max", s.device_force_max, "device_ttl_max", s.device_ttl_max, "name", s.name, "pose_rate",
         s.pose_rate, "last_pose_age", s.last_pose_age, "poses", (unsigned long long)s.poses, "forces_sent",
@@ -1278,52 +1501,37 @@ static PyObject *World_serial_stats(PyObject *obj, PyObject *args) {
     return out;
 }
 
-/* push_device_hips(finger_offset, float64 buffer of xyz rows) -> True if taken, False if rejected. */
-static PyObject *World_push_device_hips(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
+/* A device read in Python: (finger_offset, float64 buffer of xyz rows) handed to the core;
+ * True if taken, False if rejected (counted). */
+typedef gcStatus (*DeviceRows)(gcWorld *, int, int, const double *);
+
+static PyObject *device_rows(WorldObject *self, PyObject *args, DeviceRows call, const char *rows_name,
+                             const char *not_running) {
     int offset;
-    PyObject *positions;
-    if (!PyArg_ParseTuple(args, "iO", &offset, &positions) || !check_world(self)) return NULL;
+    PyObject *rows_obj;
+    if (!PyArg_ParseTuple(args, "iO", &offset, &rows_obj) || !check_world(self)) return NULL;
     Py_buffer b;
-    if (PyObject_GetBuffer(positions, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
-    PyObject *result = NULL;
-    if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0 || b.len == 0) {
-        PyErr_SetString(PyExc_ValueError, "positions: must be a C-contiguous float64 array of xyz rows");
-    } else {
-        gcStatus st = gc_world_push_device_hips(self->world, offset, (int)(b.len / (Py_ssize_t)(3 * sizeof(double))),
-                                                b.buf);
-        if (st == GC_ERR_NOT_RUNNING)
-            PyErr_SetString(PyExc_RuntimeError, "push_device_hips: the runtime is not running (World.start)");
-        else if (st < 0)
-            raise_status(self, st);
-        else
-            result = PyBool_FromLong(st == GC_OK);
-    }
+    Py_ssize_t rows = xyz_rows(rows_obj, &b, rows_name, 1, INT_MAX);
+    if (rows < 0) return NULL;
+    gcStatus st = call(self->world, offset, (int)rows, b.buf);
     PyBuffer_Release(&b);
-    return result;
+    if (st == GC_ERR_NOT_RUNNING && not_running) {
+        PyErr_SetString(PyExc_RuntimeError, not_running);
+        return NULL;
+    }
+    if (st < 0) return raise_status(self, st);
+    return PyBool_FromLong(st == GC_OK);
 }
 
-/* device_forces_sent(finger_offset, float64 buffer of xyz rows) -> True if stored, False if rejected. */
+/* push_device_hips(finger_offset, positions): HIPs from a device read in Python. */
+static PyObject *World_push_device_hips(PyObject *obj, PyObject *args) {
+    return device_rows((WorldObject *)obj, args, gc_world_push_device_hips, "positions",
+                       "push_device_hips: the runtime is not running (World.start)");
+}
+
+/* device_forces_sent(finger_offset, forces): what that device was sent, for the record. */
 static PyObject *World_device_forces_sent(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int offset;
-    PyObject *forces;
-    if (!PyArg_ParseTuple(args, "iO", &offset, &forces) || !check_world(self)) return NULL;
-    Py_buffer b;
-    if (PyObject_GetBuffer(forces, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
-    PyObject *result = NULL;
-    if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0 || b.len == 0) {
-        PyErr_SetString(PyExc_ValueError, "forces: must be a C-contiguous float64 array of xyz rows");
-    } else {
-        gcStatus st = gc_world_device_forces_sent(self->world, offset, (int)(b.len / (Py_ssize_t)(3 * sizeof(double))),
-                                                  b.buf);
-        if (st < 0)
-            raise_status(self, st);
-        else
-            result = PyBool_FromLong(st == GC_OK);
-    }
-    PyBuffer_Release(&b);
-    return result;
+    return device_rows((WorldObject *)obj, args, gc_world_device_forces_sent, "forces", NULL);
 }
 
 /* serial_events(device) -> [(time, name, value, session_time)], popped oldest first. */
@@ -1333,14 +1541,12 @@ static PyObject *World_serial_events(PyObject *obj, PyObject *args) {
     if (!serial_id(self, args, &id, NULL)) return NULL;
     gcSerialStats probe;
     if (gc_world_serial_stats(self->world, id, &probe) < 0) return serial_result(self, id, GC_ERR_UNKNOWN_ID);
-    static const char *names[] = {"?", "connected", "lost", "recovered", "enabled", "estop", "stall", "dropped",
-                                  "foreign"};
     PyObject *list = PyList_New(0);
     gcSerialEvent ev[64];
     int n;
     while (list && (n = gc_world_serial_events(self->world, id, ev, 64)) > 0) {
         for (int i = 0; i < n; ++i) {
-            PyObject *item = Py_BuildValue("(dsid)", ev[i].time, names[ev[i].code >= 1 && ev[i].code <= 8 ? ev[i].code : 0], (int)ev[i].value,
+            PyObject *item = Py_BuildValue("(dsid)", ev[i].time, enum_name(serial_event_names, COUNT_OF(serial_event_names), (int)ev[i].code, 0), (int)ev[i].value,
                                            ev[i].session_time);
             if (!item || PyList_Append(list, item) < 0) {
                 Py_XDECREF(item);
@@ -1353,50 +1559,32 @@ static PyObject *World_serial_events(PyObject *obj, PyObject *args) {
     return list;
 }
 
+#define QUERY_ENTRY(name, call, shape, doc) {#name, World_##name, METH_VARARGS, doc},
+#define SETTER_ENTRY(name, call, shape, arg_a, arg_b, doc) {#name, World_##name, METH_VARARGS, doc},
+#define NUMBER_ENTRY(name, call, type, guard, doc) {#name, World_##name, METH_NOARGS, doc},
+#define PROPERTY_ENTRY(name, call, type, guard, doc) {#name, World_get_##name, NULL, doc, NULL},
+
 static PyMethodDef World_methods[] = {
-    {"_add_body", World_add_body, METH_VARARGS, "Low-level add_body; use World.add_body."},
+    {"_add_body", (PyCFunction)(void (*)(void))World_add_body, METH_VARARGS | METH_KEYWORDS,
+     "Low-level add_body(parts, radii, **BODY_DEFAULTS); use World.add_body."},
+    ID_QUERIES(QUERY_ENTRY)
+    ID_SETTERS(SETTER_ENTRY)
+    WORLD_NUMBERS(NUMBER_ENTRY)
     {"add_finger", (PyCFunction)(void (*)(void))World_add_finger, METH_VARARGS | METH_KEYWORDS,
      "add_finger(radius, stiffness, damping, position=(0,0,0), points=None, orientation=(1,0,0,0), torsion=0, "
      "renderer='xfca', cursor_mass) -> finger id; points: a convex finger's (n, 3) float64 points in its frame "
      "(None: a sphere); torsion: a soft sphere fingertip's patch radius, m; renderer 'cursor': sphere fingers "
      "without torsion only; defaults: FINGER_DEFAULTS"},
-    {"set_finger_pose", World_set_finger_pose, METH_VARARGS,
-     "set_finger_pose(finger, (x, y, z), (w, x, y, z)): the whole HIP (a convex finger turns with it)."},
-    {"finger_pose", World_finger_pose, METH_VARARGS, "finger_pose(finger) -> ((x, y, z), (w, x, y, z))"},
-    {"finger_torque", World_finger_torque, METH_VARARGS,
-     "finger_torque(finger) -> a convex finger's contact torque about its HIP, N m (0 for a sphere)"},
     {"finger_contacts", World_finger_contacts, METH_VARARGS,
      "finger_contacts(finger) -> [{body, sample, reversed, state, point, normal, force}] per contact point (first 64)"},
-    {"set_hip", World_set_hip, METH_VARARGS, "set_hip(finger, (x, y, z)): the device (haptic interface) point."},
     {"set_hips", World_set_hips, METH_O, "set_hips(array (n, 3) float64): HIPs of fingers 0..n-1."},
     {"set_gravity", World_set_gravity, METH_O, "set_gravity((gx, gy, gz))"},
-    {"set_body_velocity", World_set_body_velocity, METH_VARARGS,
-     "set_body_velocity(body, linear, angular): world frame, of the body origin's COM."},
-    {"set_body_pose", World_set_body_pose, METH_VARARGS, "set_body_pose(body, position, orientation_wxyz)"},
-    {"set_body_friction", World_set_body_friction, METH_VARARGS, "set_body_friction(body, mu_s, mu_d, viscosity)"},
     {"step", (PyCFunction)(void (*)(void))World_step, METH_VARARGS | METH_KEYWORDS,
      "step(dt, steps=1): advance the world; the GIL is released meanwhile."},
-    {"body_pose", World_body_pose, METH_VARARGS, "body_pose(body) -> ((x, y, z), (w, x, y, z))"},
-    {"body_velocity", World_body_velocity, METH_VARARGS, "body_velocity(body) -> (linear, angular), world frame"},
-    {"body_mass", World_body_mass, METH_VARARGS, "body_mass(body) -> (mass, center_of_mass, inertia 3x3)"},
-    {"residual_wrench", World_residual_wrench, METH_VARARGS,
-     "residual_wrench(body) -> (force, torque about the centre of mass)"},
-    {"finger_force", World_finger_force, METH_VARARGS, "finger_force(finger) -> force rendered to the device, N"},
-    {"god_object", World_god_object, METH_VARARGS, "god_object(finger) -> world position"},
-    {"finger_state", World_finger_state, METH_VARARGS, "finger_state(finger) -> 'free' | 'stick' | 'slip'"},
-    {"finger_contact", World_finger_contact, METH_VARARGS, "finger_contact(finger) -> body id or None"},
     {"_view", World_view, METH_O, "Zero-copy buffer view of world arrays."},
-    {"state_hash", World_state_hash, METH_NOARGS, "64-bit hash of the full dynamic state."},
     {"contacts", World_contacts, METH_NOARGS,
      "contacts() -> list of dicts (body_a, body_b, point, normal, separation, normal_impulse, "
      "friction_impulse, sticking), one per body-body contact point of the last step."},
-    {"chain_count", World_chain_count, METH_NOARGS, "chain_count() -> number of collision chains, last step"},
-    {"body_chain", World_body_chain, METH_VARARGS,
-     "body_chain(body) -> index of the body's collision chain (last step), None for a static body"},
-    {"stopped_bodies", World_stopped_bodies, METH_NOARGS,
-     "stopped_bodies() -> bodies stopped since creation because their state would have become non-finite"},
-    {"contact_overflow", World_contact_overflow, METH_NOARGS,
-     "contact_overflow() -> contact pairs dropped since creation for want of max_contacts"},
     /* Runtime (docs/runtime.md). */
     {"start", (PyCFunction)(void (*)(void))World_start, METH_VARARGS | METH_KEYWORDS,
      "start(*, haptic_rate=1000, object_rate=500, max_adopted_bodies=3, max_force=10, ramp_time=0.5,\n"
@@ -1414,8 +1602,6 @@ static PyMethodDef World_methods[] = {
     {"_step_hips", World_step_hips, METH_VARARGS, "Low-level step_hips; use World.step_hips."},
     {"_set_tick_log", World_set_tick_log, METH_O, "Low-level set_tick_log(capacity)."},
     {"_drain_ticks", World_drain_ticks, METH_O, "Low-level drain_ticks(buffer) -> records copied."},
-    {"tick_log_overflow", World_tick_log_overflow, METH_NOARGS,
-     "tick_log_overflow() -> ticks dropped on a full tick log since the last start()."},
     {"_debug_stall", World_debug_stall, METH_O, "Test hook: stall the haptic loop this many seconds once."},
     {"attach_serial", (PyCFunction)(void (*)(void))World_attach_serial, METH_VARARGS | METH_KEYWORDS,
      "attach_serial(fd, *, finger_offset=0, num_fingers=1, transform=None (row-major 4x4, device metres -> world), "
@@ -1438,10 +1624,7 @@ static PyMethodDef World_methods[] = {
 };
 
 static PyGetSetDef World_getset[] = {
-    {"time", World_get_time, NULL, "Simulated time, s", NULL},
-    {"body_count", World_get_body_count, NULL, "Number of bodies", NULL},
-    {"finger_count", World_get_finger_count, NULL, "Number of fingers", NULL},
-    {"running", World_get_running, NULL, "True between start() and stop()", NULL},
+    WORLD_PROPERTIES(PROPERTY_ENTRY)
     {NULL, NULL, NULL, NULL, NULL},
 };
 
@@ -1456,25 +1639,49 @@ static PyType_Slot World_slots[] = {
 static PyType_Spec World_spec = {"graspcore._core.World", sizeof(WorldObject), 0,
                                  Py_TPFLAGS_DEFAULT | Py_TPFLAGS_BASETYPE, World_slots};
 
-/* The core's defaults (gc_default_body_def, gc_default_finger_def), the one place they are
- * written: graspcore's Python signatures take theirs from these. */
+/* The core's defaults (gc_default_*_def) and the names of its enums, the one place they are
+ * written: graspcore's Python signatures and the add-on take theirs from these. */
 static int add_defaults(PyObject *m) {
-    gcBodyDef b = gc_default_body_def();
-    gcFingerDef f = gc_default_finger_def();
-    PyObject *body = Py_BuildValue("{s:d,s:d,s:d,s:d,s:d,s:d}", "mass", b.mass, "mu_s", b.mu_s, "mu_d", b.mu_d,
-                                   "viscosity", b.viscosity, "linear_damping", b.linear_damping,
-                                   "angular_damping", b.angular_damping);
-    PyObject *finger = Py_BuildValue("{s:d,s:d,s:d,s:s,s:d}", "radius", f.radius, "stiffness", f.stiffness, "damping",
-                                     f.damping, "renderer", "xfca", "cursor_mass", f.cursor_mass);
-    int ok = body && finger && PyModule_AddObjectRef(m, "BODY_DEFAULTS", body) == 0 &&
-             PyModule_AddObjectRef(m, "FINGER_DEFAULTS", finger) == 0;
-    Py_XDECREF(body);
-    Py_XDECREF(finger);
-    return ok ? 0 : -1;
+    gcWorldDef world = gc_default_world_def();
+    gcBodyDef body = gc_default_body_def();
+    gcFingerDef finger = gc_default_finger_def();
+    gcRuntimeDef runtime = gc_default_runtime_def();
+    gcSerialDef serial = gc_default_serial_def();
+    const struct { const char *name; const Param *params; int count; const void *def; } defaults[] = {
+        {"WORLD_DEFAULTS", world_params, COUNT_OF(world_params), &world},
+        {"BODY_DEFAULTS", body_params, COUNT_OF(body_params), &body},
+        {"FINGER_DEFAULTS", finger_params, COUNT_OF(finger_params), &finger},
+        {"RUNTIME_DEFAULTS", runtime_params, COUNT_OF(runtime_params), &runtime},
+        {"SERIAL_DEFAULTS", serial_params, COUNT_OF(serial_params), &serial},
+    };
+    for (int i = 0; i < COUNT_OF(defaults); ++i) {
+        PyObject *d = params_dict(defaults[i].params, defaults[i].count, defaults[i].def);
+        int r = d ? PyModule_AddObjectRef(m, defaults[i].name, d) : -1;
+        Py_XDECREF(d);
+        if (r < 0) return -1;
+    }
+    return 0;
+}
+
+/* A tuple of an enum's names, indexed by its values. */
+static int add_names(PyObject *m, const char *name, const char *const *names, int count) {
+    PyObject *t = PyTuple_New(count);
+    for (int i = 0; t && i < count; ++i) {
+        PyObject *item = PyUnicode_FromString(names[i]);
+        if (!item || PyTuple_SetItem(t, i, item) < 0) Py_CLEAR(t);
+    }
+    int r = t ? PyModule_AddObjectRef(m, name, t) : -1;
+    Py_XDECREF(t);
+    return r;
 }
 
 static int module_exec(PyObject *m) {
-    if (add_defaults(m) < 0) return -1;
+    if (add_defaults(m) < 0 ||
+        add_names(m, "FINGER_STATES", finger_state_names, COUNT_OF(finger_state_names)) < 0 ||
+        add_names(m, "RENDERERS", renderer_names, COUNT_OF(renderer_names)) < 0 ||
+        add_names(m, "SERIAL_STATES", serial_state_names, COUNT_OF(serial_state_names)) < 0 ||
+        add_names(m, "SERIAL_EVENTS", serial_event_names, COUNT_OF(serial_event_names)) < 0)
+        return -1;
     gcGraspDef grasp = gc_default_grasp_def();
     if (PyModule_AddIntConstant(m, "GRASP_QUALITY_SIZE", (long)sizeof(gcGraspQuality)) < 0 ||
         PyModule_AddIntConstant(m, "GRASP_DEFAULT_EDGES", grasp.edges) < 0)

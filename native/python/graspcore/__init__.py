@@ -10,15 +10,25 @@ import numpy as np
 
 from . import _core
 
-__all__ = ["World", "FINGER_STATES", "BODY_DEFAULTS", "FINGER_DEFAULTS", "tick_dtype", "grasp_quality",
+__all__ = ["World", "FINGER_STATES", "RENDERERS", "SERIAL_STATES", "SERIAL_EVENTS", "WORLD_DEFAULTS",
+           "BODY_DEFAULTS", "FINGER_DEFAULTS", "RUNTIME_DEFAULTS", "SERIAL_DEFAULTS", "tick_dtype", "grasp_quality",
            "grasp_quality_batch", "grasp_mu_min", "GRASP_QUALITY_DTYPE"]
 
-# The core's own defaults (gc_default_body_def / gc_default_finger_def), not copies.
+# The core's own defaults (gc_default_*_def), not copies: one entry per keyword argument of
+# World(), add_body, add_finger, start and attach_serial.
+WORLD_DEFAULTS = dict(_core.WORLD_DEFAULTS)
 BODY_DEFAULTS = dict(_core.BODY_DEFAULTS)
 FINGER_DEFAULTS = dict(_core.FINGER_DEFAULTS)
+RUNTIME_DEFAULTS = dict(_core.RUNTIME_DEFAULTS)
+SERIAL_DEFAULTS = dict(_core.SERIAL_DEFAULTS)
 _B = BODY_DEFAULTS
 
-FINGER_STATES = ("free", "stick", "slip")
+# The names of the core's enums, indexed by value (gcFingerState, gcFingerRenderer, gcSerialState,
+# gcSerialEventCode; SERIAL_EVENTS[0] is "?", no event).
+FINGER_STATES = _core.FINGER_STATES
+RENDERERS = _core.RENDERERS
+SERIAL_STATES = _core.SERIAL_STATES
+SERIAL_EVENTS = _core.SERIAL_EVENTS
 
 
 def tick_dtype(num_bodies: int, num_fingers: int) -> np.dtype:
@@ -114,9 +124,10 @@ class World(_core.World):
             part_arrays = [_points_array(p, f"parts[{i}]") for i, p in enumerate(parts)]
         radii = [float(radius)] * len(part_arrays)
         return self._add_body(
-            part_arrays, radii, float(mass), position, orientation, bool(static), float(mu_s),
-            float(mu_d), float(viscosity), _inertia_matrix(inertia), center_of_mass,
-            linear_velocity, angular_velocity, float(linear_damping), float(angular_damping),
+            part_arrays, radii, mass=float(mass), position=position, orientation=orientation, static=bool(static),
+            mu_s=float(mu_s), mu_d=float(mu_d), viscosity=float(viscosity), inertia=_inertia_matrix(inertia),
+            center_of_mass=center_of_mass, linear_velocity=linear_velocity, angular_velocity=angular_velocity,
+            linear_damping=float(linear_damping), angular_damping=float(angular_damping),
         )
 
     @property
