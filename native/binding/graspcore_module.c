@@ -53,11 +53,27 @@ static PyObject *raise_status(WorldObject *self, gcStatus st) {
     return raise_message(st, self->world ? gc_world_last_error(self->world) : "");
 }
 
+/* None, or the exception for an error status: the end of most calls. */
+static PyObject *none_or_raise(WorldObject *self, gcStatus st) {
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+}
+
 /* A warning status that still needs saying (a body stopped by the non-finite guard). */
 static int warn_status(WorldObject *self, gcStatus st) {
     if (st != GC_WARN_STOPPED) return 0;
     return PyErr_WarnEx(PyExc_RuntimeWarning, gc_world_last_error(self->world), 1);
 }
+
+/* The statement runs with the GIL released and the world marked busy (check_ready refuses). */
+#define WITHOUT_GIL(self, ...)                                                                                   \
+    do {                                                                                                         \
+        atomic_store(&(self)->busy, 1);                                                                          \
+        Py_BEGIN_ALLOW_THREADS                                                                                   \
+        __VA_ARGS__;                                                                                             \
+        Py_END_ALLOW_THREADS                                                                                     \
+        atomic_store(&(self)->busy, 0);                                                                          \
+    } while (0)
 
 static int check_ready(WorldObject *self) {
     if (!self->world) {
@@ -102,7 +118,15 @@ static int parse_vec(PyObject *obj, int n, const char *name, double *out) {
     return 1;
 }
 
-static PyObject *tuple3(const double *v) { return Py_BuildValue("(ddd)", v[0], v[1], v[2]); }
+/* (v[0], ..., v[n-1]) as floats. */
+static PyObject *tuple_of(const double *v, int n) {
+    PyObject *t = PyTuple_New(n);
+    for (int i = 0; t && i < n; ++i) {
+        PyObject *item = PyFloat_FromDouble(v[i]);
+        if (!item || PyTuple_SetItem(t, i, item) < 0) Py_CLEAR(t);
+    }
+    return t;
+}
 
 /* A C-contiguous float64 buffer of xyz rows (at most max_rows; at least one when nonempty): its
  * rows, or -1 with "<name>: must be a C-contiguous float64 array of xyz rows" (nothing held). */
@@ -379,15 +403,7 @@ static PyObject *params_dict(const Param *params, int count, const void *def) {
                 break;
             }
             /* fall through */
-        case PARAM_VEC: {
-            memcpy(x, field, sizeof(double) * (size_t)p->n);
-            v = PyTuple_New(p->n);
-            for (int j = 0; v && j < p->n; ++j) {
-                PyObject *item = PyFloat_FromDouble(x[j]);
-                if (!item || PyTuple_SetItem(v, j, item) < 0) Py_CLEAR(v);
-            }
-            break;
-        }
+        case PARAM_VEC: memcpy(x, field, sizeof(double) * (size_t)p->n), v = tuple_of(x, p->n); break;
         case PARAM_TEXT: v = PyUnicode_FromString(field); break;
         case PARAM_RENDERER: {
             gcFingerRenderer r;
@@ -618,19 +634,17 @@ static PyObject *World_add_finger(PyObject *obj, PyObject *args, PyObject *kwarg
     X(finger_count, gc_world_finger_count, INT, ready, "Number of fingers")                                      \
     X(running, gc_world_running, BOOL, world, "True between start() and stop()")
 
-/* The shapes. */
+/* The shapes. A pair's two arrays are 3 and 3 (PAIR) or 3 and 4 numbers (POSE). */
 typedef gcStatus (*QueryVec)(const gcWorld *, int32_t, double[3]);
-typedef gcStatus (*QueryPair)(const gcWorld *, int32_t, double[3], double[3]);
-typedef gcStatus (*QueryPose)(const gcWorld *, int32_t, double[3], double[4]);
+typedef gcStatus (*QueryTwo)(const gcWorld *, int32_t, double *, double *);
 typedef gcStatus (*QueryMass)(const gcWorld *, int32_t, double *, double[3], double[9]);
 typedef gcStatus (*QueryOptionalId)(const gcWorld *, int32_t, int32_t *);
 typedef gcStatus (*QueryState)(const gcWorld *, int32_t, gcFingerState *, int32_t *);
 typedef gcStatus (*SetVec)(gcWorld *, int32_t, const double[3]);
-typedef gcStatus (*SetPair)(gcWorld *, int32_t, const double[3], const double[3]);
-typedef gcStatus (*SetPose)(gcWorld *, int32_t, const double[3], const double[4]);
+typedef gcStatus (*SetTwo)(gcWorld *, int32_t, const double *, const double *);
 typedef gcStatus (*SetFriction)(gcWorld *, int32_t, double, double, double);
 
-/* The id argument of a query or setter, and the world ready for it. */
+/* The id argument of a query, and the world ready for it. */
 static int parse_id(WorldObject *self, PyObject *args, int *id) {
     return PyArg_ParseTuple(args, "i", id) && check_ready(self);
 }
@@ -640,26 +654,18 @@ static PyObject *query_VEC(WorldObject *self, PyObject *args, QueryVec query) {
     double v[3];
     if (!parse_id(self, args, &id)) return NULL;
     gcStatus st = query(self->world, id, v);
-    return st < 0 ? raise_status(self, st) : tuple3(v);
+    return st < 0 ? raise_status(self, st) : tuple_of(v, 3);
 }
 
-static PyObject *query_PAIR(WorldObject *self, PyObject *args, QueryPair query) {
+static PyObject *query_two(WorldObject *self, PyObject *args, QueryTwo query, int n) {
     int id;
-    double a[3], b[3];
+    double a[3], b[4];
     if (!parse_id(self, args, &id)) return NULL;
     gcStatus st = query(self->world, id, a, b);
-    if (st < 0) return raise_status(self, st);
-    return Py_BuildValue("((ddd)(ddd))", a[0], a[1], a[2], b[0], b[1], b[2]);
+    return st < 0 ? raise_status(self, st) : Py_BuildValue("(NN)", tuple_of(a, 3), tuple_of(b, n));
 }
-
-static PyObject *query_POSE(WorldObject *self, PyObject *args, QueryPose query) {
-    int id;
-    double p[3], q[4];
-    if (!parse_id(self, args, &id)) return NULL;
-    gcStatus st = query(self->world, id, p, q);
-    if (st < 0) return raise_status(self, st);
-    return Py_BuildValue("((ddd)(dddd))", p[0], p[1], p[2], q[0], q[1], q[2], q[3]);
-}
+#define query_PAIR(self, args, query) query_two(self, args, query, 3)
+#define query_POSE(self, args, query) query_two(self, args, query, 4)
 
 static PyObject *query_MASS(WorldObject *self, PyObject *args, QueryMass query) {
     int id;
@@ -671,7 +677,7 @@ static PyObject *query_MASS(WorldObject *self, PyObject *args, QueryMass query) 
                          I[7], I[8]);
 }
 
-/* An id or None (a negative id: a static body's chain). */
+/* An id or None (a negative id: a free finger's body, a static body's chain). */
 static PyObject *optional_id(int32_t id) {
     if (id < 0) Py_RETURN_NONE;
     return PyLong_FromLong(id);
@@ -685,67 +691,47 @@ static PyObject *query_OPTIONAL_ID(WorldObject *self, PyObject *args, QueryOptio
     return st < 0 ? raise_status(self, st) : optional_id(out);
 }
 
-static PyObject *query_STATE(WorldObject *self, PyObject *args, QueryState query) {
+/* A finger's state by name (STATE) or the body it touches (CONTACT), from one core call. */
+static PyObject *query_state(WorldObject *self, PyObject *args, QueryState query, int want_body) {
     int id;
     gcFingerState state;
     int32_t body;
     if (!parse_id(self, args, &id)) return NULL;
     gcStatus st = query(self->world, id, &state, &body);
     if (st < 0) return raise_status(self, st);
+    if (want_body) return optional_id(body);
     return PyUnicode_FromString(enum_name(finger_state_names, COUNT_OF(finger_state_names), (int)state, 0));
 }
-
-static PyObject *query_CONTACT(WorldObject *self, PyObject *args, QueryState query) {
-    int id;
-    gcFingerState state;
-    int32_t body;
-    if (!parse_id(self, args, &id)) return NULL;
-    gcStatus st = query(self->world, id, &state, &body);
-    return st < 0 ? raise_status(self, st) : optional_id(body);
-}
+#define query_STATE(self, args, query) query_state(self, args, query, 0)
+#define query_CONTACT(self, args, query) query_state(self, args, query, 1)
 
 static PyObject *set_VEC(WorldObject *self, PyObject *args, SetVec set, const char *name, const char *unused) {
     int id;
     PyObject *a;
     double v[3];
     if (!PyArg_ParseTuple(args, "iO", &id, &a) || !check_ready(self) || !parse_vec(a, 3, name, v)) return NULL;
-    gcStatus st = set(self->world, id, v);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    return none_or_raise(self, set(self->world, id, v));
 }
 
-static PyObject *set_PAIR(WorldObject *self, PyObject *args, SetPair set, const char *name_a, const char *name_b) {
+static PyObject *set_two(WorldObject *self, PyObject *args, SetTwo set, const char *name_a, const char *name_b,
+                         int n) {
     int id;
     PyObject *a, *b;
-    double u[3], v[3];
+    double u[3], v[4];
     if (!PyArg_ParseTuple(args, "iOO", &id, &a, &b) || !check_ready(self) || !parse_vec(a, 3, name_a, u) ||
-        !parse_vec(b, 3, name_b, v))
+        !parse_vec(b, n, name_b, v))
         return NULL;
-    gcStatus st = set(self->world, id, u, v);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    return none_or_raise(self, set(self->world, id, u, v));
 }
-
-static PyObject *set_POSE(WorldObject *self, PyObject *args, SetPose set, const char *name_p, const char *name_q) {
-    int id;
-    PyObject *a, *b;
-    double p[3], q[4];
-    if (!PyArg_ParseTuple(args, "iOO", &id, &a, &b) || !check_ready(self) || !parse_vec(a, 3, name_p, p) ||
-        !parse_vec(b, 4, name_q, q))
-        return NULL;
-    gcStatus st = set(self->world, id, p, q);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
-}
+#define set_PAIR(self, args, set, name_a, name_b) set_two(self, args, set, name_a, name_b, 3)
+#define set_POSE(self, args, set, name_a, name_b) set_two(self, args, set, name_a, name_b, 4)
 
 static PyObject *set_FRICTION(WorldObject *self, PyObject *args, SetFriction set, const char *unused_a,
                               const char *unused_b) {
     int id;
     double mu_s, mu_d, viscosity;
     if (!PyArg_ParseTuple(args, "iddd", &id, &mu_s, &mu_d, &viscosity) || !check_ready(self)) return NULL;
-    gcStatus st = set(self->world, id, mu_s, mu_d, viscosity);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    return none_or_raise(self, set(self->world, id, mu_s, mu_d, viscosity));
 }
 
 #define NUMBER_U64(v) PyLong_FromUnsignedLongLong(v)
@@ -763,17 +749,14 @@ ID_QUERIES(QUERY_METHOD)
         return set_##shape((WorldObject *)obj, args, call, arg_a, arg_b);                                        \
     }
 ID_SETTERS(SETTER_METHOD)
-#define NUMBER_METHOD(name, call, type, guard, doc)                                                              \
-    static PyObject *World_##name(PyObject *obj, PyObject *unused) {                                             \
+#define NUMBER_FUNCTION(function, second, call, type, guard)                                                     \
+    static PyObject *function(PyObject *obj, second) {                                                           \
         WorldObject *self = (WorldObject *)obj;                                                                  \
         return check_##guard(self) ? NUMBER_##type(call(self->world)) : NULL;                                    \
     }
+#define NUMBER_METHOD(name, call, type, guard, doc) NUMBER_FUNCTION(World_##name, PyObject *unused, call, type, guard)
 WORLD_NUMBERS(NUMBER_METHOD)
-#define PROPERTY_GETTER(name, call, type, guard, doc)                                                            \
-    static PyObject *World_get_##name(PyObject *obj, void *closure) {                                            \
-        WorldObject *self = (WorldObject *)obj;                                                                  \
-        return check_##guard(self) ? NUMBER_##type(call(self->world)) : NULL;                                    \
-    }
+#define PROPERTY_GETTER(name, call, type, guard, doc) NUMBER_FUNCTION(World_get_##name, void *closure, call, type, guard)
 WORLD_PROPERTIES(PROPERTY_GETTER)
 
 /* finger_contacts(finger) -> list of dicts, one per point of the finger's contact patch. */
@@ -816,17 +799,14 @@ static PyObject *World_set_hips(PyObject *obj, PyObject *arg) {
     if (rows < 0) return NULL;
     gcStatus st = gc_world_set_hips(self->world, b.buf, (int)rows);
     PyBuffer_Release(&b);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    return none_or_raise(self, st);
 }
 
 static PyObject *World_set_gravity(PyObject *obj, PyObject *arg) {
     WorldObject *self = (WorldObject *)obj;
     double g[3];
     if (!check_ready(self) || !parse_vec(arg, 3, "gravity", g)) return NULL;
-    gcStatus st = gc_world_set_gravity(self->world, g);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    return none_or_raise(self, gc_world_set_gravity(self->world, g));
 }
 
 /* step(dt, steps=1): the GIL is released while the core runs. */
@@ -841,14 +821,12 @@ static PyObject *World_step(PyObject *obj, PyObject *args, PyObject *kwargs) {
         return NULL;
     }
     gcStatus st = GC_OK, warned = GC_OK; /* a stop in any of the steps is said once */
-    atomic_store(&self->busy, 1);
-    Py_BEGIN_ALLOW_THREADS
-    for (int i = 0; i < steps && st >= 0; ++i) {
-        st = gc_world_step(self->world, dt);
-        if (st == GC_WARN_STOPPED) warned = st;
-    }
-    Py_END_ALLOW_THREADS
-    atomic_store(&self->busy, 0);
+    WITHOUT_GIL(self, {
+        for (int i = 0; i < steps && st >= 0; ++i) {
+            st = gc_world_step(self->world, dt);
+            if (st == GC_WARN_STOPPED) warned = st;
+        }
+    });
     if (st < 0) return raise_status(self, st);
     if (warn_status(self, warned) < 0) return NULL;
     Py_RETURN_NONE;
@@ -921,9 +899,7 @@ static PyObject *World_start(PyObject *obj, PyObject *args, PyObject *kwargs) {
     if (!parse_params("start", args, kwargs, runtime_params, COUNT_OF(runtime_params), 0, &def, given) ||
         !check_ready(self))
         return NULL;
-    gcStatus st = gc_world_start(self->world, &def);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    return none_or_raise(self, gc_world_start(self->world, &def));
 }
 
 /* stop(): joins the threads with the GIL released (the loops never need it). */
@@ -931,13 +907,8 @@ static PyObject *World_stop(PyObject *obj, PyObject *unused) {
     WorldObject *self = (WorldObject *)obj;
     if (!check_ready(self)) return NULL;
     gcStatus st;
-    atomic_store(&self->busy, 1);
-    Py_BEGIN_ALLOW_THREADS
-    st = gc_world_stop(self->world);
-    Py_END_ALLOW_THREADS
-    atomic_store(&self->busy, 0);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    WITHOUT_GIL(self, st = gc_world_stop(self->world));
+    return none_or_raise(self, st);
 }
 
 /* advance(ticks, delay=0.0): manual clock only; the GIL is released meanwhile. */
@@ -948,13 +919,8 @@ static PyObject *World_advance(PyObject *obj, PyObject *args, PyObject *kwargs) 
     double delay = 0.0;
     if (!PyArg_ParseTupleAndKeywords(args, kwargs, "i|d", kwlist, &ticks, &delay) || !check_ready(self)) return NULL;
     gcStatus st;
-    atomic_store(&self->busy, 1);
-    Py_BEGIN_ALLOW_THREADS
-    st = gc_world_advance(self->world, ticks, delay);
-    Py_END_ALLOW_THREADS
-    atomic_store(&self->busy, 0);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    WITHOUT_GIL(self, st = gc_world_advance(self->world, ticks, delay));
+    return none_or_raise(self, st);
 }
 
 /* _push_hips(float64 buffer of xyz rows, t) -> True if taken, False if rejected (counted). */
@@ -1112,9 +1078,7 @@ static PyObject *World_debug_stall(PyObject *obj, PyObject *arg) {
     WorldObject *self = (WorldObject *)obj;
     double seconds = PyFloat_AsDouble(arg);
     if ((seconds == -1.0 && PyErr_Occurred()) || !check_world(self)) return NULL;
-    gcStatus st = gc_world_debug_stall(self->world, seconds);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    return none_or_raise(self, gc_world_debug_stall(self->world, seconds));
 }
 
 /* ---- Tick log (tick_log.c, docs/recording-format.md) --------------------------------- */
@@ -1140,8 +1104,7 @@ static PyObject *World_tick_record(PyObject *obj, PyObject *args) {
     if (!writable_buffer(out, &b, need, "tick_record")) return NULL;
     gcStatus st = gc_world_tick_record(self->world, tick, b.buf, (size_t)b.len);
     PyBuffer_Release(&b);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    return none_or_raise(self, st);
 }
 
 static PyObject *World_step_hips(PyObject *obj, PyObject *args) {
@@ -1171,12 +1134,10 @@ static PyObject *World_step_hips(PyObject *obj, PyObject *args) {
         return NULL;
     }
     gcStatus st;
-    atomic_store(&self->busy, 1);
-    Py_BEGIN_ALLOW_THREADS
-    st = gc_world_step_hips(self->world, h.buf, fingers, steps, dt, first_tick, records ? b.buf : NULL,
-                            records ? (size_t)b.len : 0, NULL);
-    Py_END_ALLOW_THREADS
-    atomic_store(&self->busy, 0);
+    WITHOUT_GIL(self, {
+        st = gc_world_step_hips(self->world, h.buf, fingers, steps, dt, first_tick, records ? b.buf : NULL,
+                                records ? (size_t)b.len : 0, NULL);
+    });
     if (records) PyBuffer_Release(&b);
     PyBuffer_Release(&h);
     if (st < 0) return raise_status(self, st);
@@ -1189,9 +1150,7 @@ static PyObject *World_set_tick_log(PyObject *obj, PyObject *arg) {
     if (!check_ready(self)) return NULL;
     int capacity = PyLong_AsLong(arg);
     if (capacity == -1 && PyErr_Occurred()) return NULL;
-    gcStatus st = gc_world_set_tick_log(self->world, capacity);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    return none_or_raise(self, gc_world_set_tick_log(self->world, capacity));
 }
 
 /* The tick log is safe from any thread at any time (tick_log.c): check_world, not check_ready,
@@ -1429,8 +1388,7 @@ static PyObject *serial_result(WorldObject *self, int32_t id, gcStatus st) {
         PyErr_Format(PyExc_ValueError, "device %d: no such serial device", (int)id);
         return NULL;
     }
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    return none_or_raise(self, st);
 }
 
 /* detach_serial(device): joins the device's thread with the GIL released. */
@@ -1587,9 +1545,8 @@ static PyMethodDef World_methods[] = {
      "friction_impulse, sticking), one per body-body contact point of the last step."},
     /* Runtime (docs/runtime.md). */
     {"start", (PyCFunction)(void (*)(void))World_start, METH_VARARGS | METH_KEYWORDS,
-     "start(*, haptic_rate=1000, object_rate=500, max_adopted_bodies=3, max_force=10, ramp_time=0.5,\n"
-     "      watchdog_timeout=0.005, hip_timeout=0.1, release_delay=0.05, realtime=True, priority=80,\n"
-     "      max_hip_speed=0.0)\n"
+     "start(*, haptic_rate, object_rate, max_adopted_bodies, max_force, ramp_time, watchdog_timeout,\n"
+     "      hip_timeout, release_delay, realtime, priority, max_hip_speed); defaults: RUNTIME_DEFAULTS\n"
      "Run the world on a haptic loop and an object manager thread (docs/runtime.md)."},
     {"stop", World_stop, METH_NOARGS, "stop(): join the runtime threads; the world steps synchronously again."},
     {"advance", (PyCFunction)(void (*)(void))World_advance, METH_VARARGS | METH_KEYWORDS,
@@ -1604,9 +1561,9 @@ static PyMethodDef World_methods[] = {
     {"_drain_ticks", World_drain_ticks, METH_O, "Low-level drain_ticks(buffer) -> records copied."},
     {"_debug_stall", World_debug_stall, METH_O, "Test hook: stall the haptic loop this many seconds once."},
     {"attach_serial", (PyCFunction)(void (*)(void))World_attach_serial, METH_VARARGS | METH_KEYWORDS,
-     "attach_serial(fd, *, finger_offset=0, num_fingers=1, transform=None (row-major 4x4, device metres -> world), "
-     "force_ttl=0.02, lost_timeout=0.1, max_force=10.0, ramp_time=0.5, max_position=10.0, stall_timeout=0.005, "
-     "priority=70, udp_host='', udp_port=0) "
+     "attach_serial(fd, *, finger_offset, num_fingers, transform (row-major 4x4, device metres -> world; None: "
+     "identity), force_ttl, lost_timeout, max_force, ramp_time, max_position, stall_timeout, priority, udp_host, "
+     "udp_port); defaults: SERIAL_DEFAULTS "
      "-> device id: a C thread speaks the Grasp Lab serial protocol on fd (docs/protocol.md); with udp_port, fd is "
      "a bound UDP socket and frames go to udp_host:udp_port until the device's hello pins its address."},
     {"detach_serial", World_detach_serial, METH_VARARGS, "detach_serial(device): stop its thread (fd stays open)."},
