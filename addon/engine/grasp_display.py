@@ -12,13 +12,12 @@ import time
 
 import numpy as np
 
-from . import analysis
+from . import analysis, defaults
 
 FREE_COLOR = (0.10, 0.45, 1.00, 1.0)     # a god-object touching nothing: the god-object blue
 # Friction use |Ft| / (mu |Fn|): 0 green (far from slip), 0.5 yellow, 1 red (at slip).
 _GREEN, _YELLOW, _RED = (0.10, 0.85, 0.25), (1.00, 0.85, 0.10), (1.00, 0.10, 0.10)
 WEAKEST_COLOR = (1.00, 0.20, 0.90, 1.0)  # magenta: no other overlay uses it
-STATE_NAMES = ("free", "stick", "slip")
 
 
 def friction_color(use: float) -> tuple:
@@ -116,7 +115,7 @@ def grasp_lines(grasps, body_names, finger_names) -> list:
         if g.min_slip_finger >= 0:
             lines.append(f"  slip margin {_keep(f'{g.min_slip_margin:.2f} N')} at "
                          f"{_keep(finger_names[g.min_slip_finger])}")
-        fingers = [_keep(f"{finger_names[c.finger]} {STATE_NAMES[c.state] if 0 <= c.state < 3 else c.state} "
+        fingers = [_keep(f"{finger_names[c.finger]} {defaults.finger_state_name(c.state)} "
                          f"{_percent(c.friction_use)}") for c in g.contacts]
         lines.append("  " + "   ".join(fingers))
     return lines

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import defaults
 from .outputs import AtomicFile, uninterrupted
 
 FORMAT_VERSION = 1
@@ -42,7 +43,6 @@ JSON_SCHEMA = {"type": "object"}
 FLUSH_INTERVAL = 0.1        # s: at most this much of a session is lost to a kill -9
 FLUSH_MARGIN = 0.02         # s: the recorder thread flushes this early (it may wake late: GIL, load)
 BLOCK_TICKS = 256           # ticks per message at most
-STATE_NAMES = ("free", "stick", "slip")
 UNITS = {"length": "m", "mass": "kg", "time": "s", "force": "N", "torque": "N m",
          "velocity": "m/s", "angular_velocity": "rad/s (world)", "orientation": "quaternion w x y z",
          "stiffness": "N/m", "damping": "N s/m", "rate": "Hz", "period_us": "us", "work_us": "us"}
@@ -387,9 +387,9 @@ class EventDetector:
         for k, f in zip(*np.nonzero(s2[1:] != s2[:-1])):
             now = int(s2[k + 1, f])
             if now in (1, 2):
-                name = STATE_NAMES[now]
+                name = defaults.finger_state_name(now)
                 yield (int(ticks[k]), float(times[k]), name, self.fingers[f],
-                       f"{STATE_NAMES[int(s2[k, f])] if 0 <= s2[k, f] < 3 else s2[k, f]} -> {name}")
+                       f"{defaults.finger_state_name(int(s2[k, f]))} -> {name}")
         for k, f in zip(*np.nonzero(k2[1:] != k2[:-1])):
             kind = "clamp_begin" if k2[k + 1, f] else "clamp_end"
             yield (int(ticks[k]), float(times[k]), kind, self.fingers[f], f"max_force {self.max_force} N")
