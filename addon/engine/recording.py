@@ -54,7 +54,7 @@ COMPRESSIONS = ("lz4", "zstd", "none")   # lz4 by default: 3x faster to read bac
 # fields every reader needs:
 REQUIRED_FIELDS = ("tick", "time", "object_time", "state_hash", "period_us", "work_us", "flags", "adopted",
                    "log_us")
-FLAG_FORCES_ENABLED = 1
+FLAG_FORCES_ENABLED = 1    # graspcore.TICK_FORCES_ENABLED (checked by tests/blender/test_recording.py)
 
 
 class RecordingError(ValueError):

@@ -1641,7 +1641,8 @@ static int module_exec(PyObject *m) {
         return -1;
     gcGraspDef grasp = gc_default_grasp_def();
     if (PyModule_AddIntConstant(m, "GRASP_QUALITY_SIZE", (long)sizeof(gcGraspQuality)) < 0 ||
-        PyModule_AddIntConstant(m, "GRASP_DEFAULT_EDGES", grasp.edges) < 0)
+        PyModule_AddIntConstant(m, "GRASP_DEFAULT_EDGES", grasp.edges) < 0 ||
+        PyModule_AddIntConstant(m, "TICK_FORCES_ENABLED", GC_TICK_FORCES_ENABLED) < 0)
         return -1;
     World_Type = PyType_FromSpec(&World_spec);
     if (!World_Type || PyModule_AddObjectRef(m, "World", World_Type) < 0) return -1;

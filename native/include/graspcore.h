@@ -355,6 +355,8 @@ gcStatus gc_world_debug_stall(gcWorld *world, double seconds);
  * its body, parts past 31 on bit 31); per finger orientation (w, x, y, z) 4 f64 (the identity
  * for a sphere finger). Each field was added at the end: older records are their prefix. */
 size_t gc_tick_record_size(int num_bodies, int num_fingers);
+/* Bits of a record's flags. */
+enum { GC_TICK_FORCES_ENABLED = 1 }; /* device forces enabled (not held at zero by the safety layer) */
 /* The stopped world as one record (after a gc_world_step); device_force = force. */
 gcStatus gc_world_tick_record(gcWorld *world, uint64_t tick, void *out, size_t size);
 /* While stopped: a ring of `capacity` records (0 = off) that gc_world_start sizes and empties

@@ -346,7 +346,7 @@ void gc_tick_log_push(gcTickLog *log, const gcWorld *hw, const double *device_fo
         return;
     }
     unsigned char *slot = log->records + (head % (uint64_t)log->capacity) * log->record_size;
-    fill_record(hw, device_force, tick, object_time, period_us, work_us, forces_enabled ? 1u : 0u,
+    fill_record(hw, device_force, tick, object_time, period_us, work_us, forces_enabled ? (uint32_t)GC_TICK_FORCES_ENABLED : 0u,
                 (uint32_t)adopted, log->prev_log_us, slot);
     atomic_store_explicit(&log->head, head + 1, memory_order_release);
     log->prev_log_us = (float)((monotonic_ns() - t0) * 1e-3);

@@ -223,3 +223,23 @@ def test_exported_defaults_are_the_documented_ones(struct, exported, at_least):
     assert len(checked) >= at_least, (documented, values)
     for name, value in checked.items():
         assert values[name] == pytest.approx(value), name
+
+
+def test_forces_enabled_flag_is_the_records_bit():
+    """TICK_FORCES_ENABLED is the bit of a record's flags that says the safety layer lets
+    forces through: set in a tick whose snapshot says forces_enabled, clear before the ramp."""
+    w = graspcore.World()
+    w.add_finger()
+    w.set_tick_log(16)
+    w.start(realtime=False, hip_timeout=1.0)
+    try:
+        w.advance(1)       # no HIP pushed yet: forces held at zero
+        first = w.snapshot()["forces_enabled"]
+        w.push_hips(np.zeros((1, 3)), 0.0)
+        w.advance(3)
+        last = w.snapshot()["forces_enabled"]
+        records = w.drain_ticks(np.zeros(16, w.tick_dtype()))
+    finally:
+        w.stop()
+    assert (first, last) == (False, True)
+    assert [bool(f & graspcore.TICK_FORCES_ENABLED) for f in records["flags"][[0, -1]]] == [first, last]

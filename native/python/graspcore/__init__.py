@@ -11,7 +11,7 @@ import numpy as np
 from . import _core
 
 __all__ = ["World", "FINGER_STATES", "RENDERERS", "SERIAL_STATES", "SERIAL_EVENTS", "WORLD_DEFAULTS",
-           "BODY_DEFAULTS", "FINGER_DEFAULTS", "RUNTIME_DEFAULTS", "SERIAL_DEFAULTS", "tick_dtype", "grasp_quality",
+           "BODY_DEFAULTS", "FINGER_DEFAULTS", "RUNTIME_DEFAULTS", "SERIAL_DEFAULTS", "TICK_FORCES_ENABLED", "tick_dtype", "grasp_quality",
            "grasp_quality_batch", "grasp_mu_min", "GRASP_QUALITY_DTYPE"]
 
 # The core's own defaults (gc_default_*_def), not copies: one entry per keyword argument of
@@ -26,6 +26,8 @@ _B = BODY_DEFAULTS
 # The names of the core's enums, indexed by value (gcFingerState, gcFingerRenderer, gcSerialState,
 # gcSerialEventCode; SERIAL_EVENTS[0] is "?", no event).
 FINGER_STATES = _core.FINGER_STATES
+# Bits of a tick record's ``flags``.
+TICK_FORCES_ENABLED = _core.TICK_FORCES_ENABLED
 RENDERERS = _core.RENDERERS
 SERIAL_STATES = _core.SERIAL_STATES
 SERIAL_EVENTS = _core.SERIAL_EVENTS
