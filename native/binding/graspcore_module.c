@@ -75,22 +75,20 @@ static int warn_status(WorldObject *self, gcStatus st) {
         atomic_store(&(self)->busy, 0);                                                                          \
     } while (0)
 
-static int check_ready(WorldObject *self) {
+/* The world exists (a call the core serialises itself may come while another thread steps). */
+static int check_world(WorldObject *self) {
     if (!self->world) {
         PyErr_SetString(PyExc_RuntimeError, "World is not initialised");
-        return 0;
-    }
-    if (atomic_load(&self->busy)) {
-        PyErr_SetString(PyExc_RuntimeError, "World is stepping in another thread");
         return 0;
     }
     return 1;
 }
 
-/* The world exists (a call the core serialises itself may come while another thread steps). */
-static int check_world(WorldObject *self) {
-    if (!self->world) {
-        PyErr_SetString(PyExc_RuntimeError, "World is not initialised");
+/* The world exists and no step runs on another thread. */
+static int check_ready(WorldObject *self) {
+    if (!check_world(self)) return 0;
+    if (atomic_load(&self->busy)) {
+        PyErr_SetString(PyExc_RuntimeError, "World is stepping in another thread");
         return 0;
     }
     return 1;
@@ -188,12 +186,15 @@ typedef struct Param {
 #define PARAM(def, field, kind) {#field, PARAM_##kind, offsetof(def, field), 0, 0}
 #define PARAM_N(def, field, kind, n) {#field, PARAM_##kind, offsetof(def, field), n, 0}
 #define PARAM_OBJ(name) {name, PARAM_OBJECT, 0, 0, 0}
-enum { MAX_PARAMS = 24 };
+enum { MAX_PARAMS = 24, MAX_VEC = 16 }; /* rows of a table, numbers of a VEC (checked at import: add_defaults) */
 
 static const Param world_params[] = {
-    PARAM_N(gcWorldDef, gravity, VEC, 3), PARAM(gcWorldDef, gyroscopic, BOOL),
-    PARAM(gcWorldDef, max_bodies, INT),   PARAM(gcWorldDef, max_fingers, INT),
-    PARAM(gcWorldDef, max_parts, INT),    PARAM(gcWorldDef, threads, INT), /* threads, max_contacts: docs/solver.md */
+    PARAM_N(gcWorldDef, gravity, VEC, 3),
+    PARAM(gcWorldDef, gyroscopic, BOOL),
+    PARAM(gcWorldDef, max_bodies, INT),
+    PARAM(gcWorldDef, max_fingers, INT),
+    PARAM(gcWorldDef, max_parts, INT),
+    PARAM(gcWorldDef, threads, INT), /* threads, max_contacts: docs/solver.md */
     PARAM(gcWorldDef, max_contacts, INT),
 };
 
@@ -231,12 +232,18 @@ static const Param finger_params[] = {
     PARAM(gcFingerDef, cursor_mass, DOUBLE),
 };
 
+/* start(*, **params) */
 static const Param runtime_params[] = {
-    PARAM(gcRuntimeDef, haptic_rate, DOUBLE),   PARAM(gcRuntimeDef, object_rate, DOUBLE),
-    PARAM(gcRuntimeDef, max_adopted_bodies, INT), PARAM(gcRuntimeDef, max_force, DOUBLE),
-    PARAM(gcRuntimeDef, ramp_time, DOUBLE),     PARAM(gcRuntimeDef, watchdog_timeout, DOUBLE),
-    PARAM(gcRuntimeDef, hip_timeout, DOUBLE),   PARAM(gcRuntimeDef, release_delay, DOUBLE),
-    PARAM(gcRuntimeDef, realtime, BOOL),        PARAM(gcRuntimeDef, priority, INT),
+    PARAM(gcRuntimeDef, haptic_rate, DOUBLE),
+    PARAM(gcRuntimeDef, object_rate, DOUBLE),
+    PARAM(gcRuntimeDef, max_adopted_bodies, INT),
+    PARAM(gcRuntimeDef, max_force, DOUBLE),
+    PARAM(gcRuntimeDef, ramp_time, DOUBLE),
+    PARAM(gcRuntimeDef, watchdog_timeout, DOUBLE),
+    PARAM(gcRuntimeDef, hip_timeout, DOUBLE),
+    PARAM(gcRuntimeDef, release_delay, DOUBLE),
+    PARAM(gcRuntimeDef, realtime, BOOL),
+    PARAM(gcRuntimeDef, priority, INT),
     PARAM(gcRuntimeDef, max_hip_speed, DOUBLE),
 };
 
@@ -257,17 +264,22 @@ static const Param serial_params[] = {
     PARAM(gcSerialDef, udp_port, INT),
 };
 
-/* A TypeError naming the parameter and what it wants, after a conversion failed with one
- * (another error, an overflow say, is left as it is). */
+/* A TypeError naming the parameter, what it wants and what it got; 0. */
 static int wrong_type(const char *name, const char *want, PyObject *value) {
-    if (!PyErr_ExceptionMatches(PyExc_TypeError)) return 0;
-    PyErr_Clear();
-    PyObject *type_name = PyType_GetName(Py_TYPE(value));
-    if (type_name) {
-        PyErr_Format(PyExc_TypeError, "%s: must be %s, not %U", name, want, type_name);
-        Py_DECREF(type_name);
+    PyObject *got = PyType_GetName(Py_TYPE(value));
+    if (got) {
+        PyErr_Format(PyExc_TypeError, "%s: must be %s, not %U", name, want, got);
+        Py_DECREF(got);
     }
     return 0;
+}
+
+/* After a failed conversion: a TypeError said again naming the parameter (another error, an
+ * overflow say, is left as it is); 0. */
+static int conversion_failed(const char *name, const char *want, PyObject *value) {
+    if (!PyErr_ExceptionMatches(PyExc_TypeError)) return 0;
+    PyErr_Clear();
+    return wrong_type(name, want, value);
 }
 
 /* One argument into its field; 0 with a Python error naming the parameter. */
@@ -276,14 +288,14 @@ static int set_param(const Param *p, PyObject *value, void *def) {
     switch (p->kind) {
     case PARAM_DOUBLE: {
         double v = PyFloat_AsDouble(value);
-        if (v == -1.0 && PyErr_Occurred()) return wrong_type(p->name, "a real number", value);
+        if (v == -1.0 && PyErr_Occurred()) return conversion_failed(p->name, "a real number", value);
         memcpy(field, &v, sizeof v);
         return 1;
     }
     case PARAM_INT: {
         int overflow = 0;
         long v = PyLong_AsLongAndOverflow(value, &overflow);
-        if (v == -1 && PyErr_Occurred()) return wrong_type(p->name, "an integer", value);
+        if (v == -1 && PyErr_Occurred()) return conversion_failed(p->name, "an integer", value);
         if (overflow || v < INT_MIN || v > INT_MAX) {
             PyErr_Format(PyExc_OverflowError, "%s: outside the range of a C int", p->name);
             return 0;
@@ -306,7 +318,7 @@ static int set_param(const Param *p, PyObject *value, void *def) {
         }
         /* fall through */
     case PARAM_VEC: {
-        double v[16];
+        double v[MAX_VEC];
         if (!parse_vec(value, p->n, p->name, v)) return 0;
         memcpy(field, v, sizeof(double) * (size_t)p->n);
         return 1;
@@ -314,10 +326,7 @@ static int set_param(const Param *p, PyObject *value, void *def) {
     case PARAM_TEXT:
     case PARAM_RENDERER: {
         Py_ssize_t len;
-        if (!PyUnicode_Check(value)) {
-            PyErr_SetString(PyExc_TypeError, "");
-            return wrong_type(p->name, "a str", value);
-        }
+        if (!PyUnicode_Check(value)) return wrong_type(p->name, "a str", value);
         const char *s = PyUnicode_AsUTF8AndSize(value, &len);
         if (!s) return 0;
         if ((size_t)len != strlen(s)) {
@@ -391,7 +400,7 @@ static PyObject *params_dict(const Param *params, int count, const void *def) {
         const Param *p = &params[i];
         const char *field = (const char *)def + p->offset;
         PyObject *v = NULL;
-        double x[16];
+        double x[MAX_VEC];
         int k;
         switch (p->kind) {
         case PARAM_DOUBLE: memcpy(x, field, sizeof x[0]), v = PyFloat_FromDouble(x[0]); break;
@@ -923,7 +932,6 @@ static PyObject *World_advance(PyObject *obj, PyObject *args, PyObject *kwargs) 
     return none_or_raise(self, st);
 }
 
-/* _push_hips(float64 buffer of xyz rows, t) -> True if taken, False if rejected (counted). */
 /* _set_hip_track(times float64 (n,), positions float64 (n, m, 3), scripted bytes (m) or None
  * [, orientations float64 (n, m, 4) or None]). */
 static PyObject *World_set_hip_track(PyObject *obj, PyObject *args) {
@@ -1233,6 +1241,15 @@ static int take_buffer(GraspBuffers *g, PyObject *arg, char fmt, Py_ssize_t coun
     return 1;
 }
 
+/* The options of a grasp call (gcGraspDef) over the core's defaults. */
+static gcGraspDef grasp_def(int edges, int volume, int reuse) {
+    gcGraspDef def = gc_default_grasp_def();
+    def.edges = edges;
+    def.volume = volume;
+    def.reuse = reuse;
+    return def;
+}
+
 static PyObject *grasp_quality_dict(const gcGraspQuality *q) {
     return Py_BuildValue("{s:O,s:O,s:O,s:d,s:d,s:(dddddd),s:i,s:i}", "force_closure",
                          q->force_closure ? Py_True : Py_False, "force_only_closure",
@@ -1259,10 +1276,7 @@ static PyObject *module_grasp_quality(PyObject *mod, PyObject *args) {
                    take_buffer(&g, co, 'd', 3, "center", 0)) {
             gcGraspWorkspace *ws = workspace_take();
             if (ws) {
-                gcGraspDef def = gc_default_grasp_def();
-                def.edges = edges;
-                def.volume = volume;
-                def.reuse = reuse;
+                gcGraspDef def = grasp_def(edges, volume, reuse);
                 gcGraspQuality q;
                 gcStatus st;
                 Py_BEGIN_ALLOW_THREADS
@@ -1306,10 +1320,7 @@ static PyObject *module_grasp_quality_batch(PyObject *mod, PyObject *args) {
             } else {
                 gcGraspWorkspace *ws = workspace_take();
                 if (ws) {
-                    gcGraspDef def = gc_default_grasp_def();
-                    def.edges = edges;
-                    def.volume = volume;
-                    def.reuse = reuse;
+                    gcGraspDef def = grasp_def(edges, volume, reuse);
                     gcStatus st;
                     Py_BEGIN_ALLOW_THREADS
                     st = gc_grasp_quality_batch(ws, &def, g.b[2].buf, g.b[3].buf, g.b[0].buf, counts, (int)sets,
@@ -1340,9 +1351,7 @@ static PyObject *module_grasp_mu_min(PyObject *mod, PyObject *args) {
         } else if (take_buffer(&g, no, 'd', 3 * n, "normals", 0) && take_buffer(&g, co, 'd', 3, "center", 0)) {
             gcGraspWorkspace *ws = workspace_take();
             if (ws) {
-                gcGraspDef def = gc_default_grasp_def();
-                def.edges = edges;
-                def.reuse = reuse;
+                gcGraspDef def = grasp_def(edges, gc_default_grasp_def().volume, reuse);
                 double mu = 0.0;
                 gcStatus st;
                 Py_BEGIN_ALLOW_THREADS
@@ -1525,14 +1534,14 @@ static PyObject *World_serial_events(PyObject *obj, PyObject *args) {
 static PyMethodDef World_methods[] = {
     {"_add_body", (PyCFunction)(void (*)(void))World_add_body, METH_VARARGS | METH_KEYWORDS,
      "Low-level add_body(parts, radii, **BODY_DEFAULTS); use World.add_body."},
-    ID_QUERIES(QUERY_ENTRY)
-    ID_SETTERS(SETTER_ENTRY)
-    WORLD_NUMBERS(NUMBER_ENTRY)
     {"add_finger", (PyCFunction)(void (*)(void))World_add_finger, METH_VARARGS | METH_KEYWORDS,
      "add_finger(radius, stiffness, damping, position=(0,0,0), points=None, orientation=(1,0,0,0), torsion=0, "
      "renderer='xfca', cursor_mass) -> finger id; points: a convex finger's (n, 3) float64 points in its frame "
      "(None: a sphere); torsion: a soft sphere fingertip's patch radius, m; renderer 'cursor': sphere fingers "
      "without torsion only; defaults: FINGER_DEFAULTS"},
+    ID_QUERIES(QUERY_ENTRY)
+    ID_SETTERS(SETTER_ENTRY)
+    WORLD_NUMBERS(NUMBER_ENTRY)
     {"finger_contacts", World_finger_contacts, METH_VARARGS,
      "finger_contacts(finger) -> [{body, sample, reversed, state, point, normal, force}] per contact point (first 64)"},
     {"set_hips", World_set_hips, METH_O, "set_hips(array (n, 3) float64): HIPs of fingers 0..n-1."},
@@ -1612,6 +1621,15 @@ static int add_defaults(PyObject *m) {
         {"SERIAL_DEFAULTS", serial_params, COUNT_OF(serial_params), &serial},
     };
     for (int i = 0; i < COUNT_OF(defaults); ++i) {
+        int fits = defaults[i].count <= MAX_PARAMS;
+        for (int j = 0; j < defaults[i].count; ++j) {
+            const Param *p = &defaults[i].params[j];
+            fits = fits && (p->n <= MAX_VEC || (p->kind != PARAM_VEC && p->kind != PARAM_OPT_VEC));
+        }
+        if (!fits) {
+            PyErr_Format(PyExc_SystemError, "graspcore: the table of %s exceeds MAX_PARAMS or MAX_VEC", defaults[i].name);
+            return -1;
+        }
         PyObject *d = params_dict(defaults[i].params, defaults[i].count, defaults[i].def);
         int r = d ? PyModule_AddObjectRef(m, defaults[i].name, d) : -1;
         Py_XDECREF(d);
