@@ -158,110 +158,187 @@ static const char *enum_name(const char *const *names, int count, int i, int fal
     return i >= 0 && i < count && names[i] ? names[i] : names[fallback];
 }
 
-/* ---- Parameters: the keyword arguments of World(), add_finger, _add_body, start and
- * attach_serial, one table row each -----------------------------------------------------
- * A row names a field of a gc*Def and how Python gives it; parse_params reads a call's
- * positional and keyword arguments into the definition the core's gc_default_*_def filled,
- * and params_dict exports those defaults as WORLD_DEFAULTS, BODY_DEFAULTS, ... so Python never
- * types a default twice. Adding a parameter to a definition is one row (docs/architecture.md). */
-typedef enum ParamKind {
-    PARAM_DOUBLE,   /* double, from any real number */
-    PARAM_INT,      /* int, from an integer in C int range */
-    PARAM_BOOL,     /* int 0/1, from any object's truth */
-    PARAM_VEC,      /* double[n], from a sequence of n numbers */
-    PARAM_OPT_VEC,  /* as PARAM_VEC, or None for the default; the int at `flag` (if any) is set when given */
-    PARAM_TEXT,     /* char[n], from a str shorter than n bytes */
-    PARAM_RENDERER, /* gcFingerRenderer, from its name (renderer_names) */
-    PARAM_OBJECT,   /* not a field: the object itself, left to the caller (a buffer, a descriptor) */
-} ParamKind;
+/* ---- Fields: the keyword arguments of World(), add_finger, _add_body, start and
+ * attach_serial, and the dicts of stats(), serial_stats(), one table row each ---------------
+ * A row names a field of a core struct and how Python sees it. parse_params reads a call's
+ * positional and keyword arguments into the definition the core's gc_default_*_def filled;
+ * fields_dict turns a struct into a dict: the stats, and the definitions' defaults exported as
+ * WORLD_DEFAULTS, BODY_DEFAULTS, ... so Python never types a default twice. Adding a parameter
+ * or a stats entry is one row (docs/architecture.md). */
+typedef enum FieldKind {
+    FIELD_DOUBLE,  /* double, from any real number */
+    FIELD_INT,     /* int, from an integer in C int range */
+    FIELD_BOOL,    /* int 0/1, from any object's truth */
+    FIELD_U64,     /* uint64_t (a counter: out only) */
+    FIELD_VEC,     /* double[n], from a sequence of n numbers */
+    FIELD_OPT_VEC, /* as FIELD_VEC, or None for the default; the int at `flag` (if any) is set when given */
+    FIELD_TEXT,    /* char[n], from a str shorter than n bytes */
+    FIELD_ENUM,    /* an int-sized enum, from its name (names, n of them) */
+    FIELD_COUNTS,  /* uint64_t[n], as a dict of counters by names[i] (out only) */
+    FIELD_OBJECT,  /* not a field: the argument itself, left to the caller (a buffer, a descriptor) */
+} FieldKind;
 
-typedef struct Param {
-    const char *name; /* the Python keyword, and the name an error message starts with */
-    ParamKind kind;
-    size_t offset;    /* of the field in the definition */
-    int n;            /* PARAM_VEC, PARAM_OPT_VEC: numbers; PARAM_TEXT: bytes of the array */
-    size_t flag;      /* PARAM_OPT_VEC: offset of the int set to 1 when given; 0: none */
-} Param;
+typedef struct Field {
+    const char *name;         /* the Python keyword or key, and the name an error message starts with */
+    FieldKind kind;
+    size_t offset;            /* of the field in the struct */
+    int n;                    /* VEC, OPT_VEC: numbers; TEXT: bytes of the array; ENUM, COUNTS: names */
+    size_t flag;              /* OPT_VEC: offset of the int set to 1 when given; 0: none */
+    const char *const *names; /* ENUM: by value; COUNTS: of the counters */
+} Field;
 
-#define PARAM(def, field, kind) {#field, PARAM_##kind, offsetof(def, field), 0, 0}
-#define PARAM_N(def, field, kind, n) {#field, PARAM_##kind, offsetof(def, field), n, 0}
-#define PARAM_OBJ(name) {name, PARAM_OBJECT, 0, 0, 0}
-enum { MAX_PARAMS = 24, MAX_VEC = 16 }; /* rows of a table, numbers of a VEC (checked at import: add_defaults) */
+#define FIELD(type, field, kind) {#field, FIELD_##kind, offsetof(type, field), 0, 0, NULL}
+#define FIELD_N(type, field, kind, n) {#field, FIELD_##kind, offsetof(type, field), n, 0, NULL}
+#define FIELD_TEXT(type, field) {#field, FIELD_TEXT, offsetof(type, field), sizeof(((type *)0)->field), 0, NULL}
+#define FIELD_NAMED(type, field, kind, names) {#field, FIELD_##kind, offsetof(type, field), COUNT_OF(names), 0, names}
+#define FIELD_ARGUMENT(name) {name, FIELD_OBJECT, 0, 0, 0, NULL}
+enum { MAX_FIELDS = 40, MAX_VEC = 16 }; /* rows of a table, numbers of a VEC (checked at import: add_tables) */
+_Static_assert(sizeof(gcFingerRenderer) == sizeof(int), "FIELD_ENUM reads an int");
 
-static const Param world_params[] = {
-    PARAM_N(gcWorldDef, gravity, VEC, 3),
-    PARAM(gcWorldDef, gyroscopic, BOOL),
-    PARAM(gcWorldDef, max_bodies, INT),
-    PARAM(gcWorldDef, max_fingers, INT),
-    PARAM(gcWorldDef, max_parts, INT),
-    PARAM(gcWorldDef, threads, INT), /* threads, max_contacts: docs/solver.md */
-    PARAM(gcWorldDef, max_contacts, INT),
+static const char *const frame_error_names[] = {"cobs", "short", "crc", "version", "type", "length", "overflow",
+                                                "range"}; /* gcSerialStats.frame_errors */
+
+static const Field world_params[] = {
+    FIELD_N(gcWorldDef, gravity, VEC, 3),
+    FIELD(gcWorldDef, gyroscopic, BOOL),
+    FIELD(gcWorldDef, max_bodies, INT),
+    FIELD(gcWorldDef, max_fingers, INT),
+    FIELD(gcWorldDef, max_parts, INT),
+    FIELD(gcWorldDef, threads, INT), /* threads, max_contacts: docs/solver.md */
+    FIELD(gcWorldDef, max_contacts, INT),
 };
 
 /* _add_body(parts, radii, **params); parts: C-contiguous float64 buffers of shape (n, 3). */
-static const Param body_params[] = {
-    PARAM_OBJ("parts"),
-    PARAM_OBJ("radii"),
-    PARAM(gcBodyDef, mass, DOUBLE),
-    PARAM_N(gcBodyDef, position, VEC, 3),
-    PARAM_N(gcBodyDef, orientation, VEC, 4),
-    {"static", PARAM_BOOL, offsetof(gcBodyDef, is_static), 0, 0},
-    PARAM(gcBodyDef, mu_s, DOUBLE),
-    PARAM(gcBodyDef, mu_d, DOUBLE),
-    PARAM(gcBodyDef, viscosity, DOUBLE),
-    {"inertia", PARAM_OPT_VEC, offsetof(gcBodyDef, inertia), 9, offsetof(gcBodyDef, has_inertia)},
-    {"center_of_mass", PARAM_OPT_VEC, offsetof(gcBodyDef, center_of_mass), 3,
-     offsetof(gcBodyDef, has_center_of_mass)},
-    PARAM_N(gcBodyDef, linear_velocity, VEC, 3),
-    PARAM_N(gcBodyDef, angular_velocity, VEC, 3),
-    PARAM(gcBodyDef, linear_damping, DOUBLE),
-    PARAM(gcBodyDef, angular_damping, DOUBLE),
+static const Field body_params[] = {
+    FIELD_ARGUMENT("parts"),
+    FIELD_ARGUMENT("radii"),
+    FIELD(gcBodyDef, mass, DOUBLE),
+    FIELD_N(gcBodyDef, position, VEC, 3),
+    FIELD_N(gcBodyDef, orientation, VEC, 4),
+    {"static", FIELD_BOOL, offsetof(gcBodyDef, is_static), 0, 0, NULL},
+    FIELD(gcBodyDef, mu_s, DOUBLE),
+    FIELD(gcBodyDef, mu_d, DOUBLE),
+    FIELD(gcBodyDef, viscosity, DOUBLE),
+    {"inertia", FIELD_OPT_VEC, offsetof(gcBodyDef, inertia), 9, offsetof(gcBodyDef, has_inertia), NULL},
+    {"center_of_mass", FIELD_OPT_VEC, offsetof(gcBodyDef, center_of_mass), 3,
+     offsetof(gcBodyDef, has_center_of_mass), NULL},
+    FIELD_N(gcBodyDef, linear_velocity, VEC, 3),
+    FIELD_N(gcBodyDef, angular_velocity, VEC, 3),
+    FIELD(gcBodyDef, linear_damping, DOUBLE),
+    FIELD(gcBodyDef, angular_damping, DOUBLE),
 };
 
 /* add_finger's arguments, in their positional order. points: None (a sphere finger) or a
  * C-contiguous float64 buffer of xyz rows (a convex finger). */
-static const Param finger_params[] = {
-    PARAM(gcFingerDef, radius, DOUBLE),
-    PARAM(gcFingerDef, stiffness, DOUBLE),
-    PARAM(gcFingerDef, damping, DOUBLE),
-    PARAM_N(gcFingerDef, position, VEC, 3),
-    PARAM_OBJ("points"),
-    PARAM_N(gcFingerDef, orientation, OPT_VEC, 4),
-    PARAM(gcFingerDef, torsion, DOUBLE),
-    PARAM(gcFingerDef, renderer, RENDERER),
-    PARAM(gcFingerDef, cursor_mass, DOUBLE),
+static const Field finger_params[] = {
+    FIELD(gcFingerDef, radius, DOUBLE),
+    FIELD(gcFingerDef, stiffness, DOUBLE),
+    FIELD(gcFingerDef, damping, DOUBLE),
+    FIELD_N(gcFingerDef, position, VEC, 3),
+    FIELD_ARGUMENT("points"),
+    FIELD_N(gcFingerDef, orientation, OPT_VEC, 4),
+    FIELD(gcFingerDef, torsion, DOUBLE),
+    FIELD_NAMED(gcFingerDef, renderer, ENUM, renderer_names),
+    FIELD(gcFingerDef, cursor_mass, DOUBLE),
 };
 
 /* start(*, **params) */
-static const Param runtime_params[] = {
-    PARAM(gcRuntimeDef, haptic_rate, DOUBLE),
-    PARAM(gcRuntimeDef, object_rate, DOUBLE),
-    PARAM(gcRuntimeDef, max_adopted_bodies, INT),
-    PARAM(gcRuntimeDef, max_force, DOUBLE),
-    PARAM(gcRuntimeDef, ramp_time, DOUBLE),
-    PARAM(gcRuntimeDef, watchdog_timeout, DOUBLE),
-    PARAM(gcRuntimeDef, hip_timeout, DOUBLE),
-    PARAM(gcRuntimeDef, release_delay, DOUBLE),
-    PARAM(gcRuntimeDef, realtime, BOOL),
-    PARAM(gcRuntimeDef, priority, INT),
-    PARAM(gcRuntimeDef, max_hip_speed, DOUBLE),
+static const Field runtime_params[] = {
+    FIELD(gcRuntimeDef, haptic_rate, DOUBLE),
+    FIELD(gcRuntimeDef, object_rate, DOUBLE),
+    FIELD(gcRuntimeDef, max_adopted_bodies, INT),
+    FIELD(gcRuntimeDef, max_force, DOUBLE),
+    FIELD(gcRuntimeDef, ramp_time, DOUBLE),
+    FIELD(gcRuntimeDef, watchdog_timeout, DOUBLE),
+    FIELD(gcRuntimeDef, hip_timeout, DOUBLE),
+    FIELD(gcRuntimeDef, release_delay, DOUBLE),
+    FIELD(gcRuntimeDef, realtime, BOOL),
+    FIELD(gcRuntimeDef, priority, INT),
+    FIELD(gcRuntimeDef, max_hip_speed, DOUBLE),
 };
 
 /* attach_serial(fd, *, **params) */
-static const Param serial_params[] = {
-    PARAM_OBJ("fd"),
-    PARAM(gcSerialDef, finger_offset, INT),
-    PARAM(gcSerialDef, num_fingers, INT),
-    PARAM_N(gcSerialDef, transform, OPT_VEC, 16), /* row-major 4x4, device metres -> world */
-    PARAM(gcSerialDef, force_ttl, DOUBLE),
-    PARAM(gcSerialDef, lost_timeout, DOUBLE),
-    PARAM(gcSerialDef, max_force, DOUBLE),
-    PARAM(gcSerialDef, ramp_time, DOUBLE),
-    PARAM(gcSerialDef, max_position, DOUBLE),
-    PARAM(gcSerialDef, stall_timeout, DOUBLE),
-    PARAM(gcSerialDef, priority, INT),
-    PARAM_N(gcSerialDef, udp_host, TEXT, sizeof(((gcSerialDef *)0)->udp_host)),
-    PARAM(gcSerialDef, udp_port, INT),
+static const Field serial_params[] = {
+    FIELD_ARGUMENT("fd"),
+    FIELD(gcSerialDef, finger_offset, INT),
+    FIELD(gcSerialDef, num_fingers, INT),
+    FIELD_N(gcSerialDef, transform, OPT_VEC, 16), /* row-major 4x4, device metres -> world */
+    FIELD(gcSerialDef, force_ttl, DOUBLE),
+    FIELD(gcSerialDef, lost_timeout, DOUBLE),
+    FIELD(gcSerialDef, max_force, DOUBLE),
+    FIELD(gcSerialDef, ramp_time, DOUBLE),
+    FIELD(gcSerialDef, max_position, DOUBLE),
+    FIELD(gcSerialDef, stall_timeout, DOUBLE),
+    FIELD(gcSerialDef, priority, INT),
+    FIELD_TEXT(gcSerialDef, udp_host),
+    FIELD(gcSerialDef, udp_port, INT),
+};
+
+/* stats(): rates, jitter, overruns, adoption, inputs, safety (docs/runtime.md). */
+static const Field runtime_stats_fields[] = {
+    FIELD(gcRuntimeStats, running, BOOL),
+    FIELD(gcRuntimeStats, realtime, BOOL),
+    FIELD(gcRuntimeStats, rt_priority, BOOL),
+    FIELD_TEXT(gcRuntimeStats, priority_note),
+    FIELD(gcRuntimeStats, haptic_rate, DOUBLE),
+    FIELD(gcRuntimeStats, object_rate, DOUBLE),
+    FIELD(gcRuntimeStats, object_speed, DOUBLE),
+    FIELD(gcRuntimeStats, haptic_ticks, U64),
+    FIELD(gcRuntimeStats, object_ticks, U64),
+    FIELD(gcRuntimeStats, jitter_p50_us, DOUBLE),
+    FIELD(gcRuntimeStats, jitter_p99_us, DOUBLE),
+    FIELD(gcRuntimeStats, jitter_max_us, DOUBLE),
+    FIELD(gcRuntimeStats, tick_max_us, DOUBLE),
+    FIELD(gcRuntimeStats, tick_mean_us, DOUBLE),
+    FIELD(gcRuntimeStats, wake_max_us, DOUBLE),
+    FIELD(gcRuntimeStats, overruns, U64),
+    FIELD(gcRuntimeStats, late_periods, U64),
+    FIELD(gcRuntimeStats, object_overruns, U64),
+    FIELD(gcRuntimeStats, adopted_bodies, INT),
+    FIELD(gcRuntimeStats, accepted_inputs, U64),
+    FIELD(gcRuntimeStats, rejected_inputs, U64),
+    FIELD(gcRuntimeStats, watchdog_trips, U64),
+    FIELD(gcRuntimeStats, stale_inputs, U64),
+    FIELD(gcRuntimeStats, nonfinite_forces, U64),
+    FIELD(gcRuntimeStats, stopped_bodies, U64),
+    FIELD(gcRuntimeStats, forces_enabled, BOOL),
+    FIELD(gcRuntimeStats, haptic_time, DOUBLE),
+    FIELD(gcRuntimeStats, object_time, DOUBLE),
+};
+
+/* serial_stats(device): state, rate, drops, latency (docs/devices.md). */
+static const Field serial_stats_fields[] = {
+    FIELD_NAMED(gcSerialStats, state, ENUM, serial_state_names),
+    FIELD(gcSerialStats, enabled, BOOL),
+    FIELD(gcSerialStats, device_fingers, INT),
+    FIELD(gcSerialStats, renders_forces, BOOL),
+    FIELD(gcSerialStats, units, INT),
+    FIELD(gcSerialStats, device_rate, DOUBLE),
+    FIELD(gcSerialStats, device_force_max, DOUBLE),
+    FIELD(gcSerialStats, device_ttl_max, DOUBLE),
+    FIELD_TEXT(gcSerialStats, name),
+    FIELD(gcSerialStats, pose_rate, DOUBLE),
+    FIELD(gcSerialStats, last_pose_age, DOUBLE),
+    FIELD(gcSerialStats, poses, U64),
+    FIELD(gcSerialStats, forces_sent, U64),
+    FIELD(gcSerialStats, heartbeats, U64),
+    FIELD(gcSerialStats, dropped, U64),
+    FIELD_NAMED(gcSerialStats, frame_errors, COUNTS, frame_error_names),
+    FIELD(gcSerialStats, sequence_gaps, U64),
+    FIELD(gcSerialStats, disconnects, U64),
+    FIELD(gcSerialStats, estops, U64),
+    FIELD(gcSerialStats, stall_zeroes, U64),
+    FIELD(gcSerialStats, write_errors, U64),
+    FIELD(gcSerialStats, push_rejected, U64),
+    FIELD(gcSerialStats, latency_p50_us, DOUBLE),
+    FIELD(gcSerialStats, latency_p99_us, DOUBLE),
+    FIELD(gcSerialStats, latency_max_us, DOUBLE),
+    FIELD(gcSerialStats, gain, DOUBLE),
+    FIELD(gcSerialStats, rt_priority, BOOL),
+    FIELD(gcSerialStats, late_poses, U64),
+    FIELD(gcSerialStats, duplicate_poses, U64),
+    FIELD(gcSerialStats, foreign_datagrams, U64),
+    FIELD_TEXT(gcSerialStats, peer),
 };
 
 /* A TypeError naming the parameter, what it wants and what it got; 0. */
@@ -282,17 +359,31 @@ static int conversion_failed(const char *name, const char *want, PyObject *value
     return wrong_type(name, want, value);
 }
 
+/* A FIELD_ENUM given by name: its value, or -1 with "<name>: must be 'a' or 'b' (got 'c')". */
+static int enum_value(const Field *p, const char *s) {
+    for (int i = 0; i < p->n; ++i)
+        if (p->names[i] && strcmp(s, p->names[i]) == 0) return i;
+    char choices[256] = "";
+    for (int i = 0; i < p->n; ++i) {
+        size_t used = strlen(choices);
+        PyOS_snprintf(choices + used, sizeof choices - used, "%s'%s'", i == 0 ? "" : i + 1 < p->n ? ", " : " or ",
+                 p->names[i]);
+    }
+    PyErr_Format(PyExc_ValueError, "%s: must be %s (got '%s')", p->name, choices, s);
+    return -1;
+}
+
 /* One argument into its field; 0 with a Python error naming the parameter. */
-static int set_param(const Param *p, PyObject *value, void *def) {
+static int set_field(const Field *p, PyObject *value, void *def) {
     char *field = (char *)def + p->offset;
     switch (p->kind) {
-    case PARAM_DOUBLE: {
+    case FIELD_DOUBLE: {
         double v = PyFloat_AsDouble(value);
         if (v == -1.0 && PyErr_Occurred()) return conversion_failed(p->name, "a real number", value);
         memcpy(field, &v, sizeof v);
         return 1;
     }
-    case PARAM_INT: {
+    case FIELD_INT: {
         int overflow = 0;
         long v = PyLong_AsLongAndOverflow(value, &overflow);
         if (v == -1 && PyErr_Occurred()) return conversion_failed(p->name, "an integer", value);
@@ -304,27 +395,27 @@ static int set_param(const Param *p, PyObject *value, void *def) {
         memcpy(field, &i, sizeof i);
         return 1;
     }
-    case PARAM_BOOL: {
+    case FIELD_BOOL: {
         int truth = PyObject_IsTrue(value);
         if (truth < 0) return 0;
         memcpy(field, &truth, sizeof truth);
         return 1;
     }
-    case PARAM_OPT_VEC:
+    case FIELD_OPT_VEC:
         if (value == Py_None) return 1;
         if (p->flag) {
             int one = 1;
             memcpy((char *)def + p->flag, &one, sizeof one);
         }
         /* fall through */
-    case PARAM_VEC: {
+    case FIELD_VEC: {
         double v[MAX_VEC];
         if (!parse_vec(value, p->n, p->name, v)) return 0;
         memcpy(field, v, sizeof(double) * (size_t)p->n);
         return 1;
     }
-    case PARAM_TEXT:
-    case PARAM_RENDERER: {
+    case FIELD_TEXT:
+    case FIELD_ENUM: {
         Py_ssize_t len;
         if (!PyUnicode_Check(value)) return wrong_type(p->name, "a str", value);
         const char *s = PyUnicode_AsUTF8AndSize(value, &len);
@@ -333,32 +424,29 @@ static int set_param(const Param *p, PyObject *value, void *def) {
             PyErr_Format(PyExc_ValueError, "%s: contains a NUL character", p->name);
             return 0;
         }
-        if (p->kind == PARAM_TEXT) {
-            if (len >= p->n) {
-                PyErr_Format(PyExc_ValueError, "%s: longer than %d bytes", p->name, p->n - 1);
-                return 0;
-            }
+        if (p->kind == FIELD_ENUM) {
+            int v = enum_value(p, s);
+            if (v < 0) return 0;
+            memcpy(field, &v, sizeof v);
+        } else if (len >= p->n) {
+            PyErr_Format(PyExc_ValueError, "%s: longer than %d bytes", p->name, p->n - 1);
+            return 0;
+        } else {
             memcpy(field, s, (size_t)len + 1);
-            return 1;
         }
-        for (int i = 0; i < COUNT_OF(renderer_names); ++i)
-            if (strcmp(s, renderer_names[i]) == 0) {
-                gcFingerRenderer r = (gcFingerRenderer)i;
-                memcpy(field, &r, sizeof r);
-                return 1;
-            }
-        PyErr_Format(PyExc_ValueError, "%s: must be 'xfca' or 'cursor' (got '%s')", p->name, s);
-        return 0;
+        return 1;
     }
-    case PARAM_OBJECT: return 1;
+    case FIELD_U64:
+    case FIELD_COUNTS:
+    case FIELD_OBJECT: return 1;
     }
     return 1;
 }
 
 /* A call's arguments into def (filled with the core's defaults by the caller): positional ones
  * (at most max_positional) in the table's order, then keywords. given[i] is the object for
- * params[i] or NULL (the caller reads its PARAM_OBJECT rows there). 0 with an error set. */
-static int parse_params(const char *func, PyObject *args, PyObject *kwargs, const Param *params, int count,
+ * params[i] or NULL (the caller reads its FIELD_OBJECT rows there). 0 with an error set. */
+static int parse_params(const char *func, PyObject *args, PyObject *kwargs, const Field *params, int count,
                         int max_positional, void *def, PyObject **given) {
     Py_ssize_t nargs = PyTuple_Size(args);
     if (nargs > max_positional) {
@@ -389,40 +477,53 @@ static int parse_params(const char *func, PyObject *args, PyObject *kwargs, cons
         given[i] = value;
     }
     for (int i = 0; i < count; ++i)
-        if (given[i] && !set_param(&params[i], given[i], def)) return 0;
+        if (given[i] && !set_field(&params[i], given[i], def)) return 0;
     return 1;
 }
 
-/* A definition's fields as a dict (PARAM_OBJECT rows left out): the core's defaults for Python. */
-static PyObject *params_dict(const Param *params, int count, const void *def) {
+/* One field of a struct as a Python object (a new reference; NULL with an error set). */
+static PyObject *field_value(const Field *p, const void *data) {
+    const char *field = (const char *)data + p->offset;
+    double x[MAX_VEC];
+    uint64_t u[MAX_VEC];
+    int k;
+    switch (p->kind) {
+    case FIELD_DOUBLE: memcpy(x, field, sizeof x[0]); return PyFloat_FromDouble(x[0]);
+    case FIELD_INT: memcpy(&k, field, sizeof k); return PyLong_FromLong(k);
+    case FIELD_BOOL: memcpy(&k, field, sizeof k); return PyBool_FromLong(k);
+    case FIELD_U64: memcpy(u, field, sizeof u[0]); return PyLong_FromUnsignedLongLong(u[0]);
+    case FIELD_OPT_VEC:
+        if (p->flag && (memcpy(&k, (const char *)data + p->flag, sizeof k), !k)) Py_RETURN_NONE;
+        /* fall through */
+    case FIELD_VEC: memcpy(x, field, sizeof(double) * (size_t)p->n); return tuple_of(x, p->n);
+    case FIELD_TEXT: {
+        Py_ssize_t len = 0;
+        while (len + 1 < p->n && field[len]) ++len; /* NUL-terminated within the array */
+        return PyUnicode_FromStringAndSize(field, len);
+    }
+    case FIELD_ENUM: memcpy(&k, field, sizeof k); return PyUnicode_FromString(enum_name(p->names, p->n, k, 0));
+    case FIELD_COUNTS: {
+        memcpy(u, field, sizeof(uint64_t) * (size_t)p->n);
+        PyObject *d = PyDict_New();
+        for (int i = 0; d && i < p->n; ++i) {
+            PyObject *v = PyLong_FromUnsignedLongLong(u[i]);
+            if (!v || PyDict_SetItemString(d, p->names[i], v) < 0) Py_CLEAR(d);
+            Py_XDECREF(v);
+        }
+        return d;
+    }
+    case FIELD_OBJECT: break;
+    }
+    Py_RETURN_NONE;
+}
+
+/* A struct as a dict, one key per row (FIELD_OBJECT rows left out). */
+static PyObject *fields_dict(const Field *fields, int count, const void *data) {
     PyObject *d = PyDict_New();
     for (int i = 0; d && i < count; ++i) {
-        const Param *p = &params[i];
-        const char *field = (const char *)def + p->offset;
-        PyObject *v = NULL;
-        double x[MAX_VEC];
-        int k;
-        switch (p->kind) {
-        case PARAM_DOUBLE: memcpy(x, field, sizeof x[0]), v = PyFloat_FromDouble(x[0]); break;
-        case PARAM_INT: memcpy(&k, field, sizeof k), v = PyLong_FromLong(k); break;
-        case PARAM_BOOL: memcpy(&k, field, sizeof k), v = PyBool_FromLong(k); break;
-        case PARAM_OPT_VEC:
-            if (p->flag && (memcpy(&k, (const char *)def + p->flag, sizeof k), !k)) {
-                v = Py_NewRef(Py_None);
-                break;
-            }
-            /* fall through */
-        case PARAM_VEC: memcpy(x, field, sizeof(double) * (size_t)p->n), v = tuple_of(x, p->n); break;
-        case PARAM_TEXT: v = PyUnicode_FromString(field); break;
-        case PARAM_RENDERER: {
-            gcFingerRenderer r;
-            memcpy(&r, field, sizeof r);
-            v = PyUnicode_FromString(enum_name(renderer_names, COUNT_OF(renderer_names), (int)r, 0));
-            break;
-        }
-        case PARAM_OBJECT: continue;
-        }
-        if (!v || PyDict_SetItemString(d, p->name, v) < 0) Py_CLEAR(d);
+        if (fields[i].kind == FIELD_OBJECT) continue;
+        PyObject *v = field_value(&fields[i], data);
+        if (!v || PyDict_SetItemString(d, fields[i].name, v) < 0) Py_CLEAR(d);
         Py_XDECREF(v);
     }
     return d;
@@ -477,7 +578,7 @@ static PyType_Spec View_spec = {"graspcore._core.View", sizeof(ViewObject), 0, P
 static int World_init(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
     gcWorldDef def = gc_default_world_def();
-    PyObject *given[MAX_PARAMS];
+    PyObject *given[MAX_FIELDS];
     if (!parse_params("World", args, kwargs, world_params, COUNT_OF(world_params), COUNT_OF(world_params), &def,
                       given))
         return -1;
@@ -507,7 +608,7 @@ static void World_dealloc(PyObject *obj) {
 static PyObject *World_add_body(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
     gcBodyDef def = gc_default_body_def();
-    PyObject *given[MAX_PARAMS];
+    PyObject *given[MAX_FIELDS];
     if (!parse_params("_add_body", args, kwargs, body_params, COUNT_OF(body_params), 2, &def, given)) return NULL;
     PyObject *parts = given[0], *radii = given[1];
     if (!parts || !radii) {
@@ -569,7 +670,7 @@ done:
 static PyObject *World_add_finger(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
     gcFingerDef def = gc_default_finger_def();
-    PyObject *given[MAX_PARAMS];
+    PyObject *given[MAX_FIELDS];
     if (!parse_params("add_finger", args, kwargs, finger_params, COUNT_OF(finger_params), COUNT_OF(finger_params),
                       &def, given) ||
         !check_ready(self))
@@ -904,7 +1005,7 @@ static PyObject *World_contacts(PyObject *obj, PyObject *unused) {
 static PyObject *World_start(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
     gcRuntimeDef def = gc_default_runtime_def();
-    PyObject *given[MAX_PARAMS];
+    PyObject *given[MAX_FIELDS];
     if (!parse_params("start", args, kwargs, runtime_params, COUNT_OF(runtime_params), 0, &def, given) ||
         !check_ready(self))
         return NULL;
@@ -1066,20 +1167,7 @@ static PyObject *World_stats(PyObject *obj, PyObject *unused) {
     gcRuntimeStats s;
     gcStatus st = gc_world_stats(self->world, &s);
     if (st < 0) return raise_status(self, st);
-    return Py_BuildValue(
-        "{s:N,s:N,s:N,s:s,s:d,s:d,s:d,s:K,s:K,s:d,s:d,s:d,s:d,s:d,s:d,s:K,s:K,s:K,s:i,s:K,s:K,s:K,s:K,s:K,s:K,s:N,s:d,s:d}",
-        "running", PyBool_FromLong(s.running), "realtime", PyBool_FromLong(s.realtime), "rt_priority",
-        PyBool_FromLong(s.rt_priority), "priority_note", s.priority_note, "haptic_rate", s.haptic_rate,
-        "object_rate", s.object_rate, "object_speed", s.object_speed, "haptic_ticks",
-        (unsigned long long)s.haptic_ticks, "object_ticks", (unsigned long long)s.object_ticks, "jitter_p50_us",
-        s.jitter_p50_us, "jitter_p99_us", s.jitter_p99_us, "jitter_max_us", s.jitter_max_us, "tick_max_us", s.tick_max_us, "tick_mean_us", s.tick_mean_us, "wake_max_us", s.wake_max_us, "overruns",
-        (unsigned long long)s.overruns, "late_periods", (unsigned long long)s.late_periods, "object_overruns",
-        (unsigned long long)s.object_overruns, "adopted_bodies", s.adopted_bodies, "accepted_inputs",
-        (unsigned long long)s.accepted_inputs, "rejected_inputs", (unsigned long long)s.rejected_inputs,
-        "watchdog_trips", (unsigned long long)s.watchdog_trips, "stale_inputs", (unsigned long long)s.stale_inputs,
-        "nonfinite_forces", (unsigned long long)s.nonfinite_forces, "stopped_bodies",
-        (unsigned long long)s.stopped_bodies, "forces_enabled",
-        PyBool_FromLong(s.forces_enabled), "haptic_time", s.haptic_time, "object_time", s.object_time);
+    return fields_dict(runtime_stats_fields, COUNT_OF(runtime_stats_fields), &s);
 }
 
 static PyObject *World_debug_stall(PyObject *obj, PyObject *arg) {
@@ -1370,9 +1458,9 @@ static PyObject *module_grasp_mu_min(PyObject *mod, PyObject *args) {
 
 static PyObject *World_attach_serial(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
-    static const Param fd_param = {"fd", PARAM_INT, 0, 0, 0};
+    static const Field fd_param = {"fd", FIELD_INT, 0, 0, 0, NULL};
     gcSerialDef def = gc_default_serial_def();
-    PyObject *given[MAX_PARAMS];
+    PyObject *given[MAX_FIELDS];
     int fd;
     if (!parse_params("attach_serial", args, kwargs, serial_params, COUNT_OF(serial_params), 1, &def, given))
         return NULL;
@@ -1380,7 +1468,7 @@ static PyObject *World_attach_serial(PyObject *obj, PyObject *args, PyObject *kw
         PyErr_SetString(PyExc_TypeError, "attach_serial() missing required argument 'fd'");
         return NULL;
     }
-    if (!set_param(&fd_param, given[0], &fd) || !check_world(self)) return NULL;
+    if (!set_field(&fd_param, given[0], &fd) || !check_world(self)) return NULL;
     int32_t id;
     gcStatus st = gc_world_attach_serial(self->world, fd, &def, &id);
     if (st < 0) return raise_status(self, st);
@@ -1427,13 +1515,6 @@ static PyObject *World_serial_estop(PyObject *obj, PyObject *args) {
     return serial_result(self, id, gc_world_serial_estop(self->world, id));
 }
 
-/* d[key] = v, taking v's reference; -1 (error set) when v is NULL or the insert fails. */
-static int set_stolen(PyObject *d, const char *key, PyObject *v) {
-    int r = v ? PyDict_SetItemString(d, key, v) : -1;
-    Py_XDECREF(v);
-    return r;
-}
-
 static PyObject *World_serial_stats(PyObject *obj, PyObject *args) {
     WorldObject *self = (WorldObject *)obj;
     int32_t id;
@@ -1441,31 +1522,7 @@ static PyObject *World_serial_stats(PyObject *obj, PyObject *args) {
     gcSerialStats s;
     gcStatus st = gc_world_serial_stats(self->world, id, &s);
     if (st < 0) return serial_result(self, id, st);
-    PyObject *errors = Py_BuildValue("{s:K,s:K,s:K,s:K,s:K,s:K,s:K,s:K}", "cobs", s.frame_errors[0], "short",
-                                     s.frame_errors[1], "crc", s.frame_errors[2], "version", s.frame_errors[3],
-                                     "type", s.frame_errors[4], "length", s.frame_errors[5], "overflow",
-                                     s.frame_errors[6], "range", s.frame_errors[7]);
-    if (!errors) return NULL;
-    PyObject *out = Py_BuildValue(
-        "{s:s,s:N,s:i,s:N,s:i,s:d,s:d,s:d,s:s,s:d,s:d,s:K,s:K,s:K,s:K,s:N,s:K,s:K,s:K,s:K,s:K,s:K,s:d,s:d,s:d,s:d,s:N}",
-        "state", enum_name(serial_state_names, COUNT_OF(serial_state_names), (int)s.state, GC_SERIAL_HANGUP), "enabled", PyBool_FromLong(s.enabled), "device_fingers", s.device_fingers,
-        "renders_forces", PyBool_FromLong(s.renders_forces), "units", s.units, "device_rate", s.device_rate,
-        "device_force_max", s.device_force_max, "device_ttl_max", s.device_ttl_max, "name", s.name, "pose_rate",
-        s.pose_rate, "last_pose_age", s.last_pose_age, "poses", (unsigned long long)s.poses, "forces_sent",
-        (unsigned long long)s.forces_sent, "heartbeats", (unsigned long long)s.heartbeats, "dropped",
-        (unsigned long long)s.dropped, "frame_errors", errors, "sequence_gaps", (unsigned long long)s.sequence_gaps,
-        "disconnects", (unsigned long long)s.disconnects, "estops", (unsigned long long)s.estops, "stall_zeroes",
-        (unsigned long long)s.stall_zeroes, "write_errors", (unsigned long long)s.write_errors, "push_rejected",
-        (unsigned long long)s.push_rejected, "latency_p50_us", s.latency_p50_us, "latency_p99_us", s.latency_p99_us,
-        "latency_max_us", s.latency_max_us, "gain", s.gain, "rt_priority", PyBool_FromLong(s.rt_priority));
-    if (out && (set_stolen(out, "late_poses", PyLong_FromUnsignedLongLong(s.late_poses)) < 0 ||
-                set_stolen(out, "duplicate_poses", PyLong_FromUnsignedLongLong(s.duplicate_poses)) < 0 ||
-                set_stolen(out, "foreign_datagrams", PyLong_FromUnsignedLongLong(s.foreign_datagrams)) < 0 ||
-                set_stolen(out, "peer", PyUnicode_FromString(s.peer)) < 0)) {
-        Py_DECREF(out);
-        return NULL;
-    }
-    return out;
+    return fields_dict(serial_stats_fields, COUNT_OF(serial_stats_fields), &s);
 }
 
 /* A device read in Python: (finger_offset, float64 buffer of xyz rows) handed to the core;
@@ -1605,33 +1662,38 @@ static PyType_Slot World_slots[] = {
 static PyType_Spec World_spec = {"graspcore._core.World", sizeof(WorldObject), 0,
                                  Py_TPFLAGS_DEFAULT | Py_TPFLAGS_BASETYPE, World_slots};
 
-/* The core's defaults (gc_default_*_def) and the names of its enums, the one place they are
- * written: graspcore's Python signatures and the add-on take theirs from these. */
-static int add_defaults(PyObject *m) {
+/* The core's defaults (gc_default_*_def), the one place they are written: graspcore's Python
+ * signatures and the add-on take theirs from these. Every table is checked against the
+ * binding's limits here, at import. */
+static int add_tables(PyObject *m) {
     gcWorldDef world = gc_default_world_def();
     gcBodyDef body = gc_default_body_def();
     gcFingerDef finger = gc_default_finger_def();
     gcRuntimeDef runtime = gc_default_runtime_def();
     gcSerialDef serial = gc_default_serial_def();
-    const struct { const char *name; const Param *params; int count; const void *def; } defaults[] = {
+    const struct { const char *name; const Field *fields; int count; const void *defaults; } tables[] = {
         {"WORLD_DEFAULTS", world_params, COUNT_OF(world_params), &world},
         {"BODY_DEFAULTS", body_params, COUNT_OF(body_params), &body},
         {"FINGER_DEFAULTS", finger_params, COUNT_OF(finger_params), &finger},
         {"RUNTIME_DEFAULTS", runtime_params, COUNT_OF(runtime_params), &runtime},
         {"SERIAL_DEFAULTS", serial_params, COUNT_OF(serial_params), &serial},
+        {"stats", runtime_stats_fields, COUNT_OF(runtime_stats_fields), NULL},
+        {"serial_stats", serial_stats_fields, COUNT_OF(serial_stats_fields), NULL},
     };
-    for (int i = 0; i < COUNT_OF(defaults); ++i) {
-        int fits = defaults[i].count <= MAX_PARAMS;
-        for (int j = 0; j < defaults[i].count; ++j) {
-            const Param *p = &defaults[i].params[j];
-            fits = fits && (p->n <= MAX_VEC || (p->kind != PARAM_VEC && p->kind != PARAM_OPT_VEC));
+    for (int i = 0; i < COUNT_OF(tables); ++i) {
+        int fits = tables[i].count <= MAX_FIELDS;
+        for (int j = 0; j < tables[i].count; ++j) {
+            const Field *f = &tables[i].fields[j];
+            int arrays = f->kind == FIELD_VEC || f->kind == FIELD_OPT_VEC || f->kind == FIELD_COUNTS;
+            fits = fits && (!arrays || f->n <= MAX_VEC);
         }
         if (!fits) {
-            PyErr_Format(PyExc_SystemError, "graspcore: the table of %s exceeds MAX_PARAMS or MAX_VEC", defaults[i].name);
+            PyErr_Format(PyExc_SystemError, "graspcore: the table of %s exceeds MAX_FIELDS or MAX_VEC", tables[i].name);
             return -1;
         }
-        PyObject *d = params_dict(defaults[i].params, defaults[i].count, defaults[i].def);
-        int r = d ? PyModule_AddObjectRef(m, defaults[i].name, d) : -1;
+        if (!tables[i].defaults) continue;
+        PyObject *d = fields_dict(tables[i].fields, tables[i].count, tables[i].defaults);
+        int r = d ? PyModule_AddObjectRef(m, tables[i].name, d) : -1;
         Py_XDECREF(d);
         if (r < 0) return -1;
     }
@@ -1651,7 +1713,7 @@ static int add_names(PyObject *m, const char *name, const char *const *names, in
 }
 
 static int module_exec(PyObject *m) {
-    if (add_defaults(m) < 0 ||
+    if (add_tables(m) < 0 ||
         add_names(m, "FINGER_STATES", finger_state_names, COUNT_OF(finger_state_names)) < 0 ||
         add_names(m, "RENDERERS", renderer_names, COUNT_OF(renderer_names)) < 0 ||
         add_names(m, "SERIAL_STATES", serial_state_names, COUNT_OF(serial_state_names)) < 0 ||
