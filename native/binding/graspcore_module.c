@@ -193,7 +193,7 @@ typedef struct Field {
 #define FIELD_NAMED(type, field, kind, names) {#field, FIELD_##kind, offsetof(type, field), COUNT_OF(names), 0, names}
 #define FIELD_ARGUMENT(name) {name, FIELD_OBJECT, 0, 0, 0, NULL}
 enum { MAX_FIELDS = 40, MAX_VEC = 16 }; /* rows of a table, numbers of a VEC (checked at import: add_tables) */
-_Static_assert(sizeof(gcFingerRenderer) == sizeof(int), "FIELD_ENUM reads an int");
+_Static_assert(sizeof(gcFingerRenderer) == sizeof(int) && sizeof(int32_t) == sizeof(int), "INT and ENUM read an int");
 
 static const char *const frame_error_names[] = {"cobs", "short", "crc", "version", "type", "length", "overflow",
                                                 "range"}; /* gcSerialStats.frame_errors */
@@ -339,6 +339,29 @@ static const Field serial_stats_fields[] = {
     FIELD(gcSerialStats, duplicate_poses, U64),
     FIELD(gcSerialStats, foreign_datagrams, U64),
     FIELD_TEXT(gcSerialStats, peer),
+};
+
+/* finger_contacts(finger): one dict per point of the patch (docs/api.md). */
+static const Field finger_contact_fields[] = {
+    FIELD(gcFingerContactPoint, body, INT),
+    FIELD(gcFingerContactPoint, sample, INT),
+    FIELD(gcFingerContactPoint, reversed, BOOL),
+    FIELD_NAMED(gcFingerContactPoint, state, ENUM, finger_state_names),
+    FIELD_N(gcFingerContactPoint, point, VEC, 3),
+    FIELD_N(gcFingerContactPoint, normal, VEC, 3),
+    FIELD_N(gcFingerContactPoint, force, VEC, 3),
+};
+
+/* contacts(): one dict per body-body contact point of the last step. */
+static const Field contact_fields[] = {
+    FIELD(gcContactPoint, body_a, INT),
+    FIELD(gcContactPoint, body_b, INT),
+    FIELD_N(gcContactPoint, point, VEC, 3),
+    FIELD_N(gcContactPoint, normal, VEC, 3),
+    FIELD(gcContactPoint, separation, DOUBLE),
+    FIELD(gcContactPoint, normal_impulse, DOUBLE),
+    FIELD_N(gcContactPoint, friction_impulse, VEC, 3),
+    FIELD(gcContactPoint, sticking, BOOL),
 };
 
 /* A TypeError naming the parameter, what it wants and what it got; 0. */
@@ -527,6 +550,16 @@ static PyObject *fields_dict(const Field *fields, int count, const void *data) {
         Py_XDECREF(v);
     }
     return d;
+}
+
+/* n structs of item_size bytes as a list of dicts. */
+static PyObject *fields_list(const Field *fields, int count, const void *items, size_t item_size, int n) {
+    PyObject *list = PyList_New(n);
+    for (int i = 0; list && i < n; ++i) {
+        PyObject *d = fields_dict(fields, count, (const char *)items + item_size * (size_t)i);
+        if (!d || PyList_SetItem(list, i, d) < 0) Py_CLEAR(list);
+    }
+    return list;
 }
 
 /* ---- View: a read-only (rows, cols) float64 buffer into world storage ------------- */
@@ -878,27 +911,8 @@ static PyObject *World_finger_contacts(PyObject *obj, PyObject *args) {
     int n = 0;
     gcStatus st = gc_world_finger_contacts(self->world, finger, points, 64, &n);
     if (st < 0) return raise_status(self, st);
-    if (n > 64) n = 64;
-    PyObject *list = PyList_New(n);
-    if (!list) return NULL;
-    for (int i = 0; i < n; ++i) {
-        const gcFingerContactPoint *c = &points[i];
-        PyObject *d = Py_BuildValue("{s:i,s:i,s:O,s:s,s:(ddd),s:(ddd),s:(ddd)}", "body", c->body, "sample",
-                                    c->sample, "reversed", c->reversed ? Py_True : Py_False, "state",
-                                    enum_name(finger_state_names, COUNT_OF(finger_state_names), (int)c->state, 0),
-                                    "point", c->point[0], c->point[1], c->point[2], "normal",
-                                    c->normal[0], c->normal[1], c->normal[2], "force", c->force[0], c->force[1],
-                                    c->force[2]);
-        if (!d) {
-            Py_DECREF(list);
-            return NULL;
-        }
-        if (PyList_SetItem(list, i, d) < 0) {
-            Py_DECREF(list);
-            return NULL;
-        }
-    }
-    return list;
+    return fields_list(finger_contact_fields, COUNT_OF(finger_contact_fields), points, sizeof points[0],
+                       n < 64 ? n : 64);
 }
 
 static PyObject *World_set_hips(PyObject *obj, PyObject *arg) {
@@ -976,25 +990,11 @@ static PyObject *World_contacts(PyObject *obj, PyObject *unused) {
     WorldObject *self = (WorldObject *)obj;
     if (!check_ready(self)) return NULL;
     int n = gc_world_contacts(self->world, NULL, 0);
-    gcContactPoint *pts = PyMem_Malloc(sizeof(gcContactPoint) * (size_t)(n > 0 ? n : 1));
-    if (!pts) return PyErr_NoMemory();
-    n = gc_world_contacts(self->world, pts, n);
-    PyObject *list = PyList_New(n);
-    for (int i = 0; list && i < n; ++i) {
-        const gcContactPoint *p = &pts[i];
-        PyObject *item = Py_BuildValue(
-            "{s:i,s:i,s:(ddd),s:(ddd),s:d,s:d,s:(ddd),s:O}", "body_a", (int)p->body_a, "body_b", (int)p->body_b,
-            "point", p->point[0], p->point[1], p->point[2], "normal", p->normal[0], p->normal[1], p->normal[2],
-            "separation", p->separation, "normal_impulse", p->normal_impulse, "friction_impulse",
-            p->friction_impulse[0], p->friction_impulse[1], p->friction_impulse[2], "sticking",
-            p->sticking ? Py_True : Py_False);
-        if (!item) {
-            Py_CLEAR(list);
-            break;
-        }
-        PyList_SetItem(list, i, item);
-    }
-    PyMem_Free(pts);
+    gcContactPoint *points = PyMem_Malloc(sizeof(gcContactPoint) * (size_t)(n > 0 ? n : 1));
+    if (!points) return PyErr_NoMemory();
+    n = gc_world_contacts(self->world, points, n);
+    PyObject *list = fields_list(contact_fields, COUNT_OF(contact_fields), points, sizeof points[0], n);
+    PyMem_Free(points);
     return list;
 }
 
@@ -1679,6 +1679,8 @@ static int add_tables(PyObject *m) {
         {"SERIAL_DEFAULTS", serial_params, COUNT_OF(serial_params), &serial},
         {"stats", runtime_stats_fields, COUNT_OF(runtime_stats_fields), NULL},
         {"serial_stats", serial_stats_fields, COUNT_OF(serial_stats_fields), NULL},
+        {"finger_contacts", finger_contact_fields, COUNT_OF(finger_contact_fields), NULL},
+        {"contacts", contact_fields, COUNT_OF(contact_fields), NULL},
     };
     for (int i = 0; i < COUNT_OF(tables); ++i) {
         int fits = tables[i].count <= MAX_FIELDS;

@@ -289,3 +289,23 @@ def test_serial_stats_has_every_field_of_the_core():
     assert list(stats) == struct_fields("gcSerialStats")
     assert list(stats["frame_errors"]) == ["cobs", "short", "crc", "version", "type", "length", "overflow", "range"]
     assert stats["state"] in graspcore.SERIAL_STATES and isinstance(stats["enabled"], bool)
+
+
+def test_contact_dicts_have_every_field_of_the_core():
+    """contacts() and finger_contacts() carry each field of gcContactPoint and
+    gcFingerContactPoint, in the header's order, as the types the fields mean."""
+    w = graspcore.World()
+    w.add_body(box_points(0.2, 0.2, 0.01), static=True)
+    box = w.add_body(box_points(0.02, 0.02, 0.02), mass=0.1, position=(0, 0, 0.0299))
+    w.add_finger(radius=0.005, position=(0.0, 0, 0.0549))
+    w.set_hip(0, (0.0, 0, 0.047))
+    w.step(1e-3, steps=5)
+    contacts, patch = w.contacts(), w.finger_contacts(0)
+    assert contacts and patch
+    assert list(contacts[0]) == struct_fields("gcContactPoint")
+    assert list(patch[0]) == struct_fields("gcFingerContactPoint")
+    c, p = contacts[0], patch[0]
+    assert (c["body_a"], c["body_b"]) == (0, box) and isinstance(c["sticking"], bool)
+    assert len(c["friction_impulse"]) == 3 and c["normal"] == pytest.approx((0, 0, 1), abs=1e-5)
+    assert p["body"] == box and p["state"] in graspcore.FINGER_STATES and p["reversed"] is False
+    assert p["normal"] == pytest.approx((0, 0, 1), abs=1e-5) and p["force"][2] > 0
