@@ -364,6 +364,19 @@ static const Field contact_fields[] = {
     FIELD(gcContactPoint, sticking, BOOL),
 };
 
+/* _grasp_quality(...) -> dict; _grasp_quality_batch fills gcGraspQuality records, which
+ * graspcore reads through GRASP_QUALITY_FIELDS (the same rows as a layout). */
+static const Field grasp_quality_fields[] = {
+    FIELD(gcGraspQuality, force_closure, BOOL),
+    FIELD(gcGraspQuality, force_only_closure, BOOL),
+    FIELD(gcGraspQuality, torque_closure, BOOL),
+    FIELD(gcGraspQuality, epsilon, DOUBLE),
+    FIELD(gcGraspQuality, volume, DOUBLE),
+    FIELD_N(gcGraspQuality, weakest, VEC, 6),
+    FIELD(gcGraspQuality, rank, INT),
+    FIELD(gcGraspQuality, facets, INT),
+};
+
 /* A TypeError naming the parameter, what it wants and what it got; 0. */
 static int wrong_type(const char *name, const char *want, PyObject *value) {
     PyObject *got = PyType_GetName(Py_TYPE(value));
@@ -550,6 +563,26 @@ static PyObject *fields_dict(const Field *fields, int count, const void *data) {
         Py_XDECREF(v);
     }
     return d;
+}
+
+/* A table as a layout for numpy: ((name, kind, byte offset, count), ...), kind "double", "int"
+ * (int32), "bool" (an int32 0/1) or "u64"; count 1 but for a VEC. */
+static PyObject *fields_layout(const Field *fields, int count) {
+    static const char *const kinds[] = {[FIELD_DOUBLE] = "double", [FIELD_INT] = "int", [FIELD_BOOL] = "bool",
+                                        [FIELD_U64] = "u64", [FIELD_VEC] = "double"};
+    PyObject *t = PyTuple_New(count);
+    for (int i = 0; t && i < count; ++i) {
+        const Field *f = &fields[i];
+        if ((size_t)f->kind >= sizeof kinds / sizeof kinds[0] || !kinds[f->kind]) {
+            PyErr_Format(PyExc_SystemError, "%s: no numpy layout for its kind", f->name);
+            Py_CLEAR(t);
+            break;
+        }
+        PyObject *row = Py_BuildValue("(ssni)", f->name, kinds[f->kind], (Py_ssize_t)f->offset,
+                                      f->kind == FIELD_VEC ? f->n : 1);
+        if (!row || PyTuple_SetItem(t, i, row) < 0) Py_CLEAR(t);
+    }
+    return t;
 }
 
 /* n structs of item_size bytes as a list of dicts. */
@@ -1338,14 +1371,6 @@ static gcGraspDef grasp_def(int edges, int volume, int reuse) {
     return def;
 }
 
-static PyObject *grasp_quality_dict(const gcGraspQuality *q) {
-    return Py_BuildValue("{s:O,s:O,s:O,s:d,s:d,s:(dddddd),s:i,s:i}", "force_closure",
-                         q->force_closure ? Py_True : Py_False, "force_only_closure",
-                         q->force_only_closure ? Py_True : Py_False, "torque_closure",
-                         q->torque_closure ? Py_True : Py_False, "epsilon", q->epsilon, "volume", q->volume, "weakest",
-                         q->weakest[0], q->weakest[1], q->weakest[2], q->weakest[3], q->weakest[4], q->weakest[5],
-                         "rank", (int)q->rank, "facets", (int)q->facets);
-}
 
 /* _grasp_quality(points, normals, mu, center, radius, edges, volume, reuse): float64 buffers of 3n,
  * 3n, n, 3; volume and reuse bools (gcGraspDef.volume, .reuse). */
@@ -1370,7 +1395,7 @@ static PyObject *module_grasp_quality(PyObject *mod, PyObject *args) {
                 Py_BEGIN_ALLOW_THREADS
                 st = gc_grasp_quality(ws, &def, g.b[1].buf, g.b[2].buf, g.b[0].buf, (int)n, g.b[3].buf, radius, &q);
                 Py_END_ALLOW_THREADS
-                result = st < 0 ? raise_message(st, gc_grasp_workspace_error(ws)) : grasp_quality_dict(&q);
+                result = st < 0 ? raise_message(st, gc_grasp_workspace_error(ws)) : fields_dict(grasp_quality_fields, COUNT_OF(grasp_quality_fields), &q);
                 workspace_give(ws);
             }
         }
@@ -1681,7 +1706,12 @@ static int add_tables(PyObject *m) {
         {"serial_stats", serial_stats_fields, COUNT_OF(serial_stats_fields), NULL},
         {"finger_contacts", finger_contact_fields, COUNT_OF(finger_contact_fields), NULL},
         {"contacts", contact_fields, COUNT_OF(contact_fields), NULL},
+        {"grasp_quality", grasp_quality_fields, COUNT_OF(grasp_quality_fields), NULL},
     };
+    PyObject *layout = fields_layout(grasp_quality_fields, COUNT_OF(grasp_quality_fields));
+    int r = layout ? PyModule_AddObjectRef(m, "GRASP_QUALITY_FIELDS", layout) : -1;
+    Py_XDECREF(layout);
+    if (r < 0) return -1;
     for (int i = 0; i < COUNT_OF(tables); ++i) {
         int fits = tables[i].count <= MAX_FIELDS;
         for (int j = 0; j < tables[i].count; ++j) {
@@ -1695,7 +1725,7 @@ static int add_tables(PyObject *m) {
         }
         if (!tables[i].defaults) continue;
         PyObject *d = fields_dict(tables[i].fields, tables[i].count, tables[i].defaults);
-        int r = d ? PyModule_AddObjectRef(m, tables[i].name, d) : -1;
+        r = d ? PyModule_AddObjectRef(m, tables[i].name, d) : -1;
         Py_XDECREF(d);
         if (r < 0) return -1;
     }

@@ -309,3 +309,19 @@ def test_contact_dicts_have_every_field_of_the_core():
     assert len(c["friction_impulse"]) == 3 and c["normal"] == pytest.approx((0, 0, 1), abs=1e-5)
     assert p["body"] == box and p["state"] in graspcore.FINGER_STATES and p["reversed"] is False
     assert p["normal"] == pytest.approx((0, 0, 1), abs=1e-5) and p["force"][2] > 0
+
+
+def test_grasp_quality_record_is_the_cores():
+    """grasp_quality's dict and grasp_quality_batch's records carry each field of
+    gcGraspQuality (but its padding, `reserved`) at the core's offsets: the batch's rows are the
+    single calls' answers, field for field."""
+    assert set(graspcore.GRASP_QUALITY_DTYPE.names) == set(struct_fields("gcGraspQuality")) - {"reserved"}
+    points = np.array([[0.03, 0, 0], [-0.03, 0.01, 0], [-0.03, -0.01, 0], [0, 0.03, 0.005]])
+    normals = -points / np.linalg.norm(points, axis=1, keepdims=True)
+    single = graspcore.grasp_quality(points, normals, 0.5, center=(0, 0, 0), radius=0.03)
+    batch = graspcore.grasp_quality_batch(np.vstack([points, points[:3]]), np.vstack([normals, normals[:3]]), 0.5,
+                                          [4, 3], centers=[(0, 0, 0)] * 2, radii=[0.03, 0.03])
+    assert set(single) == set(graspcore.GRASP_QUALITY_DTYPE.names)
+    for name in graspcore.GRASP_QUALITY_DTYPE.names:
+        assert np.array_equal(np.asarray(batch[0][name]), np.asarray(single[name])), name
+    assert single["force_closure"] and single["rank"] == 6 and single["epsilon"] > 0

@@ -11,8 +11,8 @@ import numpy as np
 from . import _core
 
 __all__ = ["World", "FINGER_STATES", "RENDERERS", "SERIAL_STATES", "SERIAL_EVENTS", "WORLD_DEFAULTS",
-           "BODY_DEFAULTS", "FINGER_DEFAULTS", "RUNTIME_DEFAULTS", "SERIAL_DEFAULTS", "TICK_FORCES_ENABLED", "tick_dtype", "grasp_quality",
-           "grasp_quality_batch", "grasp_mu_min", "GRASP_QUALITY_DTYPE"]
+           "BODY_DEFAULTS", "FINGER_DEFAULTS", "RUNTIME_DEFAULTS", "SERIAL_DEFAULTS", "TICK_FORCES_ENABLED",
+           "tick_dtype", "grasp_quality", "grasp_quality_batch", "grasp_mu_min", "GRASP_QUALITY_DTYPE"]
 
 # The core's own defaults (gc_default_*_def), not copies: one entry per keyword argument of
 # World(), add_body, add_finger, start and attach_serial.
@@ -301,16 +301,18 @@ class World(_core.World):
 
 # ---- Grasp quality (docs/api.md "Grasp quality"): the grasp wrench space of point contacts.
 
-# The core's gcGraspQuality record, and the structured array grasp_quality_batch returns.
-_GRASP_RECORD = np.dtype([
-    ("force_closure", "<i4"), ("force_only_closure", "<i4"), ("torque_closure", "<i4"), ("rank", "<i4"),
-    ("facets", "<i4"), ("reserved", "<i4"), ("epsilon", "<f8"), ("volume", "<f8"), ("weakest", "<f8", (6,)),
-])
-if _GRASP_RECORD.itemsize != _core.GRASP_QUALITY_SIZE:
-    raise RuntimeError("graspcore: gcGraspQuality does not match the core (rebuild the core)")
+# The core's gcGraspQuality record (its fields' offsets from the binding's table), and the
+# structured array grasp_quality_batch returns (closures as bools).
+_KINDS = {"double": ("<f8", "<f8"), "int": ("<i4", "<i4"), "bool": ("<i4", "?"), "u64": ("<u8", "<u8")}
+_GRASP_RECORD = np.dtype({
+    "names": [name for name, _, _, _ in _core.GRASP_QUALITY_FIELDS],
+    "formats": [(_KINDS[kind][0], (n,)) if n > 1 else _KINDS[kind][0]
+                for _, kind, _, n in _core.GRASP_QUALITY_FIELDS],
+    "offsets": [offset for _, _, offset, _ in _core.GRASP_QUALITY_FIELDS],
+    "itemsize": _core.GRASP_QUALITY_SIZE,
+})
 GRASP_QUALITY_DTYPE = np.dtype([
-    ("force_closure", "?"), ("force_only_closure", "?"), ("torque_closure", "?"), ("epsilon", "<f8"),
-    ("volume", "<f8"), ("weakest", "<f8", (6,)), ("rank", "<i4"), ("facets", "<i4"),
+    (name, (_KINDS[kind][1], (n,)) if n > 1 else _KINDS[kind][1]) for name, kind, _, n in _core.GRASP_QUALITY_FIELDS
 ])
 
 
