@@ -1,7 +1,9 @@
 /* graspcore._core: the one CPython binding of the C core, for the stable ABI (3.11+).
  * Thin on purpose: argument conversion, status -> exception, GIL released while stepping,
- * zero-copy array views through the buffer protocol. Friendlier argument handling
- * (numpy conversion, keyword defaults) lives in graspcore/__init__.py. */
+ * zero-copy array views through the buffer protocol. What repeats is written once as a table:
+ * keyword parameters, stats and contact dicts (Field rows), accessors (X-macro rows), enum
+ * names; docs/architecture.md "Binding" says how to add to each. Friendlier argument handling
+ * (numpy conversion, inertia forms) lives in graspcore/__init__.py. */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
