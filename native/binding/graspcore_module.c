@@ -1734,6 +1734,24 @@ static int add_tables(PyObject *m) {
     return 0;
 }
 
+/* The tick record's layout (gc_tick_record_fields): ((name, numpy type, "once" | "finger" |
+ * "body", count), ...) in record order; graspcore.tick_dtype is built from it. */
+static int add_tick_fields(PyObject *m) {
+    static const char *const scopes[] = {[GC_TICK_ONCE] = "once", [GC_TICK_PER_FINGER] = "finger",
+                                         [GC_TICK_PER_BODY] = "body"};
+    const gcTickField *fields;
+    int n = gc_tick_record_fields(&fields);
+    PyObject *t = PyTuple_New(n);
+    for (int i = 0; t && i < n; ++i) {
+        PyObject *row = Py_BuildValue("(sssi)", fields[i].name, fields[i].type,
+                                      enum_name(scopes, COUNT_OF(scopes), (int)fields[i].scope, 0), fields[i].count);
+        if (!row || PyTuple_SetItem(t, i, row) < 0) Py_CLEAR(t);
+    }
+    int r = t ? PyModule_AddObjectRef(m, "TICK_FIELDS", t) : -1;
+    Py_XDECREF(t);
+    return r;
+}
+
 /* A tuple of an enum's names, indexed by its values. */
 static int add_names(PyObject *m, const char *name, const char *const *names, int count) {
     PyObject *t = PyTuple_New(count);
@@ -1747,7 +1765,7 @@ static int add_names(PyObject *m, const char *name, const char *const *names, in
 }
 
 static int module_exec(PyObject *m) {
-    if (add_tables(m) < 0 ||
+    if (add_tables(m) < 0 || add_tick_fields(m) < 0 ||
         add_names(m, "FINGER_STATES", finger_state_names, COUNT_OF(finger_state_names)) < 0 ||
         add_names(m, "RENDERERS", renderer_names, COUNT_OF(renderer_names)) < 0 ||
         add_names(m, "SERIAL_STATES", serial_state_names, COUNT_OF(serial_state_names)) < 0 ||

@@ -36,13 +36,49 @@ struct gcTickLog {
     pthread_mutex_t drain_mutex;  /* among drain callers; the producer never takes it */
 };
 
-/* Field offsets inside a record (all little-endian; the f64 arrays first, then the i32). */
-enum { REC_HEADER = 52 };
+/* The record's fields in order (graspcore.h, docs/recording-format.md): what readers build
+ * their layout from and the size is summed from; fill_record writes them in this order. */
+static const gcTickField tick_fields[] = {
+    {"tick", "<u8", 8, GC_TICK_ONCE, 1},
+    {"time", "<f8", 8, GC_TICK_ONCE, 1},
+    {"object_time", "<f8", 8, GC_TICK_ONCE, 1},
+    {"state_hash", "<u8", 8, GC_TICK_ONCE, 1},
+    {"period_us", "<f4", 4, GC_TICK_ONCE, 1},
+    {"work_us", "<f4", 4, GC_TICK_ONCE, 1},
+    {"flags", "<u4", 4, GC_TICK_ONCE, 1},
+    {"adopted", "<u4", 4, GC_TICK_ONCE, 1},
+    {"log_us", "<f4", 4, GC_TICK_ONCE, 1},
+    {"hip", "<f8", 8, GC_TICK_PER_FINGER, 3},
+    {"god_object", "<f8", 8, GC_TICK_PER_FINGER, 3},
+    {"force", "<f8", 8, GC_TICK_PER_FINGER, 3},
+    {"device_force", "<f8", 8, GC_TICK_PER_FINGER, 3},
+    {"normal", "<f8", 8, GC_TICK_PER_FINGER, 3},
+    {"pose", "<f8", 8, GC_TICK_PER_BODY, 7},
+    {"velocity", "<f8", 8, GC_TICK_PER_BODY, 6},
+    {"wrench", "<f8", 8, GC_TICK_PER_BODY, 6},
+    {"state", "<i4", 4, GC_TICK_PER_FINGER, 1},
+    {"contact", "<i4", 4, GC_TICK_PER_FINGER, 1},
+    {"parts", "<u4", 4, GC_TICK_PER_FINGER, 1},
+    {"orientation", "<f8", 8, GC_TICK_PER_FINGER, 4},
+};
+enum { REC_HEADER = 52 }; /* the GC_TICK_ONCE fields */
+
+int gc_tick_record_fields(const gcTickField **fields) {
+    if (fields) *fields = tick_fields;
+    return (int)(sizeof tick_fields / sizeof tick_fields[0]);
+}
 
 size_t gc_tick_record_size(int num_bodies, int num_fingers) {
     if (num_bodies < 0 || num_fingers < 0) return 0;
-    return REC_HEADER + sizeof(double) * (15 * (size_t)num_fingers + 19 * (size_t)num_bodies) +
-           sizeof(int32_t) * 3 * (size_t)num_fingers + sizeof(double) * 4 * (size_t)num_fingers;
+    size_t size = 0;
+    for (size_t i = 0; i < sizeof tick_fields / sizeof tick_fields[0]; ++i) {
+        const gcTickField *f = &tick_fields[i];
+        size_t units = f->scope == GC_TICK_PER_FINGER ? (size_t)num_fingers
+                       : f->scope == GC_TICK_PER_BODY ? (size_t)num_bodies
+                                                      : 1;
+        size += units * (size_t)f->count * (size_t)f->size;
+    }
+    return size;
 }
 
 #define FNV_PRIME 1099511628211ull

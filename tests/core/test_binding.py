@@ -311,3 +311,17 @@ def test_grasp_quality_record_is_the_cores():
     for name in graspcore.GRASP_QUALITY_DTYPE.names:
         assert np.array_equal(np.asarray(batch[0][name]), np.asarray(single[name])), name
     assert single["force_closure"] and single["rank"] == 6 and single["epsilon"] > 0
+
+
+def test_tick_fields_are_the_documented_record():
+    """The core's table of tick record fields (TICK_FIELDS, which tick_dtype is built from and
+    the record size summed from) is the table of docs/recording-format.md, field for field:
+    name, type and shape, in order."""
+    doc = (HEADER.parents[2] / "docs" / "recording-format.md").read_text()
+    rows = re.findall(r"^\| `(\w+)` \| ([uif]\d\d)(?: \(([FB])(?:, (\d+))?\))? \|", doc, re.M)
+    types = {"u64": "<u8", "f64": "<f8", "f32": "<f4", "u32": "<u4", "i32": "<i4"}
+    scopes = {"": "once", "F": "finger", "B": "body"}
+    documented = [(name, types[t], scopes[scope], int(count or 1)) for name, t, scope, count in rows]
+    assert documented == list(graspcore._core.TICK_FIELDS)
+    nb, nf = 3, 4
+    assert graspcore.tick_dtype(nb, nf).itemsize == 52 + 8 * (19 * nf + 19 * nb) + 12 * nf   # the doc's sum

@@ -34,16 +34,15 @@ SERIAL_EVENTS = _core.SERIAL_EVENTS
 
 
 def tick_dtype(num_bodies: int, num_fingers: int) -> np.dtype:
-    """The numpy dtype of one tick log record (graspcore.h, docs/recording-format.md)."""
+    """The numpy dtype of one tick log record (graspcore.h, docs/recording-format.md), built
+    from the core's table of its fields (``_core.TICK_FIELDS``)."""
     nb, nf = int(num_bodies), int(num_fingers)
-    dtype = np.dtype([
-        ("tick", "<u8"), ("time", "<f8"), ("object_time", "<f8"), ("state_hash", "<u8"),
-        ("period_us", "<f4"), ("work_us", "<f4"), ("flags", "<u4"), ("adopted", "<u4"), ("log_us", "<f4"),
-        ("hip", "<f8", (nf, 3)), ("god_object", "<f8", (nf, 3)), ("force", "<f8", (nf, 3)),
-        ("device_force", "<f8", (nf, 3)), ("normal", "<f8", (nf, 3)), ("pose", "<f8", (nb, 7)), ("velocity", "<f8", (nb, 6)),
-        ("wrench", "<f8", (nb, 6)), ("state", "<i4", (nf,)), ("contact", "<i4", (nf,)), ("parts", "<u4", (nf,)),
-        ("orientation", "<f8", (nf, 4)),
-    ])
+    units = {"finger": (nf,), "body": (nb,)}
+    fields = []
+    for name, type_, scope, count in _core.TICK_FIELDS:
+        shape = units.get(scope, ()) + ((count,) if count > 1 else ())
+        fields.append((name, type_, shape) if shape else (name, type_))
+    dtype = np.dtype(fields)
     if dtype.itemsize != _core.tick_record_size(nb, nf):
         raise RuntimeError("graspcore.tick_dtype does not match the core's record layout (rebuild the core)")
     return dtype
