@@ -1,7 +1,7 @@
 """Body, finger and runtime defaults and the names of the core's enums: the core's own
 (``gc_default_body_def`` / ``gc_default_finger_def`` / ``gc_default_runtime_def``, exposed as
-``graspcore.BODY_DEFAULTS`` / ``FINGER_DEFAULTS`` / ``RUNTIME_DEFAULTS``; ``graspcore.RENDERERS``,
-``FINGER_STATES``), read from the core rather than written again here."""
+``graspcore.BODY_DEFAULTS`` / ``FINGER_DEFAULTS`` / ``RUNTIME_DEFAULTS``; ``graspcore.RENDERERS``),
+read from the core rather than written again here."""
 from __future__ import annotations
 
 from ..core_loader import load
@@ -27,10 +27,3 @@ def renderer() -> str:
 def renderers() -> tuple[str, ...]:
     """Every finger renderer the core has, by name."""
     return tuple(load().RENDERERS)
-
-
-def finger_state_name(state: int) -> str:
-    """A finger state as recorded (the core's gcFingerState): its name, or the number when the
-    core has no such state."""
-    names = load().FINGER_STATES
-    return names[state] if 0 <= state < len(names) else str(state)

@@ -9,8 +9,7 @@ import zipfile
 import numpy as np
 
 from .outputs import AtomicFile
-from . import defaults
-from .recording import Recording
+from .recording import STATE_NAMES, Recording
 
 BODY_COLUMNS = ["time", "body", "x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz",
                 "fx", "fy", "fz", "tx", "ty", "tz"]
@@ -76,7 +75,7 @@ def _write_csv(rec, ticks, bodies, fingers, events):
         for f, name in enumerate(rec.finger_names):
             s = int(ticks["state"][k, f])
             c = int(ticks["contact"][k, f])
-            fingers.writerow([ts, name, *_fmt(values[k, f]), defaults.finger_state_name(s),
+            fingers.writerow([ts, name, *_fmt(values[k, f]), STATE_NAMES[s] if 0 <= s < 3 else str(s),
                               rec.body_names[c] if 0 <= c < len(rec.body_names) else ""])
     events.writerow(EVENT_COLUMNS)
     for e in _events_by_time(rec):

@@ -12,7 +12,8 @@ import time
 
 import numpy as np
 
-from . import analysis, defaults
+from . import analysis
+from .recording import STATE_NAMES
 
 FREE_COLOR = (0.10, 0.45, 1.00, 1.0)     # a god-object touching nothing: the god-object blue
 # Friction use |Ft| / (mu |Fn|): 0 green (far from slip), 0.5 yellow, 1 red (at slip).
@@ -115,7 +116,7 @@ def grasp_lines(grasps, body_names, finger_names) -> list:
         if g.min_slip_finger >= 0:
             lines.append(f"  slip margin {_keep(f'{g.min_slip_margin:.2f} N')} at "
                          f"{_keep(finger_names[g.min_slip_finger])}")
-        fingers = [_keep(f"{finger_names[c.finger]} {defaults.finger_state_name(c.state)} "
+        fingers = [_keep(f"{finger_names[c.finger]} {STATE_NAMES[c.state] if 0 <= c.state < 3 else c.state} "
                          f"{_percent(c.friction_use)}") for c in g.contacts]
         lines.append("  " + "   ".join(fingers))
     return lines

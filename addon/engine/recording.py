@@ -28,7 +28,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import defaults
 from .outputs import AtomicFile, uninterrupted
 
 FORMAT_VERSION = 1
@@ -43,6 +42,7 @@ JSON_SCHEMA = {"type": "object"}
 FLUSH_INTERVAL = 0.1        # s: at most this much of a session is lost to a kill -9
 FLUSH_MARGIN = 0.02         # s: the recorder thread flushes this early (it may wake late: GIL, load)
 BLOCK_TICKS = 256           # ticks per message at most
+STATE_NAMES = ("free", "stick", "slip")  # the file's state codes: graspcore.FINGER_STATES (test_recording.py)
 UNITS = {"length": "m", "mass": "kg", "time": "s", "force": "N", "torque": "N m",
          "velocity": "m/s", "angular_velocity": "rad/s (world)", "orientation": "quaternion w x y z",
          "stiffness": "N/m", "damping": "N s/m", "rate": "Hz", "period_us": "us", "work_us": "us"}
@@ -54,7 +54,7 @@ COMPRESSIONS = ("lz4", "zstd", "none")   # lz4 by default: 3x faster to read bac
 # fields every reader needs:
 REQUIRED_FIELDS = ("tick", "time", "object_time", "state_hash", "period_us", "work_us", "flags", "adopted",
                    "log_us")
-FLAG_FORCES_ENABLED = 1    # graspcore.TICK_FORCES_ENABLED (checked by tests/blender/test_recording.py)
+FLAG_FORCES_ENABLED = 1  # the file's flags bit: graspcore.TICK_FORCES_ENABLED (test_recording.py)
 
 
 class RecordingError(ValueError):
@@ -387,9 +387,9 @@ class EventDetector:
         for k, f in zip(*np.nonzero(s2[1:] != s2[:-1])):
             now = int(s2[k + 1, f])
             if now in (1, 2):
-                name = defaults.finger_state_name(now)
+                name = STATE_NAMES[now]
                 yield (int(ticks[k]), float(times[k]), name, self.fingers[f],
-                       f"{defaults.finger_state_name(int(s2[k, f]))} -> {name}")
+                       f"{STATE_NAMES[int(s2[k, f])] if 0 <= s2[k, f] < 3 else s2[k, f]} -> {name}")
         for k, f in zip(*np.nonzero(k2[1:] != k2[:-1])):
             kind = "clamp_begin" if k2[k + 1, f] else "clamp_end"
             yield (int(ticks[k]), float(times[k]), kind, self.fingers[f], f"max_force {self.max_force} N")

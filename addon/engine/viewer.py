@@ -21,8 +21,7 @@ import numpy as np
 
 from . import analysis
 from .measures import body_grip, finger_measures
-from . import defaults
-from .recording import Recording
+from .recording import STATE_NAMES, Recording
 from .runner import quat_rotate
 
 WORLD_FRAME = "world"
@@ -289,7 +288,7 @@ def frames_of(model: SceneModel, rec, ticks: np.ndarray, times, normals: bool = 
         pen = penetration[k].tolist()
         fingers = [{"time": t, "force": {"x": f[j][0], "y": f[j][1], "z": f[j][2]},
                     **{key: v[j] for key, v in meas.items()},
-                    "state": st[j], "state_name": defaults.finger_state_name(int(st[j])),
+                    "state": st[j], "state_name": STATE_NAMES[st[j]] if 0 <= st[j] < 3 else str(st[j]),
                     "contact": cn[j], "penetration": pen[j]} for j in range(len(st))]
         p, g, rf, rt = pose[k].tolist(), grip[k].tolist(), res_force[k].tolist(), res_torque[k].tolist()
         ic, sl = in_contact[k].tolist(), slipping[k].tolist()
@@ -403,7 +402,7 @@ class FoxgloveChannels:
             go, hip = fr.god_object[j], fr.hip[j]
             entities.append(fm.SceneEntity(
                 timestamp=stamp, frame_id=WORLD_FRAME, id=f"finger/{name}",
-                metadata=[fm.KeyValuePair(key="state", value=defaults.finger_state_name(int(s)))],
+                metadata=[fm.KeyValuePair(key="state", value=STATE_NAMES[s] if 0 <= s < 3 else str(s))],
                 spheres=[fm.SpherePrimitive(pose=self._pose(go), size=self._go_size[j], color=colors["go"]),
                          fm.SpherePrimitive(pose=self._pose(hip), size=self._hip_size, color=colors["hip"])],
                 lines=[fm.LinePrimitive(type=self._strip, pose=self._origin, thickness=SPRING_WIDTH,
