@@ -161,12 +161,13 @@ static const char *enum_name(const char *const *names, int count, int i, int fal
 }
 
 /* ---- Fields: the keyword arguments of World(), add_finger, _add_body, start and
- * attach_serial, and the dicts of stats(), serial_stats(), one table row each ---------------
+ * attach_serial; the dicts of stats(), serial_stats(), contacts(), finger_contacts() and
+ * grasp_quality(); one table row each ----------------------------------------------------------
  * A row names a field of a core struct and how Python sees it. parse_params reads a call's
  * positional and keyword arguments into the definition the core's gc_default_*_def filled;
- * fields_dict turns a struct into a dict: the stats, and the definitions' defaults exported as
- * WORLD_DEFAULTS, BODY_DEFAULTS, ... so Python never types a default twice. Adding a parameter
- * or a stats entry is one row (docs/architecture.md). */
+ * fields_dict turns a struct into a dict: the results, and the definitions' defaults exported
+ * as WORLD_DEFAULTS, BODY_DEFAULTS, ... so Python never types a default twice. Adding a
+ * parameter or a result's entry is one row (docs/architecture.md). */
 typedef enum FieldKind {
     FIELD_DOUBLE,  /* double, from any real number */
     FIELD_INT,     /* int, from an integer in C int range */
@@ -403,9 +404,10 @@ static int enum_value(const Field *p, const char *s) {
         if (p->names[i] && strcmp(s, p->names[i]) == 0) return i;
     char choices[256] = "";
     for (int i = 0; i < p->n; ++i) {
+        if (!p->names[i]) continue;
         size_t used = strlen(choices);
-        PyOS_snprintf(choices + used, sizeof choices - used, "%s'%s'", i == 0 ? "" : i + 1 < p->n ? ", " : " or ",
-                 p->names[i]);
+        const char *sep = used == 0 ? "" : i + 1 < p->n ? ", " : " or ";
+        PyOS_snprintf(choices + used, sizeof choices - used, "%s'%s'", sep, p->names[i]);
     }
     PyErr_Format(PyExc_ValueError, "%s: must be %s (got '%s')", p->name, choices, s);
     return -1;
@@ -488,8 +490,8 @@ static int parse_params(const char *func, PyObject *args, PyObject *kwargs, cons
                         int max_positional, void *def, PyObject **given) {
     Py_ssize_t nargs = PyTuple_Size(args);
     if (nargs > max_positional) {
-        PyErr_Format(PyExc_TypeError, "%s() takes at most %d positional arguments (%zd given)", func,
-                     max_positional, nargs);
+        PyErr_Format(PyExc_TypeError, "%s() takes at most %d positional argument%s (%zd given)", func,
+                     max_positional, max_positional == 1 ? "" : "s", nargs);
         return 0;
     }
     for (int i = 0; i < count; ++i) given[i] = i < nargs ? PyTuple_GetItem(args, i) : NULL;
@@ -783,7 +785,8 @@ static PyObject *World_add_finger(PyObject *obj, PyObject *args, PyObject *kwarg
 
 /* Setters: name, core call, shape, the names of its two arguments (for errors), docstring. */
 #define ID_SETTERS(X)                                                                                            \
-    X(set_hip, gc_world_set_hip, VEC, "position", NULL, "set_hip(finger, (x, y, z)): the device (haptic interface) point.") \
+    X(set_hip, gc_world_set_hip, VEC, "position", NULL,                                                          \
+      "set_hip(finger, (x, y, z)): the device (haptic interface) point.")                                        \
     X(set_finger_pose, gc_world_set_finger_pose, POSE, "position", "orientation",                               \
       "set_finger_pose(finger, (x, y, z), (w, x, y, z)): the whole HIP (a convex finger turns with it).")        \
     X(set_body_velocity, gc_world_set_body_velocity, PAIR, "linear", "angular",                                 \
@@ -920,7 +923,9 @@ static PyObject *set_FRICTION(WorldObject *self, PyObject *args, SetFriction set
 
 /* The rows, expanded into methods. */
 #define QUERY_METHOD(name, call, shape, doc)                                                                     \
-    static PyObject *World_##name(PyObject *obj, PyObject *args) { return query_##shape((WorldObject *)obj, args, call); }
+    static PyObject *World_##name(PyObject *obj, PyObject *args) {                                               \
+        return query_##shape((WorldObject *)obj, args, call);                                                    \
+    }
 ID_QUERIES(QUERY_METHOD)
 #define SETTER_METHOD(name, call, shape, arg_a, arg_b, doc)                                                      \
     static PyObject *World_##name(PyObject *obj, PyObject *args) {                                               \
@@ -932,9 +937,11 @@ ID_SETTERS(SETTER_METHOD)
         WorldObject *self = (WorldObject *)obj;                                                                  \
         return check_##guard(self) ? NUMBER_##type(call(self->world)) : NULL;                                    \
     }
-#define NUMBER_METHOD(name, call, type, guard, doc) NUMBER_FUNCTION(World_##name, PyObject *unused, call, type, guard)
+#define NUMBER_METHOD(name, call, type, guard, doc)                                                              \
+    NUMBER_FUNCTION(World_##name, PyObject *unused, call, type, guard)
 WORLD_NUMBERS(NUMBER_METHOD)
-#define PROPERTY_GETTER(name, call, type, guard, doc) NUMBER_FUNCTION(World_get_##name, void *closure, call, type, guard)
+#define PROPERTY_GETTER(name, call, type, guard, doc)                                                            \
+    NUMBER_FUNCTION(World_get_##name, void *closure, call, type, guard)
 WORLD_PROPERTIES(PROPERTY_GETTER)
 
 /* finger_contacts(finger) -> list of dicts, one per point of the finger's contact patch. */
@@ -1397,7 +1404,8 @@ static PyObject *module_grasp_quality(PyObject *mod, PyObject *args) {
                 Py_BEGIN_ALLOW_THREADS
                 st = gc_grasp_quality(ws, &def, g.b[1].buf, g.b[2].buf, g.b[0].buf, (int)n, g.b[3].buf, radius, &q);
                 Py_END_ALLOW_THREADS
-                result = st < 0 ? raise_message(st, gc_grasp_workspace_error(ws)) : fields_dict(grasp_quality_fields, COUNT_OF(grasp_quality_fields), &q);
+                result = st < 0 ? raise_message(st, gc_grasp_workspace_error(ws))
+                                : fields_dict(grasp_quality_fields, COUNT_OF(grasp_quality_fields), &q);
                 workspace_give(ws);
             }
         }
