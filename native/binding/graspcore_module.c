@@ -1605,8 +1605,8 @@ static PyObject *World_serial_events(PyObject *obj, PyObject *args) {
     int n;
     while (list && (n = gc_world_serial_events(self->world, id, ev, 64)) > 0) {
         for (int i = 0; i < n; ++i) {
-            PyObject *item = Py_BuildValue("(dsid)", ev[i].time, enum_name(serial_event_names, COUNT_OF(serial_event_names), (int)ev[i].code, 0), (int)ev[i].value,
-                                           ev[i].session_time);
+            const char *name = enum_name(serial_event_names, COUNT_OF(serial_event_names), (int)ev[i].code, 0);
+            PyObject *item = Py_BuildValue("(dsid)", ev[i].time, name, (int)ev[i].value, ev[i].session_time);
             if (!item || PyList_Append(list, item) < 0) {
                 Py_XDECREF(item);
                 Py_DECREF(list);
