@@ -7,11 +7,13 @@ import time
 
 import bpy
 
+from .engine import defaults
 from .engine.recording import RecordingWriter, SessionRecorder, make_header
 
-# The core's runtime defaults (graspcore.h gc_default_runtime_def) that a session's options
-# leave as they are: the recorder reads clamping and watchdog events against them.
-RUNTIME_DEFAULTS = {"max_force": 10.0, "ramp_time": 0.5, "watchdog_timeout": 0.005, "hip_timeout": 0.1}
+# The core's runtime defaults (graspcore.RUNTIME_DEFAULTS) that the header records when a
+# session's options leave them as they are: the recorder reads clamping and watchdog events
+# against them.
+RECORDED_RUNTIME_DEFAULTS = ("max_force", "ramp_time", "watchdog_timeout", "hip_timeout")
 
 
 def default_path(settings) -> str:
@@ -40,7 +42,8 @@ def session_recorder(session, path, threaded: bool, options: dict) -> SessionRec
     path = bpy.path.abspath(path) if path else default_path(s)
     folder = os.path.dirname(os.path.abspath(path))
     os.makedirs(folder, exist_ok=True)
-    runtime = dict(RUNTIME_DEFAULTS, **options, threaded=True) if threaded else {"threaded": False}
+    recorded = {name: defaults.runtime(name) for name in RECORDED_RUNTIME_DEFAULTS}
+    runtime = dict(recorded, **options, threaded=True) if threaded else {"threaded": False}
     header = make_header(
         session.desc, mode="realtime" if threaded else "exec", haptic_rate=s.haptic_rate,
         fps=session.fps, source=bpy.data.filepath,

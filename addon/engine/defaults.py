@@ -1,5 +1,6 @@
-"""Body and finger defaults: the core's own (``gc_default_body_def`` /
-``gc_default_finger_def``, exposed as ``graspcore.BODY_DEFAULTS`` / ``FINGER_DEFAULTS``),
+"""Body, finger and runtime defaults and the names of the core's enums: the core's own
+(``gc_default_body_def`` / ``gc_default_finger_def`` / ``gc_default_runtime_def``, exposed as
+``graspcore.BODY_DEFAULTS`` / ``FINGER_DEFAULTS`` / ``RUNTIME_DEFAULTS``; ``graspcore.RENDERERS``),
 read from the core rather than written again here."""
 from __future__ import annotations
 
@@ -14,6 +15,15 @@ def finger(name: str) -> float:
     return float(load().FINGER_DEFAULTS[name])
 
 
+def runtime(name: str) -> float:
+    return float(load().RUNTIME_DEFAULTS[name])
+
+
 def renderer() -> str:
     """The default finger renderer: ``"xfca"`` (``"cursor"``: the light-mass cursor)."""
     return str(load().FINGER_DEFAULTS["renderer"])
+
+
+def renderers() -> tuple[str, ...]:
+    """Every finger renderer the core has, by name."""
+    return tuple(load().RENDERERS)

@@ -14,12 +14,12 @@ import time
 import numpy as np
 
 from . import analysis
+from .recording import STATE_NAMES
 
 FREE_COLOR = (0.10, 0.45, 1.00, 1.0)     # a god-object touching nothing: the god-object blue
 # Friction use |Ft| / (mu |Fn|): 0 green (far from slip), 0.5 yellow, 1 red (at slip).
 _GREEN, _YELLOW, _RED = (0.10, 0.85, 0.25), (1.00, 0.85, 0.10), (1.00, 0.10, 0.10)
 WEAKEST_COLOR = (1.00, 0.20, 0.90, 1.0)  # magenta: no other overlay uses it
-STATE_NAMES = ("free", "stick", "slip")
 
 
 def friction_color(use: float) -> tuple:

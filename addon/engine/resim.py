@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import defaults
 from .limits import DEFAULT_MAX_SIZE, check_memory, check_recording_size, check_set_value
 from .recording import EventDetector, Recording, RecordingWriter, make_header, scene_from_dict
 from .scene import build_world
@@ -17,7 +18,6 @@ from .scene import build_world
 OBJECT_KEYS = ("mass", "mu_s", "mu_d", "viscosity", "radius", "stiffness", "damping", "cursor_mass", "renderer")
 BODY_KEYS = ("mass", "mu_s", "mu_d", "viscosity")
 FINGER_KEYS = ("radius", "stiffness", "damping", "cursor_mass", "renderer")
-RENDERERS = ("xfca", "cursor")
 SCENE_KEYS = ("haptic_rate", "gravity", "gyroscopic")
 
 
@@ -72,8 +72,8 @@ def parse_override(text: str) -> Override:
     if prop not in OBJECT_KEYS:
         raise OverrideError(f"--set {text!r}: unknown property {prop!r} (one of {', '.join(OBJECT_KEYS)})")
     if prop == "renderer":
-        if value not in RENDERERS:
-            raise OverrideError(f"--set {text!r}: renderer expects {' or '.join(RENDERERS)}")
+        if value not in defaults.renderers():
+            raise OverrideError(f"--set {text!r}: renderer expects {' or '.join(defaults.renderers())}")
         return Override(prop, value, obj)
     try:
         v = float(value)

@@ -272,8 +272,9 @@ def prepare(desc: SceneDesc) -> SceneDesc:
                                      f"(got {f.radius}, {f.stiffness}, {f.damping})")
         if not np.all(np.isfinite(f.position)):
             raise SceneError(f.name, "finger position is not finite")
-        if f.renderer not in ("xfca", "cursor") or not f.cursor_mass >= 0:
-            raise SceneError(f.name, f"finger needs renderer 'xfca' or 'cursor' and cursor mass >= 0 "
+        if f.renderer not in defaults.renderers() or not f.cursor_mass >= 0:
+            renderers = " or ".join(map(repr, defaults.renderers()))
+            raise SceneError(f.name, f"finger needs renderer {renderers} and cursor mass >= 0 "
                                      f"(got {f.renderer!r}, {f.cursor_mass})")
         if not (np.isfinite(f.torsion) and f.torsion >= 0) or (f.torsion and f.points is not None):
             raise SceneError(f.name, f"torsion (a soft sphere fingertip's patch radius) must be a finite number >= 0 "

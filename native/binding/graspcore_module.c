@@ -1,12 +1,15 @@
 /* graspcore._core: the one CPython binding of the C core, for the stable ABI (3.11+).
  * Thin on purpose: argument conversion, status -> exception, GIL released while stepping,
- * zero-copy array views through the buffer protocol. Friendlier argument handling
- * (numpy conversion, keyword defaults) lives in graspcore/__init__.py. */
+ * zero-copy array views through the buffer protocol. What repeats is written once as a table:
+ * keyword parameters, stats and contact dicts (Field rows), accessors (X-macro rows), enum
+ * names; docs/architecture.md "Binding" says how to add to each. Friendlier argument handling
+ * (numpy conversion, inertia forms) lives in graspcore/__init__.py. */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
 #include <stdatomic.h>
 #include <limits.h>
+#include <stddef.h>
 #include <string.h>
 
 #include "graspcore.h"
@@ -52,17 +55,40 @@ static PyObject *raise_status(WorldObject *self, gcStatus st) {
     return raise_message(st, self->world ? gc_world_last_error(self->world) : "");
 }
 
+/* None, or the exception for an error status: the end of most calls. */
+static PyObject *none_or_raise(WorldObject *self, gcStatus st) {
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+}
+
 /* A warning status that still needs saying (a body stopped by the non-finite guard). */
 static int warn_status(WorldObject *self, gcStatus st) {
     if (st != GC_WARN_STOPPED) return 0;
     return PyErr_WarnEx(PyExc_RuntimeWarning, gc_world_last_error(self->world), 1);
 }
 
-static int check_ready(WorldObject *self) {
+/* The statement runs with the GIL released and the world marked busy (check_ready refuses). */
+#define WITHOUT_GIL(self, ...)                                                                                   \
+    do {                                                                                                         \
+        atomic_store(&(self)->busy, 1);                                                                          \
+        Py_BEGIN_ALLOW_THREADS                                                                                   \
+        __VA_ARGS__;                                                                                             \
+        Py_END_ALLOW_THREADS                                                                                     \
+        atomic_store(&(self)->busy, 0);                                                                          \
+    } while (0)
+
+/* The world exists (a call the core serialises itself may come while another thread steps). */
+static int check_world(WorldObject *self) {
     if (!self->world) {
         PyErr_SetString(PyExc_RuntimeError, "World is not initialised");
         return 0;
     }
+    return 1;
+}
+
+/* The world exists and no step runs on another thread. */
+static int check_ready(WorldObject *self) {
+    if (!check_world(self)) return 0;
     if (atomic_load(&self->busy)) {
         PyErr_SetString(PyExc_RuntimeError, "World is stepping in another thread");
         return 0;
@@ -92,7 +118,486 @@ static int parse_vec(PyObject *obj, int n, const char *name, double *out) {
     return 1;
 }
 
-static PyObject *tuple3(const double *v) { return Py_BuildValue("(ddd)", v[0], v[1], v[2]); }
+/* (v[0], ..., v[n-1]) as floats. */
+static PyObject *tuple_of(const double *v, int n) {
+    PyObject *t = PyTuple_New(n);
+    for (int i = 0; t && i < n; ++i) {
+        PyObject *item = PyFloat_FromDouble(v[i]);
+        if (!item || PyTuple_SetItem(t, i, item) < 0) Py_CLEAR(t);
+    }
+    return t;
+}
+
+/* A C-contiguous float64 buffer of xyz rows (at most max_rows; at least one when nonempty): its
+ * rows, or -1 with "<name>: must be a C-contiguous float64 array of xyz rows" (nothing held). */
+static Py_ssize_t xyz_rows(PyObject *obj, Py_buffer *b, const char *name, int nonempty, Py_ssize_t max_rows) {
+    if (PyObject_GetBuffer(obj, b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return -1;
+    const Py_ssize_t row = 3 * (Py_ssize_t)sizeof(double);
+    if (!b->format || strcmp(b->format, "d") != 0 || b->len % row != 0 || (nonempty && b->len == 0) ||
+        b->len / row > max_rows) {
+        PyBuffer_Release(b);
+        PyErr_Format(PyExc_ValueError, "%s: must be a C-contiguous float64 array of xyz rows", name);
+        return -1;
+    }
+    return b->len / row;
+}
+
+/* ---- Names the core's enums go by in Python (exported as FINGER_STATES etc.) ------- */
+
+static const char *const finger_state_names[] = {
+    [GC_FINGER_FREE] = "free", [GC_FINGER_STICK] = "stick", [GC_FINGER_SLIP] = "slip"};
+static const char *const renderer_names[] = {[GC_RENDERER_XFCA] = "xfca", [GC_RENDERER_CURSOR] = "cursor"};
+static const char *const serial_state_names[] = {[GC_SERIAL_WAITING] = "waiting", [GC_SERIAL_STREAMING] = "streaming",
+                                                 [GC_SERIAL_LOST] = "lost", [GC_SERIAL_HANGUP] = "hangup"};
+static const char *const serial_event_names[] = {
+    "?", [GC_SERIAL_EV_CONNECTED] = "connected", [GC_SERIAL_EV_LOST] = "lost",
+    [GC_SERIAL_EV_RECOVERED] = "recovered", [GC_SERIAL_EV_ENABLED] = "enabled", [GC_SERIAL_EV_ESTOP] = "estop",
+    [GC_SERIAL_EV_STALL] = "stall", [GC_SERIAL_EV_DROPPED] = "dropped", [GC_SERIAL_EV_FOREIGN] = "foreign"};
+#define COUNT_OF(a) ((int)(sizeof(a) / sizeof((a)[0])))
+
+/* names[i], or names[fallback] for a value outside the table (never an out-of-bounds read). */
+static const char *enum_name(const char *const *names, int count, int i, int fallback) {
+    return i >= 0 && i < count && names[i] ? names[i] : names[fallback];
+}
+
+/* ---- Fields: the keyword arguments of World(), add_finger, _add_body, start and
+ * attach_serial; the dicts of stats(), serial_stats(), contacts(), finger_contacts() and
+ * grasp_quality(); one table row each ----------------------------------------------------------
+ * A row names a field of a core struct and how Python sees it. parse_params reads a call's
+ * positional and keyword arguments into the definition the core's gc_default_*_def filled;
+ * fields_dict turns a struct into a dict: the results, and the definitions' defaults exported
+ * as WORLD_DEFAULTS, BODY_DEFAULTS, ... so Python never types a default twice. Adding a
+ * parameter or a result's entry is one row (docs/architecture.md). */
+typedef enum FieldKind {
+    FIELD_DOUBLE,  /* double, from any real number */
+    FIELD_INT,     /* int, from an integer in C int range */
+    FIELD_BOOL,    /* int 0/1, from any object's truth */
+    FIELD_U64,     /* uint64_t (a counter: out only) */
+    FIELD_VEC,     /* double[n], from a sequence of n numbers */
+    FIELD_OPT_VEC, /* as FIELD_VEC, or None for the default; the int at `flag` (if any) is set when given */
+    FIELD_TEXT,    /* char[n], from a str shorter than n bytes */
+    FIELD_ENUM,    /* an int-sized enum, from its name (names, n of them) */
+    FIELD_COUNTS,  /* uint64_t[n], as a dict of counters by names[i] (out only) */
+    FIELD_OBJECT,  /* not a field: the argument itself, left to the caller (a buffer, a descriptor) */
+} FieldKind;
+
+typedef struct Field {
+    const char *name;         /* the Python keyword or key, and the name an error message starts with */
+    FieldKind kind;
+    size_t offset;            /* of the field in the struct */
+    int n;                    /* VEC, OPT_VEC: numbers; TEXT: bytes of the array; ENUM, COUNTS: names */
+    size_t flag;              /* OPT_VEC: offset of the int set to 1 when given; 0: none */
+    const char *const *names; /* ENUM: by value; COUNTS: of the counters */
+} Field;
+
+#define FIELD(type, field, kind) {#field, FIELD_##kind, offsetof(type, field), 0, 0, NULL}
+#define FIELD_N(type, field, kind, n) {#field, FIELD_##kind, offsetof(type, field), n, 0, NULL}
+#define FIELD_TEXT(type, field) {#field, FIELD_TEXT, offsetof(type, field), sizeof(((type *)0)->field), 0, NULL}
+#define FIELD_NAMED(type, field, kind, names) {#field, FIELD_##kind, offsetof(type, field), COUNT_OF(names), 0, names}
+#define FIELD_ARGUMENT(name) {name, FIELD_OBJECT, 0, 0, 0, NULL}
+enum { MAX_FIELDS = 40, MAX_VEC = 16 }; /* rows of a table, numbers of a VEC (checked at import: add_tables) */
+_Static_assert(sizeof(gcFingerRenderer) == sizeof(int) && sizeof(int32_t) == sizeof(int), "INT and ENUM read an int");
+
+static const char *const frame_error_names[] = {"cobs", "short", "crc", "version", "type", "length", "overflow",
+                                                "range"}; /* gcSerialStats.frame_errors */
+
+static const Field world_params[] = {
+    FIELD_N(gcWorldDef, gravity, VEC, 3),
+    FIELD(gcWorldDef, gyroscopic, BOOL),
+    FIELD(gcWorldDef, max_bodies, INT),
+    FIELD(gcWorldDef, max_fingers, INT),
+    FIELD(gcWorldDef, max_parts, INT),
+    FIELD(gcWorldDef, threads, INT), /* threads, max_contacts: docs/solver.md */
+    FIELD(gcWorldDef, max_contacts, INT),
+};
+
+/* _add_body(parts, radii, **params); parts: C-contiguous float64 buffers of shape (n, 3). */
+static const Field body_params[] = {
+    FIELD_ARGUMENT("parts"),
+    FIELD_ARGUMENT("radii"),
+    FIELD(gcBodyDef, mass, DOUBLE),
+    FIELD_N(gcBodyDef, position, VEC, 3),
+    FIELD_N(gcBodyDef, orientation, VEC, 4),
+    {"static", FIELD_BOOL, offsetof(gcBodyDef, is_static), 0, 0, NULL},
+    FIELD(gcBodyDef, mu_s, DOUBLE),
+    FIELD(gcBodyDef, mu_d, DOUBLE),
+    FIELD(gcBodyDef, viscosity, DOUBLE),
+    {"inertia", FIELD_OPT_VEC, offsetof(gcBodyDef, inertia), 9, offsetof(gcBodyDef, has_inertia), NULL},
+    {"center_of_mass", FIELD_OPT_VEC, offsetof(gcBodyDef, center_of_mass), 3,
+     offsetof(gcBodyDef, has_center_of_mass), NULL},
+    FIELD_N(gcBodyDef, linear_velocity, VEC, 3),
+    FIELD_N(gcBodyDef, angular_velocity, VEC, 3),
+    FIELD(gcBodyDef, linear_damping, DOUBLE),
+    FIELD(gcBodyDef, angular_damping, DOUBLE),
+};
+
+/* add_finger's arguments, in their positional order. points: None (a sphere finger) or a
+ * C-contiguous float64 buffer of xyz rows (a convex finger). */
+static const Field finger_params[] = {
+    FIELD(gcFingerDef, radius, DOUBLE),
+    FIELD(gcFingerDef, stiffness, DOUBLE),
+    FIELD(gcFingerDef, damping, DOUBLE),
+    FIELD_N(gcFingerDef, position, VEC, 3),
+    FIELD_ARGUMENT("points"),
+    FIELD_N(gcFingerDef, orientation, OPT_VEC, 4),
+    FIELD(gcFingerDef, torsion, DOUBLE),
+    FIELD_NAMED(gcFingerDef, renderer, ENUM, renderer_names),
+    FIELD(gcFingerDef, cursor_mass, DOUBLE),
+};
+
+/* start(*, **params) */
+static const Field runtime_params[] = {
+    FIELD(gcRuntimeDef, haptic_rate, DOUBLE),
+    FIELD(gcRuntimeDef, object_rate, DOUBLE),
+    FIELD(gcRuntimeDef, max_adopted_bodies, INT),
+    FIELD(gcRuntimeDef, max_force, DOUBLE),
+    FIELD(gcRuntimeDef, ramp_time, DOUBLE),
+    FIELD(gcRuntimeDef, watchdog_timeout, DOUBLE),
+    FIELD(gcRuntimeDef, hip_timeout, DOUBLE),
+    FIELD(gcRuntimeDef, release_delay, DOUBLE),
+    FIELD(gcRuntimeDef, realtime, BOOL),
+    FIELD(gcRuntimeDef, priority, INT),
+    FIELD(gcRuntimeDef, max_hip_speed, DOUBLE),
+};
+
+/* attach_serial(fd, *, **params) */
+static const Field serial_params[] = {
+    FIELD_ARGUMENT("fd"),
+    FIELD(gcSerialDef, finger_offset, INT),
+    FIELD(gcSerialDef, num_fingers, INT),
+    FIELD_N(gcSerialDef, transform, OPT_VEC, 16), /* row-major 4x4, device metres -> world */
+    FIELD(gcSerialDef, force_ttl, DOUBLE),
+    FIELD(gcSerialDef, lost_timeout, DOUBLE),
+    FIELD(gcSerialDef, max_force, DOUBLE),
+    FIELD(gcSerialDef, ramp_time, DOUBLE),
+    FIELD(gcSerialDef, max_position, DOUBLE),
+    FIELD(gcSerialDef, stall_timeout, DOUBLE),
+    FIELD(gcSerialDef, priority, INT),
+    FIELD_TEXT(gcSerialDef, udp_host),
+    FIELD(gcSerialDef, udp_port, INT),
+};
+
+/* stats(): rates, jitter, overruns, adoption, inputs, safety (docs/runtime.md). */
+static const Field runtime_stats_fields[] = {
+    FIELD(gcRuntimeStats, running, BOOL),
+    FIELD(gcRuntimeStats, realtime, BOOL),
+    FIELD(gcRuntimeStats, rt_priority, BOOL),
+    FIELD_TEXT(gcRuntimeStats, priority_note),
+    FIELD(gcRuntimeStats, haptic_rate, DOUBLE),
+    FIELD(gcRuntimeStats, object_rate, DOUBLE),
+    FIELD(gcRuntimeStats, object_speed, DOUBLE),
+    FIELD(gcRuntimeStats, haptic_ticks, U64),
+    FIELD(gcRuntimeStats, object_ticks, U64),
+    FIELD(gcRuntimeStats, jitter_p50_us, DOUBLE),
+    FIELD(gcRuntimeStats, jitter_p99_us, DOUBLE),
+    FIELD(gcRuntimeStats, jitter_max_us, DOUBLE),
+    FIELD(gcRuntimeStats, tick_max_us, DOUBLE),
+    FIELD(gcRuntimeStats, tick_mean_us, DOUBLE),
+    FIELD(gcRuntimeStats, wake_max_us, DOUBLE),
+    FIELD(gcRuntimeStats, overruns, U64),
+    FIELD(gcRuntimeStats, late_periods, U64),
+    FIELD(gcRuntimeStats, object_overruns, U64),
+    FIELD(gcRuntimeStats, adopted_bodies, INT),
+    FIELD(gcRuntimeStats, accepted_inputs, U64),
+    FIELD(gcRuntimeStats, rejected_inputs, U64),
+    FIELD(gcRuntimeStats, watchdog_trips, U64),
+    FIELD(gcRuntimeStats, stale_inputs, U64),
+    FIELD(gcRuntimeStats, nonfinite_forces, U64),
+    FIELD(gcRuntimeStats, stopped_bodies, U64),
+    FIELD(gcRuntimeStats, forces_enabled, BOOL),
+    FIELD(gcRuntimeStats, haptic_time, DOUBLE),
+    FIELD(gcRuntimeStats, object_time, DOUBLE),
+};
+
+/* serial_stats(device): state, rate, drops, latency (docs/devices.md). */
+static const Field serial_stats_fields[] = {
+    FIELD_NAMED(gcSerialStats, state, ENUM, serial_state_names),
+    FIELD(gcSerialStats, enabled, BOOL),
+    FIELD(gcSerialStats, device_fingers, INT),
+    FIELD(gcSerialStats, renders_forces, BOOL),
+    FIELD(gcSerialStats, units, INT),
+    FIELD(gcSerialStats, device_rate, DOUBLE),
+    FIELD(gcSerialStats, device_force_max, DOUBLE),
+    FIELD(gcSerialStats, device_ttl_max, DOUBLE),
+    FIELD_TEXT(gcSerialStats, name),
+    FIELD(gcSerialStats, pose_rate, DOUBLE),
+    FIELD(gcSerialStats, last_pose_age, DOUBLE),
+    FIELD(gcSerialStats, poses, U64),
+    FIELD(gcSerialStats, forces_sent, U64),
+    FIELD(gcSerialStats, heartbeats, U64),
+    FIELD(gcSerialStats, dropped, U64),
+    FIELD_NAMED(gcSerialStats, frame_errors, COUNTS, frame_error_names),
+    FIELD(gcSerialStats, sequence_gaps, U64),
+    FIELD(gcSerialStats, disconnects, U64),
+    FIELD(gcSerialStats, estops, U64),
+    FIELD(gcSerialStats, stall_zeroes, U64),
+    FIELD(gcSerialStats, write_errors, U64),
+    FIELD(gcSerialStats, push_rejected, U64),
+    FIELD(gcSerialStats, latency_p50_us, DOUBLE),
+    FIELD(gcSerialStats, latency_p99_us, DOUBLE),
+    FIELD(gcSerialStats, latency_max_us, DOUBLE),
+    FIELD(gcSerialStats, gain, DOUBLE),
+    FIELD(gcSerialStats, rt_priority, BOOL),
+    FIELD(gcSerialStats, late_poses, U64),
+    FIELD(gcSerialStats, duplicate_poses, U64),
+    FIELD(gcSerialStats, foreign_datagrams, U64),
+    FIELD_TEXT(gcSerialStats, peer),
+};
+
+/* finger_contacts(finger): one dict per point of the patch (docs/api.md). */
+static const Field finger_contact_fields[] = {
+    FIELD(gcFingerContactPoint, body, INT),
+    FIELD(gcFingerContactPoint, sample, INT),
+    FIELD(gcFingerContactPoint, reversed, BOOL),
+    FIELD_NAMED(gcFingerContactPoint, state, ENUM, finger_state_names),
+    FIELD_N(gcFingerContactPoint, point, VEC, 3),
+    FIELD_N(gcFingerContactPoint, normal, VEC, 3),
+    FIELD_N(gcFingerContactPoint, force, VEC, 3),
+};
+
+/* contacts(): one dict per body-body contact point of the last step. */
+static const Field contact_fields[] = {
+    FIELD(gcContactPoint, body_a, INT),
+    FIELD(gcContactPoint, body_b, INT),
+    FIELD_N(gcContactPoint, point, VEC, 3),
+    FIELD_N(gcContactPoint, normal, VEC, 3),
+    FIELD(gcContactPoint, separation, DOUBLE),
+    FIELD(gcContactPoint, normal_impulse, DOUBLE),
+    FIELD_N(gcContactPoint, friction_impulse, VEC, 3),
+    FIELD(gcContactPoint, sticking, BOOL),
+};
+
+/* _grasp_quality(...) -> dict; _grasp_quality_batch fills gcGraspQuality records, which
+ * graspcore reads through GRASP_QUALITY_FIELDS (the same rows as a layout). */
+static const Field grasp_quality_fields[] = {
+    FIELD(gcGraspQuality, force_closure, BOOL),
+    FIELD(gcGraspQuality, force_only_closure, BOOL),
+    FIELD(gcGraspQuality, torque_closure, BOOL),
+    FIELD(gcGraspQuality, epsilon, DOUBLE),
+    FIELD(gcGraspQuality, volume, DOUBLE),
+    FIELD_N(gcGraspQuality, weakest, VEC, 6),
+    FIELD(gcGraspQuality, rank, INT),
+    FIELD(gcGraspQuality, facets, INT),
+};
+
+/* A TypeError naming the parameter, what it wants and what it got; 0. */
+static int wrong_type(const char *name, const char *want, PyObject *value) {
+    PyObject *got = PyType_GetName(Py_TYPE(value));
+    if (got) {
+        PyErr_Format(PyExc_TypeError, "%s: must be %s, not %U", name, want, got);
+        Py_DECREF(got);
+    }
+    return 0;
+}
+
+/* After a failed conversion: a TypeError said again naming the parameter (another error, an
+ * overflow say, is left as it is); 0. */
+static int conversion_failed(const char *name, const char *want, PyObject *value) {
+    if (!PyErr_ExceptionMatches(PyExc_TypeError)) return 0;
+    PyErr_Clear();
+    return wrong_type(name, want, value);
+}
+
+/* A FIELD_ENUM given by name: its value, or -1 with "<name>: must be 'a' or 'b' (got 'c')". */
+static int enum_value(const Field *p, const char *s) {
+    for (int i = 0; i < p->n; ++i)
+        if (p->names[i] && strcmp(s, p->names[i]) == 0) return i;
+    char choices[256] = "";
+    for (int i = 0; i < p->n; ++i) {
+        if (!p->names[i]) continue;
+        size_t used = strlen(choices);
+        const char *sep = used == 0 ? "" : i + 1 < p->n ? ", " : " or ";
+        PyOS_snprintf(choices + used, sizeof choices - used, "%s'%s'", sep, p->names[i]);
+    }
+    PyErr_Format(PyExc_ValueError, "%s: must be %s (got '%s')", p->name, choices, s);
+    return -1;
+}
+
+/* One argument into its field; 0 with a Python error naming the parameter. */
+static int set_field(const Field *p, PyObject *value, void *def) {
+    char *field = (char *)def + p->offset;
+    switch (p->kind) {
+    case FIELD_DOUBLE: {
+        double v = PyFloat_AsDouble(value);
+        if (v == -1.0 && PyErr_Occurred()) return conversion_failed(p->name, "a real number", value);
+        memcpy(field, &v, sizeof v);
+        return 1;
+    }
+    case FIELD_INT: {
+        int overflow = 0;
+        long v = PyLong_AsLongAndOverflow(value, &overflow);
+        if (v == -1 && PyErr_Occurred()) return conversion_failed(p->name, "an integer", value);
+        if (overflow || v < INT_MIN || v > INT_MAX) {
+            PyErr_Format(PyExc_OverflowError, "%s: outside the range of a C int", p->name);
+            return 0;
+        }
+        int i = (int)v;
+        memcpy(field, &i, sizeof i);
+        return 1;
+    }
+    case FIELD_BOOL: {
+        int truth = PyObject_IsTrue(value);
+        if (truth < 0) return 0;
+        memcpy(field, &truth, sizeof truth);
+        return 1;
+    }
+    case FIELD_OPT_VEC:
+        if (value == Py_None) return 1;
+        if (p->flag) {
+            int one = 1;
+            memcpy((char *)def + p->flag, &one, sizeof one);
+        }
+        /* fall through */
+    case FIELD_VEC: {
+        double v[MAX_VEC];
+        if (!parse_vec(value, p->n, p->name, v)) return 0;
+        memcpy(field, v, sizeof(double) * (size_t)p->n);
+        return 1;
+    }
+    case FIELD_TEXT:
+    case FIELD_ENUM: {
+        Py_ssize_t len;
+        if (!PyUnicode_Check(value)) return wrong_type(p->name, "a str", value);
+        const char *s = PyUnicode_AsUTF8AndSize(value, &len);
+        if (!s) return 0;
+        if ((size_t)len != strlen(s)) {
+            PyErr_Format(PyExc_ValueError, "%s: contains a NUL character", p->name);
+            return 0;
+        }
+        if (p->kind == FIELD_ENUM) {
+            int v = enum_value(p, s);
+            if (v < 0) return 0;
+            memcpy(field, &v, sizeof v);
+        } else if (len >= p->n) {
+            PyErr_Format(PyExc_ValueError, "%s: longer than %d bytes", p->name, p->n - 1);
+            return 0;
+        } else {
+            memcpy(field, s, (size_t)len + 1);
+        }
+        return 1;
+    }
+    case FIELD_U64:
+    case FIELD_COUNTS:
+    case FIELD_OBJECT: return 1;
+    }
+    return 1;
+}
+
+/* A call's arguments into def (filled with the core's defaults by the caller): positional ones
+ * (at most max_positional) in the table's order, then keywords. given[i] is the object for
+ * params[i] or NULL (the caller reads its FIELD_OBJECT rows there). 0 with an error set. */
+static int parse_params(const char *func, PyObject *args, PyObject *kwargs, const Field *params, int count,
+                        int max_positional, void *def, PyObject **given) {
+    Py_ssize_t nargs = PyTuple_Size(args);
+    if (nargs > max_positional) {
+        PyErr_Format(PyExc_TypeError, "%s() takes at most %d positional argument%s (%zd given)", func,
+                     max_positional, max_positional == 1 ? "" : "s", nargs);
+        return 0;
+    }
+    for (int i = 0; i < count; ++i) given[i] = i < nargs ? PyTuple_GetItem(args, i) : NULL;
+    Py_ssize_t pos = 0;
+    PyObject *key, *value;
+    while (kwargs && PyDict_Next(kwargs, &pos, &key, &value)) {
+        const char *name = PyUnicode_Check(key) ? PyUnicode_AsUTF8AndSize(key, NULL) : NULL;
+        if (!name) {
+            PyErr_Clear();
+            PyErr_Format(PyExc_TypeError, "%s() keywords must be strings", func);
+            return 0;
+        }
+        int i = 0;
+        while (i < count && strcmp(params[i].name, name) != 0) ++i;
+        if (i == count) {
+            PyErr_Format(PyExc_TypeError, "%s() got an unexpected keyword argument '%s'", func, name);
+            return 0;
+        }
+        if (given[i]) {
+            PyErr_Format(PyExc_TypeError, "%s() got multiple values for argument '%s'", func, name);
+            return 0;
+        }
+        given[i] = value;
+    }
+    for (int i = 0; i < count; ++i)
+        if (given[i] && !set_field(&params[i], given[i], def)) return 0;
+    return 1;
+}
+
+/* One field of a struct as a Python object (a new reference; NULL with an error set). */
+static PyObject *field_value(const Field *p, const void *data) {
+    const char *field = (const char *)data + p->offset;
+    double x[MAX_VEC];
+    uint64_t u[MAX_VEC];
+    int k;
+    switch (p->kind) {
+    case FIELD_DOUBLE: memcpy(x, field, sizeof x[0]); return PyFloat_FromDouble(x[0]);
+    case FIELD_INT: memcpy(&k, field, sizeof k); return PyLong_FromLong(k);
+    case FIELD_BOOL: memcpy(&k, field, sizeof k); return PyBool_FromLong(k);
+    case FIELD_U64: memcpy(u, field, sizeof u[0]); return PyLong_FromUnsignedLongLong(u[0]);
+    case FIELD_OPT_VEC:
+        if (p->flag && (memcpy(&k, (const char *)data + p->flag, sizeof k), !k)) Py_RETURN_NONE;
+        /* fall through */
+    case FIELD_VEC: memcpy(x, field, sizeof(double) * (size_t)p->n); return tuple_of(x, p->n);
+    case FIELD_TEXT: {
+        Py_ssize_t len = 0;
+        while (len + 1 < p->n && field[len]) ++len; /* NUL-terminated within the array */
+        return PyUnicode_FromStringAndSize(field, len);
+    }
+    case FIELD_ENUM: memcpy(&k, field, sizeof k); return PyUnicode_FromString(enum_name(p->names, p->n, k, 0));
+    case FIELD_COUNTS: {
+        memcpy(u, field, sizeof(uint64_t) * (size_t)p->n);
+        PyObject *d = PyDict_New();
+        for (int i = 0; d && i < p->n; ++i) {
+            PyObject *v = PyLong_FromUnsignedLongLong(u[i]);
+            if (!v || PyDict_SetItemString(d, p->names[i], v) < 0) Py_CLEAR(d);
+            Py_XDECREF(v);
+        }
+        return d;
+    }
+    case FIELD_OBJECT: break;
+    }
+    Py_RETURN_NONE;
+}
+
+/* A struct as a dict, one key per row (FIELD_OBJECT rows left out). */
+static PyObject *fields_dict(const Field *fields, int count, const void *data) {
+    PyObject *d = PyDict_New();
+    for (int i = 0; d && i < count; ++i) {
+        if (fields[i].kind == FIELD_OBJECT) continue;
+        PyObject *v = field_value(&fields[i], data);
+        if (!v || PyDict_SetItemString(d, fields[i].name, v) < 0) Py_CLEAR(d);
+        Py_XDECREF(v);
+    }
+    return d;
+}
+
+/* A table as a layout for numpy: ((name, kind, byte offset, count), ...), kind "double", "int"
+ * (int32), "bool" (an int32 0/1) or "u64"; count 1 but for a VEC. */
+static PyObject *fields_layout(const Field *fields, int count) {
+    static const char *const kinds[] = {[FIELD_DOUBLE] = "double", [FIELD_INT] = "int", [FIELD_BOOL] = "bool",
+                                        [FIELD_U64] = "u64", [FIELD_VEC] = "double"};
+    PyObject *t = PyTuple_New(count);
+    for (int i = 0; t && i < count; ++i) {
+        const Field *f = &fields[i];
+        if ((size_t)f->kind >= sizeof kinds / sizeof kinds[0] || !kinds[f->kind]) {
+            PyErr_Format(PyExc_SystemError, "%s: no numpy layout for its kind", f->name);
+            Py_CLEAR(t);
+            break;
+        }
+        PyObject *row = Py_BuildValue("(ssni)", f->name, kinds[f->kind], (Py_ssize_t)f->offset,
+                                      f->kind == FIELD_VEC ? f->n : 1);
+        if (!row || PyTuple_SetItem(t, i, row) < 0) Py_CLEAR(t);
+    }
+    return t;
+}
+
+/* n structs of item_size bytes as a list of dicts. */
+static PyObject *fields_list(const Field *fields, int count, const void *items, size_t item_size, int n) {
+    PyObject *list = PyList_New(n);
+    for (int i = 0; list && i < n; ++i) {
+        PyObject *d = fields_dict(fields, count, (const char *)items + item_size * (size_t)i);
+        if (!d || PyList_SetItem(list, i, d) < 0) Py_CLEAR(list);
+    }
+    return list;
+}
 
 /* ---- View: a read-only (rows, cols) float64 buffer into world storage ------------- */
 
@@ -142,16 +647,11 @@ static PyType_Spec View_spec = {"graspcore._core.View", sizeof(ViewObject), 0, P
 
 static int World_init(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
-    static char *kwlist[] = {"gravity", "gyroscopic", "max_bodies", "max_fingers", "max_parts",
-                             "threads", "max_contacts", NULL}; /* threads, max_contacts: docs/solver.md */
     gcWorldDef def = gc_default_world_def();
-    PyObject *gravity = NULL;
-    int gyroscopic = 1;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|Opiiiii", kwlist, &gravity, &gyroscopic, &def.max_bodies,
-                                     &def.max_fingers, &def.max_parts, &def.threads, &def.max_contacts))
+    PyObject *given[MAX_FIELDS];
+    if (!parse_params("World", args, kwargs, world_params, COUNT_OF(world_params), COUNT_OF(world_params), &def,
+                      given))
         return -1;
-    if (gravity && !parse_vec(gravity, 3, "gravity", def.gravity)) return -1;
-    def.gyroscopic = gyroscopic;
     if (self->world) {
         PyErr_SetString(PyExc_RuntimeError, "World is already initialised");
         return -1;
@@ -174,34 +674,18 @@ static void World_dealloc(PyObject *obj) {
     Py_DECREF(tp);
 }
 
-/* _add_body(parts, radii, mass, position, orientation, static, mu_s, mu_d, viscosity,
- *           inertia, center_of_mass, linear_velocity, angular_velocity,
- *           linear_damping, angular_damping)
- * parts: sequence of C-contiguous float64 buffers of shape (n, 3). */
-static PyObject *World_add_body(PyObject *obj, PyObject *args) {
+/* _add_body(parts, radii, **body_params): the parts' points stay the caller's (zero-copy). */
+static PyObject *World_add_body(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
-    PyObject *parts, *radii, *position, *orientation, *inertia, *com, *lin, *ang;
     gcBodyDef def = gc_default_body_def();
-    int is_static;
-    if (!PyArg_ParseTuple(args, "OOdOOpdddOOOOdd", &parts, &radii, &def.mass, &position, &orientation,
-                          &is_static, &def.mu_s, &def.mu_d, &def.viscosity, &inertia, &com, &lin, &ang,
-                          &def.linear_damping, &def.angular_damping))
+    PyObject *given[MAX_FIELDS];
+    if (!parse_params("_add_body", args, kwargs, body_params, COUNT_OF(body_params), 2, &def, given)) return NULL;
+    PyObject *parts = given[0], *radii = given[1];
+    if (!parts || !radii) {
+        PyErr_SetString(PyExc_TypeError, "_add_body() needs parts and radii");
         return NULL;
+    }
     if (!check_ready(self)) return NULL;
-    def.is_static = is_static;
-    if (!parse_vec(position, 3, "position", def.position) ||
-        !parse_vec(orientation, 4, "orientation", def.orientation) ||
-        !parse_vec(lin, 3, "linear_velocity", def.linear_velocity) ||
-        !parse_vec(ang, 3, "angular_velocity", def.angular_velocity))
-        return NULL;
-    if (inertia != Py_None) {
-        if (!parse_vec(inertia, 9, "inertia", def.inertia)) return NULL;
-        def.has_inertia = 1;
-    }
-    if (com != Py_None) {
-        if (!parse_vec(com, 3, "center_of_mass", def.center_of_mass)) return NULL;
-        def.has_center_of_mass = 1;
-    }
     Py_ssize_t n = PySequence_Size(parts);
     if (n < 1 || n > 65536 || PySequence_Size(radii) != n) {
         PyErr_Clear();
@@ -253,41 +737,22 @@ done:
     return result;
 }
 
-/* points: None (a sphere finger) or a C-contiguous float64 buffer of xyz rows (a convex finger). */
 static PyObject *World_add_finger(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
-    static char *kwlist[] = {"radius",      "stiffness", "damping",  "position",    "points",
-                             "orientation", "torsion",   "renderer", "cursor_mass", NULL};
     gcFingerDef def = gc_default_finger_def();
-    PyObject *position = NULL, *points = NULL, *orientation = NULL;
-    const char *renderer = NULL;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|dddOOOdsd", kwlist, &def.radius, &def.stiffness, &def.damping,
-                                     &position, &points, &orientation, &def.torsion, &renderer, &def.cursor_mass))
+    PyObject *given[MAX_FIELDS];
+    if (!parse_params("add_finger", args, kwargs, finger_params, COUNT_OF(finger_params), COUNT_OF(finger_params),
+                      &def, given) ||
+        !check_ready(self))
         return NULL;
-    if (!check_ready(self)) return NULL;
-    if (renderer && strcmp(renderer, "xfca") == 0)
-        def.renderer = GC_RENDERER_XFCA;
-    else if (renderer && strcmp(renderer, "cursor") == 0)
-        def.renderer = GC_RENDERER_CURSOR;
-    else if (renderer) {
-        PyErr_Format(PyExc_ValueError, "renderer: must be 'xfca' or 'cursor' (got '%s')", renderer);
-        return NULL;
-    }
-    if (position && !parse_vec(position, 3, "position", def.position)) return NULL;
-    if (orientation && orientation != Py_None && !parse_vec(orientation, 4, "orientation", def.orientation))
-        return NULL;
+    PyObject *points = given[4];
     Py_buffer b = {0};
     int has_points = points && points != Py_None;
     if (has_points) {
-        if (PyObject_GetBuffer(points, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
-        if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0 ||
-            b.len / (Py_ssize_t)(3 * sizeof(double)) > (1 << 20)) {
-            PyBuffer_Release(&b);
-            PyErr_SetString(PyExc_ValueError, "points: must be a C-contiguous float64 array of xyz rows");
-            return NULL;
-        }
+        Py_ssize_t rows = xyz_rows(points, &b, "points", 0, 1 << 20);
+        if (rows < 0) return NULL;
         def.points = b.buf;
-        def.num_points = (int)(b.len / (Py_ssize_t)(3 * sizeof(double)));
+        def.num_points = (int)rows;
     }
     int32_t id;
     gcStatus st = gc_world_add_finger(self->world, &def, &id);
@@ -295,28 +760,189 @@ static PyObject *World_add_finger(PyObject *obj, PyObject *args, PyObject *kwarg
     return st < 0 ? raise_status(self, st) : PyLong_FromLong(id);
 }
 
-static PyObject *World_set_finger_pose(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int finger;
-    PyObject *pos, *orient;
-    double p[3], o[4];
-    if (!PyArg_ParseTuple(args, "iOO", &finger, &pos, &orient) || !check_ready(self) ||
-        !parse_vec(pos, 3, "position", p) || !parse_vec(orient, 4, "orientation", o))
-        return NULL;
-    gcStatus st = gc_world_set_finger_pose(self->world, finger, p, o);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+/* ---- Accessors: queries and setters of one body or finger, and the world's numbers -------
+ * One row each: the Python name, the core call, the shape of its arguments or result, the
+ * docstring. A shape's one function (query_*, set_*, below) parses the id, checks the world,
+ * calls the core and maps its status; the rows expand into the World_<name> methods and their
+ * World_methods entries. Adding an accessor of a shape that exists is one row; a new shape is
+ * one function (docs/architecture.md). */
+
+#define ID_QUERIES(X)                                                                                            \
+    X(body_pose, gc_world_body_pose, POSE, "body_pose(body) -> ((x, y, z), (w, x, y, z))")                      \
+    X(body_velocity, gc_world_body_velocity, PAIR, "body_velocity(body) -> (linear, angular), world frame")     \
+    X(body_mass, gc_world_body_mass, MASS, "body_mass(body) -> (mass, center_of_mass, inertia 3x3)")            \
+    X(residual_wrench, gc_world_residual_wrench, PAIR,                                                           \
+      "residual_wrench(body) -> (force, torque about the centre of mass)")                                       \
+    X(body_chain, gc_world_body_chain, OPTIONAL_ID,                                                              \
+      "body_chain(body) -> index of the body's collision chain (last step), None for a static body")            \
+    X(finger_pose, gc_world_finger_pose, POSE, "finger_pose(finger) -> ((x, y, z), (w, x, y, z))")              \
+    X(finger_force, gc_world_finger_force, VEC, "finger_force(finger) -> force rendered to the device, N")      \
+    X(finger_torque, gc_world_finger_torque, VEC,                                                                \
+      "finger_torque(finger) -> a convex finger's contact torque about its HIP, N m (0 for a sphere)")          \
+    X(god_object, gc_world_god_object, VEC, "god_object(finger) -> world position")                             \
+    X(finger_state, gc_world_finger_state, STATE, "finger_state(finger) -> 'free' | 'stick' | 'slip'")          \
+    X(finger_contact, gc_world_finger_state, CONTACT, "finger_contact(finger) -> body id or None")
+
+/* Setters: name, core call, shape, the names of its two arguments (for errors), docstring. */
+#define ID_SETTERS(X)                                                                                            \
+    X(set_hip, gc_world_set_hip, VEC, "position", NULL,                                                          \
+      "set_hip(finger, (x, y, z)): the device (haptic interface) point.")                                        \
+    X(set_finger_pose, gc_world_set_finger_pose, POSE, "position", "orientation",                               \
+      "set_finger_pose(finger, (x, y, z), (w, x, y, z)): the whole HIP (a convex finger turns with it).")        \
+    X(set_body_velocity, gc_world_set_body_velocity, PAIR, "linear", "angular",                                 \
+      "set_body_velocity(body, linear, angular): world frame, of the body origin's COM.")                      \
+    X(set_body_pose, gc_world_set_body_pose, POSE, "position", "orientation",                                   \
+      "set_body_pose(body, position, orientation_wxyz)")                                                         \
+    X(set_body_friction, gc_world_set_body_friction, FRICTION, NULL, NULL,                                      \
+      "set_body_friction(body, mu_s, mu_d, viscosity)")
+
+/* Numbers of the whole world: name, core call, Python type, the guard (ready: not while a step
+ * runs; world: any time, the core serialises it), docstring. NUMBERS are methods, PROPERTIES
+ * read-only attributes. */
+#define WORLD_NUMBERS(X)                                                                                         \
+    X(state_hash, gc_world_state_hash, U64, ready, "64-bit hash of the full dynamic state.")                    \
+    X(chain_count, gc_world_chain_count, INT, ready, "chain_count() -> number of collision chains, last step")  \
+    X(stopped_bodies, gc_world_stopped_bodies, I64, ready,                                                       \
+      "stopped_bodies() -> bodies stopped since creation because their state would have become non-finite")     \
+    X(contact_overflow, gc_world_contact_overflow, I64, ready,                                                   \
+      "contact_overflow() -> contact pairs dropped since creation for want of max_contacts")                    \
+    X(tick_log_overflow, gc_world_tick_log_overflow, U64, world,                                                 \
+      "tick_log_overflow() -> ticks dropped on a full tick log since the last start().")
+
+#define WORLD_PROPERTIES(X)                                                                                      \
+    X(time, gc_world_time, DOUBLE, ready, "Simulated time, s")                                                   \
+    X(body_count, gc_world_body_count, INT, ready, "Number of bodies")                                           \
+    X(finger_count, gc_world_finger_count, INT, ready, "Number of fingers")                                      \
+    X(running, gc_world_running, BOOL, world, "True between start() and stop()")
+
+/* The shapes. A pair's two arrays are 3 and 3 (PAIR) or 3 and 4 numbers (POSE). */
+typedef gcStatus (*QueryVec)(const gcWorld *, int32_t, double[3]);
+typedef gcStatus (*QueryTwo)(const gcWorld *, int32_t, double *, double *);
+typedef gcStatus (*QueryMass)(const gcWorld *, int32_t, double *, double[3], double[9]);
+typedef gcStatus (*QueryOptionalId)(const gcWorld *, int32_t, int32_t *);
+typedef gcStatus (*QueryState)(const gcWorld *, int32_t, gcFingerState *, int32_t *);
+typedef gcStatus (*SetVec)(gcWorld *, int32_t, const double[3]);
+typedef gcStatus (*SetTwo)(gcWorld *, int32_t, const double *, const double *);
+typedef gcStatus (*SetFriction)(gcWorld *, int32_t, double, double, double);
+
+/* The id argument of a query, and the world ready for it. */
+static int parse_id(WorldObject *self, PyObject *args, int *id) {
+    return PyArg_ParseTuple(args, "i", id) && check_ready(self);
 }
 
-static PyObject *World_finger_pose(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int finger;
-    double p[3], o[4];
-    if (!PyArg_ParseTuple(args, "i", &finger) || !check_ready(self)) return NULL;
-    gcStatus st = gc_world_finger_pose(self->world, finger, p, o);
-    if (st < 0) return raise_status(self, st);
-    return Py_BuildValue("((ddd)(dddd))", p[0], p[1], p[2], o[0], o[1], o[2], o[3]);
+static PyObject *query_VEC(WorldObject *self, PyObject *args, QueryVec query) {
+    int id;
+    double v[3];
+    if (!parse_id(self, args, &id)) return NULL;
+    gcStatus st = query(self->world, id, v);
+    return st < 0 ? raise_status(self, st) : tuple_of(v, 3);
 }
+
+static PyObject *query_two(WorldObject *self, PyObject *args, QueryTwo query, int n) {
+    int id;
+    double a[3], b[4];
+    if (!parse_id(self, args, &id)) return NULL;
+    gcStatus st = query(self->world, id, a, b);
+    return st < 0 ? raise_status(self, st) : Py_BuildValue("(NN)", tuple_of(a, 3), tuple_of(b, n));
+}
+#define query_PAIR(self, args, query) query_two(self, args, query, 3)
+#define query_POSE(self, args, query) query_two(self, args, query, 4)
+
+static PyObject *query_MASS(WorldObject *self, PyObject *args, QueryMass query) {
+    int id;
+    double m, c[3], I[9];
+    if (!parse_id(self, args, &id)) return NULL;
+    gcStatus st = query(self->world, id, &m, c, I);
+    if (st < 0) return raise_status(self, st);
+    return Py_BuildValue("(d(ddd)((ddd)(ddd)(ddd)))", m, c[0], c[1], c[2], I[0], I[1], I[2], I[3], I[4], I[5], I[6],
+                         I[7], I[8]);
+}
+
+/* An id or None (a negative id: a free finger's body, a static body's chain). */
+static PyObject *optional_id(int32_t id) {
+    if (id < 0) Py_RETURN_NONE;
+    return PyLong_FromLong(id);
+}
+
+static PyObject *query_OPTIONAL_ID(WorldObject *self, PyObject *args, QueryOptionalId query) {
+    int id;
+    int32_t out;
+    if (!parse_id(self, args, &id)) return NULL;
+    gcStatus st = query(self->world, id, &out);
+    return st < 0 ? raise_status(self, st) : optional_id(out);
+}
+
+/* A finger's state by name (STATE) or the body it touches (CONTACT), from one core call. */
+static PyObject *query_state(WorldObject *self, PyObject *args, QueryState query, int want_body) {
+    int id;
+    gcFingerState state;
+    int32_t body;
+    if (!parse_id(self, args, &id)) return NULL;
+    gcStatus st = query(self->world, id, &state, &body);
+    if (st < 0) return raise_status(self, st);
+    if (want_body) return optional_id(body);
+    return PyUnicode_FromString(enum_name(finger_state_names, COUNT_OF(finger_state_names), (int)state, 0));
+}
+#define query_STATE(self, args, query) query_state(self, args, query, 0)
+#define query_CONTACT(self, args, query) query_state(self, args, query, 1)
+
+static PyObject *set_VEC(WorldObject *self, PyObject *args, SetVec set, const char *name, const char *unused) {
+    int id;
+    PyObject *a;
+    double v[3];
+    if (!PyArg_ParseTuple(args, "iO", &id, &a) || !check_ready(self) || !parse_vec(a, 3, name, v)) return NULL;
+    return none_or_raise(self, set(self->world, id, v));
+}
+
+static PyObject *set_two(WorldObject *self, PyObject *args, SetTwo set, const char *name_a, const char *name_b,
+                         int n) {
+    int id;
+    PyObject *a, *b;
+    double u[3], v[4];
+    if (!PyArg_ParseTuple(args, "iOO", &id, &a, &b) || !check_ready(self) || !parse_vec(a, 3, name_a, u) ||
+        !parse_vec(b, n, name_b, v))
+        return NULL;
+    return none_or_raise(self, set(self->world, id, u, v));
+}
+#define set_PAIR(self, args, set, name_a, name_b) set_two(self, args, set, name_a, name_b, 3)
+#define set_POSE(self, args, set, name_a, name_b) set_two(self, args, set, name_a, name_b, 4)
+
+static PyObject *set_FRICTION(WorldObject *self, PyObject *args, SetFriction set, const char *unused_a,
+                              const char *unused_b) {
+    int id;
+    double mu_s, mu_d, viscosity;
+    if (!PyArg_ParseTuple(args, "iddd", &id, &mu_s, &mu_d, &viscosity) || !check_ready(self)) return NULL;
+    return none_or_raise(self, set(self->world, id, mu_s, mu_d, viscosity));
+}
+
+#define NUMBER_U64(v) PyLong_FromUnsignedLongLong(v)
+#define NUMBER_I64(v) PyLong_FromLongLong((long long)(v))
+#define NUMBER_INT(v) PyLong_FromLong(v)
+#define NUMBER_DOUBLE(v) PyFloat_FromDouble(v)
+#define NUMBER_BOOL(v) PyBool_FromLong(v)
+
+/* The rows, expanded into methods. */
+#define QUERY_METHOD(name, call, shape, doc)                                                                     \
+    static PyObject *World_##name(PyObject *obj, PyObject *args) {                                               \
+        return query_##shape((WorldObject *)obj, args, call);                                                    \
+    }
+ID_QUERIES(QUERY_METHOD)
+#define SETTER_METHOD(name, call, shape, arg_a, arg_b, doc)                                                      \
+    static PyObject *World_##name(PyObject *obj, PyObject *args) {                                               \
+        return set_##shape((WorldObject *)obj, args, call, arg_a, arg_b);                                        \
+    }
+ID_SETTERS(SETTER_METHOD)
+#define NUMBER_FUNCTION(function, second, call, type, guard)                                                     \
+    static PyObject *function(PyObject *obj, second) {                                                           \
+        WorldObject *self = (WorldObject *)obj;                                                                  \
+        return check_##guard(self) ? NUMBER_##type(call(self->world)) : NULL;                                    \
+    }
+#define NUMBER_METHOD(name, call, type, guard, doc)                                                              \
+    NUMBER_FUNCTION(World_##name, PyObject *unused, call, type, guard)
+WORLD_NUMBERS(NUMBER_METHOD)
+#define PROPERTY_GETTER(name, call, type, guard, doc)                                                            \
+    NUMBER_FUNCTION(World_get_##name, void *closure, call, type, guard)
+WORLD_PROPERTIES(PROPERTY_GETTER)
 
 /* finger_contacts(finger) -> list of dicts, one per point of the finger's contact patch. */
 static PyObject *World_finger_contacts(PyObject *obj, PyObject *args) {
@@ -327,104 +953,26 @@ static PyObject *World_finger_contacts(PyObject *obj, PyObject *args) {
     int n = 0;
     gcStatus st = gc_world_finger_contacts(self->world, finger, points, 64, &n);
     if (st < 0) return raise_status(self, st);
-    if (n > 64) n = 64;
-    static const char *states[] = {"free", "stick", "slip"};
-    PyObject *list = PyList_New(n);
-    if (!list) return NULL;
-    for (int i = 0; i < n; ++i) {
-        const gcFingerContactPoint *c = &points[i];
-        PyObject *d = Py_BuildValue("{s:i,s:i,s:O,s:s,s:(ddd),s:(ddd),s:(ddd)}", "body", c->body, "sample",
-                                    c->sample, "reversed", c->reversed ? Py_True : Py_False, "state",
-                                    states[c->state >= 0 && c->state <= 2 ? c->state : 0],
-                                    "point", c->point[0], c->point[1], c->point[2], "normal",
-                                    c->normal[0], c->normal[1], c->normal[2], "force", c->force[0], c->force[1],
-                                    c->force[2]);
-        if (!d) {
-            Py_DECREF(list);
-            return NULL;
-        }
-        if (PyList_SetItem(list, i, d) < 0) {
-            Py_DECREF(list);
-            return NULL;
-        }
-    }
-    return list;
-}
-
-static PyObject *World_set_hip(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int finger;
-    PyObject *pos;
-    double p[3];
-    if (!PyArg_ParseTuple(args, "iO", &finger, &pos) || !check_ready(self) || !parse_vec(pos, 3, "position", p))
-        return NULL;
-    gcStatus st = gc_world_set_hip(self->world, finger, p);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    return fields_list(finger_contact_fields, COUNT_OF(finger_contact_fields), points, sizeof points[0],
+                       n < 64 ? n : 64);
 }
 
 static PyObject *World_set_hips(PyObject *obj, PyObject *arg) {
     WorldObject *self = (WorldObject *)obj;
     if (!check_ready(self)) return NULL;
     Py_buffer b;
-    if (PyObject_GetBuffer(arg, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
-    PyObject *result = NULL;
-    if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0) {
-        PyErr_SetString(PyExc_ValueError, "positions: must be a C-contiguous float64 array of xyz rows");
-    } else {
-        gcStatus st = gc_world_set_hips(self->world, b.buf, (int)(b.len / (Py_ssize_t)(3 * sizeof(double))));
-        if (st < 0)
-            raise_status(self, st);
-        else
-            result = Py_NewRef(Py_None);
-    }
+    Py_ssize_t rows = xyz_rows(arg, &b, "positions", 0, INT_MAX);
+    if (rows < 0) return NULL;
+    gcStatus st = gc_world_set_hips(self->world, b.buf, (int)rows);
     PyBuffer_Release(&b);
-    return result;
+    return none_or_raise(self, st);
 }
 
 static PyObject *World_set_gravity(PyObject *obj, PyObject *arg) {
     WorldObject *self = (WorldObject *)obj;
     double g[3];
     if (!check_ready(self) || !parse_vec(arg, 3, "gravity", g)) return NULL;
-    gcStatus st = gc_world_set_gravity(self->world, g);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
-}
-
-static PyObject *World_set_body_velocity(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int body;
-    PyObject *lin, *ang;
-    double l[3], a[3];
-    if (!PyArg_ParseTuple(args, "iOO", &body, &lin, &ang) || !check_ready(self) ||
-        !parse_vec(lin, 3, "linear", l) || !parse_vec(ang, 3, "angular", a))
-        return NULL;
-    gcStatus st = gc_world_set_body_velocity(self->world, body, l, a);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
-}
-
-static PyObject *World_set_body_pose(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int body;
-    PyObject *pos, *quat;
-    double p[3], q[4];
-    if (!PyArg_ParseTuple(args, "iOO", &body, &pos, &quat) || !check_ready(self) ||
-        !parse_vec(pos, 3, "position", p) || !parse_vec(quat, 4, "orientation", q))
-        return NULL;
-    gcStatus st = gc_world_set_body_pose(self->world, body, p, q);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
-}
-
-static PyObject *World_set_body_friction(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int body;
-    double mu_s, mu_d, viscosity;
-    if (!PyArg_ParseTuple(args, "iddd", &body, &mu_s, &mu_d, &viscosity) || !check_ready(self)) return NULL;
-    gcStatus st = gc_world_set_body_friction(self->world, body, mu_s, mu_d, viscosity);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    return none_or_raise(self, gc_world_set_gravity(self->world, g));
 }
 
 /* step(dt, steps=1): the GIL is released while the core runs. */
@@ -439,104 +987,15 @@ static PyObject *World_step(PyObject *obj, PyObject *args, PyObject *kwargs) {
         return NULL;
     }
     gcStatus st = GC_OK, warned = GC_OK; /* a stop in any of the steps is said once */
-    atomic_store(&self->busy, 1);
-    Py_BEGIN_ALLOW_THREADS
-    for (int i = 0; i < steps && st >= 0; ++i) {
-        st = gc_world_step(self->world, dt);
-        if (st == GC_WARN_STOPPED) warned = st;
-    }
-    Py_END_ALLOW_THREADS
-    atomic_store(&self->busy, 0);
+    WITHOUT_GIL(self, {
+        for (int i = 0; i < steps && st >= 0; ++i) {
+            st = gc_world_step(self->world, dt);
+            if (st == GC_WARN_STOPPED) warned = st;
+        }
+    });
     if (st < 0) return raise_status(self, st);
     if (warn_status(self, warned) < 0) return NULL;
     Py_RETURN_NONE;
-}
-
-static PyObject *World_body_pose(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int body;
-    double p[3], q[4];
-    if (!PyArg_ParseTuple(args, "i", &body) || !check_ready(self)) return NULL;
-    gcStatus st = gc_world_body_pose(self->world, body, p, q);
-    if (st < 0) return raise_status(self, st);
-    return Py_BuildValue("((ddd)(dddd))", p[0], p[1], p[2], q[0], q[1], q[2], q[3]);
-}
-
-static PyObject *World_body_velocity(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int body;
-    double l[3], a[3];
-    if (!PyArg_ParseTuple(args, "i", &body) || !check_ready(self)) return NULL;
-    gcStatus st = gc_world_body_velocity(self->world, body, l, a);
-    if (st < 0) return raise_status(self, st);
-    return Py_BuildValue("((ddd)(ddd))", l[0], l[1], l[2], a[0], a[1], a[2]);
-}
-
-static PyObject *World_body_mass(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int body;
-    double m, c[3], I[9];
-    if (!PyArg_ParseTuple(args, "i", &body) || !check_ready(self)) return NULL;
-    gcStatus st = gc_world_body_mass(self->world, body, &m, c, I);
-    if (st < 0) return raise_status(self, st);
-    return Py_BuildValue("(d(ddd)((ddd)(ddd)(ddd)))", m, c[0], c[1], c[2], I[0], I[1], I[2], I[3], I[4], I[5], I[6],
-                         I[7], I[8]);
-}
-
-static PyObject *World_residual_wrench(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int body;
-    double f[3], t[3];
-    if (!PyArg_ParseTuple(args, "i", &body) || !check_ready(self)) return NULL;
-    gcStatus st = gc_world_residual_wrench(self->world, body, f, t);
-    if (st < 0) return raise_status(self, st);
-    return Py_BuildValue("((ddd)(ddd))", f[0], f[1], f[2], t[0], t[1], t[2]);
-}
-
-typedef gcStatus (*FingerVecQuery)(const gcWorld *, int32_t, double[3]);
-
-static PyObject *finger_vec(WorldObject *self, PyObject *args, FingerVecQuery query) {
-    int finger;
-    double v[3];
-    if (!PyArg_ParseTuple(args, "i", &finger) || !check_ready(self)) return NULL;
-    gcStatus st = query(self->world, finger, v);
-    if (st < 0) return raise_status(self, st);
-    return tuple3(v);
-}
-
-static PyObject *World_finger_force(PyObject *obj, PyObject *args) {
-    return finger_vec((WorldObject *)obj, args, gc_world_finger_force);
-}
-
-static PyObject *World_finger_torque(PyObject *obj, PyObject *args) {
-    return finger_vec((WorldObject *)obj, args, gc_world_finger_torque);
-}
-
-static PyObject *World_god_object(PyObject *obj, PyObject *args) {
-    return finger_vec((WorldObject *)obj, args, gc_world_god_object);
-}
-
-static PyObject *finger_state_query(WorldObject *self, PyObject *args, int want_body) {
-    int finger;
-    gcFingerState state;
-    int32_t body;
-    if (!PyArg_ParseTuple(args, "i", &finger) || !check_ready(self)) return NULL;
-    gcStatus st = gc_world_finger_state(self->world, finger, &state, &body);
-    if (st < 0) return raise_status(self, st);
-    if (want_body) {
-        if (body < 0) Py_RETURN_NONE;
-        return PyLong_FromLong(body);
-    }
-    static const char *names[] = {"free", "stick", "slip"};
-    return PyUnicode_FromString(names[state]);
-}
-
-static PyObject *World_finger_state(PyObject *obj, PyObject *args) {
-    return finger_state_query((WorldObject *)obj, args, 0);
-}
-
-static PyObject *World_finger_contact(PyObject *obj, PyObject *args) {
-    return finger_state_query((WorldObject *)obj, args, 1);
 }
 
 /* _view(kind): 0 body poses (n,7), 1 god-objects, 2 finger forces, 3 HIPs (n,3). */
@@ -566,12 +1025,6 @@ static PyObject *World_view(PyObject *obj, PyObject *arg) {
     return (PyObject *)view;
 }
 
-static PyObject *World_state_hash(PyObject *obj, PyObject *unused) {
-    WorldObject *self = (WorldObject *)obj;
-    if (!check_ready(self)) return NULL;
-    return PyLong_FromUnsignedLongLong(gc_world_state_hash(self->world));
-}
-
 /* ---- Body-body contacts and collision chains (contacts.c, chains.c) ---------------- */
 
 /* contacts() -> list of dicts, one per contact point of the last step. */
@@ -579,104 +1032,26 @@ static PyObject *World_contacts(PyObject *obj, PyObject *unused) {
     WorldObject *self = (WorldObject *)obj;
     if (!check_ready(self)) return NULL;
     int n = gc_world_contacts(self->world, NULL, 0);
-    gcContactPoint *pts = PyMem_Malloc(sizeof(gcContactPoint) * (size_t)(n > 0 ? n : 1));
-    if (!pts) return PyErr_NoMemory();
-    n = gc_world_contacts(self->world, pts, n);
-    PyObject *list = PyList_New(n);
-    for (int i = 0; list && i < n; ++i) {
-        const gcContactPoint *p = &pts[i];
-        PyObject *item = Py_BuildValue(
-            "{s:i,s:i,s:(ddd),s:(ddd),s:d,s:d,s:(ddd),s:O}", "body_a", (int)p->body_a, "body_b", (int)p->body_b,
-            "point", p->point[0], p->point[1], p->point[2], "normal", p->normal[0], p->normal[1], p->normal[2],
-            "separation", p->separation, "normal_impulse", p->normal_impulse, "friction_impulse",
-            p->friction_impulse[0], p->friction_impulse[1], p->friction_impulse[2], "sticking",
-            p->sticking ? Py_True : Py_False);
-        if (!item) {
-            Py_CLEAR(list);
-            break;
-        }
-        PyList_SetItem(list, i, item);
-    }
-    PyMem_Free(pts);
+    gcContactPoint *points = PyMem_Malloc(sizeof(gcContactPoint) * (size_t)(n > 0 ? n : 1));
+    if (!points) return PyErr_NoMemory();
+    n = gc_world_contacts(self->world, points, n);
+    PyObject *list = fields_list(contact_fields, COUNT_OF(contact_fields), points, sizeof points[0], n);
+    PyMem_Free(points);
     return list;
-}
-
-static PyObject *World_chain_count(PyObject *obj, PyObject *unused) {
-    WorldObject *self = (WorldObject *)obj;
-    if (!check_ready(self)) return NULL;
-    return PyLong_FromLong(gc_world_chain_count(self->world));
-}
-
-static PyObject *World_body_chain(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int body;
-    if (!PyArg_ParseTuple(args, "i", &body) || !check_ready(self)) return NULL;
-    int32_t chain;
-    gcStatus st = gc_world_body_chain(self->world, body, &chain);
-    if (st != GC_OK) return raise_status(self, st);
-    if (chain < 0) Py_RETURN_NONE;
-    return PyLong_FromLong(chain);
-}
-
-static PyObject *World_stopped_bodies(PyObject *obj, PyObject *unused) {
-    WorldObject *self = (WorldObject *)obj;
-    if (!check_ready(self)) return NULL;
-    return PyLong_FromLongLong((long long)gc_world_stopped_bodies(self->world));
-}
-
-static PyObject *World_contact_overflow(PyObject *obj, PyObject *unused) {
-    WorldObject *self = (WorldObject *)obj;
-    if (!check_ready(self)) return NULL;
-    return PyLong_FromLongLong((long long)gc_world_contact_overflow(self->world));
-}
-
-static PyObject *World_get_time(PyObject *obj, void *closure) {
-    WorldObject *self = (WorldObject *)obj;
-    if (!check_ready(self)) return NULL;
-    return PyFloat_FromDouble(gc_world_time(self->world));
-}
-
-static PyObject *World_get_body_count(PyObject *obj, void *closure) {
-    WorldObject *self = (WorldObject *)obj;
-    if (!check_ready(self)) return NULL;
-    return PyLong_FromLong(gc_world_body_count(self->world));
-}
-
-static PyObject *World_get_finger_count(PyObject *obj, void *closure) {
-    WorldObject *self = (WorldObject *)obj;
-    if (!check_ready(self)) return NULL;
-    return PyLong_FromLong(gc_world_finger_count(self->world));
 }
 
 /* ---- Runtime: haptic loop and object manager threads (runtime*.c, docs/runtime.md) ----
  * push_hips, _snapshot and stats may run while another thread is inside advance/stop: the
  * core serialises them itself. */
 
-static int check_world(WorldObject *self) {
-    if (!self->world) {
-        PyErr_SetString(PyExc_RuntimeError, "World is not initialised");
-        return 0;
-    }
-    return 1;
-}
-
 static PyObject *World_start(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
-    static char *kwlist[] = {"haptic_rate", "object_rate", "max_adopted_bodies", "max_force", "ramp_time",
-                             "watchdog_timeout", "hip_timeout", "release_delay", "realtime", "priority",
-                             "max_hip_speed", NULL};
     gcRuntimeDef def = gc_default_runtime_def();
-    int realtime = def.realtime;
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "|$ddidddddpid", kwlist, &def.haptic_rate, &def.object_rate,
-                                     &def.max_adopted_bodies, &def.max_force, &def.ramp_time,
-                                     &def.watchdog_timeout, &def.hip_timeout, &def.release_delay, &realtime,
-                                     &def.priority, &def.max_hip_speed) ||
+    PyObject *given[MAX_FIELDS];
+    if (!parse_params("start", args, kwargs, runtime_params, COUNT_OF(runtime_params), 0, &def, given) ||
         !check_ready(self))
         return NULL;
-    def.realtime = realtime;
-    gcStatus st = gc_world_start(self->world, &def);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    return none_or_raise(self, gc_world_start(self->world, &def));
 }
 
 /* stop(): joins the threads with the GIL released (the loops never need it). */
@@ -684,13 +1059,8 @@ static PyObject *World_stop(PyObject *obj, PyObject *unused) {
     WorldObject *self = (WorldObject *)obj;
     if (!check_ready(self)) return NULL;
     gcStatus st;
-    atomic_store(&self->busy, 1);
-    Py_BEGIN_ALLOW_THREADS
-    st = gc_world_stop(self->world);
-    Py_END_ALLOW_THREADS
-    atomic_store(&self->busy, 0);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    WITHOUT_GIL(self, st = gc_world_stop(self->world));
+    return none_or_raise(self, st);
 }
 
 /* advance(ticks, delay=0.0): manual clock only; the GIL is released meanwhile. */
@@ -701,16 +1071,10 @@ static PyObject *World_advance(PyObject *obj, PyObject *args, PyObject *kwargs) 
     double delay = 0.0;
     if (!PyArg_ParseTupleAndKeywords(args, kwargs, "i|d", kwlist, &ticks, &delay) || !check_ready(self)) return NULL;
     gcStatus st;
-    atomic_store(&self->busy, 1);
-    Py_BEGIN_ALLOW_THREADS
-    st = gc_world_advance(self->world, ticks, delay);
-    Py_END_ALLOW_THREADS
-    atomic_store(&self->busy, 0);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    WITHOUT_GIL(self, st = gc_world_advance(self->world, ticks, delay));
+    return none_or_raise(self, st);
 }
 
-/* _push_hips(float64 buffer of xyz rows, t) -> True if taken, False if rejected (counted). */
 /* _set_hip_track(times float64 (n,), positions float64 (n, m, 3), scripted bytes (m) or None
  * [, orientations float64 (n, m, 4) or None]). */
 static PyObject *World_set_hip_track(PyObject *obj, PyObject *args) {
@@ -775,20 +1139,18 @@ static PyObject *World_push_hips(PyObject *obj, PyObject *args) {
     double t;
     if (!PyArg_ParseTuple(args, "Od|O", &positions, &t, &quat_obj) || !check_world(self)) return NULL;
     Py_buffer b, q = {0};
-    if (PyObject_GetBuffer(positions, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
+    Py_ssize_t rows = xyz_rows(positions, &b, "positions", 1, INT_MAX / 4);
+    if (rows < 0) return NULL;
     int has_quat = quat_obj != Py_None;
     if (has_quat && PyObject_GetBuffer(quat_obj, &q, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
         PyBuffer_Release(&b);
         return NULL;
     }
     PyObject *result = NULL;
-    int rows = (int)(b.len / (Py_ssize_t)(3 * sizeof(double)));
-    if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0 || b.len == 0) {
-        PyErr_SetString(PyExc_ValueError, "positions: must be a C-contiguous float64 array of xyz rows");
-    } else if (has_quat && (!q.format || strcmp(q.format, "d") != 0 || q.len != rows * 4 * (Py_ssize_t)sizeof(double))) {
-        PyErr_Format(PyExc_ValueError, "orientations: must be a C-contiguous float64 array of %d wxyz rows", rows);
+    if (has_quat && (!q.format || strcmp(q.format, "d") != 0 || q.len != rows * 4 * (Py_ssize_t)sizeof(double))) {
+        PyErr_Format(PyExc_ValueError, "orientations: must be a C-contiguous float64 array of %zd wxyz rows", rows);
     } else {
-        gcStatus st = gc_world_push_finger_poses(self->world, b.buf, has_quat ? q.buf : NULL, rows, t);
+        gcStatus st = gc_world_push_finger_poses(self->world, b.buf, has_quat ? q.buf : NULL, (int)rows, t);
         if (st < 0)
             raise_status(self, st);
         else
@@ -850,35 +1212,14 @@ static PyObject *World_stats(PyObject *obj, PyObject *unused) {
     gcRuntimeStats s;
     gcStatus st = gc_world_stats(self->world, &s);
     if (st < 0) return raise_status(self, st);
-    return Py_BuildValue(
-        "{s:N,s:N,s:N,s:s,s:d,s:d,s:d,s:K,s:K,s:d,s:d,s:d,s:d,s:d,s:d,s:K,s:K,s:K,s:i,s:K,s:K,s:K,s:K,s:K,s:K,s:N,s:d,s:d}",
-        "running", PyBool_FromLong(s.running), "realtime", PyBool_FromLong(s.realtime), "rt_priority",
-        PyBool_FromLong(s.rt_priority), "priority_note", s.priority_note, "haptic_rate", s.haptic_rate,
-        "object_rate", s.object_rate, "object_speed", s.object_speed, "haptic_ticks",
-        (unsigned long long)s.haptic_ticks, "object_ticks", (unsigned long long)s.object_ticks, "jitter_p50_us",
-        s.jitter_p50_us, "jitter_p99_us", s.jitter_p99_us, "jitter_max_us", s.jitter_max_us, "tick_max_us", s.tick_max_us, "tick_mean_us", s.tick_mean_us, "wake_max_us", s.wake_max_us, "overruns",
-        (unsigned long long)s.overruns, "late_periods", (unsigned long long)s.late_periods, "object_overruns",
-        (unsigned long long)s.object_overruns, "adopted_bodies", s.adopted_bodies, "accepted_inputs",
-        (unsigned long long)s.accepted_inputs, "rejected_inputs", (unsigned long long)s.rejected_inputs,
-        "watchdog_trips", (unsigned long long)s.watchdog_trips, "stale_inputs", (unsigned long long)s.stale_inputs,
-        "nonfinite_forces", (unsigned long long)s.nonfinite_forces, "stopped_bodies",
-        (unsigned long long)s.stopped_bodies, "forces_enabled",
-        PyBool_FromLong(s.forces_enabled), "haptic_time", s.haptic_time, "object_time", s.object_time);
+    return fields_dict(runtime_stats_fields, COUNT_OF(runtime_stats_fields), &s);
 }
 
 static PyObject *World_debug_stall(PyObject *obj, PyObject *arg) {
     WorldObject *self = (WorldObject *)obj;
     double seconds = PyFloat_AsDouble(arg);
     if ((seconds == -1.0 && PyErr_Occurred()) || !check_world(self)) return NULL;
-    gcStatus st = gc_world_debug_stall(self->world, seconds);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
-}
-
-static PyObject *World_get_running(PyObject *obj, void *closure) {
-    WorldObject *self = (WorldObject *)obj;
-    if (!check_world(self)) return NULL;
-    return PyBool_FromLong(gc_world_running(self->world));
+    return none_or_raise(self, gc_world_debug_stall(self->world, seconds));
 }
 
 /* ---- Tick log (tick_log.c, docs/recording-format.md) --------------------------------- */
@@ -904,8 +1245,7 @@ static PyObject *World_tick_record(PyObject *obj, PyObject *args) {
     if (!writable_buffer(out, &b, need, "tick_record")) return NULL;
     gcStatus st = gc_world_tick_record(self->world, tick, b.buf, (size_t)b.len);
     PyBuffer_Release(&b);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    return none_or_raise(self, st);
 }
 
 static PyObject *World_step_hips(PyObject *obj, PyObject *args) {
@@ -935,12 +1275,10 @@ static PyObject *World_step_hips(PyObject *obj, PyObject *args) {
         return NULL;
     }
     gcStatus st;
-    atomic_store(&self->busy, 1);
-    Py_BEGIN_ALLOW_THREADS
-    st = gc_world_step_hips(self->world, h.buf, fingers, steps, dt, first_tick, records ? b.buf : NULL,
-                            records ? (size_t)b.len : 0, NULL);
-    Py_END_ALLOW_THREADS
-    atomic_store(&self->busy, 0);
+    WITHOUT_GIL(self, {
+        st = gc_world_step_hips(self->world, h.buf, fingers, steps, dt, first_tick, records ? b.buf : NULL,
+                                records ? (size_t)b.len : 0, NULL);
+    });
     if (records) PyBuffer_Release(&b);
     PyBuffer_Release(&h);
     if (st < 0) return raise_status(self, st);
@@ -953,9 +1291,7 @@ static PyObject *World_set_tick_log(PyObject *obj, PyObject *arg) {
     if (!check_ready(self)) return NULL;
     int capacity = PyLong_AsLong(arg);
     if (capacity == -1 && PyErr_Occurred()) return NULL;
-    gcStatus st = gc_world_set_tick_log(self->world, capacity);
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    return none_or_raise(self, gc_world_set_tick_log(self->world, capacity));
 }
 
 /* The tick log is safe from any thread at any time (tick_log.c): check_world, not check_ready,
@@ -972,12 +1308,6 @@ static PyObject *World_drain_ticks(PyObject *obj, PyObject *arg) {
     PyBuffer_Release(&b);
     if (n < 0) return raise_status(self, (gcStatus)n);
     return PyLong_FromLong(n);
-}
-
-static PyObject *World_tick_log_overflow(PyObject *obj, PyObject *unused) {
-    WorldObject *self = (WorldObject *)obj;
-    if (!check_world(self)) return NULL;
-    return PyLong_FromUnsignedLongLong(gc_world_tick_log_overflow(self->world));
 }
 
 static PyObject *module_tick_record_size(PyObject *mod, PyObject *args) {
@@ -1044,13 +1374,13 @@ static int take_buffer(GraspBuffers *g, PyObject *arg, char fmt, Py_ssize_t coun
     return 1;
 }
 
-static PyObject *grasp_quality_dict(const gcGraspQuality *q) {
-    return Py_BuildValue("{s:O,s:O,s:O,s:d,s:d,s:(dddddd),s:i,s:i}", "force_closure",
-                         q->force_closure ? Py_True : Py_False, "force_only_closure",
-                         q->force_only_closure ? Py_True : Py_False, "torque_closure",
-                         q->torque_closure ? Py_True : Py_False, "epsilon", q->epsilon, "volume", q->volume, "weakest",
-                         q->weakest[0], q->weakest[1], q->weakest[2], q->weakest[3], q->weakest[4], q->weakest[5],
-                         "rank", (int)q->rank, "facets", (int)q->facets);
+/* The options of a grasp call (gcGraspDef) over the core's defaults. */
+static gcGraspDef grasp_def(int edges, int volume, int reuse) {
+    gcGraspDef def = gc_default_grasp_def();
+    def.edges = edges;
+    def.volume = volume;
+    def.reuse = reuse;
+    return def;
 }
 
 /* Soft contacts (gcGraspDef.torsion): an optional trailing argument of the three grasp calls, None
@@ -1070,7 +1400,7 @@ static PyObject *module_grasp_quality(PyObject *mod, PyObject *args) {
     int edges, volume, reuse;
     if (!PyArg_ParseTuple(args, "OOOOdipp|O", &po, &no, &mo, &co, &radius, &edges, &volume, &reuse, &to))
         return NULL;
-    gcGraspDef def = gc_default_grasp_def();
+    gcGraspDef def = grasp_def(edges, volume, reuse);
     GraspBuffers g = {.n = 0};
     PyObject *result = NULL;
     if (take_buffer(&g, mo, 'd', -1, "mu", 0)) {
@@ -1081,15 +1411,13 @@ static PyObject *module_grasp_quality(PyObject *mod, PyObject *args) {
                    take_buffer(&g, co, 'd', 3, "center", 0) && take_torsion(&g, to, n, &def)) {
             gcGraspWorkspace *ws = workspace_take();
             if (ws) {
-                def.edges = edges;
-                def.volume = volume;
-                def.reuse = reuse;
                 gcGraspQuality q;
                 gcStatus st;
                 Py_BEGIN_ALLOW_THREADS
                 st = gc_grasp_quality(ws, &def, g.b[1].buf, g.b[2].buf, g.b[0].buf, (int)n, g.b[3].buf, radius, &q);
                 Py_END_ALLOW_THREADS
-                result = st < 0 ? raise_message(st, gc_grasp_workspace_error(ws)) : grasp_quality_dict(&q);
+                result = st < 0 ? raise_message(st, gc_grasp_workspace_error(ws))
+                                : fields_dict(grasp_quality_fields, COUNT_OF(grasp_quality_fields), &q);
                 workspace_give(ws);
             }
         }
@@ -1106,7 +1434,7 @@ static PyObject *module_grasp_quality_batch(PyObject *mod, PyObject *args) {
     int edges, volume, reuse;
     if (!PyArg_ParseTuple(args, "OOOOOOippO|O", &po, &no, &mo, &ko, &co, &ro, &edges, &volume, &reuse, &oo, &to))
         return NULL;
-    gcGraspDef def = gc_default_grasp_def();
+    gcGraspDef def = grasp_def(edges, volume, reuse);
     GraspBuffers g = {.n = 0};
     PyObject *result = NULL;
     if (take_buffer(&g, mo, 'd', -1, "mu", 0) && take_buffer(&g, ko, 'i', -1, "counts", 0)) {
@@ -1129,9 +1457,6 @@ static PyObject *module_grasp_quality_batch(PyObject *mod, PyObject *args) {
             } else {
                 gcGraspWorkspace *ws = workspace_take();
                 if (ws) {
-                    def.edges = edges;
-                    def.volume = volume;
-                    def.reuse = reuse;
                     gcStatus st;
                     Py_BEGIN_ALLOW_THREADS
                     st = gc_grasp_quality_batch(ws, &def, g.b[2].buf, g.b[3].buf, g.b[0].buf, counts, (int)sets,
@@ -1153,7 +1478,7 @@ static PyObject *module_grasp_mu_min(PyObject *mod, PyObject *args) {
     double radius, mu_max;
     int edges, reuse;
     if (!PyArg_ParseTuple(args, "OOOdidp|O", &po, &no, &co, &radius, &edges, &mu_max, &reuse, &to)) return NULL;
-    gcGraspDef def = gc_default_grasp_def();
+    gcGraspDef def = grasp_def(edges, gc_default_grasp_def().volume, reuse);
     GraspBuffers g = {.n = 0};
     PyObject *result = NULL;
     if (take_buffer(&g, po, 'd', -1, "points", 0)) {
@@ -1164,8 +1489,6 @@ static PyObject *module_grasp_mu_min(PyObject *mod, PyObject *args) {
                    take_torsion(&g, to, n, &def)) {
             gcGraspWorkspace *ws = workspace_take();
             if (ws) {
-                def.edges = edges;
-                def.reuse = reuse;
                 double mu = 0.0;
                 gcStatus st;
                 Py_BEGIN_ALLOW_THREADS
@@ -1184,26 +1507,17 @@ static PyObject *module_grasp_mu_min(PyObject *mod, PyObject *args) {
 
 static PyObject *World_attach_serial(PyObject *obj, PyObject *args, PyObject *kwargs) {
     WorldObject *self = (WorldObject *)obj;
-    static char *kwlist[] = {"fd", "finger_offset", "num_fingers", "transform", "force_ttl", "lost_timeout",
-                             "max_force", "ramp_time", "max_position", "stall_timeout", "priority", "udp_host",
-                             "udp_port", NULL};
+    static const Field fd_param = {"fd", FIELD_INT, 0, 0, 0, NULL};
     gcSerialDef def = gc_default_serial_def();
+    PyObject *given[MAX_FIELDS];
     int fd;
-    PyObject *transform = Py_None;
-    const char *udp_host = "";
-    if (!PyArg_ParseTupleAndKeywords(args, kwargs, "i|$iiOddddddisi", kwlist, &fd, &def.finger_offset,
-                                     &def.num_fingers, &transform, &def.force_ttl, &def.lost_timeout, &def.max_force,
-                                     &def.ramp_time, &def.max_position, &def.stall_timeout, &def.priority, &udp_host,
-                                     &def.udp_port) ||
-        !check_world(self))
+    if (!parse_params("attach_serial", args, kwargs, serial_params, COUNT_OF(serial_params), 1, &def, given))
         return NULL;
-    if (strlen(udp_host) >= sizeof def.udp_host) {
-        PyErr_SetString(PyExc_ValueError, "udp_host: longer than 63 bytes");
+    if (!given[0]) {
+        PyErr_SetString(PyExc_TypeError, "attach_serial() missing required argument 'fd'");
         return NULL;
     }
-    strcpy(def.udp_host, udp_host);
-    if (transform != Py_None && !parse_vec(transform, 16, "transform (16 numbers, row-major 4x4)", def.transform))
-        return NULL;
+    if (!set_field(&fd_param, given[0], &fd) || !check_world(self)) return NULL;
     int32_t id;
     gcStatus st = gc_world_attach_serial(self->world, fd, &def, &id);
     if (st < 0) return raise_status(self, st);
@@ -1220,8 +1534,7 @@ static PyObject *serial_result(WorldObject *self, int32_t id, gcStatus st) {
         PyErr_Format(PyExc_ValueError, "device %d: no such serial device", (int)id);
         return NULL;
     }
-    if (st < 0) return raise_status(self, st);
-    Py_RETURN_NONE;
+    return none_or_raise(self, st);
 }
 
 /* detach_serial(device): joins the device's thread with the GIL released. */
@@ -1251,13 +1564,6 @@ static PyObject *World_serial_estop(PyObject *obj, PyObject *args) {
     return serial_result(self, id, gc_world_serial_estop(self->world, id));
 }
 
-/* d[key] = v, taking v's reference; -1 (error set) when v is NULL or the insert fails. */
-static int set_stolen(PyObject *d, const char *key, PyObject *v) {
-    int r = v ? PyDict_SetItemString(d, key, v) : -1;
-    Py_XDECREF(v);
-    return r;
-}
-
 static PyObject *World_serial_stats(PyObject *obj, PyObject *args) {
     WorldObject *self = (WorldObject *)obj;
     int32_t id;
@@ -1265,80 +1571,40 @@ static PyObject *World_serial_stats(PyObject *obj, PyObject *args) {
     gcSerialStats s;
     gcStatus st = gc_world_serial_stats(self->world, id, &s);
     if (st < 0) return serial_result(self, id, st);
-    static const char *states[] = {"waiting", "streaming", "lost", "hangup"};
-    PyObject *errors = Py_BuildValue("{s:K,s:K,s:K,s:K,s:K,s:K,s:K,s:K}", "cobs", s.frame_errors[0], "short",
-                                     s.frame_errors[1], "crc", s.frame_errors[2], "version", s.frame_errors[3],
-                                     "type", s.frame_errors[4], "length", s.frame_errors[5], "overflow",
-                                     s.frame_errors[6], "range", s.frame_errors[7]);
-    if (!errors) return NULL;
-    PyObject *out = Py_BuildValue(
-        "{s:s,s:N,s:i,s:N,s:i,s:d,s:d,s:d,s:s,s:d,s:d,s:K,s:K,s:K,s:K,s:N,s:K,s:K,s:K,s:K,s:K,s:K,s:d,s:d,s:d,s:d,s:N}",
-        "state", states[s.state & 3], "enabled", PyBool_FromLong(s.enabled), "device_fingers", s.device_fingers,
-        "renders_forces", PyBool_FromLong(s.renders_forces), "units", s.units, "device_rate", s.device_rate,
-        "device_force_max", s.device_force_max, "device_ttl_max", s.device_ttl_max, "name", s.name, "pose_rate",
-        s.pose_rate, "last_pose_age", s.last_pose_age, "poses", (unsigned long long)s.poses, "forces_sent",
-        (unsigned long long)s.forces_sent, "heartbeats", (unsigned long long)s.heartbeats, "dropped",
-        (unsigned long long)s.dropped, "frame_errors", errors, "sequence_gaps", (unsigned long long)s.sequence_gaps,
-        "disconnects", (unsigned long long)s.disconnects, "estops", (unsigned long long)s.estops, "stall_zeroes",
-        (unsigned long long)s.stall_zeroes, "write_errors", (unsigned long long)s.write_errors, "push_rejected",
-        (unsigned long long)s.push_rejected, "latency_p50_us", s.latency_p50_us, "latency_p99_us", s.latency_p99_us,
-        "latency_max_us", s.latency_max_us, "gain", s.gain, "rt_priority", PyBool_FromLong(s.rt_priority));
-    if (out && (set_stolen(out, "late_poses", PyLong_FromUnsignedLongLong(s.late_poses)) < 0 ||
-                set_stolen(out, "duplicate_poses", PyLong_FromUnsignedLongLong(s.duplicate_poses)) < 0 ||
-                set_stolen(out, "foreign_datagrams", PyLong_FromUnsignedLongLong(s.foreign_datagrams)) < 0 ||
-                set_stolen(out, "peer", PyUnicode_FromString(s.peer)) < 0)) {
-        Py_DECREF(out);
+    return fields_dict(serial_stats_fields, COUNT_OF(serial_stats_fields), &s);
+}
+
+/* A device read in Python: (finger_offset, float64 buffer of xyz rows) handed to the core;
+ * True if taken, False if rejected (counted). */
+typedef gcStatus (*DeviceRows)(gcWorld *, int, int, const double *);
+
+static PyObject *device_rows(WorldObject *self, PyObject *args, DeviceRows call, const char *rows_name,
+                             const char *not_running) {
+    int offset;
+    PyObject *rows_obj;
+    if (!PyArg_ParseTuple(args, "iO", &offset, &rows_obj) || !check_world(self)) return NULL;
+    Py_buffer b;
+    Py_ssize_t rows = xyz_rows(rows_obj, &b, rows_name, 1, INT_MAX);
+    if (rows < 0) return NULL;
+    gcStatus st = call(self->world, offset, (int)rows, b.buf);
+    PyBuffer_Release(&b);
+    if (st == GC_ERR_NOT_RUNNING && not_running) {
+        PyErr_SetString(PyExc_RuntimeError, not_running);
         return NULL;
     }
-    return out;
+    if (st < 0) return raise_status(self, st);
+    return PyBool_FromLong(st == GC_OK);
 }
 
-/* push_device_hips(finger_offset, float64 buffer of xyz rows) -> True if taken, False if rejected. */
+/* push_device_hips(finger_offset, positions): HIPs from a device read in Python. */
 static PyObject *World_push_device_hips(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int offset;
-    PyObject *positions;
-    if (!PyArg_ParseTuple(args, "iO", &offset, &positions) || !check_world(self)) return NULL;
-    Py_buffer b;
-    if (PyObject_GetBuffer(positions, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
-    PyObject *result = NULL;
-    if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0 || b.len == 0) {
-        PyErr_SetString(PyExc_ValueError, "positions: must be a C-contiguous float64 array of xyz rows");
-    } else {
-        gcStatus st = gc_world_push_device_hips(self->world, offset, (int)(b.len / (Py_ssize_t)(3 * sizeof(double))),
-                                                b.buf);
-        if (st == GC_ERR_NOT_RUNNING)
-            PyErr_SetString(PyExc_RuntimeError, "push_device_hips: the runtime is not running (World.start)");
-        else if (st < 0)
-            raise_status(self, st);
-        else
-            result = PyBool_FromLong(st == GC_OK);
-    }
-    PyBuffer_Release(&b);
-    return result;
+    return device_rows((WorldObject *)obj, args, gc_world_push_device_hips, "positions",
+                       "push_device_hips: the runtime is not running (World.start)");
 }
 
-/* device_forces_sent(finger_offset, float64 buffer of xyz rows) -> True if stored, False if rejected. */
+/* device_forces_sent(finger_offset, forces): what that device was sent, for the record. */
 static PyObject *World_device_forces_sent(PyObject *obj, PyObject *args) {
-    WorldObject *self = (WorldObject *)obj;
-    int offset;
-    PyObject *forces;
-    if (!PyArg_ParseTuple(args, "iO", &offset, &forces) || !check_world(self)) return NULL;
-    Py_buffer b;
-    if (PyObject_GetBuffer(forces, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return NULL;
-    PyObject *result = NULL;
-    if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0 || b.len == 0) {
-        PyErr_SetString(PyExc_ValueError, "forces: must be a C-contiguous float64 array of xyz rows");
-    } else {
-        gcStatus st = gc_world_device_forces_sent(self->world, offset, (int)(b.len / (Py_ssize_t)(3 * sizeof(double))),
-                                                  b.buf);
-        if (st < 0)
-            raise_status(self, st);
-        else
-            result = PyBool_FromLong(st == GC_OK);
-    }
-    PyBuffer_Release(&b);
-    return result;
+    return device_rows((WorldObject *)obj, args, gc_world_device_forces_sent, "forces", NULL);
 }
 
 /* serial_events(device) -> [(time, name, value, session_time)], popped oldest first. */
@@ -1348,15 +1614,13 @@ static PyObject *World_serial_events(PyObject *obj, PyObject *args) {
     if (!serial_id(self, args, &id, NULL)) return NULL;
     gcSerialStats probe;
     if (gc_world_serial_stats(self->world, id, &probe) < 0) return serial_result(self, id, GC_ERR_UNKNOWN_ID);
-    static const char *names[] = {"?", "connected", "lost", "recovered", "enabled", "estop", "stall", "dropped",
-                                  "foreign"};
     PyObject *list = PyList_New(0);
     gcSerialEvent ev[64];
     int n;
     while (list && (n = gc_world_serial_events(self->world, id, ev, 64)) > 0) {
         for (int i = 0; i < n; ++i) {
-            PyObject *item = Py_BuildValue("(dsid)", ev[i].time, names[ev[i].code >= 1 && ev[i].code <= 8 ? ev[i].code : 0], (int)ev[i].value,
-                                           ev[i].session_time);
+            const char *name = enum_name(serial_event_names, COUNT_OF(serial_event_names), (int)ev[i].code, 0);
+            PyObject *item = Py_BuildValue("(dsid)", ev[i].time, name, (int)ev[i].value, ev[i].session_time);
             if (!item || PyList_Append(list, item) < 0) {
                 Py_XDECREF(item);
                 Py_DECREF(list);
@@ -1368,55 +1632,36 @@ static PyObject *World_serial_events(PyObject *obj, PyObject *args) {
     return list;
 }
 
+#define QUERY_ENTRY(name, call, shape, doc) {#name, World_##name, METH_VARARGS, doc},
+#define SETTER_ENTRY(name, call, shape, arg_a, arg_b, doc) {#name, World_##name, METH_VARARGS, doc},
+#define NUMBER_ENTRY(name, call, type, guard, doc) {#name, World_##name, METH_NOARGS, doc},
+#define PROPERTY_ENTRY(name, call, type, guard, doc) {#name, World_get_##name, NULL, doc, NULL},
+
 static PyMethodDef World_methods[] = {
-    {"_add_body", World_add_body, METH_VARARGS, "Low-level add_body; use World.add_body."},
+    {"_add_body", (PyCFunction)(void (*)(void))World_add_body, METH_VARARGS | METH_KEYWORDS,
+     "Low-level add_body(parts, radii, **BODY_DEFAULTS); use World.add_body."},
     {"add_finger", (PyCFunction)(void (*)(void))World_add_finger, METH_VARARGS | METH_KEYWORDS,
      "add_finger(radius, stiffness, damping, position=(0,0,0), points=None, orientation=(1,0,0,0), torsion=0, "
      "renderer='xfca', cursor_mass) -> finger id; points: a convex finger's (n, 3) float64 points in its frame "
      "(None: a sphere); torsion: a soft sphere fingertip's patch radius, m; renderer 'cursor': sphere fingers "
      "without torsion only; defaults: FINGER_DEFAULTS"},
-    {"set_finger_pose", World_set_finger_pose, METH_VARARGS,
-     "set_finger_pose(finger, (x, y, z), (w, x, y, z)): the whole HIP (a convex finger turns with it)."},
-    {"finger_pose", World_finger_pose, METH_VARARGS, "finger_pose(finger) -> ((x, y, z), (w, x, y, z))"},
-    {"finger_torque", World_finger_torque, METH_VARARGS,
-     "finger_torque(finger) -> a convex finger's contact torque about its HIP, N m (0 for a sphere)"},
+    ID_QUERIES(QUERY_ENTRY)
+    ID_SETTERS(SETTER_ENTRY)
+    WORLD_NUMBERS(NUMBER_ENTRY)
     {"finger_contacts", World_finger_contacts, METH_VARARGS,
      "finger_contacts(finger) -> [{body, sample, reversed, state, point, normal, force}] per contact point (first 64)"},
-    {"set_hip", World_set_hip, METH_VARARGS, "set_hip(finger, (x, y, z)): the device (haptic interface) point."},
     {"set_hips", World_set_hips, METH_O, "set_hips(array (n, 3) float64): HIPs of fingers 0..n-1."},
     {"set_gravity", World_set_gravity, METH_O, "set_gravity((gx, gy, gz))"},
-    {"set_body_velocity", World_set_body_velocity, METH_VARARGS,
-     "set_body_velocity(body, linear, angular): world frame, of the body origin's COM."},
-    {"set_body_pose", World_set_body_pose, METH_VARARGS, "set_body_pose(body, position, orientation_wxyz)"},
-    {"set_body_friction", World_set_body_friction, METH_VARARGS, "set_body_friction(body, mu_s, mu_d, viscosity)"},
     {"step", (PyCFunction)(void (*)(void))World_step, METH_VARARGS | METH_KEYWORDS,
      "step(dt, steps=1): advance the world; the GIL is released meanwhile."},
-    {"body_pose", World_body_pose, METH_VARARGS, "body_pose(body) -> ((x, y, z), (w, x, y, z))"},
-    {"body_velocity", World_body_velocity, METH_VARARGS, "body_velocity(body) -> (linear, angular), world frame"},
-    {"body_mass", World_body_mass, METH_VARARGS, "body_mass(body) -> (mass, center_of_mass, inertia 3x3)"},
-    {"residual_wrench", World_residual_wrench, METH_VARARGS,
-     "residual_wrench(body) -> (force, torque about the centre of mass)"},
-    {"finger_force", World_finger_force, METH_VARARGS, "finger_force(finger) -> force rendered to the device, N"},
-    {"god_object", World_god_object, METH_VARARGS, "god_object(finger) -> world position"},
-    {"finger_state", World_finger_state, METH_VARARGS, "finger_state(finger) -> 'free' | 'stick' | 'slip'"},
-    {"finger_contact", World_finger_contact, METH_VARARGS, "finger_contact(finger) -> body id or None"},
     {"_view", World_view, METH_O, "Zero-copy buffer view of world arrays."},
-    {"state_hash", World_state_hash, METH_NOARGS, "64-bit hash of the full dynamic state."},
     {"contacts", World_contacts, METH_NOARGS,
      "contacts() -> list of dicts (body_a, body_b, point, normal, separation, normal_impulse, "
      "friction_impulse, sticking), one per body-body contact point of the last step."},
-    {"chain_count", World_chain_count, METH_NOARGS, "chain_count() -> number of collision chains, last step"},
-    {"body_chain", World_body_chain, METH_VARARGS,
-     "body_chain(body) -> index of the body's collision chain (last step), None for a static body"},
-    {"stopped_bodies", World_stopped_bodies, METH_NOARGS,
-     "stopped_bodies() -> bodies stopped since creation because their state would have become non-finite"},
-    {"contact_overflow", World_contact_overflow, METH_NOARGS,
-     "contact_overflow() -> contact pairs dropped since creation for want of max_contacts"},
     /* Runtime (docs/runtime.md). */
     {"start", (PyCFunction)(void (*)(void))World_start, METH_VARARGS | METH_KEYWORDS,
-     "start(*, haptic_rate=1000, object_rate=500, max_adopted_bodies=3, max_force=10, ramp_time=0.5,\n"
-     "      watchdog_timeout=0.005, hip_timeout=0.1, release_delay=0.05, realtime=True, priority=80,\n"
-     "      max_hip_speed=0.0)\n"
+     "start(*, haptic_rate, object_rate, max_adopted_bodies, max_force, ramp_time, watchdog_timeout,\n"
+     "      hip_timeout, release_delay, realtime, priority, max_hip_speed); defaults: RUNTIME_DEFAULTS\n"
      "Run the world on a haptic loop and an object manager thread (docs/runtime.md)."},
     {"stop", World_stop, METH_NOARGS, "stop(): join the runtime threads; the world steps synchronously again."},
     {"advance", (PyCFunction)(void (*)(void))World_advance, METH_VARARGS | METH_KEYWORDS,
@@ -1429,13 +1674,11 @@ static PyMethodDef World_methods[] = {
     {"_step_hips", World_step_hips, METH_VARARGS, "Low-level step_hips; use World.step_hips."},
     {"_set_tick_log", World_set_tick_log, METH_O, "Low-level set_tick_log(capacity)."},
     {"_drain_ticks", World_drain_ticks, METH_O, "Low-level drain_ticks(buffer) -> records copied."},
-    {"tick_log_overflow", World_tick_log_overflow, METH_NOARGS,
-     "tick_log_overflow() -> ticks dropped on a full tick log since the last start()."},
     {"_debug_stall", World_debug_stall, METH_O, "Test hook: stall the haptic loop this many seconds once."},
     {"attach_serial", (PyCFunction)(void (*)(void))World_attach_serial, METH_VARARGS | METH_KEYWORDS,
-     "attach_serial(fd, *, finger_offset=0, num_fingers=1, transform=None (row-major 4x4, device metres -> world), "
-     "force_ttl=0.02, lost_timeout=0.1, max_force=10.0, ramp_time=0.5, max_position=10.0, stall_timeout=0.005, "
-     "priority=70, udp_host='', udp_port=0) "
+     "attach_serial(fd, *, finger_offset, num_fingers, transform (row-major 4x4, device metres -> world; None: "
+     "identity), force_ttl, lost_timeout, max_force, ramp_time, max_position, stall_timeout, priority, udp_host, "
+     "udp_port); defaults: SERIAL_DEFAULTS "
      "-> device id: a C thread speaks the Grasp Lab serial protocol on fd (docs/protocol.md); with udp_port, fd is "
      "a bound UDP socket and frames go to udp_host:udp_port until the device's hello pins its address."},
     {"detach_serial", World_detach_serial, METH_VARARGS, "detach_serial(device): stop its thread (fd stays open)."},
@@ -1453,10 +1696,7 @@ static PyMethodDef World_methods[] = {
 };
 
 static PyGetSetDef World_getset[] = {
-    {"time", World_get_time, NULL, "Simulated time, s", NULL},
-    {"body_count", World_get_body_count, NULL, "Number of bodies", NULL},
-    {"finger_count", World_get_finger_count, NULL, "Number of fingers", NULL},
-    {"running", World_get_running, NULL, "True between start() and stop()", NULL},
+    WORLD_PROPERTIES(PROPERTY_ENTRY)
     {NULL, NULL, NULL, NULL, NULL},
 };
 
@@ -1471,28 +1711,98 @@ static PyType_Slot World_slots[] = {
 static PyType_Spec World_spec = {"graspcore._core.World", sizeof(WorldObject), 0,
                                  Py_TPFLAGS_DEFAULT | Py_TPFLAGS_BASETYPE, World_slots};
 
-/* The core's defaults (gc_default_body_def, gc_default_finger_def), the one place they are
- * written: graspcore's Python signatures take theirs from these. */
-static int add_defaults(PyObject *m) {
-    gcBodyDef b = gc_default_body_def();
-    gcFingerDef f = gc_default_finger_def();
-    PyObject *body = Py_BuildValue("{s:d,s:d,s:d,s:d,s:d,s:d}", "mass", b.mass, "mu_s", b.mu_s, "mu_d", b.mu_d,
-                                   "viscosity", b.viscosity, "linear_damping", b.linear_damping,
-                                   "angular_damping", b.angular_damping);
-    PyObject *finger = Py_BuildValue("{s:d,s:d,s:d,s:s,s:d}", "radius", f.radius, "stiffness", f.stiffness, "damping",
-                                     f.damping, "renderer", "xfca", "cursor_mass", f.cursor_mass);
-    int ok = body && finger && PyModule_AddObjectRef(m, "BODY_DEFAULTS", body) == 0 &&
-             PyModule_AddObjectRef(m, "FINGER_DEFAULTS", finger) == 0;
-    Py_XDECREF(body);
-    Py_XDECREF(finger);
-    return ok ? 0 : -1;
+/* The core's defaults (gc_default_*_def), the one place they are written: graspcore's Python
+ * signatures and the add-on take theirs from these. Every table is checked against the
+ * binding's limits here, at import. */
+static int add_tables(PyObject *m) {
+    gcWorldDef world = gc_default_world_def();
+    gcBodyDef body = gc_default_body_def();
+    gcFingerDef finger = gc_default_finger_def();
+    gcRuntimeDef runtime = gc_default_runtime_def();
+    gcSerialDef serial = gc_default_serial_def();
+    const struct { const char *name; const Field *fields; int count; const void *defaults; } tables[] = {
+        {"WORLD_DEFAULTS", world_params, COUNT_OF(world_params), &world},
+        {"BODY_DEFAULTS", body_params, COUNT_OF(body_params), &body},
+        {"FINGER_DEFAULTS", finger_params, COUNT_OF(finger_params), &finger},
+        {"RUNTIME_DEFAULTS", runtime_params, COUNT_OF(runtime_params), &runtime},
+        {"SERIAL_DEFAULTS", serial_params, COUNT_OF(serial_params), &serial},
+        {"stats", runtime_stats_fields, COUNT_OF(runtime_stats_fields), NULL},
+        {"serial_stats", serial_stats_fields, COUNT_OF(serial_stats_fields), NULL},
+        {"finger_contacts", finger_contact_fields, COUNT_OF(finger_contact_fields), NULL},
+        {"contacts", contact_fields, COUNT_OF(contact_fields), NULL},
+        {"grasp_quality", grasp_quality_fields, COUNT_OF(grasp_quality_fields), NULL},
+    };
+    PyObject *layout = fields_layout(grasp_quality_fields, COUNT_OF(grasp_quality_fields));
+    int r = layout ? PyModule_AddObjectRef(m, "GRASP_QUALITY_FIELDS", layout) : -1;
+    Py_XDECREF(layout);
+    if (r < 0) return -1;
+    for (int i = 0; i < COUNT_OF(tables); ++i) {
+        int fits = tables[i].count <= MAX_FIELDS;
+        for (int j = 0; j < tables[i].count; ++j) {
+            const Field *f = &tables[i].fields[j];
+            int arrays = f->kind == FIELD_VEC || f->kind == FIELD_OPT_VEC || f->kind == FIELD_COUNTS;
+            fits = fits && (!arrays || f->n <= MAX_VEC);
+        }
+        if (!fits) {
+            PyErr_Format(PyExc_SystemError, "graspcore: the table of %s exceeds MAX_FIELDS or MAX_VEC", tables[i].name);
+            return -1;
+        }
+        if (!tables[i].defaults) continue;
+        PyObject *d = fields_dict(tables[i].fields, tables[i].count, tables[i].defaults);
+        r = d ? PyModule_AddObjectRef(m, tables[i].name, d) : -1;
+        Py_XDECREF(d);
+        if (r < 0) return -1;
+    }
+    return 0;
+}
+
+/* The tick record's layout (gc_tick_record_fields): ((name, numpy type, "once" | "finger" |
+ * "body", shape), ...) in record order, shape the values' per finger/body (or once): () for
+ * one, (count,) or (rows, columns); graspcore.tick_dtype is built from it. */
+static int add_tick_fields(PyObject *m) {
+    static const char *const scopes[] = {[GC_TICK_ONCE] = "once", [GC_TICK_PER_FINGER] = "finger",
+                                         [GC_TICK_PER_BODY] = "body"};
+    const gcTickField *fields;
+    int n = gc_tick_record_fields(&fields);
+    PyObject *t = PyTuple_New(n);
+    for (int i = 0; t && i < n; ++i) {
+        const gcTickField *f = &fields[i];
+        PyObject *shape = f->count == 1 ? PyTuple_New(0)
+                          : f->columns > 0 ? Py_BuildValue("(ii)", f->count / f->columns, f->columns)
+                                           : Py_BuildValue("(i)", f->count);
+        PyObject *row = shape ? Py_BuildValue("(sssN)", f->name, f->type,
+                                              enum_name(scopes, COUNT_OF(scopes), (int)f->scope, 0), shape)
+                              : NULL;
+        if (!row || PyTuple_SetItem(t, i, row) < 0) Py_CLEAR(t);
+    }
+    int r = t ? PyModule_AddObjectRef(m, "TICK_FIELDS", t) : -1;
+    Py_XDECREF(t);
+    return r;
+}
+
+/* A tuple of an enum's names, indexed by its values. */
+static int add_names(PyObject *m, const char *name, const char *const *names, int count) {
+    PyObject *t = PyTuple_New(count);
+    for (int i = 0; t && i < count; ++i) {
+        PyObject *item = PyUnicode_FromString(names[i]);
+        if (!item || PyTuple_SetItem(t, i, item) < 0) Py_CLEAR(t);
+    }
+    int r = t ? PyModule_AddObjectRef(m, name, t) : -1;
+    Py_XDECREF(t);
+    return r;
 }
 
 static int module_exec(PyObject *m) {
-    if (add_defaults(m) < 0) return -1;
+    if (add_tables(m) < 0 || add_tick_fields(m) < 0 ||
+        add_names(m, "FINGER_STATES", finger_state_names, COUNT_OF(finger_state_names)) < 0 ||
+        add_names(m, "RENDERERS", renderer_names, COUNT_OF(renderer_names)) < 0 ||
+        add_names(m, "SERIAL_STATES", serial_state_names, COUNT_OF(serial_state_names)) < 0 ||
+        add_names(m, "SERIAL_EVENTS", serial_event_names, COUNT_OF(serial_event_names)) < 0)
+        return -1;
     gcGraspDef grasp = gc_default_grasp_def();
     if (PyModule_AddIntConstant(m, "GRASP_QUALITY_SIZE", (long)sizeof(gcGraspQuality)) < 0 ||
-        PyModule_AddIntConstant(m, "GRASP_DEFAULT_EDGES", grasp.edges) < 0)
+        PyModule_AddIntConstant(m, "GRASP_DEFAULT_EDGES", grasp.edges) < 0 ||
+        PyModule_AddIntConstant(m, "TICK_FORCES_ENABLED", GC_TICK_FORCES_ENABLED) < 0)
         return -1;
     /* Area contacts (docs/recording-format.md `patch`): corners per finger in records and snapshots. */
     if (PyModule_AddIntConstant(m, "FINGER_PATCH_CORNERS", GC_FINGER_PATCH_CORNERS) < 0) return -1;

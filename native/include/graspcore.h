@@ -360,6 +360,22 @@ gcStatus gc_world_debug_stall(gcWorld *world, double seconds);
  * its body, parts past 31 on bit 31); per finger orientation (w, x, y, z) 4 f64 (the identity
  * for a sphere finger). Each field was added at the end: older records are their prefix. */
 size_t gc_tick_record_size(int num_bodies, int num_fingers);
+/* The same layout as a table, for readers (graspcore.tick_dtype): the fields in record order,
+ * each `count` items of `type` (a little-endian numpy type string: "<u8", "<f8", "<f4", "<u4",
+ * "<i4") of `size` bytes, once per record or per finger or per body. */
+typedef enum gcTickFieldScope { GC_TICK_ONCE = 0, GC_TICK_PER_FINGER = 1, GC_TICK_PER_BODY = 2 } gcTickFieldScope;
+typedef struct gcTickField {
+    const char *name;
+    const char *type;
+    int size;
+    gcTickFieldScope scope;
+    int count;   /* values per finger/body (or once) */
+    int columns; /* 0: a vector of count; else count / columns rows of columns (the patch's corners) */
+} gcTickField;
+/* Sets *fields to the table; returns how many fields it has. */
+int gc_tick_record_fields(const gcTickField **fields);
+/* Bits of a record's flags. */
+enum { GC_TICK_FORCES_ENABLED = 1 }; /* device forces enabled (not held at zero by the safety layer) */
 /* The stopped world as one record (after a gc_world_step); device_force = force. */
 gcStatus gc_world_tick_record(gcWorld *world, uint64_t tick, void *out, size_t size);
 /* While stopped: a ring of `capacity` records (0 = off) that gc_world_start sizes and empties

@@ -36,14 +36,50 @@ struct gcTickLog {
     pthread_mutex_t drain_mutex;  /* among drain callers; the producer never takes it */
 };
 
-/* Field offsets inside a record (all little-endian; the f64 arrays first, then the i32). */
-enum { REC_HEADER = 52 };
+/* The record's fields in order (graspcore.h, docs/recording-format.md): what readers build
+ * their layout from and the size is summed from; fill_record writes them in this order. */
+static const gcTickField tick_fields[] = {
+    {"tick", "<u8", 8, GC_TICK_ONCE, 1, 0},
+    {"time", "<f8", 8, GC_TICK_ONCE, 1, 0},
+    {"object_time", "<f8", 8, GC_TICK_ONCE, 1, 0},
+    {"state_hash", "<u8", 8, GC_TICK_ONCE, 1, 0},
+    {"period_us", "<f4", 4, GC_TICK_ONCE, 1, 0},
+    {"work_us", "<f4", 4, GC_TICK_ONCE, 1, 0},
+    {"flags", "<u4", 4, GC_TICK_ONCE, 1, 0},
+    {"adopted", "<u4", 4, GC_TICK_ONCE, 1, 0},
+    {"log_us", "<f4", 4, GC_TICK_ONCE, 1, 0},
+    {"hip", "<f8", 8, GC_TICK_PER_FINGER, 3, 0},
+    {"god_object", "<f8", 8, GC_TICK_PER_FINGER, 3, 0},
+    {"force", "<f8", 8, GC_TICK_PER_FINGER, 3, 0},
+    {"device_force", "<f8", 8, GC_TICK_PER_FINGER, 3, 0},
+    {"normal", "<f8", 8, GC_TICK_PER_FINGER, 3, 0},
+    {"pose", "<f8", 8, GC_TICK_PER_BODY, 7, 0},
+    {"velocity", "<f8", 8, GC_TICK_PER_BODY, 6, 0},
+    {"wrench", "<f8", 8, GC_TICK_PER_BODY, 6, 0},
+    {"state", "<i4", 4, GC_TICK_PER_FINGER, 1, 0},
+    {"contact", "<i4", 4, GC_TICK_PER_FINGER, 1, 0},
+    {"parts", "<u4", 4, GC_TICK_PER_FINGER, 1, 0},
+    {"orientation", "<f8", 8, GC_TICK_PER_FINGER, 4, 0},
+    {"patch", "<f4", 4, GC_TICK_PER_FINGER, 2 * GC_FINGER_PATCH_CORNERS, 2},
+};
+enum { REC_HEADER = 52 }; /* the GC_TICK_ONCE fields */
+
+int gc_tick_record_fields(const gcTickField **fields) {
+    if (fields) *fields = tick_fields;
+    return (int)(sizeof tick_fields / sizeof tick_fields[0]);
+}
 
 size_t gc_tick_record_size(int num_bodies, int num_fingers) {
     if (num_bodies < 0 || num_fingers < 0) return 0;
-    return REC_HEADER + sizeof(double) * (15 * (size_t)num_fingers + 19 * (size_t)num_bodies) +
-           sizeof(int32_t) * 3 * (size_t)num_fingers + sizeof(double) * 4 * (size_t)num_fingers +
-           sizeof(float) * 2 * GC_FINGER_PATCH_CORNERS * (size_t)num_fingers;
+    size_t size = 0;
+    for (size_t i = 0; i < sizeof tick_fields / sizeof tick_fields[0]; ++i) {
+        const gcTickField *f = &tick_fields[i];
+        size_t units = f->scope == GC_TICK_PER_FINGER ? (size_t)num_fingers
+                       : f->scope == GC_TICK_PER_BODY ? (size_t)num_bodies
+                                                      : 1;
+        size += units * (size_t)f->count * (size_t)f->size;
+    }
+    return size;
 }
 
 #define FNV_PRIME 1099511628211ull
@@ -348,7 +384,7 @@ void gc_tick_log_push(gcTickLog *log, const gcWorld *hw, const double *device_fo
         return;
     }
     unsigned char *slot = log->records + (head % (uint64_t)log->capacity) * log->record_size;
-    fill_record(hw, device_force, tick, object_time, period_us, work_us, forces_enabled ? 1u : 0u,
+    fill_record(hw, device_force, tick, object_time, period_us, work_us, forces_enabled ? (uint32_t)GC_TICK_FORCES_ENABLED : 0u,
                 (uint32_t)adopted, log->prev_log_us, slot);
     atomic_store_explicit(&log->head, head + 1, memory_order_release);
     log->prev_log_us = (float)((monotonic_ns() - t0) * 1e-3);

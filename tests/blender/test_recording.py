@@ -303,6 +303,9 @@ def test_the_format_layout_is_the_cores(core, tmp_path):
     w.close()
     assert w.dtype == core.tick_dtype(2, 2)
     assert recording.open_recording(tmp_path / "layout.mcap").dtype == core.tick_dtype(2, 2)
+    # The format's own names for what the core writes (a recording opens without the core).
+    assert recording.FLAG_FORCES_ENABLED == core.TICK_FORCES_ENABLED
+    assert recording.STATE_NAMES == core.FINGER_STATES
 
 
 

@@ -22,7 +22,7 @@ TICK_SCHEMA = "grasp_lab.TickBlock"
 TICK_ENCODING = "grasp_lab.tick_records"    # message: whole records, back to back
 JSON_SCHEMA = {"type": "object"}
 BLOCK_TICKS = 256           # ticks per message at most
-STATE_NAMES = ("free", "stick", "slip")
+STATE_NAMES = ("free", "stick", "slip")  # the file's state codes: graspcore.FINGER_STATES (test_recording.py)
 UNITS = {"length": "m", "mass": "kg", "time": "s", "force": "N", "torque": "N m",
          "velocity": "m/s", "angular_velocity": "rad/s (world)", "orientation": "quaternion w x y z",
          "stiffness": "N/m", "damping": "N s/m", "rate": "Hz", "period_us": "us", "work_us": "us"}
@@ -32,7 +32,7 @@ UNITS = {"length": "m", "mass": "kg", "time": "s", "force": "N", "torque": "N m"
 # fields every reader needs:
 REQUIRED_FIELDS = ("tick", "time", "object_time", "state_hash", "period_us", "work_us", "flags", "adopted",
                    "log_us")
-FLAG_FORCES_ENABLED = 1
+FLAG_FORCES_ENABLED = 1  # the file's flags bit: graspcore.TICK_FORCES_ENABLED (test_recording.py)
 
 
 class RecordingError(ValueError):

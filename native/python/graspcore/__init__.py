@@ -10,28 +10,39 @@ import numpy as np
 
 from . import _core
 
-__all__ = ["World", "FINGER_STATES", "BODY_DEFAULTS", "FINGER_DEFAULTS", "tick_dtype", "grasp_quality",
-           "grasp_quality_batch", "grasp_mu_min", "GRASP_QUALITY_DTYPE"]
+__all__ = ["World", "FINGER_STATES", "RENDERERS", "SERIAL_STATES", "SERIAL_EVENTS", "WORLD_DEFAULTS",
+           "BODY_DEFAULTS", "FINGER_DEFAULTS", "RUNTIME_DEFAULTS", "SERIAL_DEFAULTS", "TICK_FORCES_ENABLED",
+           "tick_dtype", "grasp_quality", "grasp_quality_batch", "grasp_mu_min", "GRASP_QUALITY_DTYPE"]
 
-# The core's own defaults (gc_default_body_def / gc_default_finger_def), not copies.
+# The core's own defaults (gc_default_*_def), not copies: one entry per keyword argument of
+# World(), add_body, add_finger, start and attach_serial.
+WORLD_DEFAULTS = dict(_core.WORLD_DEFAULTS)
 BODY_DEFAULTS = dict(_core.BODY_DEFAULTS)
 FINGER_DEFAULTS = dict(_core.FINGER_DEFAULTS)
+RUNTIME_DEFAULTS = dict(_core.RUNTIME_DEFAULTS)
+SERIAL_DEFAULTS = dict(_core.SERIAL_DEFAULTS)
 _B = BODY_DEFAULTS
 
-FINGER_STATES = ("free", "stick", "slip")
+# The names of the core's enums, indexed by value (gcFingerState, gcFingerRenderer, gcSerialState,
+# gcSerialEventCode; SERIAL_EVENTS[0] is "?", no event).
+FINGER_STATES = _core.FINGER_STATES
+# Bits of a tick record's ``flags``.
+TICK_FORCES_ENABLED = _core.TICK_FORCES_ENABLED
+RENDERERS = _core.RENDERERS
+SERIAL_STATES = _core.SERIAL_STATES
+SERIAL_EVENTS = _core.SERIAL_EVENTS
 
 
 def tick_dtype(num_bodies: int, num_fingers: int) -> np.dtype:
-    """The numpy dtype of one tick log record (graspcore.h, docs/recording-format.md)."""
+    """The numpy dtype of one tick log record (graspcore.h, docs/recording-format.md), built
+    from the core's table of its fields (``_core.TICK_FIELDS``)."""
     nb, nf = int(num_bodies), int(num_fingers)
-    dtype = np.dtype([
-        ("tick", "<u8"), ("time", "<f8"), ("object_time", "<f8"), ("state_hash", "<u8"),
-        ("period_us", "<f4"), ("work_us", "<f4"), ("flags", "<u4"), ("adopted", "<u4"), ("log_us", "<f4"),
-        ("hip", "<f8", (nf, 3)), ("god_object", "<f8", (nf, 3)), ("force", "<f8", (nf, 3)),
-        ("device_force", "<f8", (nf, 3)), ("normal", "<f8", (nf, 3)), ("pose", "<f8", (nb, 7)), ("velocity", "<f8", (nb, 6)),
-        ("wrench", "<f8", (nb, 6)), ("state", "<i4", (nf,)), ("contact", "<i4", (nf,)), ("parts", "<u4", (nf,)),
-        ("orientation", "<f8", (nf, 4)), ("patch", "<f4", (nf, _core.FINGER_PATCH_CORNERS, 2)),
-    ])
+    units = {"finger": (nf,), "body": (nb,)}
+    fields = []
+    for name, type_, scope, shape in _core.TICK_FIELDS:
+        shape = units.get(scope, ()) + tuple(shape)
+        fields.append((name, type_, shape) if shape else (name, type_))
+    dtype = np.dtype(fields)
     if dtype.itemsize != _core.tick_record_size(nb, nf):
         raise RuntimeError("graspcore.tick_dtype does not match the core's record layout (rebuild the core)")
     return dtype
@@ -114,9 +125,10 @@ class World(_core.World):
             part_arrays = [_points_array(p, f"parts[{i}]") for i, p in enumerate(parts)]
         radii = [float(radius)] * len(part_arrays)
         return self._add_body(
-            part_arrays, radii, float(mass), position, orientation, bool(static), float(mu_s),
-            float(mu_d), float(viscosity), _inertia_matrix(inertia), center_of_mass,
-            linear_velocity, angular_velocity, float(linear_damping), float(angular_damping),
+            part_arrays, radii, mass=float(mass), position=position, orientation=orientation, static=bool(static),
+            mu_s=float(mu_s), mu_d=float(mu_d), viscosity=float(viscosity), inertia=_inertia_matrix(inertia),
+            center_of_mass=center_of_mass, linear_velocity=linear_velocity, angular_velocity=angular_velocity,
+            linear_damping=float(linear_damping), angular_damping=float(angular_damping),
         )
 
     @property
@@ -290,16 +302,18 @@ class World(_core.World):
 
 # ---- Grasp quality (docs/api.md "Grasp quality"): the grasp wrench space of point contacts.
 
-# The core's gcGraspQuality record, and the structured array grasp_quality_batch returns.
-_GRASP_RECORD = np.dtype([
-    ("force_closure", "<i4"), ("force_only_closure", "<i4"), ("torque_closure", "<i4"), ("rank", "<i4"),
-    ("facets", "<i4"), ("reserved", "<i4"), ("epsilon", "<f8"), ("volume", "<f8"), ("weakest", "<f8", (6,)),
-])
-if _GRASP_RECORD.itemsize != _core.GRASP_QUALITY_SIZE:
-    raise RuntimeError("graspcore: gcGraspQuality does not match the core (rebuild the core)")
+# The core's gcGraspQuality record (its fields' offsets from the binding's table), and the
+# structured array grasp_quality_batch returns (closures as bools).
+_KINDS = {"double": ("<f8", "<f8"), "int": ("<i4", "<i4"), "bool": ("<i4", "?"), "u64": ("<u8", "<u8")}
+_GRASP_RECORD = np.dtype({
+    "names": [name for name, _, _, _ in _core.GRASP_QUALITY_FIELDS],
+    "formats": [(_KINDS[kind][0], (n,)) if n > 1 else _KINDS[kind][0]
+                for _, kind, _, n in _core.GRASP_QUALITY_FIELDS],
+    "offsets": [offset for _, _, offset, _ in _core.GRASP_QUALITY_FIELDS],
+    "itemsize": _core.GRASP_QUALITY_SIZE,
+})
 GRASP_QUALITY_DTYPE = np.dtype([
-    ("force_closure", "?"), ("force_only_closure", "?"), ("torque_closure", "?"), ("epsilon", "<f8"),
-    ("volume", "<f8"), ("weakest", "<f8", (6,)), ("rank", "<i4"), ("facets", "<i4"),
+    (name, (_KINDS[kind][1], (n,)) if n > 1 else _KINDS[kind][1]) for name, kind, _, n in _core.GRASP_QUALITY_FIELDS
 ])
 
 
