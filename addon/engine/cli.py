@@ -114,7 +114,7 @@ def _size(text):
 MAX_SIZE_HELP = (f"refuse a recording that could take more than this (500M, 2G; default "
                  f"{limits.DEFAULT_MAX_SIZE / 1e9:g}G), or more than the free space")
 SET_HELP = ("OBJECT.PROPERTY=VALUE (mass, mu_s, mu_d, viscosity, radius, stiffness, damping, cursor_mass, "
-            "renderer=xfca|cursor) or a "
+            "renderer=xfca|cursor, torsion: a fingertip's Soft Tip Radius) or a "
             "scene setting: haptic_rate=HZ, gravity=X,Y,Z, gyroscopic=0|1; repeatable")
 
 
