@@ -246,3 +246,25 @@ def test_the_analysis_reports_closure_with_soft_tips_and_rank_5_without(runs):
     assert np.all(hard.ticks["state"][early] > 0)
     table = analysis.analyse_recording(hard, rows=[early])
     assert not table.quality["force_closure"][0] and table.quality["rank"][0] == 5
+
+
+def test_a_sweep_varies_the_soft_tips_and_reports_closure_only_with_them(runs):
+    """`sweep --vary TIP.torsion=0,0.01` on both tips (a 2 x 2 grid, one sample a cell): every sample holds the bar
+    in its fingers (turned or not); the analysis finds it in force closure all along with a soft
+    tip and never with two point contacts."""
+    import csv
+    out = runs["tmp"] / "sweep"
+    code, stdout, err = call("sweep", runs["tmp"] / "soft.mcap", "--samples", 1, "--workers", 1, "--out", out,
+                             *[a for t in TIPS for a in ("--vary", f"{t}.torsion=0,{RHO}")])
+    assert code == 0, err
+    with open(out / "samples.csv") as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == 4
+    by_cell = {(float(r["Tip A.torsion"]), float(r["Tip B.torsion"])): r for r in rows}
+    assert set(by_cell) == {(a, b) for a in (0.0, RHO) for b in (0.0, RHO)}
+    for (a, b), r in by_cell.items():
+        assert r["held"] == "1"
+        if a or b:
+            assert float(r["closure_time"]) > 2.5 and float(r["min_epsilon"]) > 0
+        else:
+            assert float(r["closure_time"]) == 0.0
