@@ -198,6 +198,21 @@ def test_without_soft_tips_the_bar_turns_down(runs):
     assert theta.max() > 90.0
 
 
+def test_the_threaded_runtime_holds_it_too(runs):
+    """`run --realtime` (the haptic loop in C, as a live session): soft tips hold the bar within a
+    few degrees of the closed form; `--set TIP.torsion=0` lets it turn down."""
+    from addon.engine import recording
+    turned = {}
+    for soft in (True, False):
+        path = runs["tmp"] / f"realtime_{soft}.mcap"
+        hard = [] if soft else [a for t in TIPS for a in ("--set", f"{t}.torsion=0")]
+        code, out, err = call("run", runs["blend"], "--realtime", "--duration", 1.5, "--record", path, *hard)
+        assert code == 0 and "threaded runtime" in out, err
+        turned[soft] = turn(recording.open_recording(str(path)))
+    assert np.abs(turned[True]).max() < 3 * hold_angle(RHO)
+    assert turned[False].max() > 90.0
+
+
 def test_resim_with_a_soft_tip_below_the_torsional_limit_turns(runs):
     """`resim --set TIP.torsion=0.002`: 2 mu_s F_n rho = 0.029 N m < m g d: the bar turns down.
     With the recorded torsion the replay is identical."""
