@@ -240,7 +240,8 @@ def _run_info(args, out, err):
     p(f"duration    {s['duration']:.3f} s   haptic ticks {s['ticks']}   rate {s['haptic_rate']:g} Hz"
       + (f"   scene fps {s['rates']['fps']:g}" if s["rates"].get("fps") else ""))
     p(f"fingers     {len(s['fingers'])}: " + ", ".join(
-        f"{f['name']} (r {f['radius']:g} m, k {f['stiffness']:g} N/m, c {f['damping']:g} N s/m)"
+        f"{f['name']} (r {f['radius']:g} m, k {f['stiffness']:g} N/m, c {f['damping']:g} N s/m"
+        + (f", soft tip {f['torsion']:g} m" if f.get("torsion") else "") + ")"
         for f in s["scene"]["fingers"]))
     p(f"bodies      {len(s['bodies'])}: " + ", ".join(
         f"{b['name']} (" + ("static" if b["static"] else f"{b['mass']:g} kg") +

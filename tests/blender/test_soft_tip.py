@@ -175,6 +175,10 @@ def test_it_round_trips_through_a_blend_and_the_recording_header(runs):
     assert [f["torsion"] for f in header] == [stored, stored]
     assert [f.torsion for f in recording.scene_from_dict(runs["soft"].header["scene"]).fingers] == [stored] * 2
     assert all("torsion" not in f for f in runs["hard"].header["scene"]["fingers"])   # 0: no entry
+    code, out, _ = call("info", runs["tmp"] / "soft.mcap")
+    assert code == 0 and "Tip A (r 0.008 m, k 3000 N/m, c 2 N s/m, soft tip 0.01 m)" in out
+    code, out, _ = call("info", runs["tmp"] / "hard.mcap")
+    assert code == 0 and "Tip A (r 0.008 m, k 3000 N/m, c 2 N s/m)" in out
 
 
 # ---- the physics, through the add-on --------------------------------------------------------------
