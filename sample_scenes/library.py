@@ -488,7 +488,7 @@ def soft_pinch_bar() -> Scene:
     # 0.049 N m. Point contacts leave that turn free; soft fingertips (Soft Tip Radius 1 cm, 9 N
     # each: up to 2 mu_s F_n rho = 0.144 N m) hold it where their twist springs carry the
     # moment, 2 k rho^2 theta = m g d cos theta: 4.67 degrees.
-    sx, sy, sz = SOFT_BAR["size"]
+    _, sy, sz = SOFT_BAR["size"]
     bar = Body("Bar", Box(SOFT_BAR["size"]), (SOFT_BAR["offset"], 0.0, sz / 2), mass=SOFT_BAR["mass"], mu=(0.8, 0.6))
     t = SOFT_TIP
     fingers = [Finger(name, (0.0, s * (sy / 2 + t["radius"] - t["squeeze"]), sz / 2), (0.0, s, 0.0),

@@ -253,7 +253,7 @@ def torsion_problem(f: FingerDesc) -> str:
                 f"resists twisting of its own; set it to 0 (got {f.torsion})")
     if f.torsion and f.renderer == "cursor":
         return (f"Soft Tip Radius (torsion) needs the God-Objects (xFCA) renderer: the light-mass cursor "
-                f"has no torsional friction; set the renderer to xfca or the radius to 0 (got {f.torsion})")
+                f"has no torsional friction; set the renderer to xfca or the Soft Tip Radius to 0 (got {f.torsion})")
     return ""
 
 

@@ -183,7 +183,7 @@ def test_soft_pinch_bar_hangs_where_its_twist_springs_carry_it(bpy, core, monkey
     from scipy.optimize import brentq
     bar, tip = lib.SOFT_BAR, lib.SOFT_TIP
     k, rho, moment = tip["stiffness"], tip["torsion"], bar["mass"] * G * bar["offset"]
-    assert 2 * 0.8 * k * tip["squeeze"] * rho > 2.5 * moment
+    assert 2 * lib.soft_pinch_bar().body("Bar").mu[0] * k * tip["squeeze"] * rho > 2.5 * moment
     expected = math.degrees(brentq(lambda t: 2 * k * rho ** 2 * t - moment * math.cos(t), 0.0, 1.5))
     sc, r = _run(bpy, "soft_pinch_bar")
     i = r.body("Bar")
