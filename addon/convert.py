@@ -140,12 +140,13 @@ def _frame_matrix(t, q) -> Matrix:
 
 
 def finger_desc(obj, depsgraph) -> FingerDesc:
-    """An Empty is a fingertip sphere of Radius; a mesh is a convex finger of its mesh's hull (a
-    pad, a palm: docs/physics.md "Area contacts") in its rigid frame, Radius not used."""
+    """An Empty is a fingertip sphere of Radius (with Soft Tip Radius, a soft fingertip: its
+    ``torsion``); a mesh is a convex finger of its mesh's hull (a pad, a palm: docs/physics.md
+    "Area contacts") in its rigid frame, Radius not used (its torsion must stay 0: prepare says so)."""
     gl = obj.grasp_lab
     desc = FingerDesc(name=obj.name, position=np.array(obj.matrix_world.translation, dtype=np.float64),
                       radius=gl.radius, stiffness=gl.stiffness, damping=gl.damping, channel=gl.channel,
-                      renderer=gl.renderer.lower(), cursor_mass=gl.cursor_mass)
+                      renderer=gl.renderer.lower(), cursor_mass=gl.cursor_mass, torsion=gl.torsion)
     if obj.type == "MESH":
         t, q = _frame(obj.matrix_world)
         mesh = mesh_in_frame(obj, depsgraph, t, q)

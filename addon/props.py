@@ -72,6 +72,11 @@ class GRASPLAB_PG_object(bpy.types.PropertyGroup):
     cursor_mass: FloatProperty(name="Cursor Mass", default=defaults.finger("cursor_mass"), min=0.0, soft_max=0.05,
                                unit="MASS", precision=4,
                                description="The light-mass cursor's mass (felt as inertia in free space)")
+    torsion: FloatProperty(name="Soft Tip Radius", default=0.0, min=0.0, soft_max=0.02, unit="LENGTH", precision=4,
+                           description="A soft fingertip: the radius of the patch it presses. It resists a twist "
+                                       "about the contact normal up to μs × normal force × this radius, so two "
+                                       "fingertips can hold a bar against its weight's twist (0 = a hard point, "
+                                       "free to turn). Sphere fingers (an Empty) rendered by god-objects")
     channel: IntProperty(name="Device Channel", default=0, min=0, max=63,
                          description="Which fingertip of the input device drives this finger; "
                                      "fingers are ordered by channel, then by name")

@@ -77,6 +77,10 @@ class GRASPLAB_PT_object(_GraspPanel, bpy.types.Panel):
             layout.prop(gl, "renderer")
             if gl.renderer == "CURSOR":
                 layout.prop(gl, "cursor_mass")
+            if obj.type != "MESH" or gl.torsion:     # a mesh finger's patch has its own torsion
+                row = layout.row()
+                row.active = obj.type != "MESH" and gl.renderer == "XFCA"
+                row.prop(gl, "torsion")
             layout.prop(gl, "channel", text="Channel")
 
 

@@ -93,6 +93,7 @@ class Finger:
     damping: float = 2.0
     group: str = "hand"                     # which hand / person (several devices)
     shape: object = None                    # a Box: a convex finger of its hull (a pad, a palm), else a sphere
+    torsion: float = 0.0                    # a sphere's Soft Tip Radius (m): torsional friction; 0 a hard point
 
 
 @dataclass
@@ -475,6 +476,33 @@ def phone_thumb() -> Scene:
 SCENES.update((f.__name__, f) for f in (plate_palm, phone_thumb))
 
 
+# Soft fingertips (docs/physics.md "Soft fingertips"): torsional friction about the contact normal.
+
+SOFT_BAR = dict(size=(0.20, 0.02, 0.02), mass=0.1, offset=0.05)     # the pinch 5 cm from the centre of mass
+SOFT_TIP = dict(radius=0.008, stiffness=3000.0, squeeze=0.003, torsion=0.01)
+
+
+def soft_pinch_bar() -> Scene:
+    # A 0.1 kg bar (20 x 2 x 2 cm) lying on the table, pinched across its width 5 cm from its
+    # centre of mass and lifted 8 cm: its weight twists it about the pinch axis with m g d =
+    # 0.049 N m. Point contacts leave that turn free; soft fingertips (Soft Tip Radius 1 cm, 9 N
+    # each: up to 2 mu_s F_n rho = 0.144 N m) hold it where their twist springs carry the
+    # moment, 2 k rho^2 theta = m g d cos theta: 4.67 degrees.
+    _, sy, sz = SOFT_BAR["size"]
+    bar = Body("Bar", Box(SOFT_BAR["size"]), (SOFT_BAR["offset"], 0.0, sz / 2), mass=SOFT_BAR["mass"], mu=(0.8, 0.6))
+    t = SOFT_TIP
+    fingers = [Finger(name, (0.0, s * (sy / 2 + t["radius"] - t["squeeze"]), sz / 2), (0.0, s, 0.0),
+                      radius=t["radius"], stiffness=t["stiffness"], torsion=t["torsion"])
+               for name, s in (("Thumb", -1.0), ("Index", 1.0))]
+    return Scene("soft_pinch_bar", "Soft fingertips: two fingertips pinch a bar 5 cm from its centre of mass "
+                 "and lift it; their torsional friction holds it against its weight's twist",
+                 [_table(), bar], fingers, _lift_keys(0.08, 0.012),
+                 Held("Bar", rise=0.08, max_slip=0.006, grasp_frame=25, max_tilt_deg=10.0))
+
+
+SCENES.update((f.__name__, f) for f in (soft_pinch_bar,))
+
+
 def scene(name) -> Scene:
     if name not in SCENES:
         raise KeyError(f"no scene {name!r} in the library (have {', '.join(SCENES)})")
@@ -611,6 +639,7 @@ def build(bpy, name):
         gl = obj.grasp_lab
         gl.role = "FINGER"
         gl.radius, gl.stiffness, gl.damping, gl.channel = f.radius, f.stiffness, f.damping, channel
+        gl.torsion = f.torsion
         for key in sc.keys:
             obj.location = finger_position(f, key)
             obj.keyframe_insert("location", frame=key.frame)

@@ -121,7 +121,7 @@ def _size(text):
 MAX_SIZE_HELP = (f"refuse a recording that could take more than this (500M, 2G; default "
                  f"{limits.DEFAULT_MAX_SIZE / 1e9:g}G), or more than the free space")
 SET_HELP = ("OBJECT.PROPERTY=VALUE (mass, mu_s, mu_d, viscosity, radius, stiffness, damping, cursor_mass, "
-            "renderer=xfca|cursor) or a "
+            "renderer=xfca|cursor, torsion: a fingertip's Soft Tip Radius) or a "
             "scene setting: haptic_rate=HZ, gravity=X,Y,Z, gyroscopic=0|1; repeatable")
 
 
@@ -247,7 +247,8 @@ def _run_info(args, out, err):
     p(f"duration    {s['duration']:.3f} s   haptic ticks {s['ticks']}   rate {s['haptic_rate']:g} Hz"
       + (f"   scene fps {s['rates']['fps']:g}" if s["rates"].get("fps") else ""))
     p(f"fingers     {len(s['fingers'])}: " + ", ".join(
-        f"{f['name']} (r {f['radius']:g} m, k {f['stiffness']:g} N/m, c {f['damping']:g} N s/m)"
+        f"{f['name']} (r {f['radius']:g} m, k {f['stiffness']:g} N/m, c {f['damping']:g} N s/m"
+        + (f", soft tip {f['torsion']:g} m" if f.get("torsion") else "") + ")"
         for f in s["scene"]["fingers"]))
     p(f"bodies      {len(s['bodies'])}: " + ", ".join(
         f"{b['name']} (" + ("static" if b["static"] else f"{b['mass']:g} kg") +

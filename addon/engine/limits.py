@@ -20,6 +20,7 @@ SET_RANGES = {
     "stiffness": (1.0, 1e6, "N/m"),
     "damping": (0.0, 1e4, "N s/m"),
     "cursor_mass": (0.0, 1.0, "kg"),
+    "torsion": (0.0, 0.1, "m"),         # a soft fingertip's patch radius (Soft Tip Radius)
 }
 
 # Arguments: (low, high); low exclusive where the name says "positive".

@@ -13,11 +13,12 @@ import numpy as np
 from . import defaults
 from .limits import DEFAULT_MAX_SIZE, check_memory, check_recording_size, check_set_value
 from .recording import EventDetector, Recording, RecordingWriter, make_header, scene_from_dict
-from .scene import build_world
+from .scene import build_world, torsion_problem
 
-OBJECT_KEYS = ("mass", "mu_s", "mu_d", "viscosity", "radius", "stiffness", "damping", "cursor_mass", "renderer")
+OBJECT_KEYS = ("mass", "mu_s", "mu_d", "viscosity", "radius", "stiffness", "damping", "cursor_mass", "renderer",
+               "torsion")
 BODY_KEYS = ("mass", "mu_s", "mu_d", "viscosity")
-FINGER_KEYS = ("radius", "stiffness", "damping", "cursor_mass", "renderer")
+FINGER_KEYS = ("radius", "stiffness", "damping", "cursor_mass", "renderer", "torsion")   # torsion: Soft Tip Radius
 SCENE_KEYS = ("haptic_rate", "gravity", "gyroscopic")
 
 
@@ -114,6 +115,9 @@ def apply_to_desc(desc, overrides) -> None:
     for b in desc.bodies:       # after all of them: mu_s and mu_d may change together
         if not (0 <= b.mu_d <= b.mu_s):
             raise OverrideError(f"--set: {b.name!r} needs 0 <= mu_d <= mu_s (now mu_s={b.mu_s}, mu_d={b.mu_d})")
+    for f in desc.fingers:      # a soft tip on a mesh finger, or with the cursor renderer
+        if why := torsion_problem(f):
+            raise OverrideError(f"--set: finger {f.name!r}: {why}")
 
 
 @dataclass

@@ -243,6 +243,20 @@ def mass_properties(name: str, meshes, mass: float | None, density: float) -> Ma
     return MassProperties(mass=total, volume=volume, center_of_mass=com, inertia=inertia)
 
 
+def torsion_problem(f: FingerDesc) -> str:
+    """Why a finger's ``torsion`` (the add-on's Soft Tip Radius) cannot be, or ''. The core takes
+    it on a sphere finger rendered by god-objects only."""
+    if not (np.isfinite(f.torsion) and f.torsion >= 0):
+        return f"Soft Tip Radius (torsion, m) must be a finite number >= 0, got {f.torsion}"
+    if f.torsion and f.points is not None:
+        return (f"Soft Tip Radius (torsion) is for a fingertip sphere (an Empty): a mesh finger's patch "
+                f"resists twisting of its own; set it to 0 (got {f.torsion})")
+    if f.torsion and f.renderer == "cursor":
+        return (f"Soft Tip Radius (torsion) needs the God-Objects (xFCA) renderer: the light-mass cursor "
+                f"has no torsional friction; set the renderer to xfca or the Soft Tip Radius to 0 (got {f.torsion})")
+    return ""
+
+
 def prepare(desc: SceneDesc) -> SceneDesc:
     """Validate every body and finger; fill in mass properties. Raises SceneError."""
     seen = set()
@@ -276,9 +290,8 @@ def prepare(desc: SceneDesc) -> SceneDesc:
             renderers = " or ".join(map(repr, defaults.renderers()))
             raise SceneError(f.name, f"finger needs renderer {renderers} and cursor mass >= 0 "
                                      f"(got {f.renderer!r}, {f.cursor_mass})")
-        if not (np.isfinite(f.torsion) and f.torsion >= 0) or (f.torsion and f.points is not None):
-            raise SceneError(f.name, f"torsion (a soft sphere fingertip's patch radius) must be a finite number >= 0 "
-                                     f"and 0 on a mesh finger, whose patch has its own (got {f.torsion})")
+        if why := torsion_problem(f):
+            raise SceneError(f.name, why)
         if f.points is not None:
             if f.renderer == "cursor":
                 raise SceneError(f.name, "a mesh finger is a convex finger, rendered by its god-objects (xFCA): "

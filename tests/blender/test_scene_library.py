@@ -169,6 +169,44 @@ def test_plate_on_one_point_tips_over(bpy, core, monkeypatch):
     assert max(_tilt_deg(q) for q in r.poses[:, i, 3:]) > 10.0
 
 
+def _turn_about_y_deg(q):
+    """A body's turn about the y axis (the bar's pinch axis), degrees, its +x end down positive."""
+    w, x, y, z = np.asarray(q).T
+    return np.degrees(-np.arctan2(2 * (x * z - w * y), 1 - 2 * (y * y + z * z)))
+
+
+def test_soft_pinch_bar_hangs_where_its_twist_springs_carry_it(bpy, core, monkeypatch):
+    """Soft fingertips (Soft Tip Radius rho) hold the pinched bar against its weight's twist
+    m g d, below their torsional limit 2 mu_s F_n rho, at 2 k rho^2 theta = m g d cos theta
+    (the mean over the holds, 2 %), and carry its weight (mean over the holds, 2 %). As hard
+    points (Soft Tip Radius 0) they let it turn down until its far end meets the table."""
+    from scipy.optimize import brentq
+    bar, tip = lib.SOFT_BAR, lib.SOFT_TIP
+    k, rho, moment = tip["stiffness"], tip["torsion"], bar["mass"] * G * bar["offset"]
+    assert 2 * lib.soft_pinch_bar().body("Bar").mu[0] * k * tip["squeeze"] * rho > 2.5 * moment
+    expected = math.degrees(brentq(lambda t: 2 * k * rho ** 2 * t - moment * math.cos(t), 0.0, 1.5))
+    sc, r = _run(bpy, "soft_pinch_bar")
+    i = r.body("Bar")
+    hold = [_frame(r, f) for f in sc.frames_of("hold")]
+    turn = _turn_about_y_deg(r.poses[:, i, 3:])
+    assert turn[hold].mean() == pytest.approx(expected, rel=0.02)
+    assert (r.states[hold] == 1).all()
+    assert -r.finger_forces[hold, :, 2].sum(axis=1).mean() == pytest.approx(bar["mass"] * G, rel=0.02)
+    hard = lib.soft_pinch_bar()
+    for f in hard.fingers:
+        f.torsion = 0.0
+    monkeypatch.setitem(lib.SCENES, "hard_pinch_bar", lambda: hard)
+    bpy.ops.wm.read_homefile(use_empty=True)
+    sc, r = _run(bpy, "hard_pinch_bar")
+    i = r.body("Bar")
+    turn = _turn_about_y_deg(r.poses[:, i, 3:])
+    # the far end, 15 cm from the pinch, reaches the table: sin theta = lift height / 15 cm
+    far = bar["size"][0] / 2 + bar["offset"]
+    lifted = r.com[hold[-1], i, 2] - r.com[0, i, 2] + bar["offset"] * math.sin(math.radians(turn[hold[-1]]))
+    assert turn[hold].min() > 25.0
+    assert turn[hold[-1]] == pytest.approx(math.degrees(math.asin(lifted / far)), abs=1.0)
+
+
 def test_phone_thumb_strokes_the_screen_and_the_phone_stays(bpy, core):
     """The thumb slides over the screen during its stroke, at the friction cone's edge (between
     mu_d and mu_s of its normal force), 3 cm less the spring's lag; the finger pads stick all
