@@ -6,9 +6,10 @@
 
 void gc_body_refresh_derived(gcWorld *w, int32_t id) {
     gcBody *b = &w->bodies[id];
+    const gcBodyModel *m = &w->model->bodies[id];
     b->state.q = gc_quat_normalize(b->state.q);
     b->state.R = gc_quat_to_mat3(b->state.q);
-    gcTransform frame = gc_body_transform(b);
+    gcTransform frame = gc_body_transform(m, &b->state);
     gcVec3 origin = frame.p;
     double *pose = &w->pose_array[7 * id];
     pose[0] = origin.x, pose[1] = origin.y, pose[2] = origin.z;
@@ -16,8 +17,8 @@ void gc_body_refresh_derived(gcWorld *w, int32_t id) {
     /* World AABB of all parts: each part's local box turned into world axes (centre
      * transformed, half extents through |R|), grown by the part's radius. */
     gcVec3 lo = gc_v3(INFINITY, INFINITY, INFINITY), hi = gc_neg(lo);
-    for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
-        const gcHull *h = &w->parts[p].hull;
+    for (int p = m->first_part; p < m->first_part + m->num_parts; ++p) {
+        const gcHull *h = &w->model->parts[p].hull;
         gcVec3 centre = gc_transform_point(&frame, gc_scale(gc_add(h->aabb_min, h->aabb_max), 0.5));
         gcVec3 half = gc_scale(gc_sub(h->aabb_max, h->aabb_min), 0.5);
         double e[3];
@@ -30,13 +31,13 @@ void gc_body_refresh_derived(gcWorld *w, int32_t id) {
     b->state.aabb_max = hi;
 }
 
-void gc_body_inverse_effective_mass(const gcBody *b, double M[36]) {
+void gc_body_inverse_effective_mass(const gcBodyModel *m, const gcBody *b, double M[36]) {
     memset(M, 0, 36 * sizeof(double));
-    if (b->is_static || !b->effective_mass_valid) return;
+    if (m->is_static || !b->effective_mass_valid) return;
     if (!b->coupled) {
-        gcMat3 inv_inertia_world = gc_to_world(&b->inertia_rotation, &b->inv_inertia_local);
+        gcMat3 inv_inertia_world = gc_to_world(&b->inertia_rotation, &m->inv_inertia_local);
         for (int i = 0; i < 3; ++i) {
-            M[6 * i + i] = b->inv_mass;
+            M[6 * i + i] = m->inv_mass;
             for (int j = 0; j < 3; ++j) M[6 * (3 + i) + 3 + j] = inv_inertia_world.m[i][j];
         }
         return;

@@ -24,7 +24,7 @@ void gc_chains_build(gcWorld *w) {
     for (int32_t i = 0; i < nb; ++i) parent[i] = i;
     for (int i = 0; i < cs->num_manifolds; ++i) {
         const gcManifold *m = &cs->manifolds[i];
-        if (w->bodies[m->body_a].is_static || w->bodies[m->body_b].is_static) continue;
+        if (w->model->bodies[m->body_a].is_static || w->model->bodies[m->body_b].is_static) continue;
         int32_t ra = find_root(parent, m->body_a), rb = find_root(parent, m->body_b);
         if (ra == rb) continue;
         if (ra < rb) parent[rb] = ra;
@@ -34,7 +34,7 @@ void gc_chains_build(gcWorld *w) {
     int32_t *index_of_root = cs->cursor;
     int chains = 0;
     for (int32_t i = 0; i < nb; ++i) {
-        if (w->bodies[i].is_static) {
+        if (w->model->bodies[i].is_static) {
             cs->body_chain[i] = -1;
             continue;
         }
@@ -81,7 +81,7 @@ gcStatus gc_world_body_chain(const gcWorld *w, int32_t body, int32_t *chain) {
     }
     const struct gcContactSystem *cs = w->contacts;
     /* Before the first step (or for a body added since), a dynamic body is alone. */
-    if (w->bodies[body].is_static) *chain = -1;
+    if (w->model->bodies[body].is_static) *chain = -1;
     else if (!cs || body >= cs->num_sorted) *chain = -1;
     else *chain = cs->body_chain[body];
     return GC_OK;

@@ -50,8 +50,8 @@ typedef struct gcCursorPlane {
 /* Signed distance of the cursor's centre to a part's surface inflated by the finger radius,
  * with the closest point and the outward normal, world frame. */
 static double part_query(const gcWorld *w, const gcFinger *f, int32_t p, gcVec3 x, gcVec3 *normal) {
-    const gcPart *part = &w->parts[p];
-    gcTransform fr = gc_body_transform(&w->bodies[part->body]);
+    const gcPart *part = &w->model->parts[p];
+    gcTransform fr = gc_world_body_transform(w, part->body);
     double sd;
     gcVec3 sp, n;
     gc_point_query(&part->hull, gc_inv_transform_point(&fr, x), &sd, &sp, &n);
@@ -72,8 +72,9 @@ static int gather_planes(const gcWorld *w, const gcFinger *f, gcVec3 x, gcVec3 t
     hi = gc_add(hi, pad);
     for (int32_t bi = 0; bi < w->num_bodies; ++bi) {
         const gcBody *b = &w->bodies[bi];
+        const gcBodyModel *m = &w->model->bodies[bi];
         if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
-        for (int32_t p = b->first_part; p < b->first_part + b->num_parts; ++p) {
+        for (int32_t p = m->first_part; p < m->first_part + m->num_parts; ++p) {
             gcVec3 n;
             double sd = part_query(w, f, p, x, &n);
             if (sd > reach) continue;
@@ -190,7 +191,7 @@ static gcVec3 solve(const gcWorld *w, const gcFinger *f, gcVec3 from, gcVec3 tar
 static gcVec3 cursor_position(const gcWorld *w, const gcFinger *f) {
     if (f->num_contacts == 0) return f->cursor;
     const gcFingerContact *c = &f->contacts[0];
-    gcTransform fr = gc_body_transform(&w->bodies[w->parts[c->part].body]);
+    gcTransform fr = gc_world_body_transform(w, w->model->parts[c->part].body);
     return gc_transform_point(&fr, c->go_local);
 }
 
@@ -231,7 +232,7 @@ void gc_cursor_finger_update(gcWorld *w, gcFinger *f, double dt) {
         int main_plane = 0;
         for (int i = 1; i < count; ++i)
             if (lambda[i] > lambda[main_plane]) main_plane = i;
-        const gcBody *b = &w->bodies[w->parts[planes[main_plane].part].body];
+        const gcBodyModel *b = &w->model->bodies[w->model->parts[planes[main_plane].part].body];
         gcVec3 n = gc_scale(push, 1.0 / depth);
         gcVec3 offset = gc_sub(x0, xf);
         offset = gc_madd(offset, n, -gc_dot(offset, n));
@@ -266,8 +267,8 @@ void gc_cursor_finger_update(gcWorld *w, gcFinger *f, double dt) {
     f->num_contacts = 0;
     for (int i = 0; i < count && lambda_sum > 0.0; ++i) {
         if (!(lambda[i] > 0.0)) continue;
-        const gcPart *part = &w->parts[planes[i].part];
-        gcTransform fr = gc_body_transform(&w->bodies[part->body]);
+        const gcPart *part = &w->model->parts[planes[i].part];
+        gcTransform fr = gc_world_body_transform(w, part->body);
         gcFingerContact *fc = &f->contacts[f->num_contacts++];
         memset(fc, 0, sizeof *fc);
         fc->part = planes[i].part;
@@ -290,14 +291,14 @@ void gc_cursor_finger_outputs(gcWorld *w, int32_t id) {
     double deepest = -1.0;
     for (int i = 0; i < f->num_contacts; ++i) {
         const gcFingerContact *c = &f->contacts[i];
-        const gcBody *b = &w->bodies[w->parts[c->part].body];
+        const gcBody *b = &w->bodies[w->model->parts[c->part].body];
         f->normal = gc_madd(f->normal, gc_mat3_mul_vec(&b->state.R, c->normal_local), c->share);
         if (c->depth > deepest) {
             deepest = c->depth;
-            f->contact_body = w->parts[c->part].body;
+            f->contact_body = w->model->parts[c->part].body;
             f->state = c->state;
             /* Touching, it moves with the body point under it. */
-            v = b->is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(x, b->state.com)));
+            v = w->model->bodies[f->contact_body].is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(x, b->state.com)));
         }
     }
     double nl = gc_len(f->normal);

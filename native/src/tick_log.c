@@ -183,7 +183,7 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
         /* The convex parts touched, by index in their body: a change is a change of part. */
         uint32_t mask = 0;
         for (int c = 0; c < f->num_contacts; ++c) {
-            int32_t k = f->contacts[c].part - w->bodies[w->parts[f->contacts[c].part].body].first_part;
+            int32_t k = f->contacts[c].part - w->model->bodies[w->model->parts[f->contacts[c].part].body].first_part;
             mask |= 1u << (k < 31 ? k : 31);
         }
         memcpy(parts + 4 * i, &mask, 4);
@@ -192,9 +192,8 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
     }
     memcpy(pose, w->pose_array, 56 * nb);
     for (size_t b = 0; b < nb; ++b) { /* of the body frame origin, as gc_world_body_velocity */
-        const gcBody *body = &w->bodies[b];
-        const gcBodyState *st = &body->state;
-        gcVec3 v = gc_body_origin_velocity(body, st);
+        const gcBodyState *st = &w->bodies[b].state;
+        gcVec3 v = gc_body_origin_velocity(&w->model->bodies[b], st);
         memcpy(vel + 48 * b, &v, 24);
         memcpy(vel + 48 * b + 24, &st->w, 24);
         memcpy(wrench + 48 * b, &st->residual_force, 24);

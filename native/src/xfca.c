@@ -167,7 +167,7 @@ static gcVec3 turn_between(gcQuat p, gcQuat q) {
     return gc_scale(v, 2.0 * atan2(s, d.w) / s);
 }
 
-static gcSurface body_surface(const gcBody *b, const gcHull *h, double radius) {
+static gcSurface body_surface(const gcBodyModel *b, const gcHull *h, double radius) {
     gcSurface sf = {h, radius, b->mu_s, b->mu_d, b->viscosity};
     return sf;
 }
@@ -178,12 +178,12 @@ static gcSurface body_surface(const gcBody *b, const gcHull *h, double radius) {
  * load on several points (mu k depth is a few tenths of a millimetre) mistakes for sliding: a pad
  * carrying a 0.5 kg box on 4 points at 10 kN/m slipped at 0.1 m/s (docs/physics.md "Area
  * contacts"). Sphere fingers keep the current pose (their results are unchanged). */
-static gcTransform predicted_transform(const gcBody *b, double dt) {
-    if (b->is_static) return gc_body_transform(b);
+static gcTransform predicted_transform(const gcBodyModel *m, const gcBody *b, double dt) {
+    if (m->is_static) return gc_body_transform(m, &b->state);
     gcQuat q = gc_quat_normalize(gc_quat_mul(gc_quat_from_rotation_vector(gc_scale(b->state.w, dt)), b->state.q));
     gcTransform t;
     t.R = gc_quat_to_mat3(q);
-    t.p = gc_sub(gc_madd(b->state.com, b->state.v, dt), gc_mat3_mul_vec(&t.R, b->com_local));
+    t.p = gc_sub(gc_madd(b->state.com, b->state.v, dt), gc_mat3_mul_vec(&t.R, m->com_local));
     return t;
 }
 
@@ -219,25 +219,25 @@ static void blend_seams(const gcWorld *w, gcFinger *f) {
     int shared[GC_MAX_CONTACTS_PER_FINGER];
     for (int i = 0; i < f->num_contacts; ++i) {
         const gcFingerContact *c = &f->contacts[i];
-        int32_t body = w->parts[c->part].body;
+        int32_t body = w->model->parts[c->part].body;
         effective[i] = c->depth;
         burial[i] = 0.0;
         shared[i] = 0;
         for (int j = 0; j < f->num_contacts; ++j) {
             const gcFingerContact *o = &f->contacts[j];
-            if (j == i || w->parts[o->part].body != body) continue;
+            if (j == i || w->model->parts[o->part].body != body) continue;
             shared[i] = 1;
             gcVec3 n;
-            burial[i] = fmax(burial[i], -tip_query(&w->parts[o->part].hull, c->go_local, f->radius, &n));
+            burial[i] = fmax(burial[i], -tip_query(&w->model->parts[o->part].hull, c->go_local, f->radius, &n));
         }
     }
     for (int i = 0; i < f->num_contacts; ++i) {
         if (!shared[i]) continue;
         const gcFingerContact *c = &f->contacts[i];
-        int32_t body = w->parts[c->part].body;
+        int32_t body = w->model->parts[c->part].body;
         double deepest = 0.0, least = burial[i];
         for (int j = 0; j < f->num_contacts; ++j) {
-            if (w->parts[f->contacts[j].part].body != body) continue;
+            if (w->model->parts[f->contacts[j].part].body != body) continue;
             deepest = fmax(deepest, f->contacts[j].depth);
             least = fmin(least, burial[j]);
         }
@@ -246,11 +246,11 @@ static void blend_seams(const gcWorld *w, gcFinger *f) {
     }
     for (int i = 0; i < f->num_contacts; ++i) {
         gcFingerContact *c = &f->contacts[i];
-        int32_t body = w->parts[c->part].body;
+        int32_t body = w->model->parts[c->part].body;
         double overlap = 0.0;
         for (int j = 0; j < f->num_contacts; ++j) {
             const gcFingerContact *o = &f->contacts[j];
-            if (w->parts[o->part].body != body) continue;
+            if (w->model->parts[o->part].body != body) continue;
             overlap += effective[j] * (j == i ? 1.0 : fmax(0.0, gc_dot(c->normal_local, o->normal_local)));
         }
         c->share = overlap > 0.0 ? effective[i] / overlap : 0.0;
@@ -280,13 +280,14 @@ static void find_new_contacts(gcWorld *w, gcFinger *f, int32_t sample, int capac
     hi = gc_add(hi, pad);
     for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < capacity; ++bi) {
         const gcBody *b = &w->bodies[bi];
+        const gcBodyModel *bm = &w->model->bodies[bi];
         if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
-        gcTransform fr = f->num_vertices ? predicted_transform(b, dt) : gc_body_transform(b);
+        gcTransform fr = f->num_vertices ? predicted_transform(bm, b, dt) : gc_body_transform(bm, &b->state);
         gcVec3 from = gc_inv_transform_point(&fr, prev), to = gc_inv_transform_point(&fr, now);
-        for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
+        for (int p = bm->first_part; p < bm->first_part + bm->num_parts; ++p) {
             if (f->num_contacts >= capacity) break;
             if (has_contact_with(f, p, sample, 0)) continue;
-            const gcHull *h = &w->parts[p].hull;
+            const gcHull *h = &w->model->parts[p].hull;
             gcVec3 go, n;
             if (!find_entry(f->radius, h, from, to, &go, &n)) continue;
             if (f->num_vertices && opposes_existing(f, b, p, gc_mat3_mul_vec(&b->state.R, n))) continue;
@@ -297,7 +298,7 @@ static void find_new_contacts(gcWorld *w, gcFinger *f, int32_t sample, int capac
             c.state = GC_FINGER_STICK;
             c.go_local = go;
             c.normal_local = n;
-            gcSurface sf = body_surface(b, h, f->radius);
+            gcSurface sf = body_surface(bm, h, f->radius);
             if (update_contact(&sf, &c, to, dt)) f->contacts[f->num_contacts++] = c;
         }
     }
@@ -312,7 +313,7 @@ static void find_new_contacts(gcWorld *w, gcFinger *f, int32_t sample, int capac
 /* The reversed candidate at body point x (body frame): swept in the finger's frame from where
  * it was against the finger a step ago (the body now, the finger at its previous pose) to
  * where it will be (the body's predicted pose, the finger now). */
-static void try_reversed(gcFinger *f, const gcHull *fh, const gcBody *b, int32_t part, const gcHull *h,
+static void try_reversed(gcFinger *f, const gcHull *fh, const gcBodyModel *bm, const gcBody *b, int32_t part, const gcHull *h,
                          int32_t sample, gcVec3 x, const gcTransform *fr, const gcTransform *fr_prev,
                          const gcTransform *ff, const gcTransform *ff_prev, double dt) {
     if (has_contact_with(f, part, sample, 1)) return;
@@ -329,7 +330,7 @@ static void try_reversed(gcFinger *f, const gcHull *fh, const gcBody *b, int32_t
     c.state = GC_FINGER_STICK;
     c.go_local = go;
     c.normal_local = n;
-    gcSurface sf = body_surface(b, fh, h->radius);
+    gcSurface sf = body_surface(bm, fh, h->radius);
     if (update_contact(&sf, &c, v, dt)) f->contacts[f->num_contacts++] = c;
 }
 
@@ -358,13 +359,14 @@ static void find_reversed_contacts(gcWorld *w, gcFinger *f, const gcHull *fh, do
     double spacing = fh->min_width + 2.0 * fh->radius;
     for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++bi) {
         const gcBody *b = &w->bodies[bi];
+        const gcBodyModel *bm = &w->model->bodies[bi];
         if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
-        gcTransform fr = predicted_transform(b, dt), fr_prev = gc_body_transform(b);
-        for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
-            const gcHull *h = &w->parts[p].hull;
+        gcTransform fr = predicted_transform(bm, b, dt), fr_prev = gc_body_transform(bm, &b->state);
+        for (int p = bm->first_part; p < bm->first_part + bm->num_parts; ++p) {
+            const gcHull *h = &w->model->parts[p].hull;
             for (int32_t j = 0; j < h->num_vertices && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++j) {
                 if (outside_box(gc_transform_point(&fr, h->vertices[j]), lo, hi, h->radius)) continue;
-                try_reversed(f, fh, b, p, h, j, h->vertices[j], &fr, &fr_prev, &ff, &ff_prev, dt);
+                try_reversed(f, fh, bm, b, p, h, j, h->vertices[j], &fr, &fr_prev, &ff, &ff_prev, dt);
             }
             for (int e = 0; e < h->num_edges && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++e) {
                 gcVec3 a = h->vertices[h->edges[2 * e]], c = h->vertices[h->edges[2 * e + 1]];
@@ -380,7 +382,7 @@ static void find_reversed_contacts(gcWorld *w, gcFinger *f, const gcHull *fh, do
                     double t = (double)(k + 1) / (double)(n + 1);
                     gcVec3 x = gc_madd(a, gc_sub(c, a), t);
                     if (outside_box(gc_transform_point(&fr, x), lo, hi, h->radius)) continue;
-                    try_reversed(f, fh, b, p, h, h->num_vertices + e * GC_EDGE_SAMPLES + k, x, &fr, &fr_prev, &ff,
+                    try_reversed(f, fh, bm, b, p, h, h->num_vertices + e * GC_EDGE_SAMPLES + k, x, &fr, &fr_prev, &ff,
                                  &ff_prev, dt);
                 }
             }
@@ -412,7 +414,7 @@ static double twist_angle(const gcFinger *f, const gcFingerContact *c, const gcM
 /* The twist's friction circle, as steps 3-4 for the god-object: the spring k rho^2 twist holds
  * while |twist| <= mu_s depth / rho (the torque mu_s F_n rho, F_n = k depth); past it the
  * god-direction slips to mu_d depth / rho behind the finger's, and sticks again inside that. */
-static void update_twist(const gcFinger *f, const gcBody *b, gcFingerContact *c, int fresh) {
+static void update_twist(const gcFinger *f, const gcBodyModel *bm, const gcBody *b, gcFingerContact *c, int fresh) {
     gcVec3 n = gc_mat3_mul_vec(&b->state.R, c->normal_local);
     if (fresh) {
         double best = 2.0;
@@ -429,7 +431,7 @@ static void update_twist(const gcFinger *f, const gcBody *b, gcFingerContact *c,
         c->twist_state = GC_FINGER_STICK;
         return;
     }
-    double limit_s = b->mu_s * c->depth / f->torsion, limit_d = b->mu_d * c->depth / f->torsion;
+    double limit_s = bm->mu_s * c->depth / f->torsion, limit_d = bm->mu_d * c->depth / f->torsion;
     int slipping = c->twist_state == GC_FINGER_STICK ? fabs(phi) > limit_s
                                                      : fabs(phi) > limit_d * (1.0 + GC_CIRCLE_TOLERANCE);
     if (slipping) {
@@ -445,22 +447,23 @@ static void update_twist(const gcFinger *f, const gcBody *b, gcFingerContact *c,
 
 static void finger_update(gcWorld *w, int32_t id, double dt) {
     gcFinger *f = &w->fingers[id];
-    const gcHull *fh = &w->finger_hulls[id];
+    const gcHull *fh = &w->model->finger_hulls[id];
     f->hip_velocity = gc_scale(gc_sub(f->hip, f->hip_prev), 1.0 / dt);
     if (f->num_vertices) f->hip_angular_velocity = gc_scale(turn_between(f->q_prev, f->q), 1.0 / dt);
     /* Existing contacts, compacting away the ones that ended. */
     int kept = 0;
     for (int i = 0; i < f->num_contacts; ++i) {
         gcFingerContact *c = &f->contacts[i]; /* updated in place; a lost one is overwritten */
-        const gcPart *part = &w->parts[c->part];
+        const gcPart *part = &w->model->parts[c->part];
         const gcBody *b = &w->bodies[part->body];
-        gcTransform fr = f->num_vertices ? predicted_transform(b, dt) : gc_body_transform(b);
+        const gcBodyModel *bm = &w->model->bodies[part->body];
+        gcTransform fr = f->num_vertices ? predicted_transform(bm, b, dt) : gc_body_transform(bm, &b->state);
         int alive;
         if (!c->reversed) {
-            gcSurface sf = body_surface(b, &part->hull, f->radius);
+            gcSurface sf = body_surface(bm, &part->hull, f->radius);
             alive = update_contact(&sf, c, gc_inv_transform_point(&fr, gc_finger_tip(f, c->sample)), dt);
         } else {
-            gcSurface sf = body_surface(b, fh, part->hull.radius);
+            gcSurface sf = body_surface(bm, fh, part->hull.radius);
             gcTransform ff = finger_transform(f);
             gcVec3 v = gc_inv_transform_point(&ff, gc_transform_point(&fr, c->body_point_local));
             alive = update_contact(&sf, c, v, dt);
@@ -474,9 +477,10 @@ static void finger_update(gcWorld *w, int32_t id, double dt) {
     f->num_contacts = kept;
     if (!f->num_vertices) {
         find_new_contacts(w, f, 0, GC_MAX_CONTACTS_PER_FINGER, dt);
-        if (f->torsion > 0.0)
-            for (int i = 0; i < f->num_contacts; ++i)
-                update_twist(f, &w->bodies[w->parts[f->contacts[i].part].body], &f->contacts[i], i >= existing);
+        for (int i = 0; i < f->num_contacts && f->torsion > 0.0; ++i) {
+            int32_t body = w->model->parts[f->contacts[i].part].body;
+            update_twist(f, &w->model->bodies[body], &w->bodies[body], &f->contacts[i], i >= existing);
+        }
         blend_seams(w, f);
         return;
     }
@@ -506,8 +510,9 @@ static void finger_outputs(gcWorld *w, int32_t id) {
     f->state = GC_FINGER_FREE;
     for (int i = 0; i < f->num_contacts; ++i) {
         const gcFingerContact *c = &f->contacts[i];
-        const gcBody *b = &w->bodies[w->parts[c->part].body];
-        gcTransform fr = gc_body_transform(b);
+        const gcBody *b = &w->bodies[w->model->parts[c->part].body];
+        const gcBodyModel *bm = &w->model->bodies[w->model->parts[c->part].body];
+        gcTransform fr = gc_body_transform(bm, &b->state);
         gcVec3 tip, tip_velocity, go;
         gc_finger_contact_ends(f, c, &fr, &tip, &tip_velocity, &go);
         /* A sphere finger's springs on one body's parts weighted at seams (blend_seams); a convex
@@ -517,7 +522,7 @@ static void finger_outputs(gcWorld *w, int32_t id) {
         force = gc_madd(force, stretch, k);
         if (f->damping > 0.0) {
             /* Damping on the HIP vs the body point at the god-object. */
-            gcVec3 v_point = b->is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(go, b->state.com)));
+            gcVec3 v_point = bm->is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(go, b->state.com)));
             dv = gc_sub(v_point, tip_velocity);
             force = gc_madd(force, dv, damping);
         }
@@ -536,7 +541,7 @@ static void finger_outputs(gcWorld *w, int32_t id) {
             deepest = c->depth;
             f->god_object = go;
             f->normal = gc_finger_point_normal(f, c, &b->state.R);
-            f->contact_body = w->parts[c->part].body;
+            f->contact_body = w->model->parts[c->part].body;
             f->state = c->state;
         }
     }
