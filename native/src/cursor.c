@@ -49,25 +49,25 @@ typedef struct gcCursorPlane {
 
 /* Signed distance of the cursor's centre to a part's surface inflated by the finger radius,
  * with the closest point and the outward normal, world frame. */
-static double part_query(const gcWorld *w, const gcFinger *f, int32_t p, gcVec3 x, gcVec3 *normal) {
+static double part_query(const gcWorld *w, const gcFingerModel *fm, int32_t p, gcVec3 x, gcVec3 *normal) {
     const gcPart *part = &w->model->parts[p];
     gcTransform fr = gc_world_body_transform(w, part->body);
     double sd;
     gcVec3 sp, n;
     gc_point_query(&part->hull, gc_inv_transform_point(&fr, x), &sd, &sp, &n);
     *normal = gc_mat3_mul_vec(&fr.R, n);
-    return sd - f->radius;
+    return sd - fm->radius;
 }
 
 /* The planes of step 2 at x, for the parts the cursor could reach going to `target`: the
  * nearest GC_CURSOR_MAX_PLANES of them. */
-static int gather_planes(const gcWorld *w, const gcFinger *f, gcVec3 x, gcVec3 target, gcCursorPlane *planes) {
+static int gather_planes(const gcWorld *w, const gcFingerModel *fm, gcVec3 x, gcVec3 target, gcCursorPlane *planes) {
     double reach = gc_len(gc_sub(target, x)) + GC_CURSOR_SLOP;
     double dist[GC_CURSOR_MAX_PLANES];
     int count = 0;
     gcVec3 lo = gc_v3(fmin(x.x, target.x), fmin(x.y, target.y), fmin(x.z, target.z));
     gcVec3 hi = gc_v3(fmax(x.x, target.x), fmax(x.y, target.y), fmax(x.z, target.z));
-    gcVec3 pad = gc_v3(f->radius, f->radius, f->radius);
+    gcVec3 pad = gc_v3(fm->radius, fm->radius, fm->radius);
     lo = gc_sub(lo, pad);
     hi = gc_add(hi, pad);
     for (int32_t bi = 0; bi < w->num_bodies; ++bi) {
@@ -76,7 +76,7 @@ static int gather_planes(const gcWorld *w, const gcFinger *f, gcVec3 x, gcVec3 t
         if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
         for (int32_t p = m->first_part; p < m->first_part + m->num_parts; ++p) {
             gcVec3 n;
-            double sd = part_query(w, f, p, x, &n);
+            double sd = part_query(w, fm, p, x, &n);
             if (sd > reach) continue;
             /* Keep the nearest: insert by distance, dropping the farthest when full. */
             int at = count < GC_CURSOR_MAX_PLANES ? count : GC_CURSOR_MAX_PLANES - 1;
@@ -172,12 +172,12 @@ static gcVec3 project(const gcCursorPlane *planes, int count, gcVec3 target, gcV
 }
 
 /* Steps 2-3 from a feasible `from` toward `target`: planes re-taken at each new position. */
-static gcVec3 solve(const gcWorld *w, const gcFinger *f, gcVec3 from, gcVec3 target, gcCursorPlane *planes,
+static gcVec3 solve(const gcWorld *w, const gcFingerModel *fm, gcVec3 from, gcVec3 target, gcCursorPlane *planes,
                     int *count, double *lambda) {
     gcVec3 x = from;
     *count = 0;
     for (int it = 0; it < GC_CURSOR_LINEARISATIONS; ++it) {
-        *count = gather_planes(w, f, x, target, planes);
+        *count = gather_planes(w, fm, x, target, planes);
         gcVec3 next = project(planes, *count, target, x, lambda);
         double moved = gc_len(gc_sub(next, x));
         x = next;
@@ -195,7 +195,9 @@ static gcVec3 cursor_position(const gcWorld *w, const gcFinger *f) {
     return gc_transform_point(&fr, c->go_local);
 }
 
-void gc_cursor_finger_update(gcWorld *w, gcFinger *f, double dt) {
+void gc_cursor_finger_update(gcWorld *w, int32_t id, double dt) {
+    gcFinger *f = &w->fingers[id];
+    const gcFingerModel *fm = &w->model->fingers[id];
     f->hip_velocity = gc_scale(gc_sub(f->hip, f->hip_prev), 1.0 / dt);
     gcVec3 x0 = cursor_position(w, f);
     int was_touching = f->num_contacts > 0;
@@ -203,14 +205,14 @@ void gc_cursor_finger_update(gcWorld *w, gcFinger *f, double dt) {
     /* A body moved onto the cursor: leave along the least penetration first. */
     for (int pass = 0; pass < 2; ++pass) {
         gcCursorPlane inside[GC_CURSOR_MAX_PLANES];
-        int count = gather_planes(w, f, x0, x0, inside);
+        int count = gather_planes(w, fm, x0, x0, inside);
         gcVec3 out = x0;
         for (int i = 0; i < count; ++i)
             if (violation(&inside[i], x0) < 0.0) out = gc_madd(out, inside[i].n, -violation(&inside[i], x0));
         x0 = out;
     }
     /* 1. Free motion (backward Euler). */
-    double k = f->stiffness, c = f->damping, m = f->cursor_mass;
+    double k = fm->stiffness, c = fm->damping, m = fm->cursor_mass;
     double a = m + c * dt + k * dt * dt;
     gcVec3 mom = gc_scale(f->cursor_velocity, m);
     gcVec3 pull = gc_add(gc_scale(gc_sub(f->hip, x0), k), gc_scale(f->hip_velocity, c));
@@ -220,7 +222,7 @@ void gc_cursor_finger_update(gcWorld *w, gcFinger *f, double dt) {
     gcCursorPlane planes[GC_CURSOR_MAX_PLANES];
     double lambda[GC_CURSOR_MAX_PLANES];
     int count;
-    gcVec3 xf = solve(w, f, x0, target, planes, &count, lambda);
+    gcVec3 xf = solve(w, fm, x0, target, planes, &count, lambda);
     gcVec3 push = gc_sub(xf, target);
     double depth = gc_len(push);
     gcVec3 x = xf;
@@ -247,7 +249,7 @@ void gc_cursor_finger_update(gcWorld *w, gcFinger *f, double dt) {
             gcCursorPlane sp[GC_CURSOR_MAX_PLANES];
             double sl[GC_CURSOR_MAX_PLANES];
             int sc;
-            x = solve(w, f, xf, slip, sp, &sc, sl);
+            x = solve(w, fm, xf, slip, sp, &sc, sl);
             state = GC_FINGER_SLIP;
             /* The parts it rests on now: those of the slip's solve that hold it, else the
              * frictionless solve's (a slip within one face meets no new plane). */
@@ -284,6 +286,7 @@ void gc_cursor_finger_update(gcWorld *w, gcFinger *f, double dt) {
 
 void gc_cursor_finger_outputs(gcWorld *w, int32_t id) {
     gcFinger *f = &w->fingers[id];
+    const gcFingerModel *fm = &w->model->fingers[id];
     gcVec3 x = cursor_position(w, f), v = f->cursor_velocity;
     f->normal = gc_v3(0, 0, 0);
     f->contact_body = -1;
@@ -305,7 +308,7 @@ void gc_cursor_finger_outputs(gcWorld *w, int32_t id) {
     if (nl > 0.0) f->normal = gc_scale(f->normal, 1.0 / nl);
     f->cursor = x;
     f->god_object = x;
-    f->force = gc_add(gc_scale(gc_sub(x, f->hip), f->stiffness), gc_scale(gc_sub(v, f->hip_velocity), f->damping));
+    f->force = gc_add(gc_scale(gc_sub(x, f->hip), fm->stiffness), gc_scale(gc_sub(v, f->hip_velocity), fm->damping));
     double *out = &w->force_array[3 * id];
     out[0] = f->force.x, out[1] = f->force.y, out[2] = f->force.z;
     out = &w->god_object_array[3 * id];

@@ -160,6 +160,7 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
     gcTransform frame = gc_body_transform(m, &b->state);
     for (int fi = 0; fi < w->num_fingers; ++fi) {
         const gcFinger *f = &w->fingers[fi];
+        const gcFingerModel *fm = &w->model->fingers[fi];
         for (int ci = 0; ci < f->num_contacts; ++ci) {
             const gcFingerContact *c = &f->contacts[ci];
             if (w->model->parts[c->part].body != id) continue;
@@ -169,21 +170,21 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
              * while it sticks: the same lever in the torque and in the coupling keeps the
              * implicit model consistent with the explicit force. */
             gcVec3 tip, tip_velocity, go;
-            gc_finger_contact_ends(f, c, &frame, &tip, &tip_velocity, &go);
+            gc_finger_contact_ends(fm, f, c, &frame, &tip, &tip_velocity, &go);
             gcVec3 r = gc_sub(go, b->state.com);
             /* Weighted as the finger's force is (xfca.c: seams of a decomposed body; cursor.c). */
-            double k = f->stiffness * c->share, damping = f->damping * c->share;
+            double k = fm->stiffness * c->share, damping = fm->damping * c->share;
             gcVec3 spring = gc_scale(gc_sub(tip, go), k);
             /* Implicit part: the velocity-dependent terms move into the matrix. */
             gcVec3 explicit_part = gc_madd(spring, tip_velocity, damping);
             force = gc_add(force, explicit_part);
             torque = gc_add(torque, gc_cross(r, explicit_part));
             add_point_coupling(C, r, k * dt * dt + damping * dt);
-            if (f->torsion > 0.0) {
+            if (fm->torsion > 0.0) {
                 /* A soft fingertip's twist spring k rho^2 about the normal (weighted as its spring),
                  * implicit as the springs: the body's spin about n this step unwinds it by dt (n . w'). */
                 gcVec3 n = gc_mat3_mul_vec(&b->state.R, c->normal_local);
-                double kt = k * f->torsion * f->torsion;
+                double kt = k * fm->torsion * fm->torsion;
                 torque = gc_madd(torque, n, kt * c->twist);
                 double nv[3] = {n.x, n.y, n.z};
                 for (int i = 0; i < 3; ++i)

@@ -19,7 +19,7 @@ int gc_step(gcWorld *w, double dt) {
     for (int i = 0; i < w->num_fingers; ++i) {
         gcFinger *f = &w->fingers[i];
         f->hip_prev = f->hip;
-        if (f->num_vertices) f->q_prev = f->q, f->R_prev = f->R; /* a convex finger's turn per step */
+        if (w->model->fingers[i].num_vertices) f->q_prev = f->q, f->R_prev = f->R; /* a convex finger's turn per step */
     }
     w->time += dt;
     return stopped;

@@ -121,6 +121,7 @@ gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world) {
     m->gravity = gc_v3(def->gravity[0], def->gravity[1], def->gravity[2]);
     m->parts = calloc((size_t)def->max_parts, sizeof *m->parts);
     m->bodies = calloc((size_t)def->max_bodies, sizeof *m->bodies);
+    m->fingers = calloc((size_t)def->max_fingers, sizeof *m->fingers);
     m->finger_hulls = calloc((size_t)def->max_fingers, sizeof *m->finger_hulls);
     w->bodies = calloc((size_t)def->max_bodies, sizeof *w->bodies);
     w->fingers = calloc((size_t)def->max_fingers, sizeof *w->fingers);
@@ -128,7 +129,7 @@ gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world) {
     w->god_object_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
     w->force_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
     w->hip_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
-    if (!m->parts || !m->bodies || !m->finger_hulls || !w->bodies || !w->fingers || !w->pose_array ||
+    if (!m->parts || !m->bodies || !m->fingers || !m->finger_hulls || !w->bodies || !w->fingers || !w->pose_array ||
         !w->god_object_array || !w->force_array || !w->hip_array || !(w->serial = gc_serial_hub_create(w))) {
         gc_world_destroy(w);
         return create_failed(GC_ERR_NO_MEMORY, "out of memory for the capacities (max_bodies %d, max_fingers %d, max_parts %d)",
@@ -159,6 +160,7 @@ void gc_world_destroy(gcWorld *w) {
     free(m->finger_hulls);
     free(m->parts);
     free(m->bodies);
+    free(m->fingers);
     free(m);
     free(w->bodies);
     free(w->fingers);
@@ -407,19 +409,21 @@ gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_fi
         }
     }
     int32_t id = w->num_fingers;
+    gcFingerModel *fm = &w->own_model->fingers[id];
+    memset(fm, 0, sizeof *fm);
+    fm->num_vertices = hull.num_vertices;
+    for (int i = 0; i < hull.num_vertices; ++i) fm->vertices[i] = hull.vertices[i];
+    w->own_model->finger_hulls[id] = hull; /* freed with the world */
+    fm->radius = def->radius;
+    fm->torsion = def->torsion;
+    fm->stiffness = def->stiffness;
+    fm->damping = def->damping;
+    fm->renderer = def->renderer;
+    fm->cursor_mass = def->cursor_mass;
     gcFinger *f = &w->fingers[id];
     memset(f, 0, sizeof *f);
-    f->num_vertices = hull.num_vertices;
-    for (int i = 0; i < hull.num_vertices; ++i) f->vertices[i] = hull.vertices[i];
-    w->own_model->finger_hulls[id] = hull; /* freed with the world */
     f->q = f->q_prev = q;
     f->R = f->R_prev = gc_quat_to_mat3(q);
-    f->radius = def->radius;
-    f->torsion = def->torsion;
-    f->stiffness = def->stiffness;
-    f->damping = def->damping;
-    f->renderer = def->renderer;
-    f->cursor_mass = def->cursor_mass;
     f->hip = f->hip_prev = f->god_object = gc_v3(def->position[0], def->position[1], def->position[2]);
     f->cursor = f->hip;
     f->contact_body = -1;
@@ -670,6 +674,7 @@ gcStatus gc_world_finger_contacts(const gcWorld *w, int32_t finger, gcFingerCont
         return GC_ERR_INVALID_ARGUMENT;
     }
     const gcFinger *f = &w->fingers[finger];
+    const gcFingerModel *fm = &w->model->fingers[finger];
     for (int i = 0; i < f->num_contacts && i < capacity && out; ++i) {
         const gcFingerContact *c = &f->contacts[i];
         int32_t body = w->model->parts[c->part].body;
@@ -677,7 +682,7 @@ gcStatus gc_world_finger_contacts(const gcWorld *w, int32_t finger, gcFingerCont
         gcBodyState state = w->bodies[body].state;
         gcTransform fr = gc_body_transform(b, &state);
         gcVec3 anchor, anchor_velocity, point;
-        gc_finger_contact_ends(f, c, &fr, &anchor, &anchor_velocity, &point);
+        gc_finger_contact_ends(fm, f, c, &fr, &anchor, &anchor_velocity, &point);
         gcFingerContactPoint *o = &out[i];
         memset(o, 0, sizeof *o);
         o->body = body;
@@ -688,7 +693,7 @@ gcStatus gc_world_finger_contacts(const gcWorld *w, int32_t finger, gcFingerCont
         put3(o->normal, gc_finger_point_normal(f, c, &fr.R));
         /* The spring and damper as the body receives them (dynamics.c), weighted by the contact's
          * share (a seam's blend, the cursor's part of its constraint), on the state shown. */
-        double k = f->stiffness * c->share, damping = f->damping * c->share;
+        double k = fm->stiffness * c->share, damping = fm->damping * c->share;
         gcVec3 force = gc_scale(gc_sub(point, anchor), k);
         if (damping > 0.0 && !b->is_static) {
             gcVec3 v_point = gc_add(state.v, gc_cross(state.w, gc_sub(point, state.com)));

@@ -96,11 +96,20 @@ typedef struct gcFingerContact {
 #define GC_MAX_CONTACTS_PER_FINGER 8
 #define GC_MAX_FINGER_CONTACTS 16
 
-typedef struct gcFinger {
+/* A finger's model: set when it is added; no step changes it. */
+typedef struct gcFingerModel {
     double radius, stiffness, damping;
     double torsion;                 /* soft fingertip: radius of its pressed patch (m), 0 = none */
     gcFingerRenderer renderer;      /* xFCA god-objects, or the light-mass cursor (cursor.c) */
     double cursor_mass;             /* kg, the cursor renderer's */
+    /* Convex finger: its hull's vertices in the finger frame (0 = a sphere of radius), each a
+     * point of contact with a god-object of its own; the HIP is the frame's pose. */
+    int num_vertices;
+    gcVec3 vertices[GC_MAX_FINGER_VERTICES];
+} gcFingerModel;
+
+/* A finger in a world's state. */
+typedef struct gcFinger {
     gcVec3 cursor, cursor_velocity; /* the cursor's centre and velocity, world (cursor renderer) */
     gcVec3 hip, hip_prev, hip_velocity;
     int hip_initialised;
@@ -113,14 +122,10 @@ typedef struct gcFinger {
     gcVec3 normal;                  /* world: the reported contact's outward normal, 0 when free */
     int32_t contact_body;           /* -1 when free */
     gcFingerState state;
-    /* Convex finger (last: a sphere finger's step never reads it): its hull's vertices in the
-     * finger frame (0 = a sphere of radius), each a point of contact with a god-object of its
-     * own; the HIP is the frame's pose. */
-    int num_vertices;
+    /* The finger frame's pose (a convex finger's; a sphere finger's stays the identity). */
     gcQuat q, q_prev;
     gcMat3 R, R_prev;
     gcVec3 hip_angular_velocity;
-    gcVec3 vertices[GC_MAX_FINGER_VERTICES];
 } gcFinger;
 
 /* While the runtime runs: what the last gc_world_snapshot showed. The world's queries
@@ -139,6 +144,7 @@ typedef struct gcModel {
     int num_parts;
     gcPart *parts;                  /* max_parts */
     gcBodyModel *bodies;            /* max_bodies; the world's num_bodies are in use */
+    gcFingerModel *fingers;         /* max_fingers; the world's num_fingers are in use */
     /* Convex fingers' hulls in the finger frame, inflated by the finger radius (max_fingers). */
     gcHull *finger_hulls;
 } gcModel;
@@ -205,26 +211,27 @@ static inline gcTransform gc_world_body_transform(const gcWorld *w, int32_t b) {
 }
 
 /* The HIP of contact sample s: a sphere finger's HIP, or vertex s of a convex finger at the
- * finger's pose (now, at the previous step, and its velocity). */
-static inline gcVec3 gc_finger_tip(const gcFinger *f, int s) {
-    return f->num_vertices ? gc_add(f->hip, gc_mat3_mul_vec(&f->R, f->vertices[s])) : f->hip;
+ * finger's pose (now, at the previous step, and its velocity); m is the finger's model. */
+static inline gcVec3 gc_finger_tip(const gcFingerModel *m, const gcFinger *f, int s) {
+    return m->num_vertices ? gc_add(f->hip, gc_mat3_mul_vec(&f->R, m->vertices[s])) : f->hip;
 }
-static inline gcVec3 gc_finger_tip_prev(const gcFinger *f, int s) {
-    return f->num_vertices ? gc_add(f->hip_prev, gc_mat3_mul_vec(&f->R_prev, f->vertices[s])) : f->hip_prev;
+static inline gcVec3 gc_finger_tip_prev(const gcFingerModel *m, const gcFinger *f, int s) {
+    return m->num_vertices ? gc_add(f->hip_prev, gc_mat3_mul_vec(&f->R_prev, m->vertices[s])) : f->hip_prev;
 }
-static inline gcVec3 gc_finger_tip_velocity(const gcFinger *f, int s) {
-    if (!f->num_vertices) return f->hip_velocity;
-    return gc_add(f->hip_velocity, gc_cross(f->hip_angular_velocity, gc_mat3_mul_vec(&f->R, f->vertices[s])));
+static inline gcVec3 gc_finger_tip_velocity(const gcFingerModel *m, const gcFinger *f, int s) {
+    if (!m->num_vertices) return f->hip_velocity;
+    return gc_add(f->hip_velocity, gc_cross(f->hip_angular_velocity, gc_mat3_mul_vec(&f->R, m->vertices[s])));
 }
 
 /* The two ends of a finger contact's spring, world: the finger's end (anchor: its HIP or vertex,
  * or for a reversed contact the GO on its surface) with that point's velocity, and the body point
  * (the GO on the body, or the body's vertex) where the body receives the reaction. */
-static inline void gc_finger_contact_ends(const gcFinger *f, const gcFingerContact *c, const gcTransform *body,
-                                          gcVec3 *anchor, gcVec3 *anchor_velocity, gcVec3 *body_point) {
+static inline void gc_finger_contact_ends(const gcFingerModel *m, const gcFinger *f, const gcFingerContact *c,
+                                          const gcTransform *body, gcVec3 *anchor, gcVec3 *anchor_velocity,
+                                          gcVec3 *body_point) {
     if (!c->reversed) {
-        *anchor = gc_finger_tip(f, c->sample);
-        *anchor_velocity = gc_finger_tip_velocity(f, c->sample);
+        *anchor = gc_finger_tip(m, f, c->sample);
+        *anchor_velocity = gc_finger_tip_velocity(m, f, c->sample);
         *body_point = gc_transform_point(body, c->go_local);
         return;
     }

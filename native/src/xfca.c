@@ -214,7 +214,7 @@ static gcTransform finger_transform(const gcFinger *f) {
  * before. docs/physics.md. */
 #define GC_SEAM_BURIAL 1.0
 
-static void blend_seams(const gcWorld *w, gcFinger *f) {
+static void blend_seams(const gcWorld *w, const gcFingerModel *fm, gcFinger *f) {
     double effective[GC_MAX_CONTACTS_PER_FINGER], burial[GC_MAX_CONTACTS_PER_FINGER];
     int shared[GC_MAX_CONTACTS_PER_FINGER];
     for (int i = 0; i < f->num_contacts; ++i) {
@@ -228,7 +228,7 @@ static void blend_seams(const gcWorld *w, gcFinger *f) {
             if (j == i || w->model->parts[o->part].body != body) continue;
             shared[i] = 1;
             gcVec3 n;
-            burial[i] = fmax(burial[i], -tip_query(&w->model->parts[o->part].hull, c->go_local, f->radius, &n));
+            burial[i] = fmax(burial[i], -tip_query(&w->model->parts[o->part].hull, c->go_local, fm->radius, &n));
         }
     }
     for (int i = 0; i < f->num_contacts; ++i) {
@@ -271,26 +271,26 @@ static int opposes_existing(const gcFinger *f, const gcBody *b, int32_t part, gc
 
 /* New contacts of one contact sample (a sphere finger's HIP, or one vertex of a convex finger):
  * broad phase on its swept box, then the sweep per part. */
-static void find_new_contacts(gcWorld *w, gcFinger *f, int32_t sample, int capacity, double dt) {
-    gcVec3 now = gc_finger_tip(f, sample), prev = gc_finger_tip_prev(f, sample);
+static void find_new_contacts(gcWorld *w, const gcFingerModel *fm, gcFinger *f, int32_t sample, int capacity, double dt) {
+    gcVec3 now = gc_finger_tip(fm, f, sample), prev = gc_finger_tip_prev(fm, f, sample);
     gcVec3 lo = gc_v3(fmin(now.x, prev.x), fmin(now.y, prev.y), fmin(now.z, prev.z));
     gcVec3 hi = gc_v3(fmax(now.x, prev.x), fmax(now.y, prev.y), fmax(now.z, prev.z));
-    gcVec3 pad = gc_v3(f->radius, f->radius, f->radius);
+    gcVec3 pad = gc_v3(fm->radius, fm->radius, fm->radius);
     lo = gc_sub(lo, pad);
     hi = gc_add(hi, pad);
     for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < capacity; ++bi) {
         const gcBody *b = &w->bodies[bi];
         const gcBodyModel *bm = &w->model->bodies[bi];
         if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
-        gcTransform fr = f->num_vertices ? predicted_transform(bm, b, dt) : gc_body_transform(bm, &b->state);
+        gcTransform fr = fm->num_vertices ? predicted_transform(bm, b, dt) : gc_body_transform(bm, &b->state);
         gcVec3 from = gc_inv_transform_point(&fr, prev), to = gc_inv_transform_point(&fr, now);
         for (int p = bm->first_part; p < bm->first_part + bm->num_parts; ++p) {
             if (f->num_contacts >= capacity) break;
             if (has_contact_with(f, p, sample, 0)) continue;
             const gcHull *h = &w->model->parts[p].hull;
             gcVec3 go, n;
-            if (!find_entry(f->radius, h, from, to, &go, &n)) continue;
-            if (f->num_vertices && opposes_existing(f, b, p, gc_mat3_mul_vec(&b->state.R, n))) continue;
+            if (!find_entry(fm->radius, h, from, to, &go, &n)) continue;
+            if (fm->num_vertices && opposes_existing(f, b, p, gc_mat3_mul_vec(&b->state.R, n))) continue;
             gcFingerContact c;
             memset(&c, 0, sizeof c);
             c.part = p;
@@ -298,7 +298,7 @@ static void find_new_contacts(gcWorld *w, gcFinger *f, int32_t sample, int capac
             c.state = GC_FINGER_STICK;
             c.go_local = go;
             c.normal_local = n;
-            gcSurface sf = body_surface(bm, h, f->radius);
+            gcSurface sf = body_surface(bm, h, fm->radius);
             if (update_contact(&sf, &c, to, dt)) f->contacts[f->num_contacts++] = c;
         }
     }
@@ -343,13 +343,13 @@ static int outside_box(gcVec3 p, gcVec3 lo, gcVec3 hi, double pad) {
  * box corner on a palm wider than the box), and points along their edges (a can's side across
  * a palm), each with a god-object on the finger's surface. Without them a body smaller than
  * the finger's face would pass between its vertices (docs/physics.md "Area contacts"). */
-static void find_reversed_contacts(gcWorld *w, gcFinger *f, const gcHull *fh, double dt) {
+static void find_reversed_contacts(gcWorld *w, const gcFingerModel *fm, gcFinger *f, const gcHull *fh, double dt) {
     gcTransform ff = finger_transform(f), ff_prev;
     ff_prev.R = f->R_prev;
     ff_prev.p = f->hip_prev;
     gcVec3 lo = gc_v3(INFINITY, INFINITY, INFINITY), hi = gc_neg(lo);
-    for (int s = 0; s < f->num_vertices; ++s) {
-        gcVec3 v = gc_finger_tip(f, s);
+    for (int s = 0; s < fm->num_vertices; ++s) {
+        gcVec3 v = gc_finger_tip(fm, f, s);
         lo = gc_v3(fmin(lo.x, v.x), fmin(lo.y, v.y), fmin(lo.z, v.z));
         hi = gc_v3(fmax(hi.x, v.x), fmax(hi.y, v.y), fmax(hi.z, v.z));
     }
@@ -414,7 +414,7 @@ static double twist_angle(const gcFinger *f, const gcFingerContact *c, const gcM
 /* The twist's friction circle, as steps 3-4 for the god-object: the spring k rho^2 twist holds
  * while |twist| <= mu_s depth / rho (the torque mu_s F_n rho, F_n = k depth); past it the
  * god-direction slips to mu_d depth / rho behind the finger's, and sticks again inside that. */
-static void update_twist(const gcFinger *f, const gcBodyModel *bm, const gcBody *b, gcFingerContact *c, int fresh) {
+static void update_twist(const gcFingerModel *fm, const gcFinger *f, const gcBodyModel *bm, const gcBody *b, gcFingerContact *c, int fresh) {
     gcVec3 n = gc_mat3_mul_vec(&b->state.R, c->normal_local);
     if (fresh) {
         double best = 2.0;
@@ -431,7 +431,7 @@ static void update_twist(const gcFinger *f, const gcBodyModel *bm, const gcBody 
         c->twist_state = GC_FINGER_STICK;
         return;
     }
-    double limit_s = bm->mu_s * c->depth / f->torsion, limit_d = bm->mu_d * c->depth / f->torsion;
+    double limit_s = bm->mu_s * c->depth / fm->torsion, limit_d = bm->mu_d * c->depth / fm->torsion;
     int slipping = c->twist_state == GC_FINGER_STICK ? fabs(phi) > limit_s
                                                      : fabs(phi) > limit_d * (1.0 + GC_CIRCLE_TOLERANCE);
     if (slipping) {
@@ -447,9 +447,10 @@ static void update_twist(const gcFinger *f, const gcBodyModel *bm, const gcBody 
 
 static void finger_update(gcWorld *w, int32_t id, double dt) {
     gcFinger *f = &w->fingers[id];
+    const gcFingerModel *fm = &w->model->fingers[id];
     const gcHull *fh = &w->model->finger_hulls[id];
     f->hip_velocity = gc_scale(gc_sub(f->hip, f->hip_prev), 1.0 / dt);
-    if (f->num_vertices) f->hip_angular_velocity = gc_scale(turn_between(f->q_prev, f->q), 1.0 / dt);
+    if (fm->num_vertices) f->hip_angular_velocity = gc_scale(turn_between(f->q_prev, f->q), 1.0 / dt);
     /* Existing contacts, compacting away the ones that ended. */
     int kept = 0;
     for (int i = 0; i < f->num_contacts; ++i) {
@@ -457,11 +458,11 @@ static void finger_update(gcWorld *w, int32_t id, double dt) {
         const gcPart *part = &w->model->parts[c->part];
         const gcBody *b = &w->bodies[part->body];
         const gcBodyModel *bm = &w->model->bodies[part->body];
-        gcTransform fr = f->num_vertices ? predicted_transform(bm, b, dt) : gc_body_transform(bm, &b->state);
+        gcTransform fr = fm->num_vertices ? predicted_transform(bm, b, dt) : gc_body_transform(bm, &b->state);
         int alive;
         if (!c->reversed) {
-            gcSurface sf = body_surface(bm, &part->hull, f->radius);
-            alive = update_contact(&sf, c, gc_inv_transform_point(&fr, gc_finger_tip(f, c->sample)), dt);
+            gcSurface sf = body_surface(bm, &part->hull, fm->radius);
+            alive = update_contact(&sf, c, gc_inv_transform_point(&fr, gc_finger_tip(fm, f, c->sample)), dt);
         } else {
             gcSurface sf = body_surface(bm, fh, part->hull.radius);
             gcTransform ff = finger_transform(f);
@@ -475,20 +476,20 @@ static void finger_update(gcWorld *w, int32_t id, double dt) {
     }
     int existing = kept;
     f->num_contacts = kept;
-    if (!f->num_vertices) {
-        find_new_contacts(w, f, 0, GC_MAX_CONTACTS_PER_FINGER, dt);
-        for (int i = 0; i < f->num_contacts && f->torsion > 0.0; ++i) {
+    if (!fm->num_vertices) {
+        find_new_contacts(w, fm, f, 0, GC_MAX_CONTACTS_PER_FINGER, dt);
+        for (int i = 0; i < f->num_contacts && fm->torsion > 0.0; ++i) {
             int32_t body = w->model->parts[f->contacts[i].part].body;
-            update_twist(f, &w->model->bodies[body], &w->bodies[body], &f->contacts[i], i >= existing);
+            update_twist(fm, f, &w->model->bodies[body], &w->bodies[body], &f->contacts[i], i >= existing);
         }
-        blend_seams(w, f);
+        blend_seams(w, fm, f);
         return;
     }
     /* A convex finger: every hull vertex is a fingertip of its own, and every body vertex inside
      * the finger a reversed one (docs/physics.md "Area contacts"). */
-    for (int32_t s = 0; s < f->num_vertices && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++s)
-        find_new_contacts(w, f, s, GC_MAX_FINGER_CONTACTS, dt);
-    find_reversed_contacts(w, f, fh, dt);
+    for (int32_t s = 0; s < fm->num_vertices && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++s)
+        find_new_contacts(w, fm, f, s, GC_MAX_FINGER_CONTACTS, dt);
+    find_reversed_contacts(w, fm, f, fh, dt);
     /* Its points are a patch, not parts of one surface seen twice: no seam blend, each spring
      * whole (docs/physics.md "Renderers and finger shapes"). */
     for (int i = 0; i < f->num_contacts; ++i) f->contacts[i].share = 1.0;
@@ -501,6 +502,7 @@ static void finger_update(gcWorld *w, int32_t id, double dt) {
  * slip when any of them slips. */
 static void finger_outputs(gcWorld *w, int32_t id) {
     gcFinger *f = &w->fingers[id];
+    const gcFingerModel *fm = &w->model->fingers[id];
     gcVec3 force = gc_v3(0, 0, 0), torque = gc_v3(0, 0, 0), centroid = gc_v3(0, 0, 0);
     double deepest = -1.0, weight = 0.0;
     int slipping = 0;
@@ -514,23 +516,23 @@ static void finger_outputs(gcWorld *w, int32_t id) {
         const gcBodyModel *bm = &w->model->bodies[w->model->parts[c->part].body];
         gcTransform fr = gc_body_transform(bm, &b->state);
         gcVec3 tip, tip_velocity, go;
-        gc_finger_contact_ends(f, c, &fr, &tip, &tip_velocity, &go);
+        gc_finger_contact_ends(fm, f, c, &fr, &tip, &tip_velocity, &go);
         /* A sphere finger's springs on one body's parts weighted at seams (blend_seams); a convex
          * finger's share is 1. */
-        double k = f->stiffness * c->share, damping = f->damping * c->share;
+        double k = fm->stiffness * c->share, damping = fm->damping * c->share;
         gcVec3 stretch = gc_sub(go, tip), dv = gc_v3(0, 0, 0);
         force = gc_madd(force, stretch, k);
-        if (f->damping > 0.0) {
+        if (fm->damping > 0.0) {
             /* Damping on the HIP vs the body point at the god-object. */
             gcVec3 v_point = bm->is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(go, b->state.com)));
             dv = gc_sub(v_point, tip_velocity);
             force = gc_madd(force, dv, damping);
         }
-        if (f->torsion > 0.0) { /* the soft fingertip's twist spring, on the pose the body reached */
+        if (fm->torsion > 0.0) { /* the soft fingertip's twist spring, on the pose the body reached */
             gcVec3 n = gc_mat3_mul_vec(&b->state.R, c->normal_local);
-            torque = gc_madd(torque, n, -k * f->torsion * f->torsion * twist_angle(f, c, &b->state.R, n));
+            torque = gc_madd(torque, n, -k * fm->torsion * fm->torsion * twist_angle(f, c, &b->state.R, n));
         }
-        if (f->num_vertices) {
+        if (fm->num_vertices) {
             gcVec3 fc = gc_madd(gc_scale(stretch, k), dv, damping);
             torque = gc_add(torque, gc_cross(gc_sub(go, f->hip), fc));
             centroid = gc_madd(centroid, go, c->depth);
@@ -545,7 +547,7 @@ static void finger_outputs(gcWorld *w, int32_t id) {
             f->state = c->state;
         }
     }
-    if (f->num_vertices && f->num_contacts) {
+    if (fm->num_vertices && f->num_contacts) {
         if (weight > 0.0) f->god_object = gc_scale(centroid, 1.0 / weight);
         f->state = slipping ? GC_FINGER_SLIP : GC_FINGER_STICK;
     }
@@ -559,8 +561,8 @@ static void finger_outputs(gcWorld *w, int32_t id) {
 
 void gc_xfca_update(gcWorld *w, double dt) {
     for (int32_t i = 0; i < w->num_fingers; ++i) {
-        if (w->fingers[i].renderer == GC_RENDERER_CURSOR)
-            gc_cursor_finger_update(w, &w->fingers[i], dt);
+        if (w->model->fingers[i].renderer == GC_RENDERER_CURSOR)
+            gc_cursor_finger_update(w, i, dt);
         else
             finger_update(w, i, dt);
     }
@@ -568,7 +570,7 @@ void gc_xfca_update(gcWorld *w, double dt) {
 
 void gc_xfca_outputs(gcWorld *w) {
     for (int32_t i = 0; i < w->num_fingers; ++i) {
-        if (w->fingers[i].renderer == GC_RENDERER_CURSOR)
+        if (w->model->fingers[i].renderer == GC_RENDERER_CURSOR)
             gc_cursor_finger_outputs(w, i);
         else
             finger_outputs(w, i);
