@@ -5,8 +5,9 @@
 #include <string.h>
 
 void gc_body_refresh_derived(gcWorld *w, int32_t id) {
+    const gcModel *model = w->model;
     gcBody *b = &w->bodies[id];
-    const gcBodyModel *m = &w->model->bodies[id];
+    const gcBodyModel *m = &model->bodies[id];
     b->state.q = gc_quat_normalize(b->state.q);
     b->state.R = gc_quat_to_mat3(b->state.q);
     gcTransform frame = gc_body_transform(m, &b->state);
@@ -18,7 +19,7 @@ void gc_body_refresh_derived(gcWorld *w, int32_t id) {
      * transformed, half extents through |R|), grown by the part's radius. */
     gcVec3 lo = gc_v3(INFINITY, INFINITY, INFINITY), hi = gc_neg(lo);
     for (int p = m->first_part; p < m->first_part + m->num_parts; ++p) {
-        const gcHull *h = &w->model->parts[p].hull;
+        const gcHull *h = &model->parts[p].hull;
         gcVec3 centre = gc_transform_point(&frame, gc_scale(gc_add(h->aabb_min, h->aabb_max), 0.5));
         gcVec3 half = gc_scale(gc_sub(h->aabb_max, h->aabb_min), 0.5);
         double e[3];

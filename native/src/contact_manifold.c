@@ -254,19 +254,20 @@ static int reusable(const gcManifold *old, gcVec3 rel_p, const gcMat3 *rel_R) {
 
 /* Narrow phase for candidate i: fills manifolds[i] (num_points 0 when apart). */
 static void narrow_pair(gcWorld *w, int i) {
+    const gcModel *model = w->model;
     struct gcContactSystem *cs = w->contacts;
     const gcCandidate *cand = &cs->candidates[i];
     gcManifold *m = &cs->manifolds[i];
     m->key = cand->key;
     m->part_a = cand->part_a;
     m->part_b = cand->part_b;
-    m->body_a = w->model->parts[cand->part_a].body;
-    m->body_b = w->model->parts[cand->part_b].body;
+    m->body_a = model->parts[cand->part_a].body;
+    m->body_b = model->parts[cand->part_b].body;
     m->num_points = 0;
     m->reused = 0;
     const gcBody *A = &w->bodies[m->body_a], *B = &w->bodies[m->body_b];
-    const gcBodyModel *Am = &w->model->bodies[m->body_a], *Bm = &w->model->bodies[m->body_b];
-    const gcHull *ha = &w->model->parts[m->part_a].hull, *hb = &w->model->parts[m->part_b].hull;
+    const gcBodyModel *Am = &model->bodies[m->body_a], *Bm = &model->bodies[m->body_b];
+    const gcHull *ha = &model->parts[m->part_a].hull, *hb = &model->parts[m->part_b].hull;
     const gcManifold *old = find_previous(cs, m->key);
     /* B relative to A, in A's COM frame. */
     gcVec3 rel_p = gc_mat3_tmul_vec(&A->state.R, gc_sub(B->state.com, A->state.com));

@@ -50,7 +50,8 @@ typedef struct gcCursorPlane {
 /* Signed distance of the cursor's centre to a part's surface inflated by the finger radius,
  * with the closest point and the outward normal, world frame. */
 static double part_query(const gcWorld *w, const gcFingerModel *fm, int32_t p, gcVec3 x, gcVec3 *normal) {
-    const gcPart *part = &w->model->parts[p];
+    const gcModel *model = w->model;
+    const gcPart *part = &model->parts[p];
     gcTransform fr = gc_world_body_transform(w, part->body);
     double sd;
     gcVec3 sp, n;
@@ -62,6 +63,7 @@ static double part_query(const gcWorld *w, const gcFingerModel *fm, int32_t p, g
 /* The planes of step 2 at x, for the parts the cursor could reach going to `target`: the
  * nearest GC_CURSOR_MAX_PLANES of them. */
 static int gather_planes(const gcWorld *w, const gcFingerModel *fm, gcVec3 x, gcVec3 target, gcCursorPlane *planes) {
+    const gcModel *model = w->model;
     double reach = gc_len(gc_sub(target, x)) + GC_CURSOR_SLOP;
     double dist[GC_CURSOR_MAX_PLANES];
     int count = 0;
@@ -72,7 +74,7 @@ static int gather_planes(const gcWorld *w, const gcFingerModel *fm, gcVec3 x, gc
     hi = gc_add(hi, pad);
     for (int32_t bi = 0; bi < w->num_bodies; ++bi) {
         const gcBody *b = &w->bodies[bi];
-        const gcBodyModel *m = &w->model->bodies[bi];
+        const gcBodyModel *m = &model->bodies[bi];
         if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
         for (int32_t p = m->first_part; p < m->first_part + m->num_parts; ++p) {
             gcVec3 n;
@@ -189,15 +191,17 @@ static gcVec3 solve(const gcWorld *w, const gcFingerModel *fm, gcVec3 from, gcVe
 /* The cursor's position at the start of the tick: on the body it touches (moved with it),
  * else where it was left. */
 static gcVec3 cursor_position(const gcWorld *w, const gcFinger *f) {
+    const gcModel *model = w->model;
     if (f->num_contacts == 0) return f->cursor;
     const gcFingerContact *c = &f->contacts[0];
-    gcTransform fr = gc_world_body_transform(w, w->model->parts[c->part].body);
+    gcTransform fr = gc_world_body_transform(w, model->parts[c->part].body);
     return gc_transform_point(&fr, c->go_local);
 }
 
 void gc_cursor_finger_update(gcWorld *w, int32_t id, double dt) {
+    const gcModel *model = w->model;
     gcFinger *f = &w->fingers[id];
-    const gcFingerModel *fm = &w->model->fingers[id];
+    const gcFingerModel *fm = &model->fingers[id];
     f->hip_velocity = gc_scale(gc_sub(f->hip, f->hip_prev), 1.0 / dt);
     gcVec3 x0 = cursor_position(w, f);
     int was_touching = f->num_contacts > 0;
@@ -234,7 +238,7 @@ void gc_cursor_finger_update(gcWorld *w, int32_t id, double dt) {
         int main_plane = 0;
         for (int i = 1; i < count; ++i)
             if (lambda[i] > lambda[main_plane]) main_plane = i;
-        const gcBodyModel *b = &w->model->bodies[w->model->parts[planes[main_plane].part].body];
+        const gcBodyModel *b = &model->bodies[model->parts[planes[main_plane].part].body];
         gcVec3 n = gc_scale(push, 1.0 / depth);
         gcVec3 offset = gc_sub(x0, xf);
         offset = gc_madd(offset, n, -gc_dot(offset, n));
@@ -269,7 +273,7 @@ void gc_cursor_finger_update(gcWorld *w, int32_t id, double dt) {
     f->num_contacts = 0;
     for (int i = 0; i < count && lambda_sum > 0.0; ++i) {
         if (!(lambda[i] > 0.0)) continue;
-        const gcPart *part = &w->model->parts[planes[i].part];
+        const gcPart *part = &model->parts[planes[i].part];
         gcTransform fr = gc_world_body_transform(w, part->body);
         gcFingerContact *fc = &f->contacts[f->num_contacts++];
         memset(fc, 0, sizeof *fc);
@@ -285,8 +289,9 @@ void gc_cursor_finger_update(gcWorld *w, int32_t id, double dt) {
 }
 
 void gc_cursor_finger_outputs(gcWorld *w, int32_t id) {
+    const gcModel *model = w->model;
     gcFinger *f = &w->fingers[id];
-    const gcFingerModel *fm = &w->model->fingers[id];
+    const gcFingerModel *fm = &model->fingers[id];
     gcVec3 x = cursor_position(w, f), v = f->cursor_velocity;
     f->normal = gc_v3(0, 0, 0);
     f->contact_body = -1;
@@ -294,14 +299,14 @@ void gc_cursor_finger_outputs(gcWorld *w, int32_t id) {
     double deepest = -1.0;
     for (int i = 0; i < f->num_contacts; ++i) {
         const gcFingerContact *c = &f->contacts[i];
-        const gcBody *b = &w->bodies[w->model->parts[c->part].body];
+        const gcBody *b = &w->bodies[model->parts[c->part].body];
         f->normal = gc_madd(f->normal, gc_mat3_mul_vec(&b->state.R, c->normal_local), c->share);
         if (c->depth > deepest) {
             deepest = c->depth;
-            f->contact_body = w->model->parts[c->part].body;
+            f->contact_body = model->parts[c->part].body;
             f->state = c->state;
             /* Touching, it moves with the body point under it. */
-            v = w->model->bodies[f->contact_body].is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(x, b->state.com)));
+            v = model->bodies[f->contact_body].is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(x, b->state.com)));
         }
     }
     double nl = gc_len(f->normal);

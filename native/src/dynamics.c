@@ -144,15 +144,16 @@ static gcVec3 gyroscopic_rotation(const gcBodyModel *m, gcBody *b, double dt) {
 }
 
 static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
+    const gcModel *model = w->model;
     gcBody *b = &w->bodies[id];
-    const gcBodyModel *m = &w->model->bodies[id];
+    const gcBodyModel *m = &model->bodies[id];
     b->step_start_com = b->state.com;
     b->step_start_q = b->state.q;
     b->step_start_momentum = gc_scale(b->state.v, m->mass);
     b->step_start_angular_momentum = angular_momentum(&b->state.R, &m->inertia_local, b->state.w);
     gcVec3 L = b->step_start_angular_momentum;
     if (w->def.gyroscopic) L = angular_momentum(&b->state.R, &m->inertia_local, gyroscopic_rotation(m, b, dt));
-    gcVec3 force = gc_scale(w->model->gravity, m->mass);
+    gcVec3 force = gc_scale(model->gravity, m->mass);
     gcVec3 torque = gc_v3(0, 0, 0);
     double C[6][6]; /* finger coupling: sum (k dt^2 + c dt) J^T J */
     int coupled = 0;
@@ -160,10 +161,10 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
     gcTransform frame = gc_body_transform(m, &b->state);
     for (int fi = 0; fi < w->num_fingers; ++fi) {
         const gcFinger *f = &w->fingers[fi];
-        const gcFingerModel *fm = &w->model->fingers[fi];
+        const gcFingerModel *fm = &model->fingers[fi];
         for (int ci = 0; ci < f->num_contacts; ++ci) {
             const gcFingerContact *c = &f->contacts[ci];
-            if (w->model->parts[c->part].body != id) continue;
+            if (model->parts[c->part].body != id) continue;
             if (!coupled) memset(C, 0, sizeof C);
             coupled = 1;
             /* The reaction acts at the GO (docs/physics.md), which moves rigidly with the body
@@ -237,9 +238,10 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
 }
 
 void gc_dynamics_velocities(gcWorld *w, double dt) {
+    const gcModel *model = w->model;
     for (int32_t i = 0; i < w->num_bodies; ++i) {
         gcBody *b = &w->bodies[i];
-        if (w->model->bodies[i].is_static) {
+        if (model->bodies[i].is_static) {
             b->state.residual_force = gc_v3(0, 0, 0);
             b->state.residual_torque = gc_v3(0, 0, 0);
             continue;
@@ -275,9 +277,10 @@ static void stop_body(gcWorld *w, int32_t id) {
 }
 
 void gc_dynamics_positions(gcWorld *w, double dt) {
+    const gcModel *model = w->model;
     for (int32_t i = 0; i < w->num_bodies; ++i) {
         gcBody *b = &w->bodies[i];
-        const gcBodyModel *m = &w->model->bodies[i];
+        const gcBodyModel *m = &model->bodies[i];
         if (m->is_static || (w->body_active && !w->body_active[i])) continue;
         b->state.com = gc_madd(b->state.com, b->state.v, dt);
         b->state.q = gc_quat_normalize(gc_quat_mul(gc_quat_from_rotation_vector(gc_scale(b->state.w, dt)), b->state.q));

@@ -8,8 +8,9 @@
  *   - the object manager (default 500 Hz, normal priority): every other dynamic body, in
  *     steps of at most 2 ms; when a tick takes too long it falls behind real time instead
  *     of taking larger steps.
- * Each thread steps its own *shadow* of the world: a gcWorld whose body and finger arrays are
- * private to the thread and whose read-only parts (hulls) are shared. A mask (body_active)
+ * Each thread steps its own *shadow* of the world: a gcWorld whose state (bodies, fingers,
+ * output arrays, contacts) is private to the thread and whose model (shapes, masses, friction,
+ * finger parameters) is the world's, read-only. A mask (body_active)
  * tells the dynamics which bodies the shadow moves. Nothing is locked between the threads:
  * every channel is a triple buffer (latest value, wait-free on both sides, C11 atomics):
  *   input   push_hips() -> haptic       latest HIPs (producers serialise among themselves)

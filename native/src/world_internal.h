@@ -122,7 +122,7 @@ typedef struct gcFinger {
     gcVec3 normal;                  /* world: the reported contact's outward normal, 0 when free */
     int32_t contact_body;           /* -1 when free */
     gcFingerState state;
-    /* The finger frame's pose (a convex finger's; a sphere finger's stays the identity). */
+    /* The finger frame's orientation: what a convex finger turns with; any finger reports it. */
     gcQuat q, q_prev;
     gcMat3 R, R_prev;
     gcVec3 hip_angular_velocity;

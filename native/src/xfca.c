@@ -215,29 +215,30 @@ static gcTransform finger_transform(const gcFinger *f) {
 #define GC_SEAM_BURIAL 1.0
 
 static void blend_seams(const gcWorld *w, const gcFingerModel *fm, gcFinger *f) {
+    const gcModel *model = w->model;
     double effective[GC_MAX_CONTACTS_PER_FINGER], burial[GC_MAX_CONTACTS_PER_FINGER];
     int shared[GC_MAX_CONTACTS_PER_FINGER];
     for (int i = 0; i < f->num_contacts; ++i) {
         const gcFingerContact *c = &f->contacts[i];
-        int32_t body = w->model->parts[c->part].body;
+        int32_t body = model->parts[c->part].body;
         effective[i] = c->depth;
         burial[i] = 0.0;
         shared[i] = 0;
         for (int j = 0; j < f->num_contacts; ++j) {
             const gcFingerContact *o = &f->contacts[j];
-            if (j == i || w->model->parts[o->part].body != body) continue;
+            if (j == i || model->parts[o->part].body != body) continue;
             shared[i] = 1;
             gcVec3 n;
-            burial[i] = fmax(burial[i], -tip_query(&w->model->parts[o->part].hull, c->go_local, fm->radius, &n));
+            burial[i] = fmax(burial[i], -tip_query(&model->parts[o->part].hull, c->go_local, fm->radius, &n));
         }
     }
     for (int i = 0; i < f->num_contacts; ++i) {
         if (!shared[i]) continue;
         const gcFingerContact *c = &f->contacts[i];
-        int32_t body = w->model->parts[c->part].body;
+        int32_t body = model->parts[c->part].body;
         double deepest = 0.0, least = burial[i];
         for (int j = 0; j < f->num_contacts; ++j) {
-            if (w->model->parts[f->contacts[j].part].body != body) continue;
+            if (model->parts[f->contacts[j].part].body != body) continue;
             deepest = fmax(deepest, f->contacts[j].depth);
             least = fmin(least, burial[j]);
         }
@@ -246,11 +247,11 @@ static void blend_seams(const gcWorld *w, const gcFingerModel *fm, gcFinger *f) 
     }
     for (int i = 0; i < f->num_contacts; ++i) {
         gcFingerContact *c = &f->contacts[i];
-        int32_t body = w->model->parts[c->part].body;
+        int32_t body = model->parts[c->part].body;
         double overlap = 0.0;
         for (int j = 0; j < f->num_contacts; ++j) {
             const gcFingerContact *o = &f->contacts[j];
-            if (w->model->parts[o->part].body != body) continue;
+            if (model->parts[o->part].body != body) continue;
             overlap += effective[j] * (j == i ? 1.0 : fmax(0.0, gc_dot(c->normal_local, o->normal_local)));
         }
         c->share = overlap > 0.0 ? effective[i] / overlap : 0.0;
@@ -278,16 +279,19 @@ static void find_new_contacts(gcWorld *w, const gcFingerModel *fm, gcFinger *f, 
     gcVec3 pad = gc_v3(fm->radius, fm->radius, fm->radius);
     lo = gc_sub(lo, pad);
     hi = gc_add(hi, pad);
+    /* The model in a local, as in every step function: the extension builds with
+     * -fno-strict-aliasing, so w->model would be read again after each store. */
+    const gcModel *model = w->model;
     for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < capacity; ++bi) {
         const gcBody *b = &w->bodies[bi];
-        const gcBodyModel *bm = &w->model->bodies[bi];
+        const gcBodyModel *bm = &model->bodies[bi];
         if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
         gcTransform fr = fm->num_vertices ? predicted_transform(bm, b, dt) : gc_body_transform(bm, &b->state);
         gcVec3 from = gc_inv_transform_point(&fr, prev), to = gc_inv_transform_point(&fr, now);
         for (int p = bm->first_part; p < bm->first_part + bm->num_parts; ++p) {
             if (f->num_contacts >= capacity) break;
             if (has_contact_with(f, p, sample, 0)) continue;
-            const gcHull *h = &w->model->parts[p].hull;
+            const gcHull *h = &model->parts[p].hull;
             gcVec3 go, n;
             if (!find_entry(fm->radius, h, from, to, &go, &n)) continue;
             if (fm->num_vertices && opposes_existing(f, b, p, gc_mat3_mul_vec(&b->state.R, n))) continue;
@@ -344,6 +348,7 @@ static int outside_box(gcVec3 p, gcVec3 lo, gcVec3 hi, double pad) {
  * a palm), each with a god-object on the finger's surface. Without them a body smaller than
  * the finger's face would pass between its vertices (docs/physics.md "Area contacts"). */
 static void find_reversed_contacts(gcWorld *w, const gcFingerModel *fm, gcFinger *f, const gcHull *fh, double dt) {
+    const gcModel *model = w->model;
     gcTransform ff = finger_transform(f), ff_prev;
     ff_prev.R = f->R_prev;
     ff_prev.p = f->hip_prev;
@@ -359,11 +364,11 @@ static void find_reversed_contacts(gcWorld *w, const gcFingerModel *fm, gcFinger
     double spacing = fh->min_width + 2.0 * fh->radius;
     for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++bi) {
         const gcBody *b = &w->bodies[bi];
-        const gcBodyModel *bm = &w->model->bodies[bi];
+        const gcBodyModel *bm = &model->bodies[bi];
         if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
         gcTransform fr = predicted_transform(bm, b, dt), fr_prev = gc_body_transform(bm, &b->state);
         for (int p = bm->first_part; p < bm->first_part + bm->num_parts; ++p) {
-            const gcHull *h = &w->model->parts[p].hull;
+            const gcHull *h = &model->parts[p].hull;
             for (int32_t j = 0; j < h->num_vertices && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++j) {
                 if (outside_box(gc_transform_point(&fr, h->vertices[j]), lo, hi, h->radius)) continue;
                 try_reversed(f, fh, bm, b, p, h, j, h->vertices[j], &fr, &fr_prev, &ff, &ff_prev, dt);
@@ -446,18 +451,19 @@ static void update_twist(const gcFingerModel *fm, const gcFinger *f, const gcBod
 }
 
 static void finger_update(gcWorld *w, int32_t id, double dt) {
+    const gcModel *model = w->model;
     gcFinger *f = &w->fingers[id];
-    const gcFingerModel *fm = &w->model->fingers[id];
-    const gcHull *fh = &w->model->finger_hulls[id];
+    const gcFingerModel *fm = &model->fingers[id];
+    const gcHull *fh = &model->finger_hulls[id];
     f->hip_velocity = gc_scale(gc_sub(f->hip, f->hip_prev), 1.0 / dt);
     if (fm->num_vertices) f->hip_angular_velocity = gc_scale(turn_between(f->q_prev, f->q), 1.0 / dt);
     /* Existing contacts, compacting away the ones that ended. */
     int kept = 0;
     for (int i = 0; i < f->num_contacts; ++i) {
         gcFingerContact *c = &f->contacts[i]; /* updated in place; a lost one is overwritten */
-        const gcPart *part = &w->model->parts[c->part];
+        const gcPart *part = &model->parts[c->part];
         const gcBody *b = &w->bodies[part->body];
-        const gcBodyModel *bm = &w->model->bodies[part->body];
+        const gcBodyModel *bm = &model->bodies[part->body];
         gcTransform fr = fm->num_vertices ? predicted_transform(bm, b, dt) : gc_body_transform(bm, &b->state);
         int alive;
         if (!c->reversed) {
@@ -479,8 +485,8 @@ static void finger_update(gcWorld *w, int32_t id, double dt) {
     if (!fm->num_vertices) {
         find_new_contacts(w, fm, f, 0, GC_MAX_CONTACTS_PER_FINGER, dt);
         for (int i = 0; i < f->num_contacts && fm->torsion > 0.0; ++i) {
-            int32_t body = w->model->parts[f->contacts[i].part].body;
-            update_twist(fm, f, &w->model->bodies[body], &w->bodies[body], &f->contacts[i], i >= existing);
+            int32_t body = model->parts[f->contacts[i].part].body;
+            update_twist(fm, f, &model->bodies[body], &w->bodies[body], &f->contacts[i], i >= existing);
         }
         blend_seams(w, fm, f);
         return;
@@ -501,8 +507,9 @@ static void finger_update(gcWorld *w, int32_t id, double dt) {
  * normal force (the chapter's pressure centroid), the torque of its contacts about the HIP, and
  * slip when any of them slips. */
 static void finger_outputs(gcWorld *w, int32_t id) {
+    const gcModel *model = w->model;
     gcFinger *f = &w->fingers[id];
-    const gcFingerModel *fm = &w->model->fingers[id];
+    const gcFingerModel *fm = &model->fingers[id];
     gcVec3 force = gc_v3(0, 0, 0), torque = gc_v3(0, 0, 0), centroid = gc_v3(0, 0, 0);
     double deepest = -1.0, weight = 0.0;
     int slipping = 0;
@@ -512,8 +519,9 @@ static void finger_outputs(gcWorld *w, int32_t id) {
     f->state = GC_FINGER_FREE;
     for (int i = 0; i < f->num_contacts; ++i) {
         const gcFingerContact *c = &f->contacts[i];
-        const gcBody *b = &w->bodies[w->model->parts[c->part].body];
-        const gcBodyModel *bm = &w->model->bodies[w->model->parts[c->part].body];
+        const int32_t body = model->parts[c->part].body;
+        const gcBody *b = &w->bodies[body];
+        const gcBodyModel *bm = &model->bodies[body];
         gcTransform fr = gc_body_transform(bm, &b->state);
         gcVec3 tip, tip_velocity, go;
         gc_finger_contact_ends(fm, f, c, &fr, &tip, &tip_velocity, &go);
@@ -543,7 +551,7 @@ static void finger_outputs(gcWorld *w, int32_t id) {
             deepest = c->depth;
             f->god_object = go;
             f->normal = gc_finger_point_normal(f, c, &b->state.R);
-            f->contact_body = w->model->parts[c->part].body;
+            f->contact_body = model->parts[c->part].body;
             f->state = c->state;
         }
     }
@@ -560,8 +568,9 @@ static void finger_outputs(gcWorld *w, int32_t id) {
 }
 
 void gc_xfca_update(gcWorld *w, double dt) {
+    const gcModel *model = w->model;
     for (int32_t i = 0; i < w->num_fingers; ++i) {
-        if (w->model->fingers[i].renderer == GC_RENDERER_CURSOR)
+        if (model->fingers[i].renderer == GC_RENDERER_CURSOR)
             gc_cursor_finger_update(w, i, dt);
         else
             finger_update(w, i, dt);
@@ -569,8 +578,9 @@ void gc_xfca_update(gcWorld *w, double dt) {
 }
 
 void gc_xfca_outputs(gcWorld *w) {
+    const gcModel *model = w->model;
     for (int32_t i = 0; i < w->num_fingers; ++i) {
-        if (w->model->fingers[i].renderer == GC_RENDERER_CURSOR)
+        if (model->fingers[i].renderer == GC_RENDERER_CURSOR)
             gc_cursor_finger_outputs(w, i);
         else
             finger_outputs(w, i);
