@@ -306,7 +306,9 @@ void gc_cursor_finger_outputs(gcWorld *w, int32_t id) {
             f->contact_body = model->parts[c->part].body;
             f->state = c->state;
             /* Touching, it moves with the body point under it. */
-            v = model->bodies[f->contact_body].is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(x, b->state.com)));
+            v = model->bodies[f->contact_body].is_static
+                    ? gc_v3(0, 0, 0)
+                    : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(x, b->state.com)));
         }
     }
     double nl = gc_len(f->normal);

@@ -205,7 +205,8 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
         /* No finger on it: the effective mass is the block-diagonal mass matrix, inverted
          * directly (no 6x6 factor); contacts use the same blocks. */
         v = gc_scale(p, m->inv_mass);
-        omega = gc_mat3_mul_vec(&b->state.R, gc_mat3_mul_vec(&m->inv_inertia_local, gc_mat3_tmul_vec(&b->state.R, Lnew)));
+        gcVec3 L_body = gc_mat3_tmul_vec(&b->state.R, Lnew);
+        omega = gc_mat3_mul_vec(&b->state.R, gc_mat3_mul_vec(&m->inv_inertia_local, L_body));
         b->effective_mass_valid = 1;
     } else {
         double rhs[6] = {p.x, p.y, p.z, Lnew.x, Lnew.y, Lnew.z}, x[6];

@@ -194,7 +194,8 @@ void gc_runtime_object_tick(gcRuntime *rt) {
 }
 
 static int haptic_owns(const gcRuntime *rt, int32_t b) {
-    return rt->ostate[b] == GC_OBJECT_RELEASED && (rt->hstate[b] == GC_HAPTIC_OWNS || rt->hstate[b] == GC_HAPTIC_RETURNING);
+    return rt->ostate[b] == GC_OBJECT_RELEASED &&
+           (rt->hstate[b] == GC_HAPTIC_OWNS || rt->hstate[b] == GC_HAPTIC_RETURNING);
 }
 
 static int haptic_owns_ctx(const void *rt, int32_t b) { return haptic_owns(rt, b); }

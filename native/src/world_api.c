@@ -491,7 +491,8 @@ gcStatus gc_world_set_body_velocity(gcWorld *w, int32_t body, const double lin[3
     }
     /* Given for the body frame origin, like body_velocity reports it; stored at the COM. */
     b->state.w = gc_v3(ang[0], ang[1], ang[2]);
-    b->state.v = gc_add(gc_v3(lin[0], lin[1], lin[2]), gc_cross(b->state.w, gc_mat3_mul_vec(&b->state.R, m->com_local)));
+    gcVec3 origin_to_com = gc_mat3_mul_vec(&b->state.R, m->com_local);
+    b->state.v = gc_add(gc_v3(lin[0], lin[1], lin[2]), gc_cross(b->state.w, origin_to_com));
     return GC_OK;
 }
 
@@ -508,7 +509,8 @@ gcStatus gc_world_set_body_pose(gcWorld *w, int32_t body, const double pos[3], c
     gcBody *b = &w->bodies[body];
     b->state.q = gc_quat_normalize((gcQuat){quat[0], quat[1], quat[2], quat[3]});
     b->state.R = gc_quat_to_mat3(b->state.q);
-    b->state.com = gc_add(gc_v3(pos[0], pos[1], pos[2]), gc_mat3_mul_vec(&b->state.R, w->model->bodies[body].com_local));
+    gcVec3 origin_to_com = gc_mat3_mul_vec(&b->state.R, w->model->bodies[body].com_local);
+    b->state.com = gc_add(gc_v3(pos[0], pos[1], pos[2]), origin_to_com);
     gc_body_refresh_derived(w, body);
     return GC_OK;
 }

@@ -272,7 +272,8 @@ static int opposes_existing(const gcFinger *f, const gcBody *b, int32_t part, gc
 
 /* New contacts of one contact sample (a sphere finger's HIP, or one vertex of a convex finger):
  * broad phase on its swept box, then the sweep per part. */
-static void find_new_contacts(gcWorld *w, const gcFingerModel *fm, gcFinger *f, int32_t sample, int capacity, double dt) {
+static void find_new_contacts(gcWorld *w, const gcFingerModel *fm, gcFinger *f, int32_t sample, int capacity,
+                              double dt) {
     gcVec3 now = gc_finger_tip(fm, f, sample), prev = gc_finger_tip_prev(fm, f, sample);
     gcVec3 lo = gc_v3(fmin(now.x, prev.x), fmin(now.y, prev.y), fmin(now.z, prev.z));
     gcVec3 hi = gc_v3(fmax(now.x, prev.x), fmax(now.y, prev.y), fmax(now.z, prev.z));
@@ -317,8 +318,8 @@ static void find_new_contacts(gcWorld *w, const gcFingerModel *fm, gcFinger *f, 
 /* The reversed candidate at body point x (body frame): swept in the finger's frame from where
  * it was against the finger a step ago (the body now, the finger at its previous pose) to
  * where it will be (the body's predicted pose, the finger now). */
-static void try_reversed(gcFinger *f, const gcHull *fh, const gcBodyModel *bm, const gcBody *b, int32_t part, const gcHull *h,
-                         int32_t sample, gcVec3 x, const gcTransform *fr, const gcTransform *fr_prev,
+static void try_reversed(gcFinger *f, const gcHull *fh, const gcBodyModel *bm, const gcBody *b, int32_t part,
+                         const gcHull *h, int32_t sample, gcVec3 x, const gcTransform *fr, const gcTransform *fr_prev,
                          const gcTransform *ff, const gcTransform *ff_prev, double dt) {
     if (has_contact_with(f, part, sample, 1)) return;
     gcVec3 v = gc_inv_transform_point(ff, gc_transform_point(fr, x)), go, n;
@@ -419,7 +420,8 @@ static double twist_angle(const gcFinger *f, const gcFingerContact *c, const gcM
 /* The twist's friction circle, as steps 3-4 for the god-object: the spring k rho^2 twist holds
  * while |twist| <= mu_s depth / rho (the torque mu_s F_n rho, F_n = k depth); past it the
  * god-direction slips to mu_d depth / rho behind the finger's, and sticks again inside that. */
-static void update_twist(const gcFingerModel *fm, const gcFinger *f, const gcBodyModel *bm, const gcBody *b, gcFingerContact *c, int fresh) {
+static void update_twist(const gcFingerModel *fm, const gcFinger *f, const gcBodyModel *bm, const gcBody *b,
+                         gcFingerContact *c, int fresh) {
     gcVec3 n = gc_mat3_mul_vec(&b->state.R, c->normal_local);
     if (fresh) {
         double best = 2.0;
