@@ -275,8 +275,9 @@ static int opposes_existing(const gcFinger *f, const gcBody *b, int32_t part, gc
 static void find_new_contacts(gcWorld *w, const gcFingerModel *fm, gcFinger *f, int32_t sample, int capacity,
                               double dt) {
     gcVec3 now = gc_finger_tip(fm, f, sample), prev = gc_finger_tip_prev(fm, f, sample);
-    gcVec3 lo = gc_v3(fmin(now.x, prev.x), fmin(now.y, prev.y), fmin(now.z, prev.z));
-    gcVec3 hi = gc_v3(fmax(now.x, prev.x), fmax(now.y, prev.y), fmax(now.z, prev.z));
+    /* The swept box of finite points: gc_min/gc_max (fmin/fmax are libm calls). */
+    gcVec3 lo = gc_v3(gc_min(now.x, prev.x), gc_min(now.y, prev.y), gc_min(now.z, prev.z));
+    gcVec3 hi = gc_v3(gc_max(now.x, prev.x), gc_max(now.y, prev.y), gc_max(now.z, prev.z));
     gcVec3 pad = gc_v3(fm->radius, fm->radius, fm->radius);
     lo = gc_sub(lo, pad);
     hi = gc_add(hi, pad);
