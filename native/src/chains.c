@@ -18,13 +18,14 @@ static int32_t find_root(int32_t *parent, int32_t i) {
 }
 
 void gc_chains_build(gcWorld *w) {
+    const gcModel *model = w->model;
     struct gcContactSystem *cs = w->contacts;
     int32_t *parent = cs->parent;
     int nb = w->num_bodies;
     for (int32_t i = 0; i < nb; ++i) parent[i] = i;
     for (int i = 0; i < cs->num_manifolds; ++i) {
         const gcManifold *m = &cs->manifolds[i];
-        if (w->bodies[m->body_a].is_static || w->bodies[m->body_b].is_static) continue;
+        if (model->bodies[m->body_a].is_static || model->bodies[m->body_b].is_static) continue;
         int32_t ra = find_root(parent, m->body_a), rb = find_root(parent, m->body_b);
         if (ra == rb) continue;
         if (ra < rb) parent[rb] = ra;
@@ -34,7 +35,7 @@ void gc_chains_build(gcWorld *w) {
     int32_t *index_of_root = cs->cursor;
     int chains = 0;
     for (int32_t i = 0; i < nb; ++i) {
-        if (w->bodies[i].is_static) {
+        if (model->bodies[i].is_static) {
             cs->body_chain[i] = -1;
             continue;
         }
@@ -73,6 +74,7 @@ void gc_chains_build(gcWorld *w) {
 int gc_world_chain_count(const gcWorld *w) { return w->contacts ? w->contacts->num_chains : 0; }
 
 gcStatus gc_world_body_chain(const gcWorld *w, int32_t body, int32_t *chain) {
+    const gcModel *model = w->model;
     if (!w) return GC_ERR_INVALID_ARGUMENT;
     if (!chain) return gc_null_argument(w, "chain");
     if (body < 0 || body >= w->num_bodies) {
@@ -81,7 +83,7 @@ gcStatus gc_world_body_chain(const gcWorld *w, int32_t body, int32_t *chain) {
     }
     const struct gcContactSystem *cs = w->contacts;
     /* Before the first step (or for a body added since), a dynamic body is alone. */
-    if (w->bodies[body].is_static) *chain = -1;
+    if (model->bodies[body].is_static) *chain = -1;
     else if (!cs || body >= cs->num_sorted) *chain = -1;
     else *chain = cs->body_chain[body];
     return GC_OK;

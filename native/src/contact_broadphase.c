@@ -9,14 +9,16 @@
 #include <string.h>
 
 static void update_part_aabbs(gcWorld *w) {
+    const gcModel *model = w->model;
     struct gcContactSystem *cs = w->contacts;
     const double h = 0.5 * GC_CONTACT_MARGIN;
     for (int32_t bi = 0; bi < w->num_bodies; ++bi) {
         const gcBody *b = &w->bodies[bi];
-        gcTransform t = gc_body_transform(b);
-        for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
-            const gcHull *hull = &w->parts[p].hull;
-            if (b->num_parts == 1) {
+        const gcBodyModel *m = &model->bodies[bi];
+        gcTransform t = gc_body_transform(m, &b->state);
+        for (int p = m->first_part; p < m->first_part + m->num_parts; ++p) {
+            const gcHull *hull = &model->parts[p].hull;
+            if (m->num_parts == 1) {
                 cs->part_min[p] = gc_sub(b->state.aabb_min, gc_v3(h, h, h));
                 cs->part_max[p] = gc_add(b->state.aabb_max, gc_v3(h, h, h));
                 continue;
@@ -73,6 +75,7 @@ static void sort_candidates(struct gcContactSystem *cs, int64_t max_key) {
 }
 
 void gc_broad_phase(gcWorld *w) {
+    const gcModel *model = w->model;
     struct gcContactSystem *cs = w->contacts;
     update_part_aabbs(w);
     /* Keep last step's order; append new bodies; insertion sort (near linear when sorted). */
@@ -99,10 +102,10 @@ void gc_broad_phase(gcWorld *w) {
         for (int j = i + 1; j < cs->num_sorted; ++j) {
             const gcBody *B = &w->bodies[s[j]];
             if (B->state.aabb_min.x > hi_x) break;
-            if (A->is_static && B->is_static) continue;
+            if (model->bodies[s[i]].is_static && model->bodies[s[j]].is_static) continue;
             if (!gc_aabb_overlap(amin, amax, gc_sub(B->state.aabb_min, hv), gc_add(B->state.aabb_max, hv))) continue;
             int32_t lo = s[i] < s[j] ? s[i] : s[j], hi = s[i] < s[j] ? s[j] : s[i];
-            const gcBody *L = &w->bodies[lo], *H = &w->bodies[hi];
+            const gcBodyModel *L = &model->bodies[lo], *H = &model->bodies[hi];
             for (int pa = L->first_part; pa < L->first_part + L->num_parts; ++pa) {
                 for (int pb = H->first_part; pb < H->first_part + H->num_parts; ++pb) {
                     if (!gc_aabb_overlap(cs->part_min[pa], cs->part_max[pa], cs->part_min[pb], cs->part_max[pb]))

@@ -254,18 +254,20 @@ static int reusable(const gcManifold *old, gcVec3 rel_p, const gcMat3 *rel_R) {
 
 /* Narrow phase for candidate i: fills manifolds[i] (num_points 0 when apart). */
 static void narrow_pair(gcWorld *w, int i) {
+    const gcModel *model = w->model;
     struct gcContactSystem *cs = w->contacts;
     const gcCandidate *cand = &cs->candidates[i];
     gcManifold *m = &cs->manifolds[i];
     m->key = cand->key;
     m->part_a = cand->part_a;
     m->part_b = cand->part_b;
-    m->body_a = w->parts[cand->part_a].body;
-    m->body_b = w->parts[cand->part_b].body;
+    m->body_a = model->parts[cand->part_a].body;
+    m->body_b = model->parts[cand->part_b].body;
     m->num_points = 0;
     m->reused = 0;
     const gcBody *A = &w->bodies[m->body_a], *B = &w->bodies[m->body_b];
-    const gcHull *ha = &w->parts[m->part_a].hull, *hb = &w->parts[m->part_b].hull;
+    const gcBodyModel *Am = &model->bodies[m->body_a], *Bm = &model->bodies[m->body_b];
+    const gcHull *ha = &model->parts[m->part_a].hull, *hb = &model->parts[m->part_b].hull;
     const gcManifold *old = find_previous(cs, m->key);
     /* B relative to A, in A's COM frame. */
     gcVec3 rel_p = gc_mat3_tmul_vec(&A->state.R, gc_sub(B->state.com, A->state.com));
@@ -287,7 +289,7 @@ static void narrow_pair(gcWorld *w, int i) {
         m->reused = 1;
         return;
     }
-    gcTransform ta = gc_body_transform(A), tb = gc_body_transform(B);
+    gcTransform ta = gc_body_transform(Am, &A->state), tb = gc_body_transform(Bm, &B->state);
     gcContact c;
     gcStatus st = gc_collide(ha, &ta, hb, &tb, &c);
     if (st < 0 || !(c.distance < GC_CONTACT_MARGIN)) return;
@@ -296,8 +298,8 @@ static void narrow_pair(gcWorld *w, int i) {
     int n = manifold_points(ha, &ta, hb, &tb, &c, raw, &normal);
     m->normal = normal;
     gc_tangent_basis(normal, &m->t1, &m->t2);
-    m->mu_s = sqrt(A->mu_s * B->mu_s);
-    m->mu_d = sqrt(A->mu_d * B->mu_d);
+    m->mu_s = sqrt(Am->mu_s * Bm->mu_s);
+    m->mu_d = sqrt(Am->mu_d * Bm->mu_d);
     if (m->mu_d > m->mu_s) m->mu_d = m->mu_s;
     m->ref_position = rel_p;
     m->ref_rotation = rel_R;

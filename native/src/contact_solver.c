@@ -63,11 +63,12 @@ static inline gcPointScratch *scratch_of(struct gcContactSystem *cs, const gcMan
 }
 
 static void prepare_manifold(gcWorld *w, gcManifold *m, double dt) {
+    const gcModel *model = w->model;
     gcPointScratch *scratch = scratch_of(w->contacts, m);
     const gcBody *A = &w->bodies[m->body_a], *B = &w->bodies[m->body_b];
     struct gcContactSystem *cs = w->contacts;
-    const double *ma = A->is_static ? NULL : cs->inv_mass[m->body_a];
-    const double *mb = B->is_static ? NULL : cs->inv_mass[m->body_b];
+    const double *ma = model->bodies[m->body_a].is_static ? NULL : cs->inv_mass[m->body_a];
+    const double *mb = model->bodies[m->body_b].is_static ? NULL : cs->inv_mass[m->body_b];
     gcVec3 dirs[3] = {m->normal, m->t1, m->t2};
     for (int k = 0; k < m->num_points; ++k) {
         gcManifoldPoint *p = &m->points[k];
@@ -129,11 +130,13 @@ static void prepare_manifold(gcWorld *w, gcManifold *m, double dt) {
 }
 
 static SolverBodies solver_bodies(gcWorld *w, const gcManifold *m, gcVec3 *lin, gcVec3 *ang) {
+    const gcModel *model = w->model;
     SolverBodies s;
     gcBody *A = &w->bodies[m->body_a], *B = &w->bodies[m->body_b];
     /* A body without a valid effective mass (degenerate, or stepped by another runtime
      * thread this step) is immovable here and never written. */
-    int da = !A->is_static && A->effective_mass_valid, db = !B->is_static && B->effective_mass_valid;
+    int da = !model->bodies[m->body_a].is_static && A->effective_mass_valid;
+    int db = !model->bodies[m->body_b].is_static && B->effective_mass_valid;
     if (lin) { /* pseudo-velocities of the position pass */
         s.va = da ? &lin[m->body_a] : NULL;
         s.wa = da ? &ang[m->body_a] : NULL;
@@ -303,6 +306,7 @@ static void solve_position(gcWorld *w, gcManifold *m, double dt) {
 }
 
 void gc_contacts_solve_chain(gcWorld *w, int chain, double dt) {
+    const gcModel *model = w->model;
     struct gcContactSystem *cs = w->contacts;
     if (!cs || chain < 0 || chain >= cs->num_chains) return;
     int m0 = cs->chain_manifold_start[chain], m1 = cs->chain_manifold_start[chain + 1];
@@ -312,7 +316,7 @@ void gc_contacts_solve_chain(gcWorld *w, int chain, double dt) {
     /* Each body's inverse effective mass (with the finger coupling), once per step. */
     for (int i = b0; i < b1; ++i) {
         int32_t id = cs->chain_bodies[i];
-        gc_body_inverse_effective_mass(&w->bodies[id], cs->inv_mass[id]);
+        gc_body_inverse_effective_mass(&model->bodies[id], &w->bodies[id], cs->inv_mass[id]);
     }
     for (int i = m0; i < m1; ++i) prepare_manifold(w, &cs->manifolds[list[i]], dt);
     for (int i = m0; i < m1; ++i) warm_start(w, &cs->manifolds[list[i]]);

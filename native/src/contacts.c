@@ -184,7 +184,8 @@ void gc_contacts_copy_state(gcWorld *dst, const gcWorld *src) {
 
 /* The dynamic body of a manifold (a static body never owns one). */
 static int32_t manifold_owner(const gcWorld *w, const gcManifold *m) {
-    return w->bodies[m->body_a].is_static ? m->body_b : m->body_a;
+    const gcModel *model = w->model;
+    return model->bodies[m->body_a].is_static ? m->body_b : m->body_a;
 }
 
 /* Both lists are sorted by key; the result is too. */

@@ -49,33 +49,36 @@ typedef struct gcCursorPlane {
 
 /* Signed distance of the cursor's centre to a part's surface inflated by the finger radius,
  * with the closest point and the outward normal, world frame. */
-static double part_query(const gcWorld *w, const gcFinger *f, int32_t p, gcVec3 x, gcVec3 *normal) {
-    const gcPart *part = &w->parts[p];
-    gcTransform fr = gc_body_transform(&w->bodies[part->body]);
+static double part_query(const gcWorld *w, const gcFingerModel *fm, int32_t p, gcVec3 x, gcVec3 *normal) {
+    const gcModel *model = w->model;
+    const gcPart *part = &model->parts[p];
+    gcTransform fr = gc_world_body_transform(w, part->body);
     double sd;
     gcVec3 sp, n;
     gc_point_query(&part->hull, gc_inv_transform_point(&fr, x), &sd, &sp, &n);
     *normal = gc_mat3_mul_vec(&fr.R, n);
-    return sd - f->radius;
+    return sd - fm->radius;
 }
 
 /* The planes of step 2 at x, for the parts the cursor could reach going to `target`: the
  * nearest GC_CURSOR_MAX_PLANES of them. */
-static int gather_planes(const gcWorld *w, const gcFinger *f, gcVec3 x, gcVec3 target, gcCursorPlane *planes) {
+static int gather_planes(const gcWorld *w, const gcFingerModel *fm, gcVec3 x, gcVec3 target, gcCursorPlane *planes) {
+    const gcModel *model = w->model;
     double reach = gc_len(gc_sub(target, x)) + GC_CURSOR_SLOP;
     double dist[GC_CURSOR_MAX_PLANES];
     int count = 0;
     gcVec3 lo = gc_v3(fmin(x.x, target.x), fmin(x.y, target.y), fmin(x.z, target.z));
     gcVec3 hi = gc_v3(fmax(x.x, target.x), fmax(x.y, target.y), fmax(x.z, target.z));
-    gcVec3 pad = gc_v3(f->radius, f->radius, f->radius);
+    gcVec3 pad = gc_v3(fm->radius, fm->radius, fm->radius);
     lo = gc_sub(lo, pad);
     hi = gc_add(hi, pad);
     for (int32_t bi = 0; bi < w->num_bodies; ++bi) {
         const gcBody *b = &w->bodies[bi];
+        const gcBodyModel *m = &model->bodies[bi];
         if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
-        for (int32_t p = b->first_part; p < b->first_part + b->num_parts; ++p) {
+        for (int32_t p = m->first_part; p < m->first_part + m->num_parts; ++p) {
             gcVec3 n;
-            double sd = part_query(w, f, p, x, &n);
+            double sd = part_query(w, fm, p, x, &n);
             if (sd > reach) continue;
             /* Keep the nearest: insert by distance, dropping the farthest when full. */
             int at = count < GC_CURSOR_MAX_PLANES ? count : GC_CURSOR_MAX_PLANES - 1;
@@ -171,12 +174,12 @@ static gcVec3 project(const gcCursorPlane *planes, int count, gcVec3 target, gcV
 }
 
 /* Steps 2-3 from a feasible `from` toward `target`: planes re-taken at each new position. */
-static gcVec3 solve(const gcWorld *w, const gcFinger *f, gcVec3 from, gcVec3 target, gcCursorPlane *planes,
+static gcVec3 solve(const gcWorld *w, const gcFingerModel *fm, gcVec3 from, gcVec3 target, gcCursorPlane *planes,
                     int *count, double *lambda) {
     gcVec3 x = from;
     *count = 0;
     for (int it = 0; it < GC_CURSOR_LINEARISATIONS; ++it) {
-        *count = gather_planes(w, f, x, target, planes);
+        *count = gather_planes(w, fm, x, target, planes);
         gcVec3 next = project(planes, *count, target, x, lambda);
         double moved = gc_len(gc_sub(next, x));
         x = next;
@@ -188,13 +191,17 @@ static gcVec3 solve(const gcWorld *w, const gcFinger *f, gcVec3 from, gcVec3 tar
 /* The cursor's position at the start of the tick: on the body it touches (moved with it),
  * else where it was left. */
 static gcVec3 cursor_position(const gcWorld *w, const gcFinger *f) {
+    const gcModel *model = w->model;
     if (f->num_contacts == 0) return f->cursor;
     const gcFingerContact *c = &f->contacts[0];
-    gcTransform fr = gc_body_transform(&w->bodies[w->parts[c->part].body]);
+    gcTransform fr = gc_world_body_transform(w, model->parts[c->part].body);
     return gc_transform_point(&fr, c->go_local);
 }
 
-void gc_cursor_finger_update(gcWorld *w, gcFinger *f, double dt) {
+void gc_cursor_finger_update(gcWorld *w, int32_t id, double dt) {
+    const gcModel *model = w->model;
+    gcFinger *f = &w->fingers[id];
+    const gcFingerModel *fm = &model->fingers[id];
     f->hip_velocity = gc_scale(gc_sub(f->hip, f->hip_prev), 1.0 / dt);
     gcVec3 x0 = cursor_position(w, f);
     int was_touching = f->num_contacts > 0;
@@ -202,14 +209,14 @@ void gc_cursor_finger_update(gcWorld *w, gcFinger *f, double dt) {
     /* A body moved onto the cursor: leave along the least penetration first. */
     for (int pass = 0; pass < 2; ++pass) {
         gcCursorPlane inside[GC_CURSOR_MAX_PLANES];
-        int count = gather_planes(w, f, x0, x0, inside);
+        int count = gather_planes(w, fm, x0, x0, inside);
         gcVec3 out = x0;
         for (int i = 0; i < count; ++i)
             if (violation(&inside[i], x0) < 0.0) out = gc_madd(out, inside[i].n, -violation(&inside[i], x0));
         x0 = out;
     }
     /* 1. Free motion (backward Euler). */
-    double k = f->stiffness, c = f->damping, m = f->cursor_mass;
+    double k = fm->stiffness, c = fm->damping, m = fm->cursor_mass;
     double a = m + c * dt + k * dt * dt;
     gcVec3 mom = gc_scale(f->cursor_velocity, m);
     gcVec3 pull = gc_add(gc_scale(gc_sub(f->hip, x0), k), gc_scale(f->hip_velocity, c));
@@ -219,7 +226,7 @@ void gc_cursor_finger_update(gcWorld *w, gcFinger *f, double dt) {
     gcCursorPlane planes[GC_CURSOR_MAX_PLANES];
     double lambda[GC_CURSOR_MAX_PLANES];
     int count;
-    gcVec3 xf = solve(w, f, x0, target, planes, &count, lambda);
+    gcVec3 xf = solve(w, fm, x0, target, planes, &count, lambda);
     gcVec3 push = gc_sub(xf, target);
     double depth = gc_len(push);
     gcVec3 x = xf;
@@ -231,7 +238,7 @@ void gc_cursor_finger_update(gcWorld *w, gcFinger *f, double dt) {
         int main_plane = 0;
         for (int i = 1; i < count; ++i)
             if (lambda[i] > lambda[main_plane]) main_plane = i;
-        const gcBody *b = &w->bodies[w->parts[planes[main_plane].part].body];
+        const gcBodyModel *b = &model->bodies[model->parts[planes[main_plane].part].body];
         gcVec3 n = gc_scale(push, 1.0 / depth);
         gcVec3 offset = gc_sub(x0, xf);
         offset = gc_madd(offset, n, -gc_dot(offset, n));
@@ -246,7 +253,7 @@ void gc_cursor_finger_update(gcWorld *w, gcFinger *f, double dt) {
             gcCursorPlane sp[GC_CURSOR_MAX_PLANES];
             double sl[GC_CURSOR_MAX_PLANES];
             int sc;
-            x = solve(w, f, xf, slip, sp, &sc, sl);
+            x = solve(w, fm, xf, slip, sp, &sc, sl);
             state = GC_FINGER_SLIP;
             /* The parts it rests on now: those of the slip's solve that hold it, else the
              * frictionless solve's (a slip within one face meets no new plane). */
@@ -266,8 +273,8 @@ void gc_cursor_finger_update(gcWorld *w, gcFinger *f, double dt) {
     f->num_contacts = 0;
     for (int i = 0; i < count && lambda_sum > 0.0; ++i) {
         if (!(lambda[i] > 0.0)) continue;
-        const gcPart *part = &w->parts[planes[i].part];
-        gcTransform fr = gc_body_transform(&w->bodies[part->body]);
+        const gcPart *part = &model->parts[planes[i].part];
+        gcTransform fr = gc_world_body_transform(w, part->body);
         gcFingerContact *fc = &f->contacts[f->num_contacts++];
         memset(fc, 0, sizeof *fc);
         fc->part = planes[i].part;
@@ -282,7 +289,9 @@ void gc_cursor_finger_update(gcWorld *w, gcFinger *f, double dt) {
 }
 
 void gc_cursor_finger_outputs(gcWorld *w, int32_t id) {
+    const gcModel *model = w->model;
     gcFinger *f = &w->fingers[id];
+    const gcFingerModel *fm = &model->fingers[id];
     gcVec3 x = cursor_position(w, f), v = f->cursor_velocity;
     f->normal = gc_v3(0, 0, 0);
     f->contact_body = -1;
@@ -290,21 +299,23 @@ void gc_cursor_finger_outputs(gcWorld *w, int32_t id) {
     double deepest = -1.0;
     for (int i = 0; i < f->num_contacts; ++i) {
         const gcFingerContact *c = &f->contacts[i];
-        const gcBody *b = &w->bodies[w->parts[c->part].body];
+        const gcBody *b = &w->bodies[model->parts[c->part].body];
         f->normal = gc_madd(f->normal, gc_mat3_mul_vec(&b->state.R, c->normal_local), c->share);
         if (c->depth > deepest) {
             deepest = c->depth;
-            f->contact_body = w->parts[c->part].body;
+            f->contact_body = model->parts[c->part].body;
             f->state = c->state;
             /* Touching, it moves with the body point under it. */
-            v = b->is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(x, b->state.com)));
+            v = model->bodies[f->contact_body].is_static
+                    ? gc_v3(0, 0, 0)
+                    : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(x, b->state.com)));
         }
     }
     double nl = gc_len(f->normal);
     if (nl > 0.0) f->normal = gc_scale(f->normal, 1.0 / nl);
     f->cursor = x;
     f->god_object = x;
-    f->force = gc_add(gc_scale(gc_sub(x, f->hip), f->stiffness), gc_scale(gc_sub(v, f->hip_velocity), f->damping));
+    f->force = gc_add(gc_scale(gc_sub(x, f->hip), fm->stiffness), gc_scale(gc_sub(v, f->hip_velocity), fm->damping));
     double *out = &w->force_array[3 * id];
     out[0] = f->force.x, out[1] = f->force.y, out[2] = f->force.z;
     out = &w->god_object_array[3 * id];

@@ -111,18 +111,18 @@ static gcVec3 rotation_between(gcVec3 u, gcVec3 t) {
  * (third order in |w| dt) off the one it started with. Turning the start pose by that
  * hair, about the centre of mass, makes the step end on the starting world momentum
  * exactly, so a free body keeps L (vector), |L| and its energy to round-off. */
-static gcVec3 gyroscopic_rotation(gcBody *b, double dt) {
+static gcVec3 gyroscopic_rotation(const gcBodyModel *m, gcBody *b, double dt) {
     double spin = gc_len(b->state.w) * dt;
     if (!(spin > GC_GYRO_NEGLIGIBLE_SPIN)) return b->state.w;
-    gcVec3 L_world = angular_momentum(&b->state.R, &b->inertia_local, b->state.w);
+    gcVec3 L_world = angular_momentum(&b->state.R, &m->inertia_local, b->state.w);
     gcVec3 L_body = gc_mat3_tmul_vec(&b->state.R, L_world);
-    gcVec3 L_end = free_rotation(L_body, &b->inv_inertia_local, dt);
+    gcVec3 L_end = free_rotation(L_body, &m->inv_inertia_local, dt);
     /* A spin too fast for the sub-step cap can break Newton down: then hold the body-frame
      * momentum (energy and |L| exactly kept, the precession of this step lost). */
     if (!gc_vec_finite(L_end)) L_end = L_body;
     /* Round-off guard: never more |L| or energy than at the start. */
-    gcVec3 om_body = gc_mat3_mul_vec(&b->inv_inertia_local, L_body);
-    gcVec3 om_end = gc_mat3_mul_vec(&b->inv_inertia_local, L_end);
+    gcVec3 om_body = gc_mat3_mul_vec(&m->inv_inertia_local, L_body);
+    gcVec3 om_end = gc_mat3_mul_vec(&m->inv_inertia_local, L_end);
     double shrink = 1.0, e0 = gc_dot(L_body, om_body), e1 = gc_dot(L_end, om_end);
     double l0 = gc_len2(L_body), l1 = gc_len2(L_end);
     if (e1 > e0) shrink = sqrt(e0 / e1);
@@ -144,45 +144,48 @@ static gcVec3 gyroscopic_rotation(gcBody *b, double dt) {
 }
 
 static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
+    const gcModel *model = w->model;
     gcBody *b = &w->bodies[id];
+    const gcBodyModel *m = &model->bodies[id];
     b->step_start_com = b->state.com;
     b->step_start_q = b->state.q;
-    b->step_start_momentum = gc_scale(b->state.v, b->mass);
-    b->step_start_angular_momentum = angular_momentum(&b->state.R, &b->inertia_local, b->state.w);
+    b->step_start_momentum = gc_scale(b->state.v, m->mass);
+    b->step_start_angular_momentum = angular_momentum(&b->state.R, &m->inertia_local, b->state.w);
     gcVec3 L = b->step_start_angular_momentum;
-    if (w->def.gyroscopic) L = angular_momentum(&b->state.R, &b->inertia_local, gyroscopic_rotation(b, dt));
-    gcVec3 force = gc_scale(w->gravity, b->mass);
+    if (w->def.gyroscopic) L = angular_momentum(&b->state.R, &m->inertia_local, gyroscopic_rotation(m, b, dt));
+    gcVec3 force = gc_scale(model->gravity, m->mass);
     gcVec3 torque = gc_v3(0, 0, 0);
     double C[6][6]; /* finger coupling: sum (k dt^2 + c dt) J^T J */
     int coupled = 0;
 
-    gcTransform frame = gc_body_transform(b);
+    gcTransform frame = gc_body_transform(m, &b->state);
     for (int fi = 0; fi < w->num_fingers; ++fi) {
         const gcFinger *f = &w->fingers[fi];
+        const gcFingerModel *fm = &model->fingers[fi];
         for (int ci = 0; ci < f->num_contacts; ++ci) {
             const gcFingerContact *c = &f->contacts[ci];
-            if (w->parts[c->part].body != id) continue;
+            if (model->parts[c->part].body != id) continue;
             if (!coupled) memset(C, 0, sizeof C);
             coupled = 1;
             /* The reaction acts at the GO (docs/physics.md), which moves rigidly with the body
              * while it sticks: the same lever in the torque and in the coupling keeps the
              * implicit model consistent with the explicit force. */
             gcVec3 tip, tip_velocity, go;
-            gc_finger_contact_ends(f, c, &frame, &tip, &tip_velocity, &go);
+            gc_finger_contact_ends(fm, f, c, &frame, &tip, &tip_velocity, &go);
             gcVec3 r = gc_sub(go, b->state.com);
             /* Weighted as the finger's force is (xfca.c: seams of a decomposed body; cursor.c). */
-            double k = f->stiffness * c->share, damping = f->damping * c->share;
+            double k = fm->stiffness * c->share, damping = fm->damping * c->share;
             gcVec3 spring = gc_scale(gc_sub(tip, go), k);
             /* Implicit part: the velocity-dependent terms move into the matrix. */
             gcVec3 explicit_part = gc_madd(spring, tip_velocity, damping);
             force = gc_add(force, explicit_part);
             torque = gc_add(torque, gc_cross(r, explicit_part));
             add_point_coupling(C, r, k * dt * dt + damping * dt);
-            if (f->torsion > 0.0) {
+            if (fm->torsion > 0.0) {
                 /* A soft fingertip's twist spring k rho^2 about the normal (weighted as its spring),
                  * implicit as the springs: the body's spin about n this step unwinds it by dt (n . w'). */
                 gcVec3 n = gc_mat3_mul_vec(&b->state.R, c->normal_local);
-                double kt = k * f->torsion * f->torsion;
+                double kt = k * fm->torsion * fm->torsion;
                 torque = gc_madd(torque, n, kt * c->twist);
                 double nv[3] = {n.x, n.y, n.z};
                 for (int i = 0; i < 3; ++i)
@@ -201,16 +204,17 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
     if (!coupled) {
         /* No finger on it: the effective mass is the block-diagonal mass matrix, inverted
          * directly (no 6x6 factor); contacts use the same blocks. */
-        v = gc_scale(p, b->inv_mass);
-        omega = gc_mat3_mul_vec(&b->state.R, gc_mat3_mul_vec(&b->inv_inertia_local, gc_mat3_tmul_vec(&b->state.R, Lnew)));
+        v = gc_scale(p, m->inv_mass);
+        gcVec3 L_body = gc_mat3_tmul_vec(&b->state.R, Lnew);
+        omega = gc_mat3_mul_vec(&b->state.R, gc_mat3_mul_vec(&m->inv_inertia_local, L_body));
         b->effective_mass_valid = 1;
     } else {
         double rhs[6] = {p.x, p.y, p.z, Lnew.x, Lnew.y, Lnew.z}, x[6];
-        gcMat3 inertia_world = gc_to_world(&b->state.R, &b->inertia_local);
+        gcMat3 inertia_world = gc_to_world(&b->state.R, &m->inertia_local);
         double A[6][6];
         memcpy(A, C, sizeof A);
         for (int i = 0; i < 3; ++i) {
-            A[i][i] += b->mass;
+            A[i][i] += m->mass;
             for (int j = 0; j < 3; ++j) A[3 + i][3 + j] += inertia_world.m[i][j];
         }
         b->effective_mass_valid = gc_cholesky6(A, b->effective_mass_factor);
@@ -223,8 +227,8 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
         v = gc_v3(x[0], x[1], x[2]);
     }
     gcVec3 om = omega;
-    if (b->linear_damping > 0.0) v = gc_scale(v, 1.0 / (1.0 + dt * b->linear_damping));
-    if (b->angular_damping > 0.0) om = gc_scale(om, 1.0 / (1.0 + dt * b->angular_damping));
+    if (m->linear_damping > 0.0) v = gc_scale(v, 1.0 / (1.0 + dt * m->linear_damping));
+    if (m->angular_damping > 0.0) om = gc_scale(om, 1.0 / (1.0 + dt * m->angular_damping));
     if (!gc_vec_finite(v) || !gc_vec_finite(om)) {
         b->effective_mass_valid = 0; /* immovable in the contact solve; stopped after it */
         b->nonfinite = 1;
@@ -235,9 +239,10 @@ static void integrate_velocity(gcWorld *w, int32_t id, double dt) {
 }
 
 void gc_dynamics_velocities(gcWorld *w, double dt) {
+    const gcModel *model = w->model;
     for (int32_t i = 0; i < w->num_bodies; ++i) {
         gcBody *b = &w->bodies[i];
-        if (b->is_static) {
+        if (model->bodies[i].is_static) {
             b->state.residual_force = gc_v3(0, 0, 0);
             b->state.residual_torque = gc_v3(0, 0, 0);
             continue;
@@ -273,9 +278,11 @@ static void stop_body(gcWorld *w, int32_t id) {
 }
 
 void gc_dynamics_positions(gcWorld *w, double dt) {
+    const gcModel *model = w->model;
     for (int32_t i = 0; i < w->num_bodies; ++i) {
         gcBody *b = &w->bodies[i];
-        if (b->is_static || (w->body_active && !w->body_active[i])) continue;
+        const gcBodyModel *m = &model->bodies[i];
+        if (m->is_static || (w->body_active && !w->body_active[i])) continue;
         b->state.com = gc_madd(b->state.com, b->state.v, dt);
         b->state.q = gc_quat_normalize(gc_quat_mul(gc_quat_from_rotation_vector(gc_scale(b->state.w, dt)), b->state.q));
         if (b->nonfinite || !body_state_finite(b)) {
@@ -287,8 +294,8 @@ void gc_dynamics_positions(gcWorld *w, double dt) {
          * finger springs at their end-of-step stretch, contacts): the rate of change of
          * momentum. Evaluating the springs at the start of the step instead would be off
          * by k dt v for a body carried at speed v. */
-        gcVec3 L = angular_momentum(&b->state.R, &b->inertia_local, b->state.w);
-        b->state.residual_force = gc_scale(gc_sub(gc_scale(b->state.v, b->mass), b->step_start_momentum), 1.0 / dt);
+        gcVec3 L = angular_momentum(&b->state.R, &m->inertia_local, b->state.w);
+        b->state.residual_force = gc_scale(gc_sub(gc_scale(b->state.v, m->mass), b->step_start_momentum), 1.0 / dt);
         b->state.residual_torque = gc_scale(gc_sub(L, b->step_start_angular_momentum), 1.0 / dt);
     }
 }

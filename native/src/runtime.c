@@ -8,8 +8,9 @@
  *   - the object manager (default 500 Hz, normal priority): every other dynamic body, in
  *     steps of at most 2 ms; when a tick takes too long it falls behind real time instead
  *     of taking larger steps.
- * Each thread steps its own *shadow* of the world: a gcWorld whose body and finger arrays are
- * private to the thread and whose read-only parts (hulls) are shared. A mask (body_active)
+ * Each thread steps its own *shadow* of the world: a gcWorld whose state (bodies, fingers,
+ * output arrays, contacts) is private to the thread and whose model (shapes, masses, friction,
+ * finger parameters) is the world's, read-only. A mask (body_active)
  * tells the dynamics which bodies the shadow moves. Nothing is locked between the threads:
  * every channel is a triple buffer (latest value, wait-free on both sides, C11 atomics):
  *   input   push_hips() -> haptic       latest HIPs (producers serialise among themselves)
@@ -86,10 +87,14 @@ static void lock_memory(gcRuntime *rt) {
 
 /* ---- shadows ------------------------------------------------------------------------ */
 
+/* A shadow is a world of its own state (its arrays, its contacts, its thread count) over the
+ * world's model, which it only reads: it holds no other pointer of the world's (not its
+ * runtime, tick log, devices, track or shown view). */
 static int shadow_alloc(gcRuntime *rt, gcWorld *s, const gcWorld *w, unsigned char **active, int threads) {
-    *s = *w; /* configuration and the shared read-only parts */
-    s->contacts = NULL;
+    memset(s, 0, sizeof *s);
+    s->def = w->def;
     s->def.threads = threads;
+    s->model = w->model;
     s->bodies = rt_calloc(rt, (size_t)w->def.max_bodies, sizeof *s->bodies);
     s->fingers = rt_calloc(rt, (size_t)w->def.max_fingers, sizeof *s->fingers);
     s->pose_array = rt_calloc(rt, (size_t)w->def.max_bodies * 7, sizeof(double));
@@ -98,7 +103,6 @@ static int shadow_alloc(gcRuntime *rt, gcWorld *s, const gcWorld *w, unsigned ch
     s->hip_array = rt_calloc(rt, (size_t)w->def.max_fingers * 3, sizeof(double));
     *active = rt_calloc(rt, (size_t)w->def.max_bodies, 1);
     s->body_active = *active;
-    s->runtime = NULL;
     if (!(s->bodies && s->fingers && s->pose_array && s->god_object_array && s->force_array && s->hip_array &&
           *active))
         return 0;
@@ -116,14 +120,11 @@ static void shadow_free(gcWorld *s) {
     free(s->hip_array);
 }
 
-/* The world's dynamic state into a shadow, at start. */
+/* The world's state into a shadow, at start: all of it, copied (the model is shared). */
 static void shadow_load(gcWorld *s, const gcWorld *w) {
-    s->gravity = w->gravity;
     s->time = w->time;
     s->num_bodies = w->num_bodies;
     s->num_fingers = w->num_fingers;
-    s->num_parts = w->num_parts;
-    s->parts = w->parts;
     memcpy(s->bodies, w->bodies, (size_t)w->num_bodies * sizeof *w->bodies);
     memcpy(s->fingers, w->fingers, (size_t)w->num_fingers * sizeof *w->fingers);
     memcpy(s->pose_array, w->pose_array, (size_t)w->num_bodies * 7 * sizeof(double));

@@ -124,7 +124,7 @@ gcStatus gc_runtime_push_input(gcWorld *w, const double *positions, const double
 
 /* Body b of a snapshot from its model and a copy of its state (the world's or the display
  * channel's). */
-static void put_body(const gcSnapshot *s, const gcBody *model, int32_t b, const double pose[7],
+static void put_body(const gcSnapshot *s, const gcBodyModel *model, int32_t b, const double pose[7],
                      const gcBodyState *st, int adopted) {
     if (s->poses) memcpy(&s->poses[7 * b], pose, 7 * sizeof(double));
     if (s->residual_wrenches) {
@@ -157,7 +157,7 @@ static void snapshot_from_world(const gcWorld *w, gcSnapshot *s) {
     s->num_bodies = w->num_bodies;
     s->num_fingers = w->num_fingers;
     for (int32_t b = 0; b < w->num_bodies; ++b)
-        put_body(s, &w->bodies[b], b, &w->pose_array[7 * b], &w->bodies[b].state, 0);
+        put_body(s, &w->model->bodies[b], b, &w->pose_array[7 * b], &w->bodies[b].state, 0);
     for (int32_t i = 0; i < w->num_fingers; ++i) {
         const gcFinger *f = &w->fingers[i];
         put3(s->hips, i, &w->hip_array[3 * i]);
@@ -200,8 +200,8 @@ gcStatus gc_world_snapshot(gcWorld *w, gcSnapshot *s) {
     /* The world's queries and views answer from this snapshot while the runtime runs. */
     for (int32_t b = 0; b < w->num_bodies; ++b) {
         const gcRuntimeBody *rb = &d->body[b];
-        put_body(s, &w->bodies[b], b, rb->pose, &rb->state, d->adopted[b]);
-        if (!w->bodies[b].is_static) {
+        put_body(s, &w->model->bodies[b], b, rb->pose, &rb->state, d->adopted[b]);
+        if (!w->model->bodies[b].is_static) {
             rt->shown.bodies[b] = rb->state;
             memcpy(&w->pose_array[7 * b], rb->pose, sizeof rb->pose); /* the pose view */
         }

@@ -21,8 +21,8 @@ static void update_adoption(gcRuntime *rt) {
         for (int32_t fi = 0; fi < hw->num_fingers; ++fi) {
             const gcFinger *f = &hw->fingers[fi];
             for (int c = 0; c < f->num_contacts; ++c) {
-                int32_t b = hw->parts[f->contacts[c].part].body;
-                if (hw->bodies[b].is_static) continue;
+                int32_t b = hw->model->parts[f->contacts[c].part].body;
+                if (hw->model->bodies[b].is_static) continue;
                 int n = gc_contacts_chain_of(hw, b, rt->chain, cap);
                 if (n > cap) continue;
                 for (int k = 0; k < n; ++k) rt->last_touch[rt->chain[k]] = now;
@@ -31,7 +31,7 @@ static void update_adoption(gcRuntime *rt) {
     }
     int adopted = 0;
     for (int32_t b = 0; b < hw->num_bodies; ++b) {
-        if (hw->bodies[b].is_static) continue;
+        if (hw->model->bodies[b].is_static) continue;
         int want = cap > 0 && now - rt->last_touch[b] <= rt->def.release_delay &&
                    gc_contacts_chain_of(hw, b, rt->chain, cap) <= cap;
         /* A request or a return runs to completion before the wish can change again. */
@@ -122,7 +122,7 @@ void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now) {
     if (fresh) {
         rt->object_time_seen = om->time;
         for (int32_t b = 0; b < hw->num_bodies; ++b) {
-            if (hw->bodies[b].is_static) continue;
+            if (hw->model->bodies[b].is_static) continue;
             switch (rt->hstate[b]) {
             case GC_HAPTIC_OM_OWNS: gc_runtime_body_load(hw, b, &om->body[b]); break;
             case GC_HAPTIC_REQUESTED:
@@ -178,7 +178,7 @@ void gc_runtime_object_tick(gcRuntime *rt) {
     /* Hand-over after stepping: a released body was stepped this tick; a body taken back
      * was stepped by the haptic loop and moves from the next tick. */
     for (int32_t b = 0; b < ow->num_bodies; ++b) {
-        if (ow->bodies[b].is_static) continue;
+        if (ow->model->bodies[b].is_static) continue;
         if (rt->ostate[b] == GC_OBJECT_OWNS && h->want[b]) {
             rt->ostate[b] = GC_OBJECT_RELEASED;
             rt->obj_active[b] = 0;
@@ -194,7 +194,8 @@ void gc_runtime_object_tick(gcRuntime *rt) {
 }
 
 static int haptic_owns(const gcRuntime *rt, int32_t b) {
-    return rt->ostate[b] == GC_OBJECT_RELEASED && (rt->hstate[b] == GC_HAPTIC_OWNS || rt->hstate[b] == GC_HAPTIC_RETURNING);
+    return rt->ostate[b] == GC_OBJECT_RELEASED &&
+           (rt->hstate[b] == GC_HAPTIC_OWNS || rt->hstate[b] == GC_HAPTIC_RETURNING);
 }
 
 static int haptic_owns_ctx(const void *rt, int32_t b) { return haptic_owns(rt, b); }
@@ -204,7 +205,7 @@ static int haptic_owns_ctx(const void *rt, int32_t b) { return haptic_owns(rt, b
 void gc_runtime_merge_into_world(gcRuntime *rt, gcWorld *w) {
     const gcWorld *hw = &rt->hap, *ow = &rt->obj;
     for (int32_t b = 0; b < w->num_bodies; ++b) {
-        if (w->bodies[b].is_static) continue;
+        if (w->model->bodies[b].is_static) continue;
         const gcWorld *src = haptic_owns(rt, b) ? hw : ow;
         w->bodies[b] = src->bodies[b];
         memcpy(&w->pose_array[7 * b], &src->pose_array[7 * b], 7 * sizeof(double));

@@ -121,8 +121,10 @@ typedef struct gcDisplayMsg { /* haptic loop -> gc_world_snapshot, every haptic 
     int32_t *state, *contact_body;
 } gcDisplayMsg;
 
-enum { GC_HAPTIC_OM_OWNS = 0, GC_HAPTIC_REQUESTED, GC_HAPTIC_OWNS, GC_HAPTIC_RETURNING };   /* a body as the haptic loop sees it */
-enum { GC_OBJECT_OWNS = 0, GC_OBJECT_RELEASED };           /* a body as the object manager sees it */
+/* A body as the haptic loop sees it: the object manager's, requested, the haptic loop's, being
+ * returned. */
+enum { GC_HAPTIC_OM_OWNS = 0, GC_HAPTIC_REQUESTED, GC_HAPTIC_OWNS, GC_HAPTIC_RETURNING };
+enum { GC_OBJECT_OWNS = 0, GC_OBJECT_RELEASED }; /* a body as the object manager sees it */
 enum { GC_RUNTIME_STOPPED = 0, GC_RUNTIME_RUNNING = 1 };
 
 typedef struct gcRuntime {

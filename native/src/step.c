@@ -13,13 +13,14 @@ int gc_step_bodies(gcWorld *w, double dt) {
 }
 
 int gc_step(gcWorld *w, double dt) {
+    const gcModel *model = w->model;
     gc_xfca_update(w, dt);
     int stopped = gc_step_bodies(w, dt);
     gc_xfca_outputs(w);
     for (int i = 0; i < w->num_fingers; ++i) {
         gcFinger *f = &w->fingers[i];
         f->hip_prev = f->hip;
-        if (f->num_vertices) f->q_prev = f->q, f->R_prev = f->R; /* a convex finger's turn per step */
+        if (model->fingers[i].num_vertices) f->q_prev = f->q, f->R_prev = f->R; /* a convex finger's turn per step */
     }
     w->time += dt;
     return stopped;

@@ -158,21 +158,22 @@ static uint64_t hash_time_bodies(const gcWorld *w) {
 /* Then each finger in id order (a serial chain): its HIP and force (as shown), its contacts. */
 static uint64_t hash_finger(uint64_t h, const gcWorld *w, int i) {
     const gcFinger *f = &w->fingers[i], *shown = w->shown ? &w->shown->fingers[i] : f;
+    const gcFingerModel *fm = &w->model->fingers[i];
     h = hash_bytes(h, &shown->hip, sizeof shown->hip);
     h = hash_bytes(h, &shown->force, sizeof shown->force);
-    if (f->num_vertices) h = hash_bytes(h, &f->q, sizeof f->q); /* a convex finger's orientation */
-    if (f->renderer == GC_RENDERER_CURSOR) { /* its own state (xFCA fingers hash as before) */
+    if (fm->num_vertices) h = hash_bytes(h, &f->q, sizeof f->q); /* a convex finger's orientation */
+    if (fm->renderer == GC_RENDERER_CURSOR) { /* its own state (xFCA fingers hash as before) */
         h = hash_bytes(h, &f->cursor, sizeof f->cursor);
         h = hash_bytes(h, &f->cursor_velocity, sizeof f->cursor_velocity);
     }
     for (int c = 0; c < f->num_contacts; ++c) {
         const gcFingerContact *k = &f->contacts[c];
-        if (f->num_vertices) h = hash_4(h, &k->sample), h = hash_4(h, &k->reversed);
+        if (fm->num_vertices) h = hash_4(h, &k->sample), h = hash_4(h, &k->reversed);
         h = hash_4(h, &k->part);
         h = hash_4(h, &k->state);
         h = hash_bytes(h, &k->go_local, sizeof k->go_local);
         h = hash_bytes(h, &k->normal_local, sizeof k->normal_local);
-        if (f->torsion > 0.0) h = hash_bytes(h, &k->twist_local, sizeof k->twist_local);
+        if (fm->torsion > 0.0) h = hash_bytes(h, &k->twist_local, sizeof k->twist_local);
     }
     return h;
 }
@@ -220,7 +221,7 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
         /* The convex parts touched, by index in their body: a change is a change of part. */
         uint32_t mask = 0;
         for (int c = 0; c < f->num_contacts; ++c) {
-            int32_t k = f->contacts[c].part - w->bodies[w->parts[f->contacts[c].part].body].first_part;
+            int32_t k = f->contacts[c].part - w->model->bodies[w->model->parts[f->contacts[c].part].body].first_part;
             mask |= 1u << (k < 31 ? k : 31);
         }
         memcpy(parts + 4 * i, &mask, 4);
@@ -230,9 +231,8 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
     }
     memcpy(pose, w->pose_array, 56 * nb);
     for (size_t b = 0; b < nb; ++b) { /* of the body frame origin, as gc_world_body_velocity */
-        const gcBody *body = &w->bodies[b];
-        const gcBodyState *st = &body->state;
-        gcVec3 v = gc_body_origin_velocity(body, st);
+        const gcBodyState *st = &w->bodies[b].state;
+        gcVec3 v = gc_body_origin_velocity(&w->model->bodies[b], st);
         memcpy(vel + 48 * b, &v, 24);
         memcpy(vel + 48 * b + 24, &st->w, 24);
         memcpy(wrench + 48 * b, &st->residual_force, 24);

@@ -109,19 +109,28 @@ gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world) {
     gcStatus st = check_world_def(def);
     if (st) return st;
     gcWorld *w = calloc(1, sizeof *w);
-    if (!w) return create_failed(GC_ERR_NO_MEMORY, "out of memory for the world");
+    gcModel *m = calloc(1, sizeof *m);
+    if (!w || !m) {
+        free(w);
+        free(m);
+        return create_failed(GC_ERR_NO_MEMORY, "out of memory for the world");
+    }
     w->def = *def;
-    w->gravity = gc_v3(def->gravity[0], def->gravity[1], def->gravity[2]);
+    w->own_model = m;
+    w->model = m;
+    m->gravity = gc_v3(def->gravity[0], def->gravity[1], def->gravity[2]);
+    m->parts = calloc((size_t)def->max_parts, sizeof *m->parts);
+    m->bodies = calloc((size_t)def->max_bodies, sizeof *m->bodies);
+    m->fingers = calloc((size_t)def->max_fingers, sizeof *m->fingers);
+    m->finger_hulls = calloc((size_t)def->max_fingers, sizeof *m->finger_hulls);
     w->bodies = calloc((size_t)def->max_bodies, sizeof *w->bodies);
     w->fingers = calloc((size_t)def->max_fingers, sizeof *w->fingers);
-    w->finger_hulls = calloc((size_t)def->max_fingers, sizeof *w->finger_hulls);
-    w->parts = calloc((size_t)def->max_parts, sizeof *w->parts);
     w->pose_array = calloc((size_t)def->max_bodies * 7, sizeof(double));
     w->god_object_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
     w->force_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
     w->hip_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
-    if (!w->bodies || !w->fingers || !w->finger_hulls || !w->parts || !w->pose_array || !w->god_object_array ||
-        !w->force_array || !w->hip_array || !(w->serial = gc_serial_hub_create(w))) {
+    if (!m->parts || !m->bodies || !m->fingers || !m->finger_hulls || !w->bodies || !w->fingers || !w->pose_array ||
+        !w->god_object_array || !w->force_array || !w->hip_array || !(w->serial = gc_serial_hub_create(w))) {
         gc_world_destroy(w);
         return create_failed(GC_ERR_NO_MEMORY, "out of memory for the capacities (max_bodies %d, max_fingers %d, max_parts %d)",
                              def->max_bodies, def->max_fingers, def->max_parts);
@@ -144,13 +153,17 @@ void gc_world_destroy(gcWorld *w) {
     gc_serial_hub_destroy(w->serial); /* the haptic loop wrote into it */
     gc_contacts_destroy(w); /* joins the contact thread pool */
     gc_hip_track_free(w->hip_track);
-    for (int i = 0; i < w->num_parts; ++i) gc_hull_free(&w->parts[i].hull);
+    gcModel *m = w->own_model;
+    for (int i = 0; i < m->num_parts; ++i) gc_hull_free(&m->parts[i].hull);
+    if (m->finger_hulls)
+        for (int i = 0; i < w->num_fingers; ++i) gc_hull_free(&m->finger_hulls[i]);
+    free(m->finger_hulls);
+    free(m->parts);
+    free(m->bodies);
+    free(m->fingers);
+    free(m);
     free(w->bodies);
-    if (w->finger_hulls)
-        for (int i = 0; i < w->num_fingers; ++i) gc_hull_free(&w->finger_hulls[i]);
-    free(w->finger_hulls);
     free(w->fingers);
-    free(w->parts);
     free(w->pose_array);
     free(w->god_object_array);
     free(w->force_array);
@@ -208,12 +221,12 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
         gc_world_set_error(w, "max_bodies: the world holds at most %d bodies", w->def.max_bodies);
         return GC_ERR_CAPACITY;
     }
-    if (w->num_parts + num_parts > w->def.max_parts) {
+    if (w->own_model->num_parts + num_parts > w->def.max_parts) {
         gc_world_set_error(w, "max_parts: the world holds at most %d convex parts", w->def.max_parts);
         return GC_ERR_CAPACITY;
     }
     /* Build every hull first so that a bad part leaves the world untouched. */
-    int first = w->num_parts;
+    int first = w->own_model->num_parts;
     for (int i = 0; i < num_parts; ++i) {
         const gcPartDef *pd = &parts[i];
         const char *what = num_parts > 1 ? "parts" : "points";
@@ -222,7 +235,7 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
             st = GC_ERR_INVALID_ARGUMENT;
             gc_world_set_error(w, "%s: part %d must be finite xyz points with a radius >= 0", what, i);
         } else {
-            st = gc_hull_build(pd->points, pd->num_points, pd->radius, 0.0, &w->parts[first + i].hull);
+            st = gc_hull_build(pd->points, pd->num_points, pd->radius, 0.0, &w->own_model->parts[first + i].hull);
             if (st == GC_ERR_DEGENERATE)
                 gc_world_set_error(w, "%s: part %d is a degenerate hull (coplanar, collinear or coincident points)",
                                    what, i);
@@ -230,83 +243,86 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
                 gc_world_set_error(w, "%s: part %d could not be built (%s)", what, i, gc_status_string(st));
         }
         if (st < 0) {
-            for (int j = 0; j < i; ++j) gc_hull_free(&w->parts[first + j].hull);
-            memset(&w->parts[first], 0, sizeof(gcPart) * (size_t)num_parts);
+            for (int j = 0; j < i; ++j) gc_hull_free(&w->own_model->parts[first + j].hull);
+            memset(&w->own_model->parts[first], 0, sizeof(gcPart) * (size_t)num_parts);
             return st;
         }
     }
 
+    gcBodyModel bm;
+    memset(&bm, 0, sizeof bm);
     gcBody b;
     memset(&b, 0, sizeof b);
-    b.is_static = def->is_static != 0;
-    b.first_part = first;
-    b.num_parts = num_parts;
+    bm.is_static = def->is_static != 0;
+    bm.first_part = first;
+    bm.num_parts = num_parts;
     /* Mass properties: uniform density over the union of parts (overlaps counted twice). */
     double volume = 0.0;
     gcVec3 centroid = gc_v3(0, 0, 0);
     for (int i = 0; i < num_parts; ++i) {
-        const gcHull *h = &w->parts[first + i].hull;
+        const gcHull *h = &w->own_model->parts[first + i].hull;
         volume += h->volume;
         centroid = gc_madd(centroid, h->centroid, h->volume);
     }
     centroid = gc_scale(centroid, 1.0 / volume);
-    b.com_local = def->has_center_of_mass ? gc_v3(def->center_of_mass[0], def->center_of_mass[1],
+    bm.com_local = def->has_center_of_mass ? gc_v3(def->center_of_mass[0], def->center_of_mass[1],
                                                   def->center_of_mass[2])
                                           : centroid;
     if (def->has_center_of_mass && !gc_all_finite(def->center_of_mass, 3)) {
         st = GC_ERR_INVALID_ARGUMENT;
         gc_world_set_error(w, "center_of_mass: must be 3 finite numbers");
     }
-    if (!b.is_static) {
-        b.mass = def->mass;
-        b.inv_mass = 1.0 / def->mass;
+    if (!bm.is_static) {
+        bm.mass = def->mass;
+        bm.inv_mass = 1.0 / def->mass;
         if (def->has_inertia) {
-            memcpy(b.inertia_local.m, def->inertia, sizeof b.inertia_local.m);
+            memcpy(bm.inertia_local.m, def->inertia, sizeof bm.inertia_local.m);
         } else {
             double density = def->mass / volume;
-            memset(&b.inertia_local, 0, sizeof b.inertia_local);
+            memset(&bm.inertia_local, 0, sizeof bm.inertia_local);
             for (int i = 0; i < num_parts; ++i) {
-                const gcHull *h = &w->parts[first + i].hull;
+                const gcHull *h = &w->own_model->parts[first + i].hull;
                 double m = density * h->volume;
-                gcVec3 d = gc_sub(h->centroid, b.com_local);
+                gcVec3 d = gc_sub(h->centroid, bm.com_local);
                 double d2 = gc_len2(d);
                 double dv[3] = {d.x, d.y, d.z};
                 for (int r = 0; r < 3; ++r)
                     for (int c = 0; c < 3; ++c)
-                        b.inertia_local.m[r][c] += density * h->inertia_unit.m[r][c] +
+                        bm.inertia_local.m[r][c] += density * h->inertia_unit.m[r][c] +
                                                    m * ((r == c ? d2 : 0.0) - dv[r] * dv[c]);
             }
         }
-        if (st == GC_OK && (!gc_inertia_is_physical(&b.inertia_local) ||
-                            !gc_invert_mat3(&b.inertia_local, &b.inv_inertia_local))) {
+        if (st == GC_OK && (!gc_inertia_is_physical(&bm.inertia_local) ||
+                            !gc_invert_mat3(&bm.inertia_local, &bm.inv_inertia_local))) {
             st = GC_ERR_INVALID_ARGUMENT;
             gc_world_set_error(w, "inertia: must be symmetric positive definite and obey the triangle inequality");
         }
     }
     if (st < 0) {
-        for (int i = 0; i < num_parts; ++i) gc_hull_free(&w->parts[first + i].hull);
+        for (int i = 0; i < num_parts; ++i) gc_hull_free(&w->own_model->parts[first + i].hull);
         return st;
     }
-    b.mu_s = def->mu_s;
-    b.mu_d = def->mu_d;
-    b.viscosity = def->viscosity;
-    b.linear_damping = def->linear_damping;
-    b.angular_damping = def->angular_damping;
+    bm.mu_s = def->mu_s;
+    bm.mu_d = def->mu_d;
+    bm.viscosity = def->viscosity;
+    bm.linear_damping = def->linear_damping;
+    bm.angular_damping = def->angular_damping;
     b.state.q = gc_quat_normalize((gcQuat){def->orientation[0], def->orientation[1], def->orientation[2],
                                      def->orientation[3]});
     b.state.R = gc_quat_to_mat3(b.state.q);
     b.state.com = gc_add(gc_v3(def->position[0], def->position[1], def->position[2]),
-                   gc_mat3_mul_vec(&b.state.R, b.com_local));
-    if (!b.is_static) {
+                   gc_mat3_mul_vec(&b.state.R, bm.com_local));
+    if (!bm.is_static) {
         b.state.w = gc_v3(def->angular_velocity[0], def->angular_velocity[1], def->angular_velocity[2]);
         b.state.v = gc_add(gc_v3(def->linear_velocity[0], def->linear_velocity[1], def->linear_velocity[2]),
-                     gc_cross(b.state.w, gc_mat3_mul_vec(&b.state.R, b.com_local))); /* origin -> COM */
+                     gc_cross(b.state.w, gc_mat3_mul_vec(&b.state.R, bm.com_local))); /* origin -> COM */
     }
     int32_t id = w->num_bodies;
-    for (int i = 0; i < num_parts; ++i) w->parts[first + i].body = id;
+    for (int i = 0; i < num_parts; ++i) w->own_model->parts[first + i].body = id;
+    w->own_model->bodies[id] = bm;
     w->bodies[id] = b;
     w->num_bodies++;
-    w->num_parts += num_parts;
+    w->own_model->num_parts += num_parts;
     gc_body_refresh_derived(w, id);
     *out_body = id;
     return GC_OK;
@@ -393,19 +409,21 @@ gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_fi
         }
     }
     int32_t id = w->num_fingers;
+    gcFingerModel *fm = &w->own_model->fingers[id];
+    memset(fm, 0, sizeof *fm);
+    fm->num_vertices = hull.num_vertices;
+    for (int i = 0; i < hull.num_vertices; ++i) fm->vertices[i] = hull.vertices[i];
+    w->own_model->finger_hulls[id] = hull; /* freed with the world */
+    fm->radius = def->radius;
+    fm->torsion = def->torsion;
+    fm->stiffness = def->stiffness;
+    fm->damping = def->damping;
+    fm->renderer = def->renderer;
+    fm->cursor_mass = def->cursor_mass;
     gcFinger *f = &w->fingers[id];
     memset(f, 0, sizeof *f);
-    f->num_vertices = hull.num_vertices;
-    for (int i = 0; i < hull.num_vertices; ++i) f->vertices[i] = hull.vertices[i];
-    w->finger_hulls[id] = hull; /* freed with the world */
     f->q = f->q_prev = q;
     f->R = f->R_prev = gc_quat_to_mat3(q);
-    f->radius = def->radius;
-    f->torsion = def->torsion;
-    f->stiffness = def->stiffness;
-    f->damping = def->damping;
-    f->renderer = def->renderer;
-    f->cursor_mass = def->cursor_mass;
     f->hip = f->hip_prev = f->god_object = gc_v3(def->position[0], def->position[1], def->position[2]);
     f->cursor = f->hip;
     f->contact_body = -1;
@@ -420,7 +438,7 @@ gcStatus gc_world_add_finger(gcWorld *w, const gcFingerDef *def, int32_t *out_fi
 gcStatus gc_world_set_gravity(gcWorld *w, const double g[3]) {
     gcStatus st = check_idle(w);
     if (st || (st = gc_check_vec(w, g, 3, "gravity"))) return st;
-    w->gravity = gc_v3(g[0], g[1], g[2]);
+    w->own_model->gravity = gc_v3(g[0], g[1], g[2]);
     return GC_OK;
 }
 
@@ -466,13 +484,15 @@ gcStatus gc_world_set_body_velocity(gcWorld *w, int32_t body, const double lin[3
         (st = gc_check_vec(w, ang, 3, "angular")))
         return st;
     gcBody *b = &w->bodies[body];
-    if (b->is_static) {
+    const gcBodyModel *m = &w->model->bodies[body];
+    if (m->is_static) {
         gc_world_set_error(w, "body: %d is static and cannot be given a velocity", (int)body);
         return GC_ERR_INVALID_ARGUMENT;
     }
     /* Given for the body frame origin, like body_velocity reports it; stored at the COM. */
     b->state.w = gc_v3(ang[0], ang[1], ang[2]);
-    b->state.v = gc_add(gc_v3(lin[0], lin[1], lin[2]), gc_cross(b->state.w, gc_mat3_mul_vec(&b->state.R, b->com_local)));
+    gcVec3 origin_to_com = gc_mat3_mul_vec(&b->state.R, m->com_local);
+    b->state.v = gc_add(gc_v3(lin[0], lin[1], lin[2]), gc_cross(b->state.w, origin_to_com));
     return GC_OK;
 }
 
@@ -489,7 +509,8 @@ gcStatus gc_world_set_body_pose(gcWorld *w, int32_t body, const double pos[3], c
     gcBody *b = &w->bodies[body];
     b->state.q = gc_quat_normalize((gcQuat){quat[0], quat[1], quat[2], quat[3]});
     b->state.R = gc_quat_to_mat3(b->state.q);
-    b->state.com = gc_add(gc_v3(pos[0], pos[1], pos[2]), gc_mat3_mul_vec(&b->state.R, b->com_local));
+    gcVec3 origin_to_com = gc_mat3_mul_vec(&b->state.R, w->model->bodies[body].com_local);
+    b->state.com = gc_add(gc_v3(pos[0], pos[1], pos[2]), origin_to_com);
     gc_body_refresh_derived(w, body);
     return GC_OK;
 }
@@ -497,9 +518,9 @@ gcStatus gc_world_set_body_pose(gcWorld *w, int32_t body, const double pos[3], c
 gcStatus gc_world_set_body_friction(gcWorld *w, int32_t body, double mu_s, double mu_d, double viscosity) {
     gcStatus st;
     if ((st = check_idle(w)) || (st = gc_check_body(w, body)) || (st = gc_check_friction(w, mu_s, mu_d, viscosity))) return st;
-    w->bodies[body].mu_s = mu_s;
-    w->bodies[body].mu_d = mu_d;
-    w->bodies[body].viscosity = viscosity;
+    w->own_model->bodies[body].mu_s = mu_s;
+    w->own_model->bodies[body].mu_d = mu_d;
+    w->own_model->bodies[body].viscosity = viscosity;
     return GC_OK;
 }
 
@@ -579,7 +600,7 @@ gcStatus gc_world_body_velocity(const gcWorld *w, int32_t body, double lin[3], d
     if (!ang) return gc_null_argument(w, "angular");
     const gcBodyState *s = shown_body(w, body);
     /* Report the velocity of the body frame origin, consistent with body_pose. */
-    put3(lin, gc_body_origin_velocity(&w->bodies[body], s));
+    put3(lin, gc_body_origin_velocity(&w->model->bodies[body], s));
     put3(ang, s->w);
     return GC_OK;
 }
@@ -590,7 +611,7 @@ gcStatus gc_world_body_mass(const gcWorld *w, int32_t body, double *mass, double
     if (!mass) return gc_null_argument(w, "mass");
     if (!com) return gc_null_argument(w, "center_of_mass");
     if (!inertia) return gc_null_argument(w, "inertia");
-    const gcBody *b = &w->bodies[body];
+    const gcBodyModel *b = &w->model->bodies[body];
     *mass = b->is_static ? INFINITY : b->mass;
     put3(com, b->com_local);
     memcpy(inertia, b->inertia_local.m, 9 * sizeof(double));
@@ -655,16 +676,15 @@ gcStatus gc_world_finger_contacts(const gcWorld *w, int32_t finger, gcFingerCont
         return GC_ERR_INVALID_ARGUMENT;
     }
     const gcFinger *f = &w->fingers[finger];
+    const gcFingerModel *fm = &w->model->fingers[finger];
     for (int i = 0; i < f->num_contacts && i < capacity && out; ++i) {
         const gcFingerContact *c = &f->contacts[i];
-        int32_t body = w->parts[c->part].body;
-        const gcBody *b = &w->bodies[body];
-        gcBodyState state = b->state;
-        gcTransform fr;
-        fr.R = state.R;
-        fr.p = gc_sub(state.com, gc_mat3_mul_vec(&state.R, b->com_local));
+        int32_t body = w->model->parts[c->part].body;
+        const gcBodyModel *b = &w->model->bodies[body];
+        gcBodyState state = w->bodies[body].state;
+        gcTransform fr = gc_body_transform(b, &state);
         gcVec3 anchor, anchor_velocity, point;
-        gc_finger_contact_ends(f, c, &fr, &anchor, &anchor_velocity, &point);
+        gc_finger_contact_ends(fm, f, c, &fr, &anchor, &anchor_velocity, &point);
         gcFingerContactPoint *o = &out[i];
         memset(o, 0, sizeof *o);
         o->body = body;
@@ -675,7 +695,7 @@ gcStatus gc_world_finger_contacts(const gcWorld *w, int32_t finger, gcFingerCont
         put3(o->normal, gc_finger_point_normal(f, c, &fr.R));
         /* The spring and damper as the body receives them (dynamics.c), weighted by the contact's
          * share (a seam's blend, the cursor's part of its constraint), on the state shown. */
-        double k = f->stiffness * c->share, damping = f->damping * c->share;
+        double k = fm->stiffness * c->share, damping = fm->damping * c->share;
         gcVec3 force = gc_scale(gc_sub(point, anchor), k);
         if (damping > 0.0 && !b->is_static) {
             gcVec3 v_point = gc_add(state.v, gc_cross(state.w, gc_sub(point, state.com)));

@@ -19,7 +19,7 @@ typedef struct gcPart {
     int32_t body;
 } gcPart;
 
-/* What a step changes on a body (the "data" beside the body's "model", as MuJoCo splits
+/* What a step changes on a body (its "data" beside its gcBodyModel, as MuJoCo splits
  * mjData from mjModel): a plain value, so the runtime's shadows copy it whole and a
  * snapshot reads it without touching the world it came from. */
 typedef struct gcBodyState {
@@ -31,8 +31,9 @@ typedef struct gcBodyState {
     gcVec3 residual_force, residual_torque; /* what the last step applied */
 } gcBodyState;
 
-typedef struct gcBody {
-    /* Model: set when the body is added (friction and damping by their setters). */
+/* A body's model: set when it is added (friction and damping by their setters, between
+ * steps); no step changes it. */
+typedef struct gcBodyModel {
     int is_static;
     int first_part, num_parts;      /* parts[first_part .. first_part+num_parts) */
     double mass, inv_mass;
@@ -41,6 +42,10 @@ typedef struct gcBody {
     gcMat3 inv_inertia_local;
     double mu_s, mu_d, viscosity;
     double linear_damping, angular_damping;
+} gcBodyModel;
+
+/* A body in a world's state: its gcBodyState and the step's scratch. */
+typedef struct gcBody {
     gcBodyState state;
     /* Step scratch: the effective mass used for this step's velocity, which contact
      * impulses go through. With a finger on the body (coupled) it is the mass matrix plus
@@ -91,11 +96,20 @@ typedef struct gcFingerContact {
 #define GC_MAX_CONTACTS_PER_FINGER 8
 #define GC_MAX_FINGER_CONTACTS 16
 
-typedef struct gcFinger {
+/* A finger's model: set when it is added; no step changes it. */
+typedef struct gcFingerModel {
     double radius, stiffness, damping;
     double torsion;                 /* soft fingertip: radius of its pressed patch (m), 0 = none */
     gcFingerRenderer renderer;      /* xFCA god-objects, or the light-mass cursor (cursor.c) */
     double cursor_mass;             /* kg, the cursor renderer's */
+    /* Convex finger: its hull's vertices in the finger frame (0 = a sphere of radius), each a
+     * point of contact with a god-object of its own; the HIP is the frame's pose. */
+    int num_vertices;
+    gcVec3 vertices[GC_MAX_FINGER_VERTICES];
+} gcFingerModel;
+
+/* A finger in a world's state. */
+typedef struct gcFinger {
     gcVec3 cursor, cursor_velocity; /* the cursor's centre and velocity, world (cursor renderer) */
     gcVec3 hip, hip_prev, hip_velocity;
     int hip_initialised;
@@ -113,14 +127,10 @@ typedef struct gcFinger {
     float patch[2 * GC_FINGER_PATCH_CORNERS];
     int32_t contact_body;           /* -1 when free */
     gcFingerState state;
-    /* Convex finger (last: a sphere finger's step never reads it): its hull's vertices in the
-     * finger frame (0 = a sphere of radius), each a point of contact with a god-object of its
-     * own; the HIP is the frame's pose. */
-    int num_vertices;
+    /* The finger frame's orientation: what a convex finger turns with; any finger reports it. */
     gcQuat q, q_prev;
     gcMat3 R, R_prev;
     gcVec3 hip_angular_velocity;
-    gcVec3 vertices[GC_MAX_FINGER_VERTICES];
 } gcFinger;
 
 /* While the runtime runs: what the last gc_world_snapshot showed. The world's queries
@@ -131,77 +141,102 @@ typedef struct gcShown {
     gcFinger *fingers;              /* per finger: hip, god_object, force, state, contact_body */
 } gcShown;
 
-struct gcWorld {
-    gcWorldDef def;
+/* The model (MuJoCo's mjModel): what no step changes. The world API edits it between steps
+ * (never while the runtime runs: `locked`); the world and the runtime's shadows read the one
+ * copy, which the world owns. Sized by the world's capacities at creation. */
+typedef struct gcModel {
     gcVec3 gravity;
+    int num_parts;
+    gcPart *parts;                  /* max_parts */
+    gcBodyModel *bodies;            /* max_bodies; the world's num_bodies are in use */
+    gcFingerModel *fingers;         /* max_fingers; the world's num_fingers are in use */
+    /* Convex fingers' hulls in the finger frame, inflated by the finger radius (max_fingers). */
+    gcHull *finger_hulls;
+} gcModel;
+
+struct gcWorld {
+    /* Configuration, as created (a shadow: its own copy, with its own thread count). */
+    gcWorldDef def;
+    /* The model, read-only in a step: own_model for the world, the world's for a shadow
+     * (whose own_model is NULL). */
+    const gcModel *model;
+    gcModel *own_model;
+    /* The state (MuJoCo's mjData): what a step changes. A runtime shadow holds its own copy
+     * of all of it, in arrays of its own, and no pointer of the world's but the model
+     * (runtime.c: shadow_alloc, shadow_load). */
     double time;
-    int num_bodies, num_fingers, num_parts;
+    int num_bodies, num_fingers;
     gcBody *bodies;
     gcFinger *fingers;
-    gcPart *parts;
     /* Zero-copy output arrays, sized by the capacities. */
     double *pose_array;             /* 7 per body */
     double *god_object_array;       /* 3 per finger */
     double *force_array;            /* 3 per finger */
     double *hip_array;              /* 3 per finger */
-    char last_error[256];
     /* Bodies stopped because their state would have become non-finite: since creation, and
      * in the current step (the first one's id, for the message). */
     int64_t stopped_bodies;
     int step_stopped_bodies;
     int32_t first_stopped_body;
-    /* Contacts, chains and their worker pool (contacts.c, chains.c, threadpool.c). */
+    /* Contacts (manifolds and their warm starts), chains and the worker pool (contacts.c,
+     * chains.c, threadpool.c): a shadow has its own. */
     struct gcContactSystem *contacts;
+    /* NULL: a step moves every dynamic body. Otherwise only bodies with body_active[i] != 0
+     * move; the others are stepped by another runtime thread and are immovable here (their
+     * effective mass is marked invalid). Set only in the runtime's per-thread shadows. */
+    const unsigned char *body_active;
+    char last_error[256];
+    /* The world's services, NULL in a shadow. */
     /* Runtime (runtime.c): made on the first gc_world_start, freed by gc_world_destroy. */
     struct gcRuntime *runtime;
     /* Per-tick log for recorders (tick_log.c); NULL when off. */
     struct gcTickLog *tick_log;
     /* Serial devices (serial_io.c): made with the world, freed before the runtime. */
     struct gcSerialHub *serial;
-    /* NULL: a step moves every dynamic body. Otherwise only bodies with body_active[i] != 0
-     * move; the others are stepped by another runtime thread and are immovable here (their
-     * effective mass is marked invalid). Set only in the runtime's per-thread shadows. */
-    const unsigned char *body_active;
     /* Scripted HIP track (hip_input.c), sampled by the runtime's haptic loop. */
     struct gcHipTrack *hip_track;
-    /* Convex fingers' hulls in the finger frame, inflated by the finger radius (max_fingers slots,
-     * read-only once made: the runtime's shadows share them). */
-    gcHull *finger_hulls;
     /* 1 while the runtime owns the dynamic state: calls that would change it are refused. */
     int locked;
     /* The runtime's gcShown while it runs, NULL otherwise. */
     const gcShown *shown;
 };
 
-/* The body frame (the user's origin, not the centre of mass) as a transform. */
-static inline gcTransform gc_body_transform(const gcBody *b) {
+/* The body frame (the user's origin, not the centre of mass) as a transform, from a body's
+ * model and a state of it. */
+static inline gcTransform gc_body_transform(const gcBodyModel *m, const gcBodyState *s) {
     gcTransform t;
-    t.R = b->state.R;
-    t.p = gc_sub(b->state.com, gc_mat3_mul_vec(&b->state.R, b->com_local));
+    t.R = s->R;
+    t.p = gc_sub(s->com, gc_mat3_mul_vec(&s->R, m->com_local));
     return t;
 }
 
+/* Body b's frame in a world (or shadow): its model and its state there. */
+static inline gcTransform gc_world_body_transform(const gcWorld *w, int32_t b) {
+    return gc_body_transform(&w->model->bodies[b], &w->bodies[b].state);
+}
+
 /* The HIP of contact sample s: a sphere finger's HIP, or vertex s of a convex finger at the
- * finger's pose (now, at the previous step, and its velocity). */
-static inline gcVec3 gc_finger_tip(const gcFinger *f, int s) {
-    return f->num_vertices ? gc_add(f->hip, gc_mat3_mul_vec(&f->R, f->vertices[s])) : f->hip;
+ * finger's pose (now, at the previous step, and its velocity); m is the finger's model. */
+static inline gcVec3 gc_finger_tip(const gcFingerModel *m, const gcFinger *f, int s) {
+    return m->num_vertices ? gc_add(f->hip, gc_mat3_mul_vec(&f->R, m->vertices[s])) : f->hip;
 }
-static inline gcVec3 gc_finger_tip_prev(const gcFinger *f, int s) {
-    return f->num_vertices ? gc_add(f->hip_prev, gc_mat3_mul_vec(&f->R_prev, f->vertices[s])) : f->hip_prev;
+static inline gcVec3 gc_finger_tip_prev(const gcFingerModel *m, const gcFinger *f, int s) {
+    return m->num_vertices ? gc_add(f->hip_prev, gc_mat3_mul_vec(&f->R_prev, m->vertices[s])) : f->hip_prev;
 }
-static inline gcVec3 gc_finger_tip_velocity(const gcFinger *f, int s) {
-    if (!f->num_vertices) return f->hip_velocity;
-    return gc_add(f->hip_velocity, gc_cross(f->hip_angular_velocity, gc_mat3_mul_vec(&f->R, f->vertices[s])));
+static inline gcVec3 gc_finger_tip_velocity(const gcFingerModel *m, const gcFinger *f, int s) {
+    if (!m->num_vertices) return f->hip_velocity;
+    return gc_add(f->hip_velocity, gc_cross(f->hip_angular_velocity, gc_mat3_mul_vec(&f->R, m->vertices[s])));
 }
 
 /* The two ends of a finger contact's spring, world: the finger's end (anchor: its HIP or vertex,
  * or for a reversed contact the GO on its surface) with that point's velocity, and the body point
  * (the GO on the body, or the body's vertex) where the body receives the reaction. */
-static inline void gc_finger_contact_ends(const gcFinger *f, const gcFingerContact *c, const gcTransform *body,
-                                          gcVec3 *anchor, gcVec3 *anchor_velocity, gcVec3 *body_point) {
+static inline void gc_finger_contact_ends(const gcFingerModel *m, const gcFinger *f, const gcFingerContact *c,
+                                          const gcTransform *body, gcVec3 *anchor, gcVec3 *anchor_velocity,
+                                          gcVec3 *body_point) {
     if (!c->reversed) {
-        *anchor = gc_finger_tip(f, c->sample);
-        *anchor_velocity = gc_finger_tip_velocity(f, c->sample);
+        *anchor = gc_finger_tip(m, f, c->sample);
+        *anchor_velocity = gc_finger_tip_velocity(m, f, c->sample);
         *body_point = gc_transform_point(body, c->go_local);
         return;
     }

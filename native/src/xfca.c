@@ -167,7 +167,7 @@ static gcVec3 turn_between(gcQuat p, gcQuat q) {
     return gc_scale(v, 2.0 * atan2(s, d.w) / s);
 }
 
-static gcSurface body_surface(const gcBody *b, const gcHull *h, double radius) {
+static gcSurface body_surface(const gcBodyModel *b, const gcHull *h, double radius) {
     gcSurface sf = {h, radius, b->mu_s, b->mu_d, b->viscosity};
     return sf;
 }
@@ -178,12 +178,12 @@ static gcSurface body_surface(const gcBody *b, const gcHull *h, double radius) {
  * load on several points (mu k depth is a few tenths of a millimetre) mistakes for sliding: a pad
  * carrying a 0.5 kg box on 4 points at 10 kN/m slipped at 0.1 m/s (docs/physics.md "Area
  * contacts"). Sphere fingers keep the current pose (their results are unchanged). */
-static gcTransform predicted_transform(const gcBody *b, double dt) {
-    if (b->is_static) return gc_body_transform(b);
+static gcTransform predicted_transform(const gcBodyModel *m, const gcBody *b, double dt) {
+    if (m->is_static) return gc_body_transform(m, &b->state);
     gcQuat q = gc_quat_normalize(gc_quat_mul(gc_quat_from_rotation_vector(gc_scale(b->state.w, dt)), b->state.q));
     gcTransform t;
     t.R = gc_quat_to_mat3(q);
-    t.p = gc_sub(gc_madd(b->state.com, b->state.v, dt), gc_mat3_mul_vec(&t.R, b->com_local));
+    t.p = gc_sub(gc_madd(b->state.com, b->state.v, dt), gc_mat3_mul_vec(&t.R, m->com_local));
     return t;
 }
 
@@ -214,30 +214,31 @@ static gcTransform finger_transform(const gcFinger *f) {
  * before. docs/physics.md. */
 #define GC_SEAM_BURIAL 1.0
 
-static void blend_seams(const gcWorld *w, gcFinger *f) {
+static void blend_seams(const gcWorld *w, const gcFingerModel *fm, gcFinger *f) {
+    const gcModel *model = w->model;
     double effective[GC_MAX_CONTACTS_PER_FINGER], burial[GC_MAX_CONTACTS_PER_FINGER];
     int shared[GC_MAX_CONTACTS_PER_FINGER];
     for (int i = 0; i < f->num_contacts; ++i) {
         const gcFingerContact *c = &f->contacts[i];
-        int32_t body = w->parts[c->part].body;
+        int32_t body = model->parts[c->part].body;
         effective[i] = c->depth;
         burial[i] = 0.0;
         shared[i] = 0;
         for (int j = 0; j < f->num_contacts; ++j) {
             const gcFingerContact *o = &f->contacts[j];
-            if (j == i || w->parts[o->part].body != body) continue;
+            if (j == i || model->parts[o->part].body != body) continue;
             shared[i] = 1;
             gcVec3 n;
-            burial[i] = fmax(burial[i], -tip_query(&w->parts[o->part].hull, c->go_local, f->radius, &n));
+            burial[i] = fmax(burial[i], -tip_query(&model->parts[o->part].hull, c->go_local, fm->radius, &n));
         }
     }
     for (int i = 0; i < f->num_contacts; ++i) {
         if (!shared[i]) continue;
         const gcFingerContact *c = &f->contacts[i];
-        int32_t body = w->parts[c->part].body;
+        int32_t body = model->parts[c->part].body;
         double deepest = 0.0, least = burial[i];
         for (int j = 0; j < f->num_contacts; ++j) {
-            if (w->parts[f->contacts[j].part].body != body) continue;
+            if (model->parts[f->contacts[j].part].body != body) continue;
             deepest = fmax(deepest, f->contacts[j].depth);
             least = fmin(least, burial[j]);
         }
@@ -246,11 +247,11 @@ static void blend_seams(const gcWorld *w, gcFinger *f) {
     }
     for (int i = 0; i < f->num_contacts; ++i) {
         gcFingerContact *c = &f->contacts[i];
-        int32_t body = w->parts[c->part].body;
+        int32_t body = model->parts[c->part].body;
         double overlap = 0.0;
         for (int j = 0; j < f->num_contacts; ++j) {
             const gcFingerContact *o = &f->contacts[j];
-            if (w->parts[o->part].body != body) continue;
+            if (model->parts[o->part].body != body) continue;
             overlap += effective[j] * (j == i ? 1.0 : fmax(0.0, gc_dot(c->normal_local, o->normal_local)));
         }
         c->share = overlap > 0.0 ? effective[i] / overlap : 0.0;
@@ -271,25 +272,31 @@ static int opposes_existing(const gcFinger *f, const gcBody *b, int32_t part, gc
 
 /* New contacts of one contact sample (a sphere finger's HIP, or one vertex of a convex finger):
  * broad phase on its swept box, then the sweep per part. */
-static void find_new_contacts(gcWorld *w, gcFinger *f, int32_t sample, int capacity, double dt) {
-    gcVec3 now = gc_finger_tip(f, sample), prev = gc_finger_tip_prev(f, sample);
-    gcVec3 lo = gc_v3(fmin(now.x, prev.x), fmin(now.y, prev.y), fmin(now.z, prev.z));
-    gcVec3 hi = gc_v3(fmax(now.x, prev.x), fmax(now.y, prev.y), fmax(now.z, prev.z));
-    gcVec3 pad = gc_v3(f->radius, f->radius, f->radius);
+static void find_new_contacts(gcWorld *w, const gcFingerModel *fm, gcFinger *f, int32_t sample, int capacity,
+                              double dt) {
+    gcVec3 now = gc_finger_tip(fm, f, sample), prev = gc_finger_tip_prev(fm, f, sample);
+    /* The swept box of finite points: gc_min/gc_max (fmin/fmax are libm calls). */
+    gcVec3 lo = gc_v3(gc_min(now.x, prev.x), gc_min(now.y, prev.y), gc_min(now.z, prev.z));
+    gcVec3 hi = gc_v3(gc_max(now.x, prev.x), gc_max(now.y, prev.y), gc_max(now.z, prev.z));
+    gcVec3 pad = gc_v3(fm->radius, fm->radius, fm->radius);
     lo = gc_sub(lo, pad);
     hi = gc_add(hi, pad);
+    /* The model in a local, as in every step function: the extension builds with
+     * -fno-strict-aliasing, so w->model would be read again after each store. */
+    const gcModel *model = w->model;
     for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < capacity; ++bi) {
         const gcBody *b = &w->bodies[bi];
+        const gcBodyModel *bm = &model->bodies[bi];
         if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
-        gcTransform fr = f->num_vertices ? predicted_transform(b, dt) : gc_body_transform(b);
+        gcTransform fr = fm->num_vertices ? predicted_transform(bm, b, dt) : gc_body_transform(bm, &b->state);
         gcVec3 from = gc_inv_transform_point(&fr, prev), to = gc_inv_transform_point(&fr, now);
-        for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
+        for (int p = bm->first_part; p < bm->first_part + bm->num_parts; ++p) {
             if (f->num_contacts >= capacity) break;
             if (has_contact_with(f, p, sample, 0)) continue;
-            const gcHull *h = &w->parts[p].hull;
+            const gcHull *h = &model->parts[p].hull;
             gcVec3 go, n;
-            if (!find_entry(f->radius, h, from, to, &go, &n)) continue;
-            if (f->num_vertices && opposes_existing(f, b, p, gc_mat3_mul_vec(&b->state.R, n))) continue;
+            if (!find_entry(fm->radius, h, from, to, &go, &n)) continue;
+            if (fm->num_vertices && opposes_existing(f, b, p, gc_mat3_mul_vec(&b->state.R, n))) continue;
             gcFingerContact c;
             memset(&c, 0, sizeof c);
             c.part = p;
@@ -297,7 +304,7 @@ static void find_new_contacts(gcWorld *w, gcFinger *f, int32_t sample, int capac
             c.state = GC_FINGER_STICK;
             c.go_local = go;
             c.normal_local = n;
-            gcSurface sf = body_surface(b, h, f->radius);
+            gcSurface sf = body_surface(bm, h, fm->radius);
             if (update_contact(&sf, &c, to, dt)) f->contacts[f->num_contacts++] = c;
         }
     }
@@ -312,8 +319,8 @@ static void find_new_contacts(gcWorld *w, gcFinger *f, int32_t sample, int capac
 /* The reversed candidate at body point x (body frame): swept in the finger's frame from where
  * it was against the finger a step ago (the body now, the finger at its previous pose) to
  * where it will be (the body's predicted pose, the finger now). */
-static void try_reversed(gcFinger *f, const gcHull *fh, const gcBody *b, int32_t part, const gcHull *h,
-                         int32_t sample, gcVec3 x, const gcTransform *fr, const gcTransform *fr_prev,
+static void try_reversed(gcFinger *f, const gcHull *fh, const gcBodyModel *bm, const gcBody *b, int32_t part,
+                         const gcHull *h, int32_t sample, gcVec3 x, const gcTransform *fr, const gcTransform *fr_prev,
                          const gcTransform *ff, const gcTransform *ff_prev, double dt) {
     if (has_contact_with(f, part, sample, 1)) return;
     gcVec3 v = gc_inv_transform_point(ff, gc_transform_point(fr, x)), go, n;
@@ -329,7 +336,7 @@ static void try_reversed(gcFinger *f, const gcHull *fh, const gcBody *b, int32_t
     c.state = GC_FINGER_STICK;
     c.go_local = go;
     c.normal_local = n;
-    gcSurface sf = body_surface(b, fh, h->radius);
+    gcSurface sf = body_surface(bm, fh, h->radius);
     if (update_contact(&sf, &c, v, dt)) f->contacts[f->num_contacts++] = c;
 }
 
@@ -342,13 +349,14 @@ static int outside_box(gcVec3 p, gcVec3 lo, gcVec3 hi, double pad) {
  * box corner on a palm wider than the box), and points along their edges (a can's side across
  * a palm), each with a god-object on the finger's surface. Without them a body smaller than
  * the finger's face would pass between its vertices (docs/physics.md "Area contacts"). */
-static void find_reversed_contacts(gcWorld *w, gcFinger *f, const gcHull *fh, double dt) {
+static void find_reversed_contacts(gcWorld *w, const gcFingerModel *fm, gcFinger *f, const gcHull *fh, double dt) {
+    const gcModel *model = w->model;
     gcTransform ff = finger_transform(f), ff_prev;
     ff_prev.R = f->R_prev;
     ff_prev.p = f->hip_prev;
     gcVec3 lo = gc_v3(INFINITY, INFINITY, INFINITY), hi = gc_neg(lo);
-    for (int s = 0; s < f->num_vertices; ++s) {
-        gcVec3 v = gc_finger_tip(f, s);
+    for (int s = 0; s < fm->num_vertices; ++s) {
+        gcVec3 v = gc_finger_tip(fm, f, s);
         lo = gc_v3(fmin(lo.x, v.x), fmin(lo.y, v.y), fmin(lo.z, v.z));
         hi = gc_v3(fmax(hi.x, v.x), fmax(hi.y, v.y), fmax(hi.z, v.z));
     }
@@ -358,13 +366,14 @@ static void find_reversed_contacts(gcWorld *w, gcFinger *f, const gcHull *fh, do
     double spacing = fh->min_width + 2.0 * fh->radius;
     for (int32_t bi = 0; bi < w->num_bodies && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++bi) {
         const gcBody *b = &w->bodies[bi];
+        const gcBodyModel *bm = &model->bodies[bi];
         if (!gc_aabb_overlap(lo, hi, b->state.aabb_min, b->state.aabb_max)) continue;
-        gcTransform fr = predicted_transform(b, dt), fr_prev = gc_body_transform(b);
-        for (int p = b->first_part; p < b->first_part + b->num_parts; ++p) {
-            const gcHull *h = &w->parts[p].hull;
+        gcTransform fr = predicted_transform(bm, b, dt), fr_prev = gc_body_transform(bm, &b->state);
+        for (int p = bm->first_part; p < bm->first_part + bm->num_parts; ++p) {
+            const gcHull *h = &model->parts[p].hull;
             for (int32_t j = 0; j < h->num_vertices && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++j) {
                 if (outside_box(gc_transform_point(&fr, h->vertices[j]), lo, hi, h->radius)) continue;
-                try_reversed(f, fh, b, p, h, j, h->vertices[j], &fr, &fr_prev, &ff, &ff_prev, dt);
+                try_reversed(f, fh, bm, b, p, h, j, h->vertices[j], &fr, &fr_prev, &ff, &ff_prev, dt);
             }
             for (int e = 0; e < h->num_edges && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++e) {
                 gcVec3 a = h->vertices[h->edges[2 * e]], c = h->vertices[h->edges[2 * e + 1]];
@@ -380,7 +389,7 @@ static void find_reversed_contacts(gcWorld *w, gcFinger *f, const gcHull *fh, do
                     double t = (double)(k + 1) / (double)(n + 1);
                     gcVec3 x = gc_madd(a, gc_sub(c, a), t);
                     if (outside_box(gc_transform_point(&fr, x), lo, hi, h->radius)) continue;
-                    try_reversed(f, fh, b, p, h, h->num_vertices + e * GC_EDGE_SAMPLES + k, x, &fr, &fr_prev, &ff,
+                    try_reversed(f, fh, bm, b, p, h, h->num_vertices + e * GC_EDGE_SAMPLES + k, x, &fr, &fr_prev, &ff,
                                  &ff_prev, dt);
                 }
             }
@@ -412,7 +421,8 @@ static double twist_angle(const gcFinger *f, const gcFingerContact *c, const gcM
 /* The twist's friction circle, as steps 3-4 for the god-object: the spring k rho^2 twist holds
  * while |twist| <= mu_s depth / rho (the torque mu_s F_n rho, F_n = k depth); past it the
  * god-direction slips to mu_d depth / rho behind the finger's, and sticks again inside that. */
-static void update_twist(const gcFinger *f, const gcBody *b, gcFingerContact *c, int fresh) {
+static void update_twist(const gcFingerModel *fm, const gcFinger *f, const gcBodyModel *bm, const gcBody *b,
+                         gcFingerContact *c, int fresh) {
     gcVec3 n = gc_mat3_mul_vec(&b->state.R, c->normal_local);
     if (fresh) {
         double best = 2.0;
@@ -429,7 +439,7 @@ static void update_twist(const gcFinger *f, const gcBody *b, gcFingerContact *c,
         c->twist_state = GC_FINGER_STICK;
         return;
     }
-    double limit_s = b->mu_s * c->depth / f->torsion, limit_d = b->mu_d * c->depth / f->torsion;
+    double limit_s = bm->mu_s * c->depth / fm->torsion, limit_d = bm->mu_d * c->depth / fm->torsion;
     int slipping = c->twist_state == GC_FINGER_STICK ? fabs(phi) > limit_s
                                                      : fabs(phi) > limit_d * (1.0 + GC_CIRCLE_TOLERANCE);
     if (slipping) {
@@ -444,23 +454,26 @@ static void update_twist(const gcFinger *f, const gcBody *b, gcFingerContact *c,
 }
 
 static void finger_update(gcWorld *w, int32_t id, double dt) {
+    const gcModel *model = w->model;
     gcFinger *f = &w->fingers[id];
-    const gcHull *fh = &w->finger_hulls[id];
+    const gcFingerModel *fm = &model->fingers[id];
+    const gcHull *fh = &model->finger_hulls[id];
     f->hip_velocity = gc_scale(gc_sub(f->hip, f->hip_prev), 1.0 / dt);
-    if (f->num_vertices) f->hip_angular_velocity = gc_scale(turn_between(f->q_prev, f->q), 1.0 / dt);
+    if (fm->num_vertices) f->hip_angular_velocity = gc_scale(turn_between(f->q_prev, f->q), 1.0 / dt);
     /* Existing contacts, compacting away the ones that ended. */
     int kept = 0;
     for (int i = 0; i < f->num_contacts; ++i) {
         gcFingerContact *c = &f->contacts[i]; /* updated in place; a lost one is overwritten */
-        const gcPart *part = &w->parts[c->part];
+        const gcPart *part = &model->parts[c->part];
         const gcBody *b = &w->bodies[part->body];
-        gcTransform fr = f->num_vertices ? predicted_transform(b, dt) : gc_body_transform(b);
+        const gcBodyModel *bm = &model->bodies[part->body];
+        gcTransform fr = fm->num_vertices ? predicted_transform(bm, b, dt) : gc_body_transform(bm, &b->state);
         int alive;
         if (!c->reversed) {
-            gcSurface sf = body_surface(b, &part->hull, f->radius);
-            alive = update_contact(&sf, c, gc_inv_transform_point(&fr, gc_finger_tip(f, c->sample)), dt);
+            gcSurface sf = body_surface(bm, &part->hull, fm->radius);
+            alive = update_contact(&sf, c, gc_inv_transform_point(&fr, gc_finger_tip(fm, f, c->sample)), dt);
         } else {
-            gcSurface sf = body_surface(b, fh, part->hull.radius);
+            gcSurface sf = body_surface(bm, fh, part->hull.radius);
             gcTransform ff = finger_transform(f);
             gcVec3 v = gc_inv_transform_point(&ff, gc_transform_point(&fr, c->body_point_local));
             alive = update_contact(&sf, c, v, dt);
@@ -472,19 +485,20 @@ static void finger_update(gcWorld *w, int32_t id, double dt) {
     }
     int existing = kept;
     f->num_contacts = kept;
-    if (!f->num_vertices) {
-        find_new_contacts(w, f, 0, GC_MAX_CONTACTS_PER_FINGER, dt);
-        if (f->torsion > 0.0)
-            for (int i = 0; i < f->num_contacts; ++i)
-                update_twist(f, &w->bodies[w->parts[f->contacts[i].part].body], &f->contacts[i], i >= existing);
-        blend_seams(w, f);
+    if (!fm->num_vertices) {
+        find_new_contacts(w, fm, f, 0, GC_MAX_CONTACTS_PER_FINGER, dt);
+        for (int i = 0; i < f->num_contacts && fm->torsion > 0.0; ++i) {
+            int32_t body = model->parts[f->contacts[i].part].body;
+            update_twist(fm, f, &model->bodies[body], &w->bodies[body], &f->contacts[i], i >= existing);
+        }
+        blend_seams(w, fm, f);
         return;
     }
     /* A convex finger: every hull vertex is a fingertip of its own, and every body vertex inside
      * the finger a reversed one (docs/physics.md "Area contacts"). */
-    for (int32_t s = 0; s < f->num_vertices && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++s)
-        find_new_contacts(w, f, s, GC_MAX_FINGER_CONTACTS, dt);
-    find_reversed_contacts(w, f, fh, dt);
+    for (int32_t s = 0; s < fm->num_vertices && f->num_contacts < GC_MAX_FINGER_CONTACTS; ++s)
+        find_new_contacts(w, fm, f, s, GC_MAX_FINGER_CONTACTS, dt);
+    find_reversed_contacts(w, fm, f, fh, dt);
     /* Its points are a patch, not parts of one surface seen twice: no seam blend, each spring
      * whole (docs/physics.md "Renderers and finger shapes"). */
     for (int i = 0; i < f->num_contacts; ++i) f->contacts[i].share = 1.0;
@@ -553,43 +567,47 @@ static void patch_corners(double (*uv)[2], int n, float *out) {
  * normal force (the chapter's pressure centroid), the torque of its contacts about the HIP, and
  * slip when any of them slips. */
 static void finger_outputs(gcWorld *w, int32_t id) {
+    const gcModel *model = w->model;
     gcFinger *f = &w->fingers[id];
+    const gcFingerModel *fm = &model->fingers[id];
     gcVec3 force = gc_v3(0, 0, 0), torque = gc_v3(0, 0, 0), centroid = gc_v3(0, 0, 0);
     double deepest = -1.0, weight = 0.0;
     int slipping = 0;
     gcVec3 surface[GC_MAX_FINGER_CONTACTS]; /* a convex finger's contact points on the bodies */
     f->god_object = f->hip;
     f->normal = gc_v3(0, 0, 0);
-    if (f->num_vertices) memset(f->patch, 0, sizeof f->patch); /* a sphere's stays zero (add_finger) */
+    if (fm->num_vertices) memset(f->patch, 0, sizeof f->patch); /* a sphere's stays zero (add_finger) */
     f->contact_body = -1;
     f->state = GC_FINGER_FREE;
     for (int i = 0; i < f->num_contacts; ++i) {
         const gcFingerContact *c = &f->contacts[i];
-        const gcBody *b = &w->bodies[w->parts[c->part].body];
-        gcTransform fr = gc_body_transform(b);
+        const int32_t body = model->parts[c->part].body;
+        const gcBody *b = &w->bodies[body];
+        const gcBodyModel *bm = &model->bodies[body];
+        gcTransform fr = gc_body_transform(bm, &b->state);
         gcVec3 tip, tip_velocity, go;
-        gc_finger_contact_ends(f, c, &fr, &tip, &tip_velocity, &go);
+        gc_finger_contact_ends(fm, f, c, &fr, &tip, &tip_velocity, &go);
         /* A sphere finger's springs on one body's parts weighted at seams (blend_seams); a convex
          * finger's share is 1. */
-        double k = f->stiffness * c->share, damping = f->damping * c->share;
+        double k = fm->stiffness * c->share, damping = fm->damping * c->share;
         gcVec3 stretch = gc_sub(go, tip), dv = gc_v3(0, 0, 0);
         force = gc_madd(force, stretch, k);
-        if (f->damping > 0.0) {
+        if (fm->damping > 0.0) {
             /* Damping on the HIP vs the body point at the god-object. */
-            gcVec3 v_point = b->is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(go, b->state.com)));
+            gcVec3 v_point = bm->is_static ? gc_v3(0, 0, 0) : gc_add(b->state.v, gc_cross(b->state.w, gc_sub(go, b->state.com)));
             dv = gc_sub(v_point, tip_velocity);
             force = gc_madd(force, dv, damping);
         }
-        if (f->torsion > 0.0) { /* the soft fingertip's twist spring, on the pose the body reached */
+        if (fm->torsion > 0.0) { /* the soft fingertip's twist spring, on the pose the body reached */
             gcVec3 n = gc_mat3_mul_vec(&b->state.R, c->normal_local);
-            torque = gc_madd(torque, n, -k * f->torsion * f->torsion * twist_angle(f, c, &b->state.R, n));
+            torque = gc_madd(torque, n, -k * fm->torsion * fm->torsion * twist_angle(f, c, &b->state.R, n));
         }
-        if (f->num_vertices) {
+        if (fm->num_vertices) {
             gcVec3 fc = gc_madd(gc_scale(stretch, k), dv, damping);
             torque = gc_add(torque, gc_cross(gc_sub(go, f->hip), fc));
             centroid = gc_madd(centroid, go, c->depth);
             /* on the body's surface: a fingertip centre less the radius, or the body's vertex */
-            surface[i] = c->reversed ? go : gc_madd(go, gc_finger_point_normal(f, c, &b->state.R), -f->radius);
+            surface[i] = c->reversed ? go : gc_madd(go, gc_finger_point_normal(f, c, &b->state.R), -fm->radius);
             weight += c->depth;
             slipping |= c->state == GC_FINGER_SLIP;
         }
@@ -597,21 +615,21 @@ static void finger_outputs(gcWorld *w, int32_t id) {
             deepest = c->depth;
             f->god_object = go;
             f->normal = gc_finger_point_normal(f, c, &b->state.R);
-            f->contact_body = w->parts[c->part].body;
+            f->contact_body = model->parts[c->part].body;
             f->state = c->state;
         }
     }
-    if (f->num_vertices && f->num_contacts) {
+    if (fm->num_vertices && f->num_contacts) {
         if (weight > 0.0) f->god_object = gc_scale(centroid, 1.0 / weight);
         f->state = slipping ? GC_FINGER_SLIP : GC_FINGER_STICK;
         /* The patch on the reported body, about the analysis's contact point GO - radius normal
          * (a unit normal always, from the deepest contact; checked so that no patch is ever NaN). */
-        gcVec3 n_in = gc_neg(f->normal), t1, t2, p = gc_madd(f->god_object, f->normal, -f->radius);
+        gcVec3 n_in = gc_neg(f->normal), t1, t2, p = gc_madd(f->god_object, f->normal, -fm->radius);
         tangent_axes(n_in, &t1, &t2);
         double uv[GC_MAX_FINGER_CONTACTS][2];
         int m = 0;
         for (int i = 0; i < f->num_contacts && gc_dot(n_in, n_in) > 0.5; ++i) {
-            if (w->parts[f->contacts[i].part].body != f->contact_body) continue;
+            if (model->parts[f->contacts[i].part].body != f->contact_body) continue;
             gcVec3 r = gc_sub(surface[i], p);
             uv[m][0] = gc_dot(r, t1), uv[m][1] = gc_dot(r, t2), ++m;
         }
@@ -626,17 +644,19 @@ static void finger_outputs(gcWorld *w, int32_t id) {
 }
 
 void gc_xfca_update(gcWorld *w, double dt) {
+    const gcModel *model = w->model;
     for (int32_t i = 0; i < w->num_fingers; ++i) {
-        if (w->fingers[i].renderer == GC_RENDERER_CURSOR)
-            gc_cursor_finger_update(w, &w->fingers[i], dt);
+        if (model->fingers[i].renderer == GC_RENDERER_CURSOR)
+            gc_cursor_finger_update(w, i, dt);
         else
             finger_update(w, i, dt);
     }
 }
 
 void gc_xfca_outputs(gcWorld *w) {
+    const gcModel *model = w->model;
     for (int32_t i = 0; i < w->num_fingers; ++i) {
-        if (w->fingers[i].renderer == GC_RENDERER_CURSOR)
+        if (model->fingers[i].renderer == GC_RENDERER_CURSOR)
             gc_cursor_finger_outputs(w, i);
         else
             finger_outputs(w, i);
