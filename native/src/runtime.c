@@ -145,6 +145,7 @@ static void runtime_free_memory(gcRuntime *rt) {
     free(rt->chain);
     free(rt->device_force);
     free(rt->follow);
+    free(rt->device_finger);
     free(rt->shown.bodies);
     free(rt->shown.fingers);
     free(rt->ostate);
@@ -190,10 +191,11 @@ static gcRuntime *runtime_alloc(const gcWorld *w) {
     rt->chain = rt_calloc(rt, nb, sizeof(int32_t));
     rt->device_force = rt_calloc(rt, nf * 3, sizeof(double));
     rt->follow = rt_calloc(rt, nf, sizeof(gcHipFollow));
+    rt->device_finger = rt_calloc(rt, nf, sizeof(gcRtDeviceFinger));
     rt->shown.bodies = rt_calloc(rt, nb, sizeof(gcBodyState));
     rt->shown.fingers = rt_calloc(rt, nf, sizeof(gcFinger));
     rt->ostate = rt_calloc(rt, nb, 1);
-    ok &= rt->hstate && rt->last_touch && rt->chain && rt->device_force && rt->follow && rt->ostate &&
+    ok &= rt->hstate && rt->last_touch && rt->chain && rt->device_force && rt->follow && rt->device_finger && rt->ostate &&
           rt->shown.bodies && rt->shown.fingers;
     for (int i = 0; i < 3; ++i) {
         gcInputMsg *in = &rt->input_msg[i];
@@ -353,7 +355,9 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
     }
     memset(rt->device_force, 0, (size_t)rt->max_fingers * 3 * sizeof(double));
     rt->object_time_seen = w->time;
-    rt->prev_tick_ns = rt->enabled_since_ns = rt->last_input_ns = NEVER;
+    rt->prev_tick_ns = rt->last_input_ns = NEVER;
+    gc_force_gate_init(&rt->gate, rt->ramp_ns, 1);
+    memset(rt->device_finger, 0, (size_t)rt->max_fingers * sizeof *rt->device_finger);
     rt->was_stale = 1;
     rt->tick = 0;
     rt->object_phase = 0.0;

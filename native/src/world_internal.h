@@ -151,8 +151,8 @@ struct gcWorld {
     struct gcRuntime *runtime;
     /* Per-tick log for recorders (tick_log.c); NULL when off. */
     struct gcTickLog *tick_log;
-    /* Serial devices (serial_io.c): made with the world, freed before the runtime. */
-    struct gcSerialHub *serial;
+    /* Devices (device_hub.c): made with the world, so that one may attach before the runtime starts. */
+    struct gcDeviceHub *serial;
     /* NULL: a step moves every dynamic body. Otherwise only bodies with body_active[i] != 0
      * move; the others are stepped by another runtime thread and are immovable here (their
      * effective mass is marked invalid). Set only in the runtime's per-thread shadows. */
