@@ -8,10 +8,10 @@
  *   serial_device echo PORT                      the bare host: a C loop on PORT (raw mode) that
  *       answers the hello and every pose with a zero force frame at once. No runtime, no Python.
  *
- * Both use the core's codec (native/src/serial_io.c), so the two hosts differ only in what
+ * Both use the core's codec (native/src/device_codec.c), so the two hosts differ only in what
  * happens between a pose arriving and its force frame leaving. */
 #define _GNU_SOURCE
-#include "serial_io.h"
+#include "device_codec.h"
 
 #include <arpa/inet.h>
 #include <errno.h>

@@ -20,6 +20,7 @@ gcDeviceHub *gc_device_hub_create(const gcWorld *w) {
     h->max_fingers = w->def.max_fingers;
     h->slot = calloc(nf, sizeof *h->slot);
     h->owner = calloc(nf, sizeof *h->owner);
+    h->claim = calloc(nf, sizeof *h->claim);
     h->force_bits = calloc(n, sizeof *h->force_bits);
     h->go_bits = calloc(n, sizeof *h->go_bits);
     h->hip_bits = calloc(n, sizeof *h->hip_bits);
@@ -28,7 +29,8 @@ gcDeviceHub *gc_device_hub_create(const gcWorld *w) {
     h->sent_until_ns = calloc(nf, sizeof *h->sent_until_ns);
     h->driven = calloc(nf, sizeof *h->driven);
     h->recorded = calloc(n, sizeof *h->recorded);
-    if (!h->slot || !h->owner || !h->force_bits || !h->go_bits || !h->hip_bits || !h->sent_seq || !h->sent_bits ||
+    h->api_gate = calloc(nf, sizeof *h->api_gate);
+    if (!h->api_gate || !h->slot || !h->owner || !h->claim || !h->force_bits || !h->go_bits || !h->hip_bits || !h->sent_seq || !h->sent_bits ||
         !h->sent_until_ns || !h->driven || !h->recorded) {
         gc_device_hub_destroy(h);
         return NULL;
@@ -36,6 +38,7 @@ gcDeviceHub *gc_device_hub_create(const gcWorld *w) {
     for (size_t i = 0; i < nf; ++i) {
         triple_reset(&h->slot[i].triple);
         atomic_init(&h->owner[i], GC_HUB_OWNER_NONE);
+        gc_force_gate_init(&h->api_gate[i], 0, 0);
     }
     return h;
 }
@@ -46,6 +49,7 @@ void gc_device_hub_destroy(gcDeviceHub *h) {
     pthread_mutex_destroy(&h->api_write_mutex);
     free(h->slot);
     free(h->owner);
+    free(h->claim);
     free(h->force_bits);
     free(h->go_bits);
     free(h->hip_bits);
@@ -54,6 +58,7 @@ void gc_device_hub_destroy(gcDeviceHub *h) {
     free(h->sent_until_ns);
     free(h->driven);
     free(h->recorded);
+    free(h->api_gate);
     free(h);
 }
 
@@ -61,10 +66,14 @@ void gc_device_hub_destroy(gcDeviceHub *h) {
 
 int gc_device_hub_claim(gcDeviceHub *h, int offset, int n, int owner) {
     for (int i = offset; i < offset + n; ++i) {
-        int o = atomic_load_explicit(&h->owner[i], memory_order_relaxed);
+        int o = atomic_load_explicit(&h->owner[i], memory_order_acquire); /* after its last owner's release */
         if (o != GC_HUB_OWNER_NONE && o != owner) return 0;
     }
-    for (int i = offset; i < offset + n; ++i) atomic_store_explicit(&h->owner[i], owner, memory_order_release);
+    for (int i = offset; i < offset + n; ++i) {
+        if (atomic_load_explicit(&h->owner[i], memory_order_relaxed) == owner) continue;
+        atomic_fetch_add_explicit(&h->claim[i], 1, memory_order_relaxed); /* the samples before are not ours */
+        atomic_store_explicit(&h->owner[i], owner, memory_order_release);
+    }
     return 1;
 }
 
@@ -85,6 +94,7 @@ void gc_device_hub_write_hips(gcDeviceHub *h, int offset, int n, const double *p
         out->t = t;
         out->serial = ++s->writes;
         out->episode = episode;
+        out->claim = atomic_load_explicit(&h->claim[offset + k], memory_order_relaxed); /* ours: we claimed it */
         triple_publish(&s->triple);
     }
 }
@@ -94,7 +104,7 @@ int gc_device_hub_latest_hip(gcDeviceHub *h, int finger, gcDeviceSample *out) {
     int fresh;
     gcHipSlot *s = &h->slot[finger];
     *out = s->sample[triple_latest(&s->triple, &fresh)];
-    return out->serial != 0;
+    return out->serial != 0 && out->claim == atomic_load_explicit(&h->claim[finger], memory_order_acquire);
 }
 
 /* ---- tick out --------------------------------------------------------------------------- */
@@ -242,6 +252,38 @@ gcStatus gc_world_device_forces_sent(gcWorld *w, int offset, int count_, const d
     gcDeviceHub *h = w->serial;
     pthread_mutex_lock(&h->api_write_mutex);
     for (int i = 0; i < count_; ++i) gc_device_hub_sent(h, offset + i, &forces[3 * i], INT64_MAX);
+    pthread_mutex_unlock(&h->api_write_mutex);
+    return GC_OK;
+}
+
+gcStatus gc_world_device_forces(gcWorld *w, int offset, int count_, int enable, double *out) {
+    if (!w || !out || !w->serial) return GC_ERR_INVALID_ARGUMENT;
+    if (check_fingers(w, offset, count_)) {
+        gc_world_set_error(w, "finger_offset, count: fingers %d..%d are not all fingers of the world", offset,
+                           offset + count_ - 1);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    gcDeviceHub *h = w->serial;
+    for (int i = offset; i < offset + count_; ++i)
+        if (atomic_load_explicit(&h->owner[i], memory_order_acquire) != GC_HUB_OWNER_API) {
+            gc_world_set_error(w, "finger_offset, count: finger %d is not driven through push_device_hips", i);
+            return GC_ERR_INVALID_ARGUMENT;
+        }
+    memset(out, 0, 3 * (size_t)count_ * sizeof(double));
+    if (!w->runtime || !w->locked) return GC_ERR_NOT_RUNNING;
+    /* As a device thread answers a pose (device_threads.c send_forces): the latest tick's gated
+     * forces, zero for a stalled loop, through the fingers' own gate. */
+    int tick_enabled = 0;
+    int64_t now = clock_now_ns(), tick = gc_device_hub_read(h, offset, count_, out, NULL, NULL, &tick_enabled);
+    int ready = tick && now - tick <= GC_DEVICE_STALL_NS && tick_enabled;
+    pthread_mutex_lock(&h->api_write_mutex);
+    for (int i = 0; i < count_; ++i) {
+        gcForceGate *g = &h->api_gate[offset + i];
+        g->ramp_ns = h->ramp_ns;
+        if (g->enabled != (enable != 0)) gc_force_gate_enable(g, enable);
+        gc_force_gate_apply(gc_force_gate_gain(g, ready, now), INFINITY, &out[3 * i], &out[3 * i], 1);
+        gc_device_hub_sent(h, offset + i, &out[3 * i], INT64_MAX); /* until device_forces_sent says more */
+    }
     pthread_mutex_unlock(&h->api_write_mutex);
     return GC_OK;
 }

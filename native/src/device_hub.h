@@ -11,6 +11,7 @@
 #define GC_DEVICE_HUB_H
 
 #include "world_internal.h"
+#include "force_gate.h"
 #include "gc_sync.h"
 
 #include <pthread.h>
@@ -24,7 +25,8 @@ typedef struct gcDeviceSample {
     double hip[3];      /* scene metres */
     double t;           /* s, CLOCK_MONOTONIC when the device thread took it */
     uint64_t serial;    /* the finger's write count: 0 never written */
-    uint32_t episode;   /* the device's connection count: a new one starts with a soft start */
+    uint32_t episode;   /* the device's connection: a new one starts with a soft start */
+    uint32_t claim;     /* the finger's claim it was written under: an older owner's is not taken */
 } gcDeviceSample;
 
 typedef struct gcHipSlot {
@@ -39,7 +41,11 @@ typedef struct gcDeviceHub {
     /* HIPs in. owner: GC_HUB_OWNER_NONE, a device id, or GC_HUB_OWNER_API. */
     gcHipSlot *slot;
     _Atomic int *owner;
+    _Atomic uint32_t *claim;         /* per finger: +1 each time an owner claims it */
+    _Atomic uint32_t connections;    /* every device connection so far: each its own episode */
     pthread_mutex_t api_write_mutex; /* among API writers of slots only; device threads never take it */
+    gcForceGate *api_gate;           /* per finger a device read elsewhere drives: its force gate */
+    int64_t ramp_ns;                 /* the running runtime's ramp_time (set by gc_world_start) */
     /* Tick out (sequence lock; relaxed atomics so that readers never race). */
     _Atomic uint64_t seq;
     _Atomic int64_t tick_ns;
@@ -91,6 +97,10 @@ void gc_device_hub_sent(gcDeviceHub *hub, int finger, const double f[3], int64_t
  * sent; else a copy in which each such finger has what its device was last sent, or zero once
  * that frame's TTL is over. Never blocks, never allocates. */
 const double *gc_device_hub_recorded_forces(gcDeviceHub *hub, const double *device_force, int num_fingers);
+
+/* How long a device may go without a haptic tick before its forces are zeroed (a stalled loop):
+ * gcSerialDef.stall_timeout's default, for devices read elsewhere. */
+#define GC_DEVICE_STALL_NS 5000000LL
 
 /* device_threads.c: detaches every device, joining its thread (before the runtime is freed). */
 void gc_device_threads_stop_all(gcDeviceHub *hub);

@@ -68,7 +68,7 @@ typedef struct gcDeviceRun { /* the thread's own state */
     int64_t estop_sent_ns;
     int64_t last_pose_ns, last_tx_ns, last_hello_ns, last_publish_ns, last_drop_event_ns;
     gcForceGate gate;        /* enable, e-stop latch, ramp-in (s.enabled mirrors gate.enabled) */
-    uint32_t episode;        /* connections so far: each new one starts its fingers with a soft start */
+    uint32_t episode;        /* this connection's number in the hub: a new one starts its fingers with a soft start */
     uint64_t drops_reported, foreign_reported;
     /* UDP: where frames go (the configured address, then the pinned device's). */
     int datagram, pinned;
@@ -259,7 +259,7 @@ static void on_hello(gcDeviceRun *r, const gcFrame *fr) {
     r->unit_scale = units == 1 ? 1e-3 : 1.0;
     if (s->state != GC_SERIAL_STREAMING) {
         emit(r->dev, GC_SERIAL_EV_CONNECTED, n);
-        r->episode++; /* its first pose starts with a soft start */
+        r->episode = atomic_fetch_add_explicit(&r->dev->hub->connections, 1, memory_order_relaxed) + 1;
     }
     s->state = GC_SERIAL_STREAMING;
     r->have_rx_seq = 0; /* a restarted device may start its sequence anywhere */
@@ -292,7 +292,8 @@ static void on_pose(gcDeviceRun *r, const gcFrame *fr, int64_t t_read) {
     if (s->state == GC_SERIAL_LOST) {
         emit(d, GC_SERIAL_EV_RECOVERED, 0);
         s->state = GC_SERIAL_STREAMING;
-        r->episode++; /* its fingers were let go meanwhile: a soft start back to the device */
+        /* Its fingers were let go meanwhile: a new episode, a soft start back to the device. */
+        r->episode = atomic_fetch_add_explicit(&d->hub->connections, 1, memory_order_relaxed) + 1;
     }
     /* A pose saying "e-stop latched" while forces are on: an ESTOP frame was lost on the way
      * (a device that has not yet taken up our ENABLE(1) may still say so for a moment). */

@@ -357,6 +357,7 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
     rt->object_time_seen = w->time;
     rt->prev_tick_ns = rt->last_input_ns = NEVER;
     gc_force_gate_init(&rt->gate, rt->ramp_ns, 1);
+    rt->serial->ramp_ns = rt->ramp_ns; /* devices read elsewhere ramp in as long (gc_world_device_forces) */
     memset(rt->device_finger, 0, (size_t)rt->max_fingers * sizeof *rt->device_finger);
     rt->was_stale = 1;
     rt->tick = 0;

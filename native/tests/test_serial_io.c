@@ -1072,6 +1072,55 @@ static void test_device_beside_api_writer(void) {
     close(sv[0]), close(sv[1]);
 }
 
+/* A device read in Python (push_device_hips) pressing 5 mm into the ground: its forces
+ * (gc_world_device_forces) come from the haptic tick through the same gate as a device
+ * thread's: zero until enabled, then the runtime's device force (5 N here, no ramp), zero again
+ * once disabled; only for fingers driven that way. */
+static void test_device_forces_for_api_fingers(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    double pts[24];
+    for (int i = 0; i < 8; ++i) {
+        pts[3 * i] = (i & 1) ? 0.1 : -0.1;
+        pts[3 * i + 1] = (i & 2) ? 0.1 : -0.1;
+        pts[3 * i + 2] = (i & 4) ? 0.0 : -0.2; /* top face at z = 0 */
+    }
+    gcPartDef part = {pts, 8, 0.0};
+    gcBodyDef bd = gc_default_body_def();
+    bd.is_static = 1;
+    int32_t ground, f;
+    GC_CHECK(gc_world_add_body(w, &bd, &part, 1, &ground) == GC_OK, "ground");
+    gcFingerDef fd = gc_default_finger_def(); /* radius 8 mm, 1000 N/m */
+    fd.position[2] = 0.008;
+    for (int i = 0; i < 2; ++i) GC_CHECK(gc_world_add_finger(w, &fd, &f) == GC_OK, "finger");
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    rd.ramp_time = 0.0;
+    rd.watchdog_timeout = 0.5; /* a loaded test machine: this test is about the gate */
+    double out[3] = {1, 1, 1};
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start");
+    GC_CHECK(gc_world_device_forces(w, 0, 1, 1, out) == GC_ERR_INVALID_ARGUMENT &&
+                 strstr(gc_world_last_error(w), "push_device_hips"),
+             "a finger no device read elsewhere drives: %s", gc_world_last_error(w));
+    const double press[3] = {0, 0, 0.003}; /* 5 mm into the ground */
+    double sp[6] = {0};
+    gcSnapshot s;
+    memset(&s, 0, sizeof s);
+    s.spring_forces = sp;
+    WAIT_UNTIL((gc_world_push_device_hips(w, 0, 1, press), gc_world_snapshot(w, &s), fabs(sp[2] - 5.0) < 1e-6));
+    GC_CHECK(fabs(sp[2] - 5.0) < 1e-6, "spring %g N", sp[2]);
+    GC_CHECK(gc_world_device_forces(w, 0, 1, 0, out) == GC_OK && out[0] == 0 && out[1] == 0 && out[2] == 0,
+             "zero until enabled: %g", out[2]);
+    WAIT_UNTIL((gc_world_device_forces(w, 0, 1, 1, out), fabs(out[2] - 5.0) < 1e-6));
+    GC_CHECK(fabs(out[2] - 5.0) < 1e-6 && out[0] == 0 && out[1] == 0, "enabled: the tick's device force, %g N",
+             out[2]);
+    GC_CHECK(gc_world_device_forces(w, 0, 1, 0, out) == GC_OK && out[2] == 0, "disabled: zero again");
+    gc_world_stop(w);
+    GC_CHECK(gc_world_device_forces(w, 0, 1, 1, out) == GC_ERR_NOT_RUNNING && out[2] == 0, "stopped: zero");
+    gc_world_destroy(w);
+}
+
 int main(void) {
     test_crc_and_cobs();
     test_force_gate();
@@ -1084,6 +1133,7 @@ int main(void) {
     test_protocol_rules();
     test_attach_before_start();
     test_device_beside_api_writer();
+    test_device_forces_for_api_fingers();
     test_udp();
     test_peer_gone_before_hello();
     return gc_test_summary("test_serial_io");
