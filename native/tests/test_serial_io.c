@@ -270,7 +270,7 @@ static void test_device_thread(void) {
     /* Pressing 2 mm into the ground (HIP z = -0.002, GO at the radius): 10 N of spring,
      * but nothing reaches the device before enable. */
     stream(&dev, 150, 0.098);
-    double sp[3] = {0, 0, 0}; /* the soft start walks the 5 cm down at 0.1 m/s */
+    double sp[3] = {0, 0, 0}; /* the soft start walks the 5 cm down at 0.2 m/s */
     WAIT_UNTIL((stream(&dev, 10, 0.098), spring(w, sp), fabs(sp[2] - 10.0) < 0.5));
     GC_CHECK(fabs(sp[2] - 10.0) < 0.5, "spring force %.3f N, expected k * 10 mm = 10 N", sp[2]);
     GC_CHECK(dev.forces > 100 && force_z(&dev) == 0.0, "%d force frames, z %.3f before enable", dev.forces, force_z(&dev));
@@ -771,7 +771,7 @@ static void test_attach_before_start(void) {
     gcSnapshot hs;
     memset(&hs, 0, sizeof hs);
     hs.hips = hip;
-    WAIT_UNTIL((stream(&dev, 5, 0.03), gc_world_snapshot(w, &hs), fabs(hip[2] - 0.03) < 1e-7)); /* soft start: 0.3 s */
+    WAIT_UNTIL((stream(&dev, 5, 0.03), gc_world_snapshot(w, &hs), fabs(hip[2] - 0.03) < 1e-7)); /* soft start: 0.15 s */
     GC_CHECK(fabs(hip[2] - 0.03) < 1e-7, "the device drives the finger once running: z %g", hip[2]);
     gc_world_stop(w);
     gc_world_destroy(w);
@@ -845,7 +845,7 @@ static void test_udp(void) {
     udp_send(dev, host_port, GC_MSG_HELLO_DEVICE, 0, hello, 12);
     uint16_t seq = 1;
     for (int i = 0; i < 50; ++i, sleep_ms(1)) {
-        udp_pose(dev, host_port, seq++, 0.01); /* centimetres: the soft start walks there in 0.2 s */
+        udp_pose(dev, host_port, seq++, 0.01); /* centimetres: the soft start walks there in 0.1 s */
         udp_pose(other, host_port, (uint16_t)(1000 + i), 0.9); /* a second sender: ignored */
     }
     udp_pose(dev, host_port, (uint16_t)(seq + 1), 0.02); /* newest */
