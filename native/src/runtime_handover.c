@@ -127,13 +127,14 @@ void gc_rt_haptic_tick(gcRuntime *rt, int64_t now) {
         const int scripted = gc_hip_track_drives(rt->track, i);
         gcRtDeviceFinger *df = &rt->device_finger[i];
         double max_speed = rt->def.max_hip_speed;
-        if (df->soft_start) max_speed = max_speed > 0 ? fmin(max_speed, GC_HIP_SOFT_START_SPEED) : GC_HIP_SOFT_START_SPEED;
-        const gcHipFollow walk = rt->follow[i];
+        if (df->soft_start)
+            max_speed = max_speed > 0 ? fmin(max_speed, GC_HIP_SOFT_START_SPEED) : GC_HIP_SOFT_START_SPEED;
+        gcHipFollow walk; /* before this tick's step: the same walk without the soft speed */
+        if (df->soft_start) walk = rt->follow[i];
         gcVec3 hip = scripted ? gc_hip_track_sample(rt->track, i, t_next)
                               : gc_hip_follow_advance(&rt->follow[i], hw->fingers[i].hip, dt, max_speed);
         if (df->soft_start && !scripted) { /* over once the soft speed no longer holds the walk back */
-            gcHipFollow free_walk = walk;
-            gcVec3 unheld = gc_hip_follow_advance(&free_walk, hw->fingers[i].hip, dt, rt->def.max_hip_speed);
+            gcVec3 unheld = gc_hip_follow_advance(&walk, hw->fingers[i].hip, dt, rt->def.max_hip_speed);
             if (unheld.x == hip.x && unheld.y == hip.y && unheld.z == hip.z) df->soft_start = 0;
         }
         hw->fingers[i].hip = hip;
