@@ -916,12 +916,14 @@ static void test_force_gate(void) {
              "TTL: the host's, at most the device's, at most 16 bits");
 }
 
-/* The HIPs of a manual-clock run, one tick at a time. */
+/* Finger 0's HIP (of a world with at most 8 fingers). */
 static void hip_of(gcWorld *w, double hip[3]) {
+    double all[3 * 8];
     gcSnapshot s;
     memset(&s, 0, sizeof s);
-    s.hips = hip;
+    s.hips = all;
     gc_world_snapshot(w, &s);
+    memcpy(hip, all, 3 * sizeof(double));
 }
 
 /* A device's first sample 5 cm from the HIP: the HIP walks there on a straight line at exactly
