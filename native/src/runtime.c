@@ -13,6 +13,8 @@
  * tells the dynamics which bodies the shadow moves. Nothing is locked between the threads:
  * every channel is a triple buffer (latest value, wait-free on both sides, C11 atomics):
  *   input   push_hips() -> haptic       latest HIPs (producers serialise among themselves)
+ *   devices each finger's device -> haptic  its latest sample, a triple buffer a finger
+ *           (device_hub.c: device threads and push_device_hips write them, no lock)
  *   haptic  haptic -> object manager    finger springs, adoption wishes, handed-back bodies
  *   object  object manager -> haptic    its bodies, and the bodies it released
  *   display haptic -> gc_world_snapshot everything a display needs, one haptic tick's view
