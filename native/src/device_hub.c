@@ -36,7 +36,7 @@ gcDeviceHub *gc_device_hub_create(const gcWorld *w) {
         return NULL;
     }
     for (size_t i = 0; i < nf; ++i) {
-        triple_reset(&h->slot[i].triple);
+        gc_triple_reset(&h->slot[i].triple);
         atomic_init(&h->owner[i], GC_HUB_OWNER_NONE);
         gc_force_gate_init(&h->api_gate[i], 0, 0);
     }
@@ -86,7 +86,7 @@ void gc_device_hub_release(gcDeviceHub *h, int offset, int n, int owner) {
 }
 
 void gc_device_hub_write_hips(gcDeviceHub *h, int offset, int n, const double *positions, uint32_t episode) {
-    const double t = (double)clock_now_ns() / NS_PER_S;
+    const double t = (double)gc_clock_now_ns() / GC_NS_PER_S;
     for (int k = 0; k < n; ++k) {
         gcHipSlot *s = &h->slot[offset + k];
         gcDeviceSample *out = &s->sample[s->triple.back];
@@ -95,7 +95,7 @@ void gc_device_hub_write_hips(gcDeviceHub *h, int offset, int n, const double *p
         out->serial = ++s->writes;
         out->episode = episode;
         out->claim = atomic_load_explicit(&h->claim[offset + k], memory_order_relaxed); /* ours: we claimed it */
-        triple_publish(&s->triple);
+        gc_triple_publish(&s->triple);
     }
 }
 
@@ -103,7 +103,7 @@ int gc_device_hub_latest_hip(gcDeviceHub *h, int finger, gcDeviceSample *out) {
     if (atomic_load_explicit(&h->owner[finger], memory_order_acquire) == GC_HUB_OWNER_NONE) return 0;
     int fresh;
     gcHipSlot *s = &h->slot[finger];
-    *out = s->sample[triple_latest(&s->triple, &fresh)];
+    *out = s->sample[gc_triple_latest(&s->triple, &fresh)];
     return out->serial != 0 && out->claim == atomic_load_explicit(&h->claim[finger], memory_order_acquire);
 }
 
@@ -115,16 +115,16 @@ void gc_device_hub_tick(gcDeviceHub *h, const gcWorld *hap, const double *device
     atomic_thread_fence(memory_order_release);
     for (int i = 0; i < hap->num_fingers; ++i) {
         const gcFinger *f = &hap->fingers[i];
-        for (int c = 0; c < 3; ++c) store_double(&h->force_bits[3 * i + c], device_force[3 * i + c]);
-        store_double(&h->go_bits[3 * i], f->god_object.x);
-        store_double(&h->go_bits[3 * i + 1], f->god_object.y);
-        store_double(&h->go_bits[3 * i + 2], f->god_object.z);
-        store_double(&h->hip_bits[3 * i], f->hip.x);
-        store_double(&h->hip_bits[3 * i + 1], f->hip.y);
-        store_double(&h->hip_bits[3 * i + 2], f->hip.z);
+        for (int c = 0; c < 3; ++c) gc_atomic_store_double(&h->force_bits[3 * i + c], device_force[3 * i + c]);
+        gc_atomic_store_double(&h->go_bits[3 * i], f->god_object.x);
+        gc_atomic_store_double(&h->go_bits[3 * i + 1], f->god_object.y);
+        gc_atomic_store_double(&h->go_bits[3 * i + 2], f->god_object.z);
+        gc_atomic_store_double(&h->hip_bits[3 * i], f->hip.x);
+        gc_atomic_store_double(&h->hip_bits[3 * i + 1], f->hip.y);
+        gc_atomic_store_double(&h->hip_bits[3 * i + 2], f->hip.z);
     }
     atomic_store_explicit(&h->tick_ns, t, memory_order_relaxed);
-    store_double(&h->tick_time_bits, hap->time);
+    gc_atomic_store_double(&h->tick_time_bits, hap->time);
     atomic_store_explicit(&h->tick_enabled, enabled, memory_order_relaxed);
     atomic_store_explicit(&h->seq, s + 2, memory_order_release);
 }
@@ -145,7 +145,7 @@ double gc_device_hub_session_time(gcDeviceHub *h, int64_t t) {
         int64_t tick = atomic_load_explicit(&h->tick_ns, memory_order_acquire);
         double time = load_double_acquire(&h->tick_time_bits);
         if (atomic_load_explicit(&h->seq, memory_order_relaxed) != s1) continue;
-        return s1 ? time + (double)(t - tick) / NS_PER_S : -1.0;
+        return s1 ? time + (double)(t - tick) / GC_NS_PER_S : -1.0;
     }
 }
 
@@ -155,9 +155,9 @@ int64_t gc_device_hub_read(gcDeviceHub *h, int offset, int n, double *force, dou
         uint64_t s1 = atomic_load_explicit(&h->seq, memory_order_acquire);
         if (s1 & 1) continue;
         for (int k = 3 * offset; k < 3 * (offset + n); ++k) {
-            if (force) force[k - 3 * offset] = load_double(&h->force_bits[k]);
-            if (go) go[k - 3 * offset] = load_double(&h->go_bits[k]);
-            if (hip) hip[k - 3 * offset] = load_double(&h->hip_bits[k]);
+            if (force) force[k - 3 * offset] = gc_atomic_load_double(&h->force_bits[k]);
+            if (go) go[k - 3 * offset] = gc_atomic_load_double(&h->go_bits[k]);
+            if (hip) hip[k - 3 * offset] = gc_atomic_load_double(&h->hip_bits[k]);
         }
         int64_t t = atomic_load_explicit(&h->tick_ns, memory_order_relaxed);
         int e = atomic_load_explicit(&h->tick_enabled, memory_order_relaxed);
@@ -175,7 +175,7 @@ void gc_device_hub_sent(gcDeviceHub *h, int finger, const double f[3], int64_t u
     uint32_t s = atomic_load_explicit(&h->sent_seq[finger], memory_order_relaxed);
     atomic_store_explicit(&h->sent_seq[finger], s + 1, memory_order_relaxed);
     atomic_thread_fence(memory_order_release);
-    for (int c = 0; c < 3; ++c) store_double(&h->sent_bits[3 * finger + c], f[c]);
+    for (int c = 0; c < 3; ++c) gc_atomic_store_double(&h->sent_bits[3 * finger + c], f[c]);
     atomic_store_explicit(&h->sent_until_ns[finger], until_ns, memory_order_relaxed);
     atomic_store_explicit(&h->sent_seq[finger], s + 2, memory_order_release);
     if (!atomic_load_explicit(&h->driven[finger], memory_order_relaxed)) {
@@ -193,7 +193,7 @@ const double *gc_device_hub_recorded_forces(gcDeviceHub *h, const double *device
             memcpy(out, &device_force[3 * i], 3 * sizeof(double));
             continue;
         }
-        if (!now) now = clock_now_ns(); /* the device threads' clock, whatever clock the loop runs on */
+        if (!now) now = gc_clock_now_ns(); /* the device threads' clock, whatever clock the loop runs on */
         /* A writer preempted mid-store must not hold the haptic loop: after a few tries the
          * finger keeps what the previous tick recorded (a millisecond old). */
         for (int attempt = 0; attempt < 8; ++attempt) {
@@ -274,7 +274,7 @@ gcStatus gc_world_device_forces(gcWorld *w, int offset, int count_, int enable, 
     /* As a device thread answers a pose (device_threads.c send_forces): the latest tick's gated
      * forces, zero for a stalled loop, through the fingers' own gate. */
     int tick_enabled = 0;
-    int64_t now = clock_now_ns(), tick = gc_device_hub_read(h, offset, count_, out, NULL, NULL, &tick_enabled);
+    int64_t now = gc_clock_now_ns(), tick = gc_device_hub_read(h, offset, count_, out, NULL, NULL, &tick_enabled);
     int ready = tick && now - tick <= GC_DEVICE_STALL_NS && tick_enabled;
     pthread_mutex_lock(&h->api_write_mutex);
     for (int i = 0; i < count_; ++i) {

@@ -91,8 +91,8 @@ static void emit(gcSerialDevice *d, int code, int value) {
     unsigned tail = atomic_load_explicit(&d->ev_tail, memory_order_acquire);
     if (head - tail >= GC_SERIAL_EVENTS) return; /* full: the reader is away; the counters still say it */
     gcSerialEvent *e = &d->events[head % GC_SERIAL_EVENTS];
-    int64_t t = clock_now_ns();
-    e->time = (double)t / NS_PER_S;
+    int64_t t = gc_clock_now_ns();
+    e->time = (double)t / GC_NS_PER_S;
     e->session_time = gc_device_hub_session_time(d->hub, t);
     e->code = code;
     e->value = value;
@@ -124,7 +124,7 @@ static int send_frame(gcDeviceRun *r, uint8_t type, const uint8_t *payload, size
         r->s.write_errors++; /* full (EAGAIN) or gone: the frame is lost, the TTL covers it */
         return 0;
     }
-    r->last_tx_ns = clock_now_ns();
+    r->last_tx_ns = gc_clock_now_ns();
     return 1;
 }
 
@@ -139,7 +139,7 @@ static void send_enable(gcDeviceRun *r, int on) {
     send_frame(r, GC_MSG_ENABLE, &p, 1);
     if (on) {
         r->host_estop = 0; /* ENABLE(1) clears a latched e-stop, on both sides (the gate's: take_requests) */
-        r->enable_sent_ns = clock_now_ns();
+        r->enable_sent_ns = gc_clock_now_ns();
     } else {
         sent_clear(r->dev->hub, r->dev->def.finger_offset, r->dev->def.num_fingers);
     }
@@ -168,7 +168,7 @@ static void publish_stats(gcDeviceRun *r, int64_t t) {
     s->dropped = 0;
     for (int k = 0; k < GC_FRAME_RANGE; ++k) s->frame_errors[k] = r->dec.errors[k]; /* range: counted here */
     for (int k = 0; k < GC_FRAME_KINDS; ++k) s->dropped += s->frame_errors[k];
-    s->last_pose_age = r->last_pose_ns ? (double)(t - r->last_pose_ns) / NS_PER_S : -1.0;
+    s->last_pose_age = r->last_pose_ns ? (double)(t - r->last_pose_ns) / GC_NS_PER_S : -1.0;
     s->latency_p50_us = percentile_us(r->latency, r->latency_n, 0.50);
     s->latency_p99_us = percentile_us(r->latency, r->latency_n, 0.99);
     s->latency_max_us = r->latency_max_us;
@@ -203,7 +203,7 @@ static void send_forces(gcDeviceRun *r, uint16_t ack, int64_t t) {
     double f[3 * GC_PROTO_MAX_FINGERS];
     int tick_enabled = 0;
     int64_t tick = gc_device_hub_read(d->hub, d->def.finger_offset, m, f, NULL, NULL, &tick_enabled);
-    int stalled = !tick || t - tick > (int64_t)(d->def.stall_timeout * NS_PER_S);
+    int stalled = !tick || t - tick > (int64_t)(d->def.stall_timeout * GC_NS_PER_S);
     if (stalled != r->stalled) {
         if (stalled) r->s.stall_zeroes++;
         emit(d, GC_SERIAL_EV_STALL, stalled);
@@ -310,7 +310,7 @@ static void on_pose(gcDeviceRun *r, const gcFrame *fr, int64_t t_read) {
     r->rate_window_poses++;
     gc_device_hub_write_hips(d->hub, d->def.finger_offset, m, r->hips, r->episode);
     send_forces(r, fr->seq, t_read);
-    double us = (double)(clock_now_ns() - t_read) / 1e3;
+    double us = (double)(gc_clock_now_ns() - t_read) / 1e3;
     int bin = (int)us;
     r->latency[bin < GC_LATENCY_BINS ? bin : GC_LATENCY_BINS - 1]++;
     r->latency_n++;
@@ -353,7 +353,7 @@ static void take_requests(gcDeviceRun *r) {
         r->gate.estop = 0; /* the host's own e-stop is always an event */
         latch_estop(r, 0);
         r->host_estop = 1;
-        r->estop_sent_ns = clock_now_ns();
+        r->estop_sent_ns = gc_clock_now_ns();
     }
     int gen = atomic_load_explicit(&d->enable_generation, memory_order_acquire);
     if (gen != r->enable_generation) {
@@ -435,13 +435,13 @@ static void *device_main(void *arg) {
     uint8_t hello[2];
     gc_put16(hello, 0);
     send_frame(r, GC_MSG_HELLO_HOST, hello, 2);
-    r->last_hello_ns = r->rate_window_ns = clock_now_ns();
+    r->last_hello_ns = r->rate_window_ns = gc_clock_now_ns();
     uint8_t buf[4096];
     while (atomic_load_explicit(&d->run, memory_order_acquire)) {
         take_requests(r);
         struct pollfd pfd = {.fd = d->fd, .events = POLLIN};
         int pr = poll(&pfd, 1, 1);
-        int64_t t = clock_now_ns();
+        int64_t t = gc_clock_now_ns();
         if (r->datagram) {
             if (pr > 0) read_datagrams(r, buf, sizeof buf, t); /* no hang-up: silence is a loss */
         } else if (pr > 0 && (pfd.revents & POLLIN)) {
@@ -460,7 +460,7 @@ static void *device_main(void *arg) {
             struct timespec pause = {0, 2000000}; /* a hung-up descriptor polls ready at once */
             nanosleep(&pause, NULL);
         } else if (r->s.state == GC_SERIAL_STREAMING && r->last_pose_ns &&
-                   t - r->last_pose_ns > (int64_t)(d->def.lost_timeout * NS_PER_S)) {
+                   t - r->last_pose_ns > (int64_t)(d->def.lost_timeout * GC_NS_PER_S)) {
             lose(r, GC_SERIAL_LOST);
         }
         if (r->s.state == GC_SERIAL_LOST) let_go(r);
@@ -486,13 +486,13 @@ static void *device_main(void *arg) {
             r->last_drop_event_ns = t;
         }
         if (t - r->rate_window_ns >= GC_RATE_WINDOW_NS) {
-            r->s.pose_rate = (double)r->rate_window_poses * NS_PER_S / (double)(t - r->rate_window_ns);
+            r->s.pose_rate = (double)r->rate_window_poses * GC_NS_PER_S / (double)(t - r->rate_window_ns);
             r->rate_window_poses = 0;
             r->rate_window_ns = t;
         }
         if (t - r->last_publish_ns > 10000000LL) publish_stats(r, t);
     }
-    publish_stats(r, clock_now_ns());
+    publish_stats(r, gc_clock_now_ns());
     free(r);
     return NULL;
 }
@@ -612,7 +612,7 @@ gcStatus gc_world_attach_serial(gcWorld *w, int fd, const gcSerialDef *def, int3
     pthread_mutex_init(&d->stats_mutex, NULL);
     atomic_store(&d->run, 1);
     r->dev = d;
-    gc_force_gate_init(&r->gate, seconds_to_ns(def->ramp_time), 0);
+    gc_force_gate_init(&r->gate, gc_seconds_to_ns(def->ramp_time), 0);
     r->unit_scale = 1.0;
     if (def->udp_port) { /* frames go there until a HELLO_DEVICE pins the session to its sender */
         r->datagram = 1;

@@ -9,32 +9,32 @@
 #include <string.h>
 #include <time.h>
 
-#define NS_PER_S 1000000000LL
+#define GC_NS_PER_S 1000000000LL
 
-static inline int64_t clock_now_ns(void) {
+static inline int64_t gc_clock_now_ns(void) {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (int64_t)ts.tv_sec * NS_PER_S + ts.tv_nsec;
+    return (int64_t)ts.tv_sec * GC_NS_PER_S + ts.tv_nsec;
 }
 
-static inline void sleep_until_ns(int64_t t) {
-    struct timespec ts = {(time_t)(t / NS_PER_S), (long)(t % NS_PER_S)};
+static inline void gc_sleep_until_ns(int64_t t) {
+    struct timespec ts = {(time_t)(t / GC_NS_PER_S), (long)(t % GC_NS_PER_S)};
     while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL) == EINTR) {
     }
 }
 
-static inline int64_t seconds_to_ns(double s) { return (int64_t)(s * 1e9 + 0.5); }
+static inline int64_t gc_seconds_to_ns(double s) { return (int64_t)(s * 1e9 + 0.5); }
 
-static inline void count(_Atomic uint64_t *c) { atomic_fetch_add_explicit(c, 1, memory_order_relaxed); }
+static inline void gc_atomic_increment(_Atomic uint64_t *c) { atomic_fetch_add_explicit(c, 1, memory_order_relaxed); }
 
 /* A double in an atomic 64-bit slot (relaxed: the fences of a sequence lock order them). */
-static inline void store_double(_Atomic uint64_t *slot, double v) {
+static inline void gc_atomic_store_double(_Atomic uint64_t *slot, double v) {
     uint64_t bits;
     memcpy(&bits, &v, sizeof bits);
     atomic_store_explicit(slot, bits, memory_order_relaxed);
 }
 
-static inline double load_double(_Atomic uint64_t *slot) {
+static inline double gc_atomic_load_double(_Atomic uint64_t *slot) {
     uint64_t bits = atomic_load_explicit(slot, memory_order_relaxed);
     double v;
     memcpy(&v, &bits, sizeof v);
@@ -61,18 +61,18 @@ typedef struct gcTriple {
 } gcTriple;
 #define GC_TRIPLE_FRESH 4u
 
-static inline void triple_reset(gcTriple *t) {
+static inline void gc_triple_reset(gcTriple *t) {
     t->back = 0;
     t->front = 1;
     atomic_store_explicit(&t->middle, 2u, memory_order_relaxed);
 }
 
-static inline void triple_publish(gcTriple *t) {
+static inline void gc_triple_publish(gcTriple *t) {
     t->back = atomic_exchange_explicit(&t->middle, t->back | GC_TRIPLE_FRESH, memory_order_acq_rel) & 3u;
 }
 
 /* The reader's slot, now holding the latest publication; *fresh = 1 when it is new. */
-static inline unsigned triple_latest(gcTriple *t, int *fresh) {
+static inline unsigned gc_triple_latest(gcTriple *t, int *fresh) {
     *fresh = 0;
     if (atomic_load_explicit(&t->middle, memory_order_relaxed) & GC_TRIPLE_FRESH) {
         t->front = atomic_exchange_explicit(&t->middle, t->front, memory_order_acq_rel) & 3u;

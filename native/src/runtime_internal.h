@@ -39,7 +39,7 @@
 #define GC_OBJECT_MAX_STEP 0.002
 /* Period-error histogram of the haptic loop: 1 us bins, the last one collects the rest. */
 #define GC_JITTER_BINS 20000
-#define NEVER INT64_MIN
+#define GC_NEVER_NS INT64_MIN
 /* The haptic loop's wait (docs/runtime.md "Getting on time"): the scheduler time slice it
  * asks for at normal priority (Linux >= 6.12; the kernel's minimum), the stack it touches
  * before its first tick, and the most runtime memory it locks in RAM. */
@@ -51,10 +51,10 @@
 /* ---- messages --------------------------------------------------------------------- */
 
 /* A body's dynamic state, exactly (no re-derivation), so that a hand-over changes no bit. */
-typedef struct gcRtBody {
+typedef struct gcRuntimeBody {
     gcBodyState state;
     double pose[7];          /* the world's pose view of the body */
-} gcRtBody;
+} gcRuntimeBody;
 
 typedef struct gcInputMsg { /* push_hips -> haptic loop */
     int count;
@@ -65,24 +65,24 @@ typedef struct gcInputMsg { /* push_hips -> haptic loop */
     double *orientations;    /* 4 per finger (w x y z), as pushed */
 } gcInputMsg;
 
-typedef struct gcRtDeviceFinger { /* the haptic loop's view of a finger's device slot */
+typedef struct gcRuntimeDeviceFinger { /* the haptic loop's view of a finger's device slot */
     uint64_t serial;          /* of the last sample taken (0: none this session) */
     double t;                 /* its time stamp */
     uint32_t episode;         /* its device's connection */
     int soft_start;           /* walking to the device at GC_HIP_SOFT_START_SPEED */
-} gcRtDeviceFinger;
+} gcRuntimeDeviceFinger;
 
 typedef struct gcHapticMsg { /* haptic loop -> object manager, every haptic tick */
     unsigned char *want;      /* per body: the haptic loop wants to step it (REQ or HAP) */
     unsigned char *has_state; /* per body: body[] is the haptic loop's state (HAP or RET) */
-    gcRtBody *body;
+    gcRuntimeBody *body;
     gcFinger *fingers;        /* after this tick's god-object update: the springs on bodies */
 } gcHapticMsg;
 
 typedef struct gcObjectMsg { /* object manager -> haptic loop, every object tick */
     double time;
     unsigned char *released; /* per body: handed to the haptic loop; body[] is its final state */
-    gcRtBody *body;
+    gcRuntimeBody *body;
 } gcObjectMsg;
 
 typedef struct gcDisplayMsg { /* haptic loop -> gc_world_snapshot, every haptic tick */
@@ -90,15 +90,15 @@ typedef struct gcDisplayMsg { /* haptic loop -> gc_world_snapshot, every haptic 
     double time, object_time;
     int64_t clock_ns;         /* runtime clock at publication: the reader-side watchdog */
     int forces_enabled;
-    gcRtBody *body;
+    gcRuntimeBody *body;
     unsigned char *adopted;
     double *hip, *god_object, *spring_force, *device_force, *normal; /* 3 per finger */
     int32_t *state, *contact_body;
 } gcDisplayMsg;
 
-enum { H_OM = 0, H_REQ, H_HAP, H_RET };   /* a body as the haptic loop sees it */
-enum { O_OWN = 0, O_RELEASED };           /* a body as the object manager sees it */
-enum { RT_STOPPED = 0, RT_RUNNING = 1 };
+enum { GC_HAPTIC_OM_OWNS = 0, GC_HAPTIC_REQUESTED, GC_HAPTIC_OWNS, GC_HAPTIC_RETURNING };   /* a body as the haptic loop sees it */
+enum { GC_OBJECT_OWNS = 0, GC_OBJECT_RELEASED };           /* a body as the object manager sees it */
+enum { GC_RUNTIME_STOPPED = 0, GC_RUNTIME_RUNNING = 1 };
 
 typedef struct gcRuntime {
     gcRuntimeDef def;
@@ -120,7 +120,7 @@ typedef struct gcRuntime {
     double *device_force;     /* 3 per finger */
     struct gcTickLog *tick_log; /* the world's, sized by gc_world_start; NULL when off */
     gcHipFollow *follow;      /* per finger: walking towards the last pushed sample */
-    gcRtDeviceFinger *device_finger; /* per finger: its device slot as taken */
+    gcRuntimeDeviceFinger *device_finger; /* per finger: its device slot as taken */
     gcForceGate gate;         /* the safety stage's (always enabled: ready = watchdog and input) */
     gcShown shown;            /* the last snapshot, for the world's queries (world->shown) */
     double follow_prev_t;     /* time stamp of the last pushed sample taken */
@@ -180,27 +180,27 @@ typedef struct gcRuntime {
 /* ---- small helpers ------------------------------------------------------------------ */
 
 static inline int gc_runtime_running(const gcWorld *w) {
-    return w && w->runtime && atomic_load_explicit(&w->runtime->state, memory_order_acquire) == RT_RUNNING;
+    return w && w->runtime && atomic_load_explicit(&w->runtime->state, memory_order_acquire) == GC_RUNTIME_RUNNING;
 }
 
 /* A body's state from a channel message into a shadow (channels). */
-void gc_rt_body_load(gcWorld *s, int32_t i, const gcRtBody *o);
+void gc_runtime_body_load(gcWorld *s, int32_t i, const gcRuntimeBody *o);
 /* The haptic loop's message to the object manager. */
-void gc_rt_publish_to_object(gcRuntime *rt);
+void gc_runtime_publish_to_object(gcRuntime *rt);
 /* The object manager's message to the haptic loop. */
-void gc_rt_publish_to_haptic(gcRuntime *rt);
+void gc_runtime_publish_to_haptic(gcRuntime *rt);
 /* The haptic loop's view for gc_world_snapshot. */
-void gc_rt_publish_display(gcRuntime *rt, int64_t now, int forces_enabled);
+void gc_runtime_publish_display(gcRuntime *rt, int64_t now, int forces_enabled);
 /* One haptic tick at clock time now (handover). */
-void gc_rt_haptic_tick(gcRuntime *rt, int64_t now);
+void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now);
 /* One object tick (handover). */
-void gc_rt_object_tick(gcRuntime *rt);
+void gc_runtime_object_tick(gcRuntime *rt);
 /* After the loops ended: each body from the thread that owned it last (handover). */
-void gc_rt_merge_into_world(gcRuntime *rt, gcWorld *w);
+void gc_runtime_merge_into_world(gcRuntime *rt, gcWorld *w);
 /* A haptic period into the jitter statistics (threads). */
-void gc_rt_record_period(gcRuntime *rt, int64_t period);
+void gc_runtime_record_period(gcRuntime *rt, int64_t period);
 /* The threads' bodies (threads). */
-void *gc_rt_haptic_main(void *arg);
-void *gc_rt_object_main(void *arg);
+void *gc_runtime_haptic_main(void *arg);
+void *gc_runtime_object_main(void *arg);
 
 #endif
