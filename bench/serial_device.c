@@ -8,10 +8,10 @@
  *   serial_device echo PORT                      the bare host: a C loop on PORT (raw mode) that
  *       answers the hello and every pose with a zero force frame at once. No runtime, no Python.
  *
- * Both use the core's codec (native/src/serial_io.c), so the two hosts differ only in what
+ * Both use the core's codec (native/src/device_codec.c), so the two hosts differ only in what
  * happens between a pose arriving and its force frame leaving. */
 #define _GNU_SOURCE
-#include "serial_io.h"
+#include "device_codec.h"
 
 #include <arpa/inet.h>
 #include <errno.h>
@@ -135,7 +135,8 @@ static int device(double seconds, double rate, int fingers, int udp) {
         if (poll(&p, 1, 10) <= 0) continue;
         struct sockaddr_storage from;
         socklen_t from_len = sizeof from;
-        ssize_t k = recvfrom(m, buf, sizeof buf, 0, (struct sockaddr *)&from, &from_len);
+        /* recvfrom only on the UDP socket: on a pty master it fails (ENOTSOCK) and no hello comes */
+        ssize_t k = udp ? recvfrom(m, buf, sizeof buf, 0, (struct sockaddr *)&from, &from_len) : read(m, buf, sizeof buf);
         for (ssize_t i = 0; i < k; ++i)
             if (gc_decoder_push(&dec, buf[i], &fr) && fr.type == GC_MSG_HELLO_HOST) hello = 1;
         if (hello && udp) connect(m, (struct sockaddr *)&from, from_len); /* that host, only, from now on */

@@ -1607,6 +1607,33 @@ static PyObject *World_device_forces_sent(PyObject *obj, PyObject *args) {
     return device_rows((WorldObject *)obj, args, gc_world_device_forces_sent, "forces", NULL);
 }
 
+/* ---- devices read in Python: their forces from the haptic tick, through the one gate ---- */
+/* device_forces(finger_offset, out: writable float64 (n, 3), enable) -> None: out filled. */
+static PyObject *World_device_forces(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    int offset, enable;
+    PyObject *target;
+    if (!PyArg_ParseTuple(args, "iOp", &offset, &target, &enable) || !check_world(self)) return NULL;
+    Py_buffer b;
+    if (PyObject_GetBuffer(target, &b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT | PyBUF_WRITABLE) < 0) return NULL;
+    PyObject *result = NULL;
+    if (!b.format || strcmp(b.format, "d") != 0 || b.len % (3 * (Py_ssize_t)sizeof(double)) != 0 || b.len == 0) {
+        PyErr_SetString(PyExc_ValueError, "out: must be a writable C-contiguous float64 array of xyz rows");
+    } else {
+        gcStatus st = gc_world_device_forces(self->world, offset, (int)(b.len / (Py_ssize_t)(3 * sizeof(double))),
+                                             enable, b.buf);
+        if (st == GC_ERR_NOT_RUNNING)
+            PyErr_SetString(PyExc_RuntimeError, "device_forces: the runtime is not running (World.start)");
+        else if (st < 0)
+            raise_status(self, st);
+        else
+            result = Py_NewRef(Py_None);
+    }
+    PyBuffer_Release(&b);
+    return result;
+}
+/* ---- end of devices read in Python ---- */
+
 /* serial_events(device) -> [(time, name, value, session_time)], popped oldest first. */
 static PyObject *World_serial_events(PyObject *obj, PyObject *args) {
     WorldObject *self = (WorldObject *)obj;
@@ -1691,6 +1718,10 @@ static PyMethodDef World_methods[] = {
     {"device_forces_sent", World_device_forces_sent, METH_VARARGS,
      "device_forces_sent(finger_offset, array (n, 3) float64): what a device read in Python was sent (scene axes), "
      "recorded as those fingers' device force until the next call."},
+    {"device_forces", World_device_forces, METH_VARARGS,
+     "device_forces(finger_offset, out (n, 3) float64, enable): the forces of fingers a device read in Python drives "
+     "(push_device_hips), from the latest haptic tick through the same gate as a serial device's (enable, ramp, "
+     "stall); recorded as sent until device_forces_sent."},
     {"serial_events", World_serial_events, METH_VARARGS, "serial_events(device) -> [(time, event, value, session_time)] safety events: monotonic and session clock."},
     {NULL, NULL, 0, NULL},
 };

@@ -484,6 +484,13 @@ gcStatus gc_world_push_device_hips(gcWorld *world, int finger_offset, int count,
  * input-only device), held until the next call: recorded in the tick log as their device force,
  * as the serial devices' frames are. GC_WARN_REJECTED: a NaN/Inf force (nothing stored). */
 gcStatus gc_world_device_forces_sent(gcWorld *world, int finger_offset, int count, const double *forces);
+/* The forces for fingers finger_offset.. of such a device (3 a finger, scene axes, into out): what
+ * a serial device thread would send them, from the latest haptic tick (not the display's
+ * snapshot) through the same gate: zero until `enable`, ramped in over the runtime's ramp_time
+ * from then, zero while the haptic loop stalls or its forces are off. Recorded as the fingers'
+ * device force until device_forces_sent says what the device actually got. The fingers must be
+ * driven through gc_world_push_device_hips. GC_ERR_NOT_RUNNING (out zero) while stopped. */
+gcStatus gc_world_device_forces(gcWorld *world, int finger_offset, int count, int enable, double *out);
 
 
 /* ---- Grasp quality (docs/api.md "Grasp quality") ----

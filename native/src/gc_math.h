@@ -34,21 +34,6 @@ static inline gcVec3 gc_normalize(gcVec3 a) {
 }
 static inline int gc_vec_finite(gcVec3 a) { return isfinite(a.x) && isfinite(a.y) && isfinite(a.z); }
 
-/* The device-force gate, one for every device path (the runtime's safety stage, the serial
- * threads): the ramp gain `elapsed` after forces were enabled (0..1 over `ramp`, 1 without a
- * ramp), then per finger the force scaled by it, zeroed when not finite (*nonfinite set: NaN
- * never leaves), its norm clamped to `limit`. */
-static inline double gc_ramp_gain(double elapsed, double ramp) { return ramp > 0 ? gc_min(1.0, elapsed / ramp) : 1.0; }
-static inline gcVec3 gc_gate_force(gcVec3 f, double gain, double limit, int *nonfinite) {
-    f = gc_scale(f, gain);
-    if (!gc_vec_finite(f)) {
-        *nonfinite = 1;
-        return gc_v3(0, 0, 0);
-    }
-    double norm = gc_len(f);
-    return norm > limit ? gc_scale(f, limit / norm) : f;
-}
-
 /* Closed boxes: touching counts as overlapping. */
 static inline int gc_aabb_overlap(gcVec3 amin, gcVec3 amax, gcVec3 bmin, gcVec3 bmax) {
     return amin.x <= bmax.x && bmin.x <= amax.x && amin.y <= bmax.y && bmin.y <= amax.y && amin.z <= bmax.z &&

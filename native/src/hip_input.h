@@ -28,6 +28,9 @@ typedef struct gcHipFollow {
 
 /* Longest interval a segment is stretched over: a sample older than this is reached sooner. */
 #define GC_HIP_MAX_SEGMENT 0.25
+/* A device's soft start (docs/devices.md): from its first pose of a session or of a connection,
+ * the HIP walks to the device at most this fast (m/s) until it has reached it. */
+#define GC_HIP_SOFT_START_SPEED 0.2
 
 /* Position of `finger` at time t since the start of the track's times (times[0] + t), linear
  * between samples, held before the first and after the last. As the Python SampledTrajectory

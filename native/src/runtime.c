@@ -14,6 +14,8 @@
  * tells the dynamics which bodies the shadow moves. Nothing is locked between the threads:
  * every channel is a triple buffer (latest value, wait-free on both sides, C11 atomics):
  *   input   push_hips() -> haptic       latest HIPs (producers serialise among themselves)
+ *   devices each finger's device -> haptic  its latest sample, a triple buffer a finger
+ *           (device_hub.c: device threads and push_device_hips write them, no lock)
  *   haptic  haptic -> object manager    finger springs, adoption wishes, handed-back bodies
  *   object  object manager -> haptic    its bodies, and the bodies it released
  *   display haptic -> gc_world_snapshot everything a display needs, one haptic tick's view
@@ -146,6 +148,7 @@ static void runtime_free_memory(gcRuntime *rt) {
     free(rt->chain);
     free(rt->device_force);
     free(rt->follow);
+    free(rt->device_finger);
     free(rt->shown.bodies);
     free(rt->shown.fingers);
     free(rt->ostate);
@@ -192,10 +195,11 @@ static gcRuntime *runtime_alloc(const gcWorld *w) {
     rt->chain = rt_calloc(rt, nb, sizeof(int32_t));
     rt->device_force = rt_calloc(rt, nf * 3, sizeof(double));
     rt->follow = rt_calloc(rt, nf, sizeof(gcHipFollow));
+    rt->device_finger = rt_calloc(rt, nf, sizeof(gcRuntimeDeviceFinger));
     rt->shown.bodies = rt_calloc(rt, nb, sizeof(gcBodyState));
     rt->shown.fingers = rt_calloc(rt, nf, sizeof(gcFinger));
     rt->ostate = rt_calloc(rt, nb, 1);
-    ok &= rt->hstate && rt->last_touch && rt->chain && rt->device_force && rt->follow && rt->ostate &&
+    ok &= rt->hstate && rt->last_touch && rt->chain && rt->device_force && rt->follow && rt->device_finger && rt->ostate &&
           rt->shown.bodies && rt->shown.fingers;
     for (int i = 0; i < 3; ++i) {
         gcInputMsg *in = &rt->input_msg[i];
@@ -356,7 +360,10 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
     }
     memset(rt->device_force, 0, (size_t)rt->max_fingers * 3 * sizeof(double));
     rt->object_time_seen = w->time;
-    rt->prev_tick_ns = rt->enabled_since_ns = rt->last_input_ns = GC_NEVER_NS;
+    rt->prev_tick_ns = rt->last_input_ns = GC_NEVER_NS;
+    gc_force_gate_init(&rt->gate, rt->ramp_ns, 1);
+    rt->serial->ramp_ns = rt->ramp_ns; /* devices read elsewhere ramp in as long (gc_world_device_forces) */
+    memset(rt->device_finger, 0, (size_t)rt->max_fingers * sizeof *rt->device_finger);
     rt->was_stale = 1;
     rt->tick = 0;
     rt->object_phase = 0.0;

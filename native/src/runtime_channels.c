@@ -67,29 +67,9 @@ void gc_runtime_publish_display(gcRuntime *rt, int64_t now, int forces_enabled) 
     gc_triple_publish(&rt->display);
 }
 
-gcStatus gc_world_push_hips(gcWorld *w, const double *positions, int count, double t) {
-    return gc_world_push_finger_poses(w, positions, NULL, count, t);
-}
-
-gcStatus gc_world_push_finger_poses(gcWorld *w, const double *positions, const double *orientations, int count,
-                                    double t) {
-    if (!w) return GC_ERR_INVALID_ARGUMENT;
-    if (!positions) return gc_null_argument(w, "positions");
-    if (!gc_runtime_running(w)) {
-        gc_world_set_error(w, "push_hips: the runtime is not running (World.start / gc_world_start)");
-        return GC_ERR_NOT_RUNNING;
-    }
-    if (count < 1 || count > w->num_fingers) {
-        gc_world_set_error(w, "positions: %d rows given for %d fingers", count, w->num_fingers);
-        return GC_ERR_INVALID_ARGUMENT;
-    }
-    return gc_runtime_push_input(w, positions, orientations, count, t);
-}
-
-gcStatus gc_runtime_push_input(gcWorld *w, const double *positions, const double *orientations, int count,
-                               double t) {
-    if (!gc_runtime_running(w)) return GC_ERR_NOT_RUNNING;
-    if (count < 1 || count > w->num_fingers) return GC_ERR_INVALID_ARGUMENT;
+/* The checked input into the haptic loop's input channel (callers serialise on input_mutex). */
+static gcStatus gc_runtime_push_input(gcWorld *w, const double *positions, const double *orientations,
+                                      int count, double t) {
     gcRuntime *rt = w->runtime;
     int finite = isfinite(t);
     for (int i = 0; i < 3 * count && finite; ++i) finite = isfinite(positions[i]);
@@ -120,6 +100,25 @@ gcStatus gc_runtime_push_input(gcWorld *w, const double *positions, const double
     pthread_mutex_unlock(&rt->input_mutex);
     gc_atomic_increment(&rt->accepted_inputs);
     return GC_OK;
+}
+
+gcStatus gc_world_push_hips(gcWorld *w, const double *positions, int count, double t) {
+    return gc_world_push_finger_poses(w, positions, NULL, count, t);
+}
+
+gcStatus gc_world_push_finger_poses(gcWorld *w, const double *positions, const double *orientations, int count,
+                                    double t) {
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (!positions) return gc_null_argument(w, "positions");
+    if (!gc_runtime_running(w)) {
+        gc_world_set_error(w, "push_hips: the runtime is not running (World.start / gc_world_start)");
+        return GC_ERR_NOT_RUNNING;
+    }
+    if (count < 1 || count > w->num_fingers) {
+        gc_world_set_error(w, "positions: %d rows given for %d fingers", count, w->num_fingers);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    return gc_runtime_push_input(w, positions, orientations, count, t);
 }
 
 /* Body b of a snapshot from its model and a copy of its state (the world's or the display

@@ -62,20 +62,40 @@ static int update_safety(gcRuntime *rt, int64_t now) {
         if (!rt->was_stale) gc_atomic_increment(&rt->stale_inputs);
     }
     rt->was_stale = stale;
-    if (!ok)
-        rt->enabled_since_ns = GC_NEVER_NS;
-    else if (rt->enabled_since_ns == GC_NEVER_NS)
-        rt->enabled_since_ns = now;
-    double gain = ok ? gc_ramp_gain((double)(now - rt->enabled_since_ns), (double)rt->ramp_ns) : 0.0;
+    double gain = gc_force_gate_gain(&rt->gate, ok, now);
     for (int32_t i = 0; i < hw->num_fingers; ++i) {
-        int nonfinite = 0;
-        gcVec3 f = gc_gate_force(hw->fingers[i].force, gain, rt->def.max_force, &nonfinite);
-        if (nonfinite) gc_atomic_increment(&rt->nonfinite_forces);
         double *out = &rt->device_force[3 * i];
-        out[0] = f.x, out[1] = f.y, out[2] = f.z;
+        out[0] = hw->fingers[i].force.x, out[1] = hw->fingers[i].force.y, out[2] = hw->fingers[i].force.z;
     }
+    int nonfinite = gc_force_gate_apply(gain, rt->def.max_force, rt->device_force, rt->device_force, hw->num_fingers);
+    if (nonfinite) atomic_fetch_add_explicit(&rt->nonfinite_forces, (uint64_t)nonfinite, memory_order_relaxed);
     atomic_store_explicit(&rt->forces_enabled, ok, memory_order_relaxed);
     return ok;
+}
+
+/* The device slots (device_hub.c): each finger a device drives walks towards its device's
+ * latest sample, at most GC_HIP_SOFT_START_SPEED from the first sample of a connection until
+ * it is there. Returns 1 when a device sent something new. Pushed rows no longer move such a
+ * finger (its device drives it whatever the caller pushes). */
+static int take_device_samples(gcRuntime *rt) {
+    gcWorld *hw = &rt->hap;
+    int took = 0;
+    for (int i = 0; i < hw->num_fingers; ++i) {
+        gcDeviceSample s;
+        gcRuntimeDeviceFinger *df = &rt->device_finger[i];
+        if (gc_hip_track_drives(rt->track, i) || !gc_device_hub_latest_hip(rt->serial, i, &s)) {
+            df->serial = 0;
+            continue;
+        }
+        if (s.serial == df->serial) continue;
+        if (!df->serial || s.episode != df->episode) df->soft_start = 1;
+        double interval = df->serial ? s.t - df->t : 0.0;
+        gc_hip_follow_retarget(&rt->follow[i], hw->fingers[i].hip, gc_v3(s.hip[0], s.hip[1], s.hip[2]), interval,
+                               rt->dt_haptic);
+        df->serial = s.serial, df->t = s.t, df->episode = s.episode;
+        took = 1;
+    }
+    return took;
 }
 
 void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now) {
@@ -91,7 +111,7 @@ void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now) {
         double interval = isfinite(rt->follow_prev_t) ? in->t - rt->follow_prev_t : 0.0;
         rt->follow_prev_t = in->t;
         for (int i = 0; i < in->count; ++i)
-            if (!gc_hip_track_drives(rt->track, i)) {
+            if (!gc_hip_track_drives(rt->track, i) && !rt->device_finger[i].serial) {
                 gc_hip_follow_retarget(&rt->follow[i], hw->fingers[i].hip,
                                        gc_v3(in->hips[3 * i], in->hips[3 * i + 1], in->hips[3 * i + 2]), interval, dt);
                 const double *q = &in->orientations[4 * i];
@@ -100,12 +120,23 @@ void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now) {
             }
         rt->last_input_ns = in->receipt_ns;
     }
+    if (take_device_samples(rt)) rt->last_input_ns = now;
     if (gc_hip_track_covers(rt->track, hw->num_fingers)) rt->last_input_ns = now; /* the track is never stale */
     const double t_next = (double)(rt->tick + 1) * dt;
     for (int i = 0; i < hw->num_fingers; ++i) {
         const int scripted = gc_hip_track_drives(rt->track, i);
+        gcRuntimeDeviceFinger *df = &rt->device_finger[i];
+        double max_speed = rt->def.max_hip_speed;
+        if (df->soft_start)
+            max_speed = max_speed > 0 ? fmin(max_speed, GC_HIP_SOFT_START_SPEED) : GC_HIP_SOFT_START_SPEED;
+        gcHipFollow walk; /* before this tick's step: the same walk without the soft speed */
+        if (df->soft_start) walk = rt->follow[i];
         gcVec3 hip = scripted ? gc_hip_track_sample(rt->track, i, t_next)
-                              : gc_hip_follow_advance(&rt->follow[i], hw->fingers[i].hip, dt, rt->def.max_hip_speed);
+                              : gc_hip_follow_advance(&rt->follow[i], hw->fingers[i].hip, dt, max_speed);
+        if (df->soft_start && !scripted) { /* over once the soft speed no longer holds the walk back */
+            gcVec3 unheld = gc_hip_follow_advance(&walk, hw->fingers[i].hip, dt, rt->def.max_hip_speed);
+            if (unheld.x == hip.x && unheld.y == hip.y && unheld.z == hip.z) df->soft_start = 0;
+        }
         hw->fingers[i].hip = hip;
         gcQuat q; /* the track's or the walk's orientation: normalised as gc_world_set_finger_pose does */
         if (scripted ? gc_hip_track_orientation(rt->track, i, t_next, &q)
@@ -150,11 +181,11 @@ void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now) {
     /* 4. Adoption wishes for the next ticks, device forces, publications. */
     update_adoption(rt);
     int ok = update_safety(rt, now);
-    gc_serial_hub_tick(rt->serial, hw, rt->device_force, ok, now);
+    gc_device_hub_tick(rt->serial, hw, rt->device_force, ok, now);
     gc_runtime_publish_to_object(rt);
     gc_runtime_publish_display(rt, now, ok);
     if (rt->tick_log) /* fingers a serial device drives: what their device was actually sent */
-        gc_tick_log_push(rt->tick_log, hw, gc_serial_hub_recorded_forces(rt->serial, rt->device_force, hw->num_fingers),
+        gc_tick_log_push(rt->tick_log, hw, gc_device_hub_recorded_forces(rt->serial, rt->device_force, hw->num_fingers),
                          rt->tick, rt->object_time_seen, now, rt->def.realtime, ok,
                          atomic_load_explicit(&rt->adopted, memory_order_relaxed));
     gc_atomic_store_double(&rt->haptic_time_bits, hw->time);

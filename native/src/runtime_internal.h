@@ -13,7 +13,9 @@
 
 #include "contacts.h"
 #include "hip_input.h"
-#include "serial_io.h"
+#include "device_hub.h"
+#include "force_gate.h"
+#include "gc_sync.h"
 #include "step.h"
 
 #include <errno.h>
@@ -32,7 +34,6 @@
 #include <unistd.h>
 #endif
 
-#define GC_NS_PER_S 1000000000LL
 /* The object manager's step cap: 2 ms (the source chapter's "0.002 ms" is a typo;
  * docs/runtime.md). */
 #define GC_OBJECT_MAX_STEP 0.002
@@ -46,38 +47,6 @@
 #define GC_HAPTIC_STACK_PREFAULT (64 * 1024)
 #define GC_LOCK_BUDGET (64u << 20)
 #define GC_MAX_REGIONS 96
-
-/* ---- triple buffer: the latest value from one writer to one reader ------------------ */
-
-/* Three slots of a message: the writer fills `back`, then swaps it with `middle`; the
- * reader swaps `front` with `middle` when `middle` holds something new. Neither side ever
- * waits, and the reader always holds a complete message. */
-typedef struct gcTriple {
-    _Atomic unsigned middle; /* slot index | GC_TRIPLE_FRESH while unread */
-    unsigned back;           /* writer's slot */
-    unsigned front;          /* reader's slot */
-} gcTriple;
-#define GC_TRIPLE_FRESH 4u
-
-static inline void gc_triple_reset(gcTriple *t) {
-    t->back = 0;
-    t->front = 1;
-    atomic_store_explicit(&t->middle, 2u, memory_order_relaxed);
-}
-
-static inline void gc_triple_publish(gcTriple *t) {
-    t->back = atomic_exchange_explicit(&t->middle, t->back | GC_TRIPLE_FRESH, memory_order_acq_rel) & 3u;
-}
-
-/* The reader's slot, now holding the latest publication; *fresh = 1 when it is new. */
-static inline unsigned gc_triple_latest(gcTriple *t, int *fresh) {
-    *fresh = 0;
-    if (atomic_load_explicit(&t->middle, memory_order_relaxed) & GC_TRIPLE_FRESH) {
-        t->front = atomic_exchange_explicit(&t->middle, t->front, memory_order_acq_rel) & 3u;
-        *fresh = 1;
-    }
-    return t->front;
-}
 
 /* ---- messages --------------------------------------------------------------------- */
 
@@ -95,6 +64,13 @@ typedef struct gcInputMsg { /* push_hips -> haptic loop */
     int has_orientations;    /* the push carried orientations (gc_world_push_finger_poses) */
     double *orientations;    /* 4 per finger (w x y z), as pushed */
 } gcInputMsg;
+
+typedef struct gcRuntimeDeviceFinger { /* the haptic loop's view of a finger's device slot */
+    uint64_t serial;          /* of the last sample taken (0: none this session) */
+    double t;                 /* its time stamp */
+    uint32_t episode;         /* its device's connection */
+    int soft_start;           /* walking to the device at GC_HIP_SOFT_START_SPEED */
+} gcRuntimeDeviceFinger;
 
 typedef struct gcHapticMsg { /* haptic loop -> object manager, every haptic tick */
     unsigned char *want;      /* per body: the haptic loop wants to step it (REQ or HAP) */
@@ -138,7 +114,7 @@ typedef struct gcRuntime {
     gcWorld hap, obj;
     unsigned char *hap_active, *obj_active;
 
-    struct gcSerialHub *serial; /* the world's devices: fed every haptic tick */
+    struct gcDeviceHub *serial; /* the world's devices: HIP slots read, forces fed every haptic tick */
 
     /* Haptic loop only. */
     unsigned char *hstate;
@@ -147,11 +123,13 @@ typedef struct gcRuntime {
     double *device_force;     /* 3 per finger */
     struct gcTickLog *tick_log; /* the world's, sized by gc_world_start; NULL when off */
     gcHipFollow *follow;      /* per finger: walking towards the last pushed sample */
+    gcRuntimeDeviceFinger *device_finger; /* per finger: its device slot as taken */
+    gcForceGate gate;         /* the safety stage's (always enabled: ready = watchdog and input) */
     gcShown shown;            /* the last snapshot, for the world's queries (world->shown) */
     double follow_prev_t;     /* time stamp of the last pushed sample taken */
     const gcHipTrack *track;  /* the world's scripted track (fixed while running), or NULL */
     double object_time_seen;
-    int64_t prev_tick_ns, enabled_since_ns, last_input_ns;
+    int64_t prev_tick_ns, last_input_ns;
     int was_stale;
     uint64_t tick;
 
@@ -203,36 +181,6 @@ typedef struct gcRuntime {
 } gcRuntime;
 
 /* ---- small helpers ------------------------------------------------------------------ */
-
-static inline int64_t gc_clock_now_ns(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (int64_t)ts.tv_sec * GC_NS_PER_S + ts.tv_nsec;
-}
-
-static inline void gc_sleep_until_ns(int64_t t) {
-    struct timespec ts = {(time_t)(t / GC_NS_PER_S), (long)(t % GC_NS_PER_S)};
-    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL) == EINTR) {
-    }
-}
-
-static inline void gc_atomic_increment(_Atomic uint64_t *c) { atomic_fetch_add_explicit(c, 1, memory_order_relaxed); }
-
-static inline void gc_atomic_store_double(_Atomic uint64_t *slot, double v) {
-    uint64_t bits;
-    memcpy(&bits, &v, sizeof bits);
-    atomic_store_explicit(slot, bits, memory_order_relaxed);
-}
-
-static inline double gc_atomic_load_double(_Atomic uint64_t *slot) {
-    uint64_t bits = atomic_load_explicit(slot, memory_order_relaxed);
-    double v;
-    memcpy(&v, &bits, sizeof v);
-    return v;
-}
-
-static inline int64_t gc_seconds_to_ns(double s) { return (int64_t)(s * 1e9 + 0.5); }
-
 
 static inline int gc_runtime_running(const gcWorld *w) {
     return w && w->runtime && atomic_load_explicit(&w->runtime->state, memory_order_acquire) == GC_RUNTIME_RUNNING;

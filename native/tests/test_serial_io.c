@@ -6,11 +6,14 @@
 #define _GNU_SOURCE
 #include "gc_test.h"
 #include "graspcore.h"
-#include "serial_io.h"
+#include "device_codec.h"
+#include "force_gate.h"
+#include "hip_input.h"
 
 #include <errno.h>
 #include <fcntl.h>
 #include <poll.h>
+#include <pthread.h>
 #include <signal.h>
 #include <stdlib.h>
 #include <string.h>
@@ -267,8 +270,8 @@ static void test_device_thread(void) {
     /* Pressing 2 mm into the ground (HIP z = -0.002, GO at the radius): 10 N of spring,
      * but nothing reaches the device before enable. */
     stream(&dev, 150, 0.098);
-    double sp[3];
-    spring(w, sp);
+    double sp[3] = {0, 0, 0}; /* the soft start walks the 5 cm down at 0.2 m/s */
+    WAIT_UNTIL((stream(&dev, 10, 0.098), spring(w, sp), fabs(sp[2] - 10.0) < 0.5));
     GC_CHECK(fabs(sp[2] - 10.0) < 0.5, "spring force %.3f N, expected k * 10 mm = 10 N", sp[2]);
     GC_CHECK(dev.forces > 100 && force_z(&dev) == 0.0, "%d force frames, z %.3f before enable", dev.forces, force_z(&dev));
     GC_CHECK(dev.enables >= 1 && dev.last_enable == 0, "the host tells the device forces are off");
@@ -748,7 +751,7 @@ static void test_attach_before_start(void) {
     gc_put16(hello + 10, 50);
     dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, 12);
     for (int i = 0; i < 50; ++i) { /* poses while stopped, errors set on this thread meanwhile */
-        dev_pose(&dev, 0, 0, 0.25);
+        dev_pose(&dev, 0, 0, 0.03);
         double nan3[3] = {NAN, 0, 0};
         GC_CHECK(gc_world_set_hip(w, f, nan3) == GC_ERR_INVALID_ARGUMENT, "a NaN HIP refused");
         GC_CHECK(strstr(gc_world_last_error(w), "position") != NULL || strstr(gc_world_last_error(w), "finite"),
@@ -758,18 +761,18 @@ static void test_attach_before_start(void) {
     }
     gcSerialStats st;
     WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.poses >= 50));
-    GC_CHECK(st.poses == 50 && st.push_rejected == 50, "poses before start: %llu, refused %llu",
+    GC_CHECK(st.poses == 50 && st.push_rejected == 0, "poses before start: %llu, all in the slots (refused %llu)",
              (unsigned long long)st.poses, (unsigned long long)st.push_rejected);
     gcRuntimeDef rd = gc_default_runtime_def();
     rd.priority = 0;
     GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start with a device streaming: %s", gc_world_last_error(w));
-    stream(&dev, 100, 0.25);
+    stream(&dev, 100, 0.03);
     double hip[3] = {0, 0, 0};
     gcSnapshot hs;
     memset(&hs, 0, sizeof hs);
     hs.hips = hip;
-    WAIT_UNTIL((gc_world_snapshot(w, &hs), fabs(hip[2] - 0.25) < 1e-7));
-    GC_CHECK(fabs(hip[2] - 0.25) < 1e-7, "the device drives the finger once running: z %g", hip[2]);
+    WAIT_UNTIL((stream(&dev, 5, 0.03), gc_world_snapshot(w, &hs), fabs(hip[2] - 0.03) < 1e-7)); /* soft start: 0.15 s */
+    GC_CHECK(fabs(hip[2] - 0.03) < 1e-7, "the device drives the finger once running: z %g", hip[2]);
     gc_world_stop(w);
     gc_world_destroy(w);
     close(sv[0]), close(sv[1]);
@@ -821,6 +824,7 @@ static void test_udp(void) {
     gcSerialDef sd = gc_default_serial_def();
     sd.priority = 0;
     int32_t id;
+    sd.lost_timeout = 1.0; /* the last pose is sent once: the soft start walks to it meanwhile */
     strcpy(sd.udp_host, "not-an-address");
     sd.udp_port = dev_port;
     GC_CHECK(gc_world_attach_serial(w, host, &sd, &id) == GC_ERR_INVALID_ARGUMENT &&
@@ -841,12 +845,12 @@ static void test_udp(void) {
     udp_send(dev, host_port, GC_MSG_HELLO_DEVICE, 0, hello, 12);
     uint16_t seq = 1;
     for (int i = 0; i < 50; ++i, sleep_ms(1)) {
-        udp_pose(dev, host_port, seq++, 0.1);
+        udp_pose(dev, host_port, seq++, 0.01); /* centimetres: the soft start walks there in 0.1 s */
         udp_pose(other, host_port, (uint16_t)(1000 + i), 0.9); /* a second sender: ignored */
     }
-    udp_pose(dev, host_port, (uint16_t)(seq + 1), 0.2); /* newest */
-    udp_pose(dev, host_port, seq, 0.15);                /* late: the one before */
-    udp_pose(dev, host_port, (uint16_t)(seq + 1), 0.2); /* again */
+    udp_pose(dev, host_port, (uint16_t)(seq + 1), 0.02); /* newest */
+    udp_pose(dev, host_port, seq, 0.015);                /* late: the one before */
+    udp_pose(dev, host_port, (uint16_t)(seq + 1), 0.02); /* again */
     gcSerialStats st;
     WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.poses >= 51 && st.late_poses + st.duplicate_poses >= 2));
     GC_CHECK(st.poses == 51 && st.late_poses == 1 && st.duplicate_poses == 1 && st.sequence_gaps == 1,
@@ -861,10 +865,10 @@ static void test_udp(void) {
     gcSnapshot hs;
     memset(&hs, 0, sizeof hs);
     hs.hips = hip;
-    WAIT_UNTIL((gc_world_snapshot(w, &hs), fabs(hip[2] - 0.2) < 1e-7));
+    WAIT_UNTIL((gc_world_snapshot(w, &hs), fabs(hip[2] - 0.02) < 1e-7));
     sleep_ms(20);
     gc_world_snapshot(w, &hs);
-    GC_CHECK(fabs(hip[2] - 0.2) < 1e-7, "the newest pose holds (not the late one, not the intruder's): %g", hip[2]);
+    GC_CHECK(fabs(hip[2] - 0.02) < 1e-7, "the newest pose holds (not the late one, not the intruder's): %g", hip[2]);
     k = -1;
     int forces = 0;
     while ((k = recv(dev, buf, sizeof buf, 0)) > 0)
@@ -876,8 +880,253 @@ static void test_udp(void) {
     close(host), close(dev), close(other);
 }
 
+/* ---- the force gate and the soft start ------------------------------------------------------ */
+
+/* The one gate: closed until enabled, a linear ramp from the instant it may open, NaN zeroed and
+ * counted, each force's norm clamped, an e-stop latched until the next enable, the TTL field. */
+static void test_force_gate(void) {
+    gcForceGate g;
+    gc_force_gate_init(&g, 100, 0); /* a 100 ns ramp */
+    GC_CHECK(gc_force_gate_gain(&g, 1, 0) == 0.0, "closed until enabled");
+    gc_force_gate_enable(&g, 1);
+    GC_CHECK(gc_force_gate_gain(&g, 0, 5) == 0.0, "closed while not ready");
+    GC_CHECK(gc_force_gate_gain(&g, 1, 1000) == 0.0, "the ramp starts when it may open");
+    GC_CHECK(fabs(gc_force_gate_gain(&g, 1, 1025) - 0.25) < 1e-15, "a quarter of the ramp: %g",
+             gc_force_gate_gain(&g, 1, 1025));
+    GC_CHECK(gc_force_gate_gain(&g, 1, 1100) == 1.0 && gc_force_gate_gain(&g, 1, 5000) == 1.0, "full after the ramp");
+    GC_CHECK(gc_force_gate_gain(&g, 0, 5001) == 0.0 && gc_force_gate_gain(&g, 1, 5002) == 0.0 &&
+                 fabs(gc_force_gate_gain(&g, 1, 5052) - 0.5) < 1e-15,
+             "not ready for a moment: it ramps in again from zero");
+    GC_CHECK(gc_force_gate_estop(&g) == 1 && gc_force_gate_estop(&g) == 0, "an e-stop latches once");
+    GC_CHECK(gc_force_gate_gain(&g, 1, 6000) == 0.0 && !g.enabled, "e-stopped: closed, disabled");
+    gc_force_gate_enable(&g, 1);
+    GC_CHECK(!g.estop && gc_force_gate_gain(&g, 1, 7000) == 0.0 && gc_force_gate_gain(&g, 1, 7100) == 1.0,
+             "enable clears the e-stop and ramps in again");
+    const double in[9] = {3, 4, 0, NAN, 0, 0, 0.3, 0.4, 0};
+    double out[9];
+    int nonfinite = gc_force_gate_apply(1.0, 2.0, in, out, 3);
+    GC_CHECK(nonfinite == 1 && out[3] == 0 && out[4] == 0 && out[5] == 0, "NaN zeroed and counted");
+    GC_CHECK(fabs(out[0] - 1.2) < 1e-15 && fabs(out[1] - 1.6) < 1e-15, "|(3, 4, 0)| = 5 clamped to 2: (%g, %g)", out[0],
+             out[1]);
+    GC_CHECK(out[6] == 0.3 && out[7] == 0.4, "under the limit: untouched");
+    gc_force_gate_apply(0.5, 2.0, in, out, 3);
+    GC_CHECK(out[6] == 0.15 && out[7] == 0.2 && fabs(out[0] - 1.2) < 1e-15, "scaled by the gain, then clamped");
+    GC_CHECK(gc_force_gate_ttl_us(0.02, 0.0) == 20000 && gc_force_gate_ttl_us(0.02, 0.005) == 5000 &&
+                 gc_force_gate_ttl_us(1.0, 0.0) == 65535,
+             "TTL: the host's, at most the device's, at most 16 bits");
+}
+
+/* Finger 0's HIP (of a world with at most 8 fingers). */
+static void hip_of(gcWorld *w, double hip[3]) {
+    double all[3 * 8];
+    gcSnapshot s;
+    memset(&s, 0, sizeof s);
+    s.hips = all;
+    gc_world_snapshot(w, &s);
+    memcpy(hip, all, 3 * sizeof(double));
+}
+
+/* A device's first sample 5 cm from the HIP: the HIP walks there on a straight line at exactly
+ * GC_HIP_SOFT_START_SPEED (no tick moves it further), arrives after 0.05 / (0.1 dt) ticks and
+ * stays; a new session (stop, start) walks again, and a finger no device drives is not held. */
+static void test_soft_start(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    gcFingerDef fd = gc_default_finger_def();
+    int32_t f0, f1;
+    GC_CHECK(gc_world_add_finger(w, &fd, &f0) == GC_OK && gc_world_add_finger(w, &fd, &f1) == GC_OK, "fingers");
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.realtime = 0;
+    const double dt = 1.0 / rd.haptic_rate, step = GC_HIP_SOFT_START_SPEED * dt;
+    const double far[3] = {0.03, 0.0, 0.04}; /* 5 cm away */
+    GC_CHECK(gc_world_push_device_hips(w, 0, 1, far) == GC_ERR_NOT_RUNNING, "stopped: not running");
+    for (int session = 0; session < 2; ++session) {
+        GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start: %s", gc_world_last_error(w));
+        double prev[3];
+        hip_of(w, prev);
+        double d0 = sqrt((far[0] - prev[0]) * (far[0] - prev[0]) + (far[2] - prev[2]) * (far[2] - prev[2]));
+        GC_CHECK(gc_world_push_device_hips(w, 0, 1, far) == GC_OK, "pushed");
+        int ticks = 0, arrived = -1;
+        double max_step = 0, off_line = 0;
+        for (; ticks < 2000 && arrived < 0; ++ticks) {
+            GC_CHECK(gc_world_advance(w, 1, 0.0) == GC_OK, "advance");
+            double h[3];
+            hip_of(w, h);
+            double s2 = 0;
+            for (int c = 0; c < 3; ++c) s2 += (h[c] - prev[c]) * (h[c] - prev[c]);
+            max_step = fmax(max_step, sqrt(s2));
+            off_line = fmax(off_line, fabs(h[1]) + fabs(h[0] * far[2] - h[2] * far[0]));
+            memcpy(prev, h, sizeof h);
+            if (h[0] == far[0] && h[1] == far[1] && h[2] == far[2]) arrived = ticks + 1;
+        }
+        int expect = (int)ceil(d0 / step - 1e-9);
+        GC_CHECK(max_step <= step * (1 + 1e-9), "session %d: no tick moves the HIP more than %.3g m: %.6g m", session,
+                 step, max_step);
+        GC_CHECK(arrived >= expect && arrived <= expect + 1, "session %d: arrived after %d ticks, %.4f m at %.3g m/tick "
+                 "wants %d", session, arrived, d0, step, expect);
+        GC_CHECK(off_line < 1e-12, "a straight line: %g", off_line);
+        GC_CHECK(gc_world_advance(w, 50, 0.0) == GC_OK, "advance");
+        double h[3];
+        hip_of(w, h);
+        GC_CHECK(h[0] == far[0] && h[2] == far[2], "stays at the device's pose");
+        const double near1[3] = {0.0, 0.0, 0.2}; /* finger 1 through push_hips: no soft start */
+        double rows[6] = {h[0], h[1], h[2], near1[0], near1[1], near1[2]};
+        GC_CHECK(gc_world_push_hips(w, rows, 2, 1.0 + session) == GC_OK, "push_hips: %s", gc_world_last_error(w));
+        GC_CHECK(gc_world_advance(w, 1, 0.0) == GC_OK, "advance");
+        double both[6];
+        gcSnapshot s;
+        memset(&s, 0, sizeof s);
+        s.hips = both;
+        gc_world_snapshot(w, &s);
+        GC_CHECK(both[5] == 0.2 && both[0] == far[0], "finger 1 jumps (pushed, not a device); finger 0 is its device's");
+        double back[6] = {0, 0, 0, 0, 0, 0};
+        GC_CHECK(gc_world_stop(w) == GC_OK, "stop");
+        for (int i = 0; i < 2; ++i) GC_CHECK(gc_world_set_hip(w, i, back) == GC_OK, "home");
+    }
+    gc_world_destroy(w);
+}
+
+/* A device read elsewhere (push_device_hips from another thread) beside a serial device thread,
+ * both writing their fingers' slots while the haptic loop reads them (TSan: no race), each
+ * finger its own writer: a finger a device drives is refused to the other, and free again once
+ * that device is detached. */
+typedef struct ApiPusher {
+    gcWorld *w;
+    int pushes, refused;
+} ApiPusher;
+
+static void *api_pusher(void *arg) {
+    ApiPusher *p = arg;
+    for (int i = 1; i <= 300; ++i) {
+        double x[3] = {1.0, 0.0001 * i, 0.0};
+        if (gc_world_push_device_hips(p->w, 1, 1, x) == GC_OK) p->pushes++;
+        else p->refused++;
+        sleep_ms(1);
+    }
+    return NULL;
+}
+
+static void test_device_beside_api_writer(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    gcFingerDef fd = gc_default_finger_def();
+    int32_t f;
+    for (int i = 0; i < 2; ++i) {
+        fd.position[0] = i ? 1.0 : -1.0;
+        GC_CHECK(gc_world_add_finger(w, &fd, &f) == GC_OK, "finger");
+    }
+    int sv[2];
+    GC_CHECK(socketpair(AF_UNIX, SOCK_STREAM, 0, sv) == 0, "socketpair");
+    fcntl(sv[0], F_SETFL, O_NONBLOCK);
+    static Dev dev;
+    memset(&dev, 0, sizeof dev);
+    dev.fd = sv[1];
+    gc_decoder_reset(&dev.dec);
+    gcSerialDef sd = gc_default_serial_def();
+    sd.priority = 0;
+    sd.transform[3] = -1.0;
+    int32_t id;
+    GC_CHECK(gc_world_attach_serial(w, sv[0], &sd, &id) == GC_OK, "attach before start: %s", gc_world_last_error(w));
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start");
+    uint8_t hello[12] = {1, GC_CAP_FORCES, 0, 0};
+    gc_put16(hello + 4, 1000);
+    gc_putf32(hello + 6, 5.0f);
+    gc_put16(hello + 10, 50);
+    dev_read(&dev, 200);
+    dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, 12);
+    const double x0[3] = {-1.0, 0.0, 0.0};
+    GC_CHECK(gc_world_push_device_hips(w, 0, 1, x0) == GC_ERR_INVALID_ARGUMENT &&
+                 strstr(gc_world_last_error(w), "a serial device drives"),
+             "a serial device's finger refused to push_device_hips: %s", gc_world_last_error(w));
+    ApiPusher pusher = {w, 0, 0};
+    pthread_t th;
+    GC_CHECK(pthread_create(&th, NULL, api_pusher, &pusher) == 0, "pusher thread");
+    for (int i = 1; i <= 300; ++i) {
+        dev_pose(&dev, 0, 0.0001 * i, 0);
+        dev_read(&dev, 0);
+        sleep_ms(1);
+    }
+    pthread_join(th, NULL);
+    GC_CHECK(pusher.pushes == 300 && pusher.refused == 0, "API pushes %d, refused %d", pusher.pushes, pusher.refused);
+    int32_t other;
+    gcSerialDef sd1 = gc_default_serial_def();
+    sd1.finger_offset = 1;
+    GC_CHECK(gc_world_attach_serial(w, sv[0], &sd1, &other) == GC_ERR_INVALID_ARGUMENT &&
+                 strstr(gc_world_last_error(w), "push_device_hips"),
+             "a finger push_device_hips drives refused to a serial device: %s", gc_world_last_error(w));
+    double hips[6];
+    gcSnapshot s;
+    memset(&s, 0, sizeof s);
+    s.hips = hips;
+    WAIT_UNTIL((dev_pose(&dev, 0, 0.03, 0), dev_read(&dev, 0), gc_world_snapshot(w, &s),
+                fabs(hips[1] - 0.03) < 1e-7 && fabs(hips[4] - 0.03) < 1e-7));
+    GC_CHECK(hips[0] == -1.0 && fabs(hips[1] - 0.03) < 1e-7 && hips[3] == 1.0 && fabs(hips[4] - 0.03) < 1e-7,
+             "each writer its finger: (%g %g) (%g %g)", hips[0], hips[1], hips[3], hips[4]);
+    GC_CHECK(gc_world_detach_serial(w, id) == GC_OK, "detach");
+    GC_CHECK(gc_world_push_device_hips(w, 0, 1, x0) == GC_OK, "free once its device is detached: %s",
+             gc_world_last_error(w));
+    gc_world_stop(w);
+    gc_world_destroy(w);
+    close(sv[0]), close(sv[1]);
+}
+
+/* A device read in Python (push_device_hips) pressing 5 mm into the ground: its forces
+ * (gc_world_device_forces) come from the haptic tick through the same gate as a device
+ * thread's: zero until enabled, then the runtime's device force (5 N here, no ramp), zero again
+ * once disabled; only for fingers driven that way. */
+static void test_device_forces_for_api_fingers(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    double pts[24];
+    for (int i = 0; i < 8; ++i) {
+        pts[3 * i] = (i & 1) ? 0.1 : -0.1;
+        pts[3 * i + 1] = (i & 2) ? 0.1 : -0.1;
+        pts[3 * i + 2] = (i & 4) ? 0.0 : -0.2; /* top face at z = 0 */
+    }
+    gcPartDef part = {pts, 8, 0.0};
+    gcBodyDef bd = gc_default_body_def();
+    bd.is_static = 1;
+    int32_t ground, f;
+    GC_CHECK(gc_world_add_body(w, &bd, &part, 1, &ground) == GC_OK, "ground");
+    gcFingerDef fd = gc_default_finger_def(); /* radius 8 mm, 1000 N/m */
+    fd.position[2] = 0.008;
+    for (int i = 0; i < 2; ++i) GC_CHECK(gc_world_add_finger(w, &fd, &f) == GC_OK, "finger");
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    rd.ramp_time = 0.0;
+    rd.watchdog_timeout = 0.5; /* a loaded test machine: this test is about the gate */
+    double out[3] = {1, 1, 1};
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start");
+    GC_CHECK(gc_world_device_forces(w, 0, 1, 1, out) == GC_ERR_INVALID_ARGUMENT &&
+                 strstr(gc_world_last_error(w), "push_device_hips"),
+             "a finger no device read elsewhere drives: %s", gc_world_last_error(w));
+    const double press[3] = {0, 0, 0.003}; /* 5 mm into the ground */
+    double sp[6] = {0};
+    gcSnapshot s;
+    memset(&s, 0, sizeof s);
+    s.spring_forces = sp;
+    WAIT_UNTIL((gc_world_push_device_hips(w, 0, 1, press), gc_world_snapshot(w, &s), fabs(sp[2] - 5.0) < 1e-6));
+    GC_CHECK(fabs(sp[2] - 5.0) < 1e-6, "spring %g N", sp[2]);
+    GC_CHECK(gc_world_device_forces(w, 0, 1, 0, out) == GC_OK && out[0] == 0 && out[1] == 0 && out[2] == 0,
+             "zero until enabled: %g", out[2]);
+    WAIT_UNTIL((gc_world_device_forces(w, 0, 1, 1, out), fabs(out[2] - 5.0) < 1e-6));
+    GC_CHECK(fabs(out[2] - 5.0) < 1e-6 && out[0] == 0 && out[1] == 0, "enabled: the tick's device force, %g N",
+             out[2]);
+    GC_CHECK(gc_world_device_forces(w, 0, 1, 0, out) == GC_OK && out[2] == 0, "disabled: zero again");
+    gc_world_stop(w);
+    GC_CHECK(gc_world_device_forces(w, 0, 1, 1, out) == GC_ERR_NOT_RUNNING && out[2] == 0, "stopped: zero");
+    gc_world_destroy(w);
+}
+
 int main(void) {
     test_crc_and_cobs();
+    test_force_gate();
+    test_soft_start();
     test_vectors();
     test_fuzzed_decoder();
     test_device_thread();
@@ -885,6 +1134,8 @@ int main(void) {
     test_recorded_forces();
     test_protocol_rules();
     test_attach_before_start();
+    test_device_beside_api_writer();
+    test_device_forces_for_api_fingers();
     test_udp();
     test_peer_gone_before_hello();
     return gc_test_summary("test_serial_io");

@@ -14,7 +14,7 @@ import pytest
 graspcore = pytest.importorskip("graspcore")
 pytest.importorskip("serial")
 
-from addon.engine.devices.serial_device import SerialDevice  # noqa: E402
+from addon.engine.devices.serial_device import SerialDevice, workspace_matrix  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BOX = 0.03          # half-width of the static boxes the fingers grip
@@ -176,4 +176,57 @@ def test_device_set_one_of_two_unplugged_the_other_holds_on():
         for e in (left, right):
             e.proc.kill()
         devices.close()
+        world.stop()
+
+
+def test_soft_start_first_pose_5_cm_away():
+    """The emulator's first pose is 5 cm above the fingers (its frame lifted 5 cm): the HIPs
+    walk there at the soft-start speed (0.2 m/s: 0.2 mm a 1 kHz tick, docs/devices.md) instead
+    of jumping, on a continuous path (every tick in the tick log), and then follow the device;
+    after an unplug and a reconnection they walk again from where they let go."""
+    world = graspcore.World(gravity=(0, 0, 0))
+    world.add_finger(position=(0.06, 0, 0))
+    world.add_finger(position=(-0.06, 0, 0))
+    world.set_tick_log(1 << 16)
+    world.start(priority=0, ramp_time=0.0, watchdog_timeout=0.05)
+    records = np.zeros(1 << 16, dtype=world.tick_dtype())
+    lifted = np.eye(4)
+    lifted[2, 3] = 0.05
+    target = np.array([(0.06, 0, 0.05), (-0.06, 0, 0.05)])
+    emu = Emulator("--fingers", "2", "--motion", "static")
+    dev = SerialDevice(world, emu.port, 0, 2, lifted)
+    bound = 0.2 * 1e-3 * (1 + 1e-9)
+    try:
+        dev.connect()
+        wait_for(lambda: np.abs(world.snapshot()["hips"] - target).max() < 1e-6, 5, "the HIPs at the device")  # float32 poses
+        time.sleep(0.05)
+        ticks = world.drain_ticks(records)
+        hips, tick = ticks["hip"], ticks["tick"]
+        assert np.all(np.diff(tick) == 1)                             # every tick: the whole path
+        np.testing.assert_allclose(hips[0], [(0.06, 0, 0), (-0.06, 0, 0)], atol=1e-12)
+        steps = np.linalg.norm(np.diff(hips, axis=0), axis=2)
+        assert steps.max() <= bound, steps.max()                      # never a jump
+        walking = (steps > 1.99e-4).sum(axis=0)
+        assert np.all(walking >= 245), walking                        # 5 cm at 0.2 mm a tick
+        np.testing.assert_allclose(hips[-1], target, atol=1e-6)
+
+        # Unplug (the fingers let go where they are), move the device frame 2 cm, reconnect:
+        # the first pose of the new connection is 2 cm away, walked again.
+        emu.stop()
+        wait_for(lambda: dev.stats()["state"] == "hangup", 1.0, "the hang-up")
+        world.drain_ticks(records)
+        emu = Emulator("--fingers", "2", "--motion", "static")
+        lifted[2, 3] = 0.07
+        dev.transform = workspace_matrix(lifted)
+        dev.reconnect(emu.port)
+        target[:, 2] = 0.07
+        wait_for(lambda: np.abs(world.snapshot()["hips"] - target).max() < 1e-6, 5, "the HIPs back at the device")
+        time.sleep(0.05)
+        ticks = world.drain_ticks(records)
+        steps = np.linalg.norm(np.diff(ticks["hip"], axis=0), axis=2)
+        assert np.all(np.diff(ticks["tick"]) == 1) and steps.max() <= bound, steps.max()
+        assert np.all((steps > 1.99e-4).sum(axis=0) >= 95)            # 2 cm walked, not jumped
+    finally:
+        emu.proc.kill()
+        dev.disconnect()
         world.stop()

@@ -73,3 +73,57 @@ def test_free_fingers_puts_a_new_device_on_the_fingers_no_device_drives():
         free_fingers([], 3, 1, first=4)
     with pytest.raises(ValueError, match="the scene has no fingers"):
         free_fingers([], 0, 2)
+
+
+def test_a_source_device_owns_its_fingers_in_the_core():
+    """A device read in Python (push_device_hips) and a serial device never share a finger; its
+    forces (device_forces) only for its own fingers, zero until enabled, and only while running;
+    a SourceDevice without send_forces (a SpaceMouse) records zero forces sent."""
+    import socket
+
+    graspcore = pytest.importorskip("graspcore")
+    from addon.engine.devices.live import DeviceSet
+    world = graspcore.World(gravity=(0, 0, 0))
+    world.add_finger(position=(0.0, 0, 0))
+    world.add_finger(position=(0.1, 0, 0))
+    out = np.ones((1, 3))
+    with pytest.raises(RuntimeError, match="not running"):
+        world.push_device_hips(0, np.zeros((1, 3)))
+    world.start(priority=0)
+    a, b = socket.socketpair()
+    try:
+        assert world.push_device_hips(0, np.array([[0.0, 0.0, 0.001]]))
+        assert not world.push_device_hips(0, np.array([[np.nan, 0.0, 0.0]]))     # refused, nothing taken
+        with pytest.raises(ValueError, match="push_device_hips"):
+            world.attach_serial(a.fileno(), finger_offset=0, num_fingers=1)
+        dev = world.attach_serial(a.fileno(), finger_offset=1, num_fingers=1)
+        with pytest.raises(ValueError, match="a serial device drives"):
+            world.push_device_hips(1, np.zeros((1, 3)))
+        with pytest.raises(ValueError, match="not driven through push_device_hips"):
+            world.device_forces(1, out, True)
+        world.device_forces(0, out, False)
+        assert not out.any()
+        world.detach_serial(dev)
+
+        class Mouse:            # an input-only source: fingertips, no forces
+            name, n_fingers = "mouse", 1
+
+            def open(self):
+                pass
+
+            def close(self):
+                pass
+
+            def hips_at(self, t):
+                return np.array([[0.1, 0.0, 0.002]])
+
+        devices = DeviceSet(world)
+        devices.add_source(Mouse(), 1)      # the serial device's finger, free again
+        devices.poll()
+        assert devices.devices[0].polls == 1 and devices.devices[0].rejected == 0
+    finally:
+        world.stop()
+        a.close()
+        b.close()
+    with pytest.raises(RuntimeError, match="not running"):
+        world.device_forces(0, out, True)

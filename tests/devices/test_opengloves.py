@@ -137,17 +137,29 @@ def test_glove_drives_fingers_of_a_running_world_and_feels_the_box():
     try:
         glove = devices.add_source(G.OpenGlovesSource(os.ttyname(slave), hand_frame=frame, full_scale=4.0), 0, "glove")
         os.write(master, b"A0B0C0D0E0\n")
-        lines = b""
-        for _ in range(20):
+        # The fingers start 5 cm above the glove's tips: the soft start walks them down at
+        # 0.2 m/s (0.25 s), never faster, on the same per-finger channel as a serial device.
+        deadline = time.monotonic() + 5.0
+        while time.monotonic() < deadline:
             time.sleep(0.01)
             devices.poll()
+            if np.abs(world.snapshot()["hips"] - tips).max() < 1e-12:
+                break
+        time.sleep(0.05)
+        devices.poll()
         snap = world.snapshot()
         np.testing.assert_allclose(snap["hips"], tips, atol=1e-12)
         assert abs(np.linalg.norm(snap["spring_forces"][1]) - 4.0) < 0.05
         lines = os.read(master, 4096)
         assert lines.split(b"\n")[-2] == b"A0B0C0D0E0"             # forces off until enabled
+        walk = world.drain_ticks(records)
+        hips = walk["hip"]
+        assert hips[0, 1, 2] > tips[1, 2] + 0.04                       # it did start 5 cm away
+        steps = np.linalg.norm(np.diff(hips, axis=0), axis=2)
+        assert steps.max() <= 0.2 * 1e-3 * (1 + 1e-9), steps.max()   # 0.2 m/s at 1 kHz
+        assert (steps[:, 1] > 1.999e-4).sum() >= 0.04 / 2e-4 * 0.99   # walked, at that speed
         # The recording says what the glove got: nothing, though the index presses with 4 N.
-        off = world.drain_ticks(records)["device_force"].copy()
+        off = walk["device_force"]
         assert len(off) > 50 and not off.any()
         devices.enable(True)
         # The brake line follows the core's device forces, which the watchdog holds at zero

@@ -130,10 +130,12 @@ class DeviceInput(InputSource):
 
 class SourceDevice:
     """A device read in Python (SpaceMouse, OpenGloves: tens of Hz) in a DeviceSet. Its
-    fingertips go in through ``push_device_hips`` at every poll, merged with the serial
-    devices' fingers; a source with ``send_forces`` (a glove) gets its fingers' device
-    forces back, zero until enabled. What it was sent (nothing, for an input-only device) is
-    what the recording holds as its fingers' device force (``device_forces_sent``)."""
+    fingertips go at every poll into its fingers' slots in the core (``push_device_hips``), the
+    channel the serial device threads write; a source with ``send_forces`` (a glove) gets its
+    fingers' forces from the latest haptic tick through the same gate as a serial device's
+    (``device_forces``: zero until enabled, ramped in, zero while the haptic loop stalls). What
+    it was sent (nothing, for an input-only device) is what the recording holds as its
+    fingers' device force (``device_forces_sent``)."""
 
     def __init__(self, world, source, finger_offset: int, label: str):
         self.world, self.source, self.label, self.port = world, source, label, label
@@ -165,18 +167,17 @@ class SourceDevice:
     def enable(self, on: bool = True) -> None:
         self.enabled = bool(on)
 
-    def poll(self, forces) -> None:
-        """``forces``: the world's device forces, the same gate (enable, ramp, clamp, watchdog)
-        as every device kind's (the runtime's, here at the display rate)."""
+    def poll(self) -> None:
         if not self.connected:
             return
         hips = np.ascontiguousarray(self.source.hips_at(time.monotonic() - self._t0), dtype=np.float64)
         if not self.world.push_device_hips(self.finger_offset, hips):
             self.rejected += 1
         self.polls += 1
-        if hasattr(self.source, "send_forces") and forces is not None:
-            self._sent(self.source.send_forces(forces[self.finger_offset:self.finger_offset + self.num_fingers],
-                                               self.enabled))
+        if hasattr(self.source, "send_forces"):
+            forces = np.zeros((self.num_fingers, 3))
+            self.world.device_forces(self.finger_offset, forces, self.enabled)
+            self._sent(self.source.send_forces(forces, self.enabled))
 
     def stats(self) -> dict:
         state = getattr(self.source, "state", None)
@@ -247,12 +248,9 @@ class DeviceSet:
         Returns the new events."""
         new = []
         now = time.monotonic()
-        sources = [d for d in self.devices if isinstance(d, SourceDevice)]
-        if sources:
-            forces = self.world.snapshot()["forces"] if any(hasattr(d.source, "send_forces") for d in sources) \
-                else None
-            for d in sources:
-                d.poll(forces)
+        for d in self.devices:
+            if isinstance(d, SourceDevice):
+                d.poll()
         for d in self.devices:
             for _mono, name, value, session_time in d.events():
                 new.append((max(0.0, session_time), d.label, name, value))

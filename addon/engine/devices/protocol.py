@@ -3,7 +3,7 @@
 A frame on the wire is ``COBS(body) 0x00``; ``body`` is a 4-byte header (version, type,
 sequence number), a payload whose layout the type fixes, and the CRC-16/CCITT-FALSE of
 header and payload. All fields are little-endian. The C core has an identical codec
-(native/src/serial_io.c); both are checked against tests/devices/protocol_vectors.txt.
+(native/src/device_codec.c); both are checked against tests/devices/protocol_vectors.txt.
 """
 from __future__ import annotations
 

@@ -1,9 +1,7 @@
-/* Serial haptic devices (serial_io.c, docs/protocol.md, docs/devices.md): the protocol
- * codec, and the hub through which device threads meet the runtime. */
-#ifndef GC_SERIAL_IO_H
-#define GC_SERIAL_IO_H
-
-#include "world_internal.h"
+/* The Grasp Lab device protocol's codec (device_codec.c, docs/protocol.md): CRC, COBS, frames,
+ * a streaming decoder and little-endian payload fields. No world types, no threads. */
+#ifndef GC_DEVICE_CODEC_H
+#define GC_DEVICE_CODEC_H
 
 #include <stddef.h>
 #include <stdint.h>
@@ -93,22 +91,5 @@ static inline void gc_putf32(uint8_t *p, float f) {
     memcpy(&u, &f, 4);
     gc_put32(p, u);
 }
-
-/* ---- the hub: one per world (created with it), the runtime's side of the devices ---- */
-typedef struct gcSerialHub gcSerialHub;
-gcSerialHub *gc_serial_hub_create(const gcWorld *world);
-/* Detaches every device, joining its thread: before the runtime is freed. */
-void gc_serial_hub_detach_all(gcSerialHub *hub);
-/* After the runtime is freed (its haptic loop writes into the hub). */
-void gc_serial_hub_destroy(gcSerialHub *hub);
-/* The haptic loop, after each tick's safety stage: device forces (3 a finger), the tick's
- * god-objects and HIPs (in `hap`), for the device threads. */
-void gc_serial_hub_tick(gcSerialHub *hub, const gcWorld *hap, const double *device_force, int forces_enabled,
-                        int64_t now_ns);
-/* The haptic loop, for the tick log: the device forces to record. `device_force` itself while no
- * serial device has driven a finger; else a copy in which each such finger has what its device
- * was last sent (scene axes), or zero once that frame's TTL is over or the device was told to
- * stop (ENABLE(0), ESTOP) or stopped itself. Never blocks, never allocates. */
-const double *gc_serial_hub_recorded_forces(gcSerialHub *hub, const double *device_force, int num_fingers);
 
 #endif

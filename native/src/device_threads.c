@@ -1,19 +1,17 @@
-/* Serial haptic devices: the Grasp Lab protocol codec (docs/protocol.md) and one thread per
- * device that owns its file descriptor's I/O (docs/devices.md).
- *
- * The haptic loop publishes every tick's device forces, god-objects and HIPs into the hub
- * (gc_serial_hub_tick, a sequence lock: one writer, any number of readers, never waiting on
- * them). A device thread reads bytes, decodes frames, turns poses into HIPs of its fingers
- * in the hub's merged HIP array and pushes that array into the runtime, then answers with a
- * force frame built from the latest published tick. Nothing here touches Python. */
+/* Device threads (docs/devices.md): one thread per serial port or UDP socket that owns its
+ * descriptor's I/O. It reads bytes, decodes frames (device_codec.c), writes its fingers' HIPs
+ * into their slots in the hub (device_hub.c), and answers each pose with a force frame built
+ * from the latest haptic tick through the force gate (force_gate.c). It calls nothing of the
+ * runtime and no public API: errors are counted in its statistics, never written to the world.
+ * Also the API that attaches, commands and reads devices. Nothing here touches Python. */
 #define _GNU_SOURCE
 
-#include "serial_io.h"
+#include "device_codec.h"
+#include "device_hub.h"
+#include "force_gate.h"
 
 #include "graspcore.h"
 #include "body.h"
-#include "gc_math.h"
-#include "runtime.h"
 
 #include <arpa/inet.h>
 #include <errno.h>
@@ -24,14 +22,11 @@
 #include <pthread.h>
 #include <sched.h>
 #include <signal.h>
-#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <sys/socket.h>
-#include <time.h>
 #include <unistd.h>
 
-#define GC_MAX_SERIAL_DEVICES 8
 #define GC_SERIAL_EVENTS 256
 #define GC_LATENCY_BINS 10000 /* 1 us bins; the last collects the rest */
 #define GC_HELLO_RETRY_NS 100000000LL
@@ -39,177 +34,12 @@
 #define GC_RATE_WINDOW_NS 250000000LL
 #define GC_DROP_EVENT_NS 100000000LL
 #define GC_ESTOP_STATUS_GRACE_NS 50000000LL /* poses may say "e-stop latched" this long after ENABLE(1) */
-#define NS 1000000000LL
-
-/* ---- codec ---------------------------------------------------------------------------- */
-
-uint16_t gc_crc16(const uint8_t *data, size_t n) {
-    uint16_t crc = 0xFFFF;
-    for (size_t i = 0; i < n; ++i) {
-        crc ^= (uint16_t)(data[i] << 8);
-        for (int b = 0; b < 8; ++b) crc = (crc & 0x8000) ? (uint16_t)((crc << 1) ^ 0x1021) : (uint16_t)(crc << 1);
-    }
-    return crc;
-}
-
-size_t gc_cobs_encode(const uint8_t *in, size_t n, uint8_t *out) {
-    size_t code_at = 0, o = 1;
-    uint8_t code = 1;
-    int full = 0; /* the input so far ends with a full 254-byte block: no final block */
-    for (size_t i = 0; i < n; ++i) {
-        full = 0;
-        if (in[i] == 0) {
-            out[code_at] = code;
-            code_at = o++;
-            code = 1;
-            continue;
-        }
-        out[o++] = in[i];
-        if (++code == 0xFF) {
-            out[code_at] = code;
-            code_at = o++;
-            code = 1;
-            full = 1;
-        }
-    }
-    if (full) return o - 1;
-    out[code_at] = code;
-    return o;
-}
-
-int gc_cobs_decode(const uint8_t *in, size_t n, uint8_t *out, size_t cap, size_t *out_n) {
-    size_t i = 0, o = 0;
-    while (i < n) {
-        uint8_t code = in[i];
-        if (code == 0 || i + code > n) return -1;
-        for (size_t k = i + 1; k < i + code; ++k) {
-            if (in[k] == 0 || o == cap) return -1;
-            out[o++] = in[k];
-        }
-        i += code;
-        if (code != 0xFF && i < n) {
-            if (o == cap) return -1;
-            out[o++] = 0;
-        }
-    }
-    *out_n = o;
-    return 0;
-}
-
-size_t gc_frame_encode(uint8_t type, uint16_t seq, const uint8_t *payload, size_t n, uint8_t *out) {
-    uint8_t body[GC_PROTO_BODY_MAX];
-    if (GC_PROTO_HEADER + n + 2 > sizeof body) return 0;
-    body[0] = GC_PROTO_VERSION;
-    body[1] = type;
-    gc_put16(body + 2, seq);
-    if (n) memcpy(body + GC_PROTO_HEADER, payload, n);
-    size_t len = GC_PROTO_HEADER + n;
-    gc_put16(body + len, gc_crc16(body, len));
-    len += 2;
-    size_t w = gc_cobs_encode(body, len, out);
-    out[w] = 0;
-    return w + 1;
-}
-
-/* Payload length the type requires (pose and force: by the finger count they carry). */
-static int payload_length_ok(uint8_t type, const uint8_t *p, size_t n) {
-    switch (type) {
-    case GC_MSG_HELLO_HOST: return n == 2;
-    case GC_MSG_HELLO_DEVICE: return n >= 12 && n <= 12 + GC_PROTO_NAME_MAX;
-    case GC_MSG_POSE:
-    case GC_MSG_FORCE: return n >= 6 && (size_t)p[4] * 12 == n - 6;
-    case GC_MSG_ENABLE:
-    case GC_MSG_ESTOP: return n == 1;
-    case GC_MSG_HEARTBEAT: return n == 4;
-    default: return 0;
-    }
-}
-
-gcFrameError gc_frame_decode(const uint8_t *wire, size_t n, gcFrame *out) {
-    uint8_t body[GC_PROTO_BODY_MAX];
-    size_t len;
-    if (n > GC_PROTO_WIRE_MAX) return GC_FRAME_LENGTH;
-    if (gc_cobs_decode(wire, n, body, sizeof body, &len)) {
-        /* A well-formed encoding that is merely too long for any frame is a length error. */
-        return GC_FRAME_COBS;
-    }
-    if (len < GC_PROTO_HEADER + 2) return GC_FRAME_SHORT;
-    if (gc_crc16(body, len - 2) != gc_le16(body + len - 2)) return GC_FRAME_CRC;
-    if (body[0] != GC_PROTO_VERSION) return GC_FRAME_VERSION;
-    uint8_t type = body[1];
-    if (type < GC_MSG_HELLO_HOST || type > GC_MSG_HEARTBEAT) return GC_FRAME_TYPE;
-    size_t plen = len - GC_PROTO_HEADER - 2;
-    if (!payload_length_ok(type, body + GC_PROTO_HEADER, plen)) return GC_FRAME_LENGTH;
-    out->type = type;
-    out->seq = gc_le16(body + 2);
-    out->len = plen;
-    memcpy(out->payload, body + GC_PROTO_HEADER, plen);
-    return GC_FRAME_OK;
-}
-
-void gc_decoder_reset(gcFrameDecoder *d) { memset(d, 0, sizeof *d); }
-
-int gc_decoder_push(gcFrameDecoder *d, uint8_t byte, gcFrame *out) {
-    if (byte != 0) {
-        if (d->overflow) return 0;
-        if (d->len == sizeof d->buf) {
-            d->overflow = 1;
-            d->errors[GC_FRAME_OVERFLOW]++;
-            d->len = 0;
-            return 0;
-        }
-        d->buf[d->len++] = byte;
-        return 0;
-    }
-    if (d->overflow) {
-        d->overflow = 0;
-        return 0;
-    }
-    if (d->len == 0) return 0;
-    gcFrameError e = gc_frame_decode(d->buf, d->len, out);
-    d->len = 0;
-    if (e != GC_FRAME_OK) {
-        d->errors[e]++;
-        return 0;
-    }
-    d->frames++;
-    return 1;
-}
-
-/* ---- the hub ---------------------------------------------------------------------------- */
 
 typedef struct gcSerialDevice gcSerialDevice;
 
-struct gcSerialHub {
-    gcWorld *world;
-    int max_fingers;
-    /* The latest tick (sequence lock; relaxed atomics so that readers never race). */
-    _Atomic uint64_t seq;
-    _Atomic int64_t tick_ns;
-    _Atomic uint64_t tick_time_bits; /* the tick's session time (a double) */
-    _Atomic int tick_enabled;
-    _Atomic uint64_t *force_bits, *go_bits, *hip_bits; /* 3 per finger, doubles as bits */
-    /* What each finger's device was last sent, in scene axes, and until when it renders it (its
-     * TTL; 0: nothing): what the tick log records as the finger's device force. One writer a
-     * finger (the thread of the device that drives it), a sequence lock a finger. */
-    _Atomic uint32_t *sent_seq;
-    _Atomic uint64_t *sent_bits;
-    _Atomic int64_t *sent_until_ns;
-    _Atomic unsigned char *driven; /* 1 once a serial device has driven the finger */
-    _Atomic int any_driven;
-    double *recorded; /* the haptic loop's scratch: the device forces it records */
-    /* The merged HIPs every device thread pushes (fingers without a device keep theirs). */
-    pthread_mutex_t hip_mutex;
-    double *hips;
-    int hips_ready, hip_count;
-    double last_push_t;
-    /* Devices (the API mutex guards attach/detach; threads never take it). */
-    pthread_mutex_t api_mutex;
-    gcSerialDevice *devices[GC_MAX_SERIAL_DEVICES];
-};
-
 struct gcSerialDevice {
-    gcSerialHub *hub;
+    gcDeviceHub *hub;
+    int id;
     int fd;
     gcSerialDef def;
     double A[9], b[3]; /* device metres -> world: x = A p + b */
@@ -225,190 +55,6 @@ struct gcSerialDevice {
     gcSerialStats published;
 };
 
-static int64_t now_ns(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (int64_t)ts.tv_sec * NS + ts.tv_nsec;
-}
-
-static void store_d(_Atomic uint64_t *slot, double v) {
-    uint64_t u;
-    memcpy(&u, &v, 8);
-    atomic_store_explicit(slot, u, memory_order_relaxed);
-}
-
-static double load_d(_Atomic uint64_t *slot) {
-    uint64_t u = atomic_load_explicit(slot, memory_order_relaxed);
-    double v;
-    memcpy(&v, &u, 8);
-    return v;
-}
-
-/* A sequence-locked read: acquire, so that the sequence number read after it is not read before. */
-static double load_d_acquire(_Atomic uint64_t *slot) {
-    uint64_t u = atomic_load_explicit(slot, memory_order_acquire);
-    double v;
-    memcpy(&v, &u, 8);
-    return v;
-}
-
-gcSerialHub *gc_serial_hub_create(const gcWorld *w) {
-    gcSerialHub *h = calloc(1, sizeof *h);
-    if (!h) return NULL;
-    pthread_mutex_init(&h->hip_mutex, NULL);
-    pthread_mutex_init(&h->api_mutex, NULL);
-    size_t n = (size_t)w->def.max_fingers * 3;
-    h->world = (gcWorld *)w;
-    h->max_fingers = w->def.max_fingers;
-    h->force_bits = calloc(n, sizeof *h->force_bits);
-    h->go_bits = calloc(n, sizeof *h->go_bits);
-    h->hip_bits = calloc(n, sizeof *h->hip_bits);
-    h->hips = calloc(n, sizeof *h->hips);
-    h->sent_seq = calloc((size_t)w->def.max_fingers, sizeof *h->sent_seq);
-    h->sent_bits = calloc(n, sizeof *h->sent_bits);
-    h->sent_until_ns = calloc((size_t)w->def.max_fingers, sizeof *h->sent_until_ns);
-    h->driven = calloc((size_t)w->def.max_fingers, sizeof *h->driven);
-    h->recorded = calloc(n, sizeof *h->recorded);
-    if (!h->force_bits || !h->go_bits || !h->hip_bits || !h->hips || !h->sent_seq || !h->sent_bits ||
-        !h->sent_until_ns || !h->driven || !h->recorded) {
-        gc_serial_hub_destroy(h);
-        return NULL;
-    }
-    h->last_push_t = -INFINITY;
-    return h;
-}
-
-void gc_serial_hub_tick(gcSerialHub *h, const gcWorld *hap, const double *device_force, int enabled, int64_t t) {
-    uint64_t s = atomic_load_explicit(&h->seq, memory_order_relaxed);
-    atomic_store_explicit(&h->seq, s + 1, memory_order_relaxed);
-    atomic_thread_fence(memory_order_release);
-    for (int i = 0; i < hap->num_fingers; ++i) {
-        const gcFinger *f = &hap->fingers[i];
-        store_d(&h->force_bits[3 * i], device_force[3 * i]);
-        store_d(&h->force_bits[3 * i + 1], device_force[3 * i + 1]);
-        store_d(&h->force_bits[3 * i + 2], device_force[3 * i + 2]);
-        store_d(&h->go_bits[3 * i], f->god_object.x);
-        store_d(&h->go_bits[3 * i + 1], f->god_object.y);
-        store_d(&h->go_bits[3 * i + 2], f->god_object.z);
-        store_d(&h->hip_bits[3 * i], f->hip.x);
-        store_d(&h->hip_bits[3 * i + 1], f->hip.y);
-        store_d(&h->hip_bits[3 * i + 2], f->hip.z);
-    }
-    atomic_store_explicit(&h->tick_ns, t, memory_order_relaxed);
-    store_d(&h->tick_time_bits, hap->time);
-    atomic_store_explicit(&h->tick_enabled, enabled, memory_order_relaxed);
-    atomic_store_explicit(&h->seq, s + 2, memory_order_release);
-}
-
-/* A finger's last sent force (scene axes) and until when the device renders it. */
-static void sent_store(gcSerialHub *h, int finger, const double f[3], int64_t until_ns) {
-    uint32_t s = atomic_load_explicit(&h->sent_seq[finger], memory_order_relaxed);
-    atomic_store_explicit(&h->sent_seq[finger], s + 1, memory_order_relaxed);
-    atomic_thread_fence(memory_order_release);
-    for (int c = 0; c < 3; ++c) store_d(&h->sent_bits[3 * finger + c], f[c]);
-    atomic_store_explicit(&h->sent_until_ns[finger], until_ns, memory_order_relaxed);
-    atomic_store_explicit(&h->sent_seq[finger], s + 2, memory_order_release);
-}
-
-/* The device renders nothing from now on (it was told ENABLE(0) or ESTOP, or stopped itself). */
-static void sent_clear(gcSerialHub *h, int offset, int n) {
-    static const double zero[3] = {0, 0, 0};
-    for (int i = offset; i < offset + n; ++i) sent_store(h, i, zero, 0);
-}
-
-const double *gc_serial_hub_recorded_forces(gcSerialHub *h, const double *device_force, int num_fingers) {
-    if (!atomic_load_explicit(&h->any_driven, memory_order_acquire)) return device_force;
-    int64_t now = 0;
-    for (int i = 0; i < num_fingers; ++i) {
-        double *out = &h->recorded[3 * i];
-        if (!atomic_load_explicit(&h->driven[i], memory_order_acquire)) {
-            memcpy(out, &device_force[3 * i], 3 * sizeof(double));
-            continue;
-        }
-        if (!now) now = now_ns(); /* the device threads' clock, whatever clock the loop runs on */
-        /* A writer preempted mid-store must not hold the haptic loop: after a few tries the
-         * finger keeps what the previous tick recorded (a millisecond old). */
-        for (int attempt = 0; attempt < 8; ++attempt) {
-            uint32_t s1 = atomic_load_explicit(&h->sent_seq[i], memory_order_acquire);
-            if (s1 & 1) continue;
-            double v[3];
-            for (int c = 0; c < 3; ++c) v[c] = load_d_acquire(&h->sent_bits[3 * i + c]);
-            int64_t until = atomic_load_explicit(&h->sent_until_ns[i], memory_order_acquire);
-            if (atomic_load_explicit(&h->sent_seq[i], memory_order_relaxed) != s1) continue;
-            for (int c = 0; c < 3; ++c) out[c] = now < until ? v[c] : 0.0; /* its TTL over: the device let go */
-            break;
-        }
-    }
-    return h->recorded;
-}
-
-/* The session time of monotonic instant t: the latest tick's time plus the time since its
- * wake-up (-1 before the first tick). */
-static double hub_session_time(gcSerialHub *h, int64_t t) {
-    for (int attempt = 0;; ++attempt) {
-        if (attempt >= 64) { /* the haptic loop was preempted mid-publication: let it run */
-            struct timespec pause = {0, 1000};
-            nanosleep(&pause, NULL);
-        }
-        uint64_t s1 = atomic_load_explicit(&h->seq, memory_order_acquire);
-        if (s1 & 1) continue;
-        int64_t tick = atomic_load_explicit(&h->tick_ns, memory_order_acquire);
-        double time = load_d_acquire(&h->tick_time_bits);
-        if (atomic_load_explicit(&h->seq, memory_order_relaxed) != s1) continue;
-        return s1 ? time + (double)(t - tick) / NS : -1.0;
-    }
-}
-
-/* Fingers [offset, offset + n) of the latest tick: forces, god-objects, HIPs (NULL to skip).
- * Returns the tick's clock (0: no tick yet) and whether its forces were enabled. */
-static int64_t hub_read(gcSerialHub *h, int offset, int n, double *force, double *go, double *hip, int *enabled) {
-    for (int attempt = 0;; ++attempt) {
-        if (attempt >= 64) { /* the writer was preempted mid-tick: let it run (we may be real-time) */
-            struct timespec pause = {0, 1000};
-            nanosleep(&pause, NULL);
-        }
-        uint64_t s1 = atomic_load_explicit(&h->seq, memory_order_acquire);
-        if (s1 & 1) continue;
-        for (int k = 3 * offset; k < 3 * (offset + n); ++k) {
-            if (force) force[k - 3 * offset] = load_d(&h->force_bits[k]);
-            if (go) go[k - 3 * offset] = load_d(&h->go_bits[k]);
-            if (hip) hip[k - 3 * offset] = load_d(&h->hip_bits[k]);
-        }
-        int64_t t = atomic_load_explicit(&h->tick_ns, memory_order_relaxed);
-        int e = atomic_load_explicit(&h->tick_enabled, memory_order_relaxed);
-        atomic_thread_fence(memory_order_acquire);
-        if (atomic_load_explicit(&h->seq, memory_order_relaxed) == s1) {
-            if (enabled) *enabled = e;
-            return s1 ? t : 0;
-        }
-    }
-}
-
-/* Writes fingers [offset, offset + n) of the merged HIPs and pushes them all. */
-static gcStatus hub_push(gcSerialHub *h, int offset, int n, const double *positions) {
-    pthread_mutex_lock(&h->hip_mutex);
-    memcpy(&h->hips[3 * offset], positions, (size_t)n * 3 * sizeof(double));
-    double t = (double)now_ns() / NS;
-    if (t <= h->last_push_t) t = nextafter(h->last_push_t, INFINITY);
-    h->last_push_t = t;
-    gcStatus st = gc_runtime_push_input(h->world, h->hips, NULL, h->hip_count, t); /* no error message: not ours */
-    pthread_mutex_unlock(&h->hip_mutex);
-    return st;
-}
-
-/* The merged HIPs cover fingers 0..end-1 from now on. Fingers without a device keep their
- * HIPs: the array starts from the latest tick (or the world, before the runtime's first). */
-static void hub_claim_fingers(gcSerialHub *h, const gcWorld *w, int end) {
-    pthread_mutex_lock(&h->hip_mutex);
-    if (!h->hips_ready) {
-        if (!hub_read(h, 0, w->num_fingers, NULL, NULL, h->hips, NULL))
-            memcpy(h->hips, w->hip_array, (size_t)w->num_fingers * 3 * sizeof(double));
-        h->hips_ready = 1;
-    }
-    if (end > h->hip_count) h->hip_count = end;
-    pthread_mutex_unlock(&h->hip_mutex);
-}
-
 /* ---- a device thread ---------------------------------------------------------------------- */
 
 typedef struct gcDeviceRun { /* the thread's own state */
@@ -420,14 +66,15 @@ typedef struct gcDeviceRun { /* the thread's own state */
     int have_rx_seq;
     int host_estop;           /* our ESTOP is latched: said again while the device's poses do not show it */
     int64_t estop_sent_ns;
-    int64_t last_pose_ns, last_tx_ns, last_hello_ns, enabled_since_ns, last_publish_ns, last_drop_event_ns;
+    int64_t last_pose_ns, last_tx_ns, last_hello_ns, last_publish_ns, last_drop_event_ns;
+    gcForceGate gate;        /* enable, e-stop latch, ramp-in (s.enabled mirrors gate.enabled) */
+    uint32_t episode;        /* this connection's number in the hub: a new one starts its fingers with a soft start */
     uint64_t drops_reported, foreign_reported;
     /* UDP: where frames go (the configured address, then the pinned device's). */
     int datagram, pinned;
     struct sockaddr_storage peer;
     socklen_t peer_len;
     int enable_generation, stalled;
-    int estop_latched;       /* an e-stop, until the next ENABLE(1) */
     int hello_pending;       /* HELLO_HOST sent to a silent device, no HELLO_DEVICE yet: zero forces */
     int64_t enable_sent_ns;  /* when ENABLE(1) was last sent */
     double unit_scale;
@@ -444,9 +91,9 @@ static void emit(gcSerialDevice *d, int code, int value) {
     unsigned tail = atomic_load_explicit(&d->ev_tail, memory_order_acquire);
     if (head - tail >= GC_SERIAL_EVENTS) return; /* full: the reader is away; the counters still say it */
     gcSerialEvent *e = &d->events[head % GC_SERIAL_EVENTS];
-    int64_t t = now_ns();
-    e->time = (double)t / NS;
-    e->session_time = hub_session_time(d->hub, t);
+    int64_t t = gc_clock_now_ns();
+    e->time = (double)t / GC_NS_PER_S;
+    e->session_time = gc_device_hub_session_time(d->hub, t);
     e->code = code;
     e->value = value;
     atomic_store_explicit(&d->ev_head, head + 1, memory_order_release);
@@ -477,16 +124,22 @@ static int send_frame(gcDeviceRun *r, uint8_t type, const uint8_t *payload, size
         r->s.write_errors++; /* full (EAGAIN) or gone: the frame is lost, the TTL covers it */
         return 0;
     }
-    r->last_tx_ns = now_ns();
+    r->last_tx_ns = gc_clock_now_ns();
     return 1;
+}
+
+/* The device renders nothing from now on (it was told ENABLE(0) or ESTOP, or stopped itself). */
+static void sent_clear(gcDeviceHub *h, int offset, int n) {
+    static const double zero[3] = {0, 0, 0};
+    for (int i = offset; i < offset + n; ++i) gc_device_hub_sent(h, i, zero, 0);
 }
 
 static void send_enable(gcDeviceRun *r, int on) {
     uint8_t p = on ? 1 : 0;
     send_frame(r, GC_MSG_ENABLE, &p, 1);
     if (on) {
-        r->estop_latched = r->host_estop = 0; /* ENABLE(1) clears a latched e-stop, on both sides */
-        r->enable_sent_ns = now_ns();
+        r->host_estop = 0; /* ENABLE(1) clears a latched e-stop, on both sides (the gate's: take_requests) */
+        r->enable_sent_ns = gc_clock_now_ns();
     } else {
         sent_clear(r->dev->hub, r->dev->def.finger_offset, r->dev->def.num_fingers);
     }
@@ -494,11 +147,10 @@ static void send_enable(gcDeviceRun *r, int on) {
 
 /* Forces off until the next ENABLE(1): an e-stop, the host's (reason 0) or the device's. */
 static void latch_estop(gcDeviceRun *r, int reason) {
+    int first = gc_force_gate_estop(&r->gate);
     r->s.enabled = 0;
-    r->enabled_since_ns = 0;
     sent_clear(r->dev->hub, r->dev->def.finger_offset, r->dev->def.num_fingers);
-    if (r->estop_latched) return; /* a repeated ESTOP: one event, one count */
-    r->estop_latched = 1;
+    if (!first) return; /* a repeated ESTOP: one event, one count */
     r->s.estops++;
     emit(r->dev, GC_SERIAL_EV_ESTOP, reason);
 }
@@ -516,7 +168,7 @@ static void publish_stats(gcDeviceRun *r, int64_t t) {
     s->dropped = 0;
     for (int k = 0; k < GC_FRAME_RANGE; ++k) s->frame_errors[k] = r->dec.errors[k]; /* range: counted here */
     for (int k = 0; k < GC_FRAME_KINDS; ++k) s->dropped += s->frame_errors[k];
-    s->last_pose_age = r->last_pose_ns ? (double)(t - r->last_pose_ns) / NS : -1.0;
+    s->last_pose_age = r->last_pose_ns ? (double)(t - r->last_pose_ns) / GC_NS_PER_S : -1.0;
     s->latency_p50_us = percentile_us(r->latency, r->latency_n, 0.50);
     s->latency_p99_us = percentile_us(r->latency, r->latency_n, 0.99);
     s->latency_max_us = r->latency_max_us;
@@ -530,8 +182,8 @@ static void publish_stats(gcDeviceRun *r, int64_t t) {
 static void let_go(gcDeviceRun *r) {
     gcSerialDevice *d = r->dev;
     double go[3 * GC_PROTO_MAX_FINGERS];
-    if (!hub_read(d->hub, d->def.finger_offset, d->def.num_fingers, NULL, go, NULL, NULL)) return;
-    if (hub_push(d->hub, d->def.finger_offset, d->def.num_fingers, go) < 0) r->s.push_rejected++;
+    if (!gc_device_hub_read(d->hub, d->def.finger_offset, d->def.num_fingers, NULL, go, NULL, NULL)) return;
+    gc_device_hub_write_hips(d->hub, d->def.finger_offset, d->def.num_fingers, go, r->episode);
 }
 
 static void lose(gcDeviceRun *r, int state) {
@@ -540,7 +192,7 @@ static void lose(gcDeviceRun *r, int state) {
         emit(r->dev, GC_SERIAL_EV_LOST, state == GC_SERIAL_HANGUP);
     }
     if (r->s.state != GC_SERIAL_HANGUP) r->s.state = state;
-    r->enabled_since_ns = 0;
+    gc_force_gate_close(&r->gate); /* ramps in again once back */
 }
 
 /* The force frame answering pose `ack`: the latest tick's forces of the device's fingers,
@@ -550,43 +202,32 @@ static void send_forces(gcDeviceRun *r, uint16_t ack, int64_t t) {
     int n = r->s.device_fingers, m = d->def.num_fingers < n ? d->def.num_fingers : n;
     double f[3 * GC_PROTO_MAX_FINGERS];
     int tick_enabled = 0;
-    int64_t tick = hub_read(d->hub, d->def.finger_offset, m, f, NULL, NULL, &tick_enabled);
-    int stalled = !tick || t - tick > (int64_t)(d->def.stall_timeout * NS);
+    int64_t tick = gc_device_hub_read(d->hub, d->def.finger_offset, m, f, NULL, NULL, &tick_enabled);
+    int stalled = !tick || t - tick > (int64_t)(d->def.stall_timeout * GC_NS_PER_S);
     if (stalled != r->stalled) {
         if (stalled) r->s.stall_zeroes++;
         emit(d, GC_SERIAL_EV_STALL, stalled);
         r->stalled = stalled;
     }
-    int on = r->s.enabled && r->s.renders_forces && !stalled && tick_enabled && !r->hello_pending;
-    if (!on)
-        r->enabled_since_ns = 0;
-    else if (!r->enabled_since_ns)
-        r->enabled_since_ns = t;
-    double gain = on ? gc_ramp_gain((double)(t - r->enabled_since_ns), d->def.ramp_time * NS) : 0.0;
+    int ready = r->s.renders_forces && !stalled && tick_enabled && !r->hello_pending;
+    double gain = gc_force_gate_gain(&r->gate, ready, t);
     r->s.gain = gain;
-    double limit = fmin(d->def.max_force, r->s.device_force_max);
+    const double *A = d->A;
+    for (int i = 0; i < m; ++i) { /* in device axes, f_dev = A^T f, then through the one gate */
+        const double fw[3] = {f[3 * i], f[3 * i + 1], f[3 * i + 2]};
+        for (int c = 0; c < 3; ++c) f[3 * i + c] = A[c] * fw[0] + A[3 + c] * fw[1] + A[6 + c] * fw[2];
+    }
+    gc_force_gate_apply(gain, fmin(d->def.max_force, r->s.device_force_max), f, f, m);
     uint8_t p[6 + 12 * GC_PROTO_MAX_FINGERS];
     gc_put16(p, ack);
-    double ttl_us = fmin(d->def.force_ttl * 1e6, r->s.device_ttl_max > 0 ? r->s.device_ttl_max * 1e6 : 65535.0);
-    gc_put16(p + 2, (uint16_t)fmin(ttl_us, 65535.0));
+    gc_put16(p + 2, gc_force_gate_ttl_us(d->def.force_ttl, r->s.device_ttl_max));
     p[4] = (uint8_t)n;
     p[5] = 0;
     double sent[3 * GC_PROTO_MAX_FINGERS]; /* what the frame carries, back in scene axes */
     for (int i = 0; i < n; ++i) {
         double v[3] = {0, 0, 0};
-        if (i < m && gain > 0) { /* in device axes, f_dev = A^T f, through the one gate */
-            const double *fw = &f[3 * i], *A = d->A;
-            int nonfinite = 0;
-            gcVec3 g = gc_gate_force(gc_v3(A[0] * fw[0] + A[3] * fw[1] + A[6] * fw[2],
-                                           A[1] * fw[0] + A[4] * fw[1] + A[7] * fw[2],
-                                           A[2] * fw[0] + A[5] * fw[1] + A[8] * fw[2]),
-                                     gain, limit, &nonfinite);
-            v[0] = g.x, v[1] = g.y, v[2] = g.z;
-        }
-        for (int c = 0; c < 3; ++c) {
-            v[c] = (float)v[c];
-            gc_putf32(p + 6 + 12 * i + 4 * c, (float)v[c]);
-        }
+        for (int c = 0; c < 3 && i < m; ++c) v[c] = (float)f[3 * i + c];
+        for (int c = 0; c < 3; ++c) gc_putf32(p + 6 + 12 * i + 4 * c, (float)v[c]);
         if (i < m)
             for (int c = 0; c < 3; ++c) /* f = A^-T f_dev */
                 sent[3 * i + c] = d->A_inv[c] * v[0] + d->A_inv[3 + c] * v[1] + d->A_inv[6 + c] * v[2];
@@ -594,7 +235,7 @@ static void send_forces(gcDeviceRun *r, uint16_t ack, int64_t t) {
     if (!send_frame(r, GC_MSG_FORCE, p, 6 + 12 * (size_t)n)) return; /* not sent: the last frame's TTL runs on */
     r->s.forces_sent++;
     int64_t until = r->last_tx_ns + (int64_t)gc_le16(p + 2) * 1000;
-    for (int i = 0; i < m; ++i) sent_store(d->hub, d->def.finger_offset + i, &sent[3 * i], until);
+    for (int i = 0; i < m; ++i) gc_device_hub_sent(d->hub, d->def.finger_offset + i, &sent[3 * i], until);
 }
 
 static void on_hello(gcDeviceRun *r, const gcFrame *fr) {
@@ -616,7 +257,10 @@ static void on_hello(gcDeviceRun *r, const gcFrame *fr) {
     memcpy(s->name, p + 12, name_len);
     s->name[name_len] = 0;
     r->unit_scale = units == 1 ? 1e-3 : 1.0;
-    if (s->state != GC_SERIAL_STREAMING) emit(r->dev, GC_SERIAL_EV_CONNECTED, n);
+    if (s->state != GC_SERIAL_STREAMING) {
+        emit(r->dev, GC_SERIAL_EV_CONNECTED, n);
+        r->episode = atomic_fetch_add_explicit(&r->dev->hub->connections, 1, memory_order_relaxed) + 1;
+    }
     s->state = GC_SERIAL_STREAMING;
     r->have_rx_seq = 0; /* a restarted device may start its sequence anywhere */
     r->last_pose_ns = 0;
@@ -648,6 +292,8 @@ static void on_pose(gcDeviceRun *r, const gcFrame *fr, int64_t t_read) {
     if (s->state == GC_SERIAL_LOST) {
         emit(d, GC_SERIAL_EV_RECOVERED, 0);
         s->state = GC_SERIAL_STREAMING;
+        /* Its fingers were let go meanwhile: a new episode, a soft start back to the device. */
+        r->episode = atomic_fetch_add_explicit(&d->hub->connections, 1, memory_order_relaxed) + 1;
     }
     /* A pose saying "e-stop latched" while forces are on: an ESTOP frame was lost on the way
      * (a device that has not yet taken up our ENABLE(1) may still say so for a moment). */
@@ -662,9 +308,9 @@ static void on_pose(gcDeviceRun *r, const gcFrame *fr, int64_t t_read) {
     r->last_pose_ns = t_read;
     s->poses++;
     r->rate_window_poses++;
-    if (hub_push(d->hub, d->def.finger_offset, m, r->hips) < 0) s->push_rejected++;
+    gc_device_hub_write_hips(d->hub, d->def.finger_offset, m, r->hips, r->episode);
     send_forces(r, fr->seq, t_read);
-    double us = (double)(now_ns() - t_read) / 1e3;
+    double us = (double)(gc_clock_now_ns() - t_read) / 1e3;
     int bin = (int)us;
     r->latency[bin < GC_LATENCY_BINS ? bin : GC_LATENCY_BINS - 1]++;
     r->latency_n++;
@@ -704,17 +350,17 @@ static void take_requests(gcDeviceRun *r) {
     if (atomic_exchange_explicit(&d->estop_request, 0, memory_order_acq_rel)) {
         uint8_t reason = 0;
         send_frame(r, GC_MSG_ESTOP, &reason, 1);
-        r->estop_latched = 0; /* the host's own e-stop is always an event */
+        r->gate.estop = 0; /* the host's own e-stop is always an event */
         latch_estop(r, 0);
         r->host_estop = 1;
-        r->estop_sent_ns = now_ns();
+        r->estop_sent_ns = gc_clock_now_ns();
     }
     int gen = atomic_load_explicit(&d->enable_generation, memory_order_acquire);
     if (gen != r->enable_generation) {
         r->enable_generation = gen;
         int on = atomic_load_explicit(&d->enable_request, memory_order_relaxed);
+        gc_force_gate_enable(&r->gate, on);
         r->s.enabled = on;
-        r->enabled_since_ns = 0;
         send_enable(r, on);
         emit(d, GC_SERIAL_EV_ENABLED, on);
     }
@@ -789,13 +435,13 @@ static void *device_main(void *arg) {
     uint8_t hello[2];
     gc_put16(hello, 0);
     send_frame(r, GC_MSG_HELLO_HOST, hello, 2);
-    r->last_hello_ns = r->rate_window_ns = now_ns();
+    r->last_hello_ns = r->rate_window_ns = gc_clock_now_ns();
     uint8_t buf[4096];
     while (atomic_load_explicit(&d->run, memory_order_acquire)) {
         take_requests(r);
         struct pollfd pfd = {.fd = d->fd, .events = POLLIN};
         int pr = poll(&pfd, 1, 1);
-        int64_t t = now_ns();
+        int64_t t = gc_clock_now_ns();
         if (r->datagram) {
             if (pr > 0) read_datagrams(r, buf, sizeof buf, t); /* no hang-up: silence is a loss */
         } else if (pr > 0 && (pfd.revents & POLLIN)) {
@@ -814,7 +460,7 @@ static void *device_main(void *arg) {
             struct timespec pause = {0, 2000000}; /* a hung-up descriptor polls ready at once */
             nanosleep(&pause, NULL);
         } else if (r->s.state == GC_SERIAL_STREAMING && r->last_pose_ns &&
-                   t - r->last_pose_ns > (int64_t)(d->def.lost_timeout * NS)) {
+                   t - r->last_pose_ns > (int64_t)(d->def.lost_timeout * GC_NS_PER_S)) {
             lose(r, GC_SERIAL_LOST);
         }
         if (r->s.state == GC_SERIAL_LOST) let_go(r);
@@ -840,13 +486,13 @@ static void *device_main(void *arg) {
             r->last_drop_event_ns = t;
         }
         if (t - r->rate_window_ns >= GC_RATE_WINDOW_NS) {
-            r->s.pose_rate = (double)r->rate_window_poses * NS / (double)(t - r->rate_window_ns);
+            r->s.pose_rate = (double)r->rate_window_poses * GC_NS_PER_S / (double)(t - r->rate_window_ns);
             r->rate_window_poses = 0;
             r->rate_window_ns = t;
         }
         if (t - r->last_publish_ns > 10000000LL) publish_stats(r, t);
     }
-    publish_stats(r, now_ns());
+    publish_stats(r, gc_clock_now_ns());
     free(r);
     return NULL;
 }
@@ -869,8 +515,8 @@ gcSerialDef gc_default_serial_def(void) {
 }
 
 static gcSerialDevice *device_of(gcWorld *w, int32_t id) {
-    gcSerialHub *h = w ? w->serial : NULL;
-    if (!h || id < 0 || id >= GC_MAX_SERIAL_DEVICES) return NULL;
+    gcDeviceHub *h = w ? w->serial : NULL;
+    if (!h || id < 0 || id >= GC_MAX_DEVICES) return NULL;
     return h->devices[id];
 }
 
@@ -909,7 +555,7 @@ static const char *check_serial_def(const gcWorld *w, int fd, const gcSerialDef 
 
 gcStatus gc_world_attach_serial(gcWorld *w, int fd, const gcSerialDef *def, int32_t *out_device) {
     if (!w || !def || !out_device) return GC_ERR_INVALID_ARGUMENT;
-    gcSerialHub *h = w->serial;
+    gcDeviceHub *h = w->serial;
     if (!h) return GC_ERR_NO_MEMORY;
     const char *bad = check_serial_def(w, fd, def);
     if (bad) {
@@ -918,9 +564,9 @@ gcStatus gc_world_attach_serial(gcWorld *w, int fd, const gcSerialDef *def, int3
     }
     pthread_mutex_lock(&h->api_mutex);
     int id = -1;
-    for (int i = 0; i < GC_MAX_SERIAL_DEVICES && id < 0; ++i)
+    for (int i = 0; i < GC_MAX_DEVICES && id < 0; ++i)
         if (!h->devices[i]) id = i;
-    for (int i = 0; i < GC_MAX_SERIAL_DEVICES; ++i) {
+    for (int i = 0; i < GC_MAX_DEVICES; ++i) {
         const gcSerialDevice *o = h->devices[i];
         if (o && def->finger_offset < o->def.finger_offset + o->def.num_fingers &&
             o->def.finger_offset < def->finger_offset + def->num_fingers) {
@@ -930,9 +576,15 @@ gcStatus gc_world_attach_serial(gcWorld *w, int fd, const gcSerialDef *def, int3
             return GC_ERR_INVALID_ARGUMENT;
         }
     }
+    if (id >= 0 && !gc_device_hub_claim(h, def->finger_offset, def->num_fingers, id)) {
+        pthread_mutex_unlock(&h->api_mutex);
+        gc_world_set_error(w, "finger_offset: fingers %d..%d: a device read elsewhere drives some of them "
+                              "(push_device_hips)", def->finger_offset, def->finger_offset + def->num_fingers - 1);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
     if (id < 0) {
         pthread_mutex_unlock(&h->api_mutex);
-        gc_world_set_error(w, "attach_serial: at most %d devices", GC_MAX_SERIAL_DEVICES);
+        gc_world_set_error(w, "attach_serial: at most %d devices", GC_MAX_DEVICES);
         return GC_ERR_CAPACITY;
     }
     gcSerialDevice *d = calloc(1, sizeof *d);
@@ -944,6 +596,7 @@ gcStatus gc_world_attach_serial(gcWorld *w, int fd, const gcSerialDef *def, int3
         return GC_ERR_NO_MEMORY;
     }
     d->hub = h;
+    d->id = id;
     d->fd = fd;
     d->def = *def;
     for (int i = 0; i < 3; ++i) {
@@ -959,6 +612,7 @@ gcStatus gc_world_attach_serial(gcWorld *w, int fd, const gcSerialDef *def, int3
     pthread_mutex_init(&d->stats_mutex, NULL);
     atomic_store(&d->run, 1);
     r->dev = d;
+    gc_force_gate_init(&r->gate, gc_seconds_to_ns(def->ramp_time), 0);
     r->unit_scale = 1.0;
     if (def->udp_port) { /* frames go there until a HELLO_DEVICE pins the session to its sender */
         r->datagram = 1;
@@ -974,11 +628,9 @@ gcStatus gc_world_attach_serial(gcWorld *w, int fd, const gcSerialDef *def, int3
         }
     }
     gc_decoder_reset(&r->dec);
-    hub_claim_fingers(h, w, def->finger_offset + def->num_fingers);
-    for (int i = def->finger_offset; i < def->finger_offset + def->num_fingers; ++i)
-        atomic_store_explicit(&h->driven[i], 1, memory_order_release);
-    atomic_store_explicit(&h->any_driven, 1, memory_order_release);
+    sent_clear(h, def->finger_offset, def->num_fingers); /* recorded: nothing sent yet */
     if (pthread_create(&d->thread, NULL, device_main, r)) {
+        gc_device_hub_release(h, def->finger_offset, def->num_fingers, id);
         pthread_mutex_destroy(&d->stats_mutex);
         free(d);
         free(r);
@@ -995,6 +647,7 @@ gcStatus gc_world_attach_serial(gcWorld *w, int fd, const gcSerialDef *def, int3
 static void device_stop(gcSerialDevice *d) {
     atomic_store_explicit(&d->run, 0, memory_order_release);
     pthread_join(d->thread, NULL);
+    gc_device_hub_release(d->hub, d->def.finger_offset, d->def.num_fingers, d->id);
     pthread_mutex_destroy(&d->stats_mutex);
     free(d);
 }
@@ -1009,29 +662,12 @@ gcStatus gc_world_detach_serial(gcWorld *w, int32_t id) {
     return GC_OK;
 }
 
-void gc_serial_hub_detach_all(gcSerialHub *h) {
+void gc_device_threads_stop_all(gcDeviceHub *h) {
     if (!h) return;
-    for (int i = 0; i < GC_MAX_SERIAL_DEVICES; ++i) {
+    for (int i = 0; i < GC_MAX_DEVICES; ++i) {
         if (h->devices[i]) device_stop(h->devices[i]);
         h->devices[i] = NULL;
     }
-}
-
-void gc_serial_hub_destroy(gcSerialHub *h) {
-    if (!h) return;
-    gc_serial_hub_detach_all(h);
-    pthread_mutex_destroy(&h->hip_mutex);
-    pthread_mutex_destroy(&h->api_mutex);
-    free(h->force_bits);
-    free(h->go_bits);
-    free(h->hip_bits);
-    free(h->hips);
-    free(h->sent_seq);
-    free(h->sent_bits);
-    free(h->sent_until_ns);
-    free(h->driven);
-    free(h->recorded);
-    free(h);
 }
 
 gcStatus gc_world_serial_enable(gcWorld *w, int32_t id, int enable) {
@@ -1055,39 +691,6 @@ gcStatus gc_world_serial_stats(gcWorld *w, int32_t id, gcSerialStats *out) {
     pthread_mutex_lock(&d->stats_mutex);
     *out = d->published;
     pthread_mutex_unlock(&d->stats_mutex);
-    return GC_OK;
-}
-
-gcStatus gc_world_push_device_hips(gcWorld *w, int offset, int count, const double *positions) {
-    if (!w || !positions || !w->serial) return GC_ERR_INVALID_ARGUMENT;
-    if (count < 1 || offset < 0 || offset + count > w->num_fingers) {
-        gc_world_set_error(w, "finger_offset, count: fingers %d..%d are not all fingers of the world", offset,
-                           offset + count - 1);
-        return GC_ERR_INVALID_ARGUMENT;
-    }
-    for (int i = 0; i < 3 * count; ++i)
-        if (!isfinite(positions[i])) return GC_WARN_REJECTED;
-    hub_claim_fingers(w->serial, w, offset + count);
-    return hub_push(w->serial, offset, count, positions);
-}
-
-gcStatus gc_world_device_forces_sent(gcWorld *w, int offset, int count, const double *forces) {
-    if (!w || !forces || !w->serial) return GC_ERR_INVALID_ARGUMENT;
-    if (count < 1 || offset < 0 || offset + count > w->num_fingers) {
-        gc_world_set_error(w, "finger_offset, count: fingers %d..%d are not all fingers of the world", offset,
-                           offset + count - 1);
-        return GC_ERR_INVALID_ARGUMENT;
-    }
-    for (int i = 0; i < 3 * count; ++i)
-        if (!isfinite(forces[i])) return GC_WARN_REJECTED;
-    gcSerialHub *h = w->serial;
-    pthread_mutex_lock(&h->hip_mutex); /* callers on several threads: one writer a finger at a time */
-    for (int i = 0; i < count; ++i) {
-        sent_store(h, offset + i, &forces[3 * i], INT64_MAX);
-        atomic_store_explicit(&h->driven[offset + i], 1, memory_order_release);
-    }
-    pthread_mutex_unlock(&h->hip_mutex);
-    atomic_store_explicit(&h->any_driven, 1, memory_order_release);
     return GC_OK;
 }
 
