@@ -11,7 +11,8 @@ reactions), a body handed over between the haptic and the
 object thread (``adopted``), the safety layer (forces gated on or off, ramped or clamped:
 the jump is in ``device_force − force``), or the hand itself: the HIP's own terms of the
 coupling, ``−k ΔHIP − c Δv_HIP`` (its spring and its damper: a HIP that starts moving at
-10 cm/s in one tick changes a 2 N s/m damper's force by 0.2 N), when the change without
+10 cm/s in one tick changes a 2 N s/m damper's force by 0.2 N; a convex finger's patch has
+one spring and damper per god-object, m of them, so ``m`` times that), when the change without
 them is below the threshold: the god-object did not jump, the hand moved. A *steady change*
 is one that, less the hand's terms, differs from the tick before's by less than the threshold,
 after a tick that was no jump or an explained one: the force ramps (a body accelerating, a
@@ -30,6 +31,7 @@ WINDOW = 2                        # ticks before a jump whose transitions can ex
 CAUSES = ("contact onset", "contact end", "stick/slip", "change of convex part", "body contact",
           "hand-over between threads", "safety gate", "HIP motion", "steady change", "free motion")
 UNEXPLAINED = "unexplained"
+CONVEX_FINGER_SPRINGS = 16        # a convex finger's contacts at most (the core's GC_MAX_FINGER_CONTACTS)
 
 
 def _transitions(a: np.ndarray) -> np.ndarray:
@@ -42,6 +44,17 @@ def _transitions(a: np.ndarray) -> np.ndarray:
 
 def _within(changed: np.ndarray, t: int) -> bool:
     return bool(changed[max(0, t - WINDOW):t + 1].any())
+
+
+def _less_hand(change: np.ndarray, hand: np.ndarray, springs: int) -> np.ndarray:
+    """``change + m hand`` per row: the change the hand's terms (one spring's and damper's,
+    ``hand``) did not make. A sphere finger has one spring (m = 1); a convex finger's patch one
+    per god-object, m of them (1..``springs``, not recorded): the m that explains most."""
+    if springs <= 1:
+        return change + hand
+    hh = np.einsum("ij,ij->i", hand, hand)
+    m = np.where(hh > 0.0, -np.einsum("ij,ij->i", change, hand) / np.where(hh > 0.0, hh, 1.0), 1.0)
+    return change + hand * np.clip(m, 1.0, float(springs))[:, None]
 
 
 def body_contact_forces(ticks: np.ndarray, masses, gravity) -> np.ndarray:
@@ -63,11 +76,13 @@ def body_contact_forces(ticks: np.ndarray, masses, gravity) -> np.ndarray:
 
 def finger_continuity(ticks: np.ndarray, i: int, stiffness: float, damping: float = 0.0,
                       threshold: float = DEFAULT_THRESHOLD, field: str = "device_force",
-                      body_contacts: np.ndarray | None = None) -> dict:
+                      body_contacts: np.ndarray | None = None, springs: int = 1) -> dict:
     """Finger ``i`` of the tick records: the distribution of |F(t) − F(t−1)| over the ticks
     where it touches something at t or t − 1 (free ticks would only dilute it), and the
     ticks above ``threshold`` with their causes. ``body_contacts`` (``body_contact_forces``)
-    lets a jump of the touched body's contacts with other bodies be named."""
+    lets a jump of the touched body's contacts with other bodies be named. ``springs``: how
+    many god-object springs the finger may have at once (1 for a sphere finger, whose seam
+    springs share one; ``CONVEX_FINGER_SPRINGS`` for a convex finger's patch)."""
     if not threshold > 0.0:
         raise ValueError(f"threshold: expected a positive force in N, got {threshold!r}")
     force = np.ascontiguousarray(ticks[field][:, i])
@@ -113,9 +128,10 @@ def finger_continuity(ticks: np.ndarray, i: int, stiffness: float, damping: floa
         dv[2:] = np.diff(velocity[1:], axis=0)
         change = np.zeros((len(force), 3))
         change[1:] = np.diff(force, axis=0)
-        rest = change + stiffness * step + damping * dv
-        without_hand = np.linalg.norm(rest, axis=1)
-        off_trend[2:] = np.linalg.norm(np.diff(rest[1:], axis=0), axis=1)
+        hand = stiffness * step + damping * dv
+        without_hand = np.linalg.norm(_less_hand(change, hand, springs), axis=1)
+        off_trend[2:] = np.linalg.norm(_less_hand(np.diff(change[1:], axis=0), np.diff(hand[1:], axis=0), springs),
+                                       axis=1)
     jumps = []
     explained = set()                    # jump ticks with a cause: a trend after one still counts
     for t in np.nonzero(delta > threshold)[0].tolist():
@@ -162,8 +178,10 @@ def force_continuity(rec, threshold: float = DEFAULT_THRESHOLD, field: str = "de
     body_contacts = body_contact_forces(rec.ticks, masses, scene["gravity"])
     fingers = []
     for i, name in enumerate(rec.finger_names):
+        convex = scene_fingers[i].get("points") is not None
         r = finger_continuity(rec.ticks, i, float(scene_fingers[i]["stiffness"]),
-                              float(scene_fingers[i]["damping"]), threshold, field, body_contacts)
+                              float(scene_fingers[i]["damping"]), threshold, field, body_contacts,
+                              springs=CONVEX_FINGER_SPRINGS if convex else 1)
         r["name"] = name
         fingers.append(r)
     return {"threshold": threshold, "field": field, "parts_recorded": "parts" in rec.ticks.dtype.names,

@@ -213,3 +213,25 @@ def test_a_carried_body_following_the_hand_is_no_jump():
     t["device_force"][:, 0, 1] = t["force"][:, 0, 1]
     r = continuity.finger_continuity(t, 0, k, c, threshold=0.1)
     assert [(j["tick"], j["causes"]) for j in r["jumps"]] == [(20, ["steady change"])]
+
+
+def test_a_palms_patch_is_m_springs_of_the_hand():
+    """A convex finger pressed flat under a slab (a patch of m god-objects, each a spring of K):
+    the hand stepping 0.2 mm at once changes the force by m K 0.2 mm. As one spring's hand term
+    (a sphere finger's) that is unexplained; with the patch's springs it is the hand."""
+    palm = scenes.box_points(0.02, 0.02, 0.002, (0, 0, 0))
+    slab = scenes.box_points(0.01, 0.01, 0.01, (0, 0, 0.012))
+    w = graspcore.World()
+    w.add_body(parts=[slab], static=True)
+    w.add_finger(radius=0.0, stiffness=K, damping=0.0, position=(0, 0, -0.001), points=palm)
+    # The palm's top face 0.5 mm into the slab's bottom, then the hand 0.2 mm higher at once.
+    hips = [np.array((0, 0, 0.0005))] * 50 + [np.array((0, 0, 0.0007))] * 50
+    ticks = scenes.run_ticks(w, np.array(hips))
+    springs = abs(ticks["force"][49, 0, 2]) / (K * 0.0005)                # the patch's god-objects
+    assert springs > 1
+    assert abs(ticks["force"][50, 0, 2] - ticks["force"][49, 0, 2]) < 1e-9
+    assert abs(ticks["force"][51, 0, 2] - ticks["force"][50, 0, 2]) == pytest.approx(springs * K * 0.0002, rel=1e-6)
+    sphere = continuity.finger_continuity(ticks, 0, K, 0.0, threshold=0.1)
+    assert [j["causes"] for j in sphere["jumps"] if j["tick"] >= 50] == [[continuity.UNEXPLAINED]]
+    patch = continuity.finger_continuity(ticks, 0, K, 0.0, threshold=0.1, springs=continuity.CONVEX_FINGER_SPRINGS)
+    assert [j["causes"] for j in patch["jumps"] if j["tick"] >= 50] == [["HIP motion"]]
