@@ -116,11 +116,11 @@ def run(args, out, err) -> int:
             session.finish()
             raise CliError(f"{args.scene}: no fingertip is animated, so a real-time session has no end: "
                            f"give --duration S")
-        if getattr(args, "live_view", None) is not None:
-            _serve_live(session, args, out)
-        if session.recorder is not None:
-            for o in args.set:          # in the header's scene already; the events say they were set
-                session.recorder.parameter_change(0.0, o.obj or "scene", o.key, o.value)
+    if getattr(args, "live_view", None) is not None:
+        _serve_live(session, args, out)
+    if session.recorder is not None:
+        for o in args.set:          # in the header's scene already; the events say they were set
+            session.recorder.parameter_change(0.0, o.obj or "scene", o.key, o.value)
     try:
         if args.realtime:
             session.run_live()

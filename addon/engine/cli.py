@@ -383,8 +383,6 @@ def _run_run(args, out, err):
         check_device(spec)
     if args.live_view is not None and not args.realtime:
         raise CliError("--live-view needs --realtime (it serves a live session)")
-    if args.live_view is not None and args.device:
-        raise CliError("--live-view does not serve --device sessions yet (the session panel's Live View does)")
     if args.device and not args.realtime:
         raise CliError("--device needs --realtime (devices drive a live session on the threaded runtime)")
     if args.forces == "on" and not args.device:
