@@ -260,6 +260,16 @@ int gc_world_running(const gcWorld *world);
 /* Manual clock only: run `ticks` haptic ticks (and the object ticks that fall among them) on
  * the calling thread. `delay` s is added to the clock before the first, as a stalled loop. */
 gcStatus gc_world_advance(gcWorld *world, int ticks, double delay);
+/* Manual clock only: `steps` haptic ticks replaying a recorded threaded session
+ * (docs/runtime.md "Replaying a recorded schedule"): each tick's HIPs (3 per finger for all
+ * num_fingers fingers) and orientations (4 per finger, or NULL) as recorded, and the object
+ * manager's ticks run and their results taken on the recorded hand-over schedule (the records'
+ * object_ticks and object_reads), so that every tick is the recorded one bit for bit. Records
+ * into `records` (steps of gc_tick_record_size bytes, size in all; NULL: none); *done = ticks
+ * replayed. A schedule that cannot have happened is GC_ERR_INVALID_ARGUMENT naming the step. */
+gcStatus gc_world_replay_ticks(gcWorld *world, const double *hips, const double *orientations, int num_fingers,
+                               const uint64_t *object_ticks, const uint64_t *object_reads, int steps,
+                               void *records, size_t size, int *done);
 /* HIPs of fingers 0..count-1 (xyz triples) sampled at time t (s, the caller's clock), from any
  * thread. The haptic loop moves each HIP from where it is to this sample over the interval since
  * the previous sample (at most 0.25 s), at most max_hip_speed: a caller pushing every haptic tick
@@ -353,7 +363,10 @@ gcStatus gc_world_debug_stall(gcWorld *world, double seconds);
  * velocity (linear of the body frame origin, angular; 6 f64), residual wrench (6 f64); per
  * finger state i32, contact body i32 (-1 free); per finger parts u32 (bit i: touches part i of
  * its body, parts past 31 on bit 31); per finger orientation (w, x, y, z) 4 f64 (the identity
- * for a sphere finger). Each field was added at the end: older records are their prefix. */
+ * for a sphere finger); the threaded runtime's hand-over schedule: object_tick u64 (the object
+ * manager tick whose result the haptic loop holds after this tick), object_reads u64 (object
+ * ticks that had taken a haptic message before this tick published its own); both 0 outside
+ * the runtime. Each field was added at the end: older records are their prefix. */
 size_t gc_tick_record_size(int num_bodies, int num_fingers);
 /* The stopped world as one record (after a gc_world_step); device_force = force. */
 gcStatus gc_world_tick_record(gcWorld *world, uint64_t tick, void *out, size_t size);

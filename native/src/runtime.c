@@ -136,6 +136,7 @@ static void shadow_load(gcWorld *s, const gcWorld *w) {
 /* ---- allocation --------------------------------------------------------------------- */
 
 static void runtime_free_memory(gcRuntime *rt) {
+    gc_rt_replay_free(rt);
     shadow_free(&rt->hap);
     shadow_free(&rt->obj);
     free(rt->hap_active);
@@ -353,6 +354,8 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
     }
     memset(rt->device_force, 0, (size_t)rt->max_fingers * 3 * sizeof(double));
     rt->object_time_seen = w->time;
+    rt->object_seq = rt->object_seq_seen = rt->object_reads = 0;
+    rt->replaying = 0;
     rt->prev_tick_ns = rt->enabled_since_ns = rt->last_input_ns = NEVER;
     rt->was_stale = 1;
     rt->tick = 0;

@@ -102,7 +102,17 @@ void gc_rt_haptic_tick(gcRuntime *rt, int64_t now) {
     }
     if (gc_hip_track_covers(rt->track, hw->num_fingers)) rt->last_input_ns = now; /* the track is never stale */
     const double t_next = (double)(rt->tick + 1) * dt;
-    for (int i = 0; i < hw->num_fingers; ++i) {
+    for (int i = 0; i < hw->num_fingers && rt->replay_hips; ++i) { /* a replay: the recorded pose */
+        gcFinger *f = &hw->fingers[i];
+        const double *p = &rt->replay_hips[3 * i], *q = rt->replay_orientations ? &rt->replay_orientations[4 * i] : NULL;
+        f->hip = gc_v3(p[0], p[1], p[2]);
+        if (q && memcmp(q, &f->q, sizeof f->q) != 0) { /* as recorded: already normalised once */
+            f->q = (gcQuat){q[0], q[1], q[2], q[3]};
+            f->R = gc_quat_to_mat3(f->q);
+        }
+        memcpy(&hw->hip_array[3 * i], p, 3 * sizeof(double));
+    }
+    for (int i = 0; i < hw->num_fingers && !rt->replay_hips; ++i) {
         const int scripted = gc_hip_track_drives(rt->track, i);
         gcVec3 hip = scripted ? gc_hip_track_sample(rt->track, i, t_next)
                               : gc_hip_follow_advance(&rt->follow[i], hw->fingers[i].hip, dt, rt->def.max_hip_speed);
@@ -121,6 +131,7 @@ void gc_rt_haptic_tick(gcRuntime *rt, int64_t now) {
     const gcObjectMsg *om = &rt->object_msg[triple_latest(&rt->to_haptic, &fresh)];
     if (fresh) {
         rt->object_time_seen = om->time;
+        rt->object_seq_seen = om->seq;
         for (int32_t b = 0; b < hw->num_bodies; ++b) {
             if (hw->bodies[b].is_static) continue;
             switch (rt->hstate[b]) {
@@ -153,9 +164,13 @@ void gc_rt_haptic_tick(gcRuntime *rt, int64_t now) {
     gc_serial_hub_tick(rt->serial, hw, rt->device_force, ok, now);
     gc_rt_publish_to_object(rt);
     gc_rt_publish_display(rt, now, ok);
-    if (rt->tick_log) /* fingers a serial device drives: what their device was actually sent */
+    gcTickSchedule schedule = {rt->object_seq_seen, rt->object_reads};
+    if (rt->replay_record)
+        gc_tick_record_fill(hw, rt->device_force, rt->tick, rt->object_time_seen, schedule, ok,
+                            atomic_load_explicit(&rt->adopted, memory_order_relaxed), rt->replay_record);
+    else if (rt->tick_log) /* fingers a serial device drives: what their device was actually sent */
         gc_tick_log_push(rt->tick_log, hw, gc_serial_hub_recorded_forces(rt->serial, rt->device_force, hw->num_fingers),
-                         rt->tick, rt->object_time_seen, now, rt->def.realtime, ok,
+                         rt->tick, rt->object_time_seen, schedule, now, rt->def.realtime, ok,
                          atomic_load_explicit(&rt->adopted, memory_order_relaxed));
     store_double(&rt->haptic_time_bits, hw->time);
     count(&rt->haptic_ticks);
@@ -166,7 +181,8 @@ void gc_rt_haptic_tick(gcRuntime *rt, int64_t now) {
 void gc_rt_object_tick(gcRuntime *rt) {
     gcWorld *ow = &rt->obj;
     int fresh;
-    const gcHapticMsg *h = &rt->haptic_msg[triple_latest(&rt->to_object, &fresh)];
+    const gcHapticMsg *h = &rt->haptic_msg[triple_latest_counted(&rt->to_object, &fresh)];
+    rt->object_seq++;
     memcpy(ow->fingers, h->fingers, (size_t)ow->num_fingers * sizeof *ow->fingers);
     /* Bodies the haptic loop steps, where it has them now: obstacles for the contacts here. */
     for (int32_t b = 0; b < ow->num_bodies; ++b)

@@ -46,6 +46,9 @@
 #define GC_HAPTIC_STACK_PREFAULT (64 * 1024)
 #define GC_LOCK_BUDGET (64u << 20)
 #define GC_MAX_REGIONS 96
+/* Object results in flight at once when a schedule is replayed (runtime_replay.c): more than
+ * two needs the object manager to finish two ticks inside one haptic tick's work. */
+#define GC_REPLAY_QUEUE 16
 
 /* ---- triple buffer: the latest value from one writer to one reader ------------------ */
 
@@ -53,7 +56,7 @@
  * reader swaps `front` with `middle` when `middle` holds something new. Neither side ever
  * waits, and the reader always holds a complete message. */
 typedef struct gcTriple {
-    _Atomic unsigned middle; /* slot index | GC_TRIPLE_FRESH while unread */
+    _Atomic uint64_t middle; /* slot index | GC_TRIPLE_FRESH while unread (| reads, counted) */
     unsigned back;           /* writer's slot */
     unsigned front;          /* reader's slot */
 } gcTriple;
@@ -66,16 +69,47 @@ static inline void triple_reset(gcTriple *t) {
 }
 
 static inline void triple_publish(gcTriple *t) {
-    t->back = atomic_exchange_explicit(&t->middle, t->back | GC_TRIPLE_FRESH, memory_order_acq_rel) & 3u;
+    t->back = (unsigned)(atomic_exchange_explicit(&t->middle, t->back | GC_TRIPLE_FRESH, memory_order_acq_rel) & 3u);
 }
 
 /* The reader's slot, now holding the latest publication; *fresh = 1 when it is new. */
 static inline unsigned triple_latest(gcTriple *t, int *fresh) {
     *fresh = 0;
     if (atomic_load_explicit(&t->middle, memory_order_relaxed) & GC_TRIPLE_FRESH) {
-        t->front = atomic_exchange_explicit(&t->middle, t->front, memory_order_acq_rel) & 3u;
+        t->front = (unsigned)(atomic_exchange_explicit(&t->middle, t->front, memory_order_acq_rel) & 3u);
         *fresh = 1;
     }
+    return t->front;
+}
+
+/* The haptic -> object manager channel also counts the object manager's reads, in the bits
+ * of `middle` above the slot and the fresh flag: every object tick adds one as it takes the
+ * latest message, and every publication learns how many reads came before it. Recorded with
+ * each haptic tick, that count says which haptic tick's message each object tick stepped from:
+ * half of the hand-over schedule (docs/recording-format.md). A side retries its
+ * compare-and-swap only when the other changed the word in between (once per object tick at
+ * most), so neither waits on the other. Only the channel's two ends use these. */
+#define GC_TRIPLE_COUNT 8u
+
+/* triple_publish, returning the reads made before this publication. */
+static inline uint64_t triple_publish_counted(gcTriple *t) {
+    uint64_t old = atomic_load_explicit(&t->middle, memory_order_relaxed);
+    while (!atomic_compare_exchange_weak_explicit(&t->middle, &old, t->back | GC_TRIPLE_FRESH | (old & ~(uint64_t)7),
+                                                  memory_order_acq_rel, memory_order_relaxed)) {
+    }
+    t->back = (unsigned)(old & 3u);
+    return old / GC_TRIPLE_COUNT;
+}
+
+/* triple_latest, counting one read. */
+static inline unsigned triple_latest_counted(gcTriple *t, int *fresh) {
+    uint64_t old = atomic_load_explicit(&t->middle, memory_order_relaxed), next;
+    do {
+        *fresh = (old & GC_TRIPLE_FRESH) != 0;
+        next = (*fresh ? t->front : (old & 7u)) | ((old & ~(uint64_t)7) + GC_TRIPLE_COUNT);
+    } while (!atomic_compare_exchange_weak_explicit(&t->middle, &old, next, memory_order_acq_rel,
+                                                    memory_order_relaxed));
+    if (*fresh) t->front = (unsigned)(old & 3u);
     return t->front;
 }
 
@@ -104,6 +138,7 @@ typedef struct gcHapticMsg { /* haptic loop -> object manager, every haptic tick
 } gcHapticMsg;
 
 typedef struct gcObjectMsg { /* object manager -> haptic loop, every object tick */
+    uint64_t seq;            /* the object tick that published it (0: gc_world_start) */
     double time;
     unsigned char *released; /* per body: handed to the haptic loop; body[] is its final state */
     gcRtBody *body;
@@ -148,12 +183,22 @@ typedef struct gcRuntime {
     double follow_prev_t;     /* time stamp of the last pushed sample taken */
     const gcHipTrack *track;  /* the world's scripted track (fixed while running), or NULL */
     double object_time_seen;
+    uint64_t object_seq_seen;  /* the object tick whose message the loop holds (the schedule) */
+    uint64_t object_reads;     /* object ticks that read a message before this tick's (the schedule) */
     int64_t prev_tick_ns, enabled_since_ns, last_input_ns;
     int was_stale;
     uint64_t tick;
 
     /* Object manager only. */
     unsigned char *ostate;
+    uint64_t object_seq;      /* object ticks run since the start */
+
+    /* Replaying a recorded schedule (runtime_replay.c), manual clock only; NULL otherwise. */
+    const double *replay_hips;        /* this tick's HIPs, 3 per finger */
+    const double *replay_orientations; /* this tick's orientations, 4 per finger, or NULL */
+    void *replay_record;              /* this tick's record goes here instead of the tick log */
+    int replaying;                    /* object results go to replay_queue, not to the haptic loop */
+    gcObjectMsg *replay_queue;        /* GC_REPLAY_QUEUE results made, not yet delivered: seq % size */
 
     /* Channels. */
     gcTriple input, to_object, to_haptic, display;
@@ -241,6 +286,8 @@ void gc_rt_body_load(gcWorld *s, int32_t i, const gcRtBody *o);
 void gc_rt_publish_to_object(gcRuntime *rt);
 /* The object manager's message to the haptic loop. */
 void gc_rt_publish_to_haptic(gcRuntime *rt);
+/* A result a replay held back, published to the haptic loop now (runtime_replay.c). */
+void gc_rt_deliver_to_haptic(gcRuntime *rt, const gcObjectMsg *held);
 /* The haptic loop's view for gc_world_snapshot. */
 void gc_rt_publish_display(gcRuntime *rt, int64_t now, int forces_enabled);
 /* One haptic tick at clock time now (handover). */
@@ -251,6 +298,8 @@ void gc_rt_object_tick(gcRuntime *rt);
 void gc_rt_merge_into_world(gcRuntime *rt, gcWorld *w);
 /* A haptic period into the jitter statistics (threads). */
 void gc_rt_record_period(gcRuntime *rt, int64_t period);
+/* The replay queue's memory, freed with the runtime (replay). */
+void gc_rt_replay_free(gcRuntime *rt);
 /* The threads' bodies (threads). */
 void *gc_rt_haptic_main(void *arg);
 void *gc_rt_object_main(void *arg);

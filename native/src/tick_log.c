@@ -42,7 +42,8 @@ enum { REC_HEADER = 52 };
 size_t gc_tick_record_size(int num_bodies, int num_fingers) {
     if (num_bodies < 0 || num_fingers < 0) return 0;
     return REC_HEADER + sizeof(double) * (15 * (size_t)num_fingers + 19 * (size_t)num_bodies) +
-           sizeof(int32_t) * 3 * (size_t)num_fingers + sizeof(double) * 4 * (size_t)num_fingers;
+           sizeof(int32_t) * 3 * (size_t)num_fingers + sizeof(double) * 4 * (size_t)num_fingers +
+           2 * sizeof(uint64_t); /* the hand-over schedule */
 }
 
 #define FNV_PRIME 1099511628211ull
@@ -151,15 +152,15 @@ uint64_t gc_tick_state_hash(const gcWorld *w) {
  * gc_tick_state_hash's, computed here finger by finger beside the fingers' fields so that its
  * dependent multiply chain overlaps the copies. */
 static void fill_record(const gcWorld *w, const double *device_force, uint64_t tick, double object_time,
-                        float period_us, float work_us, uint32_t flags, uint32_t adopted, float log_us,
-                        unsigned char *out) {
+                        gcTickSchedule schedule, float period_us, float work_us, uint32_t flags, uint32_t adopted,
+                        float log_us, unsigned char *out) {
     const size_t nb = (size_t)w->num_bodies, nf = (size_t)w->num_fingers;
     unsigned char *hip = out + REC_HEADER, *go = hip + 24 * nf, *force = go + 24 * nf, *dev = force + 24 * nf;
     unsigned char *normal = dev + 24 * nf, *pose = normal + 24 * nf, *vel = pose + 56 * nb;
     unsigned char *wrench = vel + 48 * nb, *state = wrench + 48 * nb, *contact = state + 4 * nf;
     /* parts (main's) then orientation: each field added at the end, so older readers' fields
      * keep their offsets */
-    unsigned char *parts = contact + 4 * nf, *orientation = parts + 4 * nf;
+    unsigned char *parts = contact + 4 * nf, *orientation = parts + 4 * nf, *handover = orientation + 32 * nf;
     uint64_t hash = hash_time_bodies(w);
     memcpy(out, &tick, 8);
     memcpy(out + 8, &w->time, 8);
@@ -200,6 +201,8 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
         memcpy(wrench + 48 * b, &st->residual_force, 24);
         memcpy(wrench + 48 * b + 24, &st->residual_torque, 24);
     }
+    memcpy(handover, &schedule.object_tick, 8);
+    memcpy(handover + 8, &schedule.object_reads, 8);
     memcpy(out + 24, &hash, 8);
 }
 
@@ -214,7 +217,7 @@ gcStatus gc_world_tick_record(gcWorld *w, uint64_t tick, void *out, size_t size)
         gc_world_set_error(w, "tick_record: buffer of %zu bytes, a record needs %zu", size, need);
         return GC_ERR_INVALID_ARGUMENT;
     }
-    fill_record(w, NULL, tick, w->time, 0.0f, 0.0f, 1u, 0u, 0.0f, out);
+    fill_record(w, NULL, tick, w->time, (gcTickSchedule){0, 0}, 0.0f, 0.0f, 1u, 0u, 0.0f, out);
     return GC_OK;
 }
 
@@ -331,8 +334,14 @@ void gc_tick_log_prefetch(const gcTickLog *log) {
         __builtin_prefetch((const void *)a, 1, 3);
 }
 
+void gc_tick_record_fill(const gcWorld *hw, const double *device_force, uint64_t tick, double object_time,
+                         gcTickSchedule schedule, int forces_enabled, int adopted, void *out) {
+    fill_record(hw, device_force, tick, object_time, schedule, 0.0f, 0.0f, forces_enabled ? 1u : 0u,
+                (uint32_t)adopted, 0.0f, out);
+}
+
 void gc_tick_log_push(gcTickLog *log, const gcWorld *hw, const double *device_force, uint64_t tick,
-                      double object_time, int64_t now_ns, int realtime, int forces_enabled,
+                      double object_time, gcTickSchedule schedule, int64_t now_ns, int realtime, int forces_enabled,
                       int adopted) {
     float period_us = log->prev_now_ns == INT64_MIN ? 0.0f : (float)((now_ns - log->prev_now_ns) * 1e-3);
     log->prev_now_ns = now_ns;
@@ -346,7 +355,7 @@ void gc_tick_log_push(gcTickLog *log, const gcWorld *hw, const double *device_fo
         return;
     }
     unsigned char *slot = log->records + (head % (uint64_t)log->capacity) * log->record_size;
-    fill_record(hw, device_force, tick, object_time, period_us, work_us, forces_enabled ? 1u : 0u,
+    fill_record(hw, device_force, tick, object_time, schedule, period_us, work_us, forces_enabled ? 1u : 0u,
                 (uint32_t)adopted, log->prev_log_us, slot);
     atomic_store_explicit(&log->head, head + 1, memory_order_release);
     log->prev_log_us = (float)((monotonic_ns() - t0) * 1e-3);

@@ -62,9 +62,9 @@ static gcWorld *pinch_world(void) {
 }
 
 static void test_layout_and_stopped_record(void) {
-    GC_CHECK(gc_tick_record_size(2, 3) == 52 + 8 * (15 * 3 + 19 * 2) + 4 * 3 * 3 + 8 * 4 * 3, "size %zu",
+    GC_CHECK(gc_tick_record_size(2, 3) == 52 + 8 * (15 * 3 + 19 * 2) + 4 * 3 * 3 + 8 * 4 * 3 + 16, "size %zu",
              gc_tick_record_size(2, 3));
-    GC_CHECK(gc_tick_record_size(0, 0) == 52, "empty world: the fixed fields only");
+    GC_CHECK(gc_tick_record_size(0, 0) == 52 + 16, "empty world: the fixed fields and the schedule only");
     gcWorld *w = pinch_world();
     double hips[6] = {-0.025, 0, 0.2, 0.025, 0, 0.2};
     gc_world_set_hips(w, hips, 2);
@@ -89,7 +89,7 @@ static void test_layout_and_stopped_record(void) {
     int32_t body;
     gc_world_finger_state(w, 1, &st, &body);
     int32_t rs, rb;
-    const size_t ints = size - 8 * 4 * nf; /* state, contact and parts, then the fingers' orientations */
+    const size_t ints = size - 16 - 8 * 4 * nf; /* state, contact, parts; the orientations; the schedule */
     uint32_t rp;
     memcpy(&rs, r + ints - 4 * 3 * nf + 4, 4);
     memcpy(&rb, r + ints - 4 * 2 * nf + 4, 4);
@@ -97,6 +97,7 @@ static void test_layout_and_stopped_record(void) {
     GC_CHECK(rs == (int32_t)st && rb == body && body == 0, "finger 1 touches the box: state %d body %d", rs, rb);
     GC_CHECK(rp == 1u, "finger 1 touches the box's part 0 only: parts %u", rp);
     GC_CHECK(rec_f64(r, ints + 32) == 1.0 && rec_f64(r, ints + 40) == 0.0, "finger 1's orientation: identity");
+    GC_CHECK(rec_u64(r, size - 16) == 0 && rec_u64(r, size - 8) == 0, "no object manager: schedule 0, 0");
     double normal_x = rec_f64(r, arrays + 8 * 12 * nf + 24);                                    /* normal[1].x */
     GC_CHECK(normal_x > 0.99, "finger 1's contact normal is +x (%g)", normal_x);
     free(r);

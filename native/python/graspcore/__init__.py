@@ -30,7 +30,7 @@ def tick_dtype(num_bodies: int, num_fingers: int) -> np.dtype:
         ("hip", "<f8", (nf, 3)), ("god_object", "<f8", (nf, 3)), ("force", "<f8", (nf, 3)),
         ("device_force", "<f8", (nf, 3)), ("normal", "<f8", (nf, 3)), ("pose", "<f8", (nb, 7)), ("velocity", "<f8", (nb, 6)),
         ("wrench", "<f8", (nb, 6)), ("state", "<i4", (nf,)), ("contact", "<i4", (nf,)), ("parts", "<u4", (nf,)),
-        ("orientation", "<f8", (nf, 4)),
+        ("orientation", "<f8", (nf, 4)), ("object_tick", "<u8"), ("object_reads", "<u8"),
     ])
     if dtype.itemsize != _core.tick_record_size(nb, nf):
         raise RuntimeError("graspcore.tick_dtype does not match the core's record layout (rebuild the core)")
@@ -267,6 +267,36 @@ class World(_core.World):
             raise ValueError(f"out: expected a C-contiguous 1-d array of World.tick_dtype(), at least {len(h)} long")
         self._step_hips(h, int(h.shape[0]), int(h.shape[1]), float(dt), out, int(first_tick))
         return None if out is None else out[:len(h)]
+
+    def replay_ticks(self, hips, object_ticks, object_reads, out: np.ndarray | None,
+                     orientations=None) -> np.ndarray | None:
+        """A recorded threaded session replayed on the manual clock (``start(realtime=False)``
+        with the rates and adoption settings it ran with): for each row of ``hips`` ((steps,
+        fingers, 3), every finger) one haptic tick with those HIPs (and ``orientations``, (steps,
+        fingers, 4), as recorded), the object manager's ticks run and their results taken on the
+        recorded hand-over schedule (``object_ticks``, ``object_reads``: the records' fields), so
+        each tick equals the recorded one bit for bit. Records into ``out`` (as ``step_hips``;
+        None: none). A schedule that cannot have happened raises ValueError naming the step."""
+        h = np.require(hips, dtype=np.float64, requirements=["C_CONTIGUOUS", "ALIGNED"])
+        if h.ndim != 3 or h.shape[2] != 3:
+            raise ValueError(f"hips: expected a (steps, fingers, 3) array, got shape {h.shape}")
+        n = h.shape[0]
+        q = None
+        if orientations is not None:
+            q = np.require(orientations, dtype=np.float64, requirements=["C_CONTIGUOUS", "ALIGNED"])
+            if q.shape != h.shape[:2] + (4,):
+                raise ValueError(f"orientations: expected {h.shape[:2] + (4,)}, got {q.shape}")
+        schedule = []
+        for name, column in (("object_ticks", object_ticks), ("object_reads", object_reads)):
+            c = np.asarray(column)
+            if c.shape != (n,) or not np.issubdtype(c.dtype, np.integer) or (c.size and c.min() < 0):
+                raise ValueError(f"{name}: expected ({n},) counts >= 0, got shape {c.shape}, dtype {c.dtype}")
+            schedule.append(np.ascontiguousarray(c, dtype=np.uint64))
+        if out is not None and (out.dtype != self.tick_dtype() or out.ndim != 1 or not out.flags.c_contiguous
+                                or len(out) < n):
+            raise ValueError(f"out: expected a C-contiguous 1-d array of World.tick_dtype(), at least {n} long")
+        self._replay_ticks(h, q, schedule[0], schedule[1], int(n), int(h.shape[1]), out)
+        return None if out is None else out[:n]
 
     def set_tick_log(self, capacity: int) -> None:
         """While stopped: keep the last ``capacity`` undrained haptic ticks (0 = off). start()
