@@ -8,10 +8,13 @@ import time
 import bpy
 
 from .engine.recording import RecordingWriter, SessionRecorder, make_header
+from .engine.runner import RUNTIME_PHYSICS
 
 # The core's runtime defaults (graspcore.h gc_default_runtime_def) that a session's options
-# leave as they are: the recorder reads clamping and watchdog events against them.
-RUNTIME_DEFAULTS = {"max_force": 10.0, "ramp_time": 0.5, "watchdog_timeout": 0.005, "hip_timeout": 0.1}
+# leave as they are: the recorder reads clamping and watchdog events against them, and a
+# re-simulation replays the object manager with the physics ones.
+RUNTIME_DEFAULTS = {"max_force": 10.0, "ramp_time": 0.5, "watchdog_timeout": 0.005, "hip_timeout": 0.1,
+                    **RUNTIME_PHYSICS}
 
 
 def default_path(settings) -> str:

@@ -20,6 +20,12 @@ from dataclasses import dataclass
 import numpy as np
 
 
+# The threaded runtime's settings that decide its physics (graspcore.h gc_default_runtime_def;
+# the others, its safety layer, decide only what a device is sent). Live sessions run with these
+# and their recordings' headers say so: a re-simulation replays with them.
+RUNTIME_PHYSICS = {"object_rate": 500.0, "max_adopted_bodies": 3, "release_delay": 0.05}
+
+
 @dataclass
 class Snapshot:
     time: float
