@@ -787,14 +787,74 @@ def summarize(job: Job, rows: list, spec: dict) -> dict:
 
 # ------------------------------------------------------------------------ pictures
 
+def _map_keys(job: Job, rows: list) -> list:
+    """The map's axes: the first two varied keys whose samples differ."""
+    return [v for v in job.varies if len({r[v.column] for r in rows}) > 1][:2]
+
+
+# RdYlGn's ends and middle: P(held) 0 red, 0.5 yellow, 1 green; grey where no sample fell
+_PLAIN_COLOURS = np.array([[215, 48, 39], [255, 255, 191], [26, 152, 80]], dtype=np.float64)
+
+
+def plain_map(job: Job, rows: list) -> np.ndarray:
+    """map.png without matplotlib (Blender's Python has none): the held probability per cell of
+    the map's bins as an RGB image (y up), cells 32 px, no axes. (H, W, 3) uint8."""
+    held = np.array([r["held"] for r in rows], dtype=bool)
+    keys = _map_keys(job, rows)
+    index, shape = [], []
+    for v in keys:
+        x = np.array([r[v.column] for r in rows], dtype=np.float64)
+        edges, i = _bins(v, x, rows)
+        index.append(i)
+        shape.append(len(edges) - 1)
+    nx = shape[0] if keys else 1
+    ny = shape[1] if len(keys) == 2 else 1
+    xi = index[0] if keys else np.zeros(len(rows), dtype=int)
+    yi = index[1] if len(keys) == 2 else np.zeros(len(rows), dtype=int)
+    count = np.zeros((ny, nx))
+    kept = np.zeros((ny, nx))
+    np.add.at(count, (yi, xi), 1)
+    np.add.at(kept, (yi, xi), held)
+    p = np.divide(kept, count, out=np.full_like(count, np.nan), where=count > 0)
+    t = np.clip(np.nan_to_num(p) * 2, 0, 2)
+    lo = np.minimum(t.astype(int), 1)
+    frac = (t - lo)[..., None]
+    rgb = _PLAIN_COLOURS[lo] * (1 - frac) + _PLAIN_COLOURS[lo + 1] * frac
+    rgb[count == 0] = 128
+    return np.repeat(np.repeat(rgb[::-1].round().astype(np.uint8), 32, axis=0), 32, axis=1)
+
+
+def write_png(path: str, rgb: np.ndarray) -> None:
+    """An 8-bit RGB PNG (zlib, no filter), atomically."""
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+    h, w, _ = rgb.shape
+    raw = b"".join(b"\0" + rgb[y].tobytes() for y in range(h))
+    data = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b""))
+    tmp = path + ".tmp"
+    with open(tmp, "wb") as fh:
+        fh.write(data)
+    os.replace(tmp, path)
+
+
 def draw_pictures(job: Job, rows: list, folder: str) -> list:
     """map.png (held probability over the first two varied keys, or along the one) and
-    outcomes.png (what happened to the samples). Returns the paths written."""
-    import matplotlib
+    outcomes.png (what happened to the samples). Returns the paths written. Without matplotlib
+    (Blender's Python): map.png alone, the probability grid without axes (plain_map)."""
+    try:
+        import matplotlib
+    except ImportError:
+        path = os.path.join(folder, "map.png")
+        write_png(path, plain_map(job, rows))
+        return [path]
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     held = np.array([r["held"] for r in rows], dtype=bool)
-    keys = [v for v in job.varies if len({r[v.column] for r in rows}) > 1][:2]
+    keys = _map_keys(job, rows)
     paths = []
     fig, ax = plt.subplots(figsize=(6.4, 4.8), dpi=100)
     if len(keys) == 2:
