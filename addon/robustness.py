@@ -177,7 +177,6 @@ def ui_redraw() -> None:
 class GRASPLAB_PT_robustness(ui._GraspPanel, bpy.types.Panel):
     bl_label = "Robustness"
     bl_parent_id = "GRASPLAB_PT_main"
-    bl_options = {"DEFAULT_CLOSED"}
 
     def draw(self, context):
         layout = self.layout
