@@ -1009,6 +1009,48 @@ fail_h:
 }
 /* ---- end of the replay block ---- */
 
+/* ---- step_hips with a short trace per step (docs/api.md), a block of its own ----
+ * _step_hips_trace(hips float64 (steps, fingers, 3), steps, fingers, dt, out, first, total): the
+ * GIL released. */
+static PyObject *World_step_hips_trace(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    PyObject *hips_obj, *out;
+    int steps, fingers, first, total;
+    double dt;
+    if (!PyArg_ParseTuple(args, "OiidOii", &hips_obj, &steps, &fingers, &dt, &out, &first, &total) ||
+        !check_ready(self))
+        return NULL;
+    if (steps < 0 || fingers < 0) {
+        PyErr_SetString(PyExc_ValueError, "hips: expected (steps, fingers, 3)");
+        return NULL;
+    }
+    Py_buffer h, b;
+    if (!replay_buffer(hips_obj, &h, (size_t)steps * (size_t)fingers * 3 * sizeof(double), "d", "hips")) return NULL;
+    size_t trace = gc_tick_trace_size(gc_world_body_count(self->world), gc_world_finger_count(self->world));
+    if (total < 0 || !writable_buffer(out, &b, trace * (size_t)total, "out")) {
+        PyBuffer_Release(&h);
+        return NULL;
+    }
+    gcStatus st;
+    atomic_store(&self->busy, 1);
+    Py_BEGIN_ALLOW_THREADS
+    st = gc_world_step_hips_trace(self->world, h.buf, fingers, steps, dt, first, total, b.buf, (size_t)b.len, NULL);
+    Py_END_ALLOW_THREADS
+    atomic_store(&self->busy, 0);
+    PyBuffer_Release(&b);
+    PyBuffer_Release(&h);
+    if (st < 0) return raise_status(self, st);
+    if (warn_status(self, st) < 0) return NULL;
+    Py_RETURN_NONE;
+}
+
+static PyObject *tick_trace_size(PyObject *mod, PyObject *args) {
+    int nb, nf;
+    if (!PyArg_ParseTuple(args, "ii", &nb, &nf)) return NULL;
+    return PyLong_FromSize_t(gc_tick_trace_size(nb, nf));
+}
+/* ---- end of the trace block ---- */
+
 static PyObject *World_set_tick_log(PyObject *obj, PyObject *arg) {
     WorldObject *self = (WorldObject *)obj;
     if (!check_ready(self)) return NULL;
@@ -1477,6 +1519,7 @@ static PyMethodDef World_methods[] = {
     {"_tick_record", World_tick_record, METH_VARARGS, "Low-level tick_record(buffer, tick); see graspcore.tick_log."},
     {"_step_hips", World_step_hips, METH_VARARGS, "Low-level step_hips; use World.step_hips."},
     {"_replay_ticks", World_replay_ticks, METH_VARARGS, "Low-level replay_ticks; use World.replay_ticks."},
+    {"_step_hips_trace", World_step_hips_trace, METH_VARARGS, "Low-level step_hips_trace; use World.step_hips_trace."},
     {"_set_tick_log", World_set_tick_log, METH_O, "Low-level set_tick_log(capacity)."},
     {"_drain_ticks", World_drain_ticks, METH_O, "Low-level drain_ticks(buffer) -> records copied."},
     {"tick_log_overflow", World_tick_log_overflow, METH_NOARGS,
@@ -1554,6 +1597,8 @@ static int module_exec(PyObject *m) {
 static PyMethodDef module_methods[] = {
     {"tick_record_size", module_tick_record_size, METH_VARARGS,
      "tick_record_size(num_bodies, num_fingers) -> bytes of one tick log record."},
+    {"tick_trace_size", tick_trace_size, METH_VARARGS,
+     "tick_trace_size(num_bodies, num_fingers) -> bytes of one step_hips_trace trace."},
     {"_grasp_quality", module_grasp_quality, METH_VARARGS, "Low-level grasp_quality; use graspcore.grasp_quality."},
     {"_grasp_quality_batch", module_grasp_quality_batch, METH_VARARGS,
      "Low-level grasp_quality_batch; use graspcore.grasp_quality_batch."},

@@ -148,6 +148,16 @@ gcStatus gc_world_step(gcWorld *world, double dt);
  * end, after every step ran. */
 gcStatus gc_world_step_hips(gcWorld *world, const double *hips, int num_fingers, int steps, double dt,
                             uint64_t first_tick, void *records, size_t size, int *done);
+/* gc_world_step_hips with a short trace of each step instead of its tick record: what a sweep
+ * reads of every tick (docs/sweeps.md), two fifths of a record's bytes and no state hash, field by
+ * field (each a contiguous array, for numpy). `traces` holds `total` ticks, little-endian, packed:
+ * time f64[total]; contact body i32[total][fingers] (-1 free); state i32[total][fingers]; force
+ * (the coupling spring) f64[total][fingers][3]; god_object f64[total][fingers][3]; pose
+ * f64[total][bodies][7] (the same values as the record's fields of those names):
+ * total * gc_tick_trace_size(bodies, fingers) bytes. Step k goes to tick first + k. */
+size_t gc_tick_trace_size(int num_bodies, int num_fingers);
+gcStatus gc_world_step_hips_trace(gcWorld *world, const double *hips, int num_fingers, int steps, double dt,
+                                  int first, int total, void *traces, size_t size, int *done);
 
 gcStatus gc_world_body_pose(const gcWorld *world, int32_t body, double position[3],
                             double orientation[4]);

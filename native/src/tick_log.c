@@ -206,6 +206,28 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
     memcpy(out + 24, &hash, 8);
 }
 
+size_t gc_tick_trace_size(int num_bodies, int num_fingers) {
+    if (num_bodies < 0 || num_fingers < 0) return 0;
+    return 8 + 56 * (size_t)num_fingers + 56 * (size_t)num_bodies;
+}
+
+/* The record's time, contact, state, force, god_object and pose: tick k of each field's array. */
+void gc_tick_trace_fill(const gcWorld *w, void *out, size_t k, size_t total) {
+    const size_t nb = (size_t)w->num_bodies, nf = (size_t)w->num_fingers;
+    unsigned char *time = out, *contact = time + 8 * total, *state = contact + 4 * nf * total;
+    unsigned char *force = state + 4 * nf * total, *go = force + 24 * nf * total, *pose = go + 24 * nf * total;
+    memcpy(time + 8 * k, &w->time, 8);
+    for (size_t i = 0; i < nf; ++i) {
+        const gcFinger *f = &w->fingers[i];
+        int32_t s = (int32_t)f->state;
+        memcpy(contact + 4 * (k * nf + i), &f->contact_body, 4);
+        memcpy(state + 4 * (k * nf + i), &s, 4);
+        memcpy(force + 24 * (k * nf + i), &f->force, 24);
+        memcpy(go + 24 * (k * nf + i), &f->god_object, 24);
+    }
+    memcpy(pose + 56 * nb * k, w->pose_array, 56 * nb);
+}
+
 gcStatus gc_world_tick_record(gcWorld *w, uint64_t tick, void *out, size_t size) {
     if (!w || !out) return GC_ERR_INVALID_ARGUMENT;
     if (w->locked) {

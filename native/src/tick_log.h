@@ -31,6 +31,8 @@ void gc_tick_log_prefetch(const gcTickLog *log);
 void gc_tick_log_push(gcTickLog *log, const gcWorld *hw, const double *device_force, uint64_t tick,
                       double object_time, gcTickSchedule schedule, int64_t now_ns, int realtime, int forces_enabled,
                       int adopted);
+/* A stepped world's trace (gc_world_step_hips_trace) as tick k of `total` in the fields of out. */
+void gc_tick_trace_fill(const gcWorld *w, void *out, size_t k, size_t total);
 /* A replayed haptic tick (runtime_replay.c): its record straight into `out`, no ring, no clock. */
 void gc_tick_record_fill(const gcWorld *hw, const double *device_force, uint64_t tick, double object_time,
                          gcTickSchedule schedule, int forces_enabled, int adopted, void *out);
