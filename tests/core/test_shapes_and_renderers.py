@@ -87,4 +87,4 @@ def test_pad_on_a_decomposed_body_keeps_every_point_whole():
 
 def test_record_field_order_is_the_cores():
     names = graspcore.tick_dtype(2, 3).names
-    assert names[-4:] == ("state", "contact", "parts", "orientation")
+    assert names[-6:] == ("state", "contact", "parts", "orientation", "object_tick", "object_reads")
