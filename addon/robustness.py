@@ -215,6 +215,15 @@ class GRASPLAB_PT_robustness(ui._GraspPanel, bpy.types.Panel):
                 ui.wrapped_labels(box, context, [r.axes])
 
 
+@bpy.app.handlers.persistent
+def _cancel_all(*_args):
+    """Another file is loaded (or Blender quits): the sweeps of this one's scenes end, their
+    finished samples kept; the timer went with the file."""
+    for job in _jobs.values():
+        job.cancel()
+    _jobs.clear()
+
+
 CLASSES = (GRASPLAB_PG_robustness, GRASPLAB_OT_robustness_sweep, GRASPLAB_OT_robustness_cancel,
            GRASPLAB_PT_robustness)
 
@@ -223,15 +232,16 @@ def register():
     for c in CLASSES:
         bpy.utils.register_class(c)
     bpy.types.Scene.grasp_lab_robustness = PointerProperty(type=GRASPLAB_PG_robustness)
+    bpy.app.handlers.load_pre.append(_cancel_all)
 
 
 def unregister():
     global _previews
+    if _cancel_all in bpy.app.handlers.load_pre:
+        bpy.app.handlers.load_pre.remove(_cancel_all)
     if bpy.app.timers.is_registered(sweep_tick):
         bpy.app.timers.unregister(sweep_tick)
-    for job in _jobs.values():
-        job.cancel()
-    _jobs.clear()
+    _cancel_all()
     if _previews is not None:
         bpy.utils.previews.remove(_previews)
         _previews = None

@@ -124,3 +124,15 @@ def test_cancel_keeps_the_finished_samples_and_run_resumes(bpy, core, pinch):
     assert again.done >= kept                            # the kept samples were not run again
     again.cancel()
     robustness.sweep_tick()
+
+
+def test_loading_a_file_ends_a_running_sweep(bpy, core, pinch):
+    robustness = grasp_env.submodule("robustness")
+    scene = bpy.context.scene
+    scene.grasp_lab.last_recording = pinch
+    r = scene.grasp_lab_robustness
+    r.samples, r.seed, r.workers = 2000, 11, 1
+    assert bpy.ops.grasp_lab.robustness_sweep() == {"FINISHED"}
+    job = robustness._jobs[scene.name]
+    bpy.ops.wm.read_homefile(use_empty=True)
+    assert job.cancelled and job._proc.poll() is not None and not robustness._jobs
