@@ -147,6 +147,8 @@ class BackgroundSweep:
             self._proc.wait()
             self.error = self.error or (f"the sweep process ended with status {self._proc.returncode}: "
                                         + (" / ".join(self._stderr[-3:]) or "no message"))
+        if self._proc is not None:
+            self._proc.poll()       # reaps the child once it has exited (never waits)
         return self.running
 
     def cancel(self, timeout: float = 5.0) -> None:
