@@ -252,7 +252,11 @@ def runtime_schedule(recorded: Recording, same_rate: bool):
         where = f"after tick {int(ticks[gaps[0]])}" if len(gaps) else f"before tick {int(ticks[0])}"
         return None, (f"ticks of the threaded runtime are missing ({where}; dropped while recording): its "
                       f"hand-over schedule cannot be replayed; replayed through synchronous steps")
-    return {"haptic_rate": recorded.haptic_rate, **{k: rt.get(k, v) for k, v in RUNTIME_PHYSICS.items()}}, ""
+    rate = recorded.haptic_rate
+    # the watchdog changes only device forces, but the runtime refuses one shorter than a tick
+    watchdog = max(float(rt.get("watchdog_timeout", 0.005)), 2.0 / rate)
+    return {"haptic_rate": rate, "watchdog_timeout": watchdog,
+            **{k: rt.get(k, v) for k, v in RUNTIME_PHYSICS.items()}}, ""
 
 
 def replay_runtime(world, ticks_in: np.ndarray, settings: dict, has_start: bool) -> np.ndarray:
