@@ -83,7 +83,7 @@ struct gcContactSystem {
     gcVec3 *part_min, *part_max; /* world AABBs of the parts, inflated by the margin */
     int64_t overflow;            /* candidate pairs dropped for want of max_contacts */
     int full_pairs;              /* pairs computed in full (not reused) last step: pool heuristic */
-    /* Chains (islands.c). */
+    /* Chains (chains.c). */
     int32_t *parent;             /* union-find over bodies */
     int32_t *body_chain;         /* chain index per body, -1 for static bodies */
     int num_chains;

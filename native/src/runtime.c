@@ -136,7 +136,7 @@ static void shadow_load(gcWorld *s, const gcWorld *w) {
 /* ---- allocation --------------------------------------------------------------------- */
 
 static void runtime_free_memory(gcRuntime *rt) {
-    gc_rt_replay_free(rt);
+    gc_runtime_replay_free(rt);
     shadow_free(&rt->hap);
     shadow_free(&rt->obj);
     free(rt->hap_active);
@@ -205,11 +205,11 @@ static gcRuntime *runtime_alloc(const gcWorld *w) {
         in->orientations = rt_calloc(rt, nf * 4, sizeof(double));
         h->want = rt_calloc(rt, nb, 1);
         h->has_state = rt_calloc(rt, nb, 1);
-        h->body = rt_calloc(rt, nb, sizeof(gcRtBody));
+        h->body = rt_calloc(rt, nb, sizeof(gcRuntimeBody));
         h->fingers = rt_calloc(rt, nf, sizeof(gcFinger));
         o->released = rt_calloc(rt, nb, 1);
-        o->body = rt_calloc(rt, nb, sizeof(gcRtBody));
-        d->body = rt_calloc(rt, nb, sizeof(gcRtBody));
+        o->body = rt_calloc(rt, nb, sizeof(gcRuntimeBody));
+        d->body = rt_calloc(rt, nb, sizeof(gcRuntimeBody));
         d->adopted = rt_calloc(rt, nb, 1);
         d->hip = rt_calloc(rt, nf * 3, sizeof(double));
         d->god_object = rt_calloc(rt, nf * 3, sizeof(double));
@@ -297,10 +297,10 @@ static void reset_stats(gcRuntime *rt) {
     for (size_t i = 0; i < sizeof counters / sizeof counters[0]; ++i) atomic_store(counters[i], 0);
     atomic_store(&rt->adopted, 0);
     atomic_store(&rt->forces_enabled, 0);
-    atomic_store(&rt->first_tick_ns, NEVER);
-    atomic_store(&rt->last_tick_ns, NEVER);
-    atomic_store(&rt->first_object_ns, NEVER);
-    atomic_store(&rt->last_object_ns, NEVER);
+    atomic_store(&rt->first_tick_ns, GC_NEVER_NS);
+    atomic_store(&rt->last_tick_ns, GC_NEVER_NS);
+    atomic_store(&rt->first_object_ns, GC_NEVER_NS);
+    atomic_store(&rt->last_object_ns, GC_NEVER_NS);
     atomic_store(&rt->jitter_max_ns, 0);
     atomic_store(&rt->tick_max_ns, 0);
     atomic_store(&rt->tick_sum_ns, 0);
@@ -331,11 +331,11 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
     w->shown = &rt->shown;
     rt->def = *def;
     rt->def.realtime = def->realtime != 0;
-    rt->period_ns = seconds_to_ns(1.0 / def->haptic_rate);
-    rt->object_period_ns = seconds_to_ns(1.0 / def->object_rate);
-    rt->watchdog_ns = seconds_to_ns(def->watchdog_timeout);
-    rt->hip_timeout_ns = seconds_to_ns(def->hip_timeout);
-    rt->ramp_ns = seconds_to_ns(def->ramp_time);
+    rt->period_ns = gc_seconds_to_ns(1.0 / def->haptic_rate);
+    rt->object_period_ns = gc_seconds_to_ns(1.0 / def->object_rate);
+    rt->watchdog_ns = gc_seconds_to_ns(def->watchdog_timeout);
+    rt->hip_timeout_ns = gc_seconds_to_ns(def->hip_timeout);
+    rt->ramp_ns = gc_seconds_to_ns(def->ramp_time);
     rt->dt_haptic = 1.0 / def->haptic_rate;
     double object_period = 1.0 / def->object_rate;
     rt->object_substeps = (int)ceil(object_period / GC_OBJECT_MAX_STEP - 1e-9);
@@ -346,8 +346,8 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
     shadow_load(&rt->hap, w);
     shadow_load(&rt->obj, w);
     for (int32_t b = 0; b < w->num_bodies; ++b) {
-        rt->hstate[b] = H_OM;
-        rt->ostate[b] = O_OWN;
+        rt->hstate[b] = GC_HAPTIC_OM_OWNS;
+        rt->ostate[b] = GC_OBJECT_OWNS;
         rt->hap_active[b] = 0;
         rt->obj_active[b] = 1;
         rt->last_touch[b] = -INFINITY;
@@ -356,7 +356,7 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
     rt->object_time_seen = w->time;
     rt->object_seq = rt->object_seq_seen = rt->object_reads = 0;
     rt->replaying = 0;
-    rt->prev_tick_ns = rt->enabled_since_ns = rt->last_input_ns = NEVER;
+    rt->prev_tick_ns = rt->enabled_since_ns = rt->last_input_ns = GC_NEVER_NS;
     rt->was_stale = 1;
     rt->tick = 0;
     rt->object_phase = 0.0;
@@ -373,40 +373,40 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
         pthread_mutex_unlock(&rt->api_mutex);
         return st;
     }
-    store_double(&rt->haptic_time_bits, w->time);
-    store_double(&rt->object_time_bits, w->time);
-    store_double(&rt->object_time0_bits, w->time);
+    gc_atomic_store_double(&rt->haptic_time_bits, w->time);
+    gc_atomic_store_double(&rt->object_time_bits, w->time);
+    gc_atomic_store_double(&rt->object_time0_bits, w->time);
 
     /* First publications, so that every reader starts from a complete message. */
-    triple_reset(&rt->input);
-    triple_reset(&rt->to_object);
-    triple_reset(&rt->to_haptic);
-    triple_reset(&rt->display);
-    gc_rt_publish_to_object(rt);
-    gc_rt_publish_to_haptic(rt);
-    gc_rt_publish_display(rt, 0, 0);
+    gc_triple_reset(&rt->input);
+    gc_triple_reset(&rt->to_object);
+    gc_triple_reset(&rt->to_haptic);
+    gc_triple_reset(&rt->display);
+    gc_runtime_publish_to_object(rt);
+    gc_runtime_publish_to_haptic(rt);
+    gc_runtime_publish_display(rt, 0, 0);
     int fresh;
-    (void)triple_latest(&rt->to_haptic, &fresh); /* the haptic shadow already holds these bodies */
+    (void)gc_triple_latest(&rt->to_haptic, &fresh); /* the haptic shadow already holds these bodies */
 
     rt->rt_priority = 0;
-    rt->start_ns = clock_now_ns();
-    rt->stop_ns = NEVER;
+    rt->start_ns = gc_clock_now_ns();
+    rt->stop_ns = GC_NEVER_NS;
     if (!rt->def.realtime) {
         snprintf(rt->priority_note, sizeof rt->priority_note, "manual clock (realtime=0): no threads");
-        atomic_store_explicit(&rt->state, RT_RUNNING, memory_order_release);
+        atomic_store_explicit(&rt->state, GC_RUNTIME_RUNNING, memory_order_release);
         pthread_mutex_unlock(&rt->api_mutex);
         return GC_OK;
     }
     lock_memory(rt);
     atomic_store_explicit(&rt->haptic_ready, 0, memory_order_relaxed);
     atomic_store_explicit(&rt->run, 1, memory_order_release);
-    atomic_store_explicit(&rt->state, RT_RUNNING, memory_order_release);
-    int e = pthread_create(&rt->object_thread, NULL, gc_rt_object_main, rt);
+    atomic_store_explicit(&rt->state, GC_RUNTIME_RUNNING, memory_order_release);
+    int e = pthread_create(&rt->object_thread, NULL, gc_runtime_object_main, rt);
     if (e == 0) {
 #ifdef __linux__
         pthread_setname_np(rt->object_thread, "gc-object"); /* as top -H, perf and ftrace show it */
 #endif
-        e = pthread_create(&rt->haptic_thread, NULL, gc_rt_haptic_main, rt);
+        e = pthread_create(&rt->haptic_thread, NULL, gc_runtime_haptic_main, rt);
         if (e != 0) {
             atomic_store_explicit(&rt->run, 0, memory_order_release);
             pthread_join(rt->object_thread, NULL);
@@ -414,7 +414,7 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
     }
     if (e != 0) {
         unlock_memory(rt);
-        atomic_store_explicit(&rt->state, RT_STOPPED, memory_order_release);
+        atomic_store_explicit(&rt->state, GC_RUNTIME_STOPPED, memory_order_release);
         w->locked = 0;
     w->shown = NULL;
         pthread_mutex_unlock(&rt->api_mutex);
@@ -437,7 +437,7 @@ gcStatus gc_world_stop(gcWorld *w) {
     gcRuntime *rt = w->runtime;
     if (!rt) return GC_OK;
     pthread_mutex_lock(&rt->api_mutex);
-    if (atomic_load_explicit(&rt->state, memory_order_acquire) != RT_RUNNING) {
+    if (atomic_load_explicit(&rt->state, memory_order_acquire) != GC_RUNTIME_RUNNING) {
         pthread_mutex_unlock(&rt->api_mutex);
         return GC_OK;
     }
@@ -447,9 +447,9 @@ gcStatus gc_world_stop(gcWorld *w) {
         pthread_join(rt->object_thread, NULL);
         unlock_memory(rt);
     }
-    rt->stop_ns = clock_now_ns();
-    gc_rt_merge_into_world(rt, w);
-    atomic_store_explicit(&rt->state, RT_STOPPED, memory_order_release);
+    rt->stop_ns = gc_clock_now_ns();
+    gc_runtime_merge_into_world(rt, w);
+    atomic_store_explicit(&rt->state, GC_RUNTIME_STOPPED, memory_order_release);
     w->locked = 0;
     w->shown = NULL;
     pthread_mutex_unlock(&rt->api_mutex);
@@ -477,14 +477,14 @@ gcStatus gc_world_advance(gcWorld *w, int ticks, double delay) {
     }
     pthread_mutex_lock(&rt->api_mutex);
     for (int k = 0; k < ticks; ++k) {
-        int64_t period = rt->period_ns + (k == 0 ? seconds_to_ns(delay) : 0);
+        int64_t period = rt->period_ns + (k == 0 ? gc_seconds_to_ns(delay) : 0);
         int64_t now = atomic_load_explicit(&rt->manual_now_ns, memory_order_relaxed) + period;
         atomic_store_explicit(&rt->manual_now_ns, now, memory_order_relaxed);
         if (rt->tick == 0)
             atomic_store_explicit(&rt->first_tick_ns, now, memory_order_relaxed);
         else
-            gc_rt_record_period(rt, period);
-        gc_rt_haptic_tick(rt, now);
+            gc_runtime_record_period(rt, period);
+        gc_runtime_haptic_tick(rt, now);
         atomic_store_explicit(&rt->last_tick_ns, now, memory_order_relaxed);
         /* The object manager's ticks fall on a fixed schedule of the haptic ticks. */
         rt->object_phase += rt->def.object_rate;
@@ -492,7 +492,7 @@ gcStatus gc_world_advance(gcWorld *w, int ticks, double delay) {
             rt->object_phase -= rt->def.haptic_rate;
             if (atomic_load_explicit(&rt->object_ticks, memory_order_relaxed) == 0)
                 atomic_store_explicit(&rt->first_object_ns, now, memory_order_relaxed);
-            gc_rt_object_tick(rt);
+            gc_runtime_object_tick(rt);
             atomic_store_explicit(&rt->last_object_ns, now, memory_order_relaxed);
         }
     }

@@ -3,13 +3,13 @@
 #define _GNU_SOURCE
 #include "runtime_internal.h"
 
-static void body_save(const gcWorld *s, int32_t i, gcRtBody *o) {
+static void body_save(const gcWorld *s, int32_t i, gcRuntimeBody *o) {
     const gcBody *b = &s->bodies[i];
     o->state = b->state;
     memcpy(o->pose, &s->pose_array[7 * i], sizeof o->pose);
 }
 
-void gc_rt_body_load(gcWorld *s, int32_t i, const gcRtBody *o) {
+void gc_runtime_body_load(gcWorld *s, int32_t i, const gcRuntimeBody *o) {
     gcBody *b = &s->bodies[i];
     b->state = o->state;
     memcpy(&s->pose_array[7 * i], o->pose, sizeof o->pose);
@@ -17,20 +17,20 @@ void gc_rt_body_load(gcWorld *s, int32_t i, const gcRtBody *o) {
 
 /* ---- publications ------------------------------------------------------------------- */
 
-void gc_rt_publish_to_object(gcRuntime *rt) {
+void gc_runtime_publish_to_object(gcRuntime *rt) {
     const gcWorld *hw = &rt->hap;
     gcHapticMsg *m = &rt->haptic_msg[rt->to_object.back];
     for (int32_t b = 0; b < hw->num_bodies; ++b) {
         unsigned char s = rt->hstate[b];
-        m->want[b] = s == H_REQ || s == H_HAP;
-        m->has_state[b] = s == H_HAP || s == H_RET;
+        m->want[b] = s == GC_HAPTIC_REQUESTED || s == GC_HAPTIC_OWNS;
+        m->has_state[b] = s == GC_HAPTIC_OWNS || s == GC_HAPTIC_RETURNING;
         if (m->has_state[b]) body_save(hw, b, &m->body[b]);
     }
     memcpy(m->fingers, hw->fingers, (size_t)hw->num_fingers * sizeof *hw->fingers);
     rt->object_reads = triple_publish_counted(&rt->to_object);
 }
 
-void gc_rt_publish_to_haptic(gcRuntime *rt) {
+void gc_runtime_publish_to_haptic(gcRuntime *rt) {
     const gcWorld *ow = &rt->obj;
     /* A replay holds the result back until the tick the schedule delivers it at. */
     gcObjectMsg *m = rt->replaying ? &rt->replay_queue[rt->object_seq % GC_REPLAY_QUEUE]
@@ -38,22 +38,22 @@ void gc_rt_publish_to_haptic(gcRuntime *rt) {
     m->seq = rt->object_seq;
     m->time = ow->time;
     for (int32_t b = 0; b < ow->num_bodies; ++b) {
-        m->released[b] = rt->ostate[b] == O_RELEASED;
+        m->released[b] = rt->ostate[b] == GC_OBJECT_RELEASED;
         body_save(ow, b, &m->body[b]);
     }
-    if (!rt->replaying) triple_publish(&rt->to_haptic);
+    if (!rt->replaying) gc_triple_publish(&rt->to_haptic);
 }
 
-void gc_rt_deliver_to_haptic(gcRuntime *rt, const gcObjectMsg *held) {
+void gc_runtime_deliver_to_haptic(gcRuntime *rt, const gcObjectMsg *held) {
     gcObjectMsg *m = &rt->object_msg[rt->to_haptic.back];
     m->seq = held->seq;
     m->time = held->time;
     memcpy(m->released, held->released, (size_t)rt->obj.num_bodies);
     memcpy(m->body, held->body, (size_t)rt->obj.num_bodies * sizeof *m->body);
-    triple_publish(&rt->to_haptic);
+    gc_triple_publish(&rt->to_haptic);
 }
 
-void gc_rt_publish_display(gcRuntime *rt, int64_t now, int forces_enabled) {
+void gc_runtime_publish_display(gcRuntime *rt, int64_t now, int forces_enabled) {
     const gcWorld *hw = &rt->hap;
     gcDisplayMsg *d = &rt->display_msg[rt->display.back];
     d->tick = rt->tick;
@@ -63,7 +63,7 @@ void gc_rt_publish_display(gcRuntime *rt, int64_t now, int forces_enabled) {
     d->forces_enabled = forces_enabled;
     for (int32_t b = 0; b < hw->num_bodies; ++b) {
         body_save(hw, b, &d->body[b]);
-        d->adopted[b] = rt->hstate[b] == H_HAP;
+        d->adopted[b] = rt->hstate[b] == GC_HAPTIC_OWNS;
     }
     for (int32_t i = 0; i < hw->num_fingers; ++i) {
         const gcFinger *f = &hw->fingers[i];
@@ -75,14 +75,14 @@ void gc_rt_publish_display(gcRuntime *rt, int64_t now, int forces_enabled) {
         d->state[i] = (int32_t)f->state;
         d->contact_body[i] = f->contact_body;
     }
-    triple_publish(&rt->display);
+    gc_triple_publish(&rt->display);
 }
 
-gcStatus gc_world_push_hips(gcWorld *w, const double *positions, int count_, double t) {
-    return gc_world_push_finger_poses(w, positions, NULL, count_, t);
+gcStatus gc_world_push_hips(gcWorld *w, const double *positions, int count, double t) {
+    return gc_world_push_finger_poses(w, positions, NULL, count, t);
 }
 
-gcStatus gc_world_push_finger_poses(gcWorld *w, const double *positions, const double *orientations, int count_,
+gcStatus gc_world_push_finger_poses(gcWorld *w, const double *positions, const double *orientations, int count,
                                     double t) {
     if (!w) return GC_ERR_INVALID_ARGUMENT;
     if (!positions) return gc_null_argument(w, "positions");
@@ -90,46 +90,46 @@ gcStatus gc_world_push_finger_poses(gcWorld *w, const double *positions, const d
         gc_world_set_error(w, "push_hips: the runtime is not running (World.start / gc_world_start)");
         return GC_ERR_NOT_RUNNING;
     }
-    if (count_ < 1 || count_ > w->num_fingers) {
-        gc_world_set_error(w, "positions: %d rows given for %d fingers", count_, w->num_fingers);
+    if (count < 1 || count > w->num_fingers) {
+        gc_world_set_error(w, "positions: %d rows given for %d fingers", count, w->num_fingers);
         return GC_ERR_INVALID_ARGUMENT;
     }
-    return gc_runtime_push_input(w, positions, orientations, count_, t);
+    return gc_runtime_push_input(w, positions, orientations, count, t);
 }
 
-gcStatus gc_runtime_push_input(gcWorld *w, const double *positions, const double *orientations, int count_,
+gcStatus gc_runtime_push_input(gcWorld *w, const double *positions, const double *orientations, int count,
                                double t) {
     if (!gc_runtime_running(w)) return GC_ERR_NOT_RUNNING;
-    if (count_ < 1 || count_ > w->num_fingers) return GC_ERR_INVALID_ARGUMENT;
+    if (count < 1 || count > w->num_fingers) return GC_ERR_INVALID_ARGUMENT;
     gcRuntime *rt = w->runtime;
     int finite = isfinite(t);
-    for (int i = 0; i < 3 * count_ && finite; ++i) finite = isfinite(positions[i]);
-    for (int i = 0; orientations && i < count_ && finite; ++i) { /* finite and not zero */
+    for (int i = 0; i < 3 * count && finite; ++i) finite = isfinite(positions[i]);
+    for (int i = 0; orientations && i < count && finite; ++i) { /* finite and not zero */
         const double *q = &orientations[4 * i];
         double n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
         finite = isfinite(q[0]) && isfinite(q[1]) && isfinite(q[2]) && isfinite(q[3]) && n2 > 1e-20 && isfinite(n2);
     }
     if (!finite) {
-        count(&rt->rejected_inputs);
+        gc_atomic_increment(&rt->rejected_inputs);
         return GC_WARN_REJECTED;
     }
     pthread_mutex_lock(&rt->input_mutex);
     if (t < rt->input_last_t) { /* older than what the loop already has */
         pthread_mutex_unlock(&rt->input_mutex);
-        count(&rt->rejected_inputs);
+        gc_atomic_increment(&rt->rejected_inputs);
         return GC_WARN_REJECTED;
     }
     rt->input_last_t = t;
     gcInputMsg *m = &rt->input_msg[rt->input.back];
-    m->count = count_;
+    m->count = count;
     m->t = t;
-    m->receipt_ns = rt->def.realtime ? clock_now_ns() : atomic_load_explicit(&rt->manual_now_ns, memory_order_relaxed);
-    memcpy(m->hips, positions, 3 * (size_t)count_ * sizeof(double));
+    m->receipt_ns = rt->def.realtime ? gc_clock_now_ns() : atomic_load_explicit(&rt->manual_now_ns, memory_order_relaxed);
+    memcpy(m->hips, positions, 3 * (size_t)count * sizeof(double));
     m->has_orientations = orientations != NULL;
-    if (orientations) memcpy(m->orientations, orientations, 4 * (size_t)count_ * sizeof(double));
-    triple_publish(&rt->input);
+    if (orientations) memcpy(m->orientations, orientations, 4 * (size_t)count * sizeof(double));
+    gc_triple_publish(&rt->input);
     pthread_mutex_unlock(&rt->input_mutex);
-    count(&rt->accepted_inputs);
+    gc_atomic_increment(&rt->accepted_inputs);
     return GC_OK;
 }
 
@@ -186,16 +186,16 @@ gcStatus gc_world_snapshot(gcWorld *w, gcSnapshot *s) {
         return GC_OK;
     }
     pthread_mutex_lock(&rt->api_mutex);
-    if (atomic_load_explicit(&rt->state, memory_order_acquire) != RT_RUNNING) {
+    if (atomic_load_explicit(&rt->state, memory_order_acquire) != GC_RUNTIME_RUNNING) {
         snapshot_from_world(w, s);
         pthread_mutex_unlock(&rt->api_mutex);
         return GC_OK;
     }
     int fresh;
-    const gcDisplayMsg *d = &rt->display_msg[triple_latest(&rt->display, &fresh)];
+    const gcDisplayMsg *d = &rt->display_msg[gc_triple_latest(&rt->display, &fresh)];
     /* Reader-side watchdog: a loop that stalled cannot zero its own output. */
     int enabled = d->forces_enabled;
-    if (rt->def.realtime && clock_now_ns() - d->clock_ns > rt->watchdog_ns) enabled = 0;
+    if (rt->def.realtime && gc_clock_now_ns() - d->clock_ns > rt->watchdog_ns) enabled = 0;
     static const double zero[3] = {0, 0, 0};
     s->time = d->time;
     s->object_time = d->object_time;
@@ -205,7 +205,7 @@ gcStatus gc_world_snapshot(gcWorld *w, gcSnapshot *s) {
     s->num_fingers = w->num_fingers;
     /* The world's queries and views answer from this snapshot while the runtime runs. */
     for (int32_t b = 0; b < w->num_bodies; ++b) {
-        const gcRtBody *rb = &d->body[b];
+        const gcRuntimeBody *rb = &d->body[b];
         put_body(s, &w->bodies[b], b, rb->pose, &rb->state, d->adopted[b]);
         if (!w->bodies[b].is_static) {
             rt->shown.bodies[b] = rb->state;

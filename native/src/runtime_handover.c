@@ -35,13 +35,13 @@ static void update_adoption(gcRuntime *rt) {
         int want = cap > 0 && now - rt->last_touch[b] <= rt->def.release_delay &&
                    gc_contacts_chain_of(hw, b, rt->chain, cap) <= cap;
         /* A request or a return runs to completion before the wish can change again. */
-        if (rt->hstate[b] == H_OM && want) {
-            rt->hstate[b] = H_REQ;
-        } else if (rt->hstate[b] == H_HAP && !want) {
-            rt->hstate[b] = H_RET; /* stepped this tick; the object manager continues from here */
+        if (rt->hstate[b] == GC_HAPTIC_OM_OWNS && want) {
+            rt->hstate[b] = GC_HAPTIC_REQUESTED;
+        } else if (rt->hstate[b] == GC_HAPTIC_OWNS && !want) {
+            rt->hstate[b] = GC_HAPTIC_RETURNING; /* stepped this tick; the object manager continues from here */
             rt->hap_active[b] = 0;
         }
-        adopted += rt->hstate[b] == H_HAP;
+        adopted += rt->hstate[b] == GC_HAPTIC_OWNS;
     }
     atomic_store_explicit(&rt->adopted, adopted, memory_order_relaxed);
 }
@@ -49,28 +49,28 @@ static void update_adoption(gcRuntime *rt) {
 /* Device forces: the spring, ramped in, clamped, and zero while the watchdog holds them. */
 static int update_safety(gcRuntime *rt, int64_t now) {
     const gcWorld *hw = &rt->hap;
-    int64_t period = rt->prev_tick_ns == NEVER ? rt->period_ns : now - rt->prev_tick_ns;
+    int64_t period = rt->prev_tick_ns == GC_NEVER_NS ? rt->period_ns : now - rt->prev_tick_ns;
     rt->prev_tick_ns = now;
     int ok = 1;
     if (period > rt->watchdog_ns) {
         ok = 0; /* the loop missed its deadlines: zero, then ramp in again */
-        count(&rt->watchdog_trips);
+        gc_atomic_increment(&rt->watchdog_trips);
     }
-    int stale = rt->last_input_ns == NEVER || now - rt->last_input_ns > rt->hip_timeout_ns;
+    int stale = rt->last_input_ns == GC_NEVER_NS || now - rt->last_input_ns > rt->hip_timeout_ns;
     if (stale) {
         ok = 0;
-        if (!rt->was_stale) count(&rt->stale_inputs);
+        if (!rt->was_stale) gc_atomic_increment(&rt->stale_inputs);
     }
     rt->was_stale = stale;
     if (!ok)
-        rt->enabled_since_ns = NEVER;
-    else if (rt->enabled_since_ns == NEVER)
+        rt->enabled_since_ns = GC_NEVER_NS;
+    else if (rt->enabled_since_ns == GC_NEVER_NS)
         rt->enabled_since_ns = now;
     double gain = ok ? gc_ramp_gain((double)(now - rt->enabled_since_ns), (double)rt->ramp_ns) : 0.0;
     for (int32_t i = 0; i < hw->num_fingers; ++i) {
         int nonfinite = 0;
         gcVec3 f = gc_gate_force(hw->fingers[i].force, gain, rt->def.max_force, &nonfinite);
-        if (nonfinite) count(&rt->nonfinite_forces);
+        if (nonfinite) gc_atomic_increment(&rt->nonfinite_forces);
         double *out = &rt->device_force[3 * i];
         out[0] = f.x, out[1] = f.y, out[2] = f.z;
     }
@@ -78,7 +78,7 @@ static int update_safety(gcRuntime *rt, int64_t now) {
     return ok;
 }
 
-void gc_rt_haptic_tick(gcRuntime *rt, int64_t now) {
+void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now) {
     gcWorld *hw = &rt->hap;
     const double dt = rt->dt_haptic;
     int fresh;
@@ -86,7 +86,7 @@ void gc_rt_haptic_tick(gcRuntime *rt, int64_t now) {
 
     /* 1. HIPs at this tick's end time: the scripted track, or the walk towards the latest
      *    pushed samples (validated by push_hips). */
-    const gcInputMsg *in = &rt->input_msg[triple_latest(&rt->input, &fresh)];
+    const gcInputMsg *in = &rt->input_msg[gc_triple_latest(&rt->input, &fresh)];
     if (fresh) {
         double interval = isfinite(rt->follow_prev_t) ? in->t - rt->follow_prev_t : 0.0;
         rt->follow_prev_t = in->t;
@@ -128,25 +128,25 @@ void gc_rt_haptic_tick(gcRuntime *rt, int64_t now) {
     }
 
     /* 2. The object manager's bodies; bodies it released are adopted before stepping. */
-    const gcObjectMsg *om = &rt->object_msg[triple_latest(&rt->to_haptic, &fresh)];
+    const gcObjectMsg *om = &rt->object_msg[gc_triple_latest(&rt->to_haptic, &fresh)];
     if (fresh) {
         rt->object_time_seen = om->time;
         rt->object_seq_seen = om->seq;
         for (int32_t b = 0; b < hw->num_bodies; ++b) {
             if (hw->bodies[b].is_static) continue;
             switch (rt->hstate[b]) {
-            case H_OM: gc_rt_body_load(hw, b, &om->body[b]); break;
-            case H_REQ:
-                gc_rt_body_load(hw, b, &om->body[b]);
+            case GC_HAPTIC_OM_OWNS: gc_runtime_body_load(hw, b, &om->body[b]); break;
+            case GC_HAPTIC_REQUESTED:
+                gc_runtime_body_load(hw, b, &om->body[b]);
                 if (om->released[b]) {
-                    rt->hstate[b] = H_HAP;
+                    rt->hstate[b] = GC_HAPTIC_OWNS;
                     rt->hap_active[b] = 1;
                 }
                 break;
-            case H_RET:
+            case GC_HAPTIC_RETURNING:
                 if (!om->released[b]) {
-                    gc_rt_body_load(hw, b, &om->body[b]);
-                    rt->hstate[b] = H_OM;
+                    gc_runtime_body_load(hw, b, &om->body[b]);
+                    rt->hstate[b] = GC_HAPTIC_OM_OWNS;
                 }
                 break;
             default: break;
@@ -162,8 +162,8 @@ void gc_rt_haptic_tick(gcRuntime *rt, int64_t now) {
     update_adoption(rt);
     int ok = update_safety(rt, now);
     gc_serial_hub_tick(rt->serial, hw, rt->device_force, ok, now);
-    gc_rt_publish_to_object(rt);
-    gc_rt_publish_display(rt, now, ok);
+    gc_runtime_publish_to_object(rt);
+    gc_runtime_publish_display(rt, now, ok);
     gcTickSchedule schedule = {rt->object_seq_seen, rt->object_reads};
     if (rt->replay_record)
         gc_tick_record_fill(hw, rt->device_force, rt->tick, rt->object_time_seen, schedule, ok,
@@ -172,13 +172,13 @@ void gc_rt_haptic_tick(gcRuntime *rt, int64_t now) {
         gc_tick_log_push(rt->tick_log, hw, gc_serial_hub_recorded_forces(rt->serial, rt->device_force, hw->num_fingers),
                          rt->tick, rt->object_time_seen, schedule, now, rt->def.realtime, ok,
                          atomic_load_explicit(&rt->adopted, memory_order_relaxed));
-    store_double(&rt->haptic_time_bits, hw->time);
-    count(&rt->haptic_ticks);
+    gc_atomic_store_double(&rt->haptic_time_bits, hw->time);
+    gc_atomic_increment(&rt->haptic_ticks);
 }
 
 /* ---- the object tick ---------------------------------------------------------------- */
 
-void gc_rt_object_tick(gcRuntime *rt) {
+void gc_runtime_object_tick(gcRuntime *rt) {
     gcWorld *ow = &rt->obj;
     int fresh;
     const gcHapticMsg *h = &rt->haptic_msg[triple_latest_counted(&rt->to_object, &fresh)];
@@ -186,7 +186,7 @@ void gc_rt_object_tick(gcRuntime *rt) {
     memcpy(ow->fingers, h->fingers, (size_t)ow->num_fingers * sizeof *ow->fingers);
     /* Bodies the haptic loop steps, where it has them now: obstacles for the contacts here. */
     for (int32_t b = 0; b < ow->num_bodies; ++b)
-        if (rt->ostate[b] == O_RELEASED && h->has_state[b]) gc_rt_body_load(ow, b, &h->body[b]);
+        if (rt->ostate[b] == GC_OBJECT_RELEASED && h->has_state[b]) gc_runtime_body_load(ow, b, &h->body[b]);
     for (int s = 0; s < rt->object_substeps; ++s) {
         count_stopped(rt, gc_step_bodies(ow, rt->dt_object));
         ow->time += rt->dt_object;
@@ -195,29 +195,29 @@ void gc_rt_object_tick(gcRuntime *rt) {
      * was stepped by the haptic loop and moves from the next tick. */
     for (int32_t b = 0; b < ow->num_bodies; ++b) {
         if (ow->bodies[b].is_static) continue;
-        if (rt->ostate[b] == O_OWN && h->want[b]) {
-            rt->ostate[b] = O_RELEASED;
+        if (rt->ostate[b] == GC_OBJECT_OWNS && h->want[b]) {
+            rt->ostate[b] = GC_OBJECT_RELEASED;
             rt->obj_active[b] = 0;
-        } else if (rt->ostate[b] == O_RELEASED && !h->want[b] && h->has_state[b]) {
-            gc_rt_body_load(ow, b, &h->body[b]);
-            rt->ostate[b] = O_OWN;
+        } else if (rt->ostate[b] == GC_OBJECT_RELEASED && !h->want[b] && h->has_state[b]) {
+            gc_runtime_body_load(ow, b, &h->body[b]);
+            rt->ostate[b] = GC_OBJECT_OWNS;
             rt->obj_active[b] = 1;
         }
     }
-    gc_rt_publish_to_haptic(rt);
-    store_double(&rt->object_time_bits, ow->time);
-    count(&rt->object_ticks);
+    gc_runtime_publish_to_haptic(rt);
+    gc_atomic_store_double(&rt->object_time_bits, ow->time);
+    gc_atomic_increment(&rt->object_ticks);
 }
 
 static int haptic_owns(const gcRuntime *rt, int32_t b) {
-    return rt->ostate[b] == O_RELEASED && (rt->hstate[b] == H_HAP || rt->hstate[b] == H_RET);
+    return rt->ostate[b] == GC_OBJECT_RELEASED && (rt->hstate[b] == GC_HAPTIC_OWNS || rt->hstate[b] == GC_HAPTIC_RETURNING);
 }
 
 static int haptic_owns_ctx(const void *rt, int32_t b) { return haptic_owns(rt, b); }
 
 /* After the loops ended: each body from the thread that owned it last, fingers from the
  * haptic loop. */
-void gc_rt_merge_into_world(gcRuntime *rt, gcWorld *w) {
+void gc_runtime_merge_into_world(gcRuntime *rt, gcWorld *w) {
     const gcWorld *hw = &rt->hap, *ow = &rt->obj;
     for (int32_t b = 0; b < w->num_bodies; ++b) {
         if (w->bodies[b].is_static) continue;

@@ -32,13 +32,13 @@
 #include <unistd.h>
 #endif
 
-#define NS_PER_S 1000000000LL
+#define GC_NS_PER_S 1000000000LL
 /* The object manager's step cap: 2 ms (the source chapter's "0.002 ms" is a typo;
  * docs/runtime.md). */
 #define GC_OBJECT_MAX_STEP 0.002
 /* Period-error histogram of the haptic loop: 1 us bins, the last one collects the rest. */
 #define GC_JITTER_BINS 20000
-#define NEVER INT64_MIN
+#define GC_NEVER_NS INT64_MIN
 /* The haptic loop's wait (docs/runtime.md "Getting on time"): the scheduler time slice it
  * asks for at normal priority (Linux >= 6.12; the kernel's minimum), the stack it touches
  * before its first tick, and the most runtime memory it locks in RAM. */
@@ -62,18 +62,18 @@ typedef struct gcTriple {
 } gcTriple;
 #define GC_TRIPLE_FRESH 4u
 
-static inline void triple_reset(gcTriple *t) {
+static inline void gc_triple_reset(gcTriple *t) {
     t->back = 0;
     t->front = 1;
     atomic_store_explicit(&t->middle, 2u, memory_order_relaxed);
 }
 
-static inline void triple_publish(gcTriple *t) {
+static inline void gc_triple_publish(gcTriple *t) {
     t->back = (unsigned)(atomic_exchange_explicit(&t->middle, t->back | GC_TRIPLE_FRESH, memory_order_acq_rel) & 3u);
 }
 
 /* The reader's slot, now holding the latest publication; *fresh = 1 when it is new. */
-static inline unsigned triple_latest(gcTriple *t, int *fresh) {
+static inline unsigned gc_triple_latest(gcTriple *t, int *fresh) {
     *fresh = 0;
     if (atomic_load_explicit(&t->middle, memory_order_relaxed) & GC_TRIPLE_FRESH) {
         t->front = (unsigned)(atomic_exchange_explicit(&t->middle, t->front, memory_order_acq_rel) & 3u);
@@ -91,7 +91,7 @@ static inline unsigned triple_latest(gcTriple *t, int *fresh) {
  * most), so neither waits on the other. Only the channel's two ends use these. */
 #define GC_TRIPLE_COUNT 8u
 
-/* triple_publish, returning the reads made before this publication. */
+/* gc_triple_publish, returning the reads made before this publication. */
 static inline uint64_t triple_publish_counted(gcTriple *t) {
     uint64_t old = atomic_load_explicit(&t->middle, memory_order_relaxed);
     while (!atomic_compare_exchange_weak_explicit(&t->middle, &old, t->back | GC_TRIPLE_FRESH | (old & ~(uint64_t)7),
@@ -101,7 +101,7 @@ static inline uint64_t triple_publish_counted(gcTriple *t) {
     return old / GC_TRIPLE_COUNT;
 }
 
-/* triple_latest, counting one read. */
+/* gc_triple_latest, counting one read. */
 static inline unsigned triple_latest_counted(gcTriple *t, int *fresh) {
     uint64_t old = atomic_load_explicit(&t->middle, memory_order_relaxed), next;
     do {
@@ -116,10 +116,10 @@ static inline unsigned triple_latest_counted(gcTriple *t, int *fresh) {
 /* ---- messages --------------------------------------------------------------------- */
 
 /* A body's dynamic state, exactly (no re-derivation), so that a hand-over changes no bit. */
-typedef struct gcRtBody {
+typedef struct gcRuntimeBody {
     gcBodyState state;
     double pose[7];          /* the world's pose view of the body */
-} gcRtBody;
+} gcRuntimeBody;
 
 typedef struct gcInputMsg { /* push_hips -> haptic loop */
     int count;
@@ -133,7 +133,7 @@ typedef struct gcInputMsg { /* push_hips -> haptic loop */
 typedef struct gcHapticMsg { /* haptic loop -> object manager, every haptic tick */
     unsigned char *want;      /* per body: the haptic loop wants to step it (REQ or HAP) */
     unsigned char *has_state; /* per body: body[] is the haptic loop's state (HAP or RET) */
-    gcRtBody *body;
+    gcRuntimeBody *body;
     gcFinger *fingers;        /* after this tick's god-object update: the springs on bodies */
 } gcHapticMsg;
 
@@ -141,7 +141,7 @@ typedef struct gcObjectMsg { /* object manager -> haptic loop, every object tick
     uint64_t seq;            /* the object tick that published it (0: gc_world_start) */
     double time;
     unsigned char *released; /* per body: handed to the haptic loop; body[] is its final state */
-    gcRtBody *body;
+    gcRuntimeBody *body;
 } gcObjectMsg;
 
 typedef struct gcDisplayMsg { /* haptic loop -> gc_world_snapshot, every haptic tick */
@@ -149,15 +149,15 @@ typedef struct gcDisplayMsg { /* haptic loop -> gc_world_snapshot, every haptic 
     double time, object_time;
     int64_t clock_ns;         /* runtime clock at publication: the reader-side watchdog */
     int forces_enabled;
-    gcRtBody *body;
+    gcRuntimeBody *body;
     unsigned char *adopted;
     double *hip, *god_object, *spring_force, *device_force, *normal; /* 3 per finger */
     int32_t *state, *contact_body;
 } gcDisplayMsg;
 
-enum { H_OM = 0, H_REQ, H_HAP, H_RET };   /* a body as the haptic loop sees it */
-enum { O_OWN = 0, O_RELEASED };           /* a body as the object manager sees it */
-enum { RT_STOPPED = 0, RT_RUNNING = 1 };
+enum { GC_HAPTIC_OM_OWNS = 0, GC_HAPTIC_REQUESTED, GC_HAPTIC_OWNS, GC_HAPTIC_RETURNING };   /* a body as the haptic loop sees it */
+enum { GC_OBJECT_OWNS = 0, GC_OBJECT_RELEASED };           /* a body as the object manager sees it */
+enum { GC_RUNTIME_STOPPED = 0, GC_RUNTIME_RUNNING = 1 };
 
 typedef struct gcRuntime {
     gcRuntimeDef def;
@@ -246,62 +246,62 @@ typedef struct gcRuntime {
 
 /* ---- small helpers ------------------------------------------------------------------ */
 
-static inline int64_t clock_now_ns(void) {
+static inline int64_t gc_clock_now_ns(void) {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (int64_t)ts.tv_sec * NS_PER_S + ts.tv_nsec;
+    return (int64_t)ts.tv_sec * GC_NS_PER_S + ts.tv_nsec;
 }
 
-static inline void sleep_until_ns(int64_t t) {
-    struct timespec ts = {(time_t)(t / NS_PER_S), (long)(t % NS_PER_S)};
+static inline void gc_sleep_until_ns(int64_t t) {
+    struct timespec ts = {(time_t)(t / GC_NS_PER_S), (long)(t % GC_NS_PER_S)};
     while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL) == EINTR) {
     }
 }
 
-static inline void count(_Atomic uint64_t *c) { atomic_fetch_add_explicit(c, 1, memory_order_relaxed); }
+static inline void gc_atomic_increment(_Atomic uint64_t *c) { atomic_fetch_add_explicit(c, 1, memory_order_relaxed); }
 
-static inline void store_double(_Atomic uint64_t *slot, double v) {
+static inline void gc_atomic_store_double(_Atomic uint64_t *slot, double v) {
     uint64_t bits;
     memcpy(&bits, &v, sizeof bits);
     atomic_store_explicit(slot, bits, memory_order_relaxed);
 }
 
-static inline double load_double(_Atomic uint64_t *slot) {
+static inline double gc_atomic_load_double(_Atomic uint64_t *slot) {
     uint64_t bits = atomic_load_explicit(slot, memory_order_relaxed);
     double v;
     memcpy(&v, &bits, sizeof v);
     return v;
 }
 
-static inline int64_t seconds_to_ns(double s) { return (int64_t)(s * 1e9 + 0.5); }
+static inline int64_t gc_seconds_to_ns(double s) { return (int64_t)(s * 1e9 + 0.5); }
 
 
 static inline int gc_runtime_running(const gcWorld *w) {
-    return w && w->runtime && atomic_load_explicit(&w->runtime->state, memory_order_acquire) == RT_RUNNING;
+    return w && w->runtime && atomic_load_explicit(&w->runtime->state, memory_order_acquire) == GC_RUNTIME_RUNNING;
 }
 
 /* A body's state from a channel message into a shadow (channels). */
-void gc_rt_body_load(gcWorld *s, int32_t i, const gcRtBody *o);
+void gc_runtime_body_load(gcWorld *s, int32_t i, const gcRuntimeBody *o);
 /* The haptic loop's message to the object manager. */
-void gc_rt_publish_to_object(gcRuntime *rt);
+void gc_runtime_publish_to_object(gcRuntime *rt);
 /* The object manager's message to the haptic loop. */
-void gc_rt_publish_to_haptic(gcRuntime *rt);
+void gc_runtime_publish_to_haptic(gcRuntime *rt);
 /* A result a replay held back, published to the haptic loop now (runtime_replay.c). */
-void gc_rt_deliver_to_haptic(gcRuntime *rt, const gcObjectMsg *held);
+void gc_runtime_deliver_to_haptic(gcRuntime *rt, const gcObjectMsg *held);
 /* The haptic loop's view for gc_world_snapshot. */
-void gc_rt_publish_display(gcRuntime *rt, int64_t now, int forces_enabled);
+void gc_runtime_publish_display(gcRuntime *rt, int64_t now, int forces_enabled);
 /* One haptic tick at clock time now (handover). */
-void gc_rt_haptic_tick(gcRuntime *rt, int64_t now);
+void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now);
 /* One object tick (handover). */
-void gc_rt_object_tick(gcRuntime *rt);
+void gc_runtime_object_tick(gcRuntime *rt);
 /* After the loops ended: each body from the thread that owned it last (handover). */
-void gc_rt_merge_into_world(gcRuntime *rt, gcWorld *w);
+void gc_runtime_merge_into_world(gcRuntime *rt, gcWorld *w);
 /* A haptic period into the jitter statistics (threads). */
-void gc_rt_record_period(gcRuntime *rt, int64_t period);
+void gc_runtime_record_period(gcRuntime *rt, int64_t period);
 /* The replay queue's memory, freed with the runtime (replay). */
-void gc_rt_replay_free(gcRuntime *rt);
+void gc_runtime_replay_free(gcRuntime *rt);
 /* The threads' bodies (threads). */
-void *gc_rt_haptic_main(void *arg);
-void *gc_rt_object_main(void *arg);
+void *gc_runtime_haptic_main(void *arg);
+void *gc_runtime_object_main(void *arg);
 
 #endif

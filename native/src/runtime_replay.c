@@ -10,7 +10,7 @@
 #include "runtime_internal.h"
 #include "tick_log.h"
 
-void gc_rt_replay_free(gcRuntime *rt) {
+void gc_runtime_replay_free(gcRuntime *rt) {
     if (!rt->replay_queue) return;
     for (int i = 0; i < GC_REPLAY_QUEUE; ++i) {
         free(rt->replay_queue[i].released);
@@ -27,9 +27,9 @@ static int replay_queue_alloc(gcRuntime *rt) {
     if (!rt->replay_queue) return 0;
     for (int i = 0; i < GC_REPLAY_QUEUE; ++i) {
         rt->replay_queue[i].released = calloc((size_t)rt->max_bodies, 1);
-        rt->replay_queue[i].body = calloc((size_t)rt->max_bodies, sizeof(gcRtBody));
+        rt->replay_queue[i].body = calloc((size_t)rt->max_bodies, sizeof(gcRuntimeBody));
         if (!rt->replay_queue[i].released || !rt->replay_queue[i].body) {
-            gc_rt_replay_free(rt);
+            gc_runtime_replay_free(rt);
             return 0;
         }
     }
@@ -85,15 +85,15 @@ gcStatus gc_world_replay_ticks(gcWorld *w, const double *hips, const double *ori
             break;
         }
         /* The object ticks that took a message before this tick publishes its own. */
-        while (rt->object_seq < object_reads[k]) gc_rt_object_tick(rt);
+        while (rt->object_seq < object_reads[k]) gc_runtime_object_tick(rt);
         if (object_ticks[k] > rt->object_seq_seen)
-            gc_rt_deliver_to_haptic(rt, &rt->replay_queue[object_ticks[k] % GC_REPLAY_QUEUE]);
+            gc_runtime_deliver_to_haptic(rt, &rt->replay_queue[object_ticks[k] % GC_REPLAY_QUEUE]);
         rt->replay_hips = hips + 3 * (size_t)num_fingers * (size_t)k;
         rt->replay_orientations = orientations ? orientations + 4 * (size_t)num_fingers * (size_t)k : NULL;
         rt->replay_record = records ? (char *)records + record * (size_t)k : NULL;
         int64_t now = atomic_load_explicit(&rt->manual_now_ns, memory_order_relaxed) + rt->period_ns;
         atomic_store_explicit(&rt->manual_now_ns, now, memory_order_relaxed);
-        gc_rt_haptic_tick(rt, now);
+        gc_runtime_haptic_tick(rt, now);
         atomic_store_explicit(&rt->last_tick_ns, now, memory_order_relaxed);
         if (done) *done = k + 1;
     }

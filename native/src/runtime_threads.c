@@ -5,7 +5,7 @@
 
 /* ---- threads ------------------------------------------------------------------------ */
 
-void gc_rt_record_period(gcRuntime *rt, int64_t period) {
+void gc_runtime_record_period(gcRuntime *rt, int64_t period) {
     int64_t err = period - rt->period_ns;
     if (err < 0) err = -err;
     int64_t bin = err / 1000;
@@ -13,7 +13,7 @@ void gc_rt_record_period(gcRuntime *rt, int64_t period) {
     atomic_fetch_add_explicit(&rt->jitter_hist[bin], 1, memory_order_relaxed);
     if (err > atomic_load_explicit(&rt->jitter_max_ns, memory_order_relaxed))
         atomic_store_explicit(&rt->jitter_max_ns, err, memory_order_relaxed);
-    if (err > rt->period_ns) count(&rt->late_periods);
+    if (err > rt->period_ns) gc_atomic_increment(&rt->late_periods);
 }
 
 /* Next absolute deadline after a tick that ended at `end`: deadlines already missed are
@@ -21,7 +21,7 @@ void gc_rt_record_period(gcRuntime *rt, int64_t period) {
 static int64_t next_deadline(int64_t deadline, int64_t period, int64_t end, _Atomic uint64_t *overruns) {
     deadline += period;
     if (end > deadline) {
-        count(overruns);
+        gc_atomic_increment(overruns);
         deadline += ((end - deadline) / period + 1) * period;
     }
     return deadline;
@@ -118,24 +118,24 @@ static void *haptic_thread_setup(gcRuntime *rt, size_t *stack_locked) {
     return window;
 }
 
-void *gc_rt_haptic_main(void *arg) {
+void *gc_runtime_haptic_main(void *arg) {
     gcRuntime *rt = arg;
     size_t stack_locked;
     void *stack_window = haptic_thread_setup(rt, &stack_locked);
     atomic_store_explicit(&rt->haptic_ready, 1, memory_order_release);
-    int64_t deadline = clock_now_ns() + rt->period_ns, prev_wake = NEVER;
+    int64_t deadline = gc_clock_now_ns() + rt->period_ns, prev_wake = GC_NEVER_NS;
     while (atomic_load_explicit(&rt->run, memory_order_acquire)) {
         int64_t stall = atomic_exchange_explicit(&rt->debug_stall_ns, 0, memory_order_relaxed);
-        sleep_until_ns(deadline + stall);
-        int64_t wake = clock_now_ns();
+        gc_sleep_until_ns(deadline + stall);
+        int64_t wake = gc_clock_now_ns();
         record_max(&rt->wake_max_ns, wake - deadline);
-        if (prev_wake == NEVER)
+        if (prev_wake == GC_NEVER_NS)
             atomic_store_explicit(&rt->first_tick_ns, wake, memory_order_relaxed);
         else
-            gc_rt_record_period(rt, wake - prev_wake);
+            gc_runtime_record_period(rt, wake - prev_wake);
         prev_wake = wake;
-        gc_rt_haptic_tick(rt, wake);
-        int64_t end = clock_now_ns();
+        gc_runtime_haptic_tick(rt, wake);
+        int64_t end = gc_clock_now_ns();
         record_max(&rt->tick_max_ns, end - wake);
         atomic_fetch_add_explicit(&rt->tick_sum_ns, end - wake, memory_order_relaxed);
         atomic_store_explicit(&rt->last_tick_ns, wake, memory_order_relaxed);
@@ -149,17 +149,17 @@ void *gc_rt_haptic_main(void *arg) {
     return NULL;
 }
 
-void *gc_rt_object_main(void *arg) {
+void *gc_runtime_object_main(void *arg) {
     gcRuntime *rt = arg; /* named "gc-object" by gc_world_start, before it returns */
-    int64_t deadline = clock_now_ns() + rt->object_period_ns;
+    int64_t deadline = gc_clock_now_ns() + rt->object_period_ns;
     int first = 1;
     while (atomic_load_explicit(&rt->run, memory_order_acquire)) {
-        sleep_until_ns(deadline);
-        int64_t wake = clock_now_ns();
+        gc_sleep_until_ns(deadline);
+        int64_t wake = gc_clock_now_ns();
         if (first) atomic_store_explicit(&rt->first_object_ns, wake, memory_order_relaxed);
         first = 0;
-        gc_rt_object_tick(rt);
-        int64_t end = clock_now_ns();
+        gc_runtime_object_tick(rt);
+        int64_t end = gc_clock_now_ns();
         atomic_store_explicit(&rt->last_object_ns, wake, memory_order_relaxed);
         deadline = next_deadline(deadline, rt->object_period_ns, end, &rt->object_overruns);
     }
@@ -188,7 +188,7 @@ gcStatus gc_world_stats(gcWorld *w, gcRuntimeStats *out) {
         return GC_OK;
     }
     pthread_mutex_lock(&rt->api_mutex);
-    int running = atomic_load_explicit(&rt->state, memory_order_acquire) == RT_RUNNING;
+    int running = atomic_load_explicit(&rt->state, memory_order_acquire) == GC_RUNTIME_RUNNING;
     out->running = running;
     out->realtime = rt->def.realtime;
     out->rt_priority = rt->rt_priority;
@@ -206,24 +206,24 @@ gcStatus gc_world_stats(gcWorld *w, gcRuntimeStats *out) {
     out->stopped_bodies = atomic_load_explicit(&rt->stopped_bodies, memory_order_relaxed);
     out->adopted_bodies = atomic_load_explicit(&rt->adopted, memory_order_relaxed);
     out->forces_enabled = running && atomic_load_explicit(&rt->forces_enabled, memory_order_relaxed);
-    out->haptic_time = load_double(&rt->haptic_time_bits);
-    out->object_time = load_double(&rt->object_time_bits);
+    out->haptic_time = gc_atomic_load_double(&rt->haptic_time_bits);
+    out->object_time = gc_atomic_load_double(&rt->object_time_bits);
 
     /* Achieved rates over the run (on the manual clock, per simulated second). */
     int64_t t0 = atomic_load_explicit(&rt->first_tick_ns, memory_order_relaxed);
     int64_t t1 = atomic_load_explicit(&rt->last_tick_ns, memory_order_relaxed);
-    if (out->haptic_ticks > 1 && t0 != NEVER && t1 > t0)
+    if (out->haptic_ticks > 1 && t0 != GC_NEVER_NS && t1 > t0)
         out->haptic_rate = (double)(out->haptic_ticks - 1) * 1e9 / (double)(t1 - t0);
     t0 = atomic_load_explicit(&rt->first_object_ns, memory_order_relaxed);
     t1 = atomic_load_explicit(&rt->last_object_ns, memory_order_relaxed);
-    if (out->object_ticks > 1 && t0 != NEVER && t1 > t0)
+    if (out->object_ticks > 1 && t0 != GC_NEVER_NS && t1 > t0)
         out->object_rate = (double)(out->object_ticks - 1) * 1e9 / (double)(t1 - t0);
     double wall;
     if (rt->def.realtime)
-        wall = (double)((running ? clock_now_ns() : rt->stop_ns) - rt->start_ns) * 1e-9;
+        wall = (double)((running ? gc_clock_now_ns() : rt->stop_ns) - rt->start_ns) * 1e-9;
     else
         wall = (double)atomic_load_explicit(&rt->manual_now_ns, memory_order_relaxed) * 1e-9;
-    if (wall > 0.0) out->object_speed = (out->object_time - load_double(&rt->object_time0_bits)) / wall;
+    if (wall > 0.0) out->object_speed = (out->object_time - gc_atomic_load_double(&rt->object_time0_bits)) / wall;
 
     uint32_t *hist = rt->stats_hist;
     uint64_t total = 0;
@@ -252,7 +252,7 @@ gcStatus gc_world_debug_stall(gcWorld *w, double seconds) {
         gc_world_set_error(w, "seconds: must be in [0, 10] (got %g)", seconds);
         return GC_ERR_INVALID_ARGUMENT;
     }
-    atomic_store_explicit(&w->runtime->debug_stall_ns, seconds_to_ns(seconds), memory_order_relaxed);
+    atomic_store_explicit(&w->runtime->debug_stall_ns, gc_seconds_to_ns(seconds), memory_order_relaxed);
     return GC_OK;
 }
 

@@ -145,7 +145,7 @@ struct gcWorld {
     int64_t stopped_bodies;
     int step_stopped_bodies;
     int32_t first_stopped_body;
-    /* Contacts, chains and their worker pool (contacts.c, islands.c, threadpool.c). */
+    /* Contacts, chains and their worker pool (contacts.c, chains.c, threadpool.c). */
     struct gcContactSystem *contacts;
     /* Runtime (runtime.c): made on the first gc_world_start, freed by gc_world_destroy. */
     struct gcRuntime *runtime;
