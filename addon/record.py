@@ -9,11 +9,12 @@ import bpy
 
 from .engine import defaults
 from .engine.recording import RecordingWriter, SessionRecorder, make_header
+from .engine.runner import RUNTIME_PHYSICS
 
 # The core's runtime defaults (graspcore.RUNTIME_DEFAULTS) that the header records when a
 # session's options leave them as they are: the recorder reads clamping and watchdog events
-# against them.
-RECORDED_RUNTIME_DEFAULTS = ("max_force", "ramp_time", "watchdog_timeout", "hip_timeout")
+# against them, and a re-simulation replays the object manager with the physics ones.
+RECORDED_RUNTIME_DEFAULTS = ("max_force", "ramp_time", "watchdog_timeout", "hip_timeout") + RUNTIME_PHYSICS
 
 
 def default_path(settings) -> str:

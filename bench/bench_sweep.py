@@ -3,10 +3,11 @@
 The scene: a recorded 3 s three-finger lift (tests/blender/recordings.three_finger_lift: box on
 a table, three fingertips close, lift it 8 cm, hold), swept over Box.mu_s and Box.mass.
 
-1. Samples per second on one core: the sweep in this process (draw, world made, HIPs replayed,
-   outcomes, samples.csv) beside the bare C step loop on the same scene (``World.step_hips`` of
-   the recorded HIPs into a preallocated record array, the world made once): repeats
-   interleaved. Target: >= 80 %. With the grasp measures (analysis every 20 ms) beside it.
+1. Samples per second on one core: the sweep in this process (draw, world made, HIPs replayed
+   with each step's trace, outcomes, samples.csv) beside the bare C step loop on the same scene
+   (``World.step_hips`` of the recorded HIPs into a preallocated record array, the world made
+   once; and the steps alone): repeats interleaved. Target: >= 80 %. With the grasp measures
+   (analysis every 20 ms, whole records) beside it. ``--one-core``: this part alone.
 2. Two local worker processes against one (the pool, spawned workers). Target: >= 1.8x.
 3. An existing Dask cluster on localhost (a real `dask scheduler`, two `dask worker` processes
    of one thread each) against the local pool of two, the same sweep. Target: within 15 %.
@@ -134,6 +135,8 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--samples", type=int, default=10000, help="the long sweep's samples (0: skip it)")
     ap.add_argument("--quick", action="store_true", help="fewer repeats and samples")
+    ap.add_argument("--one-core", action="store_true",
+                    help="the per-core comparison alone (1.: the sweep in process against the C loop)")
     args = ap.parse_args()
     tmp = tempfile.mkdtemp(prefix="bench_sweep_")
     load0 = os.getloadavg()
@@ -167,18 +170,22 @@ def main():
         for i in range(200):
             t0 = clock()
             d = sweep.draw(job, i, rng)
-            dsc = recording.scene_from_dict(job.scene)
+            dsc = sweep._fresh_desc(job)
             sweep.apply_to_desc(dsc, d.overrides)
             t1 = clock()
             h = scene.build_world(dsc, graspcore, exact=True)
             t2 = clock()
-            ticks = sweep.replay(h.world, job.hips, 1.0 / job.rate, job.has_start)
+            ticks = sweep.replay_trace(h.world, job.hips, 1.0 / job.rate, job.has_start)   # as run_sample
             t3 = clock()
             sweep.outcomes(job, ticks, dsc)
             t4 = clock()
             for k, v in zip(t_parts, (t1 - t0, t2 - t1, t3 - t2, t4 - t3)):
                 t_parts[k].append(v)
         parts = {k: statistics.median(v) * 1e3 for k, v in t_parts.items()}
+        if args.one_core:
+            load1 = os.getloadavg()
+            print_one_core(args, rec, load0, load1, bare_s, bare_min, steps_s, sweep_s, an_s, parts, repeats, n_one)
+            return
 
         # 2. two local workers vs one (both through sweep(), workers=1 in process, 2 spawned)
         n_pool = 600 if args.quick else 3000     # a pool starts in about 0.2 s: amortised
@@ -299,6 +306,33 @@ def main():
               f"{s['ci95'][0]:.4f} .. {s['ci95'][1]:.4f} |")
         print(f"| {n_a} samples with the grasp measures, pool of two | {t_long_a:.1f} s ({n_a / t_long_a:.0f} "
               f"samples/s) |")
+
+
+def print_one_core(args, rec, load0, load1, bare_s, bare_min, steps_s, sweep_s, an_s, parts, repeats, n_one):
+    """--one-core: the per-core rows alone, as a section of their own."""
+    ratio = bare_s / sweep_s
+    print("# Sweeps: samples per core (grasp-lab sweep)\n")
+    print(f"Run on {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())} by `.venv/bin/python bench/bench_sweep.py "
+          f"--one-core` ({platform.machine()}, {os.cpu_count()} logical cores, shared: load average {load0[0]:.2f} "
+          f"at start, {load1[0]:.2f} at end). Python {platform.python_version()}, numpy {np.__version__}. The "
+          f"scene: a recorded 3 s three-finger lift ({len(rec.ticks)} ticks at 1 kHz), swept over `{VARY[0]}` and "
+          f"`{VARY[1]}`, without the grasp measures unless said; the C loop and the sweep interleaved, CPU time.\n")
+    print("| target | result | met |\n|---|---|---|")
+    print(f"| samples/s per core ≥ 80 % of the bare C step loop, same scene (CPU time) | {ratio * 100:.0f} % "
+          f"({1 / sweep_s:.0f} vs {1 / bare_s:.0f} samples/s) | {'yes' if ratio >= 0.8 else '**no**'} |")
+    print(f"| the same against the C steps alone (no tick records: the physics, nothing else) | "
+          f"{steps_s / sweep_s * 100:.0f} % ({1 / sweep_s:.0f} vs {1 / steps_s:.0f} samples/s) | "
+          f"{'yes' if steps_s / sweep_s >= 0.8 else '**no**'} |")
+    print()
+    print("| measurement | value |\n|---|---|")
+    print(f"| bare C step loop (`World.step_hips`, 3000 ticks), CPU time: median / best | {bare_s * 1e3:.2f} / "
+          f"{bare_min * 1e3:.2f} ms a sample |")
+    print(f"| the C steps alone (`World.step_hips(hips, dt, None)`), CPU time: median | {steps_s * 1e3:.2f} ms a sample |")
+    print(f"| the sweep in one process (`--workers 1`), CPU time: median of {repeats} × {n_one} samples | "
+          f"{sweep_s * 1e3:.2f} ms a sample |")
+    print(f"| a sample in parts, CPU time (median of 200): draw + scene, world made, replay, outcomes | "
+          f"{parts['draw']:.2f} + {parts['world']:.2f} + {parts['replay']:.2f} + {parts['outcomes']:.2f} ms |")
+    print(f"| the same with the grasp measures (every 20 ms while held), CPU time | {an_s * 1e3:.2f} ms a sample |")
 
 
 if __name__ == "__main__":

@@ -15,8 +15,9 @@ def finger(name: str) -> float:
     return float(load().FINGER_DEFAULTS[name])
 
 
-def runtime(name: str) -> float:
-    return float(load().RUNTIME_DEFAULTS[name])
+def runtime(name: str):
+    """A runtime setting's default, of the core's type (``max_adopted_bodies`` is an int)."""
+    return load().RUNTIME_DEFAULTS[name]
 
 
 def renderer() -> str:

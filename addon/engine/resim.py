@@ -1,8 +1,9 @@
 """Re-simulation: a recording's HIP streams replayed through the core, with overrides.
 
-With no override a recording made by a synchronous session (EXEC) is reproduced bit for
-bit: every tick's ``World.state_hash()`` equals the recorded one. Otherwise the
-divergence report says when and where the two runs part.
+With no override a recording is reproduced bit for bit: every tick's ``World.state_hash()``
+equals the recorded one. A synchronous session (EXEC) replays through synchronous steps; a
+threaded (live) one on the manual clock with its recorded hand-over schedule. Otherwise the
+divergence report says when and where the two runs part (and what could not be replayed).
 """
 from __future__ import annotations
 
@@ -13,6 +14,7 @@ import numpy as np
 from . import defaults
 from .limits import DEFAULT_MAX_SIZE, check_memory, check_recording_size, check_set_value
 from .recording import EventDetector, Recording, RecordingWriter, make_header, scene_from_dict
+from .runner import RUNTIME_PHYSICS
 from .scene import build_world, torsion_problem
 
 OBJECT_KEYS = ("mass", "mu_s", "mu_d", "viscosity", "radius", "stiffness", "damping", "cursor_mass", "renderer",
@@ -132,11 +134,14 @@ class Divergence:
     first_hash_tick: int | None = None   # first tick whose state hash differs
     worst: list = field(default_factory=list)        # (subject, max distance, at time)
     timeline: list = field(default_factory=list)     # (time, max body distance, max finger distance)
+    note: str = ""                  # what of the recording could not be replayed as it ran
 
     def report(self) -> str:
         if self.identical:
             return "identical"
         lines = [f"diverged: {self.ticks} ticks compared, tolerance {self.tolerance:g} m"]
+        if self.note:
+            lines.append(self.note)
         if self.first_hash_tick is not None:
             lines.append(f"state hashes differ from tick {self.first_hash_tick}")
         if self.first_tick is None:
@@ -231,6 +236,54 @@ def replay(world, hips: np.ndarray, dt: float, has_start: bool = True, before: d
     return ticks if has_start else ticks[1:]
 
 
+def runtime_schedule(recorded: Recording, same_rate: bool):
+    """A recording of the threaded runtime replays on its hand-over schedule (the object
+    manager's ticks and the haptic tick each result was taken at, in every tick record) when it
+    has one and every tick is there. Returns (the runtime settings to replay with, or None;
+    why not, "" when it is not a threaded recording)."""
+    rt = recorded.header.get("runtime") or {}
+    if not rt.get("threaded"):
+        return None, ""
+    if "object_tick" not in (recorded.ticks.dtype.names or ()):
+        return None, ("recorded by the threaded runtime before its hand-over schedule was recorded: "
+                      "replayed through synchronous steps, which its object manager does not follow bit for bit")
+    if not same_rate:
+        return None, ("recorded by the threaded runtime: at another haptic_rate its hand-over schedule does "
+                      "not apply; replayed through synchronous steps")
+    ticks = recorded.ticks["tick"].astype(np.int64)
+    gaps = np.flatnonzero(np.diff(ticks) != 1)
+    if int(ticks[0]) > 1 or len(gaps):
+        where = f"after tick {int(ticks[gaps[0]])}" if len(gaps) else f"before tick {int(ticks[0])}"
+        return None, (f"ticks of the threaded runtime are missing ({where}; dropped while recording): its "
+                      f"hand-over schedule cannot be replayed; replayed through synchronous steps")
+    rate = recorded.haptic_rate
+    # the watchdog changes only device forces, but the runtime refuses one shorter than a tick
+    watchdog = max(float(rt.get("watchdog_timeout", 0.005)), 2.0 / rate)
+    return {"haptic_rate": rate, "watchdog_timeout": watchdog,
+            **{k: rt.get(k, defaults.runtime(k)) for k in RUNTIME_PHYSICS}}, ""
+
+
+def replay_runtime(world, ticks_in: np.ndarray, settings: dict, has_start: bool) -> np.ndarray:
+    """A threaded recording's ticks replayed on the manual clock on their hand-over schedule
+    (``World.replay_ticks``), in stretches as ``replay``; tick 0 the world before it starts."""
+    rows = ticks_in[1:] if has_start else ticks_in
+    n = len(rows)
+    out = np.empty(n + 1, dtype=world.tick_dtype())
+    world._tick_record(out[:1], 0)
+    hips = np.ascontiguousarray(rows["hip"])
+    turns = np.ascontiguousarray(rows["orientation"]) if "orientation" in rows.dtype.names else None
+    done, reads = np.ascontiguousarray(rows["object_tick"]), np.ascontiguousarray(rows["object_reads"])
+    world.start(realtime=False, **settings)
+    try:
+        for k in range(0, n, STRETCH):
+            end = min(n, k + STRETCH)
+            world.replay_ticks(hips[k:end], done[k:end], reads[k:end], out[k + 1:end + 1],
+                               orientations=None if turns is None else turns[k:end])
+    finally:
+        world.stop()
+    return out if has_start else out[1:]
+
+
 def resimulate(recorded: Recording, graspcore, overrides=(), tolerance: float = 1e-6,
                record_path: str | None = None, compression: str = "lz4",
                max_size: float = DEFAULT_MAX_SIZE) -> ResimResult:
@@ -266,11 +319,17 @@ def resimulate(recorded: Recording, graspcore, overrides=(), tolerance: float = 
     has_start = int(recorded.ticks["tick"][0]) == 0
     if same_rate and has_start:
         hips = hips[1:]
-    ticks = replay(world, hips, dt, has_start)
+    settings, note = runtime_schedule(recorded, same_rate)
+    if settings is not None:    # a live session: its object manager's ticks where they fell
+        ticks = replay_runtime(world, recorded.ticks, settings, has_start)
+    else:
+        ticks = replay(world, hips, dt, has_start)
     div = compare(recorded, ticks, tolerance, same_rate)
+    div.note = note
     header = make_header(desc, mode="resim", haptic_rate=rate, source=recorded.path,
                          fps=recorded.header["rates"].get("fps"), device=recorded.header.get("device"),
-                         runtime={"threaded": False},
+                         runtime={"threaded": False} if settings is None else
+                         {"threaded": False, "replayed_schedule": True, **settings},
                          extra={"resim_of": recorded.header.get("fingerprint"),
                                 "overrides": [str(o) for o in overrides]})
     result = ResimResult(ticks=ticks, divergence=div, header=header)

@@ -20,6 +20,13 @@ from dataclasses import dataclass
 import numpy as np
 
 
+# The threaded runtime's settings that decide its physics (their defaults: the core's,
+# graspcore.RUNTIME_DEFAULTS; the others, its safety layer, decide only what a device is sent).
+# Live sessions run with these and their recordings' headers say so: a re-simulation replays
+# with them.
+RUNTIME_PHYSICS = ("object_rate", "max_adopted_bodies", "release_delay")
+
+
 @dataclass
 class Snapshot:
     time: float

@@ -28,6 +28,7 @@ import numpy as np
 
 from . import recording as _recording
 from .recording import scene_from_dict, scene_to_dict
+from . import resim as _resim
 from .resim import BODY_KEYS, FINGER_KEYS, Override, OverrideError, apply_to_desc, replay
 from .scene import build_world
 
@@ -367,12 +368,25 @@ def _keep_friction_legal(overrides, bodies):
             os_["mu_d"].value = min(os_["mu_d"].value, mu_s)
 
 
+def _fresh_desc(job: Job):
+    """The recorded scene for one sample to change: the job's SceneDesc read once (its point
+    arrays, the bulk of reading it, shared and never written), the parts a sample's overrides
+    set (bodies, their mass properties, fingers) copied."""
+    import dataclasses
+    base = job.__dict__.get("_desc")
+    if base is None:
+        base = job.__dict__["_desc"] = scene_from_dict(job.scene)
+    bodies = [dataclasses.replace(b, mass_properties=None if b.mass_properties is None
+                                  else dataclasses.replace(b.mass_properties)) for b in base.bodies]
+    return dataclasses.replace(base, bodies=bodies, fingers=[dataclasses.replace(f) for f in base.fingers])
+
+
 def run_sample(job: Job, i: int, graspcore) -> dict:
     """Re-simulate sample i; its row of samples.csv."""
     seed = sample_seed(job.seed, i)
     rng = np.random.default_rng(seed)
     d = draw(job, i, rng)
-    desc = scene_from_dict(job.scene)
+    desc = _fresh_desc(job)
     apply_to_desc(desc, d.overrides)
     for name, offset in d.com.items():
         mp = next(b for b in desc.bodies if b.name == name).mass_properties
@@ -390,10 +404,49 @@ def run_sample(job: Job, i: int, graspcore) -> dict:
     if d.push is not None:
         before = _pusher(handle.body_ids[job.body], desc.bodies[job.body].mass_properties.mass,
                               d.push, dt, job.has_start)
-    ticks = replay(handle.world, hips, dt, job.has_start, before)
+    # The grasp measures read whole tick records; the outcomes alone, a step's short trace
+    ticks = (replay if job.analysis else replay_trace)(handle.world, hips, dt, job.has_start, before)
     row = {"sample": i, "seed": seed, **d.values}
     row.update(outcomes(job, ticks, desc))
     return row
+
+
+class Columns:
+    """Tick fields as contiguous arrays (a replay's traces) that read like a record array:
+    ``ticks["contact"]`` the (ticks, fingers) array, ``ticks[a:b]`` those ticks, ``len(ticks)``."""
+
+    def __init__(self, fields: dict):
+        self.fields = fields
+
+    def __len__(self):
+        return len(self.fields["time"])
+
+    def __getitem__(self, key):
+        if isinstance(key, str):
+            return self.fields[key]
+        return Columns({name: v[key] for name, v in self.fields.items()})
+
+
+def replay_trace(world, hips: np.ndarray, dt: float, has_start: bool = True, before: dict | None = None) -> Columns:
+    """``resim.replay`` with each step's short trace (``World.step_hips_trace``: the records'
+    time, contact, state, force, god_object and pose, no state hash) instead of its record: all
+    ``outcomes`` reads of a tick, field by field in contiguous arrays. Tick 0 from the world's
+    record."""
+    n = len(hips)
+    out = np.empty((), dtype=world.trace_dtype(n + 1))
+    start = world.tick_record()
+    for name in out.dtype.names:
+        out[name][0] = start[name]
+    k = 0
+    for stop in sorted(k for k in (before or ()) if 0 <= k < n) + [n]:
+        while k < stop:     # at most STRETCH steps a call: signals are seen between
+            end = min(stop, k + _resim.STRETCH)
+            world.step_hips_trace(hips[k:end], dt, out, first=k + 1)
+            k = end
+        if stop < n:
+            before[stop](world)
+    ticks = Columns({name: out[name] for name in out.dtype.names})
+    return ticks if has_start else ticks[1:]
 
 
 def _pusher(body_id, mass, push, dt, has_start) -> dict:
@@ -417,13 +470,27 @@ def outcomes(job: Job, ticks, desc) -> dict:
     n = len(ticks)
     first, last = job.window
     last = min(last, n - 1)
-    on = ticks["contact"] == job.body               # (n, fingers)
-    held = on.sum(axis=1) >= HOLD_FINGERS
+    if isinstance(ticks, Columns):      # a replay's traces: each field a contiguous array
+        few = ticks
+    else:   # records: the fields every tick is read for, copied out in one pass (each field read
+        # on its own is a pass over megabytes of records)
+        packed = np.dtype([(name, ticks.dtype.fields[name][0]) for name in ("contact", "state", "force")])
+        few = ticks[["contact", "state", "force"]].astype(packed)
+    contact = np.ascontiguousarray(few["contact"])
+    on = contact == job.body                        # (n, fingers)
+    held = on[:, 0].astype(np.int32) if on.shape[1] else np.zeros(n, np.int32)
+    for k in range(1, on.shape[1]):
+        held += on[:, k]
+    held = held >= HOLD_FINGERS
     grace = max(1, int(round(DROP_GRACE / dt)))
     starts = np.flatnonzero(held[first:last + 1])
     out = {"held": 0, "drop_time": None, "held_time": 0.0, "max_slip": 0.0}
-    force = ticks["force"]
-    out["max_force"] = float(np.sqrt(np.max((force * force).sum(axis=2)))) if force.size else 0.0
+    if few["force"].size:
+        sq = np.ascontiguousarray(few["force"]).reshape(n, -1)
+        sq = sq * sq
+        out["max_force"] = float(np.sqrt(np.max(sq[:, 0::3] + sq[:, 1::3] + sq[:, 2::3])))  # x² + y² + z²
+    else:
+        out["max_force"] = 0.0
     if len(starts) == 0:
         out["drop_time"] = float(ticks["time"][first])
         if job.analysis:
@@ -443,7 +510,8 @@ def outcomes(job: Job, ticks, desc) -> dict:
     else:
         out["held"] = 1
     out["held_time"] = float(ticks["time"][stop] - ticks["time"][start])
-    out["max_slip"] = max_slip(ticks[start:stop + 1], job.body, on[start:stop + 1])
+    out["max_slip"] = max_slip(ticks[start:stop + 1], job.body, on[start:stop + 1],
+                               np.ascontiguousarray(few["state"][start:stop + 1]))
     if job.analysis:
         out.update(_analysis_outcomes(job, ticks, desc, start, stop, held))
     return out
@@ -452,16 +520,16 @@ def outcomes(job: Job, ticks, desc) -> dict:
 SLIP = 2        # gcFingerState: a finger sliding over the body's surface
 
 
-def max_slip(ticks, body: int, on=None) -> float:
+def max_slip(ticks, body: int, on=None, state=None) -> float:
     """The largest distance a finger's contact point moved over the body's surface (its
     god-object in the body frame) since that contact began, m. A sticking contact does not
     move over the surface, so only the ticks where one slides are looked at (and the ticks
-    their contacts began). ``on``: ticks["contact"] == body, if known."""
+    their contacts began). ``on``: ticks["contact"] == body, ``state``: ticks["state"], if known."""
     on = ticks["contact"] == body if on is None else on      # (n, fingers)
-    sliding = on & (ticks["state"] == SLIP)
-    rows = np.flatnonzero(sliding.any(axis=1))
-    if len(rows) == 0:
+    sliding = on & ((ticks["state"] if state is None else state) == SLIP)
+    if not sliding.any():
         return 0.0
+    rows = np.flatnonzero(sliding.any(axis=1))
     n, nf = on.shape
     begins = on & ~np.concatenate([np.zeros((1, nf), bool), on[:-1]])
     first = np.maximum.accumulate(np.where(begins, np.arange(n)[:, None], 0), axis=0)[rows]   # (r, fingers)
@@ -787,14 +855,74 @@ def summarize(job: Job, rows: list, spec: dict) -> dict:
 
 # ------------------------------------------------------------------------ pictures
 
+def _map_keys(job: Job, rows: list) -> list:
+    """The map's axes: the first two varied keys whose samples differ."""
+    return [v for v in job.varies if len({r[v.column] for r in rows}) > 1][:2]
+
+
+# RdYlGn's ends and middle: P(held) 0 red, 0.5 yellow, 1 green; grey where no sample fell
+_PLAIN_COLOURS = np.array([[215, 48, 39], [255, 255, 191], [26, 152, 80]], dtype=np.float64)
+
+
+def plain_map(job: Job, rows: list) -> np.ndarray:
+    """map.png without matplotlib (Blender's Python has none): the held probability per cell of
+    the map's bins as an RGB image (y up), cells 32 px, no axes. (H, W, 3) uint8."""
+    held = np.array([r["held"] for r in rows], dtype=bool)
+    keys = _map_keys(job, rows)
+    index, shape = [], []
+    for v in keys:
+        x = np.array([r[v.column] for r in rows], dtype=np.float64)
+        edges, i = _bins(v, x, rows)
+        index.append(i)
+        shape.append(len(edges) - 1)
+    nx = shape[0] if keys else 1
+    ny = shape[1] if len(keys) == 2 else 1
+    xi = index[0] if keys else np.zeros(len(rows), dtype=int)
+    yi = index[1] if len(keys) == 2 else np.zeros(len(rows), dtype=int)
+    count = np.zeros((ny, nx))
+    kept = np.zeros((ny, nx))
+    np.add.at(count, (yi, xi), 1)
+    np.add.at(kept, (yi, xi), held)
+    p = np.divide(kept, count, out=np.full_like(count, np.nan), where=count > 0)
+    t = np.clip(np.nan_to_num(p) * 2, 0, 2)
+    lo = np.minimum(t.astype(int), 1)
+    frac = (t - lo)[..., None]
+    rgb = _PLAIN_COLOURS[lo] * (1 - frac) + _PLAIN_COLOURS[lo + 1] * frac
+    rgb[count == 0] = 128
+    return np.repeat(np.repeat(rgb[::-1].round().astype(np.uint8), 32, axis=0), 32, axis=1)
+
+
+def write_png(path: str, rgb: np.ndarray) -> None:
+    """An 8-bit RGB PNG (zlib, no filter), atomically."""
+    import struct
+    import zlib
+
+    def chunk(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF)
+    h, w, _ = rgb.shape
+    raw = b"".join(b"\0" + rgb[y].tobytes() for y in range(h))
+    data = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b""))
+    tmp = path + ".tmp"
+    with open(tmp, "wb") as fh:
+        fh.write(data)
+    os.replace(tmp, path)
+
+
 def draw_pictures(job: Job, rows: list, folder: str) -> list:
     """map.png (held probability over the first two varied keys, or along the one) and
-    outcomes.png (what happened to the samples). Returns the paths written."""
-    import matplotlib
+    outcomes.png (what happened to the samples). Returns the paths written. Without matplotlib
+    (Blender's Python): map.png alone, the probability grid without axes (plain_map)."""
+    try:
+        import matplotlib
+    except ImportError:
+        path = os.path.join(folder, "map.png")
+        write_png(path, plain_map(job, rows))
+        return [path]
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     held = np.array([r["held"] for r in rows], dtype=bool)
-    keys = [v for v in job.varies if len({r[v.column] for r in rows}) > 1][:2]
+    keys = _map_keys(job, rows)
     paths = []
     fig, ax = plt.subplots(figsize=(6.4, 4.8), dpi=100)
     if len(keys) == 2:

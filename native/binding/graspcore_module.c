@@ -1286,6 +1286,112 @@ static PyObject *World_step_hips(PyObject *obj, PyObject *args) {
     Py_RETURN_NONE;
 }
 
+/* ---- replay of a recorded hand-over schedule (docs/runtime.md), a block of its own ----
+ * _replay_ticks(hips float64 (steps, fingers, 3), orientations float64 (steps, fingers, 4) or
+ * None, object_ticks uint64 (steps,), object_reads uint64 (steps,), steps, fingers, out or None):
+ * gc_world_replay_ticks with the GIL released. The Python wrapper checks shapes and dtypes. */
+static int replay_buffer(PyObject *arg, Py_buffer *b, size_t need, const char *format, const char *what) {
+    if (PyObject_GetBuffer(arg, b, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return 0;
+    /* uint64: numpy says 'L' where unsigned long is 8 bytes, 'Q' elsewhere */
+    int same = b->format && (strcmp(b->format, format) == 0 ||
+                             (strcmp(format, "Q") == 0 && strcmp(b->format, "L") == 0 && b->itemsize == 8));
+    if (!same || (size_t)b->len < need) {
+        PyBuffer_Release(b);
+        PyErr_Format(PyExc_ValueError, "%s: must be a C-contiguous array of %zu bytes of format '%s'", what, need,
+                     format);
+        return 0;
+    }
+    return 1;
+}
+
+static PyObject *World_replay_ticks(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    PyObject *hips_obj, *quat_obj, *ticks_obj, *reads_obj, *out;
+    int steps, fingers;
+    if (!PyArg_ParseTuple(args, "OOOOiiO", &hips_obj, &quat_obj, &ticks_obj, &reads_obj, &steps, &fingers, &out) ||
+        !check_ready(self))
+        return NULL;
+    if (steps < 0 || fingers < 0) {
+        PyErr_SetString(PyExc_ValueError, "hips: expected (steps, fingers, 3)");
+        return NULL;
+    }
+    size_t n = (size_t)steps, nf = (size_t)fingers;
+    Py_buffer h, q, t, r, b;
+    int quats = quat_obj != Py_None, records = out != Py_None;
+    if (!replay_buffer(hips_obj, &h, n * nf * 3 * sizeof(double), "d", "hips")) return NULL;
+    if (quats && !replay_buffer(quat_obj, &q, n * nf * 4 * sizeof(double), "d", "orientations")) goto fail_h;
+    if (!replay_buffer(ticks_obj, &t, n * sizeof(uint64_t), "Q", "object_ticks")) goto fail_q;
+    if (!replay_buffer(reads_obj, &r, n * sizeof(uint64_t), "Q", "object_reads")) goto fail_t;
+    size_t record = gc_tick_record_size(gc_world_body_count(self->world), gc_world_finger_count(self->world));
+    if (records && !writable_buffer(out, &b, record * n, "out")) goto fail_r;
+    gcStatus st;
+    atomic_store(&self->busy, 1);
+    Py_BEGIN_ALLOW_THREADS
+    st = gc_world_replay_ticks(self->world, h.buf, quats ? q.buf : NULL, fingers, t.buf, r.buf, steps,
+                               records ? b.buf : NULL, records ? (size_t)b.len : 0, NULL);
+    Py_END_ALLOW_THREADS
+    atomic_store(&self->busy, 0);
+    if (records) PyBuffer_Release(&b);
+    PyBuffer_Release(&r);
+    PyBuffer_Release(&t);
+    if (quats) PyBuffer_Release(&q);
+    PyBuffer_Release(&h);
+    if (st < 0) return raise_status(self, st);
+    Py_RETURN_NONE;
+fail_r:
+    PyBuffer_Release(&r);
+fail_t:
+    PyBuffer_Release(&t);
+fail_q:
+    if (quats) PyBuffer_Release(&q);
+fail_h:
+    PyBuffer_Release(&h);
+    return NULL;
+}
+/* ---- end of the replay block ---- */
+
+/* ---- step_hips with a short trace per step (docs/api.md), a block of its own ----
+ * _step_hips_trace(hips float64 (steps, fingers, 3), steps, fingers, dt, out, first, total): the
+ * GIL released. */
+static PyObject *World_step_hips_trace(PyObject *obj, PyObject *args) {
+    WorldObject *self = (WorldObject *)obj;
+    PyObject *hips_obj, *out;
+    int steps, fingers, first, total;
+    double dt;
+    if (!PyArg_ParseTuple(args, "OiidOii", &hips_obj, &steps, &fingers, &dt, &out, &first, &total) ||
+        !check_ready(self))
+        return NULL;
+    if (steps < 0 || fingers < 0) {
+        PyErr_SetString(PyExc_ValueError, "hips: expected (steps, fingers, 3)");
+        return NULL;
+    }
+    Py_buffer h, b;
+    if (!replay_buffer(hips_obj, &h, (size_t)steps * (size_t)fingers * 3 * sizeof(double), "d", "hips")) return NULL;
+    size_t trace = gc_tick_trace_size(gc_world_body_count(self->world), gc_world_finger_count(self->world));
+    if (total < 0 || !writable_buffer(out, &b, trace * (size_t)total, "out")) {
+        PyBuffer_Release(&h);
+        return NULL;
+    }
+    gcStatus st;
+    atomic_store(&self->busy, 1);
+    Py_BEGIN_ALLOW_THREADS
+    st = gc_world_step_hips_trace(self->world, h.buf, fingers, steps, dt, first, total, b.buf, (size_t)b.len, NULL);
+    Py_END_ALLOW_THREADS
+    atomic_store(&self->busy, 0);
+    PyBuffer_Release(&b);
+    PyBuffer_Release(&h);
+    if (st < 0) return raise_status(self, st);
+    if (warn_status(self, st) < 0) return NULL;
+    Py_RETURN_NONE;
+}
+
+static PyObject *tick_trace_size(PyObject *mod, PyObject *args) {
+    int nb, nf;
+    if (!PyArg_ParseTuple(args, "ii", &nb, &nf)) return NULL;
+    return PyLong_FromSize_t(gc_tick_trace_size(nb, nf));
+}
+/* ---- end of the trace block ---- */
+
 static PyObject *World_set_tick_log(PyObject *obj, PyObject *arg) {
     WorldObject *self = (WorldObject *)obj;
     if (!check_ready(self)) return NULL;
@@ -1699,6 +1805,8 @@ static PyMethodDef World_methods[] = {
     {"stats", World_stats, METH_NOARGS, "stats() -> dict: rates, jitter, overruns, adoption, inputs, safety."},
     {"_tick_record", World_tick_record, METH_VARARGS, "Low-level tick_record(buffer, tick); see graspcore.tick_log."},
     {"_step_hips", World_step_hips, METH_VARARGS, "Low-level step_hips; use World.step_hips."},
+    {"_replay_ticks", World_replay_ticks, METH_VARARGS, "Low-level replay_ticks; use World.replay_ticks."},
+    {"_step_hips_trace", World_step_hips_trace, METH_VARARGS, "Low-level step_hips_trace; use World.step_hips_trace."},
     {"_set_tick_log", World_set_tick_log, METH_O, "Low-level set_tick_log(capacity)."},
     {"_drain_ticks", World_drain_ticks, METH_O, "Low-level drain_ticks(buffer) -> records copied."},
     {"_debug_stall", World_debug_stall, METH_O, "Test hook: stall the haptic loop this many seconds once."},
@@ -1847,6 +1955,8 @@ static int module_exec(PyObject *m) {
 static PyMethodDef module_methods[] = {
     {"tick_record_size", module_tick_record_size, METH_VARARGS,
      "tick_record_size(num_bodies, num_fingers) -> bytes of one tick log record."},
+    {"tick_trace_size", tick_trace_size, METH_VARARGS,
+     "tick_trace_size(num_bodies, num_fingers) -> bytes of one step_hips_trace trace."},
     {"_grasp_quality", module_grasp_quality, METH_VARARGS, "Low-level grasp_quality; use graspcore.grasp_quality."},
     {"_grasp_quality_batch", module_grasp_quality_batch, METH_VARARGS,
      "Low-level grasp_quality_batch; use graspcore.grasp_quality_batch."},

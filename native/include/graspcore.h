@@ -150,6 +150,16 @@ gcStatus gc_world_step(gcWorld *world, double dt);
  * end, after every step ran. */
 gcStatus gc_world_step_hips(gcWorld *world, const double *hips, int num_fingers, int steps, double dt,
                             uint64_t first_tick, void *records, size_t size, int *done);
+/* gc_world_step_hips with a short trace of each step instead of its tick record: what a sweep
+ * reads of every tick (docs/sweeps.md), two fifths of a record's bytes and no state hash, field by
+ * field (each a contiguous array, for numpy). `traces` holds `total` ticks, little-endian, packed:
+ * time f64[total]; contact body i32[total][fingers] (-1 free); state i32[total][fingers]; force
+ * (the coupling spring) f64[total][fingers][3]; god_object f64[total][fingers][3]; pose
+ * f64[total][bodies][7] (the same values as the record's fields of those names):
+ * total * gc_tick_trace_size(bodies, fingers) bytes. Step k goes to tick first + k. */
+size_t gc_tick_trace_size(int num_bodies, int num_fingers);
+gcStatus gc_world_step_hips_trace(gcWorld *world, const double *hips, int num_fingers, int steps, double dt,
+                                  int first, int total, void *traces, size_t size, int *done);
 
 gcStatus gc_world_body_pose(const gcWorld *world, int32_t body, double position[3],
                             double orientation[4]);
@@ -262,6 +272,16 @@ int gc_world_running(const gcWorld *world);
 /* Manual clock only: run `ticks` haptic ticks (and the object ticks that fall among them) on
  * the calling thread. `delay` s is added to the clock before the first, as a stalled loop. */
 gcStatus gc_world_advance(gcWorld *world, int ticks, double delay);
+/* Manual clock only: `steps` haptic ticks replaying a recorded threaded session
+ * (docs/runtime.md "Replaying a recorded schedule"): each tick's HIPs (3 per finger for all
+ * num_fingers fingers) and orientations (4 per finger, or NULL) as recorded, and the object
+ * manager's ticks run and their results taken on the recorded hand-over schedule (the records'
+ * object_ticks and object_reads), so that every tick is the recorded one bit for bit. Records
+ * into `records` (steps of gc_tick_record_size bytes, size in all; NULL: none); *done = ticks
+ * replayed. A schedule that cannot have happened is GC_ERR_INVALID_ARGUMENT naming the step. */
+gcStatus gc_world_replay_ticks(gcWorld *world, const double *hips, const double *orientations, int num_fingers,
+                               const uint64_t *object_ticks, const uint64_t *object_reads, int steps,
+                               void *records, size_t size, int *done);
 /* HIPs of fingers 0..count-1 (xyz triples) sampled at time t (s, the caller's clock), from any
  * thread. The haptic loop moves each HIP from where it is to this sample over the interval since
  * the previous sample (at most 0.25 s), at most max_hip_speed: a caller pushing every haptic tick
@@ -358,7 +378,10 @@ gcStatus gc_world_debug_stall(gcWorld *world, double seconds);
  * velocity (linear of the body frame origin, angular; 6 f64), residual wrench (6 f64); per
  * finger state i32, contact body i32 (-1 free); per finger parts u32 (bit i: touches part i of
  * its body, parts past 31 on bit 31); per finger orientation (w, x, y, z) 4 f64 (the identity
- * for a sphere finger). Each field was added at the end: older records are their prefix. */
+ * for a sphere finger); the threaded runtime's hand-over schedule: object_tick u64 (the object
+ * manager tick whose result the haptic loop holds after this tick), object_reads u64 (object
+ * ticks that had taken a haptic message before this tick published its own); both 0 outside
+ * the runtime. Each field was added at the end: older records are their prefix. */
 size_t gc_tick_record_size(int num_bodies, int num_fingers);
 /* The same layout as a table, for readers (graspcore.tick_dtype): the fields in record order,
  * each `count` items of `type` (a little-endian numpy type string: "<u8", "<f8", "<f4", "<u4",

@@ -55,7 +55,7 @@ static inline double gc_atomic_load_double_acquire(_Atomic uint64_t *slot) {
  * reader swaps `front` with `middle` when `middle` holds something new. Neither side ever
  * waits, and the reader always holds a complete message. */
 typedef struct gcTriple {
-    _Atomic unsigned middle; /* slot index | GC_TRIPLE_FRESH while unread */
+    _Atomic uint64_t middle; /* slot index | GC_TRIPLE_FRESH while unread (| reads, counted) */
     unsigned back;           /* writer's slot */
     unsigned front;          /* reader's slot */
 } gcTriple;
@@ -68,16 +68,47 @@ static inline void gc_triple_reset(gcTriple *t) {
 }
 
 static inline void gc_triple_publish(gcTriple *t) {
-    t->back = atomic_exchange_explicit(&t->middle, t->back | GC_TRIPLE_FRESH, memory_order_acq_rel) & 3u;
+    t->back = (unsigned)(atomic_exchange_explicit(&t->middle, t->back | GC_TRIPLE_FRESH, memory_order_acq_rel) & 3u);
 }
 
 /* The reader's slot, now holding the latest publication; *fresh = 1 when it is new. */
 static inline unsigned gc_triple_latest(gcTriple *t, int *fresh) {
     *fresh = 0;
     if (atomic_load_explicit(&t->middle, memory_order_relaxed) & GC_TRIPLE_FRESH) {
-        t->front = atomic_exchange_explicit(&t->middle, t->front, memory_order_acq_rel) & 3u;
+        t->front = (unsigned)(atomic_exchange_explicit(&t->middle, t->front, memory_order_acq_rel) & 3u);
         *fresh = 1;
     }
+    return t->front;
+}
+
+/* The haptic -> object manager channel also counts the object manager's reads, in the bits
+ * of `middle` above the slot and the fresh flag: every object tick adds one as it takes the
+ * latest message, and every publication learns how many reads came before it. Recorded with
+ * each haptic tick, that count says which haptic tick's message each object tick stepped from:
+ * half of the hand-over schedule (docs/recording-format.md). A side retries its
+ * compare-and-swap only when the other changed the word in between (once per object tick at
+ * most), so neither waits on the other. Only the channel's two ends use these. */
+#define GC_TRIPLE_COUNT 8u
+
+/* gc_triple_publish, returning the reads made before this publication. */
+static inline uint64_t gc_triple_publish_counted(gcTriple *t) {
+    uint64_t old = atomic_load_explicit(&t->middle, memory_order_relaxed);
+    while (!atomic_compare_exchange_weak_explicit(&t->middle, &old, t->back | GC_TRIPLE_FRESH | (old & ~(uint64_t)7),
+                                                  memory_order_acq_rel, memory_order_relaxed)) {
+    }
+    t->back = (unsigned)(old & 3u);
+    return old / GC_TRIPLE_COUNT;
+}
+
+/* gc_triple_latest, counting one read. */
+static inline unsigned gc_triple_latest_counted(gcTriple *t, int *fresh) {
+    uint64_t old = atomic_load_explicit(&t->middle, memory_order_relaxed), next;
+    do {
+        *fresh = (old & GC_TRIPLE_FRESH) != 0;
+        next = (*fresh ? t->front : (old & 7u)) | ((old & ~(uint64_t)7) + GC_TRIPLE_COUNT);
+    } while (!atomic_compare_exchange_weak_explicit(&t->middle, &old, next, memory_order_acq_rel,
+                                                    memory_order_relaxed));
+    if (*fresh) t->front = (unsigned)(old & 3u);
     return t->front;
 }
 

@@ -139,6 +139,7 @@ static void shadow_load(gcWorld *s, const gcWorld *w) {
 /* ---- allocation --------------------------------------------------------------------- */
 
 static void runtime_free_memory(gcRuntime *rt) {
+    gc_runtime_replay_free(rt);
     shadow_free(&rt->hap);
     shadow_free(&rt->obj);
     free(rt->hap_active);
@@ -360,6 +361,8 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
     }
     memset(rt->device_force, 0, (size_t)rt->max_fingers * 3 * sizeof(double));
     rt->object_time_seen = w->time;
+    rt->object_seq = rt->object_seq_seen = rt->object_reads = 0;
+    rt->replaying = 0;
     rt->prev_tick_ns = rt->last_input_ns = GC_NEVER_NS;
     gc_force_gate_init(&rt->gate, rt->ramp_ns, 1);
     rt->serial->ramp_ns = rt->ramp_ns; /* devices read elsewhere ramp in as long (gc_world_device_forces) */

@@ -27,17 +27,29 @@ void gc_runtime_publish_to_object(gcRuntime *rt) {
         if (m->has_state[b]) body_save(hw, b, &m->body[b]);
     }
     memcpy(m->fingers, hw->fingers, (size_t)hw->num_fingers * sizeof *hw->fingers);
-    gc_triple_publish(&rt->to_object);
+    rt->object_reads = gc_triple_publish_counted(&rt->to_object);
 }
 
 void gc_runtime_publish_to_haptic(gcRuntime *rt) {
     const gcWorld *ow = &rt->obj;
-    gcObjectMsg *m = &rt->object_msg[rt->to_haptic.back];
+    /* A replay holds the result back until the tick the schedule delivers it at. */
+    gcObjectMsg *m = rt->replaying ? &rt->replay_queue[rt->object_seq % GC_REPLAY_QUEUE]
+                                      : &rt->object_msg[rt->to_haptic.back];
+    m->seq = rt->object_seq;
     m->time = ow->time;
     for (int32_t b = 0; b < ow->num_bodies; ++b) {
         m->released[b] = rt->ostate[b] == GC_OBJECT_RELEASED;
         body_save(ow, b, &m->body[b]);
     }
+    if (!rt->replaying) gc_triple_publish(&rt->to_haptic);
+}
+
+void gc_runtime_deliver_to_haptic(gcRuntime *rt, const gcObjectMsg *held) {
+    gcObjectMsg *m = &rt->object_msg[rt->to_haptic.back];
+    m->seq = held->seq;
+    m->time = held->time;
+    memcpy(m->released, held->released, (size_t)rt->obj.num_bodies);
+    memcpy(m->body, held->body, (size_t)rt->obj.num_bodies * sizeof *m->body);
     gc_triple_publish(&rt->to_haptic);
 }
 

@@ -123,7 +123,17 @@ void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now) {
     if (take_device_samples(rt)) rt->last_input_ns = now;
     if (gc_hip_track_covers(rt->track, hw->num_fingers)) rt->last_input_ns = now; /* the track is never stale */
     const double t_next = (double)(rt->tick + 1) * dt;
-    for (int i = 0; i < hw->num_fingers; ++i) {
+    for (int i = 0; i < hw->num_fingers && rt->replay_hips; ++i) { /* a replay: the recorded pose */
+        gcFinger *f = &hw->fingers[i];
+        const double *p = &rt->replay_hips[3 * i], *q = rt->replay_orientations ? &rt->replay_orientations[4 * i] : NULL;
+        f->hip = gc_v3(p[0], p[1], p[2]);
+        if (q && memcmp(q, &f->q, sizeof f->q) != 0) { /* as recorded: already normalised once */
+            f->q = (gcQuat){q[0], q[1], q[2], q[3]};
+            f->R = gc_quat_to_mat3(f->q);
+        }
+        memcpy(&hw->hip_array[3 * i], p, 3 * sizeof(double));
+    }
+    for (int i = 0; i < hw->num_fingers && !rt->replay_hips; ++i) {
         const int scripted = gc_hip_track_drives(rt->track, i);
         gcRuntimeDeviceFinger *df = &rt->device_finger[i];
         double max_speed = rt->def.max_hip_speed;
@@ -152,6 +162,7 @@ void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now) {
     const gcObjectMsg *om = &rt->object_msg[gc_triple_latest(&rt->to_haptic, &fresh)];
     if (fresh) {
         rt->object_time_seen = om->time;
+        rt->object_seq_seen = om->seq;
         for (int32_t b = 0; b < hw->num_bodies; ++b) {
             if (hw->model->bodies[b].is_static) continue;
             switch (rt->hstate[b]) {
@@ -184,9 +195,13 @@ void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now) {
     gc_device_hub_tick(rt->serial, hw, rt->device_force, ok, now);
     gc_runtime_publish_to_object(rt);
     gc_runtime_publish_display(rt, now, ok);
-    if (rt->tick_log) /* fingers a serial device drives: what their device was actually sent */
+    gcTickSchedule schedule = {rt->object_seq_seen, rt->object_reads};
+    if (rt->replay_record)
+        gc_tick_record_fill(hw, rt->device_force, rt->tick, rt->object_time_seen, schedule, ok,
+                            atomic_load_explicit(&rt->adopted, memory_order_relaxed), rt->replay_record);
+    else if (rt->tick_log) /* fingers a serial device drives: what their device was actually sent */
         gc_tick_log_push(rt->tick_log, hw, gc_device_hub_recorded_forces(rt->serial, rt->device_force, hw->num_fingers),
-                         rt->tick, rt->object_time_seen, now, rt->def.realtime, ok,
+                         rt->tick, rt->object_time_seen, schedule, now, rt->def.realtime, ok,
                          atomic_load_explicit(&rt->adopted, memory_order_relaxed));
     gc_atomic_store_double(&rt->haptic_time_bits, hw->time);
     gc_atomic_increment(&rt->haptic_ticks);
@@ -197,7 +212,8 @@ void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now) {
 void gc_runtime_object_tick(gcRuntime *rt) {
     gcWorld *ow = &rt->obj;
     int fresh;
-    const gcHapticMsg *h = &rt->haptic_msg[gc_triple_latest(&rt->to_object, &fresh)];
+    const gcHapticMsg *h = &rt->haptic_msg[gc_triple_latest_counted(&rt->to_object, &fresh)];
+    rt->object_seq++;
     memcpy(ow->fingers, h->fingers, (size_t)ow->num_fingers * sizeof *ow->fingers);
     /* Bodies the haptic loop steps, where it has them now: obstacles for the contacts here. */
     for (int32_t b = 0; b < ow->num_bodies; ++b)

@@ -47,6 +47,9 @@
 #define GC_HAPTIC_STACK_PREFAULT (64 * 1024)
 #define GC_LOCK_BUDGET (64u << 20)
 #define GC_MAX_REGIONS 96
+/* Object results in flight at once when a schedule is replayed (runtime_replay.c): more than
+ * two needs the object manager to finish two ticks inside one haptic tick's work. */
+#define GC_REPLAY_QUEUE 16
 
 /* ---- messages --------------------------------------------------------------------- */
 
@@ -80,6 +83,7 @@ typedef struct gcHapticMsg { /* haptic loop -> object manager, every haptic tick
 } gcHapticMsg;
 
 typedef struct gcObjectMsg { /* object manager -> haptic loop, every object tick */
+    uint64_t seq;            /* the object tick that published it (0: gc_world_start) */
     double time;
     unsigned char *released; /* per body: handed to the haptic loop; body[] is its final state */
     gcRuntimeBody *body;
@@ -129,12 +133,22 @@ typedef struct gcRuntime {
     double follow_prev_t;     /* time stamp of the last pushed sample taken */
     const gcHipTrack *track;  /* the world's scripted track (fixed while running), or NULL */
     double object_time_seen;
+    uint64_t object_seq_seen;  /* the object tick whose message the loop holds (the schedule) */
+    uint64_t object_reads;     /* object ticks that read a message before this tick's (the schedule) */
     int64_t prev_tick_ns, last_input_ns;
     int was_stale;
     uint64_t tick;
 
     /* Object manager only. */
     unsigned char *ostate;
+    uint64_t object_seq;      /* object ticks run since the start */
+
+    /* Replaying a recorded schedule (runtime_replay.c), manual clock only; NULL otherwise. */
+    const double *replay_hips;        /* this tick's HIPs, 3 per finger */
+    const double *replay_orientations; /* this tick's orientations, 4 per finger, or NULL */
+    void *replay_record;              /* this tick's record goes here instead of the tick log */
+    int replaying;                    /* object results go to replay_queue, not to the haptic loop */
+    gcObjectMsg *replay_queue;        /* GC_REPLAY_QUEUE results made, not yet delivered: seq % size */
 
     /* Channels. */
     gcTriple input, to_object, to_haptic, display;
@@ -192,6 +206,8 @@ void gc_runtime_body_load(gcWorld *s, int32_t i, const gcRuntimeBody *o);
 void gc_runtime_publish_to_object(gcRuntime *rt);
 /* The object manager's message to the haptic loop. */
 void gc_runtime_publish_to_haptic(gcRuntime *rt);
+/* A result a replay held back, published to the haptic loop now (runtime_replay.c). */
+void gc_runtime_deliver_to_haptic(gcRuntime *rt, const gcObjectMsg *held);
 /* The haptic loop's view for gc_world_snapshot. */
 void gc_runtime_publish_display(gcRuntime *rt, int64_t now, int forces_enabled);
 /* One haptic tick at clock time now (handover). */
@@ -202,6 +218,8 @@ void gc_runtime_object_tick(gcRuntime *rt);
 void gc_runtime_merge_into_world(gcRuntime *rt, gcWorld *w);
 /* A haptic period into the jitter statistics (threads). */
 void gc_runtime_record_period(gcRuntime *rt, int64_t period);
+/* The replay queue's memory, freed with the runtime (replay). */
+void gc_runtime_replay_free(gcRuntime *rt);
 /* The threads' bodies (threads). */
 void *gc_runtime_haptic_main(void *arg);
 void *gc_runtime_object_main(void *arg);

@@ -61,6 +61,8 @@ static const gcTickField tick_fields[] = {
     {"parts", "<u4", 4, GC_TICK_PER_FINGER, 1, 0},
     {"orientation", "<f8", 8, GC_TICK_PER_FINGER, 4, 0},
     {"patch", "<f4", 4, GC_TICK_PER_FINGER, 2 * GC_FINGER_PATCH_CORNERS, 2},
+    {"object_tick", "<u8", 8, GC_TICK_ONCE, 1, 0},  /* the hand-over schedule (docs/recording-format.md) */
+    {"object_reads", "<u8", 8, GC_TICK_ONCE, 1, 0},
 };
 enum { REC_HEADER = 52 }; /* the GC_TICK_ONCE fields */
 
@@ -189,8 +191,8 @@ uint64_t gc_tick_state_hash(const gcWorld *w) {
  * gc_tick_state_hash's, computed here finger by finger beside the fingers' fields so that its
  * dependent multiply chain overlaps the copies. */
 static void fill_record(const gcWorld *w, const double *device_force, uint64_t tick, double object_time,
-                        float period_us, float work_us, uint32_t flags, uint32_t adopted, float log_us,
-                        unsigned char *out) {
+                        gcTickSchedule schedule, float period_us, float work_us, uint32_t flags, uint32_t adopted,
+                        float log_us, unsigned char *out) {
     const size_t nb = (size_t)w->num_bodies, nf = (size_t)w->num_fingers;
     unsigned char *hip = out + REC_HEADER, *go = hip + 24 * nf, *force = go + 24 * nf, *dev = force + 24 * nf;
     unsigned char *normal = dev + 24 * nf, *pose = normal + 24 * nf, *vel = pose + 56 * nb;
@@ -198,6 +200,7 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
     /* parts (main's) then orientation: each field added at the end, so older readers' fields
      * keep their offsets */
     unsigned char *parts = contact + 4 * nf, *orientation = parts + 4 * nf, *patch = orientation + 32 * nf;
+    unsigned char *handover = patch + 8 * GC_FINGER_PATCH_CORNERS * nf; /* the hand-over schedule, last */
     uint64_t hash = hash_time_bodies(w);
     memcpy(out, &tick, 8);
     memcpy(out + 8, &w->time, 8);
@@ -238,7 +241,31 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
         memcpy(wrench + 48 * b, &st->residual_force, 24);
         memcpy(wrench + 48 * b + 24, &st->residual_torque, 24);
     }
+    memcpy(handover, &schedule.object_tick, 8);
+    memcpy(handover + 8, &schedule.object_reads, 8);
     memcpy(out + 24, &hash, 8);
+}
+
+size_t gc_tick_trace_size(int num_bodies, int num_fingers) {
+    if (num_bodies < 0 || num_fingers < 0) return 0;
+    return 8 + 56 * (size_t)num_fingers + 56 * (size_t)num_bodies;
+}
+
+/* The record's time, contact, state, force, god_object and pose: tick k of each field's array. */
+void gc_tick_trace_fill(const gcWorld *w, void *out, size_t k, size_t total) {
+    const size_t nb = (size_t)w->num_bodies, nf = (size_t)w->num_fingers;
+    unsigned char *time = out, *contact = time + 8 * total, *state = contact + 4 * nf * total;
+    unsigned char *force = state + 4 * nf * total, *go = force + 24 * nf * total, *pose = go + 24 * nf * total;
+    memcpy(time + 8 * k, &w->time, 8);
+    for (size_t i = 0; i < nf; ++i) {
+        const gcFinger *f = &w->fingers[i];
+        int32_t s = (int32_t)f->state;
+        memcpy(contact + 4 * (k * nf + i), &f->contact_body, 4);
+        memcpy(state + 4 * (k * nf + i), &s, 4);
+        memcpy(force + 24 * (k * nf + i), &f->force, 24);
+        memcpy(go + 24 * (k * nf + i), &f->god_object, 24);
+    }
+    memcpy(pose + 56 * nb * k, w->pose_array, 56 * nb);
 }
 
 gcStatus gc_world_tick_record(gcWorld *w, uint64_t tick, void *out, size_t size) {
@@ -252,7 +279,7 @@ gcStatus gc_world_tick_record(gcWorld *w, uint64_t tick, void *out, size_t size)
         gc_world_set_error(w, "tick_record: buffer of %zu bytes, a record needs %zu", size, need);
         return GC_ERR_INVALID_ARGUMENT;
     }
-    fill_record(w, NULL, tick, w->time, 0.0f, 0.0f, 1u, 0u, 0.0f, out);
+    fill_record(w, NULL, tick, w->time, (gcTickSchedule){0, 0}, 0.0f, 0.0f, 1u, 0u, 0.0f, out);
     return GC_OK;
 }
 
@@ -369,8 +396,14 @@ void gc_tick_log_prefetch(const gcTickLog *log) {
         __builtin_prefetch((const void *)a, 1, 3);
 }
 
+void gc_tick_record_fill(const gcWorld *hw, const double *device_force, uint64_t tick, double object_time,
+                         gcTickSchedule schedule, int forces_enabled, int adopted, void *out) {
+    fill_record(hw, device_force, tick, object_time, schedule, 0.0f, 0.0f, forces_enabled ? (uint32_t)GC_TICK_FORCES_ENABLED : 0u,
+                (uint32_t)adopted, 0.0f, out);
+}
+
 void gc_tick_log_push(gcTickLog *log, const gcWorld *hw, const double *device_force, uint64_t tick,
-                      double object_time, int64_t now_ns, int realtime, int forces_enabled,
+                      double object_time, gcTickSchedule schedule, int64_t now_ns, int realtime, int forces_enabled,
                       int adopted) {
     float period_us = log->prev_now_ns == INT64_MIN ? 0.0f : (float)((now_ns - log->prev_now_ns) * 1e-3);
     log->prev_now_ns = now_ns;
@@ -384,7 +417,7 @@ void gc_tick_log_push(gcTickLog *log, const gcWorld *hw, const double *device_fo
         return;
     }
     unsigned char *slot = log->records + (head % (uint64_t)log->capacity) * log->record_size;
-    fill_record(hw, device_force, tick, object_time, period_us, work_us, forces_enabled ? (uint32_t)GC_TICK_FORCES_ENABLED : 0u,
+    fill_record(hw, device_force, tick, object_time, schedule, period_us, work_us, forces_enabled ? (uint32_t)GC_TICK_FORCES_ENABLED : 0u,
                 (uint32_t)adopted, log->prev_log_us, slot);
     atomic_store_explicit(&log->head, head + 1, memory_order_release);
     log->prev_log_us = (float)((monotonic_ns() - t0) * 1e-3);

@@ -8,6 +8,13 @@
 
 typedef struct gcTickLog gcTickLog;
 
+/* The threaded runtime's hand-over schedule at a haptic tick (docs/recording-format.md): the
+ * object manager tick whose result the haptic loop holds, and how many object ticks had read
+ * the haptic loop's messages before this tick published its own. 0 and 0 outside the runtime. */
+typedef struct gcTickSchedule {
+    uint64_t object_tick, object_reads;
+} gcTickSchedule;
+
 /* gc_world_state_hash (world_api.c): the bit-exact state hash, here because every recorded
  * tick carries it. */
 uint64_t gc_tick_state_hash(const gcWorld *world);
@@ -22,7 +29,12 @@ void gc_tick_log_prefetch(const gcTickLog *log);
 /* The haptic loop, once a tick: one record of the shadow world `hw` and the device forces.
  * Never blocks, never allocates; a full ring drops the record and counts it. */
 void gc_tick_log_push(gcTickLog *log, const gcWorld *hw, const double *device_force, uint64_t tick,
-                      double object_time, int64_t now_ns, int realtime, int forces_enabled,
+                      double object_time, gcTickSchedule schedule, int64_t now_ns, int realtime, int forces_enabled,
                       int adopted);
+/* A stepped world's trace (gc_world_step_hips_trace) as tick k of `total` in the fields of out. */
+void gc_tick_trace_fill(const gcWorld *w, void *out, size_t k, size_t total);
+/* A replayed haptic tick (runtime_replay.c): its record straight into `out`, no ring, no clock. */
+void gc_tick_record_fill(const gcWorld *hw, const double *device_force, uint64_t tick, double object_time,
+                         gcTickSchedule schedule, int forces_enabled, int adopted, void *out);
 
 #endif

@@ -569,6 +569,37 @@ gcStatus gc_world_step_hips(gcWorld *w, const double *hips, int num_fingers, int
     return warned;
 }
 
+gcStatus gc_world_step_hips_trace(gcWorld *w, const double *hips, int num_fingers, int steps, double dt,
+                                  int first, int total, void *traces, size_t size, int *done) {
+    if (done) *done = 0;
+    gcStatus idle = check_idle(w);
+    if (idle) return idle;
+    size_t trace = gc_tick_trace_size(w->num_bodies, w->num_fingers);
+    if (steps < 0 || (steps > 0 && (!hips && num_fingers > 0))) {
+        gc_world_set_error(w, "steps: %d steps of HIPs (need >= 0 and the HIPs)", steps);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    if (first < 0 || total < 0 || steps > total - first) {
+        gc_world_set_error(w, "first, total: steps %d to %d of %d ticks", first, first + steps, total);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    if (!traces || size / trace < (size_t)total) {
+        gc_world_set_error(w, "traces: %zu bytes for %d ticks of %zu", traces ? size : 0, total, trace);
+        return GC_ERR_INVALID_ARGUMENT;
+    }
+    gcStatus warned = GC_OK;
+    for (int k = 0; k < steps; ++k) { /* as gc_world_step_hips, the trace for the record */
+        gcStatus st = num_fingers > 0 ? gc_world_set_hips(w, hips + 3 * (size_t)num_fingers * (size_t)k, num_fingers)
+                                       : GC_OK;
+        if (st >= 0) st = gc_world_step(w, dt);
+        if (st == GC_WARN_STOPPED) warned = st;
+        if (st < 0) return st;
+        gc_tick_trace_fill(w, traces, (size_t)first + (size_t)k, (size_t)total);
+        if (done) *done = k + 1;
+    }
+    return warned;
+}
+
 int64_t gc_world_stopped_bodies(const gcWorld *w) { return w ? w->stopped_bodies : 0; }
 
 /* While the runtime runs, queries answer from its last snapshot (world->shown). */

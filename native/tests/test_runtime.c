@@ -775,6 +775,85 @@ static void test_track_orientations(void) {
     gc_world_destroy(ref);
 }
 
+/* A threaded session with its tick log, the haptic loop stalled now and then (object results
+ * skipped, taken late): replayed on the manual clock from its records' HIPs and hand-over
+ * schedule, every tick's state hash is the recorded one. The same replay with one result taken
+ * a tick early diverges; a schedule that cannot have happened is refused. */
+static void test_replay_schedule(void) {
+    enum { TICKS = 900, CAP = 4096 };
+    gcWorld *w = pinch_scene();
+    double times[TICKS + 1], track[(TICKS + 1) * 6];
+    for (int i = 0; i <= TICKS; ++i) times[i] = i * DT, pinch_hips(i, &track[6 * i]);
+    GC_CHECK(gc_world_set_hip_track(w, times, track, TICKS + 1, 2, NULL) == GC_OK, "track: %s", gc_world_last_error(w));
+    GC_CHECK(gc_world_set_tick_log(w, CAP) == GC_OK, "tick log");
+    gcRuntimeDef def = realtime_def();
+    GC_CHECK(gc_world_start(w, &def) == GC_OK, "start: %s", gc_world_last_error(w));
+    for (int k = 0; k < 4; ++k) {
+        sleep_s(0.12);
+        gc_world_debug_stall(w, 0.009); /* ~4 object ticks while the haptic loop sleeps */
+    }
+    sleep_s(0.4);
+    GC_CHECK(gc_world_stop(w) == GC_OK, "stop");
+    size_t size = gc_tick_record_size(4, 2);
+    unsigned char *rec = malloc(size * CAP), *out = malloc(size * CAP);
+    int n = gc_world_drain_ticks(w, rec, size * CAP, CAP);
+    GC_CHECK(n > 300 && gc_world_tick_log_overflow(w) == 0, "%d ticks recorded, none dropped", n);
+    double *hips = malloc(sizeof(double) * 6 * (size_t)n), *quats = malloc(sizeof(double) * 8 * (size_t)n);
+    uint64_t *otick = malloc(sizeof(uint64_t) * (size_t)n), *reads = malloc(sizeof(uint64_t) * (size_t)n);
+    int skipped = 0;
+    for (int k = 0; k < n; ++k) {
+        const unsigned char *r = rec + size * (size_t)k;
+        memcpy(&hips[6 * k], r + 52, 48);
+        memcpy(&quats[8 * k], r + size - 16 - 64, 64);
+        memcpy(&otick[k], r + size - 16, 8);
+        memcpy(&reads[k], r + size - 8, 8);
+        if (k && otick[k] > otick[k - 1] + 1) skipped++;
+    }
+    GC_CHECK(skipped > 0, "stalls made the haptic loop skip object results (%d times)", skipped);
+    gcWorld *r = pinch_scene();
+    gcRuntimeDef manual = manual_def(def.object_rate, def.max_adopted_bodies);
+    GC_CHECK(gc_world_start(r, &manual) == GC_OK, "start replay");
+    int done = 0;
+    GC_CHECK(gc_world_replay_ticks(r, hips, quats, 2, otick, reads, n, out, size * (size_t)n, &done) == GC_OK &&
+                 done == n, "replay: %s", gc_world_last_error(r));
+    gc_world_stop(r);
+    int same = 0;
+    for (int k = 0; k < n; ++k) same += memcmp(rec + size * (size_t)k + 24, out + size * (size_t)k + 24, 8) == 0;
+    GC_CHECK(same == n, "replayed state hashes: %d of %d equal", same, n);
+    /* One result taken a tick late (the falling box's state with it): the replay runs, and
+     * parts from the recording at that tick. */
+    int late = -1;
+    for (int k = n / 2; k + 1 < n && late < 0; ++k)
+        if (otick[k] > otick[k - 1] && otick[k + 1] == otick[k]) late = k;
+    GC_CHECK(late > 0, "a result to take late");
+    if (late > 0) {
+        otick[late] = otick[late - 1];
+        gcWorld *p = pinch_scene();
+        GC_CHECK(gc_world_start(p, &manual) == GC_OK, "start perturbed");
+        GC_CHECK(gc_world_replay_ticks(p, hips, quats, 2, otick, reads, n, out, size * (size_t)n, NULL) == GC_OK,
+                 "perturbed replay: %s", gc_world_last_error(p));
+        gc_world_stop(p);
+        int first = -1;
+        for (int k = 0; k < n && first < 0; ++k)
+            if (memcmp(rec + size * (size_t)k + 24, out + size * (size_t)k + 24, 8) != 0) first = k;
+        GC_CHECK(first == late, "a result taken a tick late parts there (tick index %d, expected %d)", first, late);
+        gc_world_destroy(p);
+    }
+    /* A schedule going back is refused, naming the step; the ticks before it ran. */
+    gcWorld *b = pinch_scene();
+    GC_CHECK(gc_world_start(b, &manual) == GC_OK, "start refused");
+    uint64_t back[3] = {1, 2, 1};
+    uint64_t held[3] = {0, 0, 0};
+    GC_CHECK(gc_world_replay_ticks(b, hips, NULL, 2, held, back, 3, NULL, 0, &done) == GC_ERR_INVALID_ARGUMENT &&
+                 done == 2 && strstr(gc_world_last_error(b), "step 2") && strstr(gc_world_last_error(b), "goes back"),
+             "refused: %s (done %d)", gc_world_last_error(b), done);
+    gc_world_stop(b);
+    gc_world_destroy(b);
+    gc_world_destroy(r);
+    gc_world_destroy(w);
+    free(rec), free(out), free(hips), free(quats), free(otick), free(reads);
+}
+
 int main(void) {
     test_manual_clock_matches_step();
     test_track_orientations();
@@ -786,5 +865,6 @@ int main(void) {
     test_realtime();
     test_haptic_thread_setup();
     test_destroy_running();
+    test_replay_schedule();
     return gc_test_summary("test_runtime");
 }

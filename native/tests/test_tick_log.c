@@ -62,9 +62,9 @@ static gcWorld *pinch_world(void) {
 }
 
 static void test_layout_and_stopped_record(void) {
-    GC_CHECK(gc_tick_record_size(2, 3) == 52 + 8 * (15 * 3 + 19 * 2) + 4 * 3 * 3 + 8 * 4 * 3 + 4 * 8 * 3, "size %zu",
+    GC_CHECK(gc_tick_record_size(2, 3) == 52 + 8 * (15 * 3 + 19 * 2) + 4 * 3 * 3 + 8 * 4 * 3 + 4 * 8 * 3 + 16, "size %zu",
              gc_tick_record_size(2, 3));
-    GC_CHECK(gc_tick_record_size(0, 0) == 52, "empty world: the fixed fields only");
+    GC_CHECK(gc_tick_record_size(0, 0) == 52 + 16, "empty world: the fixed fields and the schedule only");
     gcWorld *w = pinch_world();
     double hips[6] = {-0.025, 0, 0.2, 0.025, 0, 0.2};
     gc_world_set_hips(w, hips, 2);
@@ -89,7 +89,7 @@ static void test_layout_and_stopped_record(void) {
     int32_t body;
     gc_world_finger_state(w, 1, &st, &body);
     int32_t rs, rb;
-    const size_t patch = size - 4 * 2 * GC_FINGER_PATCH_CORNERS * nf; /* the fingers' patches, last */
+    const size_t patch = size - 16 - 4 * 2 * GC_FINGER_PATCH_CORNERS * nf; /* the fingers' patches, then the schedule */
     const size_t ints = patch - 8 * 4 * nf; /* state, contact and parts, then the fingers' orientations */
     uint32_t rp;
     memcpy(&rs, r + ints - 4 * 3 * nf + 4, 4);
@@ -98,6 +98,7 @@ static void test_layout_and_stopped_record(void) {
     GC_CHECK(rs == (int32_t)st && rb == body && body == 0, "finger 1 touches the box: state %d body %d", rs, rb);
     GC_CHECK(rp == 1u, "finger 1 touches the box's part 0 only: parts %u", rp);
     GC_CHECK(rec_f64(r, ints + 32) == 1.0 && rec_f64(r, ints + 40) == 0.0, "finger 1's orientation: identity");
+    GC_CHECK(rec_u64(r, size - 16) == 0 && rec_u64(r, size - 8) == 0, "no object manager: schedule 0, 0");
     double normal_x = rec_f64(r, arrays + 8 * 12 * nf + 24);                                    /* normal[1].x */
     GC_CHECK(normal_x > 0.99, "finger 1's contact normal is +x (%g)", normal_x);
     float corners[2 * GC_FINGER_PATCH_CORNERS];
@@ -333,8 +334,58 @@ static void test_step_hips(void) {
     free(all);
 }
 
+/* gc_world_step_hips_trace: each field's array holds, tick by tick, the bytes of the record's
+ * field of that name from gc_world_step_hips on the same HIPs; bad ranges refused. */
+static void test_step_hips_trace(void) {
+    enum { N = 300 };
+    gcWorld *a = pinch_world(), *b = pinch_world();
+    double *hips = malloc(sizeof(double) * 6 * N);
+    for (int k = 0; k < N; ++k) {
+        double x = 0.032, z = 0.2 + 0.0002 * (k > 50 ? k - 50 : 0);
+        double h[6] = {-x, 0, z, x, 0, z};
+        memcpy(&hips[6 * k], h, sizeof h);
+    }
+    size_t rsize = gc_tick_record_size(1, 2), tsize = gc_tick_trace_size(1, 2);
+    GC_CHECK(tsize == 8 + 56 * 2 + 56, "trace size %zu", tsize);
+    unsigned char *rec = malloc(rsize * N), *tr = malloc(tsize * (N + 1));
+    GC_CHECK(gc_world_step_hips(a, hips, 2, N, 1e-3, 1, rec, rsize * N, NULL) == GC_OK, "records");
+    int done = 0;
+    GC_CHECK(gc_world_step_hips_trace(b, hips, 2, 100, 1e-3, 1, N + 1, tr, tsize * (N + 1), &done) == GC_OK &&
+                 done == 100, "trace, first part");
+    GC_CHECK(gc_world_step_hips_trace(b, hips + 600, 2, N - 100, 1e-3, 101, N + 1, tr, tsize * (N + 1), &done) ==
+                 GC_OK, "trace, the rest");
+    const size_t T = N + 1, nf = 2;
+    const unsigned char *time = tr, *contact = time + 8 * T, *state = contact + 4 * nf * T;
+    const unsigned char *force = state + 4 * nf * T, *go = force + 24 * nf * T, *pose = go + 24 * nf * T;
+    /* record offsets: god_object after hip, force after it; pose after the normals; state,
+     * contact after the wrenches */
+    const size_t R_GO = 52 + 48, R_FORCE = 52 + 96, R_POSE = 52 + 240, R_STATE = R_POSE + 56 + 48 + 48;
+    int same = 0, touching = 0;
+    for (size_t k = 0; k < N; ++k) {
+        const unsigned char *r = rec + rsize * k;
+        size_t t = k + 1;
+        same += memcmp(time + 8 * t, r + 8, 8) == 0 && memcmp(go + 48 * t, r + R_GO, 48) == 0 &&
+                memcmp(force + 48 * t, r + R_FORCE, 48) == 0 && memcmp(pose + 56 * t, r + R_POSE, 56) == 0 &&
+                memcmp(state + 8 * t, r + R_STATE, 8) == 0 && memcmp(contact + 8 * t, r + R_STATE + 8, 8) == 0;
+        int32_t c;
+        memcpy(&c, contact + 8 * t, 4);
+        touching += c == 0;
+    }
+    GC_CHECK(same == N && touching > N / 2, "trace = records' fields: %d of %d ticks (touching %d)", same, N, touching);
+    GC_CHECK(gc_world_state_hash(a) == gc_world_state_hash(b), "the same final state");
+    GC_CHECK(gc_world_step_hips_trace(b, hips, 2, 10, 1e-3, N - 5, N + 1, tr, tsize * (N + 1), NULL) ==
+                 GC_ERR_INVALID_ARGUMENT && strstr(gc_world_last_error(b), "first"),
+             "steps past the end refused: %s", gc_world_last_error(b));
+    GC_CHECK(gc_world_step_hips_trace(b, hips, 2, 10, 1e-3, 0, N + 1, tr, tsize * N, NULL) == GC_ERR_INVALID_ARGUMENT,
+             "a buffer too small refused");
+    free(hips), free(rec), free(tr);
+    gc_world_destroy(a);
+    gc_world_destroy(b);
+}
+
 int main(void) {
     test_step_hips();
+    test_step_hips_trace();
     test_layout_and_stopped_record();
     test_state_hash_reference();
     test_manual_clock_and_overflow();

@@ -64,6 +64,29 @@ def record_scene(path, graspcore, desc, hip_positions, seconds, fps=24, compress
     return run, handle
 
 
+def record_realtime(path, graspcore, seconds=2.0, fps=24):
+    """A live session of the pinch scene on the threaded runtime (real threads, real time: the
+    fingertip path pushed at the display's ``fps`` as fingertips moved by hand are, walked to by
+    the haptic loop), recorded to ``path`` with the header a live session writes; returns the
+    runner."""
+    import time
+    desc, S = pinch_desc()
+    handle = scene.build_world(desc, graspcore)
+    header = recording.make_header(desc, mode="realtime", haptic_rate=1000.0, fps=fps,
+                                   runtime={"threaded": True, "watchdog_timeout": 0.05,
+                                            **{k: graspcore.RUNTIME_DEFAULTS[k] for k in runner.RUNTIME_PHYSICS}})
+    rec = recording.SessionRecorder(recording.RecordingWriter(str(path), header), handle.world)
+    run = runner.SessionRunner(handle, inputs.CallableInput(len(desc.fingers), S.hip_positions, duration=seconds),
+                               1000.0, use_runtime=True, recorder=rec, runtime_options={"watchdog_timeout": 0.05})
+    run.start()
+    t0 = time.monotonic()
+    while run.snapshot().time < seconds:
+        run.advance_to(time.monotonic() - t0)
+        time.sleep(1.0 / fps)
+    run.stop()
+    return run
+
+
 def three_finger_lift():
     """A 3 s three-finger lift (the sweep's tests and benchmark): the sample scene's box and table,
     two fingertips closing on its +x face at y = +-12 mm and one on its -x face squeezing twice

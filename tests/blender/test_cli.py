@@ -1,7 +1,7 @@
 """The grasp-lab command line (addon/engine/cli.py): every command end to end on the sample
 scene through the venv launcher (a real process: bpy booted, the extension loaded), exit
-codes 0 / 1 / 2 with messages naming the file, --help everywhere, a kill -9 during a
---realtime recording then info and bake on what is left, and `blender -c grasp_lab`
+codes 0 / 1 / 2 with messages naming the file, --help everywhere, a --realtime recording that
+resim replays identically, a kill -9 during a --realtime recording then info and bake on what is left, and `blender -c grasp_lab`
 registered in Blender."""
 import csv
 import io
@@ -206,6 +206,19 @@ def _chunk_spans(path):
         except Exception:
             pass
     return spans
+
+
+def test_resim_of_a_live_recording_is_identical(blend, tmp_path):
+    """`grasp-lab run --realtime` (the threaded runtime, real threads) records its hand-over
+    schedule; `grasp-lab resim` replays it and says `identical`."""
+    rec = tmp_path / "live.mcap"
+    r = grasp_lab("run", blend, "--realtime", "--duration", "2", "--record", rec)
+    assert r.returncode == 0, r.stderr
+    live = recording.open_recording(rec)
+    assert live.header["mode"] == "realtime" and live.header["runtime"]["object_rate"] == 500.0
+    assert live.ticks["object_tick"][-1] > 0 and live.ticks["adopted"].max() == 1
+    r = grasp_lab("resim", rec)
+    assert r.returncode == 0 and r.stdout.strip() == "identical", r.stdout + r.stderr
 
 
 def test_kill_9_during_a_realtime_recording(blend, tmp_path):

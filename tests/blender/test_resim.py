@@ -1,6 +1,9 @@
 """Re-simulation (addon/engine/resim.py) in plain Python: an EXEC recording replayed with no
-override is identical bit for bit (every tick's state hash); an override parts the runs
+override is identical bit for bit (every tick's state hash), and so is a live recording of the
+threaded runtime (replayed on its recorded hand-over schedule); an override parts the runs
 where physics says it must, and the report says when and where; KEY=VALUE parsing."""
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -20,6 +23,54 @@ def test_unchanged_parameters_reproduce_every_tick(rec, core):
     assert result.divergence.identical and result.divergence.report() == "identical"
     np.testing.assert_array_equal(result.ticks["state_hash"], rec.ticks["state_hash"])
     np.testing.assert_array_equal(result.ticks["pose"], rec.ticks["pose"])
+
+
+@pytest.fixture(scope="module")
+def live(core, tmp_path_factory):
+    """A 2 s pinch and lift on the threaded runtime, real threads, recorded."""
+    path = tmp_path_factory.mktemp("resim_live") / "live.mcap"
+    recordings.record_realtime(path, core, seconds=2.0)
+    return recording.open_recording(path)
+
+
+def test_a_live_recording_replays_bit_for_bit_on_its_hand_over_schedule(live, core):
+    ticks = live.ticks
+    assert live.header["runtime"]["threaded"] and len(ticks) > 1900
+    np.testing.assert_array_equal(ticks["tick"], np.arange(len(ticks)))     # none dropped
+    assert ticks["adopted"].max() == 1                  # the box was handed to the haptic loop
+    assert ticks["object_tick"][-1] > 800               # the object manager ran alongside
+    result = resim.resimulate(live, core)
+    assert result.divergence.report() == "identical"
+    np.testing.assert_array_equal(result.ticks["state_hash"], ticks["state_hash"])
+    np.testing.assert_array_equal(result.ticks["pose"], ticks["pose"])
+    assert result.header["runtime"]["replayed_schedule"]
+
+
+def test_without_its_schedule_a_live_recording_does_not_replay(live, core):
+    """The same ticks with the schedule taken away (as recorded before it was: the fields
+    dropped), or with one object result (the box resting on the table) taken a tick late: not
+    identical, and the report says why when the schedule is missing."""
+    old = live.ticks.dtype
+    names = [n for n in old.names if n not in ("object_tick", "object_reads")]
+    stripped = np.zeros(len(live.ticks), dtype=[(n, old.fields[n][0]) for n in names])
+    for n in names:
+        stripped[n] = live.ticks[n]
+    div = resim.resimulate(dataclasses.replace(live, ticks=stripped), core).divergence
+    assert not div.identical and "before its hand-over schedule was recorded" in div.report()
+
+    late = live.ticks.copy()
+    o = late["object_tick"]
+    free = late["adopted"] == 0        # the box the object manager's, before the grasp
+    k = next(k for k in range(50, len(o) - 1) if free[k] and o[k] > o[k - 1] and o[k + 1] == o[k])
+    o[k] = o[k - 1]
+    div = resim.resimulate(dataclasses.replace(live, ticks=late), core).divergence
+    assert not div.identical and div.first_hash_tick == int(late["tick"][k])
+
+
+def test_a_live_recording_with_missing_ticks_says_it_cannot_replay_them(live, core):
+    gap = live.ticks[np.arange(len(live.ticks)) != 700]
+    report = resim.resimulate(dataclasses.replace(live, ticks=gap), core).divergence.report()
+    assert "ticks of the threaded runtime are missing (after tick 699" in report
 
 
 def test_heavier_box_parts_after_the_grasp(rec, core, tmp_path):

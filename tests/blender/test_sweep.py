@@ -122,6 +122,40 @@ def test_a_sample_with_nothing_varied_is_the_recording(lift, core, monkeypatch, 
     assert row["held_time"] == lift.ticks["time"][job.window[1]] - lift.ticks["time"][job.window[0]]
 
 
+@pytest.mark.parametrize("stretch", [8192, 700])
+def test_outcomes_from_the_traces_are_those_from_the_records(lift, core, monkeypatch, stretch):
+    """A sample without the grasp measures replays with each step's short trace
+    (sweep.replay_trace) instead of its record: the same fields tick by tick, in stretches with
+    hooks between (a push), and the same outcomes, for samples that hold, slip and drop."""
+    from addon.engine import resim, scene
+    monkeypatch.setattr(resim, "STRETCH", stretch)
+    job = sweep.make_job(lift, V("Box.mu_s=0.05:0.6", "hip_noise=0.0005", "push=0:4@1.5"), 3, analysis=False)
+    held = set()
+    for i in range(12):
+        rng = np.random.default_rng(sweep.sample_seed(job.seed, i))
+        d = sweep.draw(job, i, rng)
+        desc = sweep._fresh_desc(job)
+        sweep.apply_to_desc(desc, d.overrides)
+        hips = job.hips + rng.normal(0.0, d.hip_noise, job.hips.shape)
+        runs = []
+        for replay in (resim.replay, sweep.replay_trace):
+            h = scene.build_world(desc, core, exact=True)
+            body = h.body_ids[job.body]
+            runs.append(replay(h.world, hips, 1.0 / job.rate, job.has_start,
+                               sweep._pusher(body, desc.bodies[job.body].mass_properties.mass, d.push,
+                                             1.0 / job.rate, job.has_start)))
+        records, traces = runs
+        assert len(traces) == len(records)
+        for name in ("time", "contact", "state", "force", "god_object", "pose"):
+            assert traces[name].tobytes() == np.ascontiguousarray(records[name]).tobytes(), (i, name)
+        out = sweep.outcomes(job, traces, desc)
+        assert out == sweep.outcomes(job, records, desc), i
+        held.add(out["held"])
+        if out["max_slip"]:
+            held.add("slipped")
+    assert held == {0, 1, "slipped"}       # both outcomes, and slips, among the samples
+
+
 # ------------------------------------------------------------------------ statistics
 
 @pytest.mark.parametrize("k, n", [(0, 10), (3, 10), (10, 10), (37, 50), (9512, 10000), (1, 1)])

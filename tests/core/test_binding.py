@@ -325,4 +325,4 @@ def test_tick_fields_are_the_documented_record():
                   for name, t, scope, dims in rows]
     assert documented == list(graspcore._core.TICK_FIELDS)
     nb, nf = 3, 4
-    assert graspcore.tick_dtype(nb, nf).itemsize == 52 + 8 * (19 * nf + 19 * nb) + 12 * nf + 32 * nf   # the doc's sum
+    assert graspcore.tick_dtype(nb, nf).itemsize == 52 + 8 * (19 * nf + 19 * nb) + 12 * nf + 32 * nf + 16   # the doc's sum

@@ -87,4 +87,4 @@ def test_pad_on_a_decomposed_body_keeps_every_point_whole():
 
 def test_record_field_order_is_the_cores():
     names = graspcore.tick_dtype(2, 3).names
-    assert names[-5:] == ("state", "contact", "parts", "orientation", "patch")
+    assert names[-7:] == ("state", "contact", "parts", "orientation", "patch", "object_tick", "object_reads")

@@ -74,3 +74,26 @@ def test_bad_arguments_change_nothing():
     assert w.time == 0.0 and not out.tobytes().strip(b"\0")
     with pytest.raises(ValueError, match="positions"):
         w.step_hips(np.zeros((3, 5, 3)), 0.001, out)     # more fingers than the world has
+
+
+def test_the_trace_holds_the_records_fields_tick_by_tick():
+    """step_hips_trace: each field (time, contact, state, force, god_object, pose) equal to the
+    records' of step_hips on the same HIPs, bit for bit, whether in one call or in two at an
+    offset; the same final state; a layout or range that does not fit refused."""
+    hips = squeeze_and_lift(600)
+    a, b, c = pinch_world(), pinch_world(), pinch_world()
+    records = a.step_hips(hips, 0.001, np.zeros(600, a.tick_dtype()))
+    one = b.step_hips_trace(hips, 0.001, np.zeros((), b.trace_dtype(600)))
+    two = np.zeros((), c.trace_dtype(601))
+    c.step_hips_trace(hips[:250], 0.001, two, first=1)
+    c.step_hips_trace(hips[250:], 0.001, two, first=251)
+    for name in ("time", "contact", "state", "force", "god_object", "pose"):
+        assert one[name].tobytes() == records[name].tobytes(), name
+        assert two[name][1:].tobytes() == records[name].tobytes(), name
+        assert one[name].flags.c_contiguous
+    assert a.state_hash() == b.state_hash() == c.state_hash()
+    assert records["state"].max() > 0 and records["contact"].min() == 0       # in contact throughout
+    with pytest.raises(ValueError, match="first"):
+        c.step_hips_trace(hips[:10], 0.001, two, first=595)
+    with pytest.raises(ValueError, match="out"):
+        c.step_hips_trace(hips[:10], 0.001, np.zeros(10, c.tick_dtype()))

@@ -1059,6 +1059,64 @@ def scenario_walkthrough():
     docs_picture("curves")
 
 
+def scenario_robustness():
+    """The Robustness panel as a person uses it: a recorded pinch and lift, the sidebar scrolled
+    to the panel, Run Sweep clicked; the progress bar moves while Blender keeps drawing (the
+    driver's own waits, timers like the display's, are never held up), and when it is done the
+    held count and the map (red to green pixels) are in the sidebar."""
+    setup_scene(duration=0.0)
+    s = bpy.context.scene.grasp_lab
+    s.record = True
+    s.recording_folder = os.path.join(OUT, "recordings") + os.sep
+    bpy.ops.grasp_lab.session(duration=3.0)         # headless-style (EXEC): the recording to sweep
+    RESULT["recording"] = s.last_recording
+    r = bpy.context.scene.grasp_lab_robustness
+    r.samples, r.seed, r.workers = 8, 1, 2
+    yield from open_grasp_tab()
+    area, win_region, ui = view3d()
+    hover(ui, ui.width / 2, ui.height / 2)
+    for _ in range(4):                      # to the sidebar's end, where the Robustness panel is
+        xdo("click", "--repeat", "10", "5")
+        yield 0.4
+    yield 1.0
+    rows = find_buttons(ui, "rows_robustness")
+    RESULT["rows"] = rows
+    yield from click_button(ui, len(rows) - 1)                   # Run Sweep: the last button row
+    robustness = ext("robustness")
+    yield from wait_until(lambda: bpy.context.scene.name in robustness._jobs, 10, "the sweep to start")
+    job = robustness._jobs[bpy.context.scene.name]
+    def warm(name):
+        """Sidebar pixels of the map's colours (red, yellow, green: red or green well above
+        blue); Blender's own sidebar has next to none."""
+        px = region_pixels(pixels(screenshot(name)), ui)[..., :3]
+        return int(((np.maximum(px[..., 0], px[..., 1]) - px[..., 2]) > 0.2).sum())
+    RESULT["warm_before"] = warm("sweep_started")
+    seen, gaps, last = [], [], time.monotonic()
+    while job.running:
+        yield 0.1
+        now = time.monotonic()
+        gaps.append(now - last)
+        last = now
+        seen.append(r.progress)
+        if len(seen) == 20:
+            screenshot("sweep_running")
+        if len(seen) > 1200:
+            raise AssertionError("the sweep did not end in 120 s")
+    RESULT["progress_seen"] = seen
+    RESULT["max_gap_s"] = max(gaps) if gaps else None
+    RESULT["status"] = r.status
+    RESULT["error"] = job.error
+    RESULT["map_path"] = r.map_path
+    hover(ui, ui.width / 2, ui.height / 2)
+    yield 1.0                               # the panel redrawn with the status and the map,
+    for _ in range(4):                      # below the fold: scrolled to, as a person does
+        xdo("click", "--repeat", "10", "5")
+        yield 0.4
+    hover(win_region, 50, 50)
+    yield 1.5
+    RESULT["warm_after"] = warm("sweep_done")
+
+
 SCENARIOS = {name[len("scenario_"):]: fn for name, fn in globals().items() if name.startswith("scenario_")}
 
 

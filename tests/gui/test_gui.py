@@ -236,3 +236,21 @@ def test_the_readme_walkthrough_click_by_click(gui):
     assert g["filter"] == "gl_" and g["only_selected"] and g["height"] > 200
     assert g["selected"] == ["GL Force Box", "GL God-object Finger 0", "GL God-object Finger 1"]
     assert g["keys"] > 1000 and g["selected_keys"] == 0
+
+
+def test_the_robustness_panel_sweeps_the_last_recording(gui):
+    """Run Sweep clicked in the Robustness panel: the sweep runs in background processes while
+    Blender goes on drawing, its progress bar only moves forwards, and at the end the panel
+    says how many samples held and shows the map."""
+    r, console, code = run(gui, "robustness", timeout=300)
+    ok(r, console)
+    assert r["recording"].endswith(".mcap"), r
+    assert not r["error"], r["error"]
+    assert r["status"].startswith("Held ") and " of 8: p = " in r["status"], r["status"]
+    seen = r["progress_seen"]
+    assert seen == sorted(seen) and len(seen) > 3, seen
+    assert r["max_gap_s"] < 2.0, r["max_gap_s"]      # Blender's timers ran all along
+    assert r["map_path"].endswith("map.png")
+    # the map in the sidebar: thousands of pixels in the held probability's colours (red to
+    # green), where the sidebar had next to none while the sweep ran
+    assert r["warm_before"] < 500 and r["warm_after"] > r["warm_before"] + 3000, r

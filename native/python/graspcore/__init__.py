@@ -6,13 +6,15 @@ numpy views. See docs/api.md.
 """
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from . import _core
 
 __all__ = ["World", "FINGER_STATES", "RENDERERS", "SERIAL_STATES", "SERIAL_EVENTS", "WORLD_DEFAULTS",
            "BODY_DEFAULTS", "FINGER_DEFAULTS", "RUNTIME_DEFAULTS", "SERIAL_DEFAULTS", "TICK_FORCES_ENABLED",
-           "tick_dtype", "grasp_quality", "grasp_quality_batch", "grasp_mu_min", "GRASP_QUALITY_DTYPE"]
+           "tick_dtype", "trace_dtype", "grasp_quality", "grasp_quality_batch", "grasp_mu_min", "GRASP_QUALITY_DTYPE"]
 
 # The core's own defaults (gc_default_*_def), not copies: one entry per keyword argument of
 # World(), add_body, add_finger, start and attach_serial.
@@ -33,6 +35,7 @@ SERIAL_STATES = _core.SERIAL_STATES
 SERIAL_EVENTS = _core.SERIAL_EVENTS
 
 
+@functools.lru_cache(maxsize=64)     # made once per layout: a sweep asks for it twice a sample
 def tick_dtype(num_bodies: int, num_fingers: int) -> np.dtype:
     """The numpy dtype of one tick log record (graspcore.h, docs/recording-format.md), built
     from the core's table of its fields (``_core.TICK_FIELDS``)."""
@@ -45,6 +48,19 @@ def tick_dtype(num_bodies: int, num_fingers: int) -> np.dtype:
     dtype = np.dtype(fields)
     if dtype.itemsize != _core.tick_record_size(nb, nf):
         raise RuntimeError("graspcore.tick_dtype does not match the core's record layout (rebuild the core)")
+    return dtype
+
+
+@functools.lru_cache(maxsize=64)
+def trace_dtype(num_bodies: int, num_fingers: int, ticks: int) -> np.dtype:
+    """The numpy dtype of ``ticks`` ticks of ``World.step_hips_trace``: one record whose fields
+    are contiguous arrays, a tick record's ``time`` (ticks,), ``contact``, ``state`` (ticks,
+    fingers), ``force``, ``god_object`` (ticks, fingers, 3) and ``pose`` (ticks, bodies, 7)."""
+    nb, nf, n = int(num_bodies), int(num_fingers), int(ticks)
+    dtype = np.dtype([("time", "<f8", (n,)), ("contact", "<i4", (n, nf)), ("state", "<i4", (n, nf)),
+                      ("force", "<f8", (n, nf, 3)), ("god_object", "<f8", (n, nf, 3)), ("pose", "<f8", (n, nb, 7))])
+    if dtype.itemsize != n * _core.tick_trace_size(nb, nf):
+        raise RuntimeError("graspcore.trace_dtype does not match the core's trace layout (rebuild the core)")
     return dtype
 
 
@@ -281,6 +297,57 @@ class World(_core.World):
             raise ValueError(f"out: expected a C-contiguous 1-d array of World.tick_dtype(), at least {len(h)} long")
         self._step_hips(h, int(h.shape[0]), int(h.shape[1]), float(dt), out, int(first_tick))
         return None if out is None else out[:len(h)]
+
+    def replay_ticks(self, hips, object_ticks, object_reads, out: np.ndarray | None,
+                     orientations=None) -> np.ndarray | None:
+        """A recorded threaded session replayed on the manual clock (``start(realtime=False)``
+        with the rates and adoption settings it ran with): for each row of ``hips`` ((steps,
+        fingers, 3), every finger) one haptic tick with those HIPs (and ``orientations``, (steps,
+        fingers, 4), as recorded), the object manager's ticks run and their results taken on the
+        recorded hand-over schedule (``object_ticks``, ``object_reads``: the records' fields), so
+        each tick equals the recorded one bit for bit. Records into ``out`` (as ``step_hips``;
+        None: none). A schedule that cannot have happened raises ValueError naming the step."""
+        h = np.require(hips, dtype=np.float64, requirements=["C_CONTIGUOUS", "ALIGNED"])
+        if h.ndim != 3 or h.shape[2] != 3:
+            raise ValueError(f"hips: expected a (steps, fingers, 3) array, got shape {h.shape}")
+        n = h.shape[0]
+        q = None
+        if orientations is not None:
+            q = np.require(orientations, dtype=np.float64, requirements=["C_CONTIGUOUS", "ALIGNED"])
+            if q.shape != h.shape[:2] + (4,):
+                raise ValueError(f"orientations: expected {h.shape[:2] + (4,)}, got {q.shape}")
+        schedule = []
+        for name, column in (("object_ticks", object_ticks), ("object_reads", object_reads)):
+            c = np.asarray(column)
+            if c.shape != (n,) or not np.issubdtype(c.dtype, np.integer) or (c.size and c.min() < 0):
+                raise ValueError(f"{name}: expected ({n},) counts >= 0, got shape {c.shape}, dtype {c.dtype}")
+            schedule.append(np.ascontiguousarray(c, dtype=np.uint64))
+        if out is not None and (out.dtype != self.tick_dtype() or out.ndim != 1 or not out.flags.c_contiguous
+                                or len(out) < n):
+            raise ValueError(f"out: expected a C-contiguous 1-d array of World.tick_dtype(), at least {n} long")
+        self._replay_ticks(h, q, schedule[0], schedule[1], int(n), int(h.shape[1]), out)
+        return None if out is None else out[:n]
+
+    def trace_dtype(self, ticks: int) -> np.dtype:
+        """dtype of ``ticks`` ticks of this world's step traces (its current bodies and fingers)."""
+        return trace_dtype(self.body_count, self.finger_count, ticks)
+
+    def step_hips_trace(self, hips, dt: float, out: np.ndarray, first: int = 0) -> np.ndarray:
+        """``step_hips`` with a short trace of each step instead of its tick record: the record's
+        time, contact, state, force, god_object and pose (the same values, two fifths of the bytes,
+        no state hash), step k into tick ``first + k`` of ``out`` (a 0-d array of
+        ``trace_dtype(ticks)``, each field a contiguous array over the ticks). Returns ``out``."""
+        h = np.require(hips, dtype=np.float64, requirements=["C_CONTIGUOUS", "ALIGNED"])
+        if h.ndim != 3 or h.shape[2] != 3:
+            raise ValueError(f"hips: expected a (steps, fingers, 3) array, got shape {h.shape}")
+        shape = out.dtype["time"].shape if out.dtype.names and "time" in out.dtype.names else ()
+        total = shape[0] if len(shape) == 1 else -1
+        if out.ndim != 0 or total < 0 or out.dtype != self.trace_dtype(total) or not out.flags.c_contiguous:
+            raise ValueError("out: expected a 0-d array of World.trace_dtype(ticks)")
+        if not 0 <= first <= total - len(h):
+            raise ValueError(f"first: steps {first}..{first + len(h)} do not fit {total} ticks")
+        self._step_hips_trace(h, int(h.shape[0]), int(h.shape[1]), float(dt), out, int(first), int(total))
+        return out
 
     def set_tick_log(self, capacity: int) -> None:
         """While stopped: keep the last ``capacity`` undrained haptic ticks (0 = off). start()
