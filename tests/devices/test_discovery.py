@@ -78,9 +78,10 @@ def test_the_emulator_is_found_with_its_finger_count(emulator):
         dict.fromkeys(report["host_frames_dropped"], 0), report
     # Its duration over, the emulator has closed its pty: no longer a candidate, nor a device.
     assert port not in D.candidate_ports()
-    devices, probed = D.find_devices(extra_ports=[port])
-    assert devices == [] and [(p["status"], p["detail"]) for p in probed if p["port"] == port] == [
-        ("error", "cannot open (No such file or directory)")], probed
+    devices, probed = D.find_devices(extra_ports=[port])     # (other emulators on this machine may answer)
+    assert all(d["port"] != port for d in devices) and \
+        [(p["status"], p["detail"]) for p in probed if p["port"] == port] == [
+            ("error", "cannot open (No such file or directory)")], probed
 
 
 def test_a_silent_port_gets_its_hellos_and_nothing_else(raw_pty):
