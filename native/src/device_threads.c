@@ -183,7 +183,7 @@ static void let_go(gcDeviceRun *r) {
     gcSerialDevice *d = r->dev;
     double go[3 * GC_PROTO_MAX_FINGERS];
     if (!gc_device_hub_read(d->hub, d->def.finger_offset, d->def.num_fingers, NULL, go, NULL, NULL)) return;
-    gc_device_hub_write_hips(d->hub, d->def.finger_offset, d->def.num_fingers, go, r->episode);
+    gc_device_hub_write_hips(d->hub, d->def.finger_offset, d->def.num_fingers, go, NULL, r->episode);
 }
 
 static void lose(gcDeviceRun *r, int state) {
@@ -308,7 +308,7 @@ static void on_pose(gcDeviceRun *r, const gcFrame *fr, int64_t t_read) {
     r->last_pose_ns = t_read;
     s->poses++;
     r->rate_window_poses++;
-    gc_device_hub_write_hips(d->hub, d->def.finger_offset, m, r->hips, r->episode);
+    gc_device_hub_write_hips(d->hub, d->def.finger_offset, m, r->hips, NULL, r->episode);
     send_forces(r, fr->seq, t_read);
     double us = (double)(gc_clock_now_ns() - t_read) / 1e3;
     int bin = (int)us;

@@ -1123,6 +1123,59 @@ static void test_device_forces_for_api_fingers(void) {
     gc_world_destroy(w);
 }
 
+
+/* A device slot's orientation (gc_world_push_device_poses) reaches a convex finger through the
+ * threaded haptic tick: the finger ends at the device's quaternion; a sample without one leaves
+ * it where it is; a non-unit or non-finite quaternion is refused and counted as a NaN position
+ * is, nothing of the sample taken. */
+static void test_device_orientation_turns_a_convex_finger(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    double pts[24];
+    for (int i = 0; i < 8; ++i) {
+        pts[3 * i] = (i & 1) ? 0.04 : -0.04;
+        pts[3 * i + 1] = (i & 2) ? 0.03 : -0.03;
+        pts[3 * i + 2] = (i & 4) ? 0.01 : -0.01;
+    }
+    gcFingerDef fd = gc_default_finger_def();
+    fd.radius = 0.0;
+    fd.points = pts;
+    fd.num_points = 8;
+    int32_t palm;
+    GC_CHECK(gc_world_add_finger(w, &fd, &palm) == GC_OK, "palm: %s", gc_world_last_error(w));
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start");
+    const double a = 0.3, here[3] = {0, 0, 0.02}; /* 0.3 rad about (0.6, 0, 0.8) */
+    const double q[4] = {cos(a / 2), 0.6 * sin(a / 2), 0.0, 0.8 * sin(a / 2)};
+    const double scaled[4] = {2 * q[0], 2 * q[1], 2 * q[2], 2 * q[3]}, nan_q[4] = {NAN, 0, 0, 0};
+    const double nan_p[3] = {0, NAN, 0}, far[3] = {0, 0, 0.5};
+    GC_CHECK(gc_world_push_device_poses(w, 0, 1, far, scaled) == GC_WARN_REJECTED, "a scaled quaternion refused");
+    GC_CHECK(gc_world_push_device_poses(w, 0, 1, far, nan_q) == GC_WARN_REJECTED, "a NaN quaternion refused");
+    GC_CHECK(gc_world_push_device_poses(w, 0, 1, nan_p, q) == GC_WARN_REJECTED, "a NaN position refused");
+    GC_CHECK(gc_world_push_device_hips(w, 0, 1, nan_p) == GC_WARN_REJECTED, "a NaN position refused");
+    gcRuntimeStats st;
+    GC_CHECK(gc_world_stats(w, &st) == GC_OK && st.rejected_inputs == 4 && st.accepted_inputs == 0,
+             "all four counted: %llu", (unsigned long long)st.rejected_inputs);
+    for (int k = 0; k < 200; ++k) { /* 0.2 s of samples, a millisecond apart */
+        GC_CHECK(gc_world_push_device_poses(w, 0, 1, here, q) == GC_OK, "pushed");
+        sleep_ms(1);
+    }
+    const double elsewhere[3] = {0, 0, 0.03};
+    for (int k = 0; k < 50; ++k) { /* positions only: the orientation stays */
+        GC_CHECK(gc_world_push_device_hips(w, 0, 1, elsewhere) == GC_OK, "pushed");
+        sleep_ms(1);
+    }
+    sleep_ms(20);
+    gc_world_stop(w);
+    double p[3], o[4];
+    GC_CHECK(gc_world_finger_pose(w, palm, p, o) == GC_OK, "pose");
+    for (int c = 0; c < 4; ++c) GC_CHECK(fabs(o[c] - q[c]) < 1e-12, "orientation[%d] %.15f, want %.15f", c, o[c], q[c]);
+    GC_CHECK(fabs(p[2] - 0.03) < 1e-12, "the later position taken: %g", p[2]);
+    gc_world_destroy(w);
+}
+
 int main(void) {
     test_crc_and_cobs();
     test_force_gate();
@@ -1136,6 +1189,7 @@ int main(void) {
     test_attach_before_start();
     test_device_beside_api_writer();
     test_device_forces_for_api_fingers();
+    test_device_orientation_turns_a_convex_finger();
     test_udp();
     test_peer_gone_before_hello();
     return gc_test_summary("test_serial_io");
