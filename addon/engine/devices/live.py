@@ -172,7 +172,8 @@ class SourceDevice:
         if not self.connected:
             return
         hips = np.ascontiguousarray(self.source.hips_at(time.monotonic() - self._t0), dtype=np.float64)
-        turns = self.source.live_orientations()     # a SpaceMouse hand turning a palm, or None
+        turning = getattr(self.source, "live_orientations", None)     # a SpaceMouse hand turning a palm
+        turns = turning() if turning else None
         pushed = (self.world.push_device_hips(self.finger_offset, hips) if turns is None else
                   self.world.push_device_hips(self.finger_offset, hips, np.ascontiguousarray(turns, dtype=np.float64)))
         if not pushed:
