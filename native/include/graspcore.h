@@ -488,6 +488,9 @@ typedef struct gcSerialStats {
     uint64_t late_poses, duplicate_poses; /* UDP: poses older than, or the same as, the newest taken: dropped */
     uint64_t foreign_datagrams; /* UDP: from an address other than the pinned device's: dropped */
     char peer[64];              /* UDP: the device's address once pinned ("" before) */
+    int sends_orientations;     /* its hello offers orientations (HELLO_DEVICE flags bit 1) and the host takes
+                                 * them (a workspace frame that does not mirror) */
+    uint64_t oriented_poses;    /* poses that carried the fingers' orientations */
 } gcSerialStats;
 
 gcStatus gc_world_attach_serial(gcWorld *world, int fd, const gcSerialDef *def, int32_t *out_device);
