@@ -341,9 +341,9 @@ static const Field serial_stats_fields[] = {
     FIELD(gcSerialStats, late_poses, U64),
     FIELD(gcSerialStats, duplicate_poses, U64),
     FIELD(gcSerialStats, foreign_datagrams, U64),
+    FIELD_TEXT(gcSerialStats, peer),
     FIELD(gcSerialStats, sends_orientations, BOOL),
     FIELD(gcSerialStats, oriented_poses, U64),
-    FIELD_TEXT(gcSerialStats, peer),
 };
 
 /* finger_contacts(finger): one dict per point of the patch (docs/api.md). */
