@@ -31,7 +31,8 @@ def _add_entry(devices, world, entry):
         raise ValueError(f"fingers {first}..{first + n - 1}: the scene has {world.finger_count}")
     if entry.kind == "SPACEMOUSE":
         from .engine.devices.spacemouse import SpaceMouseSource, hand_from_fingertips
-        hand = hand_from_fingertips(world.snapshot()["hips"][first:first + n], frame)
+        turns = [world.finger_pose(i)[1] for i in range(first, first + n)]   # a palm turns with the hand
+        hand = hand_from_fingertips(world.snapshot()["hips"][first:first + n], frame, orientations=turns)
         source = SpaceMouseSource(hand, path=entry.port.encode() if entry.port else None)
     else:
         from .engine.devices.opengloves import OpenGlovesSource

@@ -342,6 +342,8 @@ static const Field serial_stats_fields[] = {
     FIELD(gcSerialStats, duplicate_poses, U64),
     FIELD(gcSerialStats, foreign_datagrams, U64),
     FIELD_TEXT(gcSerialStats, peer),
+    FIELD(gcSerialStats, sends_orientations, BOOL),
+    FIELD(gcSerialStats, oriented_poses, U64),
 };
 
 /* finger_contacts(finger): one dict per point of the patch (docs/api.md). */
@@ -1132,6 +1134,18 @@ static PyObject *World_set_hip_track(PyObject *obj, PyObject *args) {
     return result;
 }
 
+/* Quaternions (w, x, y, z), one a row of `rows` (float64, C-contiguous) into q: 0 with
+ * ValueError otherwise (q released). */
+static int wxyz_rows(PyObject *obj, Py_buffer *q, Py_ssize_t rows) {
+    if (PyObject_GetBuffer(obj, q, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) return 0;
+    if (!q->format || strcmp(q->format, "d") != 0 || q->len != rows * 4 * (Py_ssize_t)sizeof(double)) {
+        PyBuffer_Release(q);
+        PyErr_Format(PyExc_ValueError, "orientations: must be a C-contiguous float64 array of %zd wxyz rows", rows);
+        return 0;
+    }
+    return 1;
+}
+
 /* _push_hips(positions float64 (n, 3), t[, orientations float64 (n, 4) or None]). */
 static PyObject *World_push_hips(PyObject *obj, PyObject *args) {
     WorldObject *self = (WorldObject *)obj;
@@ -1142,20 +1156,16 @@ static PyObject *World_push_hips(PyObject *obj, PyObject *args) {
     Py_ssize_t rows = xyz_rows(positions, &b, "positions", 1, INT_MAX / 4);
     if (rows < 0) return NULL;
     int has_quat = quat_obj != Py_None;
-    if (has_quat && PyObject_GetBuffer(quat_obj, &q, PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0) {
+    if (has_quat && !wxyz_rows(quat_obj, &q, rows)) {
         PyBuffer_Release(&b);
         return NULL;
     }
     PyObject *result = NULL;
-    if (has_quat && (!q.format || strcmp(q.format, "d") != 0 || q.len != rows * 4 * (Py_ssize_t)sizeof(double))) {
-        PyErr_Format(PyExc_ValueError, "orientations: must be a C-contiguous float64 array of %zd wxyz rows", rows);
-    } else {
-        gcStatus st = gc_world_push_finger_poses(self->world, b.buf, has_quat ? q.buf : NULL, (int)rows, t);
-        if (st < 0)
-            raise_status(self, st);
-        else
-            result = PyBool_FromLong(st == GC_OK);
-    }
+    gcStatus st = gc_world_push_finger_poses(self->world, b.buf, has_quat ? q.buf : NULL, (int)rows, t);
+    if (st < 0)
+        raise_status(self, st);
+    else
+        result = PyBool_FromLong(st == GC_OK);
     if (has_quat) PyBuffer_Release(&q);
     PyBuffer_Release(&b);
     return result;
@@ -1684,11 +1694,8 @@ static PyObject *World_serial_stats(PyObject *obj, PyObject *args) {
  * True if taken, False if rejected (counted). */
 typedef gcStatus (*DeviceRows)(gcWorld *, int, int, const double *);
 
-static PyObject *device_rows(WorldObject *self, PyObject *args, DeviceRows call, const char *rows_name,
-                             const char *not_running) {
-    int offset;
-    PyObject *rows_obj;
-    if (!PyArg_ParseTuple(args, "iO", &offset, &rows_obj) || !check_world(self)) return NULL;
+static PyObject *device_rows(WorldObject *self, int offset, PyObject *rows_obj, DeviceRows call,
+                             const char *rows_name, const char *not_running) {
     Py_buffer b;
     Py_ssize_t rows = xyz_rows(rows_obj, &b, rows_name, 1, INT_MAX);
     if (rows < 0) return NULL;
@@ -1702,15 +1709,40 @@ static PyObject *device_rows(WorldObject *self, PyObject *args, DeviceRows call,
     return PyBool_FromLong(st == GC_OK);
 }
 
-/* push_device_hips(finger_offset, positions): HIPs from a device read in Python. */
+/* push_device_hips(finger_offset, positions[, orientations float64 (n, 4) or None]): HIPs, and
+ * convex fingers' orientations, from a device read in Python. */
 static PyObject *World_push_device_hips(PyObject *obj, PyObject *args) {
-    return device_rows((WorldObject *)obj, args, gc_world_push_device_hips, "positions",
-                       "push_device_hips: the runtime is not running (World.start)");
+    WorldObject *self = (WorldObject *)obj;
+    int offset;
+    PyObject *rows_obj, *quat_obj = Py_None;
+    if (!PyArg_ParseTuple(args, "iO|O", &offset, &rows_obj, &quat_obj) || !check_world(self)) return NULL;
+    if (quat_obj == Py_None) return device_rows(self, offset, rows_obj, gc_world_push_device_hips, "positions",
+                                                "push_device_hips: the runtime is not running (World.start)");
+    Py_buffer b, q;
+    Py_ssize_t rows = xyz_rows(rows_obj, &b, "positions", 1, INT_MAX / 4);
+    if (rows < 0) return NULL;
+    if (!wxyz_rows(quat_obj, &q, rows)) {
+        PyBuffer_Release(&b);
+        return NULL;
+    }
+    gcStatus st = gc_world_push_device_poses(self->world, offset, (int)rows, b.buf, q.buf);
+    PyBuffer_Release(&q);
+    PyBuffer_Release(&b);
+    if (st == GC_ERR_NOT_RUNNING) {
+        PyErr_SetString(PyExc_RuntimeError, "push_device_hips: the runtime is not running (World.start)");
+        return NULL;
+    }
+    if (st < 0) return raise_status(self, st);
+    return PyBool_FromLong(st == GC_OK);
 }
 
 /* device_forces_sent(finger_offset, forces): what that device was sent, for the record. */
 static PyObject *World_device_forces_sent(PyObject *obj, PyObject *args) {
-    return device_rows((WorldObject *)obj, args, gc_world_device_forces_sent, "forces", NULL);
+    WorldObject *self = (WorldObject *)obj;
+    int offset;
+    PyObject *rows_obj;
+    if (!PyArg_ParseTuple(args, "iO", &offset, &rows_obj) || !check_world(self)) return NULL;
+    return device_rows(self, offset, rows_obj, gc_world_device_forces_sent, "forces", NULL);
 }
 
 /* ---- devices read in Python: their forces from the haptic tick, through the one gate ---- */
@@ -1821,8 +1853,9 @@ static PyMethodDef World_methods[] = {
     {"serial_estop", World_serial_estop, METH_VARARGS, "serial_estop(device): forces off, latched until enabled."},
     {"serial_stats", World_serial_stats, METH_VARARGS, "serial_stats(device) -> dict: state, rate, drops, latency."},
     {"push_device_hips", World_push_device_hips, METH_VARARGS,
-     "push_device_hips(finger_offset, array (n, 3) float64): HIPs from a device read in Python (SpaceMouse, glove), "
-     "merged with the serial devices' fingers."},
+     "push_device_hips(finger_offset, array (n, 3) float64[, orientations (n, 4) float64 w x y z]): HIPs from a "
+     "device read in Python (SpaceMouse, glove), merged with the serial devices' fingers; orientations (unit) turn "
+     "convex fingers too. False: a NaN/Inf position or a non-unit quaternion, nothing taken (rejected_inputs)."},
     {"device_forces_sent", World_device_forces_sent, METH_VARARGS,
      "device_forces_sent(finger_offset, array (n, 3) float64): what a device read in Python was sent (scene axes), "
      "recorded as those fingers' device force until the next call."},

@@ -488,6 +488,9 @@ typedef struct gcSerialStats {
     uint64_t late_poses, duplicate_poses; /* UDP: poses older than, or the same as, the newest taken: dropped */
     uint64_t foreign_datagrams; /* UDP: from an address other than the pinned device's: dropped */
     char peer[64];              /* UDP: the device's address once pinned ("" before) */
+    int sends_orientations;     /* its hello offers orientations (HELLO_DEVICE flags bit 1) and the host takes
+                                 * them (a workspace frame that does not mirror) */
+    uint64_t oriented_poses;    /* poses that carried the fingers' orientations */
 } gcSerialStats;
 
 gcStatus gc_world_attach_serial(gcWorld *world, int fd, const gcSerialDef *def, int32_t *out_device);
@@ -501,8 +504,15 @@ int gc_world_serial_events(gcWorld *world, int32_t device, gcSerialEvent *out, i
 /* HIPs of fingers finger_offset .. finger_offset+count-1 from a device read elsewhere (a
  * SpaceMouse, a glove), merged with the serial devices' fingers and pushed the same way:
  * the call to use instead of push_hips while serial devices are attached.
- * GC_WARN_REJECTED: a NaN/Inf position (nothing pushed). */
+ * GC_WARN_REJECTED: a NaN/Inf position (nothing pushed, counted in rejected_inputs). */
 gcStatus gc_world_push_device_hips(gcWorld *world, int finger_offset, int count, const double *positions);
+/* push_device_hips with each finger's orientation too (count quaternions w, x, y, z; NULL =
+ * positions only): a convex finger turns from where it is to the sample over the same interval as
+ * its position walks (normalised lerp, the shorter arc, as gc_world_push_finger_poses). Each
+ * quaternion must be finite and unit (| |q|^2 - 1 | <= 1e-3): GC_WARN_REJECTED otherwise, as for
+ * a NaN/Inf position (nothing taken; both counted in the runtime's rejected_inputs). */
+gcStatus gc_world_push_device_poses(gcWorld *world, int finger_offset, int count, const double *positions,
+                                    const double *orientations);
 /* What such a device was sent for fingers finger_offset.. (3 a finger, scene axes; zeros for an
  * input-only device), held until the next call: recorded in the tick log as their device force,
  * as the serial devices' frames are. GC_WARN_REJECTED: a NaN/Inf force (nothing stored). */

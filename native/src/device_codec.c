@@ -74,7 +74,8 @@ static int payload_length_ok(uint8_t type, const uint8_t *p, size_t n) {
     switch (type) {
     case GC_MSG_HELLO_HOST: return n == 2;
     case GC_MSG_HELLO_DEVICE: return n >= 12 && n <= 12 + GC_PROTO_NAME_MAX;
-    case GC_MSG_POSE:
+    case GC_MSG_POSE: /* positions, or positions then orientations (the device's hello says which it may send) */
+        return n >= 6 && ((size_t)p[4] * GC_PROTO_POSE_FINGER == n - 6 || (size_t)p[4] * GC_PROTO_ORIENTED_FINGER == n - 6);
     case GC_MSG_FORCE: return n >= 6 && (size_t)p[4] * 12 == n - 6;
     case GC_MSG_ENABLE:
     case GC_MSG_ESTOP: return n == 1;

@@ -10,7 +10,10 @@
 #define GC_PROTO_VERSION 1
 #define GC_PROTO_MAX_FINGERS 32
 #define GC_PROTO_HEADER 4
-#define GC_PROTO_BODY_MAX (GC_PROTO_HEADER + 6 + 12 * GC_PROTO_MAX_FINGERS + 2)
+#define GC_PROTO_POSE_FINGER 12          /* f32 x, y, z */
+#define GC_PROTO_ORIENTED_FINGER 28      /* f32 x, y, z, then f32 w, x, y, z (HELLO_DEVICE flags bit 1) */
+/* The largest frame: a POSE of 32 fingers with orientations (a FORCE of 32 is 396 bytes). */
+#define GC_PROTO_BODY_MAX (GC_PROTO_HEADER + 6 + GC_PROTO_ORIENTED_FINGER * GC_PROTO_MAX_FINGERS + 2)
 #define GC_PROTO_WIRE_MAX (GC_PROTO_BODY_MAX + GC_PROTO_BODY_MAX / 254 + 1) /* delimiter excluded */
 #define GC_PROTO_NAME_MAX 32
 
@@ -23,7 +26,9 @@ enum {
     GC_MSG_ESTOP = 0x06,
     GC_MSG_HEARTBEAT = 0x07
 };
-enum { GC_CAP_FORCES = 0x01 };
+enum { GC_CAP_FORCES = 0x01, GC_CAP_ORIENTATION = 0x02 };
+/* FORCE byte 5: the host takes this device's orientations (it may send them from now on). */
+enum { GC_FORCE_TAKES_ORIENTATION = 0x01 };
 enum { GC_STATUS_FORCES_ON = 0x01, GC_STATUS_ESTOPPED = 0x02, GC_STATUS_GRIP = 0x04 };
 
 /* Why a frame was dropped; the order of protocol.py's StreamDecoder.KINDS, then range. */
@@ -70,6 +75,11 @@ typedef struct gcFrameDecoder {
 void gc_decoder_reset(gcFrameDecoder *d);
 /* 1 when this byte completed a valid frame (in *out); errors are counted in d->errors. */
 int gc_decoder_push(gcFrameDecoder *d, uint8_t byte, gcFrame *out);
+
+/* A valid POSE frame's payload carries an orientation a finger (after the positions). */
+static inline int gc_pose_has_orientations(const gcFrame *fr) {
+    return fr->len >= 6 && fr->payload[4] > 0 && fr->len == 6 + (size_t)GC_PROTO_ORIENTED_FINGER * fr->payload[4];
+}
 
 /* Little-endian field access for payloads. */
 static inline uint16_t gc_le16(const uint8_t *p) { return (uint16_t)(p[0] | p[1] << 8); }

@@ -6,6 +6,7 @@
 
 #include "graspcore.h"
 #include "body.h"
+#include "runtime_internal.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -85,12 +86,20 @@ void gc_device_hub_release(gcDeviceHub *h, int offset, int n, int owner) {
     }
 }
 
-void gc_device_hub_write_hips(gcDeviceHub *h, int offset, int n, const double *positions, uint32_t episode) {
+int gc_device_quat_usable(const double q[4]) {
+    const double n2 = q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3];
+    return isfinite(n2) && fabs(n2 - 1.0) <= GC_DEVICE_QUAT_UNIT_TOL; /* NaN/Inf in q: n2 is not finite */
+}
+
+void gc_device_hub_write_hips(gcDeviceHub *h, int offset, int n, const double *positions,
+                              const double *orientations, uint32_t episode) {
     const double t = (double)gc_clock_now_ns() / GC_NS_PER_S;
     for (int k = 0; k < n; ++k) {
         gcHipSlot *s = &h->slot[offset + k];
         gcDeviceSample *out = &s->sample[s->triple.back];
         memcpy(out->hip, &positions[3 * k], sizeof out->hip);
+        out->has_q = orientations != NULL;
+        if (orientations) memcpy(out->q, &orientations[4 * k], sizeof out->q);
         out->t = t;
         out->serial = ++s->writes;
         out->episode = episode;
@@ -218,6 +227,11 @@ static const char *check_fingers(const gcWorld *w, int offset, int count_) {
 }
 
 gcStatus gc_world_push_device_hips(gcWorld *w, int offset, int count_, const double *positions) {
+    return gc_world_push_device_poses(w, offset, count_, positions, NULL);
+}
+
+gcStatus gc_world_push_device_poses(gcWorld *w, int offset, int count_, const double *positions,
+                                    const double *orientations) {
     if (!w || !positions || !w->serial) return GC_ERR_INVALID_ARGUMENT;
     if (check_fingers(w, offset, count_)) {
         gc_world_set_error(w, "finger_offset, count: fingers %d..%d are not all fingers of the world", offset,
@@ -225,8 +239,13 @@ gcStatus gc_world_push_device_hips(gcWorld *w, int offset, int count_, const dou
         return GC_ERR_INVALID_ARGUMENT;
     }
     if (!w->runtime || !w->locked) return GC_ERR_NOT_RUNNING;
-    for (int i = 0; i < 3 * count_; ++i)
-        if (!isfinite(positions[i])) return GC_WARN_REJECTED;
+    int usable = 1;
+    for (int i = 0; i < 3 * count_; ++i) usable &= isfinite(positions[i]) != 0;
+    for (int i = 0; orientations && i < count_; ++i) usable &= gc_device_quat_usable(&orientations[4 * i]);
+    if (!usable) { /* nothing of the sample is taken */
+        gc_runtime_count_rejected(w);
+        return GC_WARN_REJECTED;
+    }
     gcDeviceHub *h = w->serial;
     pthread_mutex_lock(&h->api_write_mutex); /* callers on several threads: one writer a finger at a time */
     if (!gc_device_hub_claim(h, offset, count_, GC_HUB_OWNER_API)) {
@@ -235,7 +254,7 @@ gcStatus gc_world_push_device_hips(gcWorld *w, int offset, int count_, const dou
                            offset + count_ - 1);
         return GC_ERR_INVALID_ARGUMENT;
     }
-    gc_device_hub_write_hips(h, offset, count_, positions, 1);
+    gc_device_hub_write_hips(h, offset, count_, positions, orientations, 1);
     pthread_mutex_unlock(&h->api_write_mutex);
     return GC_OK;
 }

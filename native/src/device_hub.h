@@ -23,6 +23,8 @@
 /* One sample of a finger's device. */
 typedef struct gcDeviceSample {
     double hip[3];      /* scene metres */
+    double q[4];        /* the finger's orientation (w, x, y, z, unit) when has_q */
+    int has_q;          /* 0: positions only, the finger keeps its orientation */
     double t;           /* s, CLOCK_MONOTONIC when the device thread took it */
     uint64_t serial;    /* the finger's write count: 0 never written */
     uint32_t episode;   /* the device's connection: a new one starts with a soft start */
@@ -72,8 +74,14 @@ void gc_device_hub_destroy(gcDeviceHub *hub);
 /* Fingers [offset, offset + n) to `owner`: 0 when one of them has another owner. */
 int gc_device_hub_claim(gcDeviceHub *hub, int offset, int n, int owner);
 void gc_device_hub_release(gcDeviceHub *hub, int offset, int n, int owner);
-/* The finger's owner writes its samples (positions: 3 a finger, finite), stamped now. */
-void gc_device_hub_write_hips(gcDeviceHub *hub, int offset, int n, const double *positions, uint32_t episode);
+/* The finger's owner writes its samples (positions: 3 a finger, finite; orientations: NULL, or
+ * 4 a finger, each passing gc_device_quat_usable), stamped now. */
+void gc_device_hub_write_hips(gcDeviceHub *hub, int offset, int n, const double *positions,
+                              const double *orientations, uint32_t episode);
+/* A device's orientation (w, x, y, z) is taken only when finite and unit within
+ * GC_DEVICE_QUAT_UNIT_TOL (|q|^2 - 1): a device sends a rotation, never a scaled one. */
+#define GC_DEVICE_QUAT_UNIT_TOL 1e-3
+int gc_device_quat_usable(const double q[4]);
 /* The haptic loop only: finger i's latest sample; 0 when no owner drives it now. */
 int gc_device_hub_latest_hip(gcDeviceHub *hub, int finger, gcDeviceSample *out);
 

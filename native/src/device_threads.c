@@ -12,6 +12,7 @@
 
 #include "graspcore.h"
 #include "body.h"
+#include "small_dense.h"
 
 #include <arpa/inet.h>
 #include <errno.h>
@@ -44,6 +45,8 @@ struct gcSerialDevice {
     gcSerialDef def;
     double A[9], b[3]; /* device metres -> world: x = A p + b */
     double A_inv[9];   /* forces sent (device axes) back to scene axes: f = A^-T f_dev */
+    gcQuat A_rot;      /* the rotation of A (its polar factor): device orientations into the scene */
+    int A_mirrors;     /* det A < 0: no rotation maps a device's orientations; positions only */
     pthread_t thread;
     _Atomic int run;
     _Atomic int enable_request, enable_generation, estop_request;
@@ -84,6 +87,7 @@ typedef struct gcDeviceRun { /* the thread's own state */
     uint64_t latency_n;
     double latency_max_us;
     double hips[3 * GC_PROTO_MAX_FINGERS];
+    double orientations[4 * GC_PROTO_MAX_FINGERS]; /* scene, w x y z: a pose's that carried them */
 } gcDeviceRun;
 
 static void emit(gcSerialDevice *d, int code, int value) {
@@ -183,7 +187,7 @@ static void let_go(gcDeviceRun *r) {
     gcSerialDevice *d = r->dev;
     double go[3 * GC_PROTO_MAX_FINGERS];
     if (!gc_device_hub_read(d->hub, d->def.finger_offset, d->def.num_fingers, NULL, go, NULL, NULL)) return;
-    gc_device_hub_write_hips(d->hub, d->def.finger_offset, d->def.num_fingers, go, r->episode);
+    gc_device_hub_write_hips(d->hub, d->def.finger_offset, d->def.num_fingers, go, NULL, r->episode);
 }
 
 static void lose(gcDeviceRun *r, int state) {
@@ -222,7 +226,7 @@ static void send_forces(gcDeviceRun *r, uint16_t ack, int64_t t) {
     gc_put16(p, ack);
     gc_put16(p + 2, gc_force_gate_ttl_us(d->def.force_ttl, r->s.device_ttl_max));
     p[4] = (uint8_t)n;
-    p[5] = 0;
+    p[5] = r->s.sends_orientations ? GC_FORCE_TAKES_ORIENTATION : 0; /* the device may send them from now on */
     double sent[3 * GC_PROTO_MAX_FINGERS]; /* what the frame carries, back in scene axes */
     for (int i = 0; i < n; ++i) {
         double v[3] = {0, 0, 0};
@@ -249,6 +253,7 @@ static void on_hello(gcDeviceRun *r, const gcFrame *fr) {
     gcSerialStats *s = &r->s;
     s->device_fingers = n;
     s->renders_forces = (p[1] & GC_CAP_FORCES) != 0;
+    s->sends_orientations = (p[1] & GC_CAP_ORIENTATION) && !r->dev->A_mirrors; /* said in every FORCE */
     s->units = units;
     s->device_rate = gc_le16(p + 4);
     s->device_force_max = fmax;
@@ -275,7 +280,20 @@ static void on_pose(gcDeviceRun *r, const gcFrame *fr, int64_t t_read) {
     int n = p[4];
     if (!s->device_fingers) return; /* poses before the hello: not ours to read yet */
     int m = d->def.num_fingers < n ? d->def.num_fingers : n;
+    const int oriented = gc_pose_has_orientations(fr);
+    if (oriented && !s->sends_orientations) { /* not what its hello (or our FORCE frames) allowed */
+        r->dec.errors[GC_FRAME_LENGTH]++;
+        return;
+    }
     int ok = n == s->device_fingers;
+    for (int i = 0; i < m && ok && oriented; ++i) { /* unit, turned into the scene by A's rotation */
+        const uint8_t *o = p + 6 + GC_PROTO_POSE_FINGER * n + 16 * i;
+        const double q[4] = {gc_lef32(o), gc_lef32(o + 4), gc_lef32(o + 8), gc_lef32(o + 12)};
+        ok = gc_device_quat_usable(q);
+        gcQuat w = gc_quat_mul(d->A_rot, (gcQuat){q[0], q[1], q[2], q[3]});
+        r->orientations[4 * i] = w.w, r->orientations[4 * i + 1] = w.x;
+        r->orientations[4 * i + 2] = w.y, r->orientations[4 * i + 3] = w.z;
+    }
     for (int i = 0; i < m && ok; ++i) {
         double x[3];
         for (int c = 0; c < 3; ++c) {
@@ -307,8 +325,9 @@ static void on_pose(gcDeviceRun *r, const gcFrame *fr, int64_t t_read) {
     }
     r->last_pose_ns = t_read;
     s->poses++;
+    s->oriented_poses += (uint64_t)oriented;
     r->rate_window_poses++;
-    gc_device_hub_write_hips(d->hub, d->def.finger_offset, m, r->hips, r->episode);
+    gc_device_hub_write_hips(d->hub, d->def.finger_offset, m, r->hips, oriented ? r->orientations : NULL, r->episode);
     send_forces(r, fr->seq, t_read);
     double us = (double)(gc_clock_now_ns() - t_read) / 1e3;
     int bin = (int)us;
@@ -525,6 +544,28 @@ static double det3(const double *m) {
     return m[0] * (m[5] * m[10] - m[6] * m[9]) - m[1] * (m[4] * m[10] - m[6] * m[8]) + m[2] * (m[4] * m[9] - m[5] * m[8]);
 }
 
+/* The rotation of a non-singular A (row-major 3x3, det > 0): its polar factor, the rotation
+ * nearest to it (A itself when A is one; A / s for a uniform scale s), by the iteration
+ * R <- (R + R^-T) / 2 (quadratic convergence; capped). */
+static gcQuat rotation_of(const double *A) {
+    gcMat3 R;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) R.m[i][j] = A[3 * i + j];
+    for (int it = 0; it < 64; ++it) {
+        gcMat3 inv, next;
+        if (!gc_invert_mat3(&R, &inv)) break;
+        double change = 0.0;
+        for (int i = 0; i < 3; ++i)
+            for (int j = 0; j < 3; ++j) {
+                next.m[i][j] = 0.5 * (R.m[i][j] + inv.m[j][i]);
+                change = fmax(change, fabs(next.m[i][j] - R.m[i][j]));
+            }
+        R = next;
+        if (change < 1e-15) break;
+    }
+    return gc_mat3_to_quat(&R);
+}
+
 static const char *check_serial_def(const gcWorld *w, int fd, const gcSerialDef *d) {
     if (fd < 0 || fcntl(fd, F_GETFD) == -1) return "fd: must be an open file descriptor";
     if (d->num_fingers < 1 || d->num_fingers > GC_PROTO_MAX_FINGERS) return "num_fingers: must be 1..32";
@@ -609,6 +650,8 @@ gcStatus gc_world_attach_serial(gcWorld *w, int fd, const gcSerialDef *def, int3
             int i1 = (j + 1) % 3, i2 = (j + 2) % 3, j1 = (i + 1) % 3, j2 = (i + 2) % 3;
             d->A_inv[3 * i + j] = (A[3 * i1 + j1] * A[3 * i2 + j2] - A[3 * i1 + j2] * A[3 * i2 + j1]) * inv_det;
         }
+    d->A_mirrors = inv_det < 0;
+    d->A_rot = d->A_mirrors ? (gcQuat){1, 0, 0, 0} : rotation_of(A);
     pthread_mutex_init(&d->stats_mutex, NULL);
     atomic_store(&d->run, 1);
     r->dev = d;

@@ -105,6 +105,27 @@ static inline gcQuat gc_quat_from_rotation_vector(gcVec3 v) {
     return q;
 }
 
+/* The unit quaternion of a rotation matrix (Shepperd: from the largest of w^2, x^2, y^2, z^2,
+ * never dividing by a small number). */
+static inline gcQuat gc_mat3_to_quat(const gcMat3 *r) {
+    const double (*m)[3] = r->m, t = m[0][0] + m[1][1] + m[2][2];
+    gcQuat q;
+    if (t >= m[0][0] && t >= m[1][1] && t >= m[2][2]) {
+        double s = 2.0 * sqrt(1.0 + t);
+        q = (gcQuat){s / 4, (m[2][1] - m[1][2]) / s, (m[0][2] - m[2][0]) / s, (m[1][0] - m[0][1]) / s};
+    } else if (m[0][0] >= m[1][1] && m[0][0] >= m[2][2]) {
+        double s = 2.0 * sqrt(1.0 + 2 * m[0][0] - t);
+        q = (gcQuat){(m[2][1] - m[1][2]) / s, s / 4, (m[0][1] + m[1][0]) / s, (m[0][2] + m[2][0]) / s};
+    } else if (m[1][1] >= m[2][2]) {
+        double s = 2.0 * sqrt(1.0 + 2 * m[1][1] - t);
+        q = (gcQuat){(m[0][2] - m[2][0]) / s, (m[0][1] + m[1][0]) / s, s / 4, (m[1][2] + m[2][1]) / s};
+    } else {
+        double s = 2.0 * sqrt(1.0 + 2 * m[2][2] - t);
+        q = (gcQuat){(m[1][0] - m[0][1]) / s, (m[0][2] + m[2][0]) / s, (m[1][2] + m[2][1]) / s, s / 4};
+    }
+    return gc_quat_normalize(q);
+}
+
 static inline gcMat3 gc_quat_to_mat3(gcQuat q) {
     double w = q.w, x = q.x, y = q.y, z = q.z;
     gcMat3 r = {{{1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)},

@@ -75,7 +75,8 @@ static int update_safety(gcRuntime *rt, int64_t now) {
 
 /* The device slots (device_hub.c): each finger a device drives walks towards its device's
  * latest sample, at most GC_HIP_SOFT_START_SPEED from the first sample of a connection until
- * it is there. Returns 1 when a device sent something new. Pushed rows no longer move such a
+ * it is there; a sample with an orientation turns the finger to it over the same interval
+ * (normalised lerp, as a pushed pose), one without leaves the orientation where it is. Returns 1 when a device sent something new. Pushed rows no longer move such a
  * finger (its device drives it whatever the caller pushes). */
 static int take_device_samples(gcRuntime *rt) {
     gcWorld *hw = &rt->hap;
@@ -92,6 +93,8 @@ static int take_device_samples(gcRuntime *rt) {
         double interval = df->serial ? s.t - df->t : 0.0;
         gc_hip_follow_retarget(&rt->follow[i], hw->fingers[i].hip, gc_v3(s.hip[0], s.hip[1], s.hip[2]), interval,
                                rt->dt_haptic);
+        if (s.has_q) /* as a pushed pose's: over the same interval as its position */
+            gc_hip_follow_turn_to(&rt->follow[i], hw->fingers[i].q, (gcQuat){s.q[0], s.q[1], s.q[2], s.q[3]});
         df->serial = s.serial, df->t = s.t, df->episode = s.episode;
         took = 1;
     }

@@ -200,6 +200,9 @@ static inline int gc_runtime_running(const gcWorld *w) {
     return w && w->runtime && atomic_load_explicit(&w->runtime->state, memory_order_acquire) == GC_RUNTIME_RUNNING;
 }
 
+/* An input refused (a bad sample pushed or a device's, nothing taken): stats' rejected_inputs. */
+static inline void gc_runtime_count_rejected(gcWorld *w) { gc_atomic_increment(&w->runtime->rejected_inputs); }
+
 /* A body's state from a channel message into a shadow (channels). */
 void gc_runtime_body_load(gcWorld *s, int32_t i, const gcRuntimeBody *o);
 /* The haptic loop's message to the object manager. */

@@ -9,6 +9,7 @@
 #include "device_codec.h"
 #include "force_gate.h"
 #include "hip_input.h"
+#include "device_hub.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -54,6 +55,19 @@ static void test_crc_and_cobs(void) {
     GC_CHECK(gc_cobs_decode(past, 2, dec, sizeof dec, &m) == -1, "a block running past the end is refused");
 }
 
+/* What the device thread takes of a valid POSE frame's payload: finite positions and, when it
+ * carries them, unit orientations (gc_device_quat_usable). */
+static int pose_payload_usable(const gcFrame *fr) {
+    int n = fr->payload[4], ok = 1;
+    for (int i = 0; i < 3 * n; ++i) ok &= isfinite(gc_lef32(fr->payload + 6 + 4 * i)) != 0;
+    for (int i = 0; gc_pose_has_orientations(fr) && i < n; ++i) {
+        const uint8_t *o = fr->payload + 6 + 12 * n + 16 * i;
+        const double q[4] = {gc_lef32(o), gc_lef32(o + 4), gc_lef32(o + 8), gc_lef32(o + 12)};
+        ok &= gc_device_quat_usable(q);
+    }
+    return ok;
+}
+
 static void test_vectors(void) {
     FILE *f = fopen(VECTORS, "r");
     GC_CHECK(f != NULL, "cannot open %s (run from the repository root)", VECTORS);
@@ -84,8 +98,8 @@ static void test_vectors(void) {
             gcFrame fr;
             gcFrameError e = gc_frame_decode(wire, (size_t)nw - 1, &fr);
             if (!strcmp(want, "range")) /* a valid frame whose payload the device thread refuses */
-                GC_CHECK(e == GC_FRAME_OK && fr.type == GC_MSG_POSE && gc_lef32(fr.payload + 6) != gc_lef32(fr.payload + 6),
-                         "%s: a pose frame with a NaN", name);
+                GC_CHECK(e == GC_FRAME_OK && fr.type == GC_MSG_POSE && !pose_payload_usable(&fr),
+                         "%s: a pose frame with a NaN or a non-unit orientation", name);
             else
                 GC_CHECK(e >= 0 && !strcmp(kind_names[e], want), "%s: error %s, want %s", name, e >= 0 ? kind_names[e] : "ok", want);
             ++bad_count;
@@ -1123,6 +1137,162 @@ static void test_device_forces_for_api_fingers(void) {
     gc_world_destroy(w);
 }
 
+
+/* A device slot's orientation (gc_world_push_device_poses) reaches a convex finger through the
+ * threaded haptic tick: the finger ends at the device's quaternion; a sample without one leaves
+ * it where it is; a non-unit or non-finite quaternion is refused and counted as a NaN position
+ * is, nothing of the sample taken. */
+static void test_device_orientation_turns_a_convex_finger(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    double pts[24];
+    for (int i = 0; i < 8; ++i) {
+        pts[3 * i] = (i & 1) ? 0.04 : -0.04;
+        pts[3 * i + 1] = (i & 2) ? 0.03 : -0.03;
+        pts[3 * i + 2] = (i & 4) ? 0.01 : -0.01;
+    }
+    gcFingerDef fd = gc_default_finger_def();
+    fd.radius = 0.0;
+    fd.points = pts;
+    fd.num_points = 8;
+    int32_t palm;
+    GC_CHECK(gc_world_add_finger(w, &fd, &palm) == GC_OK, "palm: %s", gc_world_last_error(w));
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start");
+    const double a = 0.3, here[3] = {0, 0, 0.02}; /* 0.3 rad about (0.6, 0, 0.8) */
+    const double q[4] = {cos(a / 2), 0.6 * sin(a / 2), 0.0, 0.8 * sin(a / 2)};
+    const double scaled[4] = {2 * q[0], 2 * q[1], 2 * q[2], 2 * q[3]}, nan_q[4] = {NAN, 0, 0, 0};
+    const double nan_p[3] = {0, NAN, 0}, far[3] = {0, 0, 0.5};
+    GC_CHECK(gc_world_push_device_poses(w, 0, 1, far, scaled) == GC_WARN_REJECTED, "a scaled quaternion refused");
+    GC_CHECK(gc_world_push_device_poses(w, 0, 1, far, nan_q) == GC_WARN_REJECTED, "a NaN quaternion refused");
+    GC_CHECK(gc_world_push_device_poses(w, 0, 1, nan_p, q) == GC_WARN_REJECTED, "a NaN position refused");
+    GC_CHECK(gc_world_push_device_hips(w, 0, 1, nan_p) == GC_WARN_REJECTED, "a NaN position refused");
+    gcRuntimeStats st;
+    GC_CHECK(gc_world_stats(w, &st) == GC_OK && st.rejected_inputs == 4 && st.accepted_inputs == 0,
+             "all four counted: %llu", (unsigned long long)st.rejected_inputs);
+    for (int k = 0; k < 200; ++k) { /* 0.2 s of samples, a millisecond apart */
+        GC_CHECK(gc_world_push_device_poses(w, 0, 1, here, q) == GC_OK, "pushed");
+        sleep_ms(1);
+    }
+    const double elsewhere[3] = {0, 0, 0.03};
+    for (int k = 0; k < 50; ++k) { /* positions only: the orientation stays */
+        GC_CHECK(gc_world_push_device_hips(w, 0, 1, elsewhere) == GC_OK, "pushed");
+        sleep_ms(1);
+    }
+    sleep_ms(20);
+    gc_world_stop(w);
+    double p[3], o[4];
+    GC_CHECK(gc_world_finger_pose(w, palm, p, o) == GC_OK, "pose");
+    for (int c = 0; c < 4; ++c) GC_CHECK(fabs(o[c] - q[c]) < 1e-12, "orientation[%d] %.15f, want %.15f", c, o[c], q[c]);
+    GC_CHECK(fabs(p[2] - 0.03) < 1e-12, "the later position taken: %g", p[2]);
+    gc_world_destroy(w);
+}
+
+
+static void dev_pose_oriented(Dev *d, double z, const double q[4]) {
+    uint8_t p[6 + GC_PROTO_ORIENTED_FINGER];
+    gc_put32(p, d->seq * 1000u);
+    p[4] = 1;
+    p[5] = d->status;
+    gc_putf32(p + 6, 0.0f), gc_putf32(p + 10, 0.0f), gc_putf32(p + 14, (float)z);
+    for (int c = 0; c < 4; ++c) gc_putf32(p + 18 + 4 * c, (float)q[c]);
+    dev_send(d, GC_MSG_POSE, p, sizeof p);
+}
+
+/* A device's orientations over the protocol (docs/protocol.md §2): offered in its hello
+ * (flags bit 1), taken by the host in every FORCE (flags bit 0), then sent after the positions;
+ * the finger turns to the workspace frame's rotation times the device's. A device that did not
+ * offer them has its oriented poses dropped (length); a non-unit one is dropped (range); a
+ * mirrored workspace frame takes positions only. */
+static void test_serial_orientations(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    double pts[24];
+    for (int i = 0; i < 8; ++i) {
+        pts[3 * i] = (i & 1) ? 0.04 : -0.04;
+        pts[3 * i + 1] = (i & 2) ? 0.03 : -0.03;
+        pts[3 * i + 2] = (i & 4) ? 0.01 : -0.01;
+    }
+    gcFingerDef fd = gc_default_finger_def();
+    fd.radius = 0.0, fd.points = pts, fd.num_points = 8;
+    int32_t palm;
+    GC_CHECK(gc_world_add_finger(w, &fd, &palm) == GC_OK, "palm: %s", gc_world_last_error(w));
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start");
+    int sv[2];
+    GC_CHECK(socketpair(AF_UNIX, SOCK_STREAM, 0, sv) == 0, "socketpair");
+    fcntl(sv[0], F_SETFL, O_NONBLOCK);
+    static Dev dev;
+    memset(&dev, 0, sizeof dev);
+    dev.fd = sv[1];
+    gc_decoder_reset(&dev.dec);
+    gcSerialDef sd = gc_default_serial_def();
+    sd.num_fingers = 1;
+    /* The workspace: 90 deg about z, scaled by 2 (the rotation of A is its polar factor). */
+    const double A[9] = {0, -2, 0, 2, 0, 0, 0, 0, 2};
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) sd.transform[4 * i + j] = A[3 * i + j];
+    int32_t id;
+    GC_CHECK(gc_world_attach_serial(w, sv[0], &sd, &id) == GC_OK, "attach: %s", gc_world_last_error(w));
+    dev_read(&dev, 200);
+    uint8_t hello[12];
+    memset(hello, 0, sizeof hello);
+    hello[0] = 1, hello[1] = 0; /* positions only */
+    gc_put16(hello + 4, 1000);
+    dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, sizeof hello);
+    const double a = 0.4, tilt[4] = {cos(a / 2), sin(a / 2), 0, 0}; /* about the device's x */
+    gcSerialStats st;
+    for (int k = 0; k < 50; ++k) dev_pose(&dev, 0, 0, 0.01), dev_read(&dev, 1);
+    for (int k = 0; k < 20; ++k) dev_pose_oriented(&dev, 0.01, tilt), dev_read(&dev, 1);
+    WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.frame_errors[GC_FRAME_LENGTH] >= 20)); /* published every 10 ms */
+    GC_CHECK(st.frame_errors[GC_FRAME_LENGTH] == 20 && !st.sends_orientations && st.oriented_poses == 0,
+             "a device that did not offer them: its oriented poses dropped (length %llu)",
+             (unsigned long long)st.frame_errors[GC_FRAME_LENGTH]);
+    GC_CHECK(dev.forces > 0 && dev.last_force.payload[5] == 0, "FORCE flags 0 for it: %d", dev.last_force.payload[5]);
+
+    hello[1] = GC_CAP_ORIENTATION;
+    dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, sizeof hello);
+    int forces_before = dev.forces;
+    for (int k = 0; k < 20; ++k) dev_pose(&dev, 0, 0, 0.01), dev_read(&dev, 1);
+    WAIT_UNTIL((dev_read(&dev, 1), dev.forces > forces_before + 5));
+    GC_CHECK(dev.last_force.payload[5] == GC_FORCE_TAKES_ORIENTATION, "the host takes them: FORCE flags %d",
+             dev.last_force.payload[5]);
+    const double scaled[4] = {2, 0, 0, 0};
+    for (int k = 0; k < 5; ++k) dev_pose_oriented(&dev, 0.01, scaled), dev_read(&dev, 1);
+    for (int k = 0; k < 200; ++k) dev_pose_oriented(&dev, 0.01, tilt), dev_read(&dev, 1);
+    WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.oriented_poses >= 200));
+    GC_CHECK(st.sends_orientations && st.oriented_poses == 200 && st.frame_errors[GC_FRAME_RANGE] == 5,
+             "oriented poses %llu, range %llu", (unsigned long long)st.oriented_poses,
+             (unsigned long long)st.frame_errors[GC_FRAME_RANGE]);
+    GC_CHECK(gc_world_detach_serial(w, id) == GC_OK, "detach");
+
+    /* A mirrored frame: the host does not take them, whatever the hello offers. */
+    sd.transform[10] = -2;
+    GC_CHECK(gc_world_attach_serial(w, sv[0], &sd, &id) == GC_OK, "attach mirrored: %s", gc_world_last_error(w));
+    dev_read(&dev, 200);
+    dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, sizeof hello);
+    forces_before = dev.forces;
+    for (int k = 0; k < 20; ++k) dev_pose(&dev, 0, 0, 0.01), dev_read(&dev, 1);
+    WAIT_UNTIL((dev_read(&dev, 1), dev.forces > forces_before + 5));
+    WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.poses >= 20));
+    GC_CHECK(st.poses >= 20 && !st.sends_orientations && dev.last_force.payload[5] == 0, "mirrored: FORCE flags %d",
+             dev.last_force.payload[5]);
+    GC_CHECK(gc_world_detach_serial(w, id) == GC_OK, "detach");
+    gc_world_stop(w);
+
+    /* The palm ended at Rz(90 deg) times the device's tilt about x: tilted about the scene's y. */
+    double p[3], o[4];
+    GC_CHECK(gc_world_finger_pose(w, palm, p, o) == GC_OK, "pose");
+    const double h = sqrt(0.5), want[4] = {h * tilt[0], h * tilt[1], h * tilt[1], h * tilt[0]};
+    for (int c = 0; c < 4; ++c) GC_CHECK(fabs(o[c] - want[c]) < 1e-6, "orientation[%d] %.9f, want %.9f", c, o[c], want[c]);
+    close(sv[0]), close(sv[1]);
+    gc_world_destroy(w);
+}
+
 int main(void) {
     test_crc_and_cobs();
     test_force_gate();
@@ -1136,6 +1306,8 @@ int main(void) {
     test_attach_before_start();
     test_device_beside_api_writer();
     test_device_forces_for_api_fingers();
+    test_device_orientation_turns_a_convex_finger();
+    test_serial_orientations();
     test_udp();
     test_peer_gone_before_hello();
     return gc_test_summary("test_serial_io");

@@ -641,3 +641,35 @@ def test_slow_pushed_orientations_are_turned_to_smoothly():
     np.testing.assert_allclose(np.abs(w.finger_pose(palm)[1]), np.abs(q[-1, 0]), atol=1e-15)
     expected = np.degrees(TILT) * np.array([min_jerk((t - 0.3) / 1.0) for t in times])
     np.testing.assert_allclose(tilts, expected, atol=0.25)
+
+
+def test_device_orientations_tilt_a_palm_under_a_plate():
+    """A device read in Python (push_device_hips with orientations) drives the palm's slot: the
+    palm turns to each sample as a pushed pose does and the plate resting on it tilts with it,
+    to the track's 10 deg; a scaled, zero or NaN quaternion is refused and counted, nothing of
+    its sample taken."""
+    times, positions, q = tilt_track()
+    w, palm, plate = palm_under_plate()
+    w.start(realtime=False, object_rate=1000)
+    tilts = []
+    for k in range(len(times)):
+        assert w.push_device_hips(palm, positions[k], q[k])
+        w.advance(20)
+        tilts.append(tilt_deg_of_pose(w.snapshot()["poses"][plate]))
+    for bad in ([[2.0, 0, 0, 0]], [[0.0, 0, 0, 0]], [[np.nan, 1, 0, 0]]):
+        assert not w.push_device_hips(palm, np.array([[0.0, 0.0, 0.5]]), np.array(bad))
+    with pytest.raises(ValueError, match="orientations: must be a C-contiguous float64 array of 1 wxyz rows"):
+        w.push_device_hips(palm, positions[-1], np.array([[1.0, 0, 0]]))
+    w.advance(20)
+    assert w.stats()["rejected_inputs"] == 3
+    w.stop()
+    np.testing.assert_allclose(np.abs(w.finger_pose(palm)[1]), np.abs(q[-1, 0]), atol=1e-15)
+    assert w.finger_pose(palm)[0] == pytest.approx(tuple(positions[-1, 0]), abs=1e-12)
+    expected = np.degrees(TILT) * np.array([min_jerk((t - 0.3) / 1.0) for t in times])
+    np.testing.assert_allclose(tilts, expected, atol=0.25)
+    assert tilt_deg(w, plate) == pytest.approx(10.0, abs=0.2)
+
+
+def tilt_deg_of_pose(pose):
+    R = quat_to_matrix(pose[3:])
+    return float(np.degrees(np.arccos(np.clip(R[2, 2], -1.0, 1.0))))

@@ -34,6 +34,17 @@ def main():
         ("heartbeat", P.HEARTBEAT, 0x1234, P.heartbeat(0xDEADBEEF)),
         ("pose_32", P.POSE, 0x0100, P.pose(0xFFFFFFFF, [(0.1234567 + i * 0.001, -0.25 - i * 0.002, 0.75 + i * 0.003)
                                                        for i in range(32)], P.STATUS_GRIP)),
+        # Orientations (HELLO_DEVICE flags bit 1, FORCE flags bit 0, POSE 6 + 28 n).
+        ("hello_device_oriented", P.HELLO_DEVICE, 2, P.hello_device(2, True, P.UNITS_METRE, 1000, 4.0, 50, "hand",
+                                                                    orientations=True)),
+        ("force_takes_orientation", P.FORCE, 9, P.force(8, 20000, [(0.0, 0.0, 1.5), (0.25, -0.5, 0.0)],
+                                                        takes_orientations=True)),
+        ("pose_2_oriented", P.POSE, 8, P.pose(123456, [(0.01, 0.02, 0.03), (-0.01, 0.0, 0.5)], P.STATUS_FORCES_ON,
+                                              [(0.9848077297210693, 0.1736481785774231, 0.0, 0.0),
+                                               (0.5, 0.5, 0.5, 0.5)])),
+        ("pose_32_oriented", P.POSE, 0x0101, P.pose(7, [(0.01 * i, 0.0, -0.01 * i) for i in range(32)], 0,
+                                                    [(1.0, 0.0, 0.0, 0.0) if i % 2 else (0.0, 0.0, 0.0, -1.0)
+                                                     for i in range(32)])),
     ]
     pose2 = P.pose(1, [(0.01, 0.02, 0.03), (0.0, 0.0, 0.0)])
     nan_pose = bytearray(pose2)
@@ -41,6 +52,10 @@ def main():
     good = bytearray(raw_frame(1, P.POSE, 5, pose2))
     bad_crc = bytearray(good)
     bad_crc[-1] ^= 0x01
+    oriented = P.pose(1, [(0.01, 0.02, 0.03)], 0, [(1.0, 0.0, 0.0, 0.0)])
+    nan_turn, scaled_turn = bytearray(oriented), bytearray(oriented)
+    nan_turn[22:26] = struct.pack("<f", float("nan"))           # x of the finger's quaternion
+    scaled_turn[18:34] = struct.pack("<ffff", 2.0, 0.0, 0.0, 0.0)
     bad = [
         ("crc", "crc", P.cobs_encode(bytes(bad_crc)) + b"\0"),
         ("version", "version", P.cobs_encode(raw_frame(2, P.HEARTBEAT, 0, P.heartbeat(0))) + b"\0"),
@@ -50,6 +65,9 @@ def main():
         ("short", "short", P.cobs_encode(b"\x01\x03\x00") + b"\0"),
         ("cobs", "cobs", bytes([0x05, 0x01, 0x03]) + b"\0"),
         ("nan", "range", P.cobs_encode(raw_frame(1, P.POSE, 0, bytes(nan_pose))) + b"\0"),
+        ("length_oriented", "length", P.cobs_encode(raw_frame(1, P.POSE, 0, oriented[:-4])) + b"\0"),
+        ("nan_orientation", "range", P.cobs_encode(raw_frame(1, P.POSE, 0, bytes(nan_turn))) + b"\0"),
+        ("scaled_orientation", "range", P.cobs_encode(raw_frame(1, P.POSE, 0, bytes(scaled_turn))) + b"\0"),
     ]
     with open(OUT, "w") as fh:
         fh.write("# Grasp Lab serial protocol v1 test vectors (docs/protocol.md); written by gen_vectors.py\n")

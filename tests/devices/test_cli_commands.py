@@ -27,7 +27,8 @@ def test_devices_probe_finds_the_emulator():
         assert out.returncode == 0, out.stderr
         entry = [d for d in json.loads(out.stdout) if d.get("port") == port and "grasp_lab" in d][0]
         assert entry["grasp_lab"] == {"n_fingers": 3, "renders_forces": True, "units": 0, "rate_hz": 1000,
-                                      "force_max": 2.5, "ttl_max_ms": 50, "name": "grasp-lab-emulator"}
+                                      "force_max": 2.5, "ttl_max_ms": 50, "name": "grasp-lab-emulator",
+                                      "orientations": False}
         report = json.loads([l for l in emu.communicate(timeout=20)[0].splitlines() if l.startswith("REPORT ")][0][7:])
         assert report["host_hellos"] == 1 and report["force_frames"] == 0 and report["poses_sent"] > 100
     finally:

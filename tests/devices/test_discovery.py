@@ -71,7 +71,7 @@ def test_the_emulator_is_found_with_its_finger_count(emulator):
     (r,) = D.probe_ports([port])
     assert r["status"] == "grasp_lab" and r["port"] == port, r
     assert r["hello"] == {"n_fingers": 3, "renders_forces": True, "units": 0, "rate_hz": 1000, "force_max": 5.0,
-                          "ttl_max_ms": 50, "name": "grasp-lab-emulator"}
+                          "ttl_max_ms": 50, "name": "grasp-lab-emulator", "orientations": False}
     assert open_fds_on(port) == []              # the port is closed again
     report = json.loads([l for l in emu.communicate(timeout=20)[0].splitlines() if l.startswith("REPORT ")][0][7:])
     assert report["host_hellos"] == 1 and report["force_frames"] == 0 and report["host_frames_dropped"] == \

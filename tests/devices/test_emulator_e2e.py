@@ -230,3 +230,41 @@ def test_soft_start_first_pose_5_cm_away():
         emu.proc.kill()
         dev.disconnect()
         world.stop()
+
+
+def test_emulator_orientation_tilts_a_palm_under_a_plate():
+    """`--orientation tilt` over a real pty: the emulator offers orientations in its hello, the
+    core's device thread takes them (FORCE flags bit 0), the emulator then sends each pose's
+    quaternion, and the convex palm it drives turns 20 deg about x; the plate resting on it
+    tilts with it (physics through the device slot)."""
+    import math
+    box = lambda hx, hy, hz: np.array([(sx * hx, sy * hy, sz * hz) for sx in (-1, 1) for sy in (-1, 1)
+                                       for sz in (-1, 1)])
+    world = graspcore.World()
+    palm = world.add_finger(radius=0.0, stiffness=1000.0, damping=2.0, position=(0, 0, -0.01),
+                            points=box(0.045, 0.04, 0.01))
+    plate = world.add_body(box(0.1, 0.1, 0.005), mass=0.4, position=(0, 0, 0.005))
+    world.start(priority=0, ramp_time=0.0, watchdog_timeout=0.05)
+    emu = Emulator("--fingers", "1", "--motion", "static", "--orientation", "tilt", "--duration", "2.5")
+    frame = np.eye(4)
+    frame[:3, 3] = (-0.06, 0.0, -0.01)          # the static motion's fingertip (6 cm out) onto the palm
+    dev = SerialDevice(world, emu.port, finger_offset=0, num_fingers=1, transform=frame)
+    try:
+        dev.connect()
+        wait_for(lambda: dev.stats()["oriented_poses"] > 1800, 20, "1.8 s of oriented poses")
+        st = dev.stats()
+        assert st["sends_orientations"] and st["dropped"] == 0, st
+        pose = world.snapshot()["poses"][plate]
+        w = pose[3]
+        tilt = math.degrees(2 * math.acos(min(1.0, abs(w))))
+        assert tilt == pytest.approx(20.0, abs=0.5)     # the palm's 20 deg, the plate resting on it
+        report = emu.stop()
+    finally:
+        emu.proc.kill()
+        dev.disconnect()
+        world.stop()
+    a = math.radians(20.0)
+    np.testing.assert_allclose(world.finger_pose(palm)[1], (math.cos(a / 2), math.sin(a / 2), 0, 0), atol=1e-7)
+    # Positions only until the host's first FORCE frame took them: a handful of poses.
+    assert 0 < report["poses_sent"] - report["oriented_poses"] < 50, report
+    assert report["violations"] == dict.fromkeys(report["violations"], 0), report

@@ -1,9 +1,11 @@
 """The serial protocol codec (docs/protocol.md) against the test vectors, independent
 computations (CRC check value, binascii's CRC, the COBS paper's examples) and fuzzing."""
+import math
 import os
 import random
 import struct
 
+import numpy as np
 import pytest
 
 from addon.engine.devices import protocol as P
@@ -101,6 +103,40 @@ def test_vector_payload_fields():
     assert force.forces == ((0.0, 0.0, 1.5), (0.25, -0.5, 0.0))
     assert P.parse_heartbeat(by_name["heartbeat"][3]) == 0xDEADBEEF
     assert len(P.parse_pose(by_name["pose_32"][3]).positions) == 32
+    assert P.parse_pose(by_name["pose_32"][3]).orientations is None
+
+
+def test_orientation_vectors():
+    """Orientations: offered in the hello (flags bit 1), taken in the FORCE (flags bit 0), sent
+    after the positions (6 + 28 n), each a float32 unit quaternion."""
+    by_name = {v[0]: v for v in OK}
+    hello = P.parse_hello_device(by_name["hello_device_oriented"][3])
+    assert hello == P.HelloDevice(2, True, P.UNITS_METRE, 1000, 4.0, 50, "hand", True)
+    assert by_name["hello_device_oriented"][3][1] == 0x03
+    assert not P.parse_hello_device(by_name["hello_device"][3]).orientations
+    force = P.parse_force(by_name["force_takes_orientation"][3])
+    assert force.takes_orientations and force.forces == ((0.0, 0.0, 1.5), (0.25, -0.5, 0.0))
+    assert by_name["force_takes_orientation"][3][5] == 0x01
+    assert not P.parse_force(by_name["force_2"][3]).takes_orientations
+    pose = P.parse_pose(by_name["pose_2_oriented"][3])
+    assert len(by_name["pose_2_oriented"][3]) == 6 + 28 * 2
+    assert pose.positions == P.parse_pose(by_name["pose_2"][3]).positions
+    c, s = math.cos(math.radians(10)), math.sin(math.radians(10))
+    np.testing.assert_allclose(pose.orientations, [(c, s, 0, 0), (0.5, 0.5, 0.5, 0.5)], atol=1e-7)
+    pose = P.parse_pose(by_name["pose_32_oriented"][3])
+    assert len(pose.orientations) == 32 and pose.orientations[0] == (0.0, 0.0, 0.0, -1.0)
+
+
+@pytest.mark.parametrize("turns, match", [
+    ([(1.0, 0.0, 0.0)], "range: pose: orientation"),
+    ([(2.0, 0.0, 0.0, 0.0)], "range: pose: orientation"),
+    ([(0.0, 0.0, 0.0, 0.0)], "range: pose: orientation"),
+    ([(float("nan"), 0.0, 0.0, 0.0)], "range: pose: orientation"),
+    ([(1.0, 0.0, 0.0, 0.0)] * 2, "length: pose: 2 orientations for 1 fingers"),
+])
+def test_pose_encoder_refuses_bad_orientations(turns, match):
+    with pytest.raises(P.ProtocolError, match=match):
+        P.pose(0, [(0.0, 0.0, 0.0)], 0, turns)
 
 
 def parse_payload(frame):
@@ -120,7 +156,7 @@ def test_stream_decoder_counts_and_resynchronises():
     stream = b"".join(w for _, _, w in BAD if _ != "range") + b"".join(v[4] for v in OK)
     frames = dec.feed(stream)
     assert [f.type for f in frames] == [v[1] for v in OK]
-    assert dec.errors == {"cobs": 1, "short": 1, "crc": 1, "version": 1, "type": 1, "length": 2, "overflow": 0}
+    assert dec.errors == {"cobs": 1, "short": 1, "crc": 1, "version": 1, "type": 1, "length": 3, "overflow": 0}
 
 
 def test_stream_decoder_byte_by_byte_and_overflow():
@@ -179,7 +215,7 @@ def test_protocol_doc_worked_examples_decode():
     doc = open(os.path.join(os.path.dirname(VECTORS), "..", "..", "docs", "protocol.md")).read()
     wires = re.findall(r"^    wire  ([0-9a-f ]+)$", doc, flags=re.M)
     bodies = re.findall(r"^    body  ([0-9a-f |]+?)\s+\(crc 0x([0-9A-F]{4})\)$", doc, flags=re.M)
-    assert len(wires) == len(bodies) == 7
+    assert len(wires) == len(bodies) == 8
     types = set()
     for wire, (body, crc) in zip(wires, bodies):
         raw = bytes.fromhex(wire.replace(" ", ""))
@@ -192,8 +228,13 @@ def test_protocol_doc_worked_examples_decode():
         types.add(frame.type)
     assert types == set(range(1, 8)), "a worked example of every frame type"
     # The example fields the text states.
-    frames = {P.decode(bytes.fromhex(w.replace(" ", ""))[:-1]).type: P.decode(bytes.fromhex(w.replace(" ", ""))[:-1])
-              for w in wires}
+    decoded = [P.decode(bytes.fromhex(w.replace(" ", ""))[:-1]) for w in wires]
+    frames = {f.type: f for f in decoded if f.type != P.POSE or len(f.payload) == 6 + 12}
+    oriented = [P.parse_pose(f.payload) for f in decoded if f.type == P.POSE and len(f.payload) == 6 + 28]
+    assert len(oriented) == 1
+    c, s = math.cos(math.radians(10)), math.sin(math.radians(10))
+    assert oriented[0].positions == P.parse_pose(frames[P.POSE].payload).positions
+    np.testing.assert_allclose(oriented[0].orientations, [(c, s, 0, 0)], atol=1e-7)      # float32
     hello = P.parse_hello_device(frames[P.HELLO_DEVICE].payload)
     assert (hello.n_fingers, hello.renders_forces, hello.rate_hz, hello.force_max, hello.ttl_max_ms, hello.name) == \
         (2, True, 1000, 4.0, 50, "hand")
@@ -206,8 +247,15 @@ def test_protocol_doc_sizes_are_the_codecs():
     """Section 1's sizes: the largest body and encoding, as the codecs define them."""
     import re
     doc = open(os.path.join(os.path.dirname(VECTORS), "..", "..", "docs", "protocol.md")).read()
-    assert f"a body of 4 + 390 + 2 = **{P.MAX_BODY} bytes**" in doc
-    assert f"an encoding of at most 396 + 2 = **{P.MAX_WIRE}" in doc
-    largest = P.encode(P.POSE, 0, P.pose(0, [(1.0, 2.0, 3.0)] * 32))
+    assert f"a body of 4 + 390 + 2 = **{P.DEVICE_MAX_BODY} bytes**" in doc
+    assert f"an encoding of at most 396 + 2\n  = **{P.DEVICE_MAX_WIRE} bytes**" in doc
+    assert f"a body of 4 + 902 + 2 = **{P.MAX_BODY}\n  bytes**" in doc
+    assert f"an encoding of at most 908 + 4 = **{P.MAX_WIRE} bytes**" in doc
+    largest_force = P.encode(P.FORCE, 0, P.force(0, 1, [(1.0, 2.0, 3.0)] * 32))
+    assert len(largest_force) - 1 <= P.DEVICE_MAX_WIRE and len(P.cobs_decode(largest_force[:-1])) == P.DEVICE_MAX_BODY
+    one = (1.0, 0.0, 0.0, 0.0)
+    largest = P.encode(P.POSE, 0, P.pose(0, [(1.0, 2.0, 3.0)] * 32, orientations=[one] * 32))
     assert len(largest) - 1 <= P.MAX_WIRE and len(P.cobs_decode(largest[:-1])) == P.MAX_BODY
+    # The worst case of COBS: no zero at all in a body of the largest size.
+    assert len(P.cobs_encode(b"\x01" * P.MAX_BODY)) == P.MAX_WIRE
     assert not re.search(r"\b398 bytes and its encoding\b", doc)

@@ -6,7 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from addon.engine.devices.spacemouse import SpaceMouseHand, SpaceMouseState
+from addon.engine.devices.spacemouse import SpaceMouseHand, SpaceMouseState, hand_from_fingertips
+from addon.engine.runner import quat_rotate
 
 # Reports as hidraw hands them over (report id first), e.g. a SpaceNavigator pushed right
 # and away from the user, then twisted, then button 1.
@@ -63,6 +64,68 @@ def test_rate_control_rotation_turns_the_fingertips():
     for _ in range(steps):
         hand.update(s, (math.pi / 2 / 1.5) / steps)
     np.testing.assert_allclose(hand.tips(), [(0, 0.04, 0), (0, -0.04, 0)], atol=1e-9)
+
+
+def axis_angle_quat(axis, angle):
+    axis = np.asarray(axis, dtype=np.float64) / np.linalg.norm(axis)
+    return np.array([math.cos(angle / 2), *(math.sin(angle / 2) * axis)])
+
+
+def quat_mul(a, b):
+    """Hamilton's product, written out (the reference for the hand's)."""
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = b
+    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+
+
+def same_rotation(q, r, atol=1e-9):
+    """q and -q are the same rotation."""
+    q, r = np.asarray(q), np.asarray(r)
+    return np.allclose(q, r, atol=atol) or np.allclose(q, -r, atol=atol)
+
+
+@pytest.mark.parametrize("report, hand_axis", [
+    ("020000000000a2fe", (0, 0, 1)),      # rz -350: +1 about the hand's z (up)
+    ("02a2fe00000000", (-1, 0, 0)),       # rx -350: -1 about the hand's x
+    ("0200005e010000", (0, -1, 0)),       # ry +350: -1 about the hand's y (the device's y is flipped)
+])
+def test_rotation_input_turns_a_palm_by_the_integrated_angle(report, hand_axis):
+    """A palm tilted 20 deg about x in a hand whose frame is itself turned 30 deg about z: a
+    rotation input of 1 for t s turns the palm by turn_rate t about the hand's axis (in the
+    world: the frame's rotation of it), the palm's own tilt kept: q(t) = turn q(0)."""
+    tips = np.array([(0.0, 0.0, 0.1), (0.04, 0.0, 0.1)])
+    frame = np.eye(4)
+    c, s_ = math.cos(math.radians(30)), math.sin(math.radians(30))
+    frame[:3, :3] = [[c, -s_, 0], [s_, c, 0], [0, 0, 1]]
+    palm_q = axis_angle_quat((1, 0, 0), math.radians(20))
+    start = np.array([palm_q, (1.0, 0, 0, 0)])
+    hand = hand_from_fingertips(tips, frame, orientations=start)
+    for q, r in zip(hand.orientations(), start):
+        assert same_rotation(q, r, atol=1e-14)              # nothing turned yet
+    s = SpaceMouseState()
+    s.feed(bytes.fromhex(report))
+    steps, angle = 500, 1.2                                 # 0.8 s at 1.5 rad/s
+    for _ in range(steps):
+        hand.update(s, angle / 1.5 / steps)
+    turn = axis_angle_quat(frame[:3, :3] @ np.array(hand_axis, dtype=float), angle)
+    for q, r in zip(hand.orientations(), start):
+        assert same_rotation(q, quat_mul(turn, r))
+        assert abs(np.linalg.norm(q) - 1.0) < 1e-12
+    # The palm's angle from where it started is the integrated angle.
+    rel = quat_mul(hand.orientations()[0], palm_q * np.array([1, -1, -1, -1]))
+    assert 2 * math.acos(min(1.0, abs(rel[0]))) == pytest.approx(angle, abs=1e-9)
+    # The fingertips turned with it.
+    np.testing.assert_allclose(hand.tips() - hand.position,
+                               quat_rotate(turn, tips - frame[:3, 3]), atol=1e-9)
+
+
+def test_a_hand_without_orientations_gives_none_and_bad_ones_are_refused():
+    assert make_hand().orientations() is None
+    with pytest.raises(ValueError, match="finger_orientations"):
+        make_hand(finger_orientations=[(0, 0, 0, 0), (1, 0, 0, 0)])
+    with pytest.raises(ValueError, match="finger_orientations"):
+        make_hand(finger_orientations=[(np.nan, 0, 0, 0), (1, 0, 0, 0)])
 
 
 def test_grip_button_closes_the_fingers():
@@ -125,3 +188,40 @@ def test_spacemouse_drives_fingers_of_a_running_world():
         devices.close()
         world.stop()
     assert replay.closed
+
+
+def test_spacemouse_turns_a_palm_of_a_running_world():
+    """A twist of the cap turns a convex palm in the running core: the palm ends at the hand's
+    last orientation (what the slot was given), turned about the world's z from its tilt."""
+    import time
+
+    graspcore = pytest.importorskip("graspcore")
+    from addon.engine.devices.live import DeviceSet
+    from addon.engine.devices.spacemouse import SpaceMouseSource
+    world = graspcore.World(gravity=(0, 0, 0))
+    tilt = axis_angle_quat((1, 0, 0), math.radians(20))
+    box = np.array([(x, y, z) for x in (-0.045, 0.045) for y in (-0.04, 0.04) for z in (-0.01, 0.01)])
+    palm = world.add_finger(radius=0.0, position=(0, 0, 0.1), points=box)
+    world.set_finger_pose(palm, (0, 0, 0.1), tuple(tilt))
+    world.start(priority=0, watchdog_timeout=0.05)
+    replay = Replay([bytes.fromhex("020000000000a2fe")])     # rz -350: turning about z (up), 1.5 rad/s
+    devices = DeviceSet(world)
+    try:
+        hand = hand_from_fingertips(world.snapshot()["hips"], orientations=[world.finger_pose(palm)[1]])
+        source = SpaceMouseSource(hand, device=replay)
+        devices.add_source(source, 0, "spacemouse")
+        started = time.monotonic()
+        while time.monotonic() - started < 0.3:
+            devices.poll()
+            time.sleep(0.01)
+        last = source.live_orientations()[0]
+        time.sleep(0.1)                                     # no more polls: the palm reaches the last sample
+    finally:
+        devices.close()
+        world.stop()
+    q = np.array(world.finger_pose(palm)[1])
+    assert same_rotation(q, last, atol=1e-12)
+    turn = quat_mul(q, tilt * np.array([1, -1, -1, -1]))   # what turned it, in the world
+    angle = 2 * math.acos(min(1.0, abs(turn[0])))
+    assert 0.2 < angle < 0.6                                # about 0.3 s at 1.5 rad/s
+    np.testing.assert_allclose(np.abs(turn[1:]) / math.sin(angle / 2), [0, 0, 1], atol=1e-9)

@@ -107,7 +107,8 @@ def cmd_devices(args, out=None) -> int:
         if "grasp_lab" in d:
             g = d["grasp_lab"]
             line += (f" Grasp Lab device '{g['name']}': {g['n_fingers']} fingers, {g['rate_hz']} Hz, "
-                     f"{'forces up to %.3g N' % g['force_max'] if g['renders_forces'] else 'input only'}")
+                     f"{'forces up to %.3g N' % g['force_max'] if g['renders_forces'] else 'input only'}"
+                     f"{', orientations' if g.get('orientations') else ''}")
         elif "probe" in d:
             line += f" ({d['probe']['detail']})"
         elif d["kind"] == "serial":

@@ -1,7 +1,8 @@
 """The reference device emulator: a Grasp Lab serial device (docs/protocol.md) in software.
 
     python -m addon.engine.devices.emulator (--pty | PORT) [--fingers N]
-        [--motion NAME | --from SCENE.blend [--first K]] [--rate HZ] [--duration S] [--estop-at S] [--force-log PATH]
+        [--motion NAME | --from SCENE.blend [--first K]] [--orientation NAME] [--rate HZ] [--duration S]
+        [--estop-at S] [--force-log PATH]
 
 With ``--pty`` it opens a pseudo-terminal in raw mode and prints ``PORT /dev/pts/N`` as its
 first line; the host opens that path. After the host's hello it answers with its
@@ -13,7 +14,9 @@ disabled), measures pose-to-force latency by the acknowledged sequence number, a
 a report (``REPORT {json}``) when it ends (duration, SIGTERM or SIGINT). ``--estop-at S``
 presses its stop button S seconds into streaming (ESTOP(1) sent, forces latched off until
 ENABLE(1)); ``--force-log PATH`` writes every force frame it received (CSV: time since its
-streaming started, ack_seq, ttl_us, then fx fy fz per finger, exactly as sent).
+streaming started, ack_seq, ttl_us, then fx fy fz per finger, exactly as sent). ``--orientation
+NAME`` offers each finger's orientation in its hello and sends it in every pose once the host's
+force frames say they take it (a convex finger turns with it).
 """
 from __future__ import annotations
 
@@ -72,6 +75,21 @@ MOTIONS = {"static": motion_static, "grip": motion_grip, "pinch": motion_pinch, 
            "lift": motion_lift}
 
 
+# ---- orientations (--orientation): each finger's unit quaternion (w, x, y, z, device axes) --
+
+def orientation_level(t, n):
+    return [(1.0, 0.0, 0.0, 0.0)] * n
+
+
+def orientation_tilt(t, n):
+    """Level for 0.5 s, then tilted 20 degrees about the device's x axis over 1 s, then held."""
+    a = math.radians(20.0) * min(1.0, max(0.0, t - 0.5))
+    return [(math.cos(a / 2), math.sin(a / 2), 0.0, 0.0)] * n
+
+
+ORIENTATIONS = {"level": orientation_level, "tilt": orientation_tilt}
+
+
 # ---- the device -------------------------------------------------------------------------
 
 HOST_SILENCE = 0.3      # s without an answer to a pose: the host is not streaming with this device
@@ -122,12 +140,16 @@ def _percentile(sorted_values, q):
 class Emulator:
     def __init__(self, fd, n_fingers=2, motion=motion_grip, rate=1000.0, force_max=5.0, ttl_max_ms=50,
                  renders_forces=True, name="grasp-lab-emulator", corrupt_every=0, estop_at=None, log_forces=False,
-                 udp=None, drop_every=0, dup_every=0, reorder_every=0):
+                 udp=None, drop_every=0, dup_every=0, reorder_every=0, orientation=None):
         self.fd = fd
         self.n = int(n_fingers)
         self.motion = motion
+        self.orientation = orientation      # (t, n) -> quaternions: offered in the hello (CAP_ORIENTATION)
+        self.host_takes_orientations = False    # until a FORCE frame says so (protocol.md section 2)
+        self.oriented_poses = 0
         self.rate = float(rate)
-        self.hello = P.hello_device(self.n, renders_forces, P.UNITS_METRE, int(rate), force_max, ttl_max_ms, name)
+        self.hello = P.hello_device(self.n, renders_forces, P.UNITS_METRE, int(rate), force_max, ttl_max_ms, name,
+                                    orientations=orientation is not None)
         self.decoder = P.StreamDecoder()
         self.checker = ForceChecker(self.n, force_max, ttl_max_ms)
         self.corrupt_every = int(corrupt_every)
@@ -199,6 +221,7 @@ class Emulator:
         if frame.type == P.HELLO_HOST:
             self.host_hellos += 1       # a (re)started host: forces off until it enables them again
             self.enabled = False
+            self.host_takes_orientations = False    # and positions only until its FORCE frames take orientations
             self.rendered = [(0.0, 0.0, 0.0)] * self.n
             self._send(P.HELLO_DEVICE, self.hello)
             if new_conversation:
@@ -216,6 +239,7 @@ class Emulator:
                 self.rendered = [(0.0, 0.0, 0.0)] * self.n      # a rejected frame zeroes every force
                 return
             self.rendered = self.checker.check(force, self.enabled)
+            self.host_takes_orientations = force.takes_orientations and self.orientation is not None
             if self.estopped and any(any(f) for f in force.forces):
                 self.forces_after_estop += 1
             if self.force_log is not None:
@@ -284,7 +308,9 @@ class Emulator:
                 self._send(P.ESTOP, P.estop(P.ESTOP_BUTTON))
             status = (P.STATUS_FORCES_ON if self.enabled else 0) | (P.STATUS_ESTOPPED if self.estopped else 0)
             positions = self.motion(t, self.n)
-            self._send(P.POSE, P.pose(int(t * 1e6), positions, status))
+            turns = self.orientation(t, self.n) if self.host_takes_orientations else None
+            self._send(P.POSE, P.pose(int(t * 1e6), positions, status, turns))
+            self.oriented_poses += turns is not None
             self.sent_at[(self.seq - 1) & 0xFFFF] = now
             if len(self.sent_at) > 4096:     # never acknowledged: forget the oldest
                 for k in list(self.sent_at)[:2048]:
@@ -314,7 +340,7 @@ class Emulator:
             "latency_max_ms": _ms(lat[-1] if lat else None), "unacknowledged": self.poses_sent - len(lat),
             "host_frames_dropped": self.decoder.errors, "write_errors": self.write_errors,
             "estop_at_s": self.estop_sent_at, "forces_after_estop": self.forces_after_estop,
-            "injected": self.injected, "foreign_datagrams": self.foreign,
+            "injected": self.injected, "foreign_datagrams": self.foreign, "oriented_poses": self.oriented_poses,
         }
 
     def write_force_log(self, path):
@@ -346,6 +372,9 @@ def build_parser(parser=None):
     what = p.add_mutually_exclusive_group()
     what.add_argument("--motion", default="grip", choices=sorted(MOTIONS), help="named demo motion (default grip)")
     what.add_argument("--from", dest="from_blend", metavar="SCENE.blend", help="play the fingertip animation of a .blend")
+    p.add_argument("--orientation", choices=sorted(ORIENTATIONS), default=None,
+                   help="also send each finger's orientation (offered in the hello; sent once the host's force "
+                        "frames take them): level, or tilt (20 deg about x from 0.5 s to 1.5 s)")
     p.add_argument("--fingers", type=int, default=None,
                    help="fingertips (default 2; with --from, the scene's from --first on)")
     p.add_argument("--first", type=int, default=0, metavar="K",
@@ -408,7 +437,8 @@ def main(argv=None, args=None, motion=None):
     emu = Emulator(fd, n, motion, args.rate, args.force_max, args.ttl_max, name=name,
                    corrupt_every=args.corrupt_every,
                    estop_at=args.estop_at, log_forces=bool(args.force_log), udp=udp, drop_every=args.drop_every,
-                   dup_every=args.dup_every, reorder_every=args.reorder_every)
+                   dup_every=args.dup_every, reorder_every=args.reorder_every,
+                   orientation=ORIENTATIONS[args.orientation] if args.orientation else None)
 
     def stop(signum, frame):
         emu.stop = True

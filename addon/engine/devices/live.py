@@ -130,8 +130,9 @@ class DeviceInput(InputSource):
 
 class SourceDevice:
     """A device read in Python (SpaceMouse, OpenGloves: tens of Hz) in a DeviceSet. Its
-    fingertips go at every poll into its fingers' slots in the core (``push_device_hips``), the
-    channel the serial device threads write; a source with ``send_forces`` (a glove) gets its
+    fingertips go at every poll into its fingers' slots in the core (``push_device_hips``, with
+    the fingers' orientations when the source has them: ``live_orientations``), the channel the
+    serial device threads write; a source with ``send_forces`` (a glove) gets its
     fingers' forces from the latest haptic tick through the same gate as a serial device's
     (``device_forces``: zero until enabled, ramped in, zero while the haptic loop stalls). What
     it was sent (nothing, for an input-only device) is what the recording holds as its
@@ -171,7 +172,11 @@ class SourceDevice:
         if not self.connected:
             return
         hips = np.ascontiguousarray(self.source.hips_at(time.monotonic() - self._t0), dtype=np.float64)
-        if not self.world.push_device_hips(self.finger_offset, hips):
+        turning = getattr(self.source, "live_orientations", None)     # a SpaceMouse hand turning a palm
+        turns = turning() if turning else None
+        pushed = (self.world.push_device_hips(self.finger_offset, hips) if turns is None else
+                  self.world.push_device_hips(self.finger_offset, hips, np.ascontiguousarray(turns, dtype=np.float64)))
+        if not pushed:
             self.rejected += 1
         self.polls += 1
         if hasattr(self.source, "send_forces"):

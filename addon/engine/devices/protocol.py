@@ -16,8 +16,12 @@ VERSION = 1
 HEADER = struct.Struct("<BBH")           # version, type, seq
 CRC_SIZE = 2
 MAX_FINGERS = 32
-MAX_BODY = HEADER.size + 6 + 12 * MAX_FINGERS + CRC_SIZE   # the largest frame: pose/force of 32 fingers
+POSE_FINGER, ORIENTED_FINGER = 12, 28   # a pose's bytes a finger: x, y, z; then w, x, y, z (CAP_ORIENTATION)
+MAX_BODY = HEADER.size + 6 + ORIENTED_FINGER * MAX_FINGERS + CRC_SIZE   # the largest: a pose of 32 with orientations
 MAX_WIRE = MAX_BODY + MAX_BODY // 254 + 1                  # its COBS encoding, delimiter excluded
+DEVICE_MAX_BODY = HEADER.size + 6 + 12 * MAX_FINGERS + CRC_SIZE     # the largest a device receives: a force of 32
+DEVICE_MAX_WIRE = DEVICE_MAX_BODY + DEVICE_MAX_BODY // 254 + 1
+QUAT_UNIT_TOL = 1e-3     # | |q|^2 - 1 | of a pose's orientation (the core's GC_DEVICE_QUAT_UNIT_TOL)
 NAME_MAX = 32
 
 # Frame types.
@@ -33,6 +37,8 @@ TYPE_NAMES = {HELLO_HOST: "hello_host", HELLO_DEVICE: "hello_device", POSE: "pos
 
 # Capability flags (HELLO_DEVICE), units, pose status bits, e-stop reasons.
 CAP_FORCES = 0x01
+CAP_ORIENTATION = 0x02          # the device can send each finger's orientation after the positions
+FORCE_TAKES_ORIENTATION = 0x01  # FORCE byte 5: the host takes them (the device may send them from now on)
 UNITS_METRE, UNITS_MILLIMETRE = 0, 1
 UNIT_SCALE = {UNITS_METRE: 1.0, UNITS_MILLIMETRE: 1e-3}
 STATUS_FORCES_ON, STATUS_ESTOPPED, STATUS_GRIP = 0x01, 0x02, 0x04
@@ -72,18 +78,21 @@ class HelloDevice(NamedTuple):
     force_max: float     # N, per finger (norm), enforced by the device
     ttl_max_ms: int      # longest time to live the device accepts
     name: str
+    orientations: bool = False   # it can send the fingers' orientations (CAP_ORIENTATION)
 
 
 class Pose(NamedTuple):
     time_us: int
     status: int
     positions: tuple     # n (x, y, z) in device units
+    orientations: tuple | None = None    # n (w, x, y, z) unit quaternions, device axes; None: positions only
 
 
 class Force(NamedTuple):
     ack_seq: int
     ttl_us: int
     forces: tuple        # n (fx, fy, fz), N, device axes
+    takes_orientations: bool = False     # the host takes the device's orientations
 
 
 # ---- CRC-16/CCITT-FALSE and COBS ------------------------------------------------------
@@ -147,7 +156,10 @@ def encode(type_: int, seq: int, payload: bytes = b"") -> bytes:
 def _check_length(type_: int, payload: bytes) -> None:
     n = len(payload)
     fixed = _FIXED[type_]
-    if type_ in (POSE, FORCE):
+    if type_ == POSE:
+        if n < fixed or n - fixed not in (payload[4] * POSE_FINGER, payload[4] * ORIENTED_FINGER):
+            raise ProtocolError("length", f"pose payload of {n} bytes does not match its finger count")
+    elif type_ == FORCE:
         if n < fixed or (n - fixed) % 12 or payload[4] * 12 != n - fixed:
             raise ProtocolError("length", f"{TYPE_NAMES[type_]} payload of {n} bytes does not match its finger count")
     elif type_ == HELLO_DEVICE:
@@ -250,14 +262,14 @@ def parse_hello_host(payload: bytes) -> int:
 
 
 def hello_device(n_fingers: int, renders_forces: bool, units: int, rate_hz: int, force_max: float,
-                 ttl_max_ms: int, name: str = "") -> bytes:
+                 ttl_max_ms: int, name: str = "", orientations: bool = False) -> bytes:
     if not 1 <= n_fingers <= MAX_FINGERS:
         raise ProtocolError("range", f"n_fingers: {n_fingers} outside 1..{MAX_FINGERS}")
     raw = name.encode("utf-8")
     if len(raw) > NAME_MAX:
         raise ProtocolError("length", f"name: {len(raw)} bytes, at most {NAME_MAX}")
-    return _HELLO_DEVICE.pack(n_fingers, CAP_FORCES if renders_forces else 0, units, 0, rate_hz,
-                              force_max, ttl_max_ms) + raw
+    flags = (CAP_FORCES if renders_forces else 0) | (CAP_ORIENTATION if orientations else 0)
+    return _HELLO_DEVICE.pack(n_fingers, flags, units, 0, rate_hz, force_max, ttl_max_ms) + raw
 
 
 def parse_hello_device(payload: bytes) -> HelloDevice:
@@ -269,31 +281,56 @@ def parse_hello_device(payload: bytes) -> HelloDevice:
     if not (math.isfinite(fmax) and fmax >= 0):
         raise ProtocolError("range", f"hello_device: force limit {fmax!r} is not a finite number >= 0")
     name = payload[_HELLO_DEVICE.size:].decode("utf-8", "replace")
-    return HelloDevice(n, bool(flags & CAP_FORCES), units, rate, fmax, ttl, name)
+    return HelloDevice(n, bool(flags & CAP_FORCES), units, rate, fmax, ttl, name, bool(flags & CAP_ORIENTATION))
 
 
-def pose(time_us: int, positions, status: int = 0) -> bytes:
+def _quaternions(values, n: int) -> bytes:
+    values = [tuple(q) for q in values]
+    if len(values) != n:
+        raise ProtocolError("length", f"pose: {len(values)} orientations for {n} fingers")
+    out = bytearray()
+    for q in values:
+        if len(q) != 4 or not all(math.isfinite(c) for c in q) or \
+                abs(sum(c * c for c in q) - 1.0) > QUAT_UNIT_TOL:
+            raise ProtocolError("range", f"pose: orientation {q!r} is not a finite unit quaternion (w, x, y, z)")
+        out += struct.pack("<ffff", *q)
+    return bytes(out)
+
+
+def pose(time_us: int, positions, status: int = 0, orientations=None) -> bytes:
+    """A POSE payload; ``orientations`` (n unit quaternions w, x, y, z) follow the positions,
+    for a device whose hello said CAP_ORIENTATION once the host's FORCE frames take them."""
     positions = [tuple(p) for p in positions]
     if not 1 <= len(positions) <= MAX_FINGERS:
         raise ProtocolError("range", f"pose: {len(positions)} fingers outside 1..{MAX_FINGERS}")
-    return _POSE.pack(time_us & 0xFFFFFFFF, len(positions), status) + _vectors(positions, "pose", 3.4e38)
+    out = _POSE.pack(time_us & 0xFFFFFFFF, len(positions), status) + _vectors(positions, "pose", 3.4e38)
+    return out if orientations is None else out + _quaternions(orientations, len(positions))
 
 
 def parse_pose(payload: bytes) -> Pose:
     time_us, n, status = _POSE.unpack_from(payload)
-    return Pose(time_us, status, _unpack_vectors(payload, _POSE.size, n, "pose"))
+    positions = _unpack_vectors(payload, _POSE.size, n, "pose")
+    if len(payload) != _POSE.size + ORIENTED_FINGER * n or n == 0:
+        return Pose(time_us, status, positions)
+    values = struct.unpack_from(f"<{4 * n}f", payload, _POSE.size + POSE_FINGER * n)
+    turns = tuple(values[4 * i:4 * i + 4] for i in range(n))
+    if not all(math.isfinite(c) for c in values) or \
+            any(abs(sum(c * c for c in q) - 1.0) > QUAT_UNIT_TOL for q in turns):
+        raise ProtocolError("range", "pose: an orientation is not a finite unit quaternion")
+    return Pose(time_us, status, positions, turns)
 
 
-def force(ack_seq: int, ttl_us: int, forces) -> bytes:
+def force(ack_seq: int, ttl_us: int, forces, takes_orientations: bool = False) -> bytes:
     forces = [tuple(f) for f in forces]
     if not 1 <= len(forces) <= MAX_FINGERS:
         raise ProtocolError("range", f"force: {len(forces)} fingers outside 1..{MAX_FINGERS}")
-    return _FORCE.pack(ack_seq & 0xFFFF, ttl_us, len(forces), 0) + _vectors(forces, "force", 3.4e38)
+    flags = FORCE_TAKES_ORIENTATION if takes_orientations else 0
+    return _FORCE.pack(ack_seq & 0xFFFF, ttl_us, len(forces), flags) + _vectors(forces, "force", 3.4e38)
 
 
 def parse_force(payload: bytes) -> Force:
-    ack, ttl, n, _ = _FORCE.unpack_from(payload)
-    return Force(ack, ttl, _unpack_vectors(payload, _FORCE.size, n, "force"))
+    ack, ttl, n, flags = _FORCE.unpack_from(payload)
+    return Force(ack, ttl, _unpack_vectors(payload, _FORCE.size, n, "force"), bool(flags & FORCE_TAKES_ORIENTATION))
 
 
 def enable(on: bool) -> bytes:
