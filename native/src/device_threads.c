@@ -225,12 +225,14 @@ static void send_forces(gcDeviceRun *r, uint16_t ack, int64_t t) {
     p[5] = 0;
     double sent[3 * GC_PROTO_MAX_FINGERS]; /* what the frame carries, back in scene axes */
     for (int i = 0; i < n; ++i) {
-        double v[3] = {0, 0, 0};
-        for (int c = 0; c < 3 && i < m; ++c) v[c] = (float)f[3 * i + c];
-        for (int c = 0; c < 3; ++c) gc_putf32(p + 6 + 12 * i + 4 * c, (float)v[c]);
-        if (i < m)
-            for (int c = 0; c < 3; ++c) /* f = A^-T f_dev */
-                sent[3 * i + c] = d->A_inv[c] * v[0] + d->A_inv[3 + c] * v[1] + d->A_inv[6 + c] * v[2];
+        uint8_t *values = p + 6 + 12 * i;
+        for (int c = 0; c < 3; ++c) gc_putf32(values + 4 * c, i < m ? (float)f[3 * i + c] : 0.0f);
+        if (i >= m) continue;
+        /* Read back from the frame's bytes: the values the device gets. ((double)(float)x kept
+         * in a double array was not: GCC 12.2's SLP vectorizer dropped one of the roundings.) */
+        const double v[3] = {gc_lef32(values), gc_lef32(values + 4), gc_lef32(values + 8)};
+        for (int c = 0; c < 3; ++c) /* f = A^-T f_dev */
+            sent[3 * i + c] = d->A_inv[c] * v[0] + d->A_inv[3 + c] * v[1] + d->A_inv[6 + c] * v[2];
     }
     if (!send_frame(r, GC_MSG_FORCE, p, 6 + 12 * (size_t)n)) return; /* not sent: the last frame's TTL runs on */
     r->s.forces_sent++;
