@@ -297,9 +297,11 @@ static void on_pose(gcDeviceRun *r, const gcFrame *fr, int64_t t_read) {
         /* Its fingers were let go meanwhile: a new episode, a soft start back to the device. */
         r->episode = atomic_fetch_add_explicit(&d->hub->connections, 1, memory_order_relaxed) + 1;
     }
-    /* A pose saying "e-stop latched" while forces are on: an ESTOP frame was lost on the way
-     * (a device that has not yet taken up our ENABLE(1) may still say so for a moment). */
-    if ((p[5] & GC_STATUS_ESTOPPED) && s->enabled && t_read - r->enable_sent_ns > GC_ESTOP_STATUS_GRACE_NS)
+    /* A pose saying "e-stop latched" that we have not latched: its ESTOP frame was lost on the
+     * way, or sent before this connection. Forces on or off, it is an e-stop, counted and
+     * recorded (else the ENABLE(1) that turns forces on would clear it unseen); a device that
+     * has not yet taken up our ENABLE(1) may still say so for a moment. */
+    if ((p[5] & GC_STATUS_ESTOPPED) && !r->gate.estop && t_read - r->enable_sent_ns > GC_ESTOP_STATUS_GRACE_NS)
         latch_estop(r, GC_ESTOP_REASON_STATUS);
     /* Ours, not shown latched in its poses: our ESTOP may have been lost; say it again. */
     if (r->host_estop && !(p[5] & GC_STATUS_ESTOPPED) && t_read - r->estop_sent_ns > GC_HELLO_RETRY_NS) {

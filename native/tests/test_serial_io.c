@@ -735,6 +735,76 @@ static void test_recorded_forces_are_the_frames(void) {
     close(sv[0]), close(sv[1]);
 }
 
+/* A device whose poses say "e-stop latched" before forces are on (its ESTOP frame lost, or sent
+ * before this connection): one e-stop, counted and recorded as seen in the status, not cleared
+ * unseen by the ENABLE(1) that turns forces on; forces flow once the device has taken that up. */
+static void test_estop_in_status_before_enable(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    double pts[24];
+    for (int i = 0; i < 8; ++i) {
+        pts[3 * i] = (i & 1) ? 0.1 : -0.1;
+        pts[3 * i + 1] = (i & 2) ? 0.1 : -0.1;
+        pts[3 * i + 2] = (i & 4) ? 0.0 : -0.2; /* top face at z = 0 */
+    }
+    gcPartDef part = {pts, 8, 0.0};
+    gcBodyDef bd = gc_default_body_def();
+    bd.is_static = 1;
+    int32_t ground, finger;
+    GC_CHECK(gc_world_add_body(w, &bd, &part, 1, &ground) == GC_OK, "ground");
+    gcFingerDef fd = gc_default_finger_def();
+    fd.position[2] = 0.05;
+    GC_CHECK(gc_world_add_finger(w, &fd, &finger) == GC_OK, "finger");
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    rd.ramp_time = 0.0;
+    rd.watchdog_timeout = 0.05;
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start: %s", gc_world_last_error(w));
+    int sv[2];
+    GC_CHECK(socketpair(AF_UNIX, SOCK_STREAM, 0, sv) == 0, "socketpair");
+    fcntl(sv[0], F_SETFL, O_NONBLOCK);
+    static Dev dev;
+    memset(&dev, 0, sizeof dev);
+    dev.fd = sv[1];
+    gc_decoder_reset(&dev.dec);
+    gcSerialDef sd = gc_default_serial_def();
+    sd.priority = 0;
+    sd.ramp_time = 0.0;
+    sd.stall_timeout = 0.05;
+    int32_t id = -1;
+    GC_CHECK(gc_world_attach_serial(w, sv[0], &sd, &id) == GC_OK, "attach: %s", gc_world_last_error(w));
+    dev_read(&dev, 200);
+    uint8_t hello[12] = {1, GC_CAP_FORCES, 0, 0};
+    gc_put16(hello + 4, 1000);
+    gc_putf32(hello + 6, 3.0f);
+    gc_put16(hello + 10, 50);
+    dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, 12);
+    dev.status = GC_STATUS_ESTOPPED; /* latched, no ESTOP frame */
+    stream(&dev, 400, -0.002); /* the soft start walks the HIP 2 mm into the ground */
+    gcSerialStats st;
+    WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.estops > 0));
+    int value = -1;
+    double t_estop = event_time(w, id, GC_SERIAL_EV_ESTOP, &value);
+    GC_CHECK(st.estops == 1 && value == GC_ESTOP_REASON_STATUS && t_estop < world_time(w),
+             "forces off, the status says e-stop: %d e-stops, event value %d at %.4f s", (int)st.estops, value,
+             t_estop);
+    stream(&dev, 100, -0.002);
+    gc_world_serial_stats(w, id, &st);
+    GC_CHECK(st.estops == 1, "said again in every pose: still one e-stop (%d)", (int)st.estops);
+    /* Forces on: ENABLE(1) clears it on both sides (the device drops its status bit). */
+    gc_world_serial_enable(w, id, 1);
+    WAIT_UNTIL((dev_read(&dev, 1), dev.last_enable == 1));
+    dev.status = 0;
+    for (int k = 0; k < 40 && fabs(force_z(&dev) - 3.0) >= 1e-6; ++k) stream(&dev, 50, -0.002);
+    gc_world_serial_stats(w, id, &st);
+    GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-6 && st.estops == 1 && st.enabled,
+             "enabled: %.4f N sent, %d e-stops", force_z(&dev), (int)st.estops);
+    gc_world_stop(w);
+    gc_world_destroy(w);
+    close(sv[0]), close(sv[1]);
+}
+
 /* Host-side rules of docs/protocol.md: the device's sequence counts frames of every type (a
  * HEARTBEAT between poses is no gap, a frame that never came is); a silent device gets a
  * HELLO_HOST every 100 ms (so that one that restarted answers); the host's ESTOP is said
@@ -1232,6 +1302,7 @@ int main(void) {
     test_two_devices();
     test_recorded_forces();
     test_recorded_forces_are_the_frames();
+    test_estop_in_status_before_enable();
     test_protocol_rules();
     test_attach_before_start();
     test_device_beside_api_writer();
