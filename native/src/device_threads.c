@@ -229,12 +229,14 @@ static void send_forces(gcDeviceRun *r, uint16_t ack, int64_t t) {
     p[5] = r->s.sends_orientations ? GC_FORCE_TAKES_ORIENTATION : 0; /* the device may send them from now on */
     double sent[3 * GC_PROTO_MAX_FINGERS]; /* what the frame carries, back in scene axes */
     for (int i = 0; i < n; ++i) {
-        double v[3] = {0, 0, 0};
-        for (int c = 0; c < 3 && i < m; ++c) v[c] = (float)f[3 * i + c];
-        for (int c = 0; c < 3; ++c) gc_putf32(p + 6 + 12 * i + 4 * c, (float)v[c]);
-        if (i < m)
-            for (int c = 0; c < 3; ++c) /* f = A^-T f_dev */
-                sent[3 * i + c] = d->A_inv[c] * v[0] + d->A_inv[3 + c] * v[1] + d->A_inv[6 + c] * v[2];
+        uint8_t *values = p + 6 + 12 * i;
+        for (int c = 0; c < 3; ++c) gc_putf32(values + 4 * c, i < m ? (float)f[3 * i + c] : 0.0f);
+        if (i >= m) continue;
+        /* Read back from the frame's bytes: the values the device gets. ((double)(float)x kept
+         * in a double array was not: GCC 12.2's SLP vectorizer dropped one of the roundings.) */
+        const double v[3] = {gc_lef32(values), gc_lef32(values + 4), gc_lef32(values + 8)};
+        for (int c = 0; c < 3; ++c) /* f = A^-T f_dev */
+            sent[3 * i + c] = d->A_inv[c] * v[0] + d->A_inv[3 + c] * v[1] + d->A_inv[6 + c] * v[2];
     }
     if (!send_frame(r, GC_MSG_FORCE, p, 6 + 12 * (size_t)n)) return; /* not sent: the last frame's TTL runs on */
     r->s.forces_sent++;
@@ -313,9 +315,11 @@ static void on_pose(gcDeviceRun *r, const gcFrame *fr, int64_t t_read) {
         /* Its fingers were let go meanwhile: a new episode, a soft start back to the device. */
         r->episode = atomic_fetch_add_explicit(&d->hub->connections, 1, memory_order_relaxed) + 1;
     }
-    /* A pose saying "e-stop latched" while forces are on: an ESTOP frame was lost on the way
-     * (a device that has not yet taken up our ENABLE(1) may still say so for a moment). */
-    if ((p[5] & GC_STATUS_ESTOPPED) && s->enabled && t_read - r->enable_sent_ns > GC_ESTOP_STATUS_GRACE_NS)
+    /* A pose saying "e-stop latched" that we have not latched: its ESTOP frame was lost on the
+     * way, or sent before this connection. Forces on or off, it is an e-stop, counted and
+     * recorded (else the ENABLE(1) that turns forces on would clear it unseen); a device that
+     * has not yet taken up our ENABLE(1) may still say so for a moment. */
+    if ((p[5] & GC_STATUS_ESTOPPED) && !r->gate.estop && t_read - r->enable_sent_ns > GC_ESTOP_STATUS_GRACE_NS)
         latch_estop(r, GC_ESTOP_REASON_STATUS);
     /* Ours, not shown latched in its poses: our ESTOP may have been lost; say it again. */
     if (r->host_estop && !(p[5] & GC_STATUS_ESTOPPED) && t_read - r->estop_sent_ns > GC_HELLO_RETRY_NS) {

@@ -650,6 +650,175 @@ static void test_recorded_forces(void) {
     close(sv[0]), close(sv[1]);
 }
 
+/* A record's device force is A^-T of some force frame's float32 values, all three of them: a
+ * workspace rotated about no axis makes the spring's force (up) a frame of three non-zero
+ * values, none of them a float32 before it is sent. GCC 12's SLP vectorizer dropped the float32
+ * rounding of one of them in what the host recorded as sent (the frame itself was right): the
+ * record was off the frame by float32 rounding, ~1e-7 N. */
+static void test_recorded_forces_are_the_frames(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    double pts[24];
+    for (int i = 0; i < 8; ++i) {
+        pts[3 * i] = (i & 1) ? 0.1 : -0.1;
+        pts[3 * i + 1] = (i & 2) ? 0.1 : -0.1;
+        pts[3 * i + 2] = (i & 4) ? 0.0 : -0.2; /* top face at z = 0 */
+    }
+    gcPartDef part = {pts, 8, 0.0};
+    gcBodyDef bd = gc_default_body_def();
+    bd.is_static = 1;
+    int32_t ground, finger;
+    GC_CHECK(gc_world_add_body(w, &bd, &part, 1, &ground) == GC_OK, "ground");
+    gcFingerDef fd = gc_default_finger_def();
+    fd.position[2] = 0.05;
+    GC_CHECK(gc_world_add_finger(w, &fd, &finger) == GC_OK, "finger");
+    GC_CHECK(gc_world_set_tick_log(w, 1 << 15) == GC_OK, "tick log");
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    rd.ramp_time = 0.0;
+    rd.watchdog_timeout = 0.05;
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start: %s", gc_world_last_error(w));
+
+    int sv[2];
+    GC_CHECK(socketpair(AF_UNIX, SOCK_STREAM, 0, sv) == 0, "socketpair");
+    fcntl(sv[0], F_SETFL, O_NONBLOCK);
+    static Dev dev;
+    memset(&dev, 0, sizeof dev);
+    dev.fd = sv[1];
+    gc_decoder_reset(&dev.dec);
+    gcSerialDef sd = gc_default_serial_def();
+    sd.priority = 0;
+    sd.ramp_time = 0.0;
+    sd.stall_timeout = 0.05;
+    /* A rotation (A^-T = A) with entries k/3; the device's origin 1.3 mm under the ground's top:
+     * a spring force under both limits (not clamped), (-1, 2, 2) / 3 of it in device axes. */
+    const double R[9] = {2.0 / 3, -1.0 / 3, 2.0 / 3, 2.0 / 3, 2.0 / 3, -1.0 / 3, -1.0 / 3, 2.0 / 3, 2.0 / 3};
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) sd.transform[4 * i + j] = R[3 * i + j];
+    sd.transform[11] = -0.0013;
+    int32_t id = -1;
+    GC_CHECK(gc_world_attach_serial(w, sv[0], &sd, &id) == GC_OK, "attach: %s", gc_world_last_error(w));
+    dev_read(&dev, 200);
+    uint8_t hello[12] = {1, GC_CAP_FORCES, 0, 0};
+    gc_put16(hello + 4, 1000);
+    gc_putf32(hello + 6, 20.0f);
+    gc_put16(hello + 10, 50);
+    dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, 12);
+    stream(&dev, 400, 0.0); /* the soft start walks the HIP there (5 cm at 0.2 m/s) */
+    gc_world_serial_enable(w, id, 1);
+    for (int k = 0; k < 40 && !(force_z(&dev) > 1.0); ++k) stream(&dev, 50, 0.0);
+    stream(&dev, 100, 0.0);
+    double sp[3];
+    spring(w, sp);
+    GC_CHECK(sp[2] > 1.0 && sp[2] < sd.max_force && fabs(force_z(&dev) - sp[2] * 2 / 3) < 1e-3,
+             "sent (device z) %.6f N: 2/3 of the spring's %.6f N (under the 10 N limit)", force_z(&dev), sp[2]);
+
+    /* Every record with a device force is R g for a frame g, to the rounding of that product
+     * (1e-15 N), far below float32's (1e-7 N at 5 N); g of three non-zero values. */
+    size_t size = gc_tick_record_size(1, 1);
+    static unsigned char buf[4096 * 1024];
+    int n, nonzero = 0, unmatched = 0, full = 0;
+    double worst = 0, example[3] = {0, 0, 0};
+    while ((n = gc_world_drain_ticks(w, buf, sizeof buf, (int)(sizeof buf / size))) > 0) {
+        for (int k = 0; k < n; ++k) {
+            double f[3];
+            memcpy(f, buf + (size_t)k * size + 52 + 3 * 24, sizeof f); /* after hip, god_object, force */
+            if (f[0] == 0 && f[1] == 0 && f[2] == 0) continue;
+            nonzero++;
+            double best = INFINITY;
+            const float *match = NULL;
+            for (int m = 0; m < dev.forces && m < 16384; ++m) {
+                const float *g = dev.forces_seen[m];
+                double err = 0;
+                for (int c = 0; c < 3; ++c)
+                    err = fmax(err, fabs(f[c] - (R[3 * c] * g[0] + R[3 * c + 1] * g[1] + R[3 * c + 2] * g[2])));
+                if (err < best) best = err, match = g;
+            }
+            full += match && match[0] != 0 && match[1] != 0 && match[2] != 0;
+            if (best > 1e-12) unmatched++, memcpy(example, f, sizeof f);
+            worst = fmax(worst, best);
+        }
+    }
+    GC_CHECK(nonzero > 50 && full == nonzero, "%d records with a device force, %d of a frame of three non-zero values",
+             nonzero, full);
+    GC_CHECK(unmatched == 0, "%d of %d recorded device forces are not R g of any frame g (off by up to %.3g N), e.g. "
+             "(%.17g %.17g %.17g)", unmatched, nonzero, worst, example[0], example[1], example[2]);
+    gc_world_stop(w);
+    gc_world_destroy(w);
+    close(sv[0]), close(sv[1]);
+}
+
+/* A device whose poses say "e-stop latched" before forces are on (its ESTOP frame lost, or sent
+ * before this connection): one e-stop, counted and recorded as seen in the status, not cleared
+ * unseen by the ENABLE(1) that turns forces on; forces flow once the device has taken that up. */
+static void test_estop_in_status_before_enable(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    double pts[24];
+    for (int i = 0; i < 8; ++i) {
+        pts[3 * i] = (i & 1) ? 0.1 : -0.1;
+        pts[3 * i + 1] = (i & 2) ? 0.1 : -0.1;
+        pts[3 * i + 2] = (i & 4) ? 0.0 : -0.2; /* top face at z = 0 */
+    }
+    gcPartDef part = {pts, 8, 0.0};
+    gcBodyDef bd = gc_default_body_def();
+    bd.is_static = 1;
+    int32_t ground, finger;
+    GC_CHECK(gc_world_add_body(w, &bd, &part, 1, &ground) == GC_OK, "ground");
+    gcFingerDef fd = gc_default_finger_def();
+    fd.position[2] = 0.05;
+    GC_CHECK(gc_world_add_finger(w, &fd, &finger) == GC_OK, "finger");
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.priority = 0;
+    rd.ramp_time = 0.0;
+    rd.watchdog_timeout = 0.05;
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start: %s", gc_world_last_error(w));
+    int sv[2];
+    GC_CHECK(socketpair(AF_UNIX, SOCK_STREAM, 0, sv) == 0, "socketpair");
+    fcntl(sv[0], F_SETFL, O_NONBLOCK);
+    static Dev dev;
+    memset(&dev, 0, sizeof dev);
+    dev.fd = sv[1];
+    gc_decoder_reset(&dev.dec);
+    gcSerialDef sd = gc_default_serial_def();
+    sd.priority = 0;
+    sd.ramp_time = 0.0;
+    sd.stall_timeout = 0.05;
+    int32_t id = -1;
+    GC_CHECK(gc_world_attach_serial(w, sv[0], &sd, &id) == GC_OK, "attach: %s", gc_world_last_error(w));
+    dev_read(&dev, 200);
+    uint8_t hello[12] = {1, GC_CAP_FORCES, 0, 0};
+    gc_put16(hello + 4, 1000);
+    gc_putf32(hello + 6, 3.0f);
+    gc_put16(hello + 10, 50);
+    dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, 12);
+    dev.status = GC_STATUS_ESTOPPED; /* latched, no ESTOP frame */
+    stream(&dev, 400, -0.002); /* the soft start walks the HIP 2 mm into the ground */
+    gcSerialStats st;
+    WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.estops > 0));
+    int value = -1;
+    double t_estop = event_time(w, id, GC_SERIAL_EV_ESTOP, &value);
+    GC_CHECK(st.estops == 1 && value == GC_ESTOP_REASON_STATUS && t_estop < world_time(w),
+             "forces off, the status says e-stop: %d e-stops, event value %d at %.4f s", (int)st.estops, value,
+             t_estop);
+    stream(&dev, 100, -0.002);
+    gc_world_serial_stats(w, id, &st);
+    GC_CHECK(st.estops == 1, "said again in every pose: still one e-stop (%d)", (int)st.estops);
+    /* Forces on: ENABLE(1) clears it on both sides (the device drops its status bit). */
+    gc_world_serial_enable(w, id, 1);
+    WAIT_UNTIL((dev_read(&dev, 1), dev.last_enable == 1));
+    dev.status = 0;
+    for (int k = 0; k < 40 && fabs(force_z(&dev) - 3.0) >= 1e-6; ++k) stream(&dev, 50, -0.002);
+    gc_world_serial_stats(w, id, &st);
+    GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-6 && st.estops == 1 && st.enabled,
+             "enabled: %.4f N sent, %d e-stops", force_z(&dev), (int)st.estops);
+    gc_world_stop(w);
+    gc_world_destroy(w);
+    close(sv[0]), close(sv[1]);
+}
+
 /* Host-side rules of docs/protocol.md: the device's sequence counts frames of every type (a
  * HEARTBEAT between poses is no gap, a frame that never came is); a silent device gets a
  * HELLO_HOST every 100 ms (so that one that restarted answers); the host's ESTOP is said
@@ -1302,6 +1471,8 @@ int main(void) {
     test_device_thread();
     test_two_devices();
     test_recorded_forces();
+    test_recorded_forces_are_the_frames();
+    test_estop_in_status_before_enable();
     test_protocol_rules();
     test_attach_before_start();
     test_device_beside_api_writer();

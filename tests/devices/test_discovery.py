@@ -254,3 +254,38 @@ def test_after_a_probe_the_session_sees_the_emulator_motion_from_its_start():
     finally:
         emu.kill()
         emu.wait()
+
+
+def test_a_stop_button_pressed_to_nobody_after_a_probe_is_pressed_again_in_the_session():
+    """``--estop-at`` counts from the session's hello, as the motion does: a button the script
+    pressed while nobody streamed (a probe's conversation, a slow session start: its ESTOP
+    frame went to nobody) is neither latched in the session's poses nor forgotten."""
+    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--motion", "lift",
+                            "--rate", "200", "--estop-at", "0.2", "--duration", "5"], cwd=ROOT,
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        port = emu.stdout.readline().split()[1]
+        assert D.probe_ports([port])[0]["status"] == "grasp_lab"
+        time.sleep(0.5)                                 # the script's button: pressed to nobody
+        fd = os.open(port, os.O_RDWR | os.O_NOCTTY)
+        try:
+            termios.tcflush(fd, termios.TCIFLUSH)
+            os.write(fd, P.encode(P.HELLO_HOST, 0, P.hello_host()))
+            dec, frames, end = P.StreamDecoder(), [], time.monotonic() + 5
+            while time.monotonic() < end and not any(f.type == P.ESTOP for f in frames):
+                if select.select([fd], [], [], 0.05)[0]:
+                    for f in dec.feed(os.read(fd, 4096)):
+                        frames.append(f)
+                        if f.type == P.POSE:            # answered, as a streaming host does
+                            os.write(fd, P.encode(P.FORCE, 1, P.force(f.seq, 20000, [(0.0, 0.0, 0.0)] * 2)))
+            seen = [f.type for f in frames]
+            poses = [P.parse_pose(f.payload) for f in frames[seen.index(P.HELLO_DEVICE):] if f.type == P.POSE]
+            assert P.ESTOP in seen, "no ESTOP in the session"
+            before = poses[:seen[seen.index(P.HELLO_DEVICE):].index(P.ESTOP) - 1]
+            assert before and not any(p.status & P.STATUS_ESTOPPED for p in before), [p.status for p in before]
+            assert abs(before[-1].time_us * 1e-6 - 0.2) < 0.05, before[-1]      # pressed 0.2 s into the session
+        finally:
+            os.close(fd)
+    finally:
+        emu.kill()
+        emu.wait()

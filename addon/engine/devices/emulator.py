@@ -226,6 +226,8 @@ class Emulator:
             self._send(P.HELLO_DEVICE, self.hello)
             if new_conversation:
                 self.started = now
+                if self.estop_sent_at is not None:  # the script's button, pressed to nobody: pressed in this one
+                    self.estop_sent_at, self.estopped = None, False
         elif frame.type == P.ENABLE:
             self.enabled = P.parse_u8(frame.payload) == 1   # any other value is off; ENABLE(1) clears an e-stop
             self.estopped = self.estopped and not self.enabled

@@ -78,11 +78,19 @@ class SerialDevice:
             self.serial = None
 
     def reconnect(self, port: str | None = None) -> None:
-        """After an unplug (state 'hangup'): reopen the port (or a new one), same fingers."""
-        self.disconnect()
+        """After an unplug (state 'hangup'): reopen the port (or a new one), same fingers. While
+        the port is not there (ConnectionError) the device stays attached: its thread keeps
+        its fingers let go (their HIPs on their god-objects), which a detached device would not."""
         if port:
             self.port = port
+        if self.device_id is not None and self._port_gone():
+            raise ConnectionError(f"{self.port}: not there (unplugged)")
+        self.disconnect()
         self.connect()
+
+    def _port_gone(self) -> bool:
+        import os
+        return not os.path.exists(self.port)
 
     @property
     def connected(self) -> bool:
@@ -158,6 +166,9 @@ class UdpDevice(SerialDevice):
             raise
         if self.enabled:
             self.world.serial_enable(self.device_id, True)
+
+    def _port_gone(self) -> bool:
+        return False        # a socket of ours: always there
 
     def disconnect(self) -> None:
         self._detach()
