@@ -294,21 +294,25 @@ def test_a_live_blender_session_with_the_panels_live_view(bpy, sample, core):
         Viewer(lv.address)
 
 
+def served_address(proc) -> str:
+    """The live view's address, as `grasp-lab run --live-view` prints it (this machine only)."""
+    lines = []
+    while True:
+        line = proc.stdout.readline()
+        assert line, f"no address printed: {lines} {proc.stderr.read()}"
+        lines.append(line)
+        m = re.search(r"live view: (ws://127\.0\.0\.1:\d+)", line)
+        if m:
+            return m.group(1)
+
+
 def test_cli_realtime_live_view(blend, tmp_path):
     """`grasp-lab run --realtime --live-view 0`: the address printed, a viewer receives the
     advertised channels at the display rate while the session runs, the session ends as usual."""
     proc = subprocess.Popen([LAUNCHER, "run", str(blend), "--realtime", "--duration", "4", "--live-view", "0"],
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        address = None
-        lines = []
-        while address is None:
-            line = proc.stdout.readline()
-            assert line, f"no address printed: {lines} {proc.stderr.read()}"
-            lines.append(line)
-            m = re.search(r"live view: (ws://127\.0\.0\.1:\d+)", line)
-            address = m and m.group(1)
-        v = Viewer(address)
+        v = Viewer(served_address(proc))
         v.read(5, until=lambda: len(v.channels) >= 8)
         assert set(v.topics()) >= {viewer.TOPIC_SCENE, viewer.TOPIC_TRANSFORMS, viewer.TOPIC_BODIES,
                                    viewer.TOPIC_LOG, "/grasp_lab/finger/Finger_0", "/grasp_lab/body/Box"}
@@ -354,14 +358,7 @@ def test_cli_live_view_serves_a_device_session(blend):
         proc = subprocess.Popen([LAUNCHER, "run", str(blend), "--realtime", "--device", f"serial:{port}",
                                  "--duration", "3", "--live-view", "0"],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        address, lines = None, []
-        while address is None:
-            line = proc.stdout.readline()
-            assert line, f"no address printed: {lines} {proc.stderr.read()}"
-            lines.append(line)
-            m = re.search(r"live view: (ws://127\.0\.0\.1:\d+)", line)
-            address = m and m.group(1)
-        v = Viewer(address)
+        v = Viewer(served_address(proc))
         v.read(5, until=lambda: len(v.channels) >= 8)
         v.subscribe_all()
         v.read(1.5)
