@@ -1101,8 +1101,8 @@ def scenario_robustness():
     bpy.ops.grasp_lab.session(duration=3.0)         # headless-style (EXEC): the recording to sweep
     RESULT["recording"] = s.last_recording
     r = bpy.context.scene.grasp_lab_robustness
-    # enough samples that the sweep outlasts its start (two spawned workers) and the bar is seen moving
-    r.samples, r.seed, r.workers = 32, 1, 2
+    # enough samples (about a millisecond each) that the bar is seen moving, not only the start of the workers
+    r.samples, r.seed, r.workers = 400, 1, 2
     yield from open_grasp_tab()
     area, win_region, ui = view3d()
     hover(ui, ui.width / 2, ui.height / 2)
