@@ -874,12 +874,19 @@ def scenario_find_devices():
     r = int(ui.height - y_find)                     # the Find Devices row (Add Device at its right)
     while r < ui.height and has_button[r]:
         r += 1
-    band = [k for k in range(r, min(r + 120, ui.height)) if has_button[k]]
-    if not band:
-        raise AssertionError("no + button appeared under Find Devices")
-    plus_rows = [k for k in band if k - band[0] < 30]
-    plus_rows = plus_rows[:next((i for i in range(1, len(plus_rows)) if plus_rows[i] != plus_rows[i - 1] + 1),
-                               len(plus_rows))]
+    # One + a device, in the list's order (other emulators on the machine may answer too): ours
+    mine = [d["port"] for d in devices_ui._discovered["devices"]].index(port) \
+        if any(d["port"] == port for d in devices_ui._discovered["devices"]) else 0
+    pluses = []                                     # the + buttons' row ranges, top to bottom
+    for k in range(r, min(r + 120 * (mine + 1), ui.height)):
+        if has_button[k]:
+            if pluses and k == pluses[-1][-1] + 1:
+                pluses[-1].append(k)
+            else:
+                pluses.append([k])
+    if len(pluses) <= mine:
+        raise AssertionError(f"no + button {mine} appeared under Find Devices ({len(pluses)} seen)")
+    plus_rows = pluses[mine]
     cy = (plus_rows[0] + plus_rows[-1]) / 2
     cols = np.nonzero(button[plus_rows[0]:plus_rows[-1] + 1, right:].any(axis=0))[0] + right
     cx = (cols[0] + cols[-1]) / 2
