@@ -18,6 +18,7 @@ import subprocess
 import sys
 import threading
 
+from . import core_loader
 from . import sweep as _sweep
 
 # The child: the engine from the zip, the sweep, its progress as JSON lines on stdout.
@@ -96,12 +97,12 @@ class BackgroundSweep:
     def start(self) -> None:
         os.makedirs(self.folder, exist_ok=True)
         path, package = _sweep.engine_zip(self.folder)
-        addon = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+        # The folder of the core this process runs (a built extension vendors it in engine/graspcore/,
+        # which the zip leaves out): last on the child's path, after the caller's (numpy, mcap).
+        core_folder = os.path.dirname(os.path.dirname(os.path.abspath(core_loader.load().__file__)))
         args = {"package": package, "recording": self.recording, "varies": self.varies,
                 "samples": self.samples, "seed": self.seed, "folder": self.folder, "workers": self.workers,
-                # the caller's path for numpy, mcap and the core; the add-on's folder last, for the
-                # core it vendors (a built extension)
-                "front": [path] + [p for p in sys.path if p], "back": [addon]}
+                "front": [path] + [p for p in sys.path if p], "back": [core_folder]}
         self._proc = subprocess.Popen([sys.executable, "-c", CHILD, json.dumps(args)], stdin=subprocess.DEVNULL,
                                       stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         threading.Thread(target=self._read, args=(self._proc.stdout, True), daemon=True,

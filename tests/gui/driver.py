@@ -198,6 +198,36 @@ def click_button(region, row, part=0, parts=1, name="find_buttons"):
     yield from click_at(region, x0 + (x1 - x0) * (part + 0.5) / parts, y)
 
 
+def operator_row(region, idname, part=0, parts=1, name="find_buttons", tries=3):
+    """The button row (x left, x right, y centre) of a region whose ``part``-th of ``parts``
+    buttons runs the operator ``idname``: found as a person checks a button, the mouse over each
+    row in turn and Ctrl+C (Blender copies an operator button's Python command), never by where
+    the row is (a panel added below moves it). The rows come from a screenshot, which can be a
+    step behind a scroll just made (llvmpipe): looked for again in a new one if none answered."""
+    wm = bpy.context.window_manager
+    seen = []
+    for _ in range(tries):
+        rows = find_buttons(region, name)
+        seen = []
+        for x0, x1, y in rows:
+            hover(region, x0 + (x1 - x0) * (part + 0.5) / parts, y)
+            yield 0.3
+            wm.clipboard = ""
+            xdo("key", "ctrl+c")
+            yield 0.3
+            if wm.clipboard.startswith(f"bpy.ops.{idname}("):
+                return x0, x1, y
+            seen.append(wm.clipboard)
+        yield 1.0
+    raise AssertionError(f"no button row runs {idname} (rows {rows}: {seen})")
+
+
+def click_part(region, row, part=0, parts=1):
+    """Click the ``part``-th of ``parts`` buttons of a button row (operator_row's)."""
+    x0, x1, y = row
+    yield from click_at(region, x0 + (x1 - x0) * (part + 0.5) / parts, y)
+
+
 def click_at(region, x, y):
     hover(region, x, y)
     yield 0.3
@@ -827,9 +857,9 @@ def scenario_find_devices():
     xdo("click", "--repeat", "15", "5")             # scrolled down to the Devices panel
     yield 1.5
     devices_ui = ext("devices_ui")
-    rows = find_buttons(ui, "before_find")
-    x0, x1, y_find = rows[-1]                       # the panel's last row: Find Devices | Add Device
-    yield from click_button(ui, len(rows) - 1, part=0, parts=2)
+    row = yield from operator_row(ui, "grasp_lab.devices_refresh", part=0, parts=2, name="before_find")
+    x0, x1, y_find = row                                            # Find Devices | Add Device
+    yield from click_part(ui, row, part=0, parts=2)
     yield from wait_until(lambda: devices_ui._discovered["asked"] is not None, 10, "Find Devices to answer")
     RESULT["discovered"] = devices_ui._discovered["devices"]
     RESULT["asked"] = devices_ui._discovered["asked"]
@@ -844,12 +874,19 @@ def scenario_find_devices():
     r = int(ui.height - y_find)                     # the Find Devices row (Add Device at its right)
     while r < ui.height and has_button[r]:
         r += 1
-    band = [k for k in range(r, min(r + 120, ui.height)) if has_button[k]]
-    if not band:
-        raise AssertionError("no + button appeared under Find Devices")
-    plus_rows = [k for k in band if k - band[0] < 30]
-    plus_rows = plus_rows[:next((i for i in range(1, len(plus_rows)) if plus_rows[i] != plus_rows[i - 1] + 1),
-                               len(plus_rows))]
+    # One + a device, in the list's order (other emulators on the machine may answer too): ours
+    mine = [d["port"] for d in devices_ui._discovered["devices"]].index(port) \
+        if any(d["port"] == port for d in devices_ui._discovered["devices"]) else 0
+    pluses = []                                     # the + buttons' row ranges, top to bottom
+    for k in range(r, min(r + 120 * (mine + 1), ui.height)):
+        if has_button[k]:
+            if pluses and k == pluses[-1][-1] + 1:
+                pluses[-1].append(k)
+            else:
+                pluses.append([k])
+    if len(pluses) <= mine:
+        raise AssertionError(f"no + button {mine} appeared under Find Devices ({len(pluses)} seen)")
+    plus_rows = pluses[mine]
     cy = (plus_rows[0] + plus_rows[-1]) / 2
     cols = np.nonzero(button[plus_rows[0]:plus_rows[-1] + 1, right:].any(axis=0))[0] + right
     cx = (cols[0] + cols[-1]) / 2
@@ -1015,9 +1052,9 @@ def scenario_walkthrough():
     for _ in range(3):                      # the sidebar scrolled to its end: Recording, Devices
         xdo("click", "--repeat", "10", "5")
         yield 0.4
-    rows = find_buttons(ui, "rows_after_record")
-    RESULT["rows_after_record"] = rows
-    yield from click_button(ui, len(rows) - 2, part=0, parts=2)     # Bake Recording
+    RESULT["rows_after_record"] = find_buttons(ui, "rows_after_record")
+    row = yield from operator_row(ui, "grasp_lab.import_recording", part=0, parts=2)
+    yield from click_part(ui, row, part=0, parts=2)                 # Bake Recording
     browser = {}
 
     def file_browser():
@@ -1039,8 +1076,8 @@ def scenario_walkthrough():
     yield 1.0
     # --- Show Curves: one click, a Graph Editor with the measures
     area, win_region, ui = view3d()
-    rows = find_buttons(ui, "rows_after_bake")
-    yield from click_button(ui, len(rows) - 2, part=1, parts=2)    # Show Curves
+    row = yield from operator_row(ui, "grasp_lab.show_curves", part=1, parts=2, name="rows_after_bake")
+    yield from click_part(ui, row, part=1, parts=2)                 # Show Curves
     yield from wait_until(lambda: any(a.type == "GRAPH_EDITOR" for a in window().screen.areas), 10,
                           "a Graph Editor")
     bpy.context.scene.frame_set(43)
@@ -1071,7 +1108,8 @@ def scenario_robustness():
     bpy.ops.grasp_lab.session(duration=3.0)         # headless-style (EXEC): the recording to sweep
     RESULT["recording"] = s.last_recording
     r = bpy.context.scene.grasp_lab_robustness
-    r.samples, r.seed, r.workers = 8, 1, 2
+    # enough samples (about a millisecond each) that the bar is seen moving, not only the start of the workers
+    r.samples, r.seed, r.workers = 400, 1, 2
     yield from open_grasp_tab()
     area, win_region, ui = view3d()
     hover(ui, ui.width / 2, ui.height / 2)
@@ -1079,9 +1117,9 @@ def scenario_robustness():
         xdo("click", "--repeat", "10", "5")
         yield 0.4
     yield 1.0
-    rows = find_buttons(ui, "rows_robustness")
-    RESULT["rows"] = rows
-    yield from click_button(ui, len(rows) - 1)                   # Run Sweep: the last button row
+    RESULT["rows"] = find_buttons(ui, "rows_robustness")
+    row = yield from operator_row(ui, "grasp_lab.robustness_sweep")
+    yield from click_part(ui, row)                                  # Run Sweep
     robustness = ext("robustness")
     yield from wait_until(lambda: bpy.context.scene.name in robustness._jobs, 10, "the sweep to start")
     job = robustness._jobs[bpy.context.scene.name]
@@ -1106,6 +1144,7 @@ def scenario_robustness():
     RESULT["max_gap_s"] = max(gaps) if gaps else None
     RESULT["status"] = r.status
     RESULT["error"] = job.error
+    RESULT["sweep_seconds"] = job.seconds
     RESULT["map_path"] = r.map_path
     hover(ui, ui.width / 2, ui.height / 2)
     yield 1.0                               # the panel redrawn with the status and the map,

@@ -192,7 +192,8 @@ def test_find_devices_lists_the_emulator_and_its_plus_adds_it(gui):
         emu.kill()
         emu.wait()
     ok(r, console)
-    assert [(d["name"], d["n_fingers"], d["port"]) for d in r["discovered"]] == [("grasp-lab-emulator", 2, port)], \
+    # ours among them (other emulators running on the machine, tests in parallel, may answer too)
+    assert [(d["name"], d["n_fingers"]) for d in r["discovered"] if d["port"] == port] == [("grasp-lab-emulator", 2)], \
         r["discovered"]
     assert r["text_pixels"]["name_line"] > 30 and r["text_pixels"]["count_line"] > 30, r["text_pixels"]
     assert all(px < r["lines"]["region_width"] - 60 for px in r["lines"]["text_px"]), r["lines"]   # never cut
@@ -246,7 +247,7 @@ def test_the_robustness_panel_sweeps_the_last_recording(gui):
     ok(r, console)
     assert r["recording"].endswith(".mcap"), r
     assert not r["error"], r["error"]
-    assert r["status"].startswith("Held ") and " of 8: p = " in r["status"], r["status"]
+    assert r["status"].startswith("Held ") and " of 400: p = " in r["status"], r["status"]
     seen = r["progress_seen"]
     assert seen == sorted(seen) and len(seen) > 3, seen
     assert r["max_gap_s"] < 2.0, r["max_gap_s"]      # Blender's timers ran all along
