@@ -46,6 +46,7 @@ class _Viewers:
         self.joined = False
         self.refused = collections.Counter()
         self.server = None                  # set once the server runs: refusals are told to the client
+        self.error_level = None             # foxglove.websocket.StatusLevel.Error, with the server
         self._lock = threading.Lock()
 
     def on_subscribe(self, client, channel):
@@ -61,8 +62,7 @@ class _Viewers:
         with self._lock:
             self.refused[kind] += 1
         if self.server is not None:
-            from foxglove.websocket import StatusLevel
-            self.server.publish_status(f"Grasp Lab live view is watching only: {what} refused", StatusLevel.Error)
+            self.server.publish_status(f"Grasp Lab live view is watching only: {what} refused", self.error_level)
 
     def on_client_advertise(self, client, channel):
         self._refuse("publish", f"publishing on {channel.topic!r}")
@@ -98,7 +98,7 @@ class LiveView:
         self.channels = FoxgloveChannels(self.model, self.context)
         self.viewers = _Viewers()
         try:
-            from foxglove.websocket import Capability
+            from foxglove.websocket import Capability, StatusLevel
             # Offered only so that the listener sees (refuses and counts) these requests: _Viewers.
             self.server = foxglove.start_server(name="Grasp Lab", host=bind, port=int(port),
                                                 capabilities=[Capability.ClientPublish, Capability.Parameters],
@@ -106,7 +106,7 @@ class LiveView:
                                                 server_listener=self.viewers, context=self.context)
         except Exception as ex:         # the SDK's own error type: say what could not be bound
             raise OSError(f"live view: cannot serve on {bind}:{port} ({ex})") from None
-        self.viewers.server = self.server
+        self.viewers.server, self.viewers.error_level = self.server, StatusLevel.Error
         self.bind, self.port = bind, int(self.server.port)
         self.dtype = tick_dtype(len(self.model.body_names), len(self.model.finger_names))
         self.events = EventDetector(header)
