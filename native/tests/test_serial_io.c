@@ -6,10 +6,10 @@
 #define _GNU_SOURCE
 #include "gc_test.h"
 #include "graspcore.h"
-#include "device_codec.h"
-#include "force_gate.h"
-#include "hip_input.h"
-#include "device_hub.h"
+#include "devices/device_codec.h"
+#include "devices/force_gate.h"
+#include "runtime/hip_input.h"
+#include "devices/device_hub.h"
 
 #include <errno.h>
 #include <fcntl.h>

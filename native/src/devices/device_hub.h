@@ -10,9 +10,9 @@
 #ifndef GC_DEVICE_HUB_H
 #define GC_DEVICE_HUB_H
 
-#include "world_internal.h"
+#include "world/world.h"
 #include "force_gate.h"
-#include "gc_sync.h"
+#include "base/gc_sync.h"
 
 #include <pthread.h>
 
@@ -45,6 +45,7 @@ typedef struct gcDeviceHub {
     _Atomic int *owner;
     _Atomic uint32_t *claim;         /* per finger: +1 each time an owner claims it */
     _Atomic uint32_t connections;    /* every device connection so far: each its own episode */
+    _Atomic uint64_t rejected_inputs; /* device poses pushed through the API and refused (stats add them) */
     pthread_mutex_t api_write_mutex; /* among API writers of slots only; device threads never take it */
     gcForceGate *api_gate;           /* per finger a device read elsewhere drives: its force gate */
     int64_t ramp_ns;                 /* the running runtime's ramp_time (set by gc_world_start) */

@@ -3,7 +3,7 @@
 #ifndef GC_XFCA_H
 #define GC_XFCA_H
 
-#include "body.h"
+#include "world/body.h"
 
 /* One god-object update for every finger (start of a step, on the current poses). */
 void gc_xfca_update(gcWorld *world, double dt);

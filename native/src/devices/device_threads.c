@@ -11,8 +11,8 @@
 #include "force_gate.h"
 
 #include "graspcore.h"
-#include "body.h"
-#include "small_dense.h"
+#include "world/body.h"
+#include "base/small_dense.h"
 
 #include <arpa/inet.h>
 #include <errno.h>

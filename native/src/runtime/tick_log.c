@@ -18,8 +18,8 @@
 #include <sys/resource.h>
 #endif
 
-#include "body.h"
-#include "gc_math.h"
+#include "world/body.h"
+#include "base/gc_math.h"
 #include "graspcore.h"
 
 struct gcTickLog {

@@ -5,8 +5,7 @@
 #include "device_hub.h"
 
 #include "graspcore.h"
-#include "body.h"
-#include "runtime_internal.h"
+#include "world/body.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -243,7 +242,7 @@ gcStatus gc_world_push_device_poses(gcWorld *w, int offset, int count_, const do
     for (int i = 0; i < 3 * count_; ++i) usable &= isfinite(positions[i]) != 0;
     for (int i = 0; orientations && i < count_; ++i) usable &= gc_device_quat_usable(&orientations[4 * i]);
     if (!usable) { /* nothing of the sample is taken */
-        gc_runtime_count_rejected(w);
+        gc_atomic_increment(&w->serial->rejected_inputs); /* the runtime's stats add these */
         return GC_WARN_REJECTED;
     }
     gcDeviceHub *h = w->serial;

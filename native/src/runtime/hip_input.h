@@ -6,7 +6,7 @@
 #ifndef GC_HIP_INPUT_H
 #define GC_HIP_INPUT_H
 
-#include "body.h"
+#include "world/body.h"
 
 /* The world's scripted track: samples at increasing times, shared by all its fingers. */
 typedef struct gcHipTrack {

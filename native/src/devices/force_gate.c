@@ -1,7 +1,7 @@
 /* The device-force gate (force_gate.h): the one place forces are ramped, clamped and zeroed. */
 #include "force_gate.h"
 
-#include "gc_math.h"
+#include "base/gc_math.h"
 
 /* The ramp gain `elapsed` after the gate opened (0..1 over `ramp`, 1 without a ramp); a force
  * scaled by it, zeroed when not finite, its norm clamped to `limit`. */

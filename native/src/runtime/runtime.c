@@ -378,6 +378,7 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
     atomic_store(&rt->manual_now_ns, 0);
     atomic_store(&rt->debug_stall_ns, 0);
     reset_stats(rt);
+    atomic_store(&w->serial->rejected_inputs, 0);
     rt->tick_log = gc_tick_log_begin(w, &st);
     if (st) {
         pthread_mutex_unlock(&rt->api_mutex);

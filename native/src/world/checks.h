@@ -3,8 +3,8 @@
 #ifndef GC_CHECKS_H
 #define GC_CHECKS_H
 
-#include "small_dense.h"
-#include "world_internal.h"
+#include "base/small_dense.h"
+#include "world.h"
 
 /* The message gc_world_last_error returns; every error path sets one, naming the argument. */
 void gc_world_set_error(const gcWorld *world, const char *fmt, ...);

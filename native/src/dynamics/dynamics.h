@@ -3,7 +3,7 @@
 #ifndef GC_DYNAMICS_H
 #define GC_DYNAMICS_H
 
-#include "body.h"
+#include "world/body.h"
 
 /* In step order: new velocities of every dynamic body under gravity, the gyroscopic term
  * and the implicit finger coupling (leaves each body's effective mass); then, after the

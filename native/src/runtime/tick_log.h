@@ -4,7 +4,7 @@
 #ifndef GC_TICK_LOG_H
 #define GC_TICK_LOG_H
 
-#include "world_internal.h"
+#include "world/world.h"
 
 typedef struct gcTickLog gcTickLog;
 

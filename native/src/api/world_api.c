@@ -1,11 +1,11 @@
 /* World lifetime, bodies and fingers, argument validation, queries. */
 #define _GNU_SOURCE /* device_hub.h: the monotonic clock (gc_sync.h) */
-#include "world_internal.h"
-#include "hip_input.h"
-#include "runtime.h"
-#include "tick_log.h"
-#include "device_hub.h"
-#include "step.h"
+#include "world/world.h"
+#include "runtime/hip_input.h"
+#include "runtime/runtime.h"
+#include "runtime/tick_log.h"
+#include "devices/device_hub.h"
+#include "dynamics/step.h"
 
 #include <stdarg.h>
 #include <stdio.h>

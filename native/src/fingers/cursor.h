@@ -2,8 +2,8 @@
 #ifndef GC_CURSOR_H
 #define GC_CURSOR_H
 
-#include "body.h"
-#include "geometry.h"
+#include "world/body.h"
+#include "geometry/geometry.h"
 
 /* One tick of a cursor finger (start of a step, on the current poses): its free motion,
  * the constraint solve against every convex part in reach, friction; its contacts. */

@@ -3,9 +3,9 @@
 #ifndef GC_STEP_H
 #define GC_STEP_H
 
-#include "contacts.h"
+#include "contacts/contacts.h"
 #include "dynamics.h"
-#include "xfca.h"
+#include "fingers/xfca.h"
 
 /* The body phase: velocities, contacts, positions. Only the bodies of world->body_active
  * move when it is set (a runtime shadow). Returns how many bodies the non-finite guard

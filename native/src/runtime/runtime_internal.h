@@ -11,12 +11,12 @@
 
 #include "runtime.h"
 
-#include "contacts.h"
+#include "contacts/contacts.h"
 #include "hip_input.h"
-#include "device_hub.h"
-#include "force_gate.h"
-#include "gc_sync.h"
-#include "step.h"
+#include "devices/device_hub.h"
+#include "devices/force_gate.h"
+#include "base/gc_sync.h"
+#include "dynamics/step.h"
 
 #include <errno.h>
 #include <pthread.h>
@@ -199,9 +199,6 @@ typedef struct gcRuntime {
 static inline int gc_runtime_running(const gcWorld *w) {
     return w && w->runtime && atomic_load_explicit(&w->runtime->state, memory_order_acquire) == GC_RUNTIME_RUNNING;
 }
-
-/* An input refused (a bad sample pushed or a device's, nothing taken): stats' rejected_inputs. */
-static inline void gc_runtime_count_rejected(gcWorld *w) { gc_atomic_increment(&w->runtime->rejected_inputs); }
 
 /* A body's state from a channel message into a shadow (channels). */
 void gc_runtime_body_load(gcWorld *s, int32_t i, const gcRuntimeBody *o);

@@ -4,7 +4,7 @@
 #ifndef GC_CONTACTS_H
 #define GC_CONTACTS_H
 
-#include "body.h"
+#include "world/body.h"
 
 #include <stdint.h>
 

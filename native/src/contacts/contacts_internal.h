@@ -6,8 +6,8 @@
 
 #include "contacts.h"
 
-#include "threadpool.h"
-#include "world_internal.h"
+#include "base/threadpool.h"
+#include "world/world.h"
 
 #include <stdint.h>
 

@@ -3,7 +3,7 @@
 #ifndef GC_RUNTIME_H
 #define GC_RUNTIME_H
 
-#include "world_internal.h"
+#include "world/world.h"
 
 /* Stops the runtime if it runs (joining its threads) and frees it; for gc_world_destroy. */
 void gc_runtime_free(gcWorld *world);

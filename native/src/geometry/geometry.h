@@ -5,7 +5,7 @@
 #ifndef GC_GEOMETRY_H
 #define GC_GEOMETRY_H
 
-#include "gc_math.h"
+#include "base/gc_math.h"
 #include "graspcore.h"
 
 /* A convex shape is a "core" point set plus a margin radius:

@@ -5,8 +5,8 @@
 #define GC_BODY_H
 
 #include "checks.h"
-#include "small_dense.h"
-#include "world_internal.h"
+#include "base/small_dense.h"
+#include "world.h"
 
 /* After the pose changed: normalised q, R, the pose view, the world AABB. */
 void gc_body_refresh_derived(gcWorld *world, int32_t body);

@@ -3,7 +3,7 @@
 #ifndef GC_WORLD_INTERNAL_H
 #define GC_WORLD_INTERNAL_H
 
-#include "geometry.h"
+#include "geometry/geometry.h"
 #include "graspcore.h"
 
 #include <stdint.h>
