@@ -30,1035 +30,19 @@
  * mu_min follows the LP's margin as mu changes (Brent's method) and checks its answer with the
  * rule grasp_quality uses. All storage is in the workspace and grows only when a larger problem
  * comes. */
-#include "grasp_quality.h"
+#include "analysis_internal.h"
 
-#include <math.h>
-#include <stdint.h>
-#include <stdarg.h>
-#include <stdio.h>
 #include <stdlib.h>
-#include <string.h>
-
-#define D GC_HULL_MAX_DIM
-/* The hull's inner functions are compiled once per dimension (3 and 6), loops unrolled. */
-#if defined(__GNUC__) || defined(__clang__)
-#define GC_ALWAYS_INLINE inline __attribute__((always_inline))
-#else
-#define GC_ALWAYS_INLINE inline
-#endif
-#define GC_GRASP_MAX_EDGES 1024
 
 static const double kTwoPi = 6.28318530717958647692;
 
-typedef struct Facet {
-    /* What the walks and the visibility search read, in one cache line. */
-    int v[D];           /* vertices (point indices) */
-    int nb[D];          /* nb[i]: the facet across the ridge without v[i] */
-    int tested, visible;/* iteration stamps */
-    double pdist;       /* signed distance of the current apex (valid when tested == stamp) */
-    double n[D];        /* unit outward normal */
-    double off;         /* n.x + off: signed distance of x */
-    double cdist;       /* signed distance of the interior point c (< 0) */
-    double vol;         /* volume of the simplex (c, facet) */
-    double fdist;       /* distance of the furthest outside point */
-    uint64_t key[2];    /* sums of the vertices' random words (ridge keys, see link_new_facets) */
-    int outside;        /* head of the outside-point list, -1 when empty */
-    int furthest;       /* furthest outside point, -1 when the set is empty */
-    int alive;
-} Facet;
-
-/* A set's answer kept for gcGraspDef.reuse: its edge wrenches, epsilon (from a search) and the
- * points of its nearest facet. */
-#define GC_REUSE_SLOTS 4
-typedef struct ReuseSlot {
-    int rows, edges, cap;
-    double tolerance, epsilon;
-    double *wrench;     /* rows x 6 */
-    int vertices[D];
-} ReuseSlot;
-
-/* A mu_min answer kept for gcGraspDef.reuse: the contacts it was found for (points, normals,
- * center, radius in one row) and mu_max. */
-typedef struct MuMinSlot {
-    int contacts, edges, cap, rows;
-    double tolerance, mu_max, answer;
-    double margin;      /* the support search's epsilon at the answer, 0 when the LP decided there */
-    double *input;      /* 6 x contacts + 4, then rows x 6: the edge wrenches at the answer */
-} MuMinSlot;
-
-struct gcGraspWorkspace {
-    char error[256];
-    MuMinSlot mu_min[GC_REUSE_SLOTS];
-    int mu_min_next;
-    ReuseSlot reuse[GC_REUSE_SLOTS];
-    int reuse_next;     /* the slot the next new set takes */
-    int nearest_vertices[D];    /* of the last quality_fast answer in closure */
-    int cap_points;
-    double *wrench;     /* cap_points x 6 */
-    double *force;      /* cap_points x 3 */
-    double *torque;     /* cap_points x 3 */
-    double *residual;   /* cap_points x 6: Gram-Schmidt residuals */
-    int *next;          /* outside-set links per point */
-    int cap_facets;
-    Facet *facets;
-    int high_water;     /* facets[0 .. high_water) have been used */
-    int *free_list;
-    int num_free;
-    int *visible;       /* cap_facets: this iteration's visible facets */
-    int *created;       /* cap_facets: this iteration's new facets */
-    int cap_pending;
-    int *pending;       /* stack of facets that had outside points when made */
-    uint64_t *vertex_hash; /* cap_points x 2: two random 64-bit words per point */
-    int cap_ridges;     /* the ridge table of one iteration (open addressing) */
-    int ridge_slots;    /* the part of it this iteration uses (a power of two) */
-    uint64_t *ridge_key;    /* two words per slot */
-    int *ridge_facet;   /* facet << 3 | slot; -1 after its match */
-    int *ridge_stamp;
-    int ridge_gen;
-    int *created_apex;  /* cap_facets: where the apex sits in each new facet */
-    double *facet_off;  /* cap_facets: the support search's copy of each live facet's off (-inf
-                         * when dead), scanned without touching the facets */
-    int cap_lp;
-    double *lp;         /* the closure LP's tableau */
-    int *lp_basis;
-    int edges_cached;
-    double cos_table[GC_GRASP_MAX_EDGES], sin_table[GC_GRASP_MAX_EDGES];
-};
-
-static gcStatus set_error(gcGraspWorkspace *ws, gcStatus st, const char *fmt, ...) {
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(ws->error, sizeof ws->error, fmt, ap);
-    va_end(ap);
-    return st;
-}
-
-gcGraspDef gc_default_grasp_def(void) {
-    gcGraspDef def;
-    memset(&def, 0, sizeof def);
-    def.edges = 8;
-    def.tolerance = 1e-10;
-    def.max_facets = 1 << 20;
-    def.volume = 1;
-    return def;
-}
-
-gcGraspWorkspace *gc_grasp_workspace_create(void) {
-    gcGraspWorkspace *ws = calloc(1, sizeof *ws);
-    return ws;
-}
-
-void gc_grasp_workspace_destroy(gcGraspWorkspace *ws) {
-    if (!ws) return;
-    free(ws->wrench);
-    free(ws->force);
-    free(ws->torque);
-    free(ws->residual);
-    free(ws->next);
-    free(ws->facets);
-    free(ws->free_list);
-    free(ws->visible);
-    free(ws->created);
-    free(ws->pending);
-    free(ws->vertex_hash);
-    free(ws->ridge_key);
-    free(ws->ridge_facet);
-    free(ws->ridge_stamp);
-    free(ws->created_apex);
-    free(ws->facet_off);
-    free(ws->lp);
-    free(ws->lp_basis);
-    for (int k = 0; k < GC_REUSE_SLOTS; ++k) free(ws->reuse[k].wrench), free(ws->mu_min[k].input);
-    free(ws);
-}
-
-const char *gc_grasp_workspace_error(const gcGraspWorkspace *ws) { return ws ? ws->error : "no workspace"; }
-
-/* ---- storage ---------------------------------------------------------------------- */
-
-static int grow(void **p, size_t count, size_t size) {
-    void *q = realloc(*p, count * size);
-    if (!q) return 0;
-    *p = q;
-    return 1;
-}
-
-static gcStatus ensure_points(gcGraspWorkspace *ws, int n) {
-    if (n <= ws->cap_points) return GC_OK;
-    int cap = ws->cap_points ? ws->cap_points : 64;
-    while (cap < n) cap *= 2;
-    if (!grow((void **)&ws->wrench, (size_t)cap * 6, sizeof(double)) ||
-        !grow((void **)&ws->force, (size_t)cap * 3, sizeof(double)) ||
-        !grow((void **)&ws->torque, (size_t)cap * 3, sizeof(double)) ||
-        !grow((void **)&ws->residual, (size_t)cap * 6, sizeof(double)) ||
-        !grow((void **)&ws->next, (size_t)cap, sizeof(int)) ||
-        !grow((void **)&ws->vertex_hash, (size_t)cap * 2, sizeof(uint64_t)))
-        return set_error(ws, GC_ERR_NO_MEMORY, "workspace: out of memory for %d wrenches", n);
-    /* Two random words per point index (splitmix64), made once: the ridge keys sum them. */
-    for (int i = ws->cap_points; i < cap; ++i) {
-        uint64_t z = (uint64_t)(i + 1) * 0x9E3779B97F4A7C15ull;
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        ws->vertex_hash[2 * i] = z ^ (z >> 31);
-        z = (uint64_t)(i + 1) * 0xD1B54A32D192ED03ull;
-        z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-        z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-        ws->vertex_hash[2 * i + 1] = z ^ (z >> 31);
-    }
-    ws->cap_points = cap;
-    return GC_OK;
-}
-
-static gcStatus ensure_facets(gcGraspWorkspace *ws, int n, int max_facets) {
-    if (n <= ws->cap_facets) return GC_OK;
-    if (n > max_facets)
-        return set_error(ws, GC_ERR_CAPACITY, "max_facets: the hull needs more than %d facets", max_facets);
-    int cap = ws->cap_facets ? ws->cap_facets : 1024;
-    while (cap < n) cap *= 2;
-    if (cap > max_facets) cap = max_facets;
-    if (!grow((void **)&ws->facets, (size_t)cap, sizeof(Facet)) ||
-        !grow((void **)&ws->free_list, (size_t)cap, sizeof(int)) ||
-        !grow((void **)&ws->visible, (size_t)cap, sizeof(int)) ||
-        !grow((void **)&ws->created, (size_t)cap, sizeof(int)) ||
-        !grow((void **)&ws->created_apex, (size_t)cap, sizeof(int)) ||
-        !grow((void **)&ws->facet_off, (size_t)cap, sizeof(double)))
-        return set_error(ws, GC_ERR_NO_MEMORY, "workspace: out of memory for %d facets", n);
-    ws->cap_facets = cap;
-    return GC_OK;
-}
-
-/* A ridge table of at least 2 x need slots (a power of two), emptied; only those slots are used,
- * so a small step touches few cache lines even after a large hull grew the table. */
-static gcStatus ensure_ridges(gcGraspWorkspace *ws, int need) {
-    int cap = 64;
-    while (cap < 2 * need) cap *= 2;
-    if (cap > ws->cap_ridges) {
-        if (!grow((void **)&ws->ridge_key, (size_t)cap * 2, sizeof(uint64_t)) ||
-            !grow((void **)&ws->ridge_facet, (size_t)cap, sizeof(int)) ||
-            !grow((void **)&ws->ridge_stamp, (size_t)cap, sizeof(int)))
-            return set_error(ws, GC_ERR_NO_MEMORY, "workspace: out of memory for %d ridges", need);
-        for (int i = ws->cap_ridges; i < cap; ++i) ws->ridge_stamp[i] = 0;
-        ws->cap_ridges = cap;
-    }
-    ws->ridge_slots = cap;
-    if (++ws->ridge_gen == 0x7fffffff) {
-        memset(ws->ridge_stamp, 0, sizeof(int) * (size_t)ws->cap_ridges);
-        ws->ridge_gen = 1;
-    }
-    return GC_OK;
-}
-
-static gcStatus push_pending(gcGraspWorkspace *ws, int *count, int f) {
-    if (*count >= ws->cap_pending) {
-        int cap = ws->cap_pending ? ws->cap_pending * 2 : 1024;
-        if (!grow((void **)&ws->pending, (size_t)cap, sizeof(int)))
-            return set_error(ws, GC_ERR_NO_MEMORY, "workspace: out of memory");
-        ws->cap_pending = cap;
-    }
-    ws->pending[(*count)++] = f;
-    return GC_OK;
-}
-
-/* ---- small dense algebra -------------------------------------------------------------- */
-
-static inline double dotd(const double *a, const double *b, int d) {
-    double s = 0.0;
-    for (int k = 0; k < d; ++k) s += a[k] * b[k];
-    return s;
-}
-
-static inline double facet_dist(const Facet *f, const double *x, int d) { return dotd(f->n, x, d) + f->off; }
-
-/* |det| of the d x d matrix a (row-major, destroyed), partial pivoting. */
-static double abs_det(double *a, int d) {
-    double det = 1.0;
-    for (int c = 0; c < d; ++c) {
-        int piv = c;
-        for (int r = c + 1; r < d; ++r)
-            if (fabs(a[r * d + c]) > fabs(a[piv * d + c])) piv = r;
-        double p = a[piv * d + c];
-        if (p == 0.0) return 0.0;
-        if (piv != c)
-            for (int k = 0; k < d; ++k) {
-                double t = a[c * d + k];
-                a[c * d + k] = a[piv * d + k];
-                a[piv * d + k] = t;
-            }
-        det *= p;
-        for (int r = c + 1; r < d; ++r) {
-            double m = a[r * d + c] / p;
-            for (int k = c + 1; k < d; ++k) a[r * d + k] -= m * a[c * d + k];
-        }
-    }
-    return fabs(det);
-}
-
-static double factorial(int d) {
-    double f = 1.0;
-    for (int k = 2; k <= d; ++k) f *= k;
-    return f;
-}
-
-/* ---- the hull ------------------------------------------------------------------------ */
-
-typedef struct Hull {
-    gcGraspWorkspace *ws;
-    const double *pts;
-    int n, d;
-    double tol;         /* absolute: visibility and flatness */
-    double vtol;        /* absolute: a pencil plane must pass this close to its vertices */
-    double c[D];        /* interior point (centroid of the initial simplex) */
-    int stamp;
-    int max_facets;
-    int volumes;        /* 0: the simplex volumes are not needed (the support-function search) */
-} Hull;
-
-static inline const double *point(const Hull *h, int i, int d) { return h->pts + (size_t)i * (size_t)d; }
-
-/* The facet's hyperplane solved from its vertices (complete pivoting on the d-1 edge vectors),
- * oriented away from c. 0 when the vertices are affinely dependent. */
-static int exact_plane(const Hull *h, Facet *f) {
-    int d = h->d;
-    double a[D - 1][D];
-    int col[D] = {0, 1, 2, 3, 4, 5};
-    const double *v0 = point(h, f->v[0], d);
-    for (int r = 0; r < d - 1; ++r) {
-        const double *vr = point(h, f->v[r + 1], d);
-        for (int k = 0; k < d; ++k) a[r][k] = vr[k] - v0[k];
-    }
-    for (int k = 0; k < d; ++k) col[k] = k;
-    for (int s = 0; s < d - 1; ++s) {
-        int pr = s, pc = s;
-        double best = -1.0;
-        for (int r = s; r < d - 1; ++r)
-            for (int k = s; k < d; ++k)
-                if (fabs(a[r][col[k]]) > best) best = fabs(a[r][col[k]]), pr = r, pc = k;
-        if (!(best > 0.0)) return 0;
-        if (pr != s)
-            for (int k = 0; k < d; ++k) {
-                double t = a[s][k];
-                a[s][k] = a[pr][k];
-                a[pr][k] = t;
-            }
-        int t = col[s];
-        col[s] = col[pc];
-        col[pc] = t;
-        double p = a[s][col[s]];
-        for (int r = s + 1; r < d - 1; ++r) {
-            double m = a[r][col[s]] / p;
-            if (m == 0.0) continue;
-            for (int k = s; k < d; ++k) a[r][col[k]] -= m * a[s][col[k]];
-        }
-    }
-    /* Null vector: the free column (col[d-1]) set to 1, back substitution for the pivots. */
-    double x[D] = {0};
-    x[col[d - 1]] = 1.0;
-    for (int s = d - 2; s >= 0; --s) {
-        double sum = 0.0;
-        for (int k = s + 1; k < d; ++k) sum += a[s][col[k]] * x[col[k]];
-        x[col[s]] = -sum / a[s][col[s]];
-    }
-    double len = sqrt(dotd(x, x, d));
-    if (!(len > 0.0) || !isfinite(len)) return 0;
-    double off = 0.0;
-    for (int k = 0; k < d; ++k) x[k] /= len;
-    for (int r = 0; r < d; ++r) off -= dotd(x, point(h, f->v[r], d), d);
-    off /= d;
-    double cd = dotd(x, h->c, d) + off;
-    if (cd > 0.0) {
-        for (int k = 0; k < d; ++k) x[k] = -x[k];
-        off = -off;
-        cd = -cd;
-    }
-    memcpy(f->n, x, sizeof(double) * (size_t)d);
-    f->off = off;
-    f->cdist = cd;
-    return 1;
-}
-
-static double exact_volume(const Hull *h, const Facet *f) {
-    int d = h->d;
-    double a[D * D];
-    for (int r = 0; r < d; ++r) {
-        const double *v = point(h, f->v[r], d);
-        for (int k = 0; k < d; ++k) a[r * d + k] = v[k] - h->c[k];
-    }
-    return abs_det(a, d) / factorial(d);
-}
-
-static inline int new_facet(Hull *h) {
-    gcGraspWorkspace *ws = h->ws;
-    int f = ws->num_free ? ws->free_list[--ws->num_free] : ws->high_water++;
-    Facet *F = &ws->facets[f];
-    F->outside = -1;
-    F->furthest = -1;
-    F->fdist = 0.0;
-    F->tested = F->visible = -1;
-    F->alive = 1;
-    return f;
-}
-
-/* Puts point q in the outside set of facet f (it is dist above it). */
-static inline void add_outside(Hull *h, Facet *F, int q, double dist) {
-    h->ws->next[q] = F->outside;
-    F->outside = q;
-    if (F->furthest < 0 || dist > F->fdist) F->furthest = q, F->fdist = dist;
-}
-
-/* Greedy well-spread simplex: the point furthest from the centroid, then each time the point
- * furthest from the affine span of those chosen (Gram-Schmidt on residuals). Returns how many
- * affinely independent points it found (d + 1 for a full hull). */
-static int initial_simplex(Hull *h, int *chosen) {
-    int n = h->n, d = h->d;
-    double *res = h->ws->residual;
-    double mean[D] = {0};
-    for (int i = 0; i < n; ++i)
-        for (int k = 0; k < d; ++k) mean[k] += point(h, i, d)[k];
-    for (int k = 0; k < d; ++k) mean[k] /= n;
-    int first = 0;
-    double best = -1.0;
-    for (int i = 0; i < n; ++i) {
-        double s = 0.0;
-        for (int k = 0; k < d; ++k) s += (point(h, i, d)[k] - mean[k]) * (point(h, i, d)[k] - mean[k]);
-        if (s > best) best = s, first = i;
-    }
-    chosen[0] = first;
-    const double *o = point(h, first, d);
-    for (int i = 0; i < n; ++i)
-        for (int k = 0; k < d; ++k) res[i * 6 + k] = point(h, i, d)[k] - o[k];
-    for (int m = 1; m <= d; ++m) {
-        int pick = -1;
-        double big = 0.0;
-        for (int i = 0; i < n; ++i) {
-            double s = dotd(&res[i * 6], &res[i * 6], d);
-            if (s > big) big = s, pick = i;
-        }
-        if (pick < 0 || sqrt(big) <= h->tol) return m;
-        chosen[m] = pick;
-        double u[D], len = sqrt(big);
-        for (int k = 0; k < d; ++k) u[k] = res[pick * 6 + k] / len;
-        for (int i = 0; i < n; ++i) {
-            double *r = &res[i * 6];
-            double p = dotd(r, u, d);
-            for (int k = 0; k < d; ++k) r[k] -= p * u[k];
-        }
-    }
-    return d + 1;
-}
-
-gcStatus gc_span_rank(gcGraspWorkspace *ws, const double *points, int n, int d, double tolerance, int *rank) {
-    *rank = 0;
-    if (d < 1 || d > D) return set_error(ws, GC_ERR_INVALID_ARGUMENT, "d: %d, expected 1 to %d", d, D);
-    gcStatus st = ensure_points(ws, n);
-    if (st != GC_OK) return st;
-    double *res = ws->residual;
-    double scale = 0.0;
-    for (int i = 0; i < n; ++i) {
-        double s = dotd(points + (size_t)i * d, points + (size_t)i * d, d);
-        if (s > scale) scale = s;
-        for (int k = 0; k < d; ++k) res[i * 6 + k] = points[(size_t)i * d + k];
-    }
-    double tol = tolerance * sqrt(scale);
-    if (!(scale > 0.0)) return GC_OK;
-    for (int m = 0; m < d; ++m) {
-        int pick = -1;
-        double big = 0.0;
-        for (int i = 0; i < n; ++i) {
-            double s = dotd(&res[i * 6], &res[i * 6], d);
-            if (s > big) big = s, pick = i;
-        }
-        if (pick < 0 || sqrt(big) <= tol) return GC_OK;
-        *rank = m + 1;
-        double u[D], len = sqrt(big);
-        for (int k = 0; k < d; ++k) u[k] = res[pick * 6 + k] / len;
-        for (int i = 0; i < n; ++i) {
-            double *r = &res[i * 6];
-            double p = dotd(r, u, d);
-            for (int k = 0; k < d; ++k) r[k] -= p * u[k];
-        }
-    }
-    return GC_OK;
-}
-
-/* The new facet N on horizon ridge i of the visible facet F (apex p replaces F's v[i]); its
- * plane and simplex volume from the pencil of F and the hidden neighbour G, checked. */
-static GC_ALWAYS_INLINE void make_cone_facet(Hull *h, int d, int fi, int i, int p, int ni) {
-    gcGraspWorkspace *ws = h->ws;
-    Facet *F = &ws->facets[fi], *N = &ws->facets[ni];
-    int gi = F->nb[i];
-    Facet *G = &ws->facets[gi];
-    for (int k = 0; k < d; ++k) {
-        N->v[k] = F->v[k];
-        N->nb[k] = -1;
-        if (G->nb[k] == fi) G->nb[k] = ni;
-    }
-    N->v[i] = p;
-    N->nb[i] = gi;
-    const uint64_t *vh = ws->vertex_hash;
-    N->key[0] = F->key[0] - vh[2 * F->v[i]] + vh[2 * p];
-    N->key[1] = F->key[1] - vh[2 * F->v[i] + 1] + vh[2 * p + 1];
-
-    double dF = F->pdist, dG = G->pdist;
-    double len2 = 0.0;
-    for (int k = 0; k < d; ++k) {
-        N->n[k] = dF * G->n[k] - dG * F->n[k];
-        len2 += N->n[k] * N->n[k];
-    }
-    double len = sqrt(len2);
-    int ok = len > 0.05 * (dF + fabs(dG));
-    if (ok) {
-        double inv = 1.0 / len;
-        for (int k = 0; k < d; ++k) N->n[k] *= inv;
-        N->off = (dF * G->off - dG * F->off) * inv;
-        N->cdist = (dF * G->cdist - dG * F->cdist) * inv;
-        ok = N->cdist < 0.0;
-        /* Residuals stay at rounding level (about 1e-16 of the scale on random grasps); the final
-         * facets are checked against all their vertices at the end and solved again if not. */
-    }
-    if (!ok) exact_plane(h, N);
-    if (!h->volumes) return;
-    /* vol(c,N) / vol(c,F) = |H(p)| / |H(q)|, H the hyperplane through c and the ridge. */
-    double gq = facet_dist(G, point(h, F->v[i], d), d);
-    double num = G->cdist * dF - F->cdist * dG;
-    if (ok && fabs(gq) > 1e3 * h->vtol && fabs(F->cdist) > 1e3 * h->vtol)
-        N->vol = F->vol * fabs(num) / fabs(F->cdist * gq);
-    else
-        N->vol = exact_volume(h, N);
-}
-
-/* Index of x in a[0..d) (it is there). */
-static inline int index_of(const int *a, int d, int x) {
-    int at = -1;
-    for (int k = 0; k < d; ++k) at = a[k] == x ? k : at;
-    return at;
-}
-
-/* Links the new facets to each other. Two of them are neighbours when they share a ridge
- * holding the apex. A ridge is keyed by two independent sums of random 64-bit words of its
- * vertices (the facet's sums less the vertex it leaves out): 128 bits, so two different ridges
- * never meet by chance in practice; and every ridge must find exactly its one partner. */
-static GC_ALWAYS_INLINE int link_new_facets(Hull *h, int d, int nc) {
-    gcGraspWorkspace *ws = h->ws;
-    if (ensure_ridges(ws, nc * (d - 1)) != GC_OK) return 0;
-    Facet *fs = ws->facets;
-    const uint64_t *vh = ws->vertex_hash;
-    uint64_t *keys = ws->ridge_key;
-    int *vals = ws->ridge_facet, *stamps = ws->ridge_stamp, gen = ws->ridge_gen;
-    unsigned mask = (unsigned)ws->ridge_slots - 1u;
-    int unmatched = 0;
-    for (int c = 0; c < nc; ++c) {
-        int nf = ws->created[c], apex = ws->created_apex[c];
-        Facet *N = &fs[nf];
-        uint64_t sum0 = N->key[0], sum1 = N->key[1];
-        for (int j = 0; j < d; ++j) {
-            if (j == apex || N->nb[j] >= 0) continue;
-            uint64_t k0 = sum0 - vh[2 * N->v[j]], k1 = sum1 - vh[2 * N->v[j] + 1];
-            unsigned slot = (unsigned)(k0 ^ (k0 >> 29)) & mask;
-            for (;; slot = (slot + 1u) & mask) {
-                if (stamps[slot] != gen) {
-                    stamps[slot] = gen;
-                    keys[2 * slot] = k0;
-                    keys[2 * slot + 1] = k1;
-                    vals[slot] = nf << 3 | j;
-                    ++unmatched;
-                    break;
-                }
-                if (keys[2 * slot] == k0 && keys[2 * slot + 1] == k1 && vals[slot] >= 0) {
-                    int other = vals[slot] >> 3;
-                    N->nb[j] = other;
-                    fs[other].nb[vals[slot] & 7] = nf;
-                    vals[slot] = -1;
-                    --unmatched;
-                    break;
-                }
-            }
-        }
-    }
-    return unmatched == 0;
-}
-
-/* Makes point p (pdist above facet fi) a vertex: the facets that see it (breadth first from fi,
- * left in ws->visible[0 .. *out_nv), still alive) are replaced by a cone of new facets over the
- * horizon (ws->created[0 .. *out_nc)), linked. iter stamps this step (> every earlier one). */
-static GC_ALWAYS_INLINE gcStatus add_apex(Hull *h, int d, int fi, int p, double pdist, int iter, int *out_nv,
-                                          int *out_nc) {
-    gcGraspWorkspace *ws = h->ws;
-    gcStatus st;
-    Facet *F0 = &ws->facets[fi];
-    const double *pp = point(h, p, d);
-    h->stamp = iter;
-    /* Visible facets: breadth first from fi over neighbours that see p. */
-    int nv = 0, horizon = 0;
-    F0->tested = F0->visible = iter;
-    F0->pdist = pdist;
-    ws->visible[nv++] = fi;
-    for (int s = 0; s < nv; ++s) {
-        Facet *F = &ws->facets[ws->visible[s]];
-        for (int k = 0; k < d; ++k) {
-            Facet *G = &ws->facets[F->nb[k]];
-            if (G->tested != iter) {
-                G->tested = iter;
-                G->pdist = facet_dist(G, pp, d);
-                if (G->pdist > h->tol) {
-                    G->visible = iter;
-                    ws->visible[nv++] = F->nb[k];
-                    continue;
-                }
-            }
-            horizon += G->visible != iter;
-        }
-    }
-    if ((st = ensure_facets(ws, ws->high_water + horizon, h->max_facets)) != GC_OK) return st;
-    /* The cone: one new facet per horizon ridge, then the links between them. */
-    int nc = 0;
-    for (int s = 0; s < nv; ++s) {
-        int vf = ws->visible[s];
-        for (int k = 0; k < d; ++k) {
-            if (ws->facets[ws->facets[vf].nb[k]].visible == iter) continue;
-            int nf = new_facet(h);
-            ws->created_apex[nc] = k;
-            ws->created[nc++] = nf;
-            make_cone_facet(h, d, vf, k, p, nf);
-        }
-    }
-    if (!link_new_facets(h, d, nc))
-        return set_error(ws, GC_ERR_DEGENERATE, "points: broken hull topology");
-    *out_nv = nv;
-    *out_nc = nc;
-    return GC_OK;
-}
-
-/* Quickhull from the initial simplex (facets 0..d) until no facet has outside points. Written
- * for a constant d (3 and 6 get their own compiled copies). */
-static GC_ALWAYS_INLINE gcStatus hull_run(Hull *h, int d) {
-    gcGraspWorkspace *ws = h->ws;
-    int n = h->n, num_pending = 0, iter = 0;
-    gcStatus st;
-    for (int f = 0; f <= d; ++f)
-        if (ws->facets[f].furthest >= 0 && (st = push_pending(ws, &num_pending, f)) != GC_OK) return st;
-    while (num_pending > 0) {
-        int fi = ws->pending[--num_pending];
-        Facet *F0 = &ws->facets[fi];
-        if (!F0->alive || F0->furthest < 0) continue;
-        /* Each step makes one more point a vertex: at most n steps. */
-        if (++iter > n) return set_error(ws, GC_ERR_DEGENERATE, "points: the hull did not converge in %d steps", n);
-        int p = F0->furthest, nv = 0, nc = 0;
-        if ((st = add_apex(h, d, fi, p, F0->fdist, iter, &nv, &nc)) != GC_OK) return st;
-        /* Outside points of the visible facets go to the first new facet they are above. */
-        for (int s = 0; s < nv; ++s) {
-            Facet *F = &ws->facets[ws->visible[s]];
-            for (int q = F->outside; q >= 0;) {
-                int nq = ws->next[q];
-                if (q != p) {
-                    const double *x = point(h, q, d);
-                    for (int c = 0; c < nc; ++c) {
-                        Facet *N = &ws->facets[ws->created[c]];
-                        double dist = facet_dist(N, x, d);
-                        if (dist > h->tol) {
-                            add_outside(h, N, q, dist);
-                            break;
-                        }
-                    }
-                }
-                q = nq;
-            }
-            F->alive = 0;
-            ws->free_list[ws->num_free++] = ws->visible[s];
-        }
-        for (int c = 0; c < nc; ++c)
-            if (ws->facets[ws->created[c]].furthest >= 0 &&
-                (st = push_pending(ws, &num_pending, ws->created[c])) != GC_OK)
-                return st;
-    }
-    return GC_OK;
-}
-
-static gcStatus hull_run6(Hull *h) { return hull_run(h, 6); }
-static gcStatus hull_run3(Hull *h) { return hull_run(h, 3); }
-static gcStatus hull_run_any(Hull *h) { return hull_run(h, h->d); }
-
-/* The initial simplex of a hull of n points of dimension d (facets 0..d, planes solved), the
- * interior point c, the tolerances and the vertices' random words. *full 0 (and nothing made)
- * when the points span less than d affine dimensions. */
-static gcStatus hull_begin(Hull *h, gcGraspWorkspace *ws, const double *points, int n, int d, double tolerance,
-                           int max_facets, int volumes, int chosen[D + 1], int *full) {
-    *full = 0;
-    memset(h, 0, sizeof *h);
-    h->ws = ws;
-    h->pts = points;
-    h->n = n;
-    h->d = d;
-    h->max_facets = max_facets;
-    h->volumes = volumes;
-    if (n < d + 1) return GC_OK;
-    gcStatus st = ensure_points(ws, n);
-    if (st != GC_OK) return st;
-    double scale = 0.0;
-    for (int i = 0; i < n; ++i) scale = fmax(scale, dotd(point(h, i, d), point(h, i, d), d));
-    scale = sqrt(scale);
-    if (!(scale > 0.0)) return GC_OK;
-    h->tol = tolerance * scale;
-    h->vtol = 1e-12 * scale;
-    if (initial_simplex(h, chosen) < d + 1) return GC_OK;
-    for (int k = 0; k < d; ++k) {
-        double s = 0.0;
-        for (int m = 0; m <= d; ++m) s += point(h, chosen[m], d)[k];
-        h->c[k] = s / (d + 1);
-    }
-    st = ensure_facets(ws, 2 * (d + 1), max_facets);
-    if (st != GC_OK) return st;
-    ws->high_water = 0;
-    ws->num_free = 0;
-    for (int i = 0; i < n; ++i) ws->next[i] = -1;
-    /* Facet m of the simplex leaves out chosen[m]; its ridge without chosen[k] faces facet k. */
-    for (int m = 0; m <= d; ++m) {
-        int f = new_facet(h);
-        Facet *F = &ws->facets[f];
-        int r = 0;
-        for (int k = 0; k <= d; ++k) {
-            if (k == m) continue;
-            F->v[r] = chosen[k];
-            F->nb[r] = k;
-            ++r;
-        }
-        exact_plane(h, F);
-        F->vol = volumes ? exact_volume(h, F) : 0.0;
-        F->key[0] = F->key[1] = 0;
-        for (int k = 0; k < d; ++k) F->key[0] += ws->vertex_hash[2 * F->v[k]], F->key[1] += ws->vertex_hash[2 * F->v[k] + 1];
-    }
-    *full = 1;
-    return GC_OK;
-}
-
-gcStatus gc_hull_nd(gcGraspWorkspace *ws, const double *points, int n, int d, double tolerance,
-                    int max_facets, gcHullSummary *out) {
-    memset(out, 0, sizeof *out);
-    out->result = GC_HULL_FLAT;
-    out->offset_max = 0.0;
-    if (d < 3 || d > D) return set_error(ws, GC_ERR_INVALID_ARGUMENT, "d: %d, expected 3 to %d", d, D);
-    Hull h;
-    int chosen[D + 1], full;
-    gcStatus st = hull_begin(&h, ws, points, n, d, tolerance, max_facets, 1, chosen, &full);
-    if (st != GC_OK || !full) return st;
-    for (int i = 0; i < n; ++i) {
-        if (index_of(chosen, d + 1, i) >= 0) continue;
-        for (int f = 0; f <= d; ++f) {
-            double dist = facet_dist(&ws->facets[f], point(&h, i, d), d);
-            if (dist > h.tol) {
-                add_outside(&h, &ws->facets[f], i, dist);
-                break;
-            }
-        }
-    }
-    st = d == 6 ? hull_run6(&h) : d == 3 ? hull_run3(&h) : hull_run_any(&h);
-    if (st != GC_OK) return st;
-
-    /* The answer: volume, and the nearest facet with its plane solved from its vertices. */
-    double volume = 0.0, best = -INFINITY;
-    int facets = 0;
-    for (int f = 0; f < ws->high_water; ++f) {
-        Facet *F = &ws->facets[f];
-        if (!F->alive) continue;
-        ++facets;
-        for (int r = 0; r < d; ++r)
-            if (fabs(facet_dist(F, point(&h, F->v[r], d), d)) > h.vtol) {
-                exact_plane(&h, F);
-                break;
-            }
-        volume += F->vol;
-        if (F->off > best) best = F->off;
-    }
-    double margin = 1e3 * h.vtol;
-    int nearest = -1;
-    double best_exact = -INFINITY;
-    for (int f = 0; f < ws->high_water; ++f) {
-        Facet *F = &ws->facets[f];
-        if (!F->alive || F->off < best - margin) continue;
-        exact_plane(&h, F);
-        if (F->off > best_exact) best_exact = F->off, nearest = f;
-    }
-    out->result = GC_HULL_FULL;
-    out->facets = facets;
-    out->volume = volume;
-    out->offset_max = best_exact;
-    if (nearest >= 0) memcpy(out->nearest_normal, ws->facets[nearest].n, sizeof(double) * (size_t)d);
-    return GC_OK;
-}
-
-/* ---- the origin's nearest facet by support queries -------------------------------------- */
-
-/* The support-function search (after Zheng, IEEE T-RO 2013): an inner polytope P, the hull of a
- * few of the points, grows until the facet of P that decides (the one the origin is furthest
- * outside of, or nearest to when it is inside) lies on a supporting plane of the whole set: no
- * point more than the tolerance beyond it. Then that plane is a facet plane of the full hull, and
- * because P lies inside the full hull, no facet of the full hull is nearer the origin: the answer
- * is the full hull's, exactly, without building it. Each step adds the support point of the
- * deciding facet's normal (a new vertex of P), so at most n steps. */
-static GC_ALWAYS_INLINE gcStatus nearest_run(Hull *h, int d, gcHullSummary *out) {
-    gcGraspWorkspace *ws = h->ws;
-    int n = h->n;
-    for (int f = 0; f < ws->high_water; ++f) ws->facet_off[f] = ws->facets[f].alive ? ws->facets[f].off : -INFINITY;
-    for (int iter = 1;; ++iter) {
-        if (iter > n + 1)
-            return set_error(ws, GC_ERR_DEGENERATE, "points: the support search did not converge in %d steps", n);
-        int fb = -1;
-        double best = -INFINITY;
-        const double *offs = ws->facet_off;
-        for (int f = 0; f < ws->high_water; ++f)
-            if (offs[f] > best) best = offs[f], fb = f;
-        Facet *F = &ws->facets[fb];
-        int p = -1;
-        double gap;
-        /* The answer is read off a plane solved from the facet's vertices (the pencil planes are
-         * good to rounding, not exact): solved when the support query first finds it supporting. */
-        for (int exact = 0;; exact = 1) {
-            double support = -INFINITY;
-            for (int i = 0; i < n; ++i) {
-                double s = dotd(F->n, point(h, i, d), d);
-                if (s > support) support = s, p = i;
-            }
-            gap = support + F->off;    /* how far the support point is beyond F's plane */
-            if (gap > h->tol) break;
-            if (exact) {
-                out->result = GC_HULL_FULL;
-                out->offset_max = F->off;
-                memcpy(out->nearest_normal, F->n, sizeof(double) * (size_t)d);
-                memcpy(out->nearest_vertices, F->v, sizeof(int) * (size_t)d);
-                return GC_OK;
-            }
-            exact_plane(h, F);
-            ws->facet_off[fb] = F->off;
-        }
-        int nv = 0, nc = 0;
-        gcStatus st = add_apex(h, d, fb, p, gap, iter, &nv, &nc);
-        if (st != GC_OK) return st;
-        for (int s = 0; s < nv; ++s) {
-            ws->facets[ws->visible[s]].alive = 0;
-            ws->facet_off[ws->visible[s]] = -INFINITY;
-            ws->free_list[ws->num_free++] = ws->visible[s];
-        }
-        for (int c = 0; c < nc; ++c) ws->facet_off[ws->created[c]] = ws->facets[ws->created[c]].off;
-    }
-}
-
-static gcStatus nearest_run6(Hull *h, gcHullSummary *out) { return nearest_run(h, 6, out); }
-static gcStatus nearest_run3(Hull *h, gcHullSummary *out) { return nearest_run(h, 3, out); }
-static gcStatus nearest_run_any(Hull *h, gcHullSummary *out) { return nearest_run(h, h->d, out); }
-
-gcStatus gc_hull_nearest(gcGraspWorkspace *ws, const double *points, int n, int d, double tolerance,
-                         int max_facets, gcHullSummary *out) {
-    memset(out, 0, sizeof *out);
-    out->result = GC_HULL_FLAT;
-    out->facets = -1;
-    out->volume = -1.0;
-    if (d < 3 || d > D) return set_error(ws, GC_ERR_INVALID_ARGUMENT, "d: %d, expected 3 to %d", d, D);
-    Hull h;
-    int chosen[D + 1], full;
-    gcStatus st = hull_begin(&h, ws, points, n, d, tolerance, max_facets, 0, chosen, &full);
-    if (st != GC_OK || !full) return st;
-    return d == 6 ? nearest_run6(&h, out) : d == 3 ? nearest_run3(&h, out) : nearest_run_any(&h, out);
-}
-
-/* ---- the closure LP ------------------------------------------------------------------------ */
-
-/* Largest t with sum_i lambda_i x_i = 0, sum_i lambda_i = 1, lambda_i >= t (lambda_i >= -1 too,
- * which only matters when t < 0). With lambda_i = mu_i + tau - 1 (mu, tau >= 0) it is the
- * standard form  sum mu_i x_i + tau S = S,  sum mu_i + n tau = 1 + n,  maximise tau,  S = sum x_i,
- * solved by the two-phase simplex method on a dense tableau of d + 1 rows (artificial variables
- * first, then tau). Dantzig's rule, switching to Bland's (no cycling) after a run of degenerate
- * pivots; capped. The points are scaled by 1 / the largest norm (t does not change). */
-static void lp_pivot(double *T, int rows, int cols, int r, int c) {
-    double *pr = T + (size_t)r * cols;
-    double inv = 1.0 / pr[c];
-    for (int k = 0; k < cols; ++k) pr[k] *= inv;
-    pr[c] = 1.0;
-    for (int q = 0; q <= rows; ++q) {
-        if (q == r) continue;
-        double *pq = T + (size_t)q * cols, m = pq[c];
-        if (m == 0.0) continue;
-        for (int k = 0; k < cols; ++k) pq[k] -= m * pr[k];
-        pq[c] = 0.0;
-    }
-}
-
-/* Minimises the objective row (row `rows`) over the columns [0, allowed). 1 when optimal, 0 when
- * the cap was reached; -1 unbounded (cannot happen here: tau <= (1 + n) / n). */
-static int lp_minimise(double *T, int *basis, int rows, int cols, int allowed, int cap, int bland) {
-    const double cost_eps = 1e-12, pivot_eps = 1e-11;
-    double *obj = T + (size_t)rows * cols;
-    int rhs = cols - 1, degenerate_run = 0;
-    for (int it = 0; it < cap; ++it) {
-        int enter = -1;
-        double most = -cost_eps;
-        for (int j = 0; j < allowed; ++j) {
-            if (obj[j] < most) {
-                enter = j;
-                if (bland) break;
-                most = obj[j];
-            }
-        }
-        if (enter < 0) return 1;
-        int leave = -1;
-        double ratio = INFINITY;
-        for (int r = 0; r < rows; ++r) {
-            double a = T[(size_t)r * cols + enter];
-            if (a <= pivot_eps) continue;
-            double q = T[(size_t)r * cols + rhs] / a;
-            if (q < ratio || (q == ratio && basis[r] < basis[leave])) ratio = q, leave = r;
-        }
-        if (leave < 0) return -1;
-        /* Near-degenerate pivots (a step of rounding size) count as degenerate: Dantzig's rule
-         * can cycle through them numerically (an antipodal pair tilted by 1e-10 did). Past
-         * rows + allowed pivots in all, Bland's rule from then on too. */
-        degenerate_run = ratio <= 1e-13 ? degenerate_run + 1 : 0;
-        if (degenerate_run > 2 * rows || it > rows + allowed) bland = 1;
-        lp_pivot(T, rows, cols, leave, enter);
-        basis[leave] = enter;
-    }
-    return 0;
-}
-
-/* The tableau's constraint rows for the points (scaled by inv), objective row and artificial
- * columns zero. */
-static void lp_fill(double *T, const double *points, int n, int d, int cols, double inv) {
-    int rows = d + 1, tau = n, rhs = cols - 1;
-    memset(T, 0, sizeof(double) * (size_t)(rows + 1) * (size_t)cols);
-    for (int i = 0; i < n; ++i) {
-        for (int k = 0; k < d; ++k) {
-            double x = points[(size_t)i * d + k] * inv;
-            T[(size_t)k * cols + i] = x;
-            T[(size_t)k * cols + tau] += x;
-            T[(size_t)k * cols + rhs] += x;
-        }
-        T[(size_t)d * cols + i] = 1.0;
-    }
-    T[(size_t)d * cols + tau] = n;
-    T[(size_t)d * cols + rhs] = 1.0 + n;
-}
-
-/* Makes the columns warm[0 .. rows) basic (Gauss-Jordan, largest pivot per column). 1 when they
- * form a basis whose solution is feasible (right-hand sides >= 0 up to rounding). */
-static int lp_warm_basis(double *T, int *basis, int rows, int cols, const int *warm) {
-    int rhs = cols - 1;
-    for (int r = 0; r < rows; ++r) basis[r] = -1;
-    for (int k = 0; k < rows; ++k) {
-        int c = warm[k], pick = -1;
-        double big = 1e-9;
-        for (int r = 0; r < rows; ++r)
-            if (basis[r] < 0 && fabs(T[(size_t)r * cols + c]) > big) big = fabs(T[(size_t)r * cols + c]), pick = r;
-        if (pick < 0) return 0;
-        lp_pivot(T, rows, cols, pick, c);
-        basis[pick] = c;
-    }
-    for (int r = 0; r < rows; ++r) {
-        double *v = &T[(size_t)r * cols + rhs];
-        if (*v < -1e-9) return 0;
-        if (*v < 0.0) *v = 0.0;
-    }
-    return 1;
-}
-
-/* gc_closure_lp; warm (d + 1 column indices, or NULL) is an optimal basis of an earlier LP over
- * the same number of points, tried first (a nearby problem's basis is often still optimal or a
- * pivot or two away), and holds this one's on return (warm[0] -1 when there is none). */
-static gcStatus closure_lp(gcGraspWorkspace *ws, const double *points, int n, int d, int *warm, double *t_max) {
-    *t_max = -INFINITY;
-    if (d < 1 || d > D) return set_error(ws, GC_ERR_INVALID_ARGUMENT, "d: %d, expected 1 to %d", d, D);
-    int start[D + 1], has_warm = warm && warm[0] >= 0;
-    if (has_warm) memcpy(start, warm, sizeof(int) * (size_t)(d + 1));
-    if (warm) warm[0] = -1;
-    if (n < 1) return GC_OK;
-    int rows = d + 1, tau = n, art = n + 1, cols = n + 1 + rows + 1, rhs = cols - 1;
-    size_t need = (size_t)(rows + 1) * (size_t)cols;
-    if (need > (size_t)ws->cap_lp) {
-        if (!grow((void **)&ws->lp, need, sizeof(double)) || !grow((void **)&ws->lp_basis, D + 1, sizeof(int)))
-            return set_error(ws, GC_ERR_NO_MEMORY, "workspace: out of memory for the closure LP");
-        ws->cap_lp = (int)need;
-    }
-    double *T = ws->lp;
-    int *basis = ws->lp_basis;
-    double scale = 0.0;
-    for (int i = 0; i < n; ++i) scale = fmax(scale, dotd(points + (size_t)i * d, points + (size_t)i * d, d));
-    if (!(scale > 0.0)) return GC_OK;
-    double inv = 1.0 / sqrt(scale);
-    int cap = 50 * (n + rows) + 100, res;
-    double *obj = T + (size_t)rows * cols;
-    lp_fill(T, points, n, d, cols, inv);
-    if (!has_warm || !lp_warm_basis(T, basis, rows, cols, start)) {
-        /* Phase 1: artificial a_r in row r (rows with a negative right-hand side negated first).
-         * It cannot be unbounded in exact arithmetic (the artificials' sum is >= 0); a stop on
-         * "unbounded" is rounding, short of a feasible point, and would read as "t < -1" (three
-         * fingers at 120 degrees tilted by 1e-3, mu 10, t* 0.04, did): phase 1 again with
-         * Bland's rule from the start, which takes another path. */
-        for (int attempt = 0; attempt < 2; ++attempt) {
-            if (has_warm || attempt) lp_fill(T, points, n, d, cols, inv);
-            for (int r = 0; r < rows; ++r) {
-                double *pr = T + (size_t)r * cols;
-                if (pr[rhs] < 0.0)
-                    for (int k = 0; k < cols; ++k) pr[k] = -pr[k];
-                pr[art + r] = 1.0;
-                basis[r] = art + r;
-                for (int k = 0; k < art; ++k) obj[k] -= pr[k];
-                obj[rhs] -= pr[rhs];
-            }
-            res = lp_minimise(T, basis, rows, cols, art + rows, cap, attempt);
-            if (res != -1) break;
-        }
-        if (res == 0)
-            return set_error(ws, GC_ERR_DEGENERATE, "points: the closure LP did not converge in %d pivots", cap);
-        if (-obj[rhs] > 1e-9 * (1.0 + n)) return GC_OK;   /* infeasible: t < -1, the origin is far outside */
-        /* Artificials still basic (at zero) leave for any structural column; a row with none is
-         * redundant and is emptied. */
-        for (int r = 0; r < rows; ++r) {
-            if (basis[r] < art) continue;
-            double *pr = T + (size_t)r * cols;
-            int c = -1;
-            double big = 1e-9;
-            for (int j = 0; j < art; ++j)
-                if (fabs(pr[j]) > big) big = fabs(pr[j]), c = j;
-            if (c >= 0) {
-                lp_pivot(T, rows, cols, r, c);
-                basis[r] = c;
-            } else {
-                for (int k = 0; k < cols; ++k) pr[k] = 0.0;
-            }
-        }
-    }
-    /* Phase 2: minimise -tau, artificials barred. */
-    for (int k = 0; k < cols; ++k) obj[k] = 0.0;
-    obj[tau] = -1.0;
-    for (int r = 0; r < rows; ++r)
-        if (basis[r] == tau) {
-            const double *pr = T + (size_t)r * cols;
-            for (int k = 0; k < cols; ++k) obj[k] += pr[k];
-            obj[tau] = 0.0;
-        }
-    res = lp_minimise(T, basis, rows, cols, art, cap, 0);
-    if (res == 0) return set_error(ws, GC_ERR_DEGENERATE, "points: the closure LP did not converge in %d pivots", cap);
-    double tau_value = 0.0;
-    int structural = 1;
-    for (int r = 0; r < rows; ++r) {
-        if (basis[r] == tau) tau_value = T[(size_t)r * cols + rhs];
-        structural = structural && basis[r] < art;
-    }
-    *t_max = tau_value - 1.0;
-    if (warm && structural) memcpy(warm, basis, sizeof(int) * (size_t)rows);
-    return GC_OK;
-}
-
-gcStatus gc_closure_lp(gcGraspWorkspace *ws, const double *points, int n, int d, double *t_max) {
-    return closure_lp(ws, points, n, d, NULL, t_max);
-}
-
-/* ---- the grasp wrench space ---------------------------------------------------------------- */
-
 static gcStatus check_def(gcGraspWorkspace *ws, const gcGraspDef *def) {
     if (def->edges < 3 || def->edges > GC_GRASP_MAX_EDGES)
-        return set_error(ws, GC_ERR_INVALID_ARGUMENT, "edges: %d, expected 3 to %d", def->edges, GC_GRASP_MAX_EDGES);
+        return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "edges: %d, expected 3 to %d", def->edges, GC_GRASP_MAX_EDGES);
     if (!(def->tolerance > 0.0) || !(def->tolerance < 1e-3))
-        return set_error(ws, GC_ERR_INVALID_ARGUMENT, "tolerance: %g, expected in (0, 1e-3)", def->tolerance);
+        return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "tolerance: %g, expected in (0, 1e-3)", def->tolerance);
     if (def->max_facets < 16)
-        return set_error(ws, GC_ERR_INVALID_ARGUMENT, "max_facets: %d, expected >= 16", def->max_facets);
+        return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "max_facets: %d, expected >= 16", def->max_facets);
     return GC_OK;
 }
 
@@ -1069,20 +53,20 @@ static gcStatus build_wrenches(gcGraspWorkspace *ws, const gcGraspDef *def, cons
                                const double *mu, double mu_all, int num_contacts, const double center[3],
                                double radius, int *count) {
     if (num_contacts < 0)
-        return set_error(ws, GC_ERR_INVALID_ARGUMENT, "points: %d contacts, expected >= 0", num_contacts);
+        return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "points: %d contacts, expected >= 0", num_contacts);
     if (num_contacts > 0 && (!points || !normals))
-        return set_error(ws, GC_ERR_INVALID_ARGUMENT, "%s: NULL", points ? "normals" : "points");
-    if (!center) return set_error(ws, GC_ERR_INVALID_ARGUMENT, "center: NULL");
+        return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "%s: NULL", points ? "normals" : "points");
+    if (!center) return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "center: NULL");
     for (int k = 0; k < 3; ++k)
-        if (!isfinite(center[k])) return set_error(ws, GC_ERR_INVALID_ARGUMENT, "center: not finite");
+        if (!isfinite(center[k])) return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "center: not finite");
     if (!(radius > 0.0) || !isfinite(radius))
-        return set_error(ws, GC_ERR_INVALID_ARGUMENT, "radius: %g, expected a finite number > 0", radius);
+        return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "radius: %g, expected a finite number > 0", radius);
     const int edges = def->edges;
     const double *torsion = def->torsion;
     if ((long long)num_contacts * edges > 1000000)
-        return set_error(ws, GC_ERR_INVALID_ARGUMENT, "points: %d contacts x %d edges is too many", num_contacts,
+        return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "points: %d contacts x %d edges is too many", num_contacts,
                          edges);
-    gcStatus st = ensure_points(ws, num_contacts * (edges + (torsion ? 2 : 0)));
+    gcStatus st = gc_grasp_ensure_points(ws, num_contacts * (edges + (torsion ? 2 : 0)));
     if (st != GC_OK) return st;
     if (ws->edges_cached != edges) {
         for (int j = 0; j < edges; ++j) {
@@ -1097,16 +81,16 @@ static gcStatus build_wrenches(gcGraspWorkspace *ws, const gcGraspDef *def, cons
         const double *p = points + 3 * i, *nn = normals + 3 * i;
         double m = mu ? mu[i] : mu_all;
         if (!isfinite(p[0]) || !isfinite(p[1]) || !isfinite(p[2]))
-            return set_error(ws, GC_ERR_INVALID_ARGUMENT, "points: row %d is not finite", i);
+            return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "points: row %d is not finite", i);
         if (!isfinite(nn[0]) || !isfinite(nn[1]) || !isfinite(nn[2]))
-            return set_error(ws, GC_ERR_INVALID_ARGUMENT, "normals: row %d is not finite", i);
+            return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "normals: row %d is not finite", i);
         double len = sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
         if (!(len > 1e-12))
-            return set_error(ws, GC_ERR_INVALID_ARGUMENT, "normals: row %d is a zero vector", i);
+            return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "normals: row %d is a zero vector", i);
         if (!isfinite(m) || m < 0.0)
-            return set_error(ws, GC_ERR_INVALID_ARGUMENT, "mu: %g at contact %d, expected a finite number >= 0", m, i);
+            return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "mu: %g at contact %d, expected a finite number >= 0", m, i);
         if (torsion && (!isfinite(torsion[i]) || torsion[i] < 0.0))
-            return set_error(ws, GC_ERR_INVALID_ARGUMENT, "torsion: %g at contact %d, expected a finite number >= 0",
+            return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "torsion: %g at contact %d, expected a finite number >= 0",
                              torsion[i], i);
         double n[3] = {nn[0] / len, nn[1] / len, nn[2] / len};
         /* t1 = normalize(n x a), a the world axis least aligned with n (ties: x, y, z). */
@@ -1320,7 +304,7 @@ static int reuse_answer(gcGraspWorkspace *ws, const gcGraspDef *def, int rows, g
     Facet F;
     memset(&F, 0, sizeof F);
     memcpy(F.v, r->vertices, sizeof F.v);
-    if (!exact_plane(&h, &F)) return 0;
+    if (!gc_hull_exact_plane(&h, &F)) return 0;
     double support = -INFINITY;
     for (int i = 0; i < rows; ++i) support = fmax(support, dotd(F.n, ws->wrench + 6 * i, 6));
     double lower = r->epsilon - delta, tol = def->tolerance * scale;
@@ -1349,8 +333,8 @@ static gcStatus reuse_remember(gcGraspWorkspace *ws, const gcGraspDef *def, int 
     ReuseSlot *r = &ws->reuse[k];
     r->rows = 0;
     if (rows > r->cap) {
-        if (!grow((void **)&r->wrench, (size_t)rows * 6, sizeof(double)))
-            return set_error(ws, GC_ERR_NO_MEMORY, "workspace: out of memory");
+        if (!gc_grasp_grow((void **)&r->wrench, (size_t)rows * 6, sizeof(double)))
+            return gc_grasp_set_error(ws, GC_ERR_NO_MEMORY, "workspace: out of memory");
         r->cap = rows;
     }
     memcpy(r->wrench, ws->wrench, sizeof(double) * 6 * (size_t)rows);
@@ -1367,13 +351,13 @@ gcStatus gc_grasp_quality(gcGraspWorkspace *ws, const gcGraspDef *def, const dou
                           double radius, gcGraspQuality *out) {
     if (!ws) return GC_ERR_INVALID_ARGUMENT;
     ws->error[0] = '\0';
-    if (!out) return set_error(ws, GC_ERR_INVALID_ARGUMENT, "out: NULL");
+    if (!out) return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "out: NULL");
     memset(out, 0, sizeof *out);
     gcGraspDef dflt = gc_default_grasp_def();
     if (!def) def = &dflt;
     gcStatus st = check_def(ws, def);
     if (st != GC_OK) return st;
-    if (num_contacts > 0 && !mu) return set_error(ws, GC_ERR_INVALID_ARGUMENT, "mu: NULL");
+    if (num_contacts > 0 && !mu) return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "mu: NULL");
     int rows;
     if ((st = build_wrenches(ws, def, points, normals, mu, 0.0, num_contacts, center, radius, &rows)) != GC_OK)
         return st;
@@ -1388,14 +372,14 @@ gcStatus gc_grasp_quality_batch(gcGraspWorkspace *ws, const gcGraspDef *def, con
                                 const double *centers, const double *radii, gcGraspQuality *out) {
     if (!ws) return GC_ERR_INVALID_ARGUMENT;
     ws->error[0] = '\0';
-    if (num_sets < 0) return set_error(ws, GC_ERR_INVALID_ARGUMENT, "counts: %d sets, expected >= 0", num_sets);
+    if (num_sets < 0) return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "counts: %d sets, expected >= 0", num_sets);
     if (num_sets > 0 && (!counts || !centers || !radii || !out))
-        return set_error(ws, GC_ERR_INVALID_ARGUMENT, "%s: NULL",
+        return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "%s: NULL",
                          !counts ? "counts" : !centers ? "centers" : !radii ? "radii" : "out");
     size_t row = 0;
     for (int s = 0; s < num_sets; ++s) {
         if (counts[s] < 0)
-            return set_error(ws, GC_ERR_INVALID_ARGUMENT, "counts: %d at set %d, expected >= 0", counts[s], s);
+            return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "counts: %d at set %d, expected >= 0", counts[s], s);
         gcGraspDef set_def = def ? *def : gc_default_grasp_def();
         if (set_def.torsion) set_def.torsion += row;
         gcStatus st = gc_grasp_quality(ws, &set_def, points ? points + 3 * row : NULL,
@@ -1404,7 +388,7 @@ gcStatus gc_grasp_quality_batch(gcGraspWorkspace *ws, const gcGraspDef *def, con
         if (st != GC_OK) {
             char inner[sizeof ws->error];
             memcpy(inner, ws->error, sizeof inner);
-            return set_error(ws, st, "set %d: %s", s, inner);
+            return gc_grasp_set_error(ws, st, "set %d: %s", s, inner);
         }
         row += (size_t)counts[s];
     }
@@ -1449,7 +433,7 @@ static void mu_min_remember(gcGraspWorkspace *ws, const gcGraspDef *def, const d
     m->contacts = -1;
     int need = 6 * num_contacts + 4 + (margin > 0.0 ? 6 * rows : 0);
     if (need > m->cap) {
-        if (!grow((void **)&m->input, (size_t)need, sizeof(double))) return;  /* not kept */
+        if (!gc_grasp_grow((void **)&m->input, (size_t)need, sizeof(double))) return;  /* not kept */
         m->cap = need;
     }
     m->margin = margin > 0.0 ? margin : 0.0;
@@ -1502,14 +486,14 @@ gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const doub
                          double mu_max, double *out_mu) {
     if (!ws) return GC_ERR_INVALID_ARGUMENT;
     ws->error[0] = '\0';
-    if (!out_mu) return set_error(ws, GC_ERR_INVALID_ARGUMENT, "out_mu: NULL");
+    if (!out_mu) return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "out_mu: NULL");
     *out_mu = INFINITY;
     gcGraspDef dflt = gc_default_grasp_def();
     if (!def) def = &dflt;
     gcStatus st = check_def(ws, def);
     if (st != GC_OK) return st;
     if (!(mu_max >= 0.0) || !isfinite(mu_max))
-        return set_error(ws, GC_ERR_INVALID_ARGUMENT, "mu_max: %g, expected a finite number >= 0", mu_max);
+        return gc_grasp_set_error(ws, GC_ERR_INVALID_ARGUMENT, "mu_max: %g, expected a finite number >= 0", mu_max);
     double margin = 0.0;
     int rows_at = 0;
     if (!def->reuse || def->torsion || num_contacts < 1 || !points || !normals || !center)
@@ -1542,7 +526,7 @@ gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const doub
                 return GC_OK;
             }
         } else {
-            open = closure_lp(ws, ws->wrench, rows, 6, NULL, &t) == GC_OK && t <= 0.5 * def->tolerance / rows;
+            open = gc_closure_lp_warm(ws, ws->wrench, rows, 6, NULL, &t) == GC_OK && t <= 0.5 * def->tolerance / rows;
             ws->error[0] = '\0';
             if (open) return GC_OK;         /* *out_mu is INFINITY */
         }
@@ -1589,7 +573,7 @@ static gcStatus mu_min_search(gcGraspWorkspace *ws, const gcGraspDef *def, const
         if ((st = build_wrenches(ws, def, points, normals, NULL, (m), num_contacts, center, radius,     \
                                  &rows)) != GC_OK)                                                            \
             return st;                                                                                        \
-        st = closure_lp(ws, ws->wrench, rows, 6, warm, &t);                                                   \
+        st = gc_closure_lp_warm(ws, ws->wrench, rows, 6, warm, &t);                                                   \
         if (st == GC_ERR_DEGENERATE) {                                                                        \
             /* The LP did not converge: closed or not as grasp_quality decides, and a margin of     \
              * rounding size with that sign (Brent's method then bisects). */                                \

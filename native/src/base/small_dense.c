@@ -2,6 +2,8 @@
  * and its solve, and a body-frame tensor turned into world axes. */
 #include "small_dense.h"
 
+#include <math.h>
+
 #include <string.h>
 
 /* Inverse of a symmetric positive-definite 3x3 (inertia); 0 when singular. */
@@ -64,3 +66,26 @@ gcMat3 gc_to_world(const gcMat3 *R, const gcMat3 *A) {
     return gc_mat3_mul(&RA, &Rt);
 }
 
+/* |det| of the d x d matrix a (row-major, destroyed), partial pivoting. */
+double gc_abs_det(double *a, int d) {
+    double det = 1.0;
+    for (int c = 0; c < d; ++c) {
+        int piv = c;
+        for (int r = c + 1; r < d; ++r)
+            if (fabs(a[r * d + c]) > fabs(a[piv * d + c])) piv = r;
+        double p = a[piv * d + c];
+        if (p == 0.0) return 0.0;
+        if (piv != c)
+            for (int k = 0; k < d; ++k) {
+                double t = a[c * d + k];
+                a[c * d + k] = a[piv * d + k];
+                a[piv * d + k] = t;
+            }
+        det *= p;
+        for (int r = c + 1; r < d; ++r) {
+            double m = a[r * d + c] / p;
+            for (int k = c + 1; k < d; ++k) a[r * d + k] -= m * a[c * d + k];
+        }
+    }
+    return fabs(det);
+}
