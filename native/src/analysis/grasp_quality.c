@@ -540,77 +540,60 @@ gcStatus gc_grasp_mu_min(gcGraspWorkspace *ws, const gcGraspDef *def, const doub
 
 /* The search; for a finite answer, *margin is the support search's epsilon there (0 when the LP
  * decided) and ws->wrench holds its *rows_at edge wrenches. */
-static gcStatus mu_min_search(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
-                              const double *normals, int num_contacts, const double center[3], double radius,
-                              double mu_max, double *out_mu, double *margin, int *rows_at) {
-    gcStatus st;
+/* One mu_min search: the contacts, and what the last evaluation left (its rows, closure, summary,
+ * LP margin t and optimal basis, which the next LP starts from). */
+typedef struct MuSearch {
+    gcGraspWorkspace *ws;
+    const gcGraspDef *def;
+    const double *points, *normals, *center;
+    int num_contacts;
+    double radius;
     int rows, closed;
-    *margin = 0.0;
-    *rows_at = 0;
-    double t;
     gcHullSummary summary;
-    /* In closure at mu as grasp_quality answers it (the LP, then the support search). */
-#define CLOSED_AT(m)                                                                                          \
-    do {                                                                                                      \
-        if ((st = build_wrenches(ws, def, points, normals, NULL, (m), num_contacts, center, radius,     \
-                                 &rows)) != GC_OK ||                                                          \
-            (st = closure_fast(ws, def, ws->wrench, rows, 6, 0, &closed, NULL, &summary)) != GC_OK)           \
-            return st;                                                                                        \
-    } while (0)
-    CLOSED_AT(0.0);     /* one wrench per contact */
-    if (closed) {
-        *out_mu = 0.0;
-        *margin = summary.facets == -1 ? -summary.offset_max : 0.0;
-        *rows_at = rows;
-        return GC_OK;
+    double t;
+    int warm[D + 1];
+} MuSearch;
+
+/* In closure at mu as grasp_quality answers it (the LP, then the support search). */
+static gcStatus closed_at(MuSearch *s, double mu) {
+    gcStatus st = build_wrenches(s->ws, s->def, s->points, s->normals, NULL, mu, s->num_contacts, s->center,
+                                 s->radius, &s->rows);
+    if (st != GC_OK) return st;
+    return closure_fast(s->ws, s->def, s->ws->wrench, s->rows, 6, 0, &s->closed, NULL, &s->summary);
+}
+
+/* The same LP with the margin it found: g(mu) = mu (t*(mu) - threshold), > 0 exactly when closed.
+ * t* grows like a - b / mu over the range that matters (the edges' spread from the normal wrench
+ * scales with mu), so g is close to a straight line and the root is found in a few secant steps. */
+static gcStatus margin_at(MuSearch *s, double mu, double *g) {
+    gcGraspWorkspace *ws = s->ws;
+    gcStatus st = build_wrenches(ws, s->def, s->points, s->normals, NULL, mu, s->num_contacts, s->center,
+                                 s->radius, &s->rows);
+    if (st != GC_OK) return st;
+    st = gc_closure_lp_warm(ws, ws->wrench, s->rows, 6, s->warm, &s->t);
+    if (st == GC_ERR_DEGENERATE) {
+        /* The LP did not converge: closed or not as grasp_quality decides, and a margin of
+         * rounding size with that sign (Brent's method then bisects). */
+        ws->error[0] = '\0';
+        s->warm[0] = -1;
+        if ((st = closure_fast(ws, s->def, ws->wrench, s->rows, 6, 0, &s->closed, NULL, &s->summary)) != GC_OK)
+            return st;
+        s->t = s->closed ? s->def->tolerance / s->rows : -1.0;
+    } else if (st != GC_OK) {
+        return st;
     }
-    /* The same LP with the margin it found: g(mu) = mu (t*(mu) - threshold), > 0 exactly when
-     * closed. t* grows like a - b / mu over the range that matters (the edges' spread from the
-     * normal wrench scales with mu), so g is close to a straight line and the root is found in a
-     * few secant steps. */
-#define MARGIN_AT(m, g)                                                                                       \
-    do {                                                                                                      \
-        if ((st = build_wrenches(ws, def, points, normals, NULL, (m), num_contacts, center, radius,     \
-                                 &rows)) != GC_OK)                                                            \
-            return st;                                                                                        \
-        st = gc_closure_lp_warm(ws, ws->wrench, rows, 6, warm, &t);                                                   \
-        if (st == GC_ERR_DEGENERATE) {                                                                        \
-            /* The LP did not converge: closed or not as grasp_quality decides, and a margin of     \
-             * rounding size with that sign (Brent's method then bisects). */                                \
-            ws->error[0] = '\0';                                                                              \
-            warm[0] = -1;                                                                                     \
-            if ((st = closure_fast(ws, def, ws->wrench, rows, 6, 0, &closed, NULL, &summary)) != GC_OK)       \
-                return st;                                                                                    \
-            t = closed ? def->tolerance / rows : -1.0;                                                        \
-        } else if (st != GC_OK) {                                                                             \
-            return st;                                                                                        \
-        }                                                                                                     \
-        (g) = (m) * (fmax(t, -1.0) - 0.5 * def->tolerance / rows);                                            \
-    } while (0)
-    if (mu_max == 0.0) return GC_OK;
-    int warm[D + 1] = {-1};   /* each LP starts from the last one's optimal basis */
-    /* An LP "no" is never a "yes": not closed at mu_max. A "yes" is checked at the end. */
-    double glo = 0.0, ghi = 0.0, b_start = mu_max;
-    MARGIN_AT(mu_max, ghi);
-    if (!(ghi > 0.0)) return GC_OK;
-    /* The bracket's open end: mu_max / 100 if open there, else 0 (g(0) = 0 is no help to the
-     * interpolation: -g(mu_max / 100) stands in for it). */
-    double lo = 0.01 * mu_max, g1;
-    MARGIN_AT(lo, g1);
-    if (g1 > 0.0) {
-        b_start = lo;
-        ghi = g1;
-        lo = 0.0;
-        glo = -g1;
-    } else {
-        glo = fmin(g1, -1e-300);
-    }
-    /* Brent's method on g over [lo, b]: inverse quadratic or secant steps while they stay in
-     * the bracket and shrink it fast enough, bisection otherwise; each step at least 0.4e-6, so
-     * the bracket ends within 0.8e-6 around the root. b is the latest point, c the other end of
-     * the bracket (g of the opposite sign), a the point before b. */
+    *g = mu * (fmax(s->t, -1.0) - 0.5 * s->def->tolerance / s->rows);
+    return GC_OK;
+}
+
+/* Brent's method on g over [lo, b]: inverse quadratic or secant steps while they stay in the
+ * bracket and shrink it fast enough, bisection otherwise; each step at least 0.4e-6, so the
+ * bracket ends within 0.8e-6 around the root. b is the latest point, c the other end of the
+ * bracket (g of the opposite sign), a the point before b. *root_open: the bracket's open end. */
+static gcStatus brent_root(MuSearch *s, double lo, double glo, double b_start, double ghi, double *root_open) {
     const double step_min = 0.4e-6;
     double a = lo, b = b_start, c = lo, fa = glo, fb = ghi, fc = glo, d = b - a, e = b - a, g_closed = ghi;
+    gcStatus st;
     for (int it = 0; it < 200; ++it) {
         if ((fb > 0.0) == (fc > 0.0)) {
             c = a;
@@ -624,14 +607,14 @@ static gcStatus mu_min_search(gcGraspWorkspace *ws, const gcGraspDef *def, const
         double half = 0.5 * (c - b);
         if (fabs(half) <= step_min) break;
         if (fabs(e) >= step_min && fabs(fa) > fabs(fb)) {
-            double s = fb / fa, p, q;
+            double s_ = fb / fa, p, q;
             if (a == c) {
-                p = 2.0 * half * s;
-                q = 1.0 - s;
+                p = 2.0 * half * s_;
+                q = 1.0 - s_;
             } else {
                 double qa = fa / fc, r = fb / fc;
-                p = s * (2.0 * half * qa * (qa - r) - (b - a) * (r - 1.0));
-                q = (qa - 1.0) * (r - 1.0) * (s - 1.0);
+                p = s_ * (2.0 * half * qa * (qa - r) - (b - a) * (r - 1.0));
+                q = (qa - 1.0) * (r - 1.0) * (s_ - 1.0);
             }
             if (p > 0.0) q = -q;
             p = fabs(p);
@@ -647,32 +630,68 @@ static gcStatus mu_min_search(gcGraspWorkspace *ws, const gcGraspDef *def, const
         a = b;
         fa = fb;
         b += fabs(d) > step_min ? d : copysign(step_min, half);
-        MARGIN_AT(b, fb);
+        if ((st = margin_at(s, b, &fb)) != GC_OK) return st;
         /* t* exactly 0 over a range of mu (the origin on a face of the hull, e.g. two contacts
          * that balance each other): no slope to follow, and a zero that is not the root. Minus
          * the last closed margin stands in for it, which sends the next step about halfway. */
         if (fb > 0.0)
             g_closed = fb;
-        else if (fabs(t) <= 1e-12)
+        else if (fabs(s->t) <= 1e-12)
             fb = -g_closed;
     }
+    *root_open = fb > 0.0 ? c : b;
+    return GC_OK;
+}
+
+static gcStatus mu_min_search(gcGraspWorkspace *ws, const gcGraspDef *def, const double *points,
+                              const double *normals, int num_contacts, const double center[3], double radius,
+                              double mu_max, double *out_mu, double *margin, int *rows_at) {
+    *margin = 0.0;
+    *rows_at = 0;
+    MuSearch s = {.ws = ws, .def = def, .points = points, .normals = normals, .center = center,
+                  .num_contacts = num_contacts, .radius = radius, .warm = {-1}};
+    gcStatus st;
+    if ((st = closed_at(&s, 0.0)) != GC_OK) return st;     /* one wrench per contact */
+    if (s.closed) {
+        *out_mu = 0.0;
+        *margin = s.summary.facets == -1 ? -s.summary.offset_max : 0.0;
+        *rows_at = s.rows;
+        return GC_OK;
+    }
+    if (mu_max == 0.0) return GC_OK;
+    /* An LP "no" is never a "yes": not closed at mu_max. A "yes" is checked at the end. */
+    double glo = 0.0, ghi = 0.0, b_start = mu_max;
+    if ((st = margin_at(&s, mu_max, &ghi)) != GC_OK) return st;
+    if (!(ghi > 0.0)) return GC_OK;
+    /* The bracket's open end: mu_max / 100 if open there, else 0 (g(0) = 0 is no help to the
+     * interpolation: -g(mu_max / 100) stands in for it). */
+    double lo = 0.01 * mu_max, g1;
+    if ((st = margin_at(&s, lo, &g1)) != GC_OK) return st;
+    if (g1 > 0.0) {
+        b_start = lo;
+        ghi = g1;
+        lo = 0.0;
+        glo = -g1;
+    } else {
+        glo = fmin(g1, -1e-300);
+    }
+    double open_end;
+    if ((st = brent_root(&s, lo, glo, b_start, ghi, &open_end)) != GC_OK) return st;
     /* The root is in (open end, open end + 0.8e-6]: answer open end + 1e-6, closed as well and
      * far enough from the root (about 0.2e-6 at least) for the LP's certificate to settle it
      * without the support search, most times. */
-    double hi = fmin((fb > 0.0 ? c : b) + 1e-6, mu_max);
-#undef MARGIN_AT
+    double hi = fmin(open_end + 1e-6, mu_max);
     /* The LP may call a set closed whose origin is within the tolerance of the hull's boundary
      * (grasp_quality: not closed); the root it brackets is then below the closure's by about the
      * tolerance. Step up to the first mu grasp_quality calls closed; none up to mu_max: inf. */
     for (double step = 1e-9;; step *= 2.0) {
-        CLOSED_AT(hi);
-        if (closed) break;
+        if ((st = closed_at(&s, hi)) != GC_OK) return st;
+        if (s.closed) break;
         if (hi >= mu_max) return GC_OK;
         hi = fmin(hi + step, mu_max);
     }
-#undef CLOSED_AT
     *out_mu = hi;
-    *margin = summary.facets == -1 ? -summary.offset_max : 0.0;   /* the search ran (facets -1) */
-    *rows_at = rows;
+    *margin = s.summary.facets == -1 ? -s.summary.offset_max : 0.0;   /* the search ran (facets -1) */
+    *rows_at = s.rows;
     return GC_OK;
 }

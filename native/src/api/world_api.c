@@ -186,13 +186,9 @@ static gcStatus check_idle(const gcWorld *w) {
     return GC_OK;
 }
 
-gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *parts, int num_parts,
-                           int32_t *out_body) {
-    if (!w) return GC_ERR_INVALID_ARGUMENT;
-    if (!def) return gc_null_argument(w, "def");
-    if (!out_body) return gc_null_argument(w, "out_body");
+/* A body definition's values and the world's room for its parts: checked before anything is built. */
+static gcStatus check_body_def(gcWorld *w, const gcBodyDef *def, const gcPartDef *parts, int num_parts) {
     gcStatus st;
-    if ((st = check_idle(w))) return st;
     if ((st = gc_check_vec(w, def->position, 3, "position")) ||
         (st = gc_check_vec(w, def->orientation, 4, "orientation")) ||
         (st = gc_check_vec(w, def->linear_velocity, 3, "linear_velocity")) ||
@@ -226,7 +222,12 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
         gc_world_set_error(w, "max_parts: the world holds at most %d convex parts", w->def.max_parts);
         return GC_ERR_CAPACITY;
     }
-    /* Build every hull first so that a bad part leaves the world untouched. */
+    return GC_OK;
+}
+
+/* Every part's hull, built into the model's next free parts; a bad part leaves the world untouched. */
+static gcStatus build_part_hulls(gcWorld *w, const gcPartDef *parts, int num_parts) {
+    gcStatus st;
     int first = w->own_model->num_parts;
     for (int i = 0; i < num_parts; ++i) {
         const gcPartDef *pd = &parts[i];
@@ -249,15 +250,15 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
             return st;
         }
     }
+    return GC_OK;
+}
 
-    gcBodyModel bm;
-    memset(&bm, 0, sizeof bm);
-    gcBody b;
-    memset(&b, 0, sizeof b);
-    bm.is_static = def->is_static != 0;
-    bm.first_part = first;
-    bm.num_parts = num_parts;
-    /* Mass properties: uniform density over the union of parts (overlaps counted twice). */
+/* A body's centre of mass and inertia from its parts' hulls (uniform density over the union of
+ * parts, overlaps counted twice) unless the definition gives them. */
+static gcStatus body_mass_properties(gcWorld *w, const gcBodyDef *def, gcBodyModel *out) {
+    gcBodyModel bm = *out;
+    int first = bm.first_part, num_parts = bm.num_parts;
+    gcStatus st = GC_OK;
     double volume = 0.0;
     gcVec3 centroid = gc_v3(0, 0, 0);
     for (int i = 0; i < num_parts; ++i) {
@@ -299,6 +300,28 @@ gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *pa
             gc_world_set_error(w, "inertia: must be symmetric positive definite and obey the triangle inequality");
         }
     }
+    *out = bm;
+    return st;
+}
+
+gcStatus gc_world_add_body(gcWorld *w, const gcBodyDef *def, const gcPartDef *parts, int num_parts,
+                           int32_t *out_body) {
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (!def) return gc_null_argument(w, "def");
+    if (!out_body) return gc_null_argument(w, "out_body");
+    gcStatus st;
+    if ((st = check_idle(w)) || (st = check_body_def(w, def, parts, num_parts)) ||
+        (st = build_part_hulls(w, parts, num_parts)))
+        return st;
+    int first = w->own_model->num_parts;
+    gcBodyModel bm;
+    memset(&bm, 0, sizeof bm);
+    gcBody b;
+    memset(&b, 0, sizeof b);
+    bm.is_static = def->is_static != 0;
+    bm.first_part = first;
+    bm.num_parts = num_parts;
+    st = body_mass_properties(w, def, &bm);
     if (st < 0) {
         for (int i = 0; i < num_parts; ++i) gc_hull_free(&w->own_model->parts[first + i].hull);
         return st;

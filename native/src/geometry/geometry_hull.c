@@ -421,6 +421,65 @@ static gcStatus finish_hull(Builder *b, double radius, gcHull *out) {
     return GC_OK;
 }
 
+/* Quickhull from the tetrahedron (i0, i1, i2, i3) (pn: the normal of the face (i0, i1, i2)): the
+ * furthest outside point added until none is left, then the hull finished and inflated by radius. */
+static gcStatus quickhull(const gcVec3 *pts, int n, double tol, double radius, int i0, int i1, int i2, int i3,
+                          gcVec3 pn, gcHull *out) {
+    Builder b;
+    memset(&b, 0, sizeof(b));
+    b.pts = pts;
+    b.n = n;
+    b.tol = tol;
+    b.owner = (int *)malloc((size_t)n * sizeof(int));
+    b.owner_dist = (double *)malloc((size_t)n * sizeof(double));
+    b.horizon_of = (int *)malloc((size_t)n * sizeof(int));
+    int stack_cap = 64, horizon_cap = 64;
+    int *stack = (int *)malloc((size_t)stack_cap * sizeof(int));
+    HorizonEdge *horizon = (HorizonEdge *)malloc((size_t)horizon_cap * sizeof(HorizonEdge));
+    gcStatus status = GC_OK;
+    if (!b.owner || !b.owner_dist || !b.horizon_of || !stack || !horizon) {
+        status = GC_ERR_NO_MEMORY;
+        goto done;
+    }
+    for (int i = 0; i < n; ++i) b.horizon_of[i] = -1;
+
+    /* Initial tetrahedron, oriented so that i3 is below face (i0, i1, i2). */
+    if (gc_dot(gc_sub(pts[i3], pts[i0]), pn) > 0.0) { int t = i1; i1 = i2; i2 = t; }
+    int tet[4][3] = {{i0, i1, i2}, {i0, i3, i1}, {i1, i3, i2}, {i2, i3, i0}};
+    for (int f = 0; f < 4; ++f)
+        if (add_face(&b, tet[f][0], tet[f][1], tet[f][2]) < 0) { status = GC_ERR_NO_MEMORY; goto done; }
+    for (int f = 0; f < 4; ++f)
+        for (int e = 0; e < 3; ++e)
+            for (int g = 0; g < 4; ++g)
+                if (g != f && face_edge(&b.faces[g], b.faces[f].v[(e + 1) % 3], b.faces[f].v[e]) >= 0)
+                    b.faces[f].nb[e] = g;
+    for (int i = 0; i < n; ++i) {
+        if (i == i0 || i == i1 || i == i2 || i == i3) { b.owner[i] = -1; continue; }
+        assign_point(&b, i, 0, 4);
+    }
+    for (int stamp = 0;; ++stamp) {
+        int eye = -1;
+        double far = 0.0;
+        for (int i = 0; i < n; ++i)
+            if (b.owner[i] >= 0 && b.owner_dist[i] > far) { far = b.owner_dist[i]; eye = i; }
+        if (eye < 0) break;
+        int r = add_point(&b, eye, stamp, &stack, &stack_cap, &horizon, &horizon_cap);
+        if (r < 0) { status = GC_ERR_NO_MEMORY; goto done; }
+        if (r > 0) b.owner[eye] = -1; /* skipped: within rounding of the hull */
+    }
+    status = finish_hull(&b, radius, out);
+    if (status == GC_OK) status = build_soa(out);
+done:
+    free(b.faces);
+    free(b.owner);
+    free(b.owner_dist);
+    free(b.horizon_of);
+    free(stack);
+    free(horizon);
+    if (status != GC_OK) gc_hull_free(out);
+    return status;
+}
+
 gcStatus gc_hull_build(const double *points, int n, double radius, double tolerance, gcHull *out) {
     if (!out) return GC_ERR_INVALID_ARGUMENT;
     memset(out, 0, sizeof(*out));
@@ -494,57 +553,5 @@ gcStatus gc_hull_build(const double *points, int n, double radius, double tolera
     }
     if (i3 < 0) return GC_ERR_DEGENERATE; /* coplanar: no volume, even with a radius */
 
-    Builder b;
-    memset(&b, 0, sizeof(b));
-    b.pts = pts;
-    b.n = n;
-    b.tol = tol;
-    b.owner = (int *)malloc((size_t)n * sizeof(int));
-    b.owner_dist = (double *)malloc((size_t)n * sizeof(double));
-    b.horizon_of = (int *)malloc((size_t)n * sizeof(int));
-    int stack_cap = 64, horizon_cap = 64;
-    int *stack = (int *)malloc((size_t)stack_cap * sizeof(int));
-    HorizonEdge *horizon = (HorizonEdge *)malloc((size_t)horizon_cap * sizeof(HorizonEdge));
-    gcStatus status = GC_OK;
-    if (!b.owner || !b.owner_dist || !b.horizon_of || !stack || !horizon) {
-        status = GC_ERR_NO_MEMORY;
-        goto done;
-    }
-    for (int i = 0; i < n; ++i) b.horizon_of[i] = -1;
-
-    /* Initial tetrahedron, oriented so that i3 is below face (i0, i1, i2). */
-    if (gc_dot(gc_sub(pts[i3], pts[i0]), pn) > 0.0) { int t = i1; i1 = i2; i2 = t; }
-    int tet[4][3] = {{i0, i1, i2}, {i0, i3, i1}, {i1, i3, i2}, {i2, i3, i0}};
-    for (int f = 0; f < 4; ++f)
-        if (add_face(&b, tet[f][0], tet[f][1], tet[f][2]) < 0) { status = GC_ERR_NO_MEMORY; goto done; }
-    for (int f = 0; f < 4; ++f)
-        for (int e = 0; e < 3; ++e)
-            for (int g = 0; g < 4; ++g)
-                if (g != f && face_edge(&b.faces[g], b.faces[f].v[(e + 1) % 3], b.faces[f].v[e]) >= 0)
-                    b.faces[f].nb[e] = g;
-    for (int i = 0; i < n; ++i) {
-        if (i == i0 || i == i1 || i == i2 || i == i3) { b.owner[i] = -1; continue; }
-        assign_point(&b, i, 0, 4);
-    }
-    for (int stamp = 0;; ++stamp) {
-        int eye = -1;
-        double far = 0.0;
-        for (int i = 0; i < n; ++i)
-            if (b.owner[i] >= 0 && b.owner_dist[i] > far) { far = b.owner_dist[i]; eye = i; }
-        if (eye < 0) break;
-        int r = add_point(&b, eye, stamp, &stack, &stack_cap, &horizon, &horizon_cap);
-        if (r < 0) { status = GC_ERR_NO_MEMORY; goto done; }
-        if (r > 0) b.owner[eye] = -1; /* skipped: within rounding of the hull */
-    }
-    status = finish_hull(&b, radius, out);
-    if (status == GC_OK) status = build_soa(out);
-done:
-    free(b.faces);
-    free(b.owner);
-    free(b.owner_dist);
-    free(b.horizon_of);
-    free(stack);
-    free(horizon);
-    if (status != GC_OK) gc_hull_free(out);
-    return status;
+    return quickhull(pts, n, tol, radius, i0, i1, i2, i3, pn, out);
 }

@@ -315,27 +315,9 @@ static void reset_stats(gcRuntime *rt) {
     for (int i = 0; i < GC_JITTER_BINS; ++i) atomic_store_explicit(&rt->jitter_hist[i], 0, memory_order_relaxed);
 }
 
-gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
-    if (!w) return GC_ERR_INVALID_ARGUMENT;
-    if (!def) return gc_null_argument(w, "def");
-    if (gc_runtime_running(w)) {
-        gc_world_set_error(w, "the runtime is already running");
-        return GC_ERR_BUSY;
-    }
-    gcStatus st = check_def(w, def);
-    if (st) return st;
-    if (!w->runtime && !(w->runtime = runtime_alloc(w))) {
-        gc_world_set_error(w, "runtime: out of memory");
-        return GC_ERR_NO_MEMORY;
-    }
-    gcRuntime *rt = w->runtime;
-    pthread_mutex_lock(&rt->api_mutex);
-    w->locked = 1;
-    /* Until the first snapshot the world's queries show the state it started from. */
-    rt->shown.time = w->time;
-    for (int32_t b = 0; b < w->num_bodies; ++b) rt->shown.bodies[b] = w->bodies[b].state;
-    memcpy(rt->shown.fingers, w->fingers, (size_t)w->num_fingers * sizeof *w->fingers);
-    w->shown = &rt->shown;
+/* The runtime loaded for a session from the world and def: rates, both shadows, every body with
+ * the object manager, the gate, the HIP followers, zeroed statistics. */
+static void load_session(gcWorld *w, gcRuntime *rt, const gcRuntimeDef *def) {
     rt->def = *def;
     rt->def.realtime = def->realtime != 0;
     rt->period_ns = gc_seconds_to_ns(1.0 / def->haptic_rate);
@@ -379,8 +361,69 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
     atomic_store(&rt->debug_stall_ns, 0);
     reset_stats(rt);
     atomic_store(&w->serial->rejected_inputs, 0);
+}
+
+/* The haptic and object threads of a realtime session, started once the runtime is loaded; the
+ * world unlocked again when they cannot be made. */
+static gcStatus start_threads(gcWorld *w, gcRuntime *rt) {
+    lock_memory(rt);
+    atomic_store_explicit(&rt->haptic_ready, 0, memory_order_relaxed);
+    atomic_store_explicit(&rt->run, 1, memory_order_release);
+    atomic_store_explicit(&rt->state, GC_RUNTIME_RUNNING, memory_order_release);
+    int e = pthread_create(&rt->object_thread, NULL, gc_runtime_object_main, rt);
+    if (e == 0) {
+#ifdef __linux__
+        pthread_setname_np(rt->object_thread, "gc-object"); /* as top -H, perf and ftrace show it */
+#endif
+        e = pthread_create(&rt->haptic_thread, NULL, gc_runtime_haptic_main, rt);
+        if (e != 0) {
+            atomic_store_explicit(&rt->run, 0, memory_order_release);
+            pthread_join(rt->object_thread, NULL);
+        }
+    }
+    if (e != 0) {
+        unlock_memory(rt);
+        atomic_store_explicit(&rt->state, GC_RUNTIME_STOPPED, memory_order_release);
+        w->locked = 0;
+        w->shown = NULL;
+        gc_world_set_error(w, "runtime: could not create its threads (error %d)", e);
+        return GC_ERR_NO_MEMORY;
+    }
+    /* The haptic thread sets up its own scheduling before its first tick; wait for its note
+     * (microseconds), so that stats() is complete as soon as start() returns. */
+    while (!atomic_load_explicit(&rt->haptic_ready, memory_order_acquire)) {
+        struct timespec ts = {0, 20000};
+        nanosleep(&ts, NULL);
+    }
+    return GC_OK;
+}
+
+gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
+    if (!w) return GC_ERR_INVALID_ARGUMENT;
+    if (!def) return gc_null_argument(w, "def");
+    if (gc_runtime_running(w)) {
+        gc_world_set_error(w, "the runtime is already running");
+        return GC_ERR_BUSY;
+    }
+    gcStatus st = check_def(w, def);
+    if (st) return st;
+    if (!w->runtime && !(w->runtime = runtime_alloc(w))) {
+        gc_world_set_error(w, "runtime: out of memory");
+        return GC_ERR_NO_MEMORY;
+    }
+    gcRuntime *rt = w->runtime;
+    pthread_mutex_lock(&rt->api_mutex);
+    w->locked = 1;
+    /* Until the first snapshot the world's queries show the state it started from. */
+    rt->shown.time = w->time;
+    for (int32_t b = 0; b < w->num_bodies; ++b) rt->shown.bodies[b] = w->bodies[b].state;
+    memcpy(rt->shown.fingers, w->fingers, (size_t)w->num_fingers * sizeof *w->fingers);
+    w->shown = &rt->shown;
+    load_session(w, rt, def);
     rt->tick_log = gc_tick_log_begin(w, &st);
-    if (st) {
+    if (st) { /* the world as it was: unlocked, its own state shown */
+        w->locked = 0;
+        w->shown = NULL;
         pthread_mutex_unlock(&rt->api_mutex);
         return st;
     }
@@ -408,35 +451,9 @@ gcStatus gc_world_start(gcWorld *w, const gcRuntimeDef *def) {
         pthread_mutex_unlock(&rt->api_mutex);
         return GC_OK;
     }
-    lock_memory(rt);
-    atomic_store_explicit(&rt->haptic_ready, 0, memory_order_relaxed);
-    atomic_store_explicit(&rt->run, 1, memory_order_release);
-    atomic_store_explicit(&rt->state, GC_RUNTIME_RUNNING, memory_order_release);
-    int e = pthread_create(&rt->object_thread, NULL, gc_runtime_object_main, rt);
-    if (e == 0) {
-#ifdef __linux__
-        pthread_setname_np(rt->object_thread, "gc-object"); /* as top -H, perf and ftrace show it */
-#endif
-        e = pthread_create(&rt->haptic_thread, NULL, gc_runtime_haptic_main, rt);
-        if (e != 0) {
-            atomic_store_explicit(&rt->run, 0, memory_order_release);
-            pthread_join(rt->object_thread, NULL);
-        }
-    }
-    if (e != 0) {
-        unlock_memory(rt);
-        atomic_store_explicit(&rt->state, GC_RUNTIME_STOPPED, memory_order_release);
-        w->locked = 0;
-    w->shown = NULL;
+    if ((st = start_threads(w, rt)) != GC_OK) {
         pthread_mutex_unlock(&rt->api_mutex);
-        gc_world_set_error(w, "runtime: could not create its threads (error %d)", e);
-        return GC_ERR_NO_MEMORY;
-    }
-    /* The haptic thread sets up its own scheduling before its first tick; wait for its note
-     * (microseconds), so that stats() is complete as soon as start() returns. */
-    while (!atomic_load_explicit(&rt->haptic_ready, memory_order_acquire)) {
-        struct timespec ts = {0, 20000};
-        nanosleep(&ts, NULL);
+        return st;
     }
     snprintf(rt->priority_note, sizeof rt->priority_note, "%s; %s", rt->thread_note, rt->memory_note);
     pthread_mutex_unlock(&rt->api_mutex);

@@ -101,14 +101,12 @@ static int take_device_samples(gcRuntime *rt) {
     return took;
 }
 
-void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now) {
+/* Step 1 of the haptic tick: the newest pushed samples retargeted, device samples taken, a
+ * replay's recorded poses set; when the input was last fresh. */
+static void take_hip_inputs(gcRuntime *rt, int64_t now) {
     gcWorld *hw = &rt->hap;
     const double dt = rt->dt_haptic;
     int fresh;
-    if (rt->tick_log) gc_tick_log_prefetch(rt->tick_log); /* its misses overlap steps 1-4 */
-
-    /* 1. HIPs at this tick's end time: the scripted track, or the walk towards the latest
-     *    pushed samples (validated by push_hips). */
     const gcInputMsg *in = &rt->input_msg[gc_triple_latest(&rt->input, &fresh)];
     if (fresh) {
         double interval = isfinite(rt->follow_prev_t) ? in->t - rt->follow_prev_t : 0.0;
@@ -125,7 +123,6 @@ void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now) {
     }
     if (take_device_samples(rt)) rt->last_input_ns = now;
     if (gc_hip_track_covers(rt->track, hw->num_fingers)) rt->last_input_ns = now; /* the track is never stale */
-    const double t_next = (double)(rt->tick + 1) * dt;
     for (int i = 0; i < hw->num_fingers && rt->replay_hips; ++i) { /* a replay: the recorded pose */
         gcFinger *f = &hw->fingers[i];
         const double *p = &rt->replay_hips[3 * i], *q = rt->replay_orientations ? &rt->replay_orientations[4 * i] : NULL;
@@ -136,6 +133,13 @@ void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now) {
         }
         memcpy(&hw->hip_array[3 * i], p, 3 * sizeof(double));
     }
+}
+
+/* Step 1, live: every finger's HIP (and orientation) at the tick's end time t_next, from the
+ * scripted track or the bounded-speed walk (slower while a device's soft start lasts). */
+static void advance_hips(gcRuntime *rt, double t_next) {
+    gcWorld *hw = &rt->hap;
+    const double dt = rt->dt_haptic;
     for (int i = 0; i < hw->num_fingers && !rt->replay_hips; ++i) {
         const int scripted = gc_hip_track_drives(rt->track, i);
         gcRuntimeDeviceFinger *df = &rt->device_finger[i];
@@ -161,7 +165,12 @@ void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now) {
         out[0] = hip.x, out[1] = hip.y, out[2] = hip.z;
     }
 
-    /* 2. The object manager's bodies; bodies it released are adopted before stepping. */
+}
+
+/* Step 2: the object manager's newest bodies loaded; bodies it released adopted. */
+static void take_object_bodies(gcRuntime *rt) {
+    gcWorld *hw = &rt->hap;
+    int fresh;
     const gcObjectMsg *om = &rt->object_msg[gc_triple_latest(&rt->to_haptic, &fresh)];
     if (fresh) {
         rt->object_time_seen = om->time;
@@ -187,6 +196,21 @@ void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now) {
             }
         }
     }
+
+}
+
+void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now) {
+    gcWorld *hw = &rt->hap;
+    const double dt = rt->dt_haptic;
+    if (rt->tick_log) gc_tick_log_prefetch(rt->tick_log); /* its misses overlap steps 1-4 */
+
+    /* 1. HIPs at this tick's end time: the scripted track, or the walk towards the latest
+     *    pushed samples (validated by push_hips). */
+    take_hip_inputs(rt, now);
+    advance_hips(rt, (double)(rt->tick + 1) * dt);
+
+    /* 2. The object manager's bodies; bodies it released are adopted before stepping. */
+    take_object_bodies(rt);
 
     /* 3. As gc_world_step: god-objects and springs, then the bodies this loop owns. */
     count_stopped(rt, gc_step(hw, dt));
