@@ -7,17 +7,18 @@ PIP := $(PY) -m pip --disable-pip-version-check -q
 BPY_VERSION ?= 4.5.*
 BUILD := build
 
-CORE_SRC := $(wildcard native/src/*.c)
-CORE_HDR := $(wildcard native/src/*.h native/include/*.h)
+# native/src: one folder a layer (docs/architecture.md).
+CORE_SRC := $(wildcard native/src/*/*.c)
+CORE_HDR := $(wildcard native/src/*/*.h native/include/*.h)
 BINDING := native/binding/graspcore_module.c
 PY_SRC := $(wildcard native/python/graspcore/*.py)
 # One list of compiler flags, shared with native/setup.py; warnings are errors here.
 CORE_FLAGS := $(shell cat native/cflags.txt)
 CFLAGS_COMMON := $(CORE_FLAGS) -Werror -Inative/include -Inative/src
 C_TESTS := $(patsubst native/tests/%.c,%,$(wildcard native/tests/test_*.c))
-CORE_OBJ := $(notdir $(CORE_SRC:.c=.o))
+CORE_OBJ := $(CORE_SRC:native/src/%.c=%.o)
 
-.PHONY: all venv core lib check-layers demo test test-c test-c-asan test-c-tsan test-py bench clean
+.PHONY: all venv core lib check-layers layers-table demo test test-c test-c-asan test-c-tsan test-py bench clean
 
 all: core
 
@@ -69,12 +70,16 @@ $(foreach v,c c-asan c-tsan,$(eval $(call core_library,$(v))))
 
 lib: $(BUILD)/c/libgraspcore.a
 
-# No file of native/src calls a file above it (the order is docs/architecture.md's table); the
-# add-on's engine/ imports neither bpy nor the add-on above it, and no add-on modules import each
-# other in a circle.
+# No file of native/src calls or includes a folder above it or one its folder's README.md does not
+# name (docs/architecture.md); the add-on's engine/ imports neither bpy nor the add-on above it,
+# and no add-on modules import each other in a circle.
 check-layers: $(BUILD)/c/libgraspcore.a native/check_layers.py docs/architecture.md
-	$(PYTHON) native/check_layers.py docs/architecture.md $(BUILD)/c/obj $(CORE_SRC)
+	$(PYTHON) native/check_layers.py --core native/src $(BUILD)/c/obj docs/architecture.md
 	$(PYTHON) native/check_layers.py --addon addon
+
+# docs/architecture.md's table of layers, made from native/src/*/README.md.
+layers-table:
+	$(PYTHON) native/check_layers.py --table native/src docs/architecture.md
 
 test-c: $(addprefix $(BUILD)/c/,$(C_TESTS))
 	@for t in $^; do echo "== $$t"; $$t || exit 1; done

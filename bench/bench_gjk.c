@@ -26,7 +26,7 @@
  * libccd runs with its default tolerances (epa_tolerance 1e-4 absolute); ours uses
  * 1e-9 relative to the pair's size, i.e. tighter. */
 #define _POSIX_C_SOURCE 199309L
-#include "geometry.h"
+#include "geometry/geometry.h"
 
 #include <ccd/ccd.h>
 #include <stdint.h>

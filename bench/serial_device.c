@@ -11,7 +11,7 @@
  * Both use the core's codec (native/src/device_codec.c), so the two hosts differ only in what
  * happens between a pose arriving and its force frame leaving. */
 #define _GNU_SOURCE
-#include "device_codec.h"
+#include "devices/device_codec.h"
 
 #include <arpa/inet.h>
 #include <errno.h>

@@ -14,7 +14,7 @@ with open(os.path.join(HERE, "cflags.txt")) as f:
 if os.environ.get("GRASPCORE_WERROR") == "1":
     core_flags.append("-Werror")
 
-core_sources = sorted(glob.glob("src/*.c"))
+core_sources = sorted(glob.glob("src/*/*.c"))  # one folder a layer
 setup(
     name="graspcore",
     version="0.1.0",

@@ -1,7 +1,7 @@
 /* Geometry module tests: analytic answers, random-hull fuzzing with brute-force
  * checks, and the regression corpus native/tests/corpus/geometry_cases.txt
  * (run from the repository root). */
-#include "geometry.h"
+#include "geometry/geometry.h"
 #include "gc_test.h"
 
 #include <float.h>

@@ -3,7 +3,7 @@
  * grasps whose answers follow in closed form or from an independent computation here
  * (a 7-contact frictionless grasp is a 6-simplex: barycentric coordinates, Gram-Schmidt facet
  * distances, a determinant), the support function for the weakest direction, and bad input. */
-#include "grasp_quality.h"
+#include "analysis/grasp_quality.h"
 #include "gc_test.h"
 
 #include <stdint.h>

@@ -6,10 +6,10 @@
 #define _GNU_SOURCE
 #include "gc_test.h"
 #include "graspcore.h"
-#include "device_codec.h"
-#include "force_gate.h"
-#include "hip_input.h"
-#include "device_hub.h"
+#include "devices/device_codec.h"
+#include "devices/force_gate.h"
+#include "runtime/hip_input.h"
+#include "devices/device_hub.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -199,10 +199,19 @@ static void sleep_ms(int ms) {
     nanosleep(&ts, NULL);
 }
 
-/* Waits (up to 2 s, a millisecond at a time) for `cond`, re-evaluated each time: what the
- * device and haptic threads do is checked, not how soon a loaded machine lets them do it
- * (tests/devices/test_emulator_e2e.py holds the let-go to its 0.25 s over a real pty). */
-#define WAIT_UNTIL(cond) for (int wait_ms_ = 0; wait_ms_ < 2000 && !(cond); ++wait_ms_) sleep_ms(1)
+/* The state a test waits for may take long on a busy machine (both cores taken, ASan, TSan): every
+ * wait is on state with one generous deadline, never a count of ticks or a window of time. */
+#define DEADLINE_S 30.0
+static double seconds_now(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+/* Waits (up to DEADLINE_S, a millisecond at a time) for `cond`, re-evaluated each time; the check
+ * after it says what was seen when it did not come. */
+#define WAIT_UNTIL(cond) for (double wait_t0_ = seconds_now(); seconds_now() - wait_t0_ < DEADLINE_S && !(cond);) sleep_ms(1)
+/* Streams poses (`ms` a round) until `cond` holds, up to DEADLINE_S. */
+#define STREAM_UNTIL(cond, dev, ms, z) for (double stream_t0_ = seconds_now(); seconds_now() - stream_t0_ < DEADLINE_S && !(cond);) stream((dev), (ms), (z))
 
 /* Poses for `ms` milliseconds, one a millisecond, reading what comes back in between. */
 static void stream(Dev *d, int ms, double z) {
@@ -296,7 +305,7 @@ static void test_device_thread(void) {
     /* The 50 ms ramp is over by now; on a loaded machine the frames that say so can come late
      * (and the enable itself may be taken up late: the ramp is judged by the frames, not by
      * what one frame a fixed time after the enable says). */
-    for (int k = 0; k < 40 && fabs(force_z(&dev) - 3.0) >= 1e-5; ++k) stream(&dev, 50, 0.098);
+    STREAM_UNTIL(fabs(force_z(&dev) - 3.0) < 1e-5, &dev, 50, 0.098);
     GC_CHECK(dev.ramp_frames - before >= 5, "ramping in: %d frames between 0 and 3 N", dev.ramp_frames - before);
     GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-5, "clamped to the device's 3 N: %.4f", force_z(&dev));
     GC_CHECK(dev.last_enable == 1, "ENABLE(1) sent");
@@ -341,7 +350,7 @@ static void test_device_thread(void) {
     GC_CHECK(st.state == GC_SERIAL_LOST && fabs(sp[2]) < 1e-6, "silent: state %d, spring %.6f N", st.state, sp[2]);
     /* Poses again: it holds again. */
     stream(&dev, 100, 0.098);
-    for (int k = 0; k < 40 && (spring(w, sp), fabs(sp[2] - 10.0) >= 0.5); ++k) stream(&dev, 50, 0.098);
+    STREAM_UNTIL((spring(w, sp), fabs(sp[2] - 10.0) < 0.5), &dev, 50, 0.098);
     GC_CHECK(fabs(sp[2] - 10.0) < 0.5, "recovered: spring %.3f N", sp[2]);
     /* Hang-up: let go again. */
     close(dev.fd);
@@ -593,7 +602,7 @@ static void test_recorded_forces(void) {
              dr.nonzero);
 
     gc_world_serial_enable(w, id, 1);
-    for (int k = 0; k < 40 && fabs(force_z(&dev) - 3.0) >= 1e-6; ++k) stream(&dev, 50, 0.049);
+    STREAM_UNTIL(fabs(force_z(&dev) - 3.0) < 1e-6, &dev, 50, 0.049);
     GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-6, "3 N sent (clamped in device axes): %.4f", force_z(&dev));
     stream(&dev, 100, 0.049);
     dr = drain(w, &dev);
@@ -624,7 +633,7 @@ static void test_recorded_forces(void) {
 
     /* Forces on again; then an e-stop whose ESTOP frame was lost: only the poses' status says so. */
     gc_world_serial_enable(w, id, 1);
-    for (int k = 0; k < 40 && fabs(force_z(&dev) - 3.0) >= 1e-6; ++k) stream(&dev, 50, 0.049);
+    STREAM_UNTIL(fabs(force_z(&dev) - 3.0) < 1e-6, &dev, 50, 0.049);
     GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-6, "re-enabled: %.4f", force_z(&dev));
     stream(&dev, 60, 0.049); /* past the grace after ENABLE(1) */
     dev.status = GC_STATUS_ESTOPPED;
@@ -639,7 +648,7 @@ static void test_recorded_forces(void) {
     /* Forces on, then silence: the record goes to zero when the last frame's TTL (20 ms) is over. */
     dev.status = 0;
     gc_world_serial_enable(w, id, 1);
-    for (int k = 0; k < 40 && fabs(force_z(&dev) - 3.0) >= 1e-6; ++k) stream(&dev, 50, 0.049);
+    STREAM_UNTIL(fabs(force_z(&dev) - 3.0) < 1e-6, &dev, 50, 0.049);
     dr = drain(w, &dev);
     GC_CHECK(dr.last[2] == 1.5 && dr.unmatched == 0, "forces again: %g", dr.last[2]);
     sleep_ms(60);
@@ -707,7 +716,7 @@ static void test_recorded_forces_are_the_frames(void) {
     dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, 12);
     stream(&dev, 400, 0.0); /* the soft start walks the HIP there (5 cm at 0.2 m/s) */
     gc_world_serial_enable(w, id, 1);
-    for (int k = 0; k < 40 && !(force_z(&dev) > 1.0); ++k) stream(&dev, 50, 0.0);
+    STREAM_UNTIL(force_z(&dev) > 1.0, &dev, 50, 0.0);
     stream(&dev, 100, 0.0);
     double sp[3];
     spring(w, sp);
@@ -810,7 +819,7 @@ static void test_estop_in_status_before_enable(void) {
     gc_world_serial_enable(w, id, 1);
     WAIT_UNTIL((dev_read(&dev, 1), dev.last_enable == 1));
     dev.status = 0;
-    for (int k = 0; k < 40 && fabs(force_z(&dev) - 3.0) >= 1e-6; ++k) stream(&dev, 50, -0.002);
+    STREAM_UNTIL(fabs(force_z(&dev) - 3.0) < 1e-6, &dev, 50, -0.002);
     gc_world_serial_stats(w, id, &st);
     GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-6 && st.estops == 1 && st.enabled,
              "enabled: %.4f N sent, %d e-stops", force_z(&dev), (int)st.estops);

@@ -6,7 +6,7 @@
 #define _POSIX_C_SOURCE 200809L
 #include "graspcore.h"
 #include "gc_test.h"
-#include "world_internal.h" /* the reference state hash reads the state it hashes */
+#include "world/world.h" /* the reference state hash reads the state it hashes */
 
 #include <pthread.h>
 #include <stdatomic.h>
