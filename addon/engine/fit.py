@@ -1,0 +1,457 @@
+"""Can this device do this task? A recorded grasp evaluated against device profiles (docs/devices.md,
+"Can this device do this task?"). No bpy; ``grasp-lab fit`` and Blender's *Fit Devices* both call
+``fit_recording``.
+
+For each finger given to an end-effector and each tick: is its HIP inside the end-effector's workspace
+(after the best rigid placement of the device frame), is the force it renders within the peak limit and,
+through a first-order thermal model, the continuous limit, is the coupling stiffness within the device's
+stable bound (scaled to the recording's haptic rate), do two end-effectors come closer than their size
+allows, and do neighbouring fingers cross where the kinematics cannot.
+"""
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .devices.device_profiles import Profile
+
+VERDICTS = ("fits", "placed", "fails")
+REFERENCE_RATE = 1000.0         # Hz: the rate the profiles' stable stiffness is given at
+YAW_STEP_DEG = 2.0              # the turns about the vertical tried when a translation alone does not fit
+# Two numbers equal within this (m, N) are equal: a path that touches a wall exactly is inside.
+TOLERANCE = 1e-9
+CHECKS = ("workspace", "peak", "duty", "stiffness", "interference", "crossing")
+
+
+class FitError(ValueError):
+    """Bad input to the evaluation: one line saying what."""
+
+
+# ----------------------------------------------------------------------------- the task
+
+@dataclass
+class Task:
+    """What the device would have to render: per tick and finger the HIP, the force, whether the finger
+    touches something and its coupling stiffness."""
+    finger_names: list
+    time: np.ndarray            # (T,) s
+    hip: np.ndarray             # (T, F, 3) m, world
+    force: np.ndarray           # (T, F, 3) N
+    contact: np.ndarray         # (T, F) bool
+    stiffness: np.ndarray       # (T, F) N/m
+    haptic_rate: float          # Hz
+
+    def index(self, name: str) -> int:
+        if name not in self.finger_names:
+            raise FitError(f"no finger {name!r} in the recording (its fingers: {', '.join(self.finger_names)})")
+        return self.finger_names.index(name)
+
+
+def task_from_recording(rec) -> Task:
+    """A recording's task: its HIPs, coupling forces (what the finger exerts, as a device renders it),
+    contacts, and each finger's stiffness over time (the header's, changed by ``parameter`` events)."""
+    ticks = rec.ticks
+    names = list(rec.finger_names)
+    by_name = {f["name"]: f for f in rec.header["scene"]["fingers"]}
+    k = np.empty((len(ticks), len(names)))
+    for i, n in enumerate(names):
+        k[:, i] = float(by_name[n]["stiffness"]) if n in by_name else 0.0
+    time = np.asarray(ticks["time"], dtype=np.float64)
+    for e in sorted((e for e in rec.events if e.get("kind") == "parameter" and e.get("name") == "stiffness"
+                     and e.get("subject") in names), key=lambda e: float(e.get("time", 0.0))):
+        first = int(np.searchsorted(time, float(e["time"]) - TOLERANCE))
+        k[first:, names.index(e["subject"])] = float(e["value"])
+    return Task(finger_names=names, time=time, hip=np.asarray(ticks["hip"], dtype=np.float64),
+                force=np.asarray(ticks["force"], dtype=np.float64),
+                contact=np.asarray(ticks["contact"]) >= 0, stiffness=k, haptic_rate=rec.haptic_rate)
+
+
+# ----------------------------------------------------------------------------- placement
+
+@dataclass
+class Placement:
+    """Where the device frame is in the scene: turned ``yaw_deg`` about the vertical, its origin at
+    ``translation`` (world = R(yaw) q + translation, q in the device frame)."""
+    yaw_deg: float = 0.0
+    translation: np.ndarray = field(default_factory=lambda: np.zeros(3))
+
+    @property
+    def rotation(self) -> np.ndarray:
+        a = math.radians(self.yaw_deg)
+        c, s = math.cos(a), math.sin(a)
+        return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+    def to_device(self, p: np.ndarray) -> np.ndarray:
+        """World points (..., 3) in the device frame."""
+        return (p - self.translation) @ self.rotation
+
+    def text(self) -> str:
+        t = self.translation
+        return (f"device frame at ({t[0]:.4f}, {t[1]:.4f}, {t[2]:.4f}) m"
+                + (f", turned {self.yaw_deg:g} deg about z" if self.yaw_deg else ""))
+
+    def as_dict(self) -> dict:
+        return {"translation": [float(v) for v in self.translation], "yaw_deg": float(self.yaw_deg)}
+
+
+def _circumball(points: np.ndarray):
+    """The smallest ball with every point on its surface (its centre in their affine hull), or None."""
+    p0 = points[0]
+    if len(points) == 1:
+        return p0.copy(), 0.0
+    a = points[1:] - p0
+    g = a @ a.T
+    try:
+        lam = np.linalg.solve(g, 0.5 * np.diag(g))
+    except np.linalg.LinAlgError:
+        return None
+    c = p0 + lam @ a
+    return c, float(np.max(np.sum((points - c) ** 2, axis=1)))
+
+
+def _ball_of_few(points: np.ndarray):
+    """The exact smallest enclosing ball of a handful of points: the smallest circumball, over their
+    subsets of at most d + 1 points, that holds them all."""
+    best = None
+    d = points.shape[1]
+    for k in range(1, min(len(points), d + 1) + 1):
+        for sub in itertools.combinations(range(len(points)), k):
+            ball = _circumball(points[list(sub)])
+            if ball is None:
+                continue
+            c, r2 = ball
+            if best is not None and r2 >= best[1]:
+                continue
+            if np.all(np.sum((points - c) ** 2, axis=1) <= r2 * (1 + 1e-12) + 1e-24):
+                best = (c, r2)
+    return best
+
+
+def min_ball(points: np.ndarray):
+    """The smallest ball (circle in 2-D) holding every point, exact: grow a support set with the point
+    farthest outside the ball of the set, each time solved exactly, until none is outside. The radius
+    grows strictly at each step, so it ends. Returns (centre, radius)."""
+    pts = np.unique(np.asarray(points, dtype=np.float64), axis=0)
+    support = pts[:1]
+    c, r2 = pts[0].copy(), 0.0
+    while True:
+        d2 = np.sum((pts - c) ** 2, axis=1)
+        k = int(np.argmax(d2))
+        if d2[k] <= r2 * (1 + 1e-12) + 1e-24:
+            return c, math.sqrt(r2)
+        cand = np.vstack([support, pts[k]])
+        c, r2 = _ball_of_few(cand)
+        on = np.sum((cand - c) ** 2, axis=1) >= r2 * (1 - 1e-9) - 1e-24
+        support = cand[on]
+
+
+def _best_translation(profile: Profile, u: list):
+    """The device-frame offset c (points q = u - c) that maximises the smallest workspace margin over
+    every tick and end-effector, exact for each shape, and that margin. ``u``: per end-effector its
+    points (T, 3) in the turned device frame."""
+    ws = profile.workspaces
+    x = np.concatenate([ui - w.center for ui, w in zip(u, ws)])     # every point relative to its centre
+    shape = ws[0].shape
+    if shape == "box":
+        h = ws[0].size / 2
+        hi, lo = x.max(axis=0), x.min(axis=0)
+        c = (hi + lo) / 2
+        return c, float(np.min(h - (hi - lo) / 2))
+    if shape == "cylinder":
+        centre, rho = min_ball(x[:, :2])
+        zhi, zlo = x[:, 2].max(), x[:, 2].min()
+        c = np.array([centre[0], centre[1], (zhi + zlo) / 2])
+        return c, float(min(ws[0].radius - rho, ws[0].height / 2 - (zhi - zlo) / 2))
+    centre, rho = min_ball(x)
+    return centre, float(ws[0].radius - rho)
+
+
+def _workspace_margins(profile: Profile, placement: Placement, paths: list) -> np.ndarray:
+    """(T, E) signed margin of each end-effector's path in its workspace under ``placement``."""
+    return np.stack([w.margin(placement.to_device(p)) for w, p in zip(profile.workspaces, paths)], axis=1)
+
+
+def _yaws(profile: Profile, frame: Placement) -> list:
+    """The turns about the vertical to try: the frame's own first; none other for a round workspace
+    centred on one axis (turning it changes nothing)."""
+    ws = profile.workspaces
+    if ws[0].shape != "box" and all(np.allclose(w.center[:2], ws[0].center[:2]) for w in ws):
+        return [frame.yaw_deg]
+    return [frame.yaw_deg] + [(frame.yaw_deg + k * YAW_STEP_DEG) % 360.0
+                              for k in range(1, int(round(360 / YAW_STEP_DEG)))]
+
+
+def _placed(profile: Profile, paths: list, yaw: float, upto: int | None = None):
+    """The best translation at turn ``yaw`` for the ticks before ``upto`` (all: None): (placement, margin)."""
+    turn = Placement(yaw, np.zeros(3))
+    u = [turn.to_device(p[:upto]) for p in paths]
+    c, m = _best_translation(profile, u)
+    return Placement(yaw, turn.rotation @ c), m
+
+
+def best_placement(profile: Profile, paths: list, frame: Placement):
+    """The placement of the device frame that maximises the smallest workspace margin over the task:
+    the frame's own turn with the best translation (exact), else the best over turns about the
+    vertical in ``YAW_STEP_DEG`` steps. Returns (placement, margin)."""
+    best = None
+    for yaw in _yaws(profile, frame):
+        cand = _placed(profile, paths, yaw)
+        if best is None or cand[1] > best[1] + TOLERANCE:
+            best = cand
+        if best[1] >= -TOLERANCE:
+            break
+    return best
+
+
+def _prefix_fits(profile: Profile, u: list) -> int:
+    """How many ticks from the first some translation keeps inside the workspaces (exact): the prefix
+    ranges only grow, so a box is read off running extremes and a round shape is bisected."""
+    ws = profile.workspaces
+    x = np.stack([ui - w.center for ui, w in zip(u, ws)], axis=1)       # (T, E, 3)
+    T = len(x)
+    if ws[0].shape == "box":
+        hi = np.maximum.accumulate(x.max(axis=1), axis=0)
+        lo = np.minimum.accumulate(x.min(axis=1), axis=0)
+        ok = np.all(hi - lo <= ws[0].size + 2 * TOLERANCE, axis=1)
+        bad = np.nonzero(~ok)[0]
+        return int(bad[0]) if len(bad) else T
+
+    def fits(n):
+        return _best_translation(profile, [ui[:n] for ui in u])[1] >= -TOLERANCE
+    if fits(T):
+        return T
+    lo_n, hi_n = 0, T           # fits(lo_n) (0 ticks: trivially), not fits(hi_n)
+    while hi_n - lo_n > 1:
+        mid = (lo_n + hi_n) // 2
+        lo_n, hi_n = (mid, hi_n) if fits(mid) else (lo_n, mid)
+    return lo_n
+
+
+def longest_placement(profile: Profile, paths: list, frame: Placement):
+    """When no placement holds the whole task: the one that holds it longest from its start (the
+    first tick it cannot hold is where the device's verdict fails), at the frame's turn or the best
+    turn about the vertical. Returns (placement, margin over the ticks it holds)."""
+    best = None
+    for yaw in _yaws(profile, frame):
+        turn = Placement(yaw, np.zeros(3))
+        n = _prefix_fits(profile, [turn.to_device(p) for p in paths])
+        if best is None or n > best[0]:
+            best = (n, yaw)
+    n, yaw = best
+    return _placed(profile, paths, yaw, max(n, 1))
+
+
+# ----------------------------------------------------------------------------- the checks
+
+def duty(force_norm: np.ndarray, time: np.ndarray, tau: float, first_dt: float) -> np.ndarray:
+    """The force's thermal RMS over time, (T, E): H' = (|F|^2 - H) / tau, from H = 0 before the first
+    tick, each tick's force held over its interval (the exact solution for a held force); returns sqrt(H)."""
+    dt = np.diff(time, prepend=time[0] - first_dt)
+    alpha = 1.0 - np.exp(-np.maximum(dt, 0.0) / tau)
+    f2 = force_norm ** 2
+    h = np.empty_like(f2)
+    acc = np.zeros(f2.shape[1])
+    for n in range(len(f2)):
+        acc = acc + alpha[n] * (f2[n] - acc)
+        h[n] = acc
+    return np.sqrt(h)
+
+
+@dataclass
+class FingerVerdict:
+    finger: str
+    verdict: str                    # fits | placed | fails
+    first_fail_time: float | None = None
+    first_fail_tick: int | None = None
+    cause: str = ""
+    check: str = ""                 # which check failed first (CHECKS), "" when it fits
+    margin: float | None = None     # the failing check's margin at that tick (negative), or the smallest
+    # workspace margin over the task when it fits (m)
+    effector: int | None = None     # its end-effector (None: it has none)
+
+    def as_dict(self) -> dict:
+        return {"finger": self.finger, "verdict": self.verdict, "first_fail_time": self.first_fail_time,
+                "cause": self.cause}
+
+
+@dataclass
+class ProfileResult:
+    profile: Profile
+    verdict: str
+    placement: Placement
+    placement_margin: float         # the smallest workspace margin under the placement (m)
+    fingers: list                   # FingerVerdict per finger of the task evaluated
+    timeline: dict = field(default_factory=dict)    # check -> (T, E) margins; "time" -> (T,)
+    assigned: list = field(default_factory=list)    # task finger index per end-effector used
+
+    def as_dict(self) -> dict:
+        return {"profile": self.profile.name, "verdict": self.verdict, "placement": self.placement.as_dict(),
+                "fingers": [f.as_dict() for f in self.fingers]}
+
+    def rank_key(self):
+        fails = [f for f in self.fingers if f.verdict == "fails"]
+        first = min((f.first_fail_time for f in fails if f.first_fail_time is not None), default=math.inf)
+        return (VERDICTS.index(self.verdict), len(fails), -first, -self.placement_margin)
+
+
+def _causes(profile: Profile, names: list, margins: dict, values: dict, rate_bound: float) -> dict:
+    """The text of each check's failure for end-effector e at tick n."""
+    def text(check, n, e):
+        if check == "interference":
+            other, d = values[check][0][n, e], values[check][1][n, e]
+            return (f"{d * 1000:.1f} mm from {names[int(other)]}, closer than the end-effectors allow "
+                    f"({2000 * profile.effector_radius:g} mm)")
+        v = values[check][n, e]
+        if check == "workspace":
+            return f"leaves the workspace by {-v * 1000:.1f} mm"
+        if check == "peak":
+            return f"force {v:.2f} N above the {profile.peak_force:g} N peak"
+        if check == "duty":
+            return (f"duty {v:.2f} N rms above the {profile.continuous_force:g} N continuous limit "
+                    f"(thermal time {profile.duty_time:g} s)")
+        if check == "stiffness":
+            return f"coupling stiffness {v:g} N/m above the {rate_bound:g} N/m stable bound"
+        return f"crosses {names[int(v)]} (the kinematics cannot)"
+    return text
+
+
+def evaluate(task: Task, profile: Profile, fingers: list | None = None, frame: Placement | None = None) -> ProfileResult:
+    """One profile against the task. ``fingers``: task finger names, one an end-effector in order
+    (default: the task's first fingers, as many as the device has end-effectors; the others fail
+    with no end-effector). ``frame``: the device frame's placement as set (default: the scene origin)."""
+    frame = frame or Placement()
+    n_eff = profile.end_effectors
+    if fingers:
+        if len(fingers) > n_eff:
+            raise FitError(f"{profile.name}: {len(fingers)} fingers given ({', '.join(fingers)}), the device has "
+                           f"{n_eff} end-effector{'s' if n_eff > 1 else ''}")
+        if len(set(fingers)) != len(fingers):
+            raise FitError(f"{profile.name}: a finger is given twice ({', '.join(fingers)})")
+        assigned = [task.index(f) for f in fingers]
+        unassigned = []
+    else:
+        assigned = list(range(min(n_eff, len(task.finger_names))))
+        unassigned = list(range(len(assigned), len(task.finger_names)))
+    names = [task.finger_names[i] for i in assigned]
+    ws_eff = profile.workspaces[:len(assigned)]
+    sub = Profile(**{**profile.__dict__, "workspaces": ws_eff, "end_effectors": len(assigned)})
+    paths = [task.hip[:, i] for i in assigned]
+    T, E = len(task.time), len(assigned)
+
+    at_frame = _workspace_margins(sub, frame, paths)
+    if np.min(at_frame) >= -TOLERANCE:
+        placement, pmargin, moved = frame, float(np.min(at_frame)), False
+    else:
+        placement, pmargin = best_placement(sub, paths, frame)
+        if pmargin < -TOLERANCE:
+            placement, pmargin = longest_placement(sub, paths, frame)
+        moved = True
+    margins, values = {}, {}
+    margins["workspace"] = _workspace_margins(sub, placement, paths)
+    values["workspace"] = margins["workspace"]
+    fnorm = np.linalg.norm(task.force[:, assigned], axis=-1)
+    margins["peak"] = profile.peak_force - fnorm
+    values["peak"] = fnorm
+    rms = duty(fnorm, task.time, profile.duty_time, 1.0 / task.haptic_rate)
+    margins["duty"] = profile.continuous_force - rms
+    values["duty"] = rms
+    bound = profile.stable_stiffness * task.haptic_rate / REFERENCE_RATE
+    k = task.stiffness[:, assigned]
+    margins["stiffness"] = np.where(task.contact[:, assigned], bound - k, np.inf)
+    values["stiffness"] = k
+    inter = np.full((T, E), np.inf)
+    inter_other = np.zeros((T, E), dtype=np.int64)
+    inter_dist = np.zeros((T, E))
+    for a, b in itertools.combinations(range(E), 2):
+        d = np.linalg.norm(paths[a] - paths[b], axis=-1)
+        m = d - 2 * profile.effector_radius
+        for me, other in ((a, b), (b, a)):
+            closer = m < inter[:, me]
+            inter[closer, me] = m[closer]
+            inter_other[closer, me] = other
+            inter_dist[closer, me] = d[closer]
+    margins["interference"] = inter
+    values["interference"] = (inter_other, inter_dist)
+    cross = np.full((T, E), np.inf)
+    cross_v = np.zeros((T, E), dtype=np.int64)
+    if not profile.can_cross and E > 1:
+        order = sorted(range(E), key=lambda e: (ws_eff[e].center[0], e))
+        q = [placement.to_device(p) for p in paths]
+        for left, right in zip(order, order[1:]):
+            s = q[right][:, 0] - q[left][:, 0]
+            for me, other in ((left, right), (right, left)):
+                lower = s < cross[:, me]
+                cross[lower, me] = s[lower]
+                cross_v[lower, me] = other
+    margins["crossing"] = cross
+    values["crossing"] = cross_v
+    text = _causes(profile, names, margins, values, bound)
+
+    verdicts = []
+    for e, fi in enumerate(assigned):
+        first = None
+        for check in CHECKS:
+            bad = np.nonzero(margins[check][:, e] < -TOLERANCE)[0]
+            if len(bad) and (first is None or bad[0] < first[0]):
+                first = (int(bad[0]), check)
+        if first is None:
+            verdict = "placed" if moved else "fits"
+            verdicts.append(FingerVerdict(task.finger_names[fi], verdict, margin=float(np.min(margins["workspace"][:, e])),
+                                          effector=e))
+        else:
+            n, check = first
+            m = margins[check][n, e]
+            verdicts.append(FingerVerdict(task.finger_names[fi], "fails", float(task.time[n]), n, text(check, n, e),
+                                          check, float(m), effector=e))
+    for fi in unassigned:
+        verdicts.append(FingerVerdict(task.finger_names[fi], "fails", float(task.time[0]), 0,
+                                      f"no end-effector (the device has {n_eff})", "end_effectors", None))
+    verdict = max((v.verdict for v in verdicts), key=VERDICTS.index) if verdicts else "fits"
+    timeline = {"time": task.time, **{c: margins[c] for c in CHECKS}}
+    return ProfileResult(profile, verdict, placement, pmargin, verdicts, timeline, assigned)
+
+
+def rank(results: list) -> list:
+    """The devices best first: fits, then placed, then fails (fewer failing fingers, later first failure)."""
+    return sorted(results, key=lambda r: r.rank_key())
+
+
+def report_lines(results: list) -> list:
+    """The verdicts as the terminal shows them, best device first."""
+    lines = []
+    for r in rank(results):
+        lines.append(f"{r.profile.name}: {r.verdict}" + (f" ({r.placement.text()})" if r.verdict != "fails" and
+                                                          r.verdict == "placed" else ""))
+        if r.verdict == "fails" and any(f.check == "workspace" for f in r.fingers):
+            lines.append(f"  best placement: {r.placement.text()} (smallest workspace margin "
+                         f"{r.placement_margin * 1000:.1f} mm)")
+        for f in r.fingers:
+            if f.verdict == "fails":
+                at = "" if f.first_fail_tick is None else f" at {f.first_fail_time:.3f} s (tick {f.first_fail_tick})"
+                lines.append(f"  {f.finger}: fails{at}: {f.cause}")
+            else:
+                lines.append(f"  {f.finger}: {f.verdict}, workspace margin {f.margin * 1000:.1f} mm")
+    return lines
+
+
+def result_json(results: list) -> dict:
+    return {"profiles": [r.as_dict() for r in rank(results)]}
+
+
+MARGIN_COLUMNS = ["profile", "time", "finger"] + [f"{c}_margin" for c in CHECKS]
+
+
+def margin_rows(result: ProfileResult, task: Task, every: int = 1):
+    """The timeline of margins, a row per tick (every ``every``-th) per finger: workspace (m), peak and
+    duty (N), stiffness (N/m), interference and crossing (m); empty where the check does not apply."""
+    tl = result.timeline
+    for n in range(0, len(tl["time"]), every):
+        for e, fi in enumerate(result.assigned):
+            row = [result.profile.name, repr(float(tl["time"][n])), task.finger_names[fi]]
+            for c in CHECKS:
+                v = tl[c][n, e]
+                row.append("" if not np.isfinite(v) else repr(float(v)))
+            yield row
