@@ -308,9 +308,9 @@ def _causes(profile: Profile, names: list, margins: dict, values: dict, rate_bou
         if check == "workspace":
             return f"leaves the workspace by {-v * 1000:.1f} mm"
         if check == "peak":
-            return f"force {v:.2f} N above the {profile.peak_force:g} N peak"
+            return f"force {v:.3f} N above the {profile.peak_force:g} N peak"
         if check == "duty":
-            return (f"duty {v:.2f} N rms above the {profile.continuous_force:g} N continuous limit "
+            return (f"duty {v:.3f} N rms above the {profile.continuous_force:g} N continuous limit "
                     f"(thermal time {profile.duty_time:g} s)")
         if check == "stiffness":
             return f"coupling stiffness {v:g} N/m above the {rate_bound:g} N/m stable bound"
@@ -455,3 +455,71 @@ def margin_rows(result: ProfileResult, task: Task, every: int = 1):
                 v = tl[c][n, e]
                 row.append("" if not np.isfinite(v) else repr(float(v)))
             yield row
+
+
+# ----------------------------------------------------------------------------- one implementation for
+# the command line and Blender's Fit Devices
+
+def parse_spec(spec: str):
+    """``PROFILE[:FINGERS]`` (FINGERS comma-separated, one an end-effector in order) -> (Profile, names or None)."""
+    from .devices.device_profiles import find
+    name, _, fingers = spec.partition(":")
+    if not name:
+        raise FitError(f"--device {spec!r}: no profile named (PROFILE[:FINGERS])")
+    names = [f.strip() for f in fingers.split(",")] if fingers else None
+    if names is not None and not all(names):
+        raise FitError(f"--device {spec!r}: an empty finger name in {fingers!r}")
+    return find(name), names
+
+
+def parse_frame(text: str) -> Placement:
+    """``X,Y,Z[,YAW_DEG]``: where the device frame is in the scene."""
+    try:
+        v = [float(s) for s in text.split(",")]
+    except ValueError:
+        v = []
+    if len(v) not in (3, 4) or not all(math.isfinite(x) for x in v):
+        raise FitError(f"--frame {text!r}: expected X,Y,Z or X,Y,Z,YAW_DEG (metres, degrees)")
+    return Placement(v[3] if len(v) == 4 else 0.0, np.array(v[:3]))
+
+
+def fit_recording(rec, specs: list, frame: Placement | None = None):
+    """Every ``PROFILE[:FINGERS]`` spec against a recording: (task, results ranked best first)."""
+    if not specs:
+        raise FitError("no device given (--device PROFILE[:FINGERS]; grasp-lab fit --list names them)")
+    parsed = [parse_spec(s) for s in specs]         # every spec checked before any work
+    task = task_from_recording(rec)
+    for profile, names in parsed:
+        for n in names or ():
+            task.index(n)
+    return task, rank([evaluate(task, p, names, frame) for p, names in parsed])
+
+
+def write_json(results: list, path: str) -> str:
+    import json
+    from .outputs import AtomicFile
+    with AtomicFile(path) as out:
+        out.file.write((json.dumps(result_json(results), indent=2) + "\n").encode())
+    return path
+
+
+def write_csv(results: list, task: Task, folder: str, every: int = 1) -> tuple:
+    """DIR/margins.csv: the timeline of margins of every profile. Returns (path, rows)."""
+    import csv
+    import io
+    import os
+    from .outputs import AtomicFile
+    os.makedirs(folder, exist_ok=True)
+    path = os.path.join(folder, "margins.csv")
+    rows = 0
+    with AtomicFile(path) as out:
+        text = io.TextIOWrapper(out.file, newline="", encoding="utf-8")
+        w = csv.writer(text)
+        w.writerow(MARGIN_COLUMNS)
+        for r in results:
+            for row in margin_rows(r, task, every):
+                w.writerow(row)
+                rows += 1
+        text.flush()
+        text.detach()
+    return path, rows
