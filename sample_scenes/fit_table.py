@@ -55,7 +55,7 @@ def cell(task, profile, fit) -> str:
     first = min((f for f in fingers if f.verdict == "fails"), key=lambda f: (f.first_fail_time, f.finger))
     if first.check == "end_effectors":
         return f"fails: {n} fingers, {profile.end_effectors} end-effectors"
-    what = {"workspace"": "workspace", "peak": "peak force", "duty": "continuous force", "stiffness": "stiffness",
+    what = {"workspace": "workspace", "peak": "peak force", "duty": "continuous force", "stiffness": "stiffness",
             "interference": "thimbles touch", "crossing": "crossing"}[first.check]
     return f"{prefix}fails: {what}, {first.finger} at {first.first_fail_time:.2f} s"
 

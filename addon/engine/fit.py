@@ -523,3 +523,91 @@ def write_csv(results: list, task: Task, folder: str, every: int = 1) -> tuple:
         text.flush()
         text.detach()
     return path, rows
+
+
+# ----------------------------------------------------------------------------- the viewport's view of it
+# (addon/device_fit.py draws what these compute; no bpy here)
+
+def placement_from_matrix(matrix) -> Placement:
+    """A workspace frame's 4x4 world matrix (an Empty's) as a placement: its location and its turn
+    about z (the evaluation turns devices about the vertical only; a tilt is ignored)."""
+    if matrix is None:
+        return Placement()
+    m = np.asarray(matrix, dtype=np.float64)
+    return Placement(math.degrees(math.atan2(m[1, 0], m[0, 0])) % 360.0, m[:3, 3].copy())
+
+
+def task_from_path(names: list, times, positions) -> Task:
+    """A task from fingertip positions alone (a scene's animation, sampled): no force, no contact;
+    only the workspace, interference and crossing checks have something to say about it."""
+    pos = np.asarray(positions, dtype=np.float64)
+    t = np.asarray(times, dtype=np.float64)
+    rate = 1.0 / float(np.min(np.diff(t))) if len(t) > 1 and np.min(np.diff(t)) > 0 else REFERENCE_RATE
+    T, F = pos.shape[:2]
+    return Task(list(names), t, pos, np.zeros((T, F, 3)), np.zeros((T, F), bool), np.zeros((T, F)), rate)
+
+
+@dataclass
+class FrameExits:
+    """Where a path leaves a device's workspaces with the device frame where it stands."""
+    profile: Profile
+    placement: Placement
+    fingers: list                   # finger name per end-effector used
+    outside: np.ndarray             # (T, E) bool: the sample is outside its end-effector's workspace
+    first_exit: list                # per end-effector: the first sample index outside, or None
+
+
+def exits_at_frame(task: Task, profile: Profile, fingers: list | None, frame: Placement) -> FrameExits:
+    """The workspace check alone, at the frame as it stands (no placement searched): what the viewport
+    colours red and the HUD reports."""
+    names = fingers or task.finger_names[:profile.end_effectors]
+    if len(names) > profile.end_effectors:
+        raise FitError(f"{profile.name}: {len(names)} fingers given, the device has {profile.end_effectors}")
+    idx = [task.index(n) for n in names]
+    sub = Profile(**{**profile.__dict__, "workspaces": profile.workspaces[:len(idx)], "end_effectors": len(idx)})
+    margins = _workspace_margins(sub, frame, [task.hip[:, i] for i in idx]) if idx else np.zeros((len(task.time), 0))
+    outside = margins < -TOLERANCE
+    first = [int(np.argmax(outside[:, e])) if outside[:, e].any() else None for e in range(len(idx))]
+    return FrameExits(profile, frame, list(names), outside, first)
+
+
+def exit_lines(exits: FrameExits, times) -> list:
+    """The HUD's lines: which finger leaves which device's workspace first, and when."""
+    lines = []
+    for e, first in enumerate(exits.first_exit):
+        if first is not None:
+            lines.append((float(times[first]), f"{exits.profile.name}: {exits.fingers[e]} leaves its workspace at "
+                                                f"{float(times[first]):.2f} s"))
+    if not lines:
+        return [f"{exits.profile.name}: every finger stays in its workspace"]
+    return [text for _, text in sorted(lines)]
+
+
+def workspace_triangles(ws, placement: Placement, segments: int = 32) -> np.ndarray:
+    """A workspace's surface as world triangles (N, 3, 3) for drawing."""
+    if ws.shape == "box":
+        h = ws.size / 2
+        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], dtype=np.float64) * h
+        quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+        tris = [[corners[a], corners[b], corners[c]] for q in quads for a, b, c in ((q[0], q[1], q[2]), (q[0], q[2], q[3]))]
+        local = np.array(tris)
+    elif ws.shape == "cylinder":
+        a = np.linspace(0, 2 * np.pi, segments + 1)
+        ring = np.stack([ws.radius * np.cos(a), ws.radius * np.sin(a)], axis=1)
+        lo, hi = -ws.height / 2, ws.height / 2
+        tris = []
+        for (x0, y0), (x1, y1) in zip(ring[:-1], ring[1:]):
+            p00, p01, p10, p11 = [x0, y0, lo], [x0, y0, hi], [x1, y1, lo], [x1, y1, hi]
+            tris += [[p00, p10, p11], [p00, p11, p01], [[0, 0, lo], p10, p00], [[0, 0, hi], p01, p11]]
+        local = np.array(tris, dtype=np.float64)
+    else:
+        th = np.linspace(0, np.pi, segments // 2 + 1)
+        ph = np.linspace(0, 2 * np.pi, segments + 1)
+        p = ws.radius * np.stack([np.sin(th)[:, None] * np.cos(ph), np.sin(th)[:, None] * np.sin(ph),
+                                  np.cos(th)[:, None] * np.ones_like(ph)], axis=-1)
+        tris = []
+        for i in range(len(th) - 1):
+            for j in range(len(ph) - 1):
+                tris += [[p[i, j], p[i + 1, j], p[i + 1, j + 1]], [p[i, j], p[i + 1, j + 1], p[i, j + 1]]]
+        local = np.array(tris)
+    return (local + ws.center) @ placement.rotation.T + placement.translation
