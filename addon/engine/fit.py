@@ -382,6 +382,10 @@ def evaluate(task: Task, profile: Profile, fingers: list | None = None, frame: P
         q = [placement.to_device(p) for p in paths]
         for left, right in zip(order, order[1:]):
             s = q[right][:, 0] - q[left][:, 0]
+            # the order the fingers start in is the order of their arms (set up so): it must stay
+            nonzero = np.nonzero(np.abs(s) > TOLERANCE)[0]
+            if len(nonzero) and s[nonzero[0]] < 0:
+                s = -s
             for me, other in ((left, right), (right, left)):
                 lower = s < cross[:, me]
                 cross[lower, me] = s[lower]

@@ -304,9 +304,12 @@ def test_fingers_that_cross_fail_where_the_kinematics_cannot_and_pass_where_they
     text = open(rig.path).read().replace("can_cross = false", "can_cross = true")
     crossing = dp.load(_write(tmp_path, text, "crossing_rig.toml"))
     assert fit.evaluate(task, crossing).verdict == "fits"
-    # given in the other order (finger 1 on the left arm) they start crossed and end uncrossed
+    # given in the other order the arms start the other way round: they cross all the same
     swapped = fit.evaluate(task, rig, ["Finger 1", "Finger 0"])
-    assert swapped.fingers[0].check == "crossing" and swapped.fingers[0].first_fail_tick == 0
+    assert [(f.check, f.first_fail_tick) for f in swapped.fingers] == [("crossing", 401)] * 2
+    # the same motion stopped before they meet does not cross
+    parted = make_task(np.stack([a[:300], b[:300]], axis=1))                # stopped before meeting
+    assert fit.evaluate(parted, rig).verdict == "fits"
 
 
 def test_a_single_effector_device_on_a_two_finger_task_takes_the_first_and_the_other_has_none():
