@@ -462,7 +462,8 @@ def _configure_sweep(p) -> None:
     p.add_argument("--seed", type=int, default=0, metavar="S", help="the sweep's seed (default 0)")
     p.add_argument("--vary", action="append", default=[], type=_vary_arg, metavar="SPEC",
                    help="KEY=LO:HI (uniform), KEY=MEAN~SD (normal), KEY=A,B,C (grid); keys: OBJECT.PROPERTY "
-                        "as in --set, gravity, OBJECT.com=SD, hip_noise=SD, hip_offset=SD, push=N@T; repeatable")
+                        "as in --set, gravity, OBJECT.com=SD, hip_noise=SD, hip_offset=SD, push=N@T, "
+                        "device=PROFILE,PROFILE (each sample evaluated against its device); repeatable")
     p.add_argument("--out", required=True, metavar="DIR", help="samples.csv, summary.json, map.png, outcomes.png "
                                                               "(a sweep there already is resumed)")
     where = p.add_mutually_exclusive_group()
@@ -508,6 +509,8 @@ def _run_sweep(args, out, err) -> int:
     for name, entry in s["sensitivity"].items():
         c = entry["correlation_with_held"]
         print(f"  {name:<24} correlation with holding {'-' if c is None else f'{c:+.2f}'}", file=out)
+    for name, d in s.get("devices", {}).items():
+        print(f"  device {name:<17} renders {d['fits']} of its {d['samples']} samples (grasp-lab fit)", file=out)
     for p_ in result.paths:
         print(p_, file=out)
     return 0

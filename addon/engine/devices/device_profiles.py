@@ -138,9 +138,19 @@ def load(path: str) -> Profile:
     the file and the field otherwise."""
     try:
         with open(path, "rb") as f:
-            data = tomllib.load(f)
+            text = f.read().decode("utf-8")
     except OSError as ex:
         raise ProfileError(f"device profile {path}: {ex.strerror}") from None
+    except UnicodeDecodeError:
+        raise ProfileError(f"device profile {path}: not UTF-8 text") from None
+    return loads(text, path)
+
+
+def loads(text: str, path: str) -> Profile:
+    """A profile from its file's text (``path`` names it: its stem is the profile's name); what a
+    sweep's workers get, which may have no copy of the file."""
+    try:
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as ex:
         raise ProfileError(f"device profile {path}: not valid TOML ({ex})") from None
     for key in ("title", "source"):
