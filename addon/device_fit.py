@@ -197,9 +197,7 @@ def fit_devices(context) -> list:
     rec = open_recording(path)
     if len(rec.ticks) == 0:
         raise ValueError(f"{path}: no tick was recorded")
-    frames = {entry_spec(e): entry_placement(e) for e in entries}
-    task = fit.task_from_recording(rec)
-    results = fit.rank([fit.evaluate(task, *fit.parse_spec(spec), frame=frames[spec]) for spec in frames])
+    _, results = fit.fit_recording(rec, [entry_spec(e) for e in entries], [entry_placement(e) for e in entries])
     return [f"{bpy.path.basename(path)}:"] + fit.report_lines(results)
 
 
@@ -212,7 +210,7 @@ class GRASPLAB_OT_fit_devices(bpy.types.Operator):
     def execute(self, context):
         try:
             lines = fit_devices(context)
-        except (ValueError, OSError, RecordingError) as ex:
+        except (ValueError, OSError, RecordingError, device_profiles.ProfileError) as ex:
             self.report({"ERROR"}, f"Fit Devices: {ex}")
             context.scene.grasp_lab_fit_report = f"Fit Devices: {ex}"
             return {"CANCELLED"}

@@ -427,8 +427,7 @@ def report_lines(results: list) -> list:
     """The verdicts as the terminal shows them, best device first."""
     lines = []
     for r in rank(results):
-        lines.append(f"{r.profile.name}: {r.verdict}" + (f" ({r.placement.text()})" if r.verdict != "fails" and
-                                                          r.verdict == "placed" else ""))
+        lines.append(f"{r.profile.name}: {r.verdict}" + (f" ({r.placement.text()})" if r.verdict == "placed" else ""))
         if r.verdict == "fails" and any(f.check == "workspace" for f in r.fingers):
             lines.append(f"  best placement: {r.placement.text()} (smallest workspace margin "
                          f"{r.placement_margin * 1000:.1f} mm)")
@@ -487,16 +486,19 @@ def parse_frame(text: str) -> Placement:
     return Placement(v[3] if len(v) == 4 else 0.0, np.array(v[:3]))
 
 
-def fit_recording(rec, specs: list, frame: Placement | None = None):
-    """Every ``PROFILE[:FINGERS]`` spec against a recording: (task, results ranked best first)."""
+def fit_recording(rec, specs: list, frame=None):
+    """Every ``PROFILE[:FINGERS]`` spec against a recording: (task, results ranked best first).
+    ``frame``: the device frame's placement for all of them, or a list of one a spec (Blender's
+    entries each have their own workspace frame)."""
     if not specs:
         raise FitError("no device given (--device PROFILE[:FINGERS]; grasp-lab fit --list names them)")
     parsed = [parse_spec(s) for s in specs]         # every spec checked before any work
+    frames = frame if isinstance(frame, list) else [frame] * len(specs)
     task = task_from_recording(rec)
     for profile, names in parsed:
         for n in names or ():
             task.index(n)
-    return task, rank([evaluate(task, p, names, frame) for p, names in parsed])
+    return task, rank([evaluate(task, p, names, f) for (p, names), f in zip(parsed, frames)])
 
 
 def write_json(results: list, path: str) -> str:

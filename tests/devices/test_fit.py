@@ -6,7 +6,6 @@ close, fingers crossing, a stiffness above the stable bound; placements found ex
 sphere, a turn) and, applied, making the task fit; the profiles' files checked; bad input refused.
 """
 import math
-import os
 
 import numpy as np
 import pytest
