@@ -9,6 +9,7 @@ import numpy as np
 from bpy.props import BoolProperty, CollectionProperty, EnumProperty, PointerProperty, StringProperty
 
 from . import record
+from .ui import wrapped_labels
 from .convert import sample_fingers, scene_objects
 from .engine import fit
 from .engine.devices import device_profiles
@@ -239,17 +240,13 @@ class GRASPLAB_PT_device_fit(bpy.types.Panel):
             row.label(text=entry.profile)
             row.operator("grasp_lab.fit_device_remove", text="", icon="X").index = i
             box.prop(entry, "fingers")
-            box.prop(entry, "frame")
+            box.prop(entry, "frame", text="Frame")
         if len(scene.grasp_lab_fit_devices):
             layout.operator("grasp_lab.fit_check_animation", icon="FILE_REFRESH")
-            col = layout.column(align=True)
-            for line in hud_lines(scene):
-                col.label(text=line)
+            wrapped_labels(layout, context, hud_lines(scene))
             layout.operator("grasp_lab.fit_devices", icon="CHECKMARK")
             if scene.grasp_lab_fit_report:
-                col = layout.column(align=True)
-                for line in scene.grasp_lab_fit_report.split("\n"):
-                    col.label(text=line)
+                wrapped_labels(layout, context, scene.grasp_lab_fit_report.split("\n"))
 
 
 # --------------------------------------------------------------------------- the viewport
@@ -291,12 +288,15 @@ def _draw_hud():
         return
     import blf
     region = bpy.context.region
+    # right of the toolbar, below the viewport's own text (its name, the collection)
+    tools = next((r for r in bpy.context.area.regions if r.type == "TOOLS"), None)
+    x = (tools.width if tools is not None and tools.width > 1 else 0) + 20
     font = 0
     blf.size(font, 14)
-    y = region.height - 70
+    y = region.height - 95
     for line in lines:
         blf.color(font, 1.0, 0.35, 0.3, 1.0) if "leaves" in line else blf.color(font, 0.8, 1.0, 0.8, 1.0)
-        blf.position(font, 20, y, 0)
+        blf.position(font, x, y, 0)
         blf.draw(font, line)
         y -= 20
 

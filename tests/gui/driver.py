@@ -1162,7 +1162,7 @@ def _tints(name, region, sidebar):
     red and green text at the top left."""
     p = region_pixels(pixels(screenshot(name)), region)[40:, :sidebar.x - region.x, :3]
     r, g, b = p[..., 0], p[..., 1], p[..., 2]
-    hud = p[:6 * 20 + 40, 10:700]
+    hud = p[:6 * 20 + 80, 10:800]
     return {"red": int(((r > g + 0.15) & (r > b + 0.15)).sum()),
             "blue": int(((b > r + 0.08) & (b > g + 0.03)).sum()),
             "hud_red": int(((hud[..., 0] > 0.8) & (hud[..., 1] < 0.5)).sum()),
