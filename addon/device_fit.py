@@ -21,6 +21,7 @@ EFFECTOR_COLORS = ((0.25, 0.55, 1.0, 0.12), (0.2, 0.85, 0.45, 0.12), (0.95, 0.75
 LEFT_COLOR = (1.0, 0.1, 0.1, 0.28)
 OUTSIDE_POINT = (1.0, 0.1, 0.1, 1.0)
 INSIDE_POINT = (1.0, 1.0, 1.0, 0.5)
+SUBPANEL_MARGIN = 70        # px: a sub-panel's margins, where its labels wrap (measured on screen)
 
 # The scene's fingertip animation, sampled at every frame by *Check Animation* (sampling moves the
 # timeline, which a draw callback must never do): {"scene": name, "task": fit.Task}.
@@ -243,10 +244,10 @@ class GRASPLAB_PT_device_fit(bpy.types.Panel):
             box.prop(entry, "frame", text="Frame")
         if len(scene.grasp_lab_fit_devices):
             layout.operator("grasp_lab.fit_check_animation", icon="FILE_REFRESH")
-            wrapped_labels(layout, context, hud_lines(scene))
+            wrapped_labels(layout, context, hud_lines(scene), margin=SUBPANEL_MARGIN)
             layout.operator("grasp_lab.fit_devices", icon="CHECKMARK")
             if scene.grasp_lab_fit_report:
-                wrapped_labels(layout, context, scene.grasp_lab_fit_report.split("\n"))
+                wrapped_labels(layout, context, scene.grasp_lab_fit_report.split("\n"), margin=SUBPANEL_MARGIN)
 
 
 # --------------------------------------------------------------------------- the viewport
@@ -293,7 +294,7 @@ def _draw_hud():
     x = (tools.width if tools is not None and tools.width > 1 else 0) + 20
     font = 0
     blf.size(font, 14)
-    y = region.height - 95
+    y = region.height - 140
     for line in lines:
         blf.color(font, 1.0, 0.35, 0.3, 1.0) if "leaves" in line else blf.color(font, 0.8, 1.0, 0.8, 1.0)
         blf.position(font, x, y, 0)
