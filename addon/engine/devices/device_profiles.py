@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 import os
 import tomllib
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -61,7 +61,6 @@ class Profile:
     effector_radius: float              # m
     can_cross: bool
     duty_time: float                    # s: the thermal time constant of the duty check
-    notes: dict = field(default_factory=dict)
 
     def line(self) -> str:
         """One line for ``grasp-lab fit --list``: the name first."""
@@ -193,5 +192,4 @@ def loads(text: str, path: str) -> Profile:
     workspaces = [Workspace(shape, _vector(path, "effector_centers", c), size, radius, height) for c in centers]
     name = os.path.splitext(os.path.basename(path))[0]
     return Profile(name=name, title=data["title"].strip(), source=data["source"].strip(), path=path,
-                   end_effectors=n, workspaces=workspaces, can_cross=data["can_cross"],
-                   notes=data.get("notes", {}), **values)
+                   end_effectors=n, workspaces=workspaces, can_cross=data["can_cross"], **values)
