@@ -302,6 +302,12 @@ def _draw_hud():
         y -= 20
 
 
+@bpy.app.handlers.persistent
+def _forget_path(*_):
+    """Another file: its animation is not the one sampled."""
+    _path.clear()
+
+
 CLASSES = (GRASPLAB_PG_fit_device, GRASPLAB_OT_fit_device_add, GRASPLAB_OT_fit_device_remove,
            GRASPLAB_OT_fit_check_animation, GRASPLAB_OT_fit_devices, GRASPLAB_PT_device_fit)
 
@@ -313,6 +319,7 @@ def register():
     bpy.types.Scene.grasp_lab_fit_choice = EnumProperty(name="Device", items=_profile_items,
                                                         description="A device profile to evaluate the scene against")
     bpy.types.Scene.grasp_lab_fit_report = StringProperty(name="Fit Devices", default="")
+    bpy.app.handlers.load_post.append(_forget_path)
     if not bpy.app.background:          # no gpu headless
         st = bpy.types.SpaceView3D
         _handlers.append(st.draw_handler_add(_draw_view, (), "WINDOW", "POST_VIEW"))
@@ -320,6 +327,8 @@ def register():
 
 
 def unregister():
+    if _forget_path in bpy.app.handlers.load_post:
+        bpy.app.handlers.load_post.remove(_forget_path)
     st = bpy.types.SpaceView3D
     while _handlers:
         st.draw_handler_remove(_handlers.pop(), "WINDOW")

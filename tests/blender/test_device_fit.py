@@ -96,3 +96,25 @@ def test_fit_devices_writes_under_the_button_what_grasp_lab_fit_finds(bpy, core,
     bpy.ops.grasp_lab.fit_devices()
     assert "omega3: fits" in scene.grasp_lab_fit_report.split("\n")
     assert fit_ui.fit_devices(bpy.context)[1:] == scene.grasp_lab_fit_report.split("\n")[1:]
+
+
+def test_the_docs_table_row_of_a_library_scene_is_what_make_fit_table_computes(bpy, core, tmp_path):
+    """docs/devices.md's table is made by `make fit-table`, not by hand: one scene's row, computed again
+    here the same way (the scene run and recorded, each profile evaluated), is the row in the docs."""
+    import importlib.util
+    import os
+    spec = importlib.util.spec_from_file_location("fit_table", os.path.join(grasp_env.ROOT, "sample_scenes",
+                                                                           "fit_table.py"))
+    fit_table = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(fit_table)
+    fit = grasp_env.submodule("engine.fit")
+    profiles = grasp_env.submodule("engine.devices.device_profiles").load_all()
+    recording = grasp_env.submodule("engine.recording")
+    path = fit_table.record_scene(bpy, lib, "pinch_and_lift", str(tmp_path))
+    task = fit.task_from_recording(recording.open_recording(path))
+    row = "| `pinch_and_lift` | " + " | ".join(fit_table.cell(task, p, fit) for p in profiles) + " |"
+    with open(os.path.join(grasp_env.ROOT, "docs", "devices.md")) as fh:
+        doc = fh.read()
+    table = doc[doc.index(fit_table.BEGIN):doc.index(fit_table.END)]
+    assert "| scene | " + " | ".join(f"`{p.name}`" for p in profiles) + " |" in table
+    assert row in table.splitlines(), (row, table)
