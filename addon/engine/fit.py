@@ -297,8 +297,8 @@ class ProfileResult:
         return (VERDICTS.index(self.verdict), len(fails), -first, -self.placement_margin)
 
 
-def _causes(profile: Profile, names: list, margins: dict, values: dict, rate_bound: float) -> dict:
-    """The text of each check's failure for end-effector e at tick n."""
+def _causes(profile: Profile, names: list, values: dict, rate_bound: float):
+    """A function giving the text of a check's failure for end-effector e at tick n."""
     def text(check, n, e):
         if check == "interference":
             other, d = values[check][0][n, e], values[check][1][n, e]
@@ -392,7 +392,7 @@ def evaluate(task: Task, profile: Profile, fingers: list | None = None, frame: P
                 cross_v[lower, me] = other
     margins["crossing"] = cross
     values["crossing"] = cross_v
-    text = _causes(profile, names, margins, values, bound)
+    text = _causes(profile, names, values, bound)
 
     verdicts = []
     for e, fi in enumerate(assigned):
