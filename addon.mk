@@ -8,7 +8,7 @@
 #                      focused subset on bpy 4.2 (.venv-bpy42) and 5.0.1 (.venv-bpy50).
 
 .PHONY: extension extension-validate test-blender test-gui test-blender-45 test-blender-42 \
-        test-blender-50 venv-bpy42 venv-bpy50 clean-extension sample-scenes scenes blender-docs-image docs-images \
+        test-blender-50 venv-bpy42 venv-bpy50 clean-extension sample-scenes scenes fit-table blender-docs-image docs-images \
         bench-blender
 
 EXT_VERSION := $(shell sed -n 's/^version *= *"\(.*\)"/\1/p' blender_manifest.toml | head -1)
@@ -16,7 +16,7 @@ EXT_ZIP := dist/grasp_lab-$(EXT_VERSION)-linux_x64.zip
 EXT_STAGE := $(BUILD)/extension/grasp_lab
 EXT_WHEELS := $(BUILD)/extension-wheels
 BLENDER_EXT = $(shell ls $(VENV)/lib/python3.11/site-packages/bpy/*/scripts/addons_core/bl_pkg/cli/blender_ext.py 2>/dev/null | head -1)
-ADDON_SRC := $(shell find addon -name '*.py' -not -path '*/__pycache__/*' 2>/dev/null)
+ADDON_SRC := $(shell find addon \( -name '*.py' -o -name '*.toml' \) -not -path '*/__pycache__/*' 2>/dev/null)
 # Third-party wheels bundled in the zip (numpy comes with Blender). Pinned so the zip
 # is reproducible offline once downloaded.
 EXT_PURE_WHEELS := trimesh==5.2.0 pyserial==3.5 mcap==1.6.0
@@ -92,6 +92,11 @@ sample-scenes: $(EXT_ZIP)
 # Built, not committed: the script is the source; the files are mostly Blender's own UI data.
 scenes: $(VENV)/.core
 	$(PY) sample_scenes/library.py --out $(BUILD)/scenes --run
+
+# docs/devices.md's table of which device renders which library grasp: every scene run and recorded,
+# each recording evaluated against every device profile (grasp-lab fit's evaluation).
+fit-table: $(VENV)/.core
+	$(PY) sample_scenes/fit_table.py --docs docs/devices.md --out $(BUILD)/fit
 
 # Frame 43: halfway through the lift (what `make demo` renders too).
 blender-docs-image: $(EXT_ZIP)

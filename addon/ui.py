@@ -7,11 +7,12 @@ from . import ops, rest_poses, session
 from .engine import grasp_display
 
 
-def wrapped_labels(layout, context, lines, icon_first="NONE"):
+def wrapped_labels(layout, context, lines, icon_first="NONE", margin=40):
     """Labels that wrap at the region's width instead of being cut off mid-word: measured in
-    the interface font where it can be (a window), else at about 6.5 px a character."""
+    the interface font where it can be (a window), else at about 6.5 px a character.
+    ``margin``: the panel's and boxes' margins, px (a sub-panel's are wider)."""
     scale = context.preferences.system.ui_scale
-    width = (context.region.width if context.region else 300) - 40 * scale   # panel and box margins
+    width = (context.region.width if context.region else 300) - margin * scale
     if icon_first != "NONE":
         width -= 50 * scale             # the icon before the text and its padding (measured on screen)
     measure = None

@@ -462,7 +462,8 @@ def _configure_sweep(p) -> None:
     p.add_argument("--seed", type=int, default=0, metavar="S", help="the sweep's seed (default 0)")
     p.add_argument("--vary", action="append", default=[], type=_vary_arg, metavar="SPEC",
                    help="KEY=LO:HI (uniform), KEY=MEAN~SD (normal), KEY=A,B,C (grid); keys: OBJECT.PROPERTY "
-                        "as in --set, gravity, OBJECT.com=SD, hip_noise=SD, hip_offset=SD, push=N@T; repeatable")
+                        "as in --set, gravity, OBJECT.com=SD, hip_noise=SD, hip_offset=SD, push=N@T, "
+                        "device=PROFILE,PROFILE (each sample evaluated against its device); repeatable")
     p.add_argument("--out", required=True, metavar="DIR", help="samples.csv, summary.json, map.png, outcomes.png "
                                                               "(a sweep there already is resumed)")
     where = p.add_mutually_exclusive_group()
@@ -508,6 +509,8 @@ def _run_sweep(args, out, err) -> int:
     for name, entry in s["sensitivity"].items():
         c = entry["correlation_with_held"]
         print(f"  {name:<24} correlation with holding {'-' if c is None else f'{c:+.2f}'}", file=out)
+    for name, d in s.get("devices", {}).items():
+        print(f"  device {name:<17} renders {d['fits']} of its {d['samples']} samples (grasp-lab fit)", file=out)
     for p_ in result.paths:
         print(p_, file=out)
     return 0
@@ -515,6 +518,63 @@ def _run_sweep(args, out, err) -> int:
 
 register_command("sweep", SWEEP_HELP, _configure_sweep, _run_sweep)
 
+
+
+# fit (engine/fit.py, docs/devices.md "Can this device do this task?")
+FIT_HELP = "can these devices render this grasp? each finger's verdict against device profiles, with where and why"
+
+
+def _configure_fit(p) -> None:
+    p.add_argument("recording", metavar="REC.mcap", nargs="?", help="the recorded grasp (not with --list)")
+    p.add_argument("--device", action="append", default=[], metavar="PROFILE[:FINGERS]",
+                   help="a device profile (a name from --list, or a .toml file) and, optionally, the recording's "
+                        "fingers it takes, comma-separated, one an end-effector in order; repeatable: several "
+                        "devices are ranked")
+    p.add_argument("--frame", metavar="X,Y,Z[,YAW]",
+                   help="where the device frame is in the scene, metres (and its turn about z, degrees); "
+                        "default the scene origin")
+    p.add_argument("--csv", metavar="DIR", help="write DIR/margins.csv: every check's margin per tick and finger")
+    p.add_argument("--every", type=_positive_int, default=1, metavar="N", help="--csv: every N-th tick (default 1)")
+    p.add_argument("--json", metavar="OUT", help="write the verdicts as JSON")
+    p.add_argument("--list", action="store_true", help="print the device profiles, one a line, name first")
+
+
+def _run_fit(args, out, err) -> int:
+    from .devices import device_profiles
+    from .fit import FitError, fit_recording, parse_frame, report_lines, write_csv, write_json
+    try:
+        if args.list:
+            for profile in device_profiles.load_all():
+                print(profile.line(), file=out)
+            return EXIT_OK
+        if not args.recording:
+            raise CliError("a recording is needed (grasp-lab fit REC.mcap --device PROFILE ...), or --list")
+        outputs.check_paths({"REC.mcap": args.recording}, {"--json": args.json, "--csv": args.csv},
+                            folders=("--csv",))
+        frame = parse_frame(args.frame) if args.frame else None
+        if not args.device:
+            raise CliError("no device given (--device PROFILE[:FINGERS]; grasp-lab fit --list names them)")
+        from .fit import parse_spec
+        for spec in args.device:
+            parse_spec(spec)            # an unknown or bad profile before the recording is read
+        rec = _open(args.recording, err)
+        task, results = fit_recording(rec, args.device, frame)
+    except (FitError, device_profiles.ProfileError) as ex:
+        raise CliError(str(ex)) from None
+    print(f"{args.recording}: {len(task.finger_names)} fingers ({', '.join(task.finger_names)}), "
+          f"{len(task.time)} ticks, {task.time[-1] - task.time[0]:.3f} s; {len(results)} device"
+          f"{'s' if len(results) > 1 else ''}, best first", file=out)
+    for line in report_lines(results):
+        print(line, file=out)
+    if args.csv:
+        path, rows = write_csv(results, task, args.csv, args.every)
+        print(f"{path}: {rows} rows", file=out)
+    if args.json:
+        print(f"{write_json(results, args.json)}: verdicts", file=out)
+    return EXIT_OK
+
+
+register_command("fit", FIT_HELP, _configure_fit, _run_fit)
 
 # ------------------------------------------------------------------------ dispatch
 

@@ -85,6 +85,7 @@ class Vary:
     dist: Dist | None = None    # scalar, gravity, push magnitude
     sd: float = 0.0             # com, hip_offset, hip_noise: metres
     at: float = 0.0             # push: time, s
+    names: tuple = ()           # device: the profiles, a grid axis (the column holds the index)
 
     @property
     def grid(self) -> tuple:
@@ -145,6 +146,12 @@ def parse_vary(text: str) -> Vary:
         return Vary(text, "push", "push", dist=parse_dist(mag, text, "push"), at=t)
     if key == "gravity":
         return Vary(text, key, "gravity", dist=parse_dist(value, text, "gravity"))
+    if key == "device":
+        names = tuple(n.strip() for n in value.split(","))
+        if not all(names):
+            raise SweepError(f"--vary {text!r}: expected device=PROFILE,PROFILE,... (grasp-lab fit --list)")
+        return Vary(text, key, "device", dist=Dist("grid", values=tuple(float(i) for i in range(len(names)))),
+                    names=names)
     obj, dot, prop = key.rpartition(".")
     if not dot or not obj:
         raise SweepError(f"--vary {text!r}: unknown key {key!r} (OBJECT.PROPERTY, OBJECT.com, gravity, "
@@ -179,6 +186,7 @@ class Job:
     analysis_period: float = ANALYSIS_PERIOD
     cells: int = 1
     grid_shape: tuple = ()
+    devices: dict = field(default_factory=dict)     # a varied device's profile: name -> its file's text
 
     @property
     def columns(self) -> list:
@@ -256,6 +264,21 @@ def _check_varies(varies, desc, body: int):
             raise SweepError(f"--vary {v.text!r}: the recording has no fingers")
 
 
+def _device_texts(varies) -> dict:
+    """The varied devices' profiles, name -> the text of its file (workers read them from the job)."""
+    from .devices.device_profiles import ProfileError, find
+    texts = {}
+    for v in varies:
+        for name in v.names:
+            try:
+                path = find(name).path
+            except ProfileError as ex:
+                raise SweepError(f"--vary {v.text!r}: {ex}") from None
+            with open(path, encoding="utf-8") as fh:
+                texts[name] = fh.read()
+    return texts
+
+
 def _copy_desc(desc):
     import copy
     return copy.deepcopy(desc)
@@ -288,7 +311,8 @@ def make_job(rec, varies, seed: int, body_name: str | None = None, analysis: boo
                has_start=has_start, times=np.ascontiguousarray(rec.ticks["time"]), varies=list(varies),
                seed=int(seed), body=body, window=(int(held[0]), int(held[-1])), analysis=bool(analysis),
                analysis_period=float(analysis_period),
-               cells=int(np.prod(grid_shape)) if grid_shape else 1, grid_shape=grid_shape)
+               cells=int(np.prod(grid_shape)) if grid_shape else 1, grid_shape=grid_shape,
+               devices=_device_texts(varies))
 
 
 def _analysis_module():
@@ -310,6 +334,7 @@ class Draw:
     hip_offset: np.ndarray | None = None           # (fingers, 3)
     hip_noise: float = 0.0
     push: tuple | None = None                      # (newtons, direction (3,), time)
+    device: str = ""                               # the device profile the sample is evaluated against
 
 
 def draw(job: Job, i: int, rng) -> Draw:
@@ -345,6 +370,8 @@ def draw(job: Job, i: int, rng) -> Draw:
         elif v.kind == "hip_noise":
             d.hip_noise = v.sd
             value = v.sd
+        elif v.kind == "device":
+            d.device = v.names[int(value)]
         d.values[v.column] = value
     _keep_friction_legal(d.overrides, bodies)
     return d
@@ -408,7 +435,29 @@ def run_sample(job: Job, i: int, graspcore) -> dict:
     ticks = (replay if job.analysis else replay_trace)(handle.world, hips, dt, job.has_start, before)
     row = {"sample": i, "seed": seed, **d.values}
     row.update(outcomes(job, ticks, desc))
+    if d.device:
+        row.update(device_outcomes(job, d.device, ticks, hips, desc))
     return row
+
+
+def device_outcomes(job: Job, name: str, ticks, hips, desc) -> dict:
+    """The sample's task against its device (engine/fit.py, as ``grasp-lab fit``: the device frame at
+    the scene origin, its best placement searched): whether it renders it (fits or placed) and, if
+    not, the first failure's time."""
+    from .devices.device_profiles import loads
+    from .fit import Task, evaluate
+    profiles = job.__dict__.setdefault("_profiles", {})
+    if name not in profiles:
+        profiles[name] = loads(job.devices[name], f"{name}.toml")
+    if job.has_start:           # tick 0: the fingers where the scene starts them
+        hips = np.concatenate([np.array([f.position for f in desc.fingers], dtype=np.float64)[None], hips])
+    n = len(ticks)
+    task = Task([f.name for f in desc.fingers], np.asarray(ticks["time"], dtype=np.float64), hips[:n],
+                np.asarray(ticks["force"], dtype=np.float64), np.asarray(ticks["contact"]) >= 0,
+                np.tile([float(f.stiffness) for f in desc.fingers], (n, 1)), job.rate)
+    r = evaluate(task, profiles[name])
+    fails = [f.first_fail_time for f in r.fingers if f.verdict == "fails"]
+    return {"device_fits": int(r.verdict != "fails"), "device_fail_time": min(fails) if fails else None}
 
 
 class Columns:
@@ -723,7 +772,8 @@ def run_dask(job: Job, todo, address: str, on_rows, folder: str) -> None:
 
 def fieldnames(job: Job) -> list:
     names = ["sample", "seed", *job.columns, "held", "drop_time", "held_time", "max_slip", "max_force"]
-    return names + (["closure_time", "min_epsilon"] if job.analysis else [])
+    names += ["closure_time", "min_epsilon"] if job.analysis else []
+    return names + (["device_fits", "device_fail_time"] if any(v.kind == "device" for v in job.varies) else [])
 
 
 def _cell(v) -> str:
@@ -739,7 +789,7 @@ def _cell(v) -> str:
 def _parse_cell(name: str, text: str):
     if text == "":
         return None
-    if name in ("sample", "seed", "held"):
+    if name in ("sample", "seed", "held", "device_fits"):
         return int(text)
     return float(text)
 
@@ -850,6 +900,11 @@ def summarize(job: Job, rows: list, spec: dict) -> dict:
                "analysis_refused": sum(1 for r in rows if job.analysis and r["min_epsilon"] is None),
                "outcomes": {name: _stats(r[name] for r in rows)
                             for name in fieldnames(job)[len(job.columns) + 3:]}}
+    for v in job.varies:
+        if v.kind == "device":      # per device: how many of its samples it renders
+            summary["devices"] = {name: {"samples": sum(1 for r in rows if r[v.column] == i),
+                                         "fits": sum(r["device_fits"] for r in rows if r[v.column] == i)}
+                                  for i, name in enumerate(v.names)}
     return summary
 
 

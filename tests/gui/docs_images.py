@@ -1,6 +1,6 @@
 """`make docs-images`: the README's pictures, made by the project's own GUI Blender
 (tests/gui/gui_blender.sh) walking through the README (tests/gui/driver.py, scenarios
-``walkthrough`` and ``device``), and the demo's contact sheet; cropped to what they show,
+``walkthrough``, ``device`` and ``device_fit``), and the demo's contact sheet; cropped to what they show,
 scaled down and stored as 256-colour PNGs in docs/images/.
 
     python tests/gui/docs_images.py [--demo build/demo] [--out docs/images]
@@ -67,6 +67,7 @@ def main(argv=None):
     finally:
         emu.terminate()
         emu.wait(timeout=20)
+    pictures.update(run_scenario(env, "device_fit")["docs_pictures"])
     for name, pic in pictures.items():
         crop = pic["crop"]
         width = SIDEBAR_WIDTH if crop is not None and crop[2] < 400 else WIDTH

@@ -1156,6 +1156,77 @@ def scenario_robustness():
     RESULT["warm_after"] = warm("sweep_done")
 
 
+def _tints(name, region, sidebar):
+    """Viewport pixels (left of the sidebar, below the header) tinted red (a workspace the animation
+    leaves, the path's samples outside it) and tinted blue (a workspace it stays in), and the HUD's
+    red and green text at the top left."""
+    p = region_pixels(pixels(screenshot(name)), region)[40:, :sidebar.x - region.x, :3]
+    r, g, b = p[..., 0], p[..., 1], p[..., 2]
+    hud = p[:6 * 20 + 80, 10:800]
+    return {"red": int(((r > g + 0.15) & (r > b + 0.15)).sum()),
+            "blue": int(((b > r + 0.08) & (b > g + 0.03)).sum()),
+            "hud_red": int(((hud[..., 0] > 0.8) & (hud[..., 1] < 0.5)).sum()),
+            "hud_green": int(((hud[..., 1] > 0.85) & (hud[..., 0] > 0.7) & (hud[..., 2] > 0.7)
+                              & (hud[..., 1] > hud[..., 2] + 0.1)).sum())}
+
+
+def scenario_device_fit():
+    """Device Fit as a person uses it: the pinch and lift recorded; the Touch chosen as the Device and
+    added (its workspace frame at the origin): its workspace drawn in the viewport, red where the
+    animation leaves it, and the HUD says which finger leaves when; the sidebar scrolled to Fit Devices,
+    clicked: the verdicts under the button; the frame turned and moved to the middle of the path: the
+    workspace drawn untinted, the HUD says every finger stays."""
+    setup_scene(duration=0.0)
+    scene = bpy.context.scene
+    s = scene.grasp_lab
+    s.record = True
+    s.recording_folder = os.path.join(OUT, "recordings") + os.sep
+    bpy.ops.grasp_lab.session(duration=6.0)         # EXEC: the recording Fit Devices reads
+    RESULT["recording"] = s.last_recording
+    yield from open_grasp_tab()
+    area, win_region, ui = view3d()
+    hover(win_region, 50, 50)
+    yield 1.0
+    RESULT["before"] = _tints("fit_before", win_region, ui)
+    scene.cursor.location = (0.0, 0.0, 0.0)
+    scene.grasp_lab_fit_choice = "touch"
+    bpy.ops.grasp_lab.fit_device_add()
+    fit_ui = ext("device_fit")
+    RESULT["hud_at_origin"] = fit_ui.hud_lines(scene)
+    yield 1.5
+    RESULT["at_origin"] = _tints("fit_at_origin", win_region, ui)
+    docs_picture("device_fit_viewport")
+    hover(ui, ui.width / 2, ui.height / 2)
+    row = None
+    for _ in range(8):                              # down the sidebar to the Device Fit panel's button
+        xdo("click", "--repeat", "4", "5")
+        yield 0.8
+        try:
+            row = yield from operator_row(ui, "grasp_lab.fit_devices", name="rows_fit", tries=1)
+            break
+        except AssertionError:
+            hover(ui, ui.width / 2, ui.height / 2)
+    if row is None:
+        raise AssertionError("no Fit Devices button in the sidebar")
+    yield from click_part(ui, row)                  # Fit Devices
+    yield from wait_until(lambda: bool(scene.grasp_lab_fit_report), 20, "Fit Devices to write its verdicts")
+    RESULT["report"] = scene.grasp_lab_fit_report
+    hover(win_region, 50, 50)
+    yield 1.5
+    docs_picture("device_fit", crop="sidebar")
+    # the frame where the Touch holds finger 0's whole path: its middle, turned a quarter (the carry
+    # along y then runs along the box's 160 mm)
+    path = fit_ui._path["task"].hip[:, 0]
+    entry = scene.grasp_lab_fit_devices[0]
+    entry.frame.location = tuple((path.min(axis=0) + path.max(axis=0)) / 2)
+    entry.frame.rotation_euler = (0.0, 0.0, math.pi / 2)
+    bpy.context.view_layer.update()
+    fit_ui._redraw()
+    RESULT["hud_placed"] = fit_ui.hud_lines(scene)
+    yield 1.5
+    RESULT["placed"] = _tints("fit_placed", win_region, ui)
+
+
 SCENARIOS = {name[len("scenario_"):]: fn for name, fn in globals().items() if name.startswith("scenario_")}
 
 

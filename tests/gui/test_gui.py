@@ -255,3 +255,23 @@ def test_the_robustness_panel_sweeps_the_last_recording(gui):
     # the map in the sidebar: thousands of pixels in the held probability's colours (red to
     # green), where the sidebar had next to none while the sweep ran
     assert r["warm_before"] < 500 and r["warm_after"] > r["warm_before"] + 3000, r
+
+
+def test_device_fit_draws_the_workspace_red_where_the_animation_leaves_it(gui):
+    """A device profile added in the Devices panel: its workspace in the viewport, red where the pinch's
+    animation leaves it, the HUD line saying who leaves when; Fit Devices clicked: the verdicts under
+    the button; the frame moved to where the path fits: no red, the HUD says every finger stays."""
+    r, console, _ = run(gui, "device_fit", timeout=300)
+    ok(r, console)
+    before, origin, placed = r["before"], r["at_origin"], r["placed"]
+    line, = r["hud_at_origin"]
+    assert line.startswith("touch: Finger 0 leaves its workspace at "), line
+    # red: the volume tinted and the samples outside it, where there was next to none before
+    assert origin["red"] > before["red"] + 2000, (before, origin)
+    assert origin["hud_red"] > 100, origin
+    assert r["report"].split("\n")[1].startswith("touch: "), r["report"]
+    assert "Finger 1: fails at 0.000 s (tick 0): no end-effector (the device has 1)" in r["report"]
+    assert r["hud_placed"] == ["touch: every finger stays in its workspace"]
+    # placed: the volume drawn in its end-effector's blue, the red gone
+    assert placed["red"] < before["red"] + 200 and placed["blue"] > before["blue"] + 2000, (before, placed)
+    assert placed["hud_green"] > 100, placed
