@@ -86,13 +86,13 @@ class GRASPLAB_PG_object(bpy.types.PropertyGroup):
 
 
 class GRASPLAB_PG_scene(bpy.types.PropertyGroup):
-    gravity: FloatVectorProperty(name="Gravity", default=(0.0, 0.0, -9.81), subtype="ACCELERATION",
+    gravity: FloatVectorProperty(name="Gravity", default=tuple(defaults.world("gravity")), subtype="ACCELERATION",
                                  unit="ACCELERATION", size=3, description="Gravity, m/s²")
     gyroscopic: BoolProperty(name="Gyroscopic Term", default=True,
                              description="Keep the −ω×Jω term in Euler's equation (Harwin & "
                                          "Barrow, \"Multi-finger grasps in a dynamic environment\", "
                                          "drop it)")
-    haptic_rate: FloatProperty(name="Haptic Rate", default=1000.0, min=100.0, max=10000.0,
+    haptic_rate: FloatProperty(name="Haptic Rate", default=defaults.runtime("haptic_rate"), min=100.0, max=10000.0,
                                description="Core step rate, Hz")
     display_rate: FloatProperty(name="Display Rate", default=30.0, min=1.0, max=240.0,
                                 description="Live session display updates per second, Hz")

@@ -27,6 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import defaults
+
 
 SLIP = 2                # gcFingerState
 MU_MAX = 10.0           # mu_min searches friction up to this; above: inf (no friction closes it)
@@ -357,7 +359,7 @@ def _remembered(core, memo, point, normal, mu, starts, count, centers, radii, ed
 
 
 def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_bodies, finger_radii,
-                   accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True,
+                   accelerations=None, gravity=None, edges=8, volume=True,
                    with_mu_min=True, memo=None, reuse=False, patches=None, torsions=None) -> GraspTable:
     """The measures for T snapshots at once: poses (T, nb, 7), god_objects / forces / normals
     (T, nf, 3), states / contact_bodies (T, nf), finger_radii (nf,), accelerations (T, nb, 3)
@@ -463,7 +465,7 @@ def analyse_arrays(models, poses, god_objects, forces, normals, states, contact_
     mass = np.array([m.mass for m in models] + [0.0])[set_b]
     a = np.zeros((len(starts), 3)) if accelerations is None else \
         np.asarray(accelerations, dtype=np.float64)[set_t, set_b]
-    inertial = a - np.asarray(gravity, dtype=np.float64)
+    inertial = a - np.asarray(defaults.world("gravity") if gravity is None else gravity, dtype=np.float64)
     load = mass * np.sqrt(np.einsum("ij,ij->i", inertial, inertial))
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(load > 0, grip / np.where(load > 0, load, 1.0), np.inf)
@@ -498,7 +500,7 @@ def body_grasps(table: GraspTable, sets=None) -> list:
 
 
 def analyse(models, poses, god_objects, forces, normals, states, contact_bodies, finger_radii,
-            accelerations=None, gravity=(0.0, 0.0, -9.81), edges=8, volume=True, memo=None, reuse=False,
+            accelerations=None, gravity=None, edges=8, volume=True, memo=None, reuse=False,
             patches=None, torsions=None) -> list:
     """The measures of one snapshot: one BodyGrasp per dynamic body with at least one finger in
     contact. Arrays as in the tick record: poses (nb, 7), god_objects, forces (the coupling

@@ -26,6 +26,7 @@ from typing import Callable
 import numpy as np
 
 from . import limits, outputs
+from .devices import cli_commands as device_commands
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 EXIT_DEVICE_LOST = 3    # run: the session ran and was saved, but a device was lost during it
@@ -433,13 +434,25 @@ register_command("analyze", "grasp analysis of a recording: closure, epsilon, sl
                             "(docs/analysis.md)", _configure_analyze, _run_analyze)
 
 
-def _register_devices():
-    """devices, emulate and the --device kinds (engine/devices, docs/devices.md)."""
-    from .devices import cli_commands
-    cli_commands.register_with(sys.modules[__name__])
+# devices, emulate and the --device kinds (engine/devices, docs/devices.md). emulate --from
+# SCENE.blend needs Blender to read the .blend: then it is a Blender command (emulate_blend.py).
+def _run_emulate(args, out, err):
+    if args.from_blend:
+        return BLENDER_COMMANDS["emulate"](args, out, err)
+    return device_commands.cmd_emulate(args)
 
 
-_register_devices()
+def _configure_emulate(p):
+    from .devices.emulator import build_parser
+    build_parser(p)
+
+
+register_command("devices", device_commands.DEVICES_HELP, device_commands.configure_devices,
+                 lambda args, out, err: device_commands.cmd_devices(args, out))
+register_command("emulate", device_commands.EMULATE_HELP, _configure_emulate, _run_emulate,
+                 needs_blender=lambda args: bool(args.from_blend))
+for _kind in ("serial", "udp", "spacemouse", "opengloves"):
+    register_device_backend(_kind, lambda spec, n_fingers=None: device_commands.parse_device_spec(spec))
 
 
 # sweep (engine/sweep.py, docs/sweeps.md)

@@ -1,10 +1,15 @@
-"""Body, finger and runtime defaults and the names of the core's enums: the core's own
-(``gc_default_body_def`` / ``gc_default_finger_def`` / ``gc_default_runtime_def``, exposed as
-``graspcore.BODY_DEFAULTS`` / ``FINGER_DEFAULTS`` / ``RUNTIME_DEFAULTS``; ``graspcore.RENDERERS``),
+"""World, body, finger and runtime defaults and the names of the core's enums: the core's own
+(``gc_default_world_def`` / ``gc_default_body_def`` / ``gc_default_finger_def`` / ``gc_default_runtime_def``, exposed as
+``graspcore.WORLD_DEFAULTS`` / ``BODY_DEFAULTS`` / ``FINGER_DEFAULTS`` / ``RUNTIME_DEFAULTS``; ``graspcore.RENDERERS``),
 read from the core rather than written again here."""
 from __future__ import annotations
 
 from .core_loader import load
+
+
+def world(name: str):
+    """A world setting's default, of the core's type (``gravity`` a 3-tuple of floats)."""
+    return load().WORLD_DEFAULTS[name]
 
 
 def body(name: str) -> float:

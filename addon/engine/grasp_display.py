@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from . import analysis
+from . import analysis, defaults
 from .recording import STATE_NAMES
 
 FREE_COLOR = (0.10, 0.45, 1.00, 1.0)     # a god-object touching nothing: the god-object blue
@@ -78,11 +78,11 @@ class GraspMonitor:
     of the centre-of-mass velocity between two display updates over the time between them
     (the haptic loop's simulated time), zero on the first update."""
 
-    def __init__(self, models, finger_radii, gravity=(0.0, 0.0, -9.81), edges: int = 8, torsions=None):
+    def __init__(self, models, finger_radii, gravity=None, edges: int = 8, torsions=None):
         self.models = list(models)
         self.finger_radii = np.asarray(finger_radii, dtype=np.float64).reshape(-1)
         self.torsions = None if torsions is None else np.asarray(torsions, dtype=np.float64)  # soft fingertips' rho
-        self.gravity = tuple(float(g) for g in gravity)
+        self.gravity = tuple(float(g) for g in (defaults.world("gravity") if gravity is None else gravity))
         self.edges = int(edges)
         self.grasps = []            # the last update's BodyGrasp list
         self.cost_s = 0.0           # wall time of the last update (analysis included)

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import defaults
+
 
 # The threaded runtime's settings that decide its physics (their defaults: the core's,
 # graspcore.RUNTIME_DEFAULTS; the others, its safety layer, decide only what a device is sent).
@@ -153,8 +155,10 @@ class SessionRunner:
 
     ``runtime_options`` go to ``World.start`` (max_hip_speed, hip_timeout, ...)."""
 
-    def __init__(self, handle, source, haptic_rate=1000.0, use_runtime=False, recorder=None,
+    def __init__(self, handle, source, haptic_rate=None, use_runtime=False, recorder=None,
                  runtime_options=None):
+        if haptic_rate is None:
+            haptic_rate = defaults.runtime("haptic_rate")
         if not (haptic_rate > 0):
             raise ValueError(f"haptic_rate must be > 0, got {haptic_rate}")
         if source.n_fingers != len(handle.finger_ids):

@@ -86,9 +86,9 @@ class FingerDesc:
 
 @dataclass
 class SceneDesc:
-    gravity: tuple = (0.0, 0.0, -9.81)
-    gyroscopic: bool = True
-    haptic_rate: float = 1000.0
+    gravity: tuple = field(default_factory=lambda: tuple(defaults.world("gravity")))
+    gyroscopic: bool = field(default_factory=lambda: bool(defaults.world("gyroscopic")))
+    haptic_rate: float = field(default_factory=lambda: float(defaults.runtime("haptic_rate")))
     display_rate: float = 30.0
     bodies: list = field(default_factory=list)
     fingers: list = field(default_factory=list)

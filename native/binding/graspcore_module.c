@@ -1949,6 +1949,16 @@ static int add_tick_fields(PyObject *m) {
     }
     int r = t ? PyModule_AddObjectRef(m, "TICK_FIELDS", t) : -1;
     Py_XDECREF(t);
+    if (r < 0) return r;
+    const char *const *names;
+    int nt = gc_tick_trace_fields(&names);
+    PyObject *trace = PyTuple_New(nt);
+    for (int i = 0; trace && i < nt; ++i) {
+        PyObject *name = PyUnicode_FromString(names[i]);
+        if (!name || PyTuple_SetItem(trace, i, name) < 0) Py_CLEAR(trace);
+    }
+    r = trace ? PyModule_AddObjectRef(m, "TICK_TRACE_FIELDS", trace) : -1;
+    Py_XDECREF(trace);
     return r;
 }
 

@@ -158,6 +158,9 @@ gcStatus gc_world_step_hips(gcWorld *world, const double *hips, int num_fingers,
  * f64[total][bodies][7] (the same values as the record's fields of those names):
  * total * gc_tick_trace_size(bodies, fingers) bytes. Step k goes to tick first + k. */
 size_t gc_tick_trace_size(int num_bodies, int num_fingers);
+/* Sets *names to the trace's fields (names of gc_tick_record_fields' rows, in the trace's order);
+ * returns how many. */
+int gc_tick_trace_fields(const char *const **names);
 gcStatus gc_world_step_hips_trace(gcWorld *world, const double *hips, int num_fingers, int steps, double dt,
                                   int first, int total, void *traces, size_t size, int *done);
 

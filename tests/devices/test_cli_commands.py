@@ -1,4 +1,5 @@
 """The devices and emulate commands, and --device specs."""
+import argparse
 import json
 import math
 import os
@@ -12,13 +13,17 @@ from addon.engine.devices import cli_commands as C
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
+# grasp-lab as the venv's launcher runs it (addon.launcher), from this checkout.
+GRASP_LAB = [sys.executable, "-c", "import sys; from addon.launcher import launch; sys.exit(launch())"]
+
+
 def run_cli(*args, timeout=30):
-    return subprocess.run([sys.executable, "-m", "addon.engine.devices.cli_commands", *args], cwd=ROOT,
+    return subprocess.run(GRASP_LAB + [*args], cwd=ROOT,
                           capture_output=True, text=True, timeout=timeout)
 
 
 def test_devices_probe_finds_the_emulator():
-    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.cli_commands", "emulate", "--pty",
+    emu = subprocess.Popen(GRASP_LAB + ["emulate", "--pty",
                             "--fingers", "3", "--duration", "0.3", "--force-max", "2.5"],
                            cwd=ROOT, stdout=subprocess.PIPE, text=True)
     try:
@@ -76,7 +81,7 @@ def test_emulate_on_a_named_port():
     tty.setraw(master)
     tty.setraw(slave)
     path = os.ttyname(slave)
-    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.cli_commands", "emulate", path,
+    emu = subprocess.Popen(GRASP_LAB + ["emulate", path,
                             "--fingers", "1", "--motion", "circle", "--duration", "0.2", "--rate", "200"],
                            cwd=ROOT, stdout=subprocess.PIPE, text=True)
     try:
@@ -100,24 +105,22 @@ def test_emulate_on_a_named_port():
         os.close(slave)
 
 
-def test_register_with_the_grasp_lab_dispatcher():
-    """The dispatcher's interface (register_command(name, help, configure, run),
-    register_device_backend(kind, factory)): what gets registered works through argparse."""
-    import argparse
+def test_the_grasp_lab_dispatcher_carries_the_device_commands_and_kinds():
+    """grasp-lab's dispatcher (addon/engine/cli.py) registers devices, emulate and the --device
+    kinds from engine/devices: they work through its own argparse."""
     import io
-    commands, backends = {}, {}
-    cli = type("Cli", (), {"register_command": staticmethod(lambda n, h, c, r, needs_blender=False: commands.update({n: (c, r)})),
-                           "register_device_backend": staticmethod(lambda k, f: backends.update({k: f}))})
-    C.register_with(cli)
-    assert set(commands) == {"devices", "emulate"} and set(backends) == {"serial", "udp", "spacemouse", "opengloves"}
+    from addon.engine import cli
+    assert {"devices", "emulate"} <= set(cli.COMMANDS)
+    assert {"serial", "udp", "spacemouse", "opengloves"} <= set(cli.DEVICE_BACKENDS)
     parser = argparse.ArgumentParser()
     sub = parser.add_subparsers(dest="command")
-    for name, (configure, _) in commands.items():
-        configure(sub.add_parser(name))
-    args = parser.parse_args(["devices", "--json"])
+    for name in ("devices", "emulate"):
+        cli.COMMANDS[name].configure(sub.add_parser(name))
+    args = parser.parse_args(["devices", "--json", "--no-probe"])
     out = io.StringIO()
-    assert commands["devices"][1](args, out, None) == 0 and isinstance(json.loads(out.getvalue()), list)
+    assert cli.COMMANDS["devices"].run(args, out, None) == 0 and isinstance(json.loads(out.getvalue()), list)
     assert parser.parse_args(["emulate", "--pty", "--fingers", "3"]).fingers == 3
-    assert backends["serial"]("serial:/dev/ttyACM0@2", 5)["finger_offset"] == 2
+    assert not cli.COMMANDS["emulate"].needs_blender(parser.parse_args(["emulate", "--pty"]))
+    assert cli.DEVICE_BACKENDS["serial"]("serial:/dev/ttyACM0@2", 5)["finger_offset"] == 2
     with pytest.raises(ValueError, match="needs a port"):
-        backends["opengloves"]("opengloves", 5)
+        cli.DEVICE_BACKENDS["opengloves"]("opengloves", 5)

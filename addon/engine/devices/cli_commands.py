@@ -3,7 +3,6 @@
 the Blender sidebar calls the same functions (``discovery.find_devices``)."""
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 
@@ -134,40 +133,3 @@ def configure_devices(p) -> None:
 
 DEVICES_HELP = "find Grasp Lab devices (a hello on USB serial ports and raw pseudo-terminals) and SpaceMice"
 EMULATE_HELP = "run the reference device emulator (on a pty or a port)"
-
-
-def add_device_commands(subparsers) -> None:
-    """The two commands on an argparse subparsers object."""
-    from .emulator import build_parser
-    configure_devices(subparsers.add_parser("devices", help=DEVICES_HELP, description=DEVICES_HELP))
-    subparsers.choices["devices"].set_defaults(func=cmd_devices)
-    e = subparsers.add_parser("emulate", help=EMULATE_HELP, description=EMULATE_HELP)
-    build_parser(e)
-    e.set_defaults(func=cmd_emulate)
-
-
-def register_with(cli) -> None:
-    """Plug into the grasp-lab dispatcher (addon/engine/cli.py: ``register_command``,
-    ``register_device_backend``): the two commands, and the --device kinds whose specs
-    ``parse_device_spec`` reads (headless runs add them to the scene's device list with
-    ``scene_devices.add_device_specs``)."""
-    from .emulator import build_parser
-    cli.register_command("devices", DEVICES_HELP, configure_devices, lambda args, out, err: cmd_devices(args, out))
-    # --from SCENE.blend needs Blender to read the .blend: then a Blender command (emulate_blend.py).
-    cli.register_command("emulate", EMULATE_HELP, build_parser,
-                         lambda args, out, err: cli.BLENDER_COMMANDS["emulate"](args, out, err) if args.from_blend
-                         else cmd_emulate(args), needs_blender=lambda args: bool(args.from_blend))
-    for kind in ("serial", "udp", "spacemouse", "opengloves"):
-        cli.register_device_backend(kind, lambda spec, n_fingers=None: parse_device_spec(spec))
-
-
-def main(argv=None) -> int:
-    """Stand-alone entry (until the grasp-lab dispatcher carries these commands)."""
-    parser = argparse.ArgumentParser(prog="grasp-lab")
-    add_device_commands(parser.add_subparsers(dest="command", required=True))
-    args = parser.parse_args(argv)
-    return args.func(args)
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

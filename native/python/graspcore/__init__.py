@@ -54,11 +54,11 @@ def tick_dtype(num_bodies: int, num_fingers: int) -> np.dtype:
 @functools.lru_cache(maxsize=64)
 def trace_dtype(num_bodies: int, num_fingers: int, ticks: int) -> np.dtype:
     """The numpy dtype of ``ticks`` ticks of ``World.step_hips_trace``: one record whose fields
-    are contiguous arrays, a tick record's ``time`` (ticks,), ``contact``, ``state`` (ticks,
-    fingers), ``force``, ``god_object`` (ticks, fingers, 3) and ``pose`` (ticks, bodies, 7)."""
+    are contiguous arrays over the ticks of the tick record's fields the core names
+    (``_core.TICK_TRACE_FIELDS``: time, contact, state, force, god_object, pose)."""
     nb, nf, n = int(num_bodies), int(num_fingers), int(ticks)
-    dtype = np.dtype([("time", "<f8", (n,)), ("contact", "<i4", (n, nf)), ("state", "<i4", (n, nf)),
-                      ("force", "<f8", (n, nf, 3)), ("god_object", "<f8", (n, nf, 3)), ("pose", "<f8", (n, nb, 7))])
+    record = tick_dtype(nb, nf)    # the trace's fields are the record's, named by the core
+    dtype = np.dtype([(name, record[name].base, (n,) + record[name].shape) for name in _core.TICK_TRACE_FIELDS])
     if dtype.itemsize != n * _core.tick_trace_size(nb, nf):
         raise RuntimeError("graspcore.trace_dtype does not match the core's trace layout (rebuild the core)")
     return dtype

@@ -131,7 +131,7 @@ gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world) {
     w->force_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
     w->hip_array = calloc((size_t)def->max_fingers * 3, sizeof(double));
     if (!m->parts || !m->bodies || !m->fingers || !m->finger_hulls || !w->bodies || !w->fingers || !w->pose_array ||
-        !w->god_object_array || !w->force_array || !w->hip_array || !(w->serial = gc_device_hub_create(w))) {
+        !w->god_object_array || !w->force_array || !w->hip_array || !(w->hub = gc_device_hub_create(w))) {
         gc_world_destroy(w);
         return create_failed(GC_ERR_NO_MEMORY, "out of memory for the capacities (max_bodies %d, max_fingers %d, max_parts %d)",
                              def->max_bodies, def->max_fingers, def->max_parts);
@@ -148,10 +148,10 @@ gcStatus gc_world_create(const gcWorldDef *def, gcWorld **out_world) {
 
 void gc_world_destroy(gcWorld *w) {
     if (!w) return;
-    gc_device_threads_stop_all(w->serial); /* device threads read the runtime's ticks */
+    gc_device_threads_stop_all(w->hub); /* device threads read the runtime's ticks */
     gc_runtime_free(w); /* stops the runtime threads first */
     gc_tick_log_free(w);
-    gc_device_hub_destroy(w->serial); /* the haptic loop wrote into it */
+    gc_device_hub_destroy(w->hub); /* the haptic loop wrote into it */
     gc_contacts_destroy(w); /* joins the contact thread pool */
     gc_hip_track_free(w->hip_track);
     gcModel *m = w->own_model;

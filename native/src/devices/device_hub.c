@@ -231,7 +231,7 @@ gcStatus gc_world_push_device_hips(gcWorld *w, int offset, int count_, const dou
 
 gcStatus gc_world_push_device_poses(gcWorld *w, int offset, int count_, const double *positions,
                                     const double *orientations) {
-    if (!w || !positions || !w->serial) return GC_ERR_INVALID_ARGUMENT;
+    if (!w || !positions || !w->hub) return GC_ERR_INVALID_ARGUMENT;
     if (check_fingers(w, offset, count_)) {
         gc_world_set_error(w, "finger_offset, count: fingers %d..%d are not all fingers of the world", offset,
                            offset + count_ - 1);
@@ -242,10 +242,10 @@ gcStatus gc_world_push_device_poses(gcWorld *w, int offset, int count_, const do
     for (int i = 0; i < 3 * count_; ++i) usable &= isfinite(positions[i]) != 0;
     for (int i = 0; orientations && i < count_; ++i) usable &= gc_device_quat_usable(&orientations[4 * i]);
     if (!usable) { /* nothing of the sample is taken */
-        gc_atomic_increment(&w->serial->rejected_inputs); /* the runtime's stats add these */
+        gc_atomic_increment(&w->hub->rejected_inputs); /* the runtime's stats add these */
         return GC_WARN_REJECTED;
     }
-    gcDeviceHub *h = w->serial;
+    gcDeviceHub *h = w->hub;
     pthread_mutex_lock(&h->api_write_mutex); /* callers on several threads: one writer a finger at a time */
     if (!gc_device_hub_claim(h, offset, count_, GC_HUB_OWNER_API)) {
         pthread_mutex_unlock(&h->api_write_mutex);
@@ -259,7 +259,7 @@ gcStatus gc_world_push_device_poses(gcWorld *w, int offset, int count_, const do
 }
 
 gcStatus gc_world_device_forces_sent(gcWorld *w, int offset, int count_, const double *forces) {
-    if (!w || !forces || !w->serial) return GC_ERR_INVALID_ARGUMENT;
+    if (!w || !forces || !w->hub) return GC_ERR_INVALID_ARGUMENT;
     if (check_fingers(w, offset, count_)) {
         gc_world_set_error(w, "finger_offset, count: fingers %d..%d are not all fingers of the world", offset,
                            offset + count_ - 1);
@@ -267,7 +267,7 @@ gcStatus gc_world_device_forces_sent(gcWorld *w, int offset, int count_, const d
     }
     for (int i = 0; i < 3 * count_; ++i)
         if (!isfinite(forces[i])) return GC_WARN_REJECTED;
-    gcDeviceHub *h = w->serial;
+    gcDeviceHub *h = w->hub;
     pthread_mutex_lock(&h->api_write_mutex);
     for (int i = 0; i < count_; ++i) gc_device_hub_sent(h, offset + i, &forces[3 * i], INT64_MAX);
     pthread_mutex_unlock(&h->api_write_mutex);
@@ -275,13 +275,13 @@ gcStatus gc_world_device_forces_sent(gcWorld *w, int offset, int count_, const d
 }
 
 gcStatus gc_world_device_forces(gcWorld *w, int offset, int count_, int enable, double *out) {
-    if (!w || !out || !w->serial) return GC_ERR_INVALID_ARGUMENT;
+    if (!w || !out || !w->hub) return GC_ERR_INVALID_ARGUMENT;
     if (check_fingers(w, offset, count_)) {
         gc_world_set_error(w, "finger_offset, count: fingers %d..%d are not all fingers of the world", offset,
                            offset + count_ - 1);
         return GC_ERR_INVALID_ARGUMENT;
     }
-    gcDeviceHub *h = w->serial;
+    gcDeviceHub *h = w->hub;
     for (int i = offset; i < offset + count_; ++i)
         if (atomic_load_explicit(&h->owner[i], memory_order_acquire) != GC_HUB_OWNER_API) {
             gc_world_set_error(w, "finger_offset, count: finger %d is not driven through push_device_hips", i);

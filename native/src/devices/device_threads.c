@@ -538,7 +538,7 @@ gcSerialDef gc_default_serial_def(void) {
 }
 
 static gcSerialDevice *device_of(gcWorld *w, int32_t id) {
-    gcDeviceHub *h = w ? w->serial : NULL;
+    gcDeviceHub *h = w ? w->hub : NULL;
     if (!h || id < 0 || id >= GC_MAX_DEVICES) return NULL;
     return h->devices[id];
 }
@@ -600,7 +600,7 @@ static const char *check_serial_def(const gcWorld *w, int fd, const gcSerialDef 
 
 gcStatus gc_world_attach_serial(gcWorld *w, int fd, const gcSerialDef *def, int32_t *out_device) {
     if (!w || !def || !out_device) return GC_ERR_INVALID_ARGUMENT;
-    gcDeviceHub *h = w->serial;
+    gcDeviceHub *h = w->hub;
     if (!h) return GC_ERR_NO_MEMORY;
     const char *bad = check_serial_def(w, fd, def);
     if (bad) {
@@ -702,9 +702,9 @@ static void device_stop(gcSerialDevice *d) {
 gcStatus gc_world_detach_serial(gcWorld *w, int32_t id) {
     gcSerialDevice *d = device_of(w, id);
     if (!d) return GC_ERR_UNKNOWN_ID;
-    pthread_mutex_lock(&w->serial->api_mutex);
-    w->serial->devices[id] = NULL;
-    pthread_mutex_unlock(&w->serial->api_mutex);
+    pthread_mutex_lock(&w->hub->api_mutex);
+    w->hub->devices[id] = NULL;
+    pthread_mutex_unlock(&w->hub->api_mutex);
     device_stop(d);
     return GC_OK;
 }

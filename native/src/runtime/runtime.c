@@ -188,7 +188,7 @@ static gcRuntime *runtime_alloc(const gcWorld *w) {
     size_t nb = (size_t)w->def.max_bodies, nf = (size_t)w->def.max_fingers;
     rt->max_bodies = w->def.max_bodies;
     rt->max_fingers = w->def.max_fingers;
-    rt->serial = w->serial;
+    rt->hub = w->hub;
     int ok = shadow_alloc(rt, &rt->hap, w, &rt->hap_active, 1);
     ok &= shadow_alloc(rt, &rt->obj, w, &rt->obj_active, w->def.threads);
     rt->hstate = rt_calloc(rt, nb, 1);
@@ -347,7 +347,7 @@ static void load_session(gcWorld *w, gcRuntime *rt, const gcRuntimeDef *def) {
     rt->replaying = 0;
     rt->prev_tick_ns = rt->last_input_ns = GC_NEVER_NS;
     gc_force_gate_init(&rt->gate, rt->ramp_ns, 1);
-    rt->serial->ramp_ns = rt->ramp_ns; /* devices read elsewhere ramp in as long (gc_world_device_forces) */
+    rt->hub->ramp_ns = rt->ramp_ns; /* devices read elsewhere ramp in as long (gc_world_device_forces) */
     memset(rt->device_finger, 0, (size_t)rt->max_fingers * sizeof *rt->device_finger);
     rt->was_stale = 1;
     rt->tick = 0;
@@ -360,7 +360,7 @@ static void load_session(gcWorld *w, gcRuntime *rt, const gcRuntimeDef *def) {
     atomic_store(&rt->manual_now_ns, 0);
     atomic_store(&rt->debug_stall_ns, 0);
     reset_stats(rt);
-    atomic_store(&w->serial->rejected_inputs, 0);
+    atomic_store(&w->hub->rejected_inputs, 0);
 }
 
 /* The haptic and object threads of a realtime session, started once the runtime is loaded; the

@@ -84,7 +84,7 @@ static int take_device_samples(gcRuntime *rt) {
     for (int i = 0; i < hw->num_fingers; ++i) {
         gcDeviceSample s;
         gcRuntimeDeviceFinger *df = &rt->device_finger[i];
-        if (gc_hip_track_drives(rt->track, i) || !gc_device_hub_latest_hip(rt->serial, i, &s)) {
+        if (gc_hip_track_drives(rt->track, i) || !gc_device_hub_latest_hip(rt->hub, i, &s)) {
             df->serial = 0;
             continue;
         }
@@ -219,7 +219,7 @@ void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now) {
     /* 4. Adoption wishes for the next ticks, device forces, publications. */
     update_adoption(rt);
     int ok = update_safety(rt, now);
-    gc_device_hub_tick(rt->serial, hw, rt->device_force, ok, now);
+    gc_device_hub_tick(rt->hub, hw, rt->device_force, ok, now);
     gc_runtime_publish_to_object(rt);
     gc_runtime_publish_display(rt, now, ok);
     gcTickSchedule schedule = {rt->object_seq_seen, rt->object_reads};
@@ -227,7 +227,7 @@ void gc_runtime_haptic_tick(gcRuntime *rt, int64_t now) {
         gc_tick_record_fill(hw, rt->device_force, rt->tick, rt->object_time_seen, schedule, ok,
                             atomic_load_explicit(&rt->adopted, memory_order_relaxed), rt->replay_record);
     else if (rt->tick_log) /* fingers a serial device drives: what their device was actually sent */
-        gc_tick_log_push(rt->tick_log, hw, gc_device_hub_recorded_forces(rt->serial, rt->device_force, hw->num_fingers),
+        gc_tick_log_push(rt->tick_log, hw, gc_device_hub_recorded_forces(rt->hub, rt->device_force, hw->num_fingers),
                          rt->tick, rt->object_time_seen, schedule, now, rt->def.realtime, ok,
                          atomic_load_explicit(&rt->adopted, memory_order_relaxed));
     gc_atomic_store_double(&rt->haptic_time_bits, hw->time);

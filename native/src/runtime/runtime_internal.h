@@ -118,7 +118,7 @@ typedef struct gcRuntime {
     gcWorld hap, obj;
     unsigned char *hap_active, *obj_active;
 
-    struct gcDeviceHub *serial; /* the world's devices: HIP slots read, forces fed every haptic tick */
+    struct gcDeviceHub *hub; /* the world's devices: HIP slots read, forces fed every haptic tick */
 
     /* Haptic loop only. */
     unsigned char *hstate;

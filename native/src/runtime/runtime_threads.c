@@ -200,7 +200,7 @@ gcStatus gc_world_stats(gcWorld *w, gcRuntimeStats *out) {
     out->object_overruns = atomic_load_explicit(&rt->object_overruns, memory_order_relaxed);
     out->accepted_inputs = atomic_load_explicit(&rt->accepted_inputs, memory_order_relaxed);
     out->rejected_inputs = atomic_load_explicit(&rt->rejected_inputs, memory_order_relaxed) +
-                           atomic_load_explicit(&w->serial->rejected_inputs, memory_order_relaxed);
+                           atomic_load_explicit(&w->hub->rejected_inputs, memory_order_relaxed);
     out->watchdog_trips = atomic_load_explicit(&rt->watchdog_trips, memory_order_relaxed);
     out->stale_inputs = atomic_load_explicit(&rt->stale_inputs, memory_order_relaxed);
     out->nonfinite_forces = atomic_load_explicit(&rt->nonfinite_forces, memory_order_relaxed);

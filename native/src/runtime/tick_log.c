@@ -64,7 +64,33 @@ static const gcTickField tick_fields[] = {
     {"object_tick", "<u8", 8, GC_TICK_ONCE, 1, 0},  /* the hand-over schedule (docs/recording-format.md) */
     {"object_reads", "<u8", 8, GC_TICK_ONCE, 1, 0},
 };
-enum { REC_HEADER = 52 }; /* the GC_TICK_ONCE fields */
+/* tick_fields' rows by name, in the table's order (checked below): fill_record places each field
+ * at the offset the table gives it. */
+enum {
+    F_TICK, F_TIME, F_OBJECT_TIME, F_STATE_HASH, F_PERIOD_US, F_WORK_US, F_FLAGS, F_ADOPTED, F_LOG_US, F_HIP,
+    F_GOD_OBJECT, F_FORCE, F_DEVICE_FORCE, F_NORMAL, F_POSE, F_VELOCITY, F_WRENCH, F_STATE, F_CONTACT, F_PARTS,
+    F_ORIENTATION, F_PATCH, F_OBJECT_TICK, F_OBJECT_READS, F_COUNT
+};
+_Static_assert(sizeof tick_fields / sizeof tick_fields[0] == F_COUNT, "a row of tick_fields has no F_ name");
+
+/* The trace of gc_world_step_hips_trace: these fields of the record, each one array over the ticks. */
+static const int trace_fields[] = {F_TIME, F_CONTACT, F_STATE, F_FORCE, F_GOD_OBJECT, F_POSE};
+enum { TRACE_COUNT = sizeof trace_fields / sizeof trace_fields[0] };
+
+/* Bytes of field f in one record of nb bodies and nf fingers. */
+static size_t field_bytes(const gcTickField *f, size_t nb, size_t nf) {
+    size_t units = f->scope == GC_TICK_PER_FINGER ? nf : f->scope == GC_TICK_PER_BODY ? nb : 1;
+    return (size_t)f->size * (size_t)f->count * units;
+}
+
+/* Where each field starts in one record of nb bodies and nf fingers. */
+static void record_offsets(size_t nb, size_t nf, size_t off[F_COUNT]) {
+    size_t at = 0;
+    for (int i = 0; i < F_COUNT; ++i) {
+        off[i] = at;
+        at += field_bytes(&tick_fields[i], nb, nf);
+    }
+}
 
 int gc_tick_record_fields(const gcTickField **fields) {
     if (fields) *fields = tick_fields;
@@ -74,13 +100,7 @@ int gc_tick_record_fields(const gcTickField **fields) {
 size_t gc_tick_record_size(int num_bodies, int num_fingers) {
     if (num_bodies < 0 || num_fingers < 0) return 0;
     size_t size = 0;
-    for (size_t i = 0; i < sizeof tick_fields / sizeof tick_fields[0]; ++i) {
-        const gcTickField *f = &tick_fields[i];
-        size_t units = f->scope == GC_TICK_PER_FINGER ? (size_t)num_fingers
-                       : f->scope == GC_TICK_PER_BODY ? (size_t)num_bodies
-                                                      : 1;
-        size += units * (size_t)f->count * (size_t)f->size;
-    }
+    for (int i = 0; i < F_COUNT; ++i) size += field_bytes(&tick_fields[i], (size_t)num_bodies, (size_t)num_fingers);
     return size;
 }
 
@@ -194,22 +214,22 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
                         gcTickSchedule schedule, float period_us, float work_us, uint32_t flags, uint32_t adopted,
                         float log_us, unsigned char *out) {
     const size_t nb = (size_t)w->num_bodies, nf = (size_t)w->num_fingers;
-    unsigned char *hip = out + REC_HEADER, *go = hip + 24 * nf, *force = go + 24 * nf, *dev = force + 24 * nf;
-    unsigned char *normal = dev + 24 * nf, *pose = normal + 24 * nf, *vel = pose + 56 * nb;
-    unsigned char *wrench = vel + 48 * nb, *state = wrench + 48 * nb, *contact = state + 4 * nf;
-    /* parts (main's) then orientation: each field added at the end, so older readers' fields
-     * keep their offsets */
-    unsigned char *parts = contact + 4 * nf, *orientation = parts + 4 * nf, *patch = orientation + 32 * nf;
-    unsigned char *handover = patch + 8 * GC_FINGER_PATCH_CORNERS * nf; /* the hand-over schedule, last */
+    size_t off[F_COUNT];
+    record_offsets(nb, nf, off);
+    unsigned char *hip = out + off[F_HIP], *go = out + off[F_GOD_OBJECT], *force = out + off[F_FORCE];
+    unsigned char *dev = out + off[F_DEVICE_FORCE], *normal = out + off[F_NORMAL], *pose = out + off[F_POSE];
+    unsigned char *vel = out + off[F_VELOCITY], *wrench = out + off[F_WRENCH], *state = out + off[F_STATE];
+    unsigned char *contact = out + off[F_CONTACT], *parts = out + off[F_PARTS];
+    unsigned char *orientation = out + off[F_ORIENTATION], *patch = out + off[F_PATCH];
     uint64_t hash = hash_time_bodies(w);
-    memcpy(out, &tick, 8);
-    memcpy(out + 8, &w->time, 8);
-    memcpy(out + 16, &object_time, 8);
-    memcpy(out + 32, &period_us, 4);
-    memcpy(out + 36, &work_us, 4);
-    memcpy(out + 40, &flags, 4);
-    memcpy(out + 44, &adopted, 4);
-    memcpy(out + 48, &log_us, 4);
+    memcpy(out + off[F_TICK], &tick, 8);
+    memcpy(out + off[F_TIME], &w->time, 8);
+    memcpy(out + off[F_OBJECT_TIME], &object_time, 8);
+    memcpy(out + off[F_PERIOD_US], &period_us, 4);
+    memcpy(out + off[F_WORK_US], &work_us, 4);
+    memcpy(out + off[F_FLAGS], &flags, 4);
+    memcpy(out + off[F_ADOPTED], &adopted, 4);
+    memcpy(out + off[F_LOG_US], &log_us, 4);
     for (size_t i = 0; i < nf; ++i) {
         const gcFinger *f = &w->fingers[i];
         hash = hash_finger(hash, w, (int)i);
@@ -241,31 +261,46 @@ static void fill_record(const gcWorld *w, const double *device_force, uint64_t t
         memcpy(wrench + 48 * b, &st->residual_force, 24);
         memcpy(wrench + 48 * b + 24, &st->residual_torque, 24);
     }
-    memcpy(handover, &schedule.object_tick, 8);
-    memcpy(handover + 8, &schedule.object_reads, 8);
-    memcpy(out + 24, &hash, 8);
+    memcpy(out + off[F_OBJECT_TICK], &schedule.object_tick, 8);
+    memcpy(out + off[F_OBJECT_READS], &schedule.object_reads, 8);
+    memcpy(out + off[F_STATE_HASH], &hash, 8);
+}
+
+int gc_tick_trace_fields(const char *const **names) {
+    static const char *trace_names[TRACE_COUNT];
+    for (int i = 0; i < TRACE_COUNT; ++i) trace_names[i] = tick_fields[trace_fields[i]].name;
+    if (names) *names = trace_names;
+    return TRACE_COUNT;
 }
 
 size_t gc_tick_trace_size(int num_bodies, int num_fingers) {
     if (num_bodies < 0 || num_fingers < 0) return 0;
-    return 8 + 56 * (size_t)num_fingers + 56 * (size_t)num_bodies;
+    size_t size = 0;
+    for (int i = 0; i < TRACE_COUNT; ++i)
+        size += field_bytes(&tick_fields[trace_fields[i]], (size_t)num_bodies, (size_t)num_fingers);
+    return size;
 }
 
-/* The record's time, contact, state, force, god_object and pose: tick k of each field's array. */
+/* Tick k of `total` into the trace: each trace field one array over the ticks, in trace_fields'
+ * order, tick k's values at k times the field's bytes in a record. */
 void gc_tick_trace_fill(const gcWorld *w, void *out, size_t k, size_t total) {
     const size_t nb = (size_t)w->num_bodies, nf = (size_t)w->num_fingers;
-    unsigned char *time = out, *contact = time + 8 * total, *state = contact + 4 * nf * total;
-    unsigned char *force = state + 4 * nf * total, *go = force + 24 * nf * total, *pose = go + 24 * nf * total;
-    memcpy(time + 8 * k, &w->time, 8);
+    unsigned char *at[F_COUNT] = {0}, *base = out;
+    for (int i = 0; i < TRACE_COUNT; ++i) {
+        size_t bytes = field_bytes(&tick_fields[trace_fields[i]], nb, nf);
+        at[trace_fields[i]] = base + bytes * k;
+        base += bytes * total;
+    }
+    memcpy(at[F_TIME], &w->time, 8);
     for (size_t i = 0; i < nf; ++i) {
         const gcFinger *f = &w->fingers[i];
         int32_t s = (int32_t)f->state;
-        memcpy(contact + 4 * (k * nf + i), &f->contact_body, 4);
-        memcpy(state + 4 * (k * nf + i), &s, 4);
-        memcpy(force + 24 * (k * nf + i), &f->force, 24);
-        memcpy(go + 24 * (k * nf + i), &f->god_object, 24);
+        memcpy(at[F_CONTACT] + 4 * i, &f->contact_body, 4);
+        memcpy(at[F_STATE] + 4 * i, &s, 4);
+        memcpy(at[F_FORCE] + 24 * i, &f->force, 24);
+        memcpy(at[F_GOD_OBJECT] + 24 * i, &f->god_object, 24);
     }
-    memcpy(pose + 56 * nb * k, w->pose_array, 56 * nb);
+    memcpy(at[F_POSE], w->pose_array, 56 * nb);
 }
 
 gcStatus gc_world_tick_record(gcWorld *w, uint64_t tick, void *out, size_t size) {

@@ -192,7 +192,7 @@ struct gcWorld {
     /* Per-tick log for recorders (tick_log.c); NULL when off. */
     struct gcTickLog *tick_log;
     /* Devices (device_hub.c): made with the world, so that one may attach before the runtime starts. */
-    struct gcDeviceHub *serial;
+    struct gcDeviceHub *hub;
     /* Scripted HIP track (hip_input.c), sampled by the runtime's haptic loop. */
     struct gcHipTrack *hip_track;
     /* 1 while the runtime owns the dynamic state: calls that would change it are refused. */
