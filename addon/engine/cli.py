@@ -198,6 +198,9 @@ def _configure_export(p):
     g.add_argument("--npz", metavar="FILE", help="write one .npz with every field")
     g.add_argument("--foxglove", metavar="OUT.mcap", help="a copy Foxglove shows: 3-D scene, transforms, "
                                                           "plot channels, events, at the display rate")
+    g.add_argument("--wav", metavar="OUT.wav", help="the grasp as sound: contact clicks, a tone whose pitch "
+                                                    "follows the normal force, slip scrapes, slip-margin "
+                                                    "warnings (docs/sound.md)")
     p.add_argument("--every", type=_positive_int, default=1, metavar="N", help="every N-th tick (default 1)")
 
 
@@ -329,7 +332,8 @@ def _run_resim(args, out, err):
 
 def _run_export(args, out, err):
     from .export import export_csv, export_npz
-    outputs.check_paths({"REC.mcap": args.recording}, {"--csv": args.csv, "--npz": args.npz}, folders=("--csv",))
+    outputs.check_paths({"REC.mcap": args.recording}, {"--csv": args.csv, "--npz": args.npz, "--wav": args.wav},
+                        folders=("--csv",))
     if args.csv:
         for name in ("bodies.csv", "fingers.csv", "events.csv"):
             outputs.check_paths({"REC.mcap": args.recording}, {"--csv": os.path.join(args.csv, name)})
@@ -342,6 +346,11 @@ def _run_export(args, out, err):
             raise CliError(str(ex)) from None
         print(f"{args.foxglove}: {done['frames']} frames at {done['rate']:g} Hz, {done['events']} events, "
               f"{done['bytes'] / 1e6:.2f} MB; layout {done['layout']}", file=out)
+    elif args.wav:
+        from .sound import write_wav
+        done = write_wav(args.wav, rec.header["scene"], rec.ticks)
+        print(f"{args.wav}: {done['seconds']:.3f} s of sound at {done['rate']} Hz, {done['clicks']} clicks",
+              file=out)
     elif args.csv:
         counts = export_csv(rec, args.csv, args.every)
         for name, n in counts.items():
@@ -428,7 +437,8 @@ register_command("bake", "bake a recording into a scene as keyframes", _configur
                  needs_blender=True)
 register_command("resim", "re-simulate a recording (with overrides); 'identical' or the divergence report",
                  _configure_resim, _run_resim)
-register_command("export", "a recording as CSV tables or one .npz", _configure_export, _run_export)
+register_command("export", "a recording as CSV tables, one .npz, a Foxglove copy or its sound (.wav)",
+                 _configure_export, _run_export)
 register_command("analyze", "grasp analysis of a recording: closure, epsilon, slip margins, grip against load "
                             "(docs/analysis.md)", _configure_analyze, _run_analyze)
 
