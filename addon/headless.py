@@ -197,7 +197,10 @@ def bake(args, out, err) -> int:
         print(f"warning: {w}", file=err)
     if len(rec.ticks) == 0:
         raise CliError(f"{args.recording}: no tick was recorded: nothing to bake")
-    report = baking.bake_recording(bpy.context, rec, every_tick=args.every_tick)
+    report = baking.bake_recording(bpy.context, rec, every_tick=args.every_tick,
+                                   sound_to=baking.sound_path(args.recording, args.save))
+    if report.sound_error:
+        print(f"warning: {args.recording}: no sound baked: {report.sound_error}", file=err)
     for name in report.missing:
         print(f"warning: {args.scene}: {name} is not in the scene (renamed or deleted): not baked", file=err)
     print(f"{args.recording}: {report.message()}", file=out)
