@@ -108,14 +108,17 @@ def run(args, out, err) -> int:
         if not args.duration:
             raise CliError("--device: give --duration S (a device session has no end of its own)")
         session = live_session(context, args.device, args.forces == "on", duration=args.duration,
-                               record_path=record)
+                               record_path=record, sound=args.sound)
     else:
         session = BlenderSession(context, live=args.realtime,
-                                 duration=args.duration if args.duration else None, record_path=record)
+                                 duration=args.duration if args.duration else None, record_path=record,
+                                 sound=args.sound)
         if session.duration == float("inf"):
             session.finish()
             raise CliError(f"{args.scene}: no fingertip is animated, so a real-time session has no end: "
                            f"give --duration S")
+    if session.sound_message:
+        print(f"grasp-lab run: {session.sound_message}", file=err, flush=True)
     if getattr(args, "live_view", None) is not None:
         _serve_live(session, args, out)
     if session.recorder is not None:

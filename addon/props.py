@@ -116,6 +116,13 @@ class GRASPLAB_PG_scene(bpy.types.PropertyGroup):
     recording_folder: StringProperty(name="Recording Folder", default="//grasp_recordings/",
                                      subtype="DIR_PATH",
                                      description="Where session recordings are written")
+    sound: BoolProperty(name="Sound", default=True,
+                        description="Hear the grasp in live sessions through Blender's audio: a click at each "
+                                    "touch, a tone whose pitch follows the squeeze, a scrape while a finger "
+                                    "slips, a beep when a held body is close to slipping (off in background "
+                                    "mode)")
+    sound_volume: FloatProperty(name="Volume", default=0.5, min=0.0, max=1.0, subtype="FACTOR",
+                                description="Loudness of the live sound")
     live_view: BoolProperty(name="Live View", default=False,
                             description="Serve live sessions to Foxglove over WebSocket, watching only "
                                         "(docs/viewers.md)")

@@ -139,6 +139,9 @@ def _configure_run(p):
                    help="device forces (default off, as in the UI): on turns them on at the start, ramping "
                         "in, with the same safety as the sidebar's Forces On")
     p.add_argument("--record", metavar="OUT.mcap", help="record every haptic tick to this file")
+    p.add_argument("--sound", action="store_true",
+                   help="with --realtime: play the grasp's sound through Blender's audio (docs/sound.md); "
+                        "headless Blender has no audio device, and says so")
     p.add_argument("--max-size", type=_size, default=limits.DEFAULT_MAX_SIZE, metavar="BYTES", help=MAX_SIZE_HELP)
     p.add_argument("--save", metavar="OUT.blend", help="save the scene after the session")
     p.add_argument("--set", action="append", default=[], type=_override, metavar="KEY=VALUE", help=SET_HELP)
@@ -392,6 +395,8 @@ def _run_run(args, out, err):
         check_device(spec)
     if args.live_view is not None and not args.realtime:
         raise CliError("--live-view needs --realtime (it serves a live session)")
+    if args.sound and not args.realtime:
+        raise CliError("--sound needs --realtime (it plays a live session)")
     if args.device and not args.realtime:
         raise CliError("--device needs --realtime (devices drive a live session on the threaded runtime)")
     if args.forces == "on" and not args.device:
