@@ -174,19 +174,20 @@ def run_scene(bpy, name, out_dir) -> dict:
     bpy.ops.wm.save_as_mainfile(filepath=paths["blend"], compress=True)
     t0 = time.perf_counter()
     _pinch().render(bpy, paths["png"])
+    video_frames = 0
     if name in VIDEO_SCENES:
         paths["video"] = os.path.join(out_dir, "scenes", f"{name}.mp4")
-        render_video(bpy, paths["video"])
+        video_frames = render_video(bpy, paths["video"])
         bpy.context.scene.frame_set(frame)
     t["render"] = time.perf_counter() - t0
     return {"name": name, "scene": sc, "result": r, "measured": m, "failures": bad, "paths": paths,
             "frame": frame, "force_scale": force_scale, "keys": report.keys, "timings": t,
-            "ticks": len(rec.ticks), "stats": r.stats}
+            "ticks": len(rec.ticks), "stats": r.stats, "video_frames": video_frames}
 
 
 def render_video(bpy, path):
     """The scene's whole frame range (Workbench) to an MP4, H.264 with the sequencer's sound (the
-    baked WAV) as AAC: what a browser plays."""
+    baked WAV) as AAC: what a browser plays. Returns the frames rendered."""
     scene = bpy.context.scene
     r = scene.render
     settings = (r.filepath, r.image_settings.file_format, r.resolution_x, r.resolution_y)
@@ -206,6 +207,7 @@ def render_video(bpy, path):
     r.filepath, r.image_settings.file_format, r.resolution_x, r.resolution_y = settings
     if not os.path.exists(path):
         raise RuntimeError(f"{path}: the video was not written")
+    return scene.frame_end - scene.frame_start + 1
 
 
 def _read_grasp_csv(path, body):

@@ -4,63 +4,15 @@ not doubled); a headless render to video (bpy's FFmpeg output, QuickTime with 16
 carries an audio stream of the rendered range's length whose samples are the WAV's at those
 frames. The container is read here (its atoms), so no ffprobe is needed."""
 import os
-import struct
 
 import numpy as np
 import pytest
 
 import grasp_env
+import media
 
 FPS = 24
 RATE = 48000
-
-
-def _atoms(buf, off, end):
-    while off + 8 <= end:
-        size, kind = struct.unpack(">I4s", buf[off:off + 8])
-        head = 8
-        if size == 1:
-            size, head = struct.unpack(">Q", buf[off + 8:off + 16])[0], 16
-        elif size == 0:
-            size = end - off
-        if size < head or off + size > end:
-            raise ValueError(f"atom {kind!r} at {off}: size {size} outside its parent")
-        yield kind, off + head, off + size
-        off += size
-
-
-def _one(buf, off, end, path):
-    """The body (start, end) of the one atom at ``path`` below [off, end)."""
-    for kind, a, b in _atoms(buf, off, end):
-        if kind == path[0]:
-            return (a, b) if len(path) == 1 else _one(buf, a, b, path[1:])
-    raise ValueError(f"no {path[0]!r} atom")
-
-
-def quicktime_audio(data: bytes):
-    """(rate, duration in samples, codec, samples int16) of a QuickTime file's sound track with
-    uncompressed little-endian 16-bit mono samples ('sowt') in chunks of a fixed sample count."""
-    moov = _one(data, 0, len(data), [b"moov"])
-    for kind, a, b in _atoms(data, *moov):
-        if kind != b"trak":
-            continue
-        h0, _ = _one(data, a, b, [b"mdia", b"hdlr"])
-        if data[h0 + 8:h0 + 12] != b"soun":
-            continue
-        m0, _ = _one(data, a, b, [b"mdia", b"mdhd"])
-        rate, duration = struct.unpack(">II", data[m0 + 12:m0 + 20])
-        stbl = _one(data, a, b, [b"mdia", b"minf", b"stbl"])
-        s0, _ = _one(data, *stbl, [b"stsd"])
-        codec = data[s0 + 12:s0 + 16]
-        c0, _ = _one(data, *stbl, [b"stco"])
-        n = struct.unpack(">I", data[c0 + 4:c0 + 8])[0]
-        offsets = struct.unpack(f">{n}I", data[c0 + 8:c0 + 8 + 4 * n])
-        p0, _ = _one(data, *stbl, [b"stsc"])
-        assert struct.unpack(">I", data[p0 + 4:p0 + 8])[0] == 1, "chunks of one size expected"
-        per_chunk = struct.unpack(">III", data[p0 + 8:p0 + 20])[1]
-        pcm = np.concatenate([np.frombuffer(data[o:o + 2 * per_chunk], "<i2") for o in offsets])
-        return rate, duration, codec, pcm
-    raise ValueError("no sound track")
 
 
 @pytest.fixture()
@@ -115,7 +67,8 @@ def test_a_headless_render_to_video_carries_the_sound_of_its_frames(bpy, baked, 
     r.ffmpeg.audio_mixrate = RATE
     r.filepath = str(tmp_path / "pinch.mov")
     bpy.ops.render.render(animation=True)
-    rate, duration, codec, pcm = quicktime_audio(open(tmp_path / "pinch.mov", "rb").read())
+    track = media.sound_track(open(tmp_path / "pinch.mov", "rb").read())
+    rate, duration, codec, pcm = track["rate"], track["duration"], track["codec"], track["pcm"]
     frames = last - first + 1
     expected = frames * RATE // FPS
     assert (rate, codec) == (RATE, b"sowt")
