@@ -95,6 +95,37 @@ def _band_pass(rate: int, low: float = 1000.0, high: float = 6000.0, taps: int =
     return h / np.sqrt(np.sum(h * h))       # unit noise power in, about unit power out
 
 
+class _Gates:
+    """Fades of on/off targets (one per column): from a change of target at time tau with value
+    e there, the value moves toward the new target at 1 / attack per second. Computed from the
+    last change, never step by step, so the values at a time are the same however the records
+    were split between calls."""
+
+    def __init__(self, columns: int, attack: float):
+        self.attack = attack
+        self.tau = np.zeros(columns)
+        self.start = np.zeros(columns)
+        self.target = np.zeros(columns)
+
+    def _value(self, c, t):
+        gap = self.start[c] - self.target[c]
+        return self.target[c] + np.sign(gap) * np.maximum(np.abs(gap) - (t - self.tau[c]) / self.attack, 0.0)
+
+    def at(self, targets: np.ndarray, times: np.ndarray) -> np.ndarray:
+        """Values (len(times), columns) at ``times``; ``targets[k]`` holds from ``times[k]`` on
+        (targets[0]: the one already held at times[0])."""
+        out = np.empty(targets.shape)
+        for c in range(targets.shape[1]):
+            changes = np.flatnonzero(targets[1:, c] != targets[:-1, c]) + 1
+            bounds = [0, *changes.tolist(), len(times)]
+            for a, b in zip(bounds[:-1], bounds[1:]):
+                if a > 0:
+                    self.start[c] = self._value(c, times[a])
+                    self.tau[c], self.target[c] = times[a], targets[a, c]
+                out[a:b, c] = self._value(c, times[a:b])
+        return out
+
+
 class Sonifier:
     """Tick records in, samples (float32, mono, in -1..1) out; see the module's docstring.
 
@@ -110,11 +141,12 @@ class Sonifier:
         self.nb = len(self.models)
         self.rate = int(self.mapping.sample_rate)
         self._h = _band_pass(self.rate)
-        self._noise = [np.random.Generator(np.random.PCG64(0x5C2A9E + f)) for f in range(self.nf)]
+        # One noise stream per finger, indexed by sample: skipped (advanced) where it is silent.
+        self._noise = [np.random.PCG64(0x5C2A9E + f) for f in range(self.nf)]
         self._noise_tail = np.zeros((self.nf, _NOISE_TAPS - 1))
+        self._gates = _Gates(2 * self.nf + 1, self.mapping.attack)     # tone, slip per finger; warning
         self._prev = None           # the last record fed (its state holds until the next)
-        self._held = None           # its (frequency, tone, slip, warning targets)
-        self._env = None            # (tone, slip, warning) envelopes at the last record
+        self._held = None           # its (frequency, gate targets, slip loudness)
         self._phase = np.zeros(self.nf)     # tone phase in cycles at the last record's time
         self._clicks = []           # (onset sample, amplitude) of clicks still sounding
         self.next_sample = 0        # the first sample not yet produced
@@ -122,48 +154,44 @@ class Sonifier:
 
     # ------------------------------------------------------------------ per record
     def _targets(self, rec, prev):
-        """Per record: tone frequency, tone / slip / warning envelope targets, and the slip
-        loudness. ``prev``: the records before (same length) for speeds; None: no speed."""
+        """Per record: the tone's frequency, the gate targets (touching per finger, slipping per
+        finger, a held body's slip margin low), the scrape's loudness (slip speed)."""
         m = self.mapping
         contact = rec["contact"]
         touching = (contact >= 0) & (rec["state"] > 0)
         fn, ft = analysis.contact_forces(rec["force"], rec["normal"])
         freq = m.pitch(np.maximum(fn, 0.0))
         slipping = touching & (rec["state"] == SLIP)
-        slip_speed = np.zeros(fn.shape)
-        if prev is not None:
-            dt = (rec["time"] - prev["time"])[:, None]
-            with np.errstate(divide="ignore", invalid="ignore"):
-                v_go = (rec["god_object"] - prev["god_object"]) / np.where(dt > 0, dt, np.inf)[..., None]
+        # Slip speed: the god-object's velocity over the body's surface point under it.
+        dt = (rec["time"] - prev["time"])[:, None]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            v_go = (rec["god_object"] - prev["god_object"]) / np.where(dt > 0, dt, np.inf)[..., None]
+        if self.nb:
             body = np.where(contact >= 0, contact, 0)
             rows = np.arange(len(rec))[:, None]
-            pose = rec["pose"][rows, body] if self.nb else np.zeros(contact.shape + (7,))
-            vel = rec["velocity"][rows, body] if self.nb else np.zeros(contact.shape + (6,))
-            v_surface = vel[..., :3] + analysis._cross(vel[..., 3:], rec["god_object"] - pose[..., :3])
-            rel = v_go - v_surface
-            n = rec["normal"]
-            rel = rel - np.einsum("...k,...k->...", rel, n)[..., None] * n
-            slip_speed = np.sqrt(np.einsum("...k,...k->...", rel, rel))
-        slip_level = np.where(slipping, np.clip(slip_speed / m.slip_speed_full, 0.0, 1.0), 0.0)
-        # The warning: per dynamic body held, its smallest slip margin mu |Fn| - |Ft| below the threshold.
+            pose, vel = rec["pose"][rows, body], rec["velocity"][rows, body]
+            v_go = v_go - vel[..., :3] - analysis._cross(vel[..., 3:], rec["god_object"] - pose[..., :3])
+        n = rec["normal"]
+        v_go = v_go - np.einsum("...k,...k->...", v_go, n)[..., None] * n
+        slip_speed = np.sqrt(np.einsum("...k,...k->...", v_go, v_go))
+        loud = np.where(slipping, np.clip(slip_speed / m.slip_speed_full, 0.0, 1.0), 0.0)
+        # The warning: a dynamic body held with its smallest slip margin mu |Fn| - |Ft| below the threshold.
         mu = analysis.cone_mu(self.models, rec["state"], contact)
-        margin = np.where(touching & self.dynamic[np.where(contact >= 0, contact, self.nb)], mu * fn - ft, np.inf)
-        warn = np.zeros((len(rec), self.nb), dtype=bool)
-        for b in range(self.nb):
-            on_b = contact == b
-            low = np.where(on_b, margin, np.inf).min(axis=1) if self.nf else np.full(len(rec), np.inf)
-            warn[:, b] = low < m.warning_margin
-        return freq, touching.astype(np.float64), slip_level, warn.any(axis=1).astype(np.float64)
+        held = touching & self.dynamic[np.where(contact >= 0, contact, self.nb)]
+        warn = np.any(held & (mu * fn - ft < m.warning_margin), axis=1)
+        gates = np.concatenate([touching, slipping, warn[:, None]], axis=1).astype(np.float64)
+        return freq, gates, loud
 
-    def _onsets(self, rec, prev_state, prev_hip):
+    def _onsets(self, rec, touched_before, hip_before, time_before):
         """Clicks of the records: (record index, finger, amplitude) where a finger starts touching."""
         m = self.mapping
         touching = (rec["contact"] >= 0) & (rec["state"] > 0)
-        before = np.concatenate([prev_state[None], touching[:-1]])
-        hips = np.concatenate([prev_hip[None], rec["hip"][:-1]])
+        before = np.concatenate([touched_before[None], touching[:-1]])
+        hips = np.concatenate([hip_before[None], rec["hip"][:-1]])
+        times = np.concatenate([[time_before], rec["time"][:-1]])
         out = []
         for k, f in zip(*np.nonzero(touching & ~before)):
-            dt = rec["time"][k] - (self._prev["time"][0] if k == 0 else rec["time"][k - 1])
+            dt = rec["time"][k] - times[k]
             approach = -float(np.dot(rec["hip"][k, f] - hips[k, f], rec["normal"][k, f])) / dt if dt > 0 else 0.0
             loud = np.clip(approach / m.click_speed_full, m.click_min, 1.0)
             out.append((int(k), int(f), float(m.click_gain * loud)))
@@ -188,78 +216,81 @@ class Sonifier:
             self._prev["time"] = min(0.0, float(records["time"][0]))
             self._prev["contact"] = -1
             self._prev["state"] = 0
+            self._gates.tau[:] = self._prev["time"][0]
+            self._held = (np.full(self.nf, m.pitch_low), np.zeros(2 * self.nf + 1), np.zeros(self.nf))
             records = records[records["time"] > self._prev["time"][0]]     # tick 0 at time 0: the start
-            self._env = (np.zeros(self.nf), np.zeros(self.nf), 0.0)
-            self._held = (np.full(self.nf, m.pitch_low), np.zeros(self.nf), np.zeros(self.nf), 0.0)
         prev = self._prev
         if not len(records):
             return np.zeros(0, np.float32)
         seq = np.concatenate([prev, records])            # the held record, then the new ones
-        freq, tone_t, slip_t, warn_t = self._targets(records, seq[:-1])
+        freq, gates, loud = self._targets(records, seq[:-1])
         touched = ((prev["contact"] >= 0) & (prev["state"] > 0))[0]
-        for k, f, amp in self._onsets(records, touched, prev["hip"][0]):
-            onset = int(np.ceil(records["time"][k] * rate - 1e-9))
-            self._clicks.append((onset, amp))
+        for k, f, amp in self._onsets(records, touched, prev["hip"][0], float(prev["time"][0])):
+            self._clicks.append((int(np.ceil(records["time"][k] * rate - 1e-9)), amp))
             self.clicks.append((float(records["time"][k]), f, amp))
         # Each record's state holds from its time to the next record's: seq[k]'s (the held
-        # record's first) frequency and envelope targets.
-        held_freq = np.concatenate([self._held[0][None], freq])
-        tone_t = np.concatenate([self._held[1][None], tone_t])
-        slip_t = np.concatenate([self._held[2][None], slip_t])
-        warn_t = np.concatenate([[self._held[3]], warn_t])
-        # Envelopes at each record: linear moves toward their targets, attack seconds end to end.
+        # record's first).
+        freq = np.concatenate([self._held[0][None], freq])
+        gates = np.concatenate([self._held[1][None], gates])
+        loud = np.concatenate([self._held[2][None], loud])
         times = seq["time"]
-        tone_env = np.empty((len(seq), self.nf))
-        slip_env = np.empty((len(seq), self.nf))
-        warn_env = np.empty(len(seq))
-        tone_env[0], slip_env[0], warn_env[0] = self._env
-        step = np.diff(times) / m.attack
-        for k in range(1, len(seq)):
-            s = step[k - 1]
-            tone_env[k] = np.clip(tone_t[k - 1], tone_env[k - 1] - s, tone_env[k - 1] + s)
-            slip_env[k] = np.clip(slip_t[k - 1], slip_env[k - 1] - s, slip_env[k - 1] + s)
-            warn_env[k] = min(max(warn_t[k - 1], warn_env[k - 1] - s), warn_env[k - 1] + s)
-        phase = np.add.accumulate(np.concatenate([self._phase[None], held_freq[:-1] * np.diff(times)[:, None]]),
-                                  axis=0)                               # cycles at each record
+        env = self._gates.at(gates, times)                  # (len(seq), 2 nf + 1) at the records
+        phase = np.add.accumulate(np.concatenate([self._phase[None], freq[:-1] * np.diff(times)[:, None]]),
+                                  axis=0)                   # cycles at each record
         n0 = self.next_sample
-        n1 = int(np.ceil(times[-1] * rate - 1e-9))
-        n = np.arange(n0, max(n0, n1))
+        n1 = max(n0, int(np.ceil(times[-1] * rate - 1e-9)))
+        n = np.arange(n0, n1)
         t = n / rate
         seg = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(seq) - 2)
         frac = (t - times[seg]) / (times[seg + 1] - times[seg])
         out = np.zeros(len(n))
-        if self.nf:
-            tone_a = tone_env[seg] + frac[:, None] * (tone_env[seg + 1] - tone_env[seg])
-            ph = phase[seg] + held_freq[seg] * (t - times[seg])[:, None]
-            out += m.tone_gain * np.sum(tone_a * np.sin(2 * np.pi * ph), axis=1)
-            slip_a = slip_env[seg] + frac[:, None] * (slip_env[seg + 1] - slip_env[seg])
-            out += m.slip_gain * np.sum(slip_a * self._filtered_noise(len(n)), axis=1)
-        warn_a = warn_env[seg] + frac * (warn_env[seg + 1] - warn_env[seg])
-        if np.any(warn_a > 0):
+        nf = self.nf
+        for f in range(nf):
+            if np.any(env[:, f] > 0):
+                a = env[seg, f] + frac * (env[seg + 1, f] - env[seg, f])
+                out += m.tone_gain * a * np.sin(2 * np.pi * (phase[seg, f] + freq[seg, f] * (t - times[seg])))
+            white = self._white(f, len(n), silent=not np.any(env[:, nf + f] > 0))
+            if white is not None:
+                a = (env[seg, nf + f] + frac * (env[seg + 1, nf + f] - env[seg, nf + f])) * \
+                    (loud[seg, f] + frac * (loud[seg + 1, f] - loud[seg, f]))
+                out += m.slip_gain * a * self._band(f, white)
+        if np.any(env[:, -1] > 0):
+            a = env[seg, -1] + frac * (env[seg + 1, -1] - env[seg, -1])
             cyc = np.mod(t, m.warning_period)
             pulse = np.where(cyc < m.warning_on, np.sin(np.pi * cyc / m.warning_on) ** 2, 0.0)
-            out += m.warning_gain * warn_a * pulse * np.sin(2 * np.pi * m.warning_freq * t)
+            out += m.warning_gain * a * pulse * np.sin(2 * np.pi * m.warning_freq * t)
         out += self._render_clicks(n0, len(n))
         self._prev = records[-1:].copy()
-        self._held = (held_freq[-1], tone_t[-1], slip_t[-1], float(warn_t[-1]))
-        self._env = (tone_env[-1], slip_env[-1], float(warn_env[-1]))
+        self._held = (freq[-1], gates[-1], loud[-1])
         self._phase = phase[-1]
-        self.next_sample = max(n0, n1)
+        self.next_sample = n1
         return np.clip(out * m.volume, -1.0, 1.0).astype(np.float32)
 
-    def _filtered_noise(self, count: int) -> np.ndarray:
-        """(count, nf) band-passed white noise, continuing each finger's stream."""
-        out = np.empty((count, self.nf))
+    def _white(self, f: int, count: int, silent: bool):
+        """The next ``count`` white noise samples of finger f's stream, or None when ``silent``
+        (the stream skips them: the same samples follow whatever was skipped)."""
+        taps = len(self._h) - 1
+        gen = self._noise[f]
+        if silent and count > taps:
+            gen.advance(count - taps)       # one 64-bit draw per sample, as random() takes
+            self._noise_tail[f] = np.random.Generator(gen).random(taps) * 2.0 - 1.0
+            return None
+        white = np.random.Generator(gen).random(count) * 2.0 - 1.0
+        if silent:
+            self._noise_tail[f] = np.concatenate([self._noise_tail[f], white])[-taps:]
+            return None
+        return white
+
+    def _band(self, f: int, white: np.ndarray) -> np.ndarray:
+        """Finger f's white noise band-passed (FIR), continuing from its last samples."""
         h = self._h
-        for f in range(self.nf):
-            white = self._noise[f].random(count) * 2.0 - 1.0
-            x = np.concatenate([self._noise_tail[f], white])
-            y = np.zeros(count)
-            for j in range(len(h)):         # tap by tap: the same sums whatever the pieces
-                y += h[j] * x[len(h) - 1 - j:len(h) - 1 - j + count]
-            out[:, f] = y
-            self._noise_tail[f] = x[-(len(h) - 1):]
-        return out
+        taps = len(h) - 1
+        x = np.concatenate([self._noise_tail[f], white])
+        y = np.zeros(len(white))
+        for j in range(len(h)):             # tap by tap: the same sums whatever the pieces
+            y += h[j] * x[taps - j:taps - j + len(white)]
+        self._noise_tail[f] = x[-taps:]
+        return y
 
     def _render_clicks(self, n0: int, count: int) -> np.ndarray:
         m = self.mapping
