@@ -225,10 +225,12 @@ def sound_path(rec_path: str, blend_path: str = "") -> str:
 def bake_sound(scene, rec_path: str, wav_path: str, frame_start: int) -> str:
     """The recording's sound (every tick: engine/sound.py) as a WAV at ``wav_path`` and as the
     scene's sound strip "Grasp Lab Sound" from ``frame_start`` (the frame of session time 0),
-    replacing the strip of an earlier bake: a render to video (FFmpeg with audio) carries it."""
+    replacing the strip of an earlier bake: a render to video (FFmpeg with audio) carries it.
+    The mapping: the scene's (its Session panel's pitch settings)."""
     from .engine.recording import open_recording
+    from .sound_live import mapping_of
     full = open_recording(rec_path)             # the bake's own copy may hold only the frames' ticks
-    done = sound.write_wav(wav_path, full.header["scene"], full.ticks)
+    done = sound.write_wav(wav_path, full.header["scene"], full.ticks, mapping_of(scene.grasp_lab))
     if scene.sequence_editor is None:
         scene.sequence_editor_create()
     editor = scene.sequence_editor

@@ -140,7 +140,7 @@ class BlenderSession:
         # audio device there and runs silent.
         self.sound, self.sound_message = None, ""
         if live and (s.sound and not bpy.app.background if sound is None else sound):
-            self.sound, self.sound_message = sound_live.open_live_sound(desc, s.display_rate, s.sound_volume)
+            self.sound, self.sound_message = sound_live.open_live_sound(desc, s)
         tap = TickTap(self.handle.world, recording.tick_dtype(len(desc.bodies), len(desc.fingers)),
                       s.haptic_rate) if self.sound is not None else None
         self.runner = SessionRunner(self.handle, self.source, haptic_rate=s.haptic_rate,

@@ -24,6 +24,13 @@ MARGIN = 0.03           # s of slack past 1.5 display intervals
 KEEP = 2.0              # s: entries this far behind the playing position are removed
 
 
+def mapping_of(settings) -> SoundMapping:
+    """The scene's sound mapping (the Session panel's pitch settings; the rest as documented).
+    ValueError naming the setting for a mapping that cannot be (a high pitch below the low)."""
+    return SoundMapping(pitch_low=settings.sound_pitch_low, pitch_high=settings.sound_pitch_high,
+                        force_full=settings.sound_force_full, curve=settings.sound_curve)
+
+
 class NoAudioDevice(RuntimeError):
     """Blender has no audio output here; the message says why and what to do."""
 
@@ -115,11 +122,11 @@ class LiveSound:
         self.entries = []
 
 
-def open_live_sound(scene_desc, display_rate: float, volume: float):
-    """(LiveSound, "") or (None, why not)."""
+def open_live_sound(scene_desc, settings):
+    """(LiveSound, "") or (None, why not), with the scene ``settings``' rate, volume, mapping."""
     try:
-        return LiveSound(scene_desc, display_rate, volume), ""
-    except NoAudioDevice as ex:
+        return LiveSound(scene_desc, settings.display_rate, settings.sound_volume, mapping_of(settings)), ""
+    except (NoAudioDevice, ValueError) as ex:
         return None, str(ex)
     except Exception as ex:         # audaspace's own errors (aud.error): say them, run silent
         return None, f"no sound: {ex}"

@@ -205,6 +205,9 @@ def _configure_export(p):
                                                     "follows the normal force, slip scrapes, slip-margin "
                                                     "warnings (docs/sound.md)")
     p.add_argument("--every", type=_positive_int, default=1, metavar="N", help="every N-th tick (default 1)")
+    p.add_argument("--sound-map", action="append", default=[], metavar="KEY=VALUE",
+                   help="with --wav: a setting of the sound's mapping, e.g. pitch_low=200, pitch_high=1200, "
+                        "force_full=5, curve=1, volume=0.8 (docs/sound.md lists them)")
 
 
 def _edges(text):
@@ -340,6 +343,15 @@ def _run_export(args, out, err):
     if args.csv:
         for name in ("bodies.csv", "fingers.csv", "events.csv"):
             outputs.check_paths({"REC.mcap": args.recording}, {"--csv": os.path.join(args.csv, name)})
+    mapping = None
+    if args.sound_map:
+        if not args.wav:
+            raise CliError("--sound-map goes with --wav")
+        from .sound import mapping_from
+        try:
+            mapping = mapping_from(args.sound_map)
+        except ValueError as ex:
+            raise CliError(str(ex)) from None
     rec = _open(args.recording, err)
     if args.foxglove:
         from .viewer import export_foxglove
@@ -351,7 +363,7 @@ def _run_export(args, out, err):
               f"{done['bytes'] / 1e6:.2f} MB; layout {done['layout']}", file=out)
     elif args.wav:
         from .sound import write_wav
-        done = write_wav(args.wav, rec.header["scene"], rec.ticks)
+        done = write_wav(args.wav, rec.header["scene"], rec.ticks, mapping)
         print(f"{args.wav}: {done['seconds']:.3f} s of sound at {done['rate']} Hz, {done['clicks']} clicks",
               file=out)
     elif args.csv:

@@ -82,6 +82,23 @@ class SoundMapping:
         return self.pitch_low * (self.pitch_high / self.pitch_low) ** u
 
 
+def mapping_from(settings) -> SoundMapping:
+    """A SoundMapping from ``KEY=VALUE`` texts (``grasp-lab export --wav --sound-map``); ValueError
+    naming the text for an unknown key or a value that is not a number."""
+    names = {f.name for f in fields(SoundMapping)}
+    values = {}
+    for text in settings:
+        key, eq, value = text.partition("=")
+        key = key.strip()
+        if not eq or key not in names:
+            raise ValueError(f"--sound-map {text}: expected KEY=VALUE with KEY one of {', '.join(sorted(names))}")
+        try:
+            values[key] = int(value) if key == "sample_rate" else float(value)
+        except ValueError:
+            raise ValueError(f"--sound-map {text}: {value!r} is not a number") from None
+    return SoundMapping(**values)
+
+
 # The scrape's band: a windowed-sinc band-pass (1-6 kHz at 48 kHz) applied to white noise.
 _NOISE_TAPS = 31
 _CLICK_LENGTH = 8       # click time constants after which a click is over (e^-8: inaudible)

@@ -208,3 +208,26 @@ def test_malformed_wavs_and_mappings_are_refused_with_a_message():
         sound.SoundMapping(sample_rate=8000, click_freq=5000.0)
     with pytest.raises(ValueError, match="curve must be finite"):
         sound.SoundMapping(curve=float("nan"))
+
+
+def test_the_mapping_is_adjustable_from_the_command_line(synthetic, tmp_path):
+    rec, x, son = synthetic
+    out, err = io.StringIO(), io.StringIO()
+    wav = tmp_path / "high.wav"
+    assert cli.main(["export", str(rec.path), "--wav", str(wav), "--sound-map", "pitch_low=300",
+                     "--sound-map", "pitch_high=1200", "--sound-map", "curve=1"], out=out, err=err) == 0, err.getvalue()
+    samples, _ = sound.read_wav(wav.read_bytes())
+    mapping = sound.SoundMapping(pitch_low=300.0, pitch_high=1200.0, curve=1.0)
+    t0, t1 = 0.25, 0.30                 # finger 0 alone, 2.3 N
+    expected = float(mapping.pitch(f0_force(0.5 * (t0 + t1))))
+    assert peak_frequency(window(samples, t0, t1), 0.85 * expected, 1.15 * expected) == \
+        pytest.approx(expected, rel=0.02)
+    for bad, why in [(["--sound-map", "pitch=3"], "KEY one of"), (["--sound-map", "curve=steep"], "not a number"),
+                     (["--sound-map", "pitch_low=900"], "pitch_high")]:
+        out, err = io.StringIO(), io.StringIO()
+        assert cli.main(["export", str(rec.path), "--wav", str(tmp_path / "bad.wav"), *bad], out=out, err=err) != 0
+        assert why in err.getvalue(), err.getvalue()
+        assert not (tmp_path / "bad.wav").exists()
+    out, err = io.StringIO(), io.StringIO()
+    assert cli.main(["export", str(rec.path), "--npz", str(tmp_path / "x.npz"), "--sound-map", "curve=1"],
+                    out=out, err=err) != 0 and "--sound-map goes with --wav" in err.getvalue()
