@@ -62,8 +62,9 @@ def live() -> list:
     reason = gui_run.why_not()
     if reason:
         return [f"Live in the GUI Blender: not measured ({reason})."]
-    zip_path = os.environ.get("GRASP_LAB_ZIP") or os.path.join(ROOT, "build", "grasp_lab.zip")
-    env = gui_run.prepare(zip_path)
+    import glob
+    zips = sorted(glob.glob(os.path.join(ROOT, "dist", "grasp_lab-*-linux_x64.zip")))
+    env = gui_run.prepare(os.environ.get("GRASP_LAB_ZIP") or (zips[-1] if zips else ""))
     r, console, _ = gui_run.run(env, "sound", timeout=400)
     if not r.get("ok"):
         return [f"Live in the GUI Blender: the scenario failed:\n\n```\n{r.get('error')}\n```"]

@@ -255,3 +255,23 @@ def test_the_robustness_panel_sweeps_the_last_recording(gui):
     # the map in the sidebar: thousands of pixels in the held probability's colours (red to
     # green), where the sidebar had next to none while the sweep ran
     assert r["warm_before"] < 500 and r["warm_after"] > r["warm_before"] + 3000, r
+
+
+def test_a_live_session_with_sound_on_plays_every_tick(gui):
+    """docs/sound.md: the pinch and lift live with Sound on through a real audio output (SDL's
+    dummy driver: no sound card under Xvfb), then off, twice each; the display rates with and
+    without are measured by bench/bench_sound.py, not asserted here."""
+    r, console, code = run(gui, "sound", timeout=400)
+    ok(r, console)
+    assert r["audio"], f"no audio output opened in the GUI Blender (outputs: {r.get('audio_devices')})"
+    assert r["sound_messages"] == ["", "", "", ""]
+    for run_ in r["runs"]:
+        st = run_["sound_stats"]
+        if not run_["sound"]:
+            assert st is None
+            continue
+        # Every tick sounded: the stretches placed cover the session, both fingers' touches clicked.
+        assert abs(st["seconds"] - run_["time"]) < 0.01, run_
+        assert st["clicks"] >= 2 and st["updates"] > 5
+        assert 0 < st["latency_ms"] < 2000 and st["late"] <= 2, run_
+    stopped_cleanly(r)
