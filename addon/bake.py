@@ -226,7 +226,9 @@ def bake_sound(scene, rec_path: str, wav_path: str, frame_start: int) -> str:
     """The recording's sound (every tick: engine/sound.py) as a WAV at ``wav_path`` and as the
     scene's sound strip "Grasp Lab Sound" from ``frame_start`` (the frame of session time 0),
     replacing the strip of an earlier bake: a render to video (FFmpeg with audio) carries it.
-    The mapping: the scene's (its Session panel's pitch settings)."""
+    The mapping: the scene's (its Session panel's pitch settings). The strip names the WAV
+    relative to the open .blend when it is saved (Blender moves such paths along when the scene
+    is saved elsewhere: ``//name.wav`` beside the .blend it is saved as)."""
     from .engine.recording import open_recording
     from .sound_live import mapping_of
     full = open_recording(rec_path)             # the bake's own copy may hold only the frames' ticks
@@ -240,13 +242,17 @@ def bake_sound(scene, rec_path: str, wav_path: str, frame_start: int) -> str:
         strips.remove(old)
     strip = strips.new_sound(SOUND_STRIP, done["path"], channel=1, frame_start=int(frame_start))
     strip.name = SOUND_STRIP
+    if bpy.data.filepath:
+        strip.sound.filepath = bpy.path.relpath(done["path"])
     return done["path"]
 
 
 def bake_recording(context, rec: Recording, every_tick: bool = False, force_scale: float | None = None,
-                   torque_scale: float | None = None, sound_to: str | None = None) -> BakeReport:
+                   torque_scale: float | None = None, sound_to: str | None = None,
+                   blend_path: str | None = None) -> BakeReport:
     """Bake ``rec`` into the context's scene. Returns what was baked and what was missing.
-    ``sound_to``: the WAV of its sound (default: sound_path beside the saved .blend; "" none)."""
+    ``sound_to``: the WAV of its sound (default: sound_path beside the .blend; "" none);
+    ``blend_path``: the .blend the scene will be saved as (default: the open file's, if saved)."""
     scene = context.scene
     s = scene.grasp_lab
     force_scale = s.force_scale if force_scale is None else force_scale
@@ -339,8 +345,9 @@ def bake_recording(context, rec: Recording, every_tick: bool = False, force_scal
     if scene.frame_end < last:
         report.frame_end_was, report.frame_end = scene.frame_end, last
         scene.frame_end = last
+    blend_path = bpy.data.filepath if blend_path is None else blend_path
     if sound_to is None:
-        sound_to = sound_path(rec.path, bpy.data.filepath)
+        sound_to = sound_path(rec.path, blend_path)
     if sound_to:
         # Last: the keys are in whatever becomes of the sound (a read-only folder says so).
         try:

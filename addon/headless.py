@@ -200,8 +200,7 @@ def bake(args, out, err) -> int:
         print(f"warning: {w}", file=err)
     if len(rec.ticks) == 0:
         raise CliError(f"{args.recording}: no tick was recorded: nothing to bake")
-    report = baking.bake_recording(bpy.context, rec, every_tick=args.every_tick,
-                                   sound_to=baking.sound_path(args.recording, args.save))
+    report = baking.bake_recording(bpy.context, rec, every_tick=args.every_tick, blend_path=args.save)
     if report.sound_error:
         print(f"warning: {args.recording}: no sound baked: {report.sound_error}", file=err)
     for name in report.missing:

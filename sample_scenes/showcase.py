@@ -155,8 +155,7 @@ def run_scene(bpy, name, out_dir) -> dict:
     s.force_scale = force_scale
     t0 = time.perf_counter()
     rec = recording.open_recording(paths["recording"])
-    report = bake.bake_recording(bpy.context, rec, force_scale=force_scale,
-                                 sound_to=bake.sound_path(paths["recording"], paths["blend"]))
+    report = bake.bake_recording(bpy.context, rec, force_scale=force_scale, blend_path=paths["blend"])
     if report.sound_error:
         raise RuntimeError(f"{name}: no sound baked: {report.sound_error}")
     paths["sound"] = report.sound

@@ -82,3 +82,20 @@ def test_a_headless_render_to_video_carries_the_sound_of_its_frames(bpy, baked, 
     got = pcm[4:expected - 4].astype(np.float64)
     error = {lag: np.abs(got - wav16[start + 4 + lag:start + expected - 4 + lag]).max() for lag in range(-2, 3)}
     assert min(error.values()) <= 1, error
+
+
+def test_grasp_lab_bake_writes_the_sound_beside_the_saved_blend(bpy, baked, tmp_path):
+    import io
+    cli = grasp_env.submodule("engine.cli")
+    scene_blend = tmp_path / "scene.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(scene_blend))
+    (tmp_path / "out").mkdir()
+    out, err = io.StringIO(), io.StringIO()
+    code = cli.main(["bake", baked, str(scene_blend), "--save", str(tmp_path / "out" / "after.blend")],
+                    out=out, err=err)
+    assert code == 0, err.getvalue()
+    wav = tmp_path / "out" / (os.path.splitext(os.path.basename(baked))[0] + ".wav")
+    assert wav.is_file() and "a sound strip in the sequencer" in out.getvalue()
+    bpy.ops.wm.open_mainfile(filepath=str(tmp_path / "out" / "after.blend"))
+    strips = _strips(bpy.context.scene)
+    assert [st.sound.filepath for st in strips] == [f"//{wav.name}"]
