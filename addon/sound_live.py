@@ -3,8 +3,8 @@
 Every display update the session hands ``LiveSound.update`` the tick records of the interval
 (engine/tick_tap.py); engine/sound.py's Sonifier turns them into the samples of that stretch of
 session time, and they are placed in one playing ``aud.Sequence`` at their session time plus a
-fixed offset, so consecutive stretches join sample for sample whatever the display's rhythm (no
-click is lost between updates). The offset is the latency: chosen at the first update so that
+fixed offset (whole samples), so consecutive stretches join whatever the display's rhythm (no
+click is lost between updates; audaspace starts an entry within one sample of its place). The offset is the latency: chosen at the first update so that
 the next stretch still arrives before its place is played (1.5 display intervals + 30 ms, at
 least the longest interval seen); a stretch that arrives late all the same moves the offset
 later (a gap once, counted as ``late``), never earlier.
@@ -36,8 +36,12 @@ class NoAudioDevice(RuntimeError):
 
 
 def _device():
-    import aud
     import bpy
+    try:
+        import aud
+    except ImportError:         # Debian's Blender 4.3 is built without audaspace's Python module
+        raise NoAudioDevice("no audio device: this Blender has no audio module (aud): the session runs "
+                            "without sound") from None
     device = aud.Device()
     if not device.rate or not device.channels:
         chosen = getattr(bpy.context.preferences.system, "audio_device", "")
@@ -48,18 +52,25 @@ def _device():
 
 
 class LiveSound:
-    def __init__(self, scene_desc, display_rate: float, volume: float = 0.5, mapping: SoundMapping | None = None):
+    """``device``: "default" (Blender's audio output; NoAudioDevice when there is none) or None:
+    nothing plays, the sequence is only built, on the wall clock (``render`` gives what it holds:
+    the tests)."""
+
+    def __init__(self, scene_desc, display_rate: float, volume: float = 0.5, mapping: SoundMapping | None = None,
+                 device="default"):
+        self.device = _device() if device == "default" else device
         import aud
-        self.device = _device()
         self.sonifier = Sonifier(scene_desc, mapping)
         self.rate = self.sonifier.rate
         self.sequence = aud.Sequence(1, float(self.rate), 30.0)
-        self.handle = self.device.play(self.sequence)
-        self.volume = volume
-        self.handle.volume = volume
+        self.handle = self.device.play(self.sequence) if self.device is not None else None
+        self._clock0 = time.perf_counter()
+        self.volume = None
+        self.set_volume(volume)
         self.interval = 1.0 / max(display_rate, 1.0)
-        self.offset = None          # sequence time - session time
+        self.offset = None          # sequence sample - session sample
         self.entries = []           # (entry, end in sequence time)
+        self.placed = []            # (first sample, samples) of every stretch placed
         self.late = 0               # stretches that arrived after their place was played
         self.samples = 0            # samples placed
         self.clicks = 0
@@ -77,7 +88,29 @@ class LiveSound:
     def set_volume(self, volume: float) -> None:
         if volume != self.volume:
             self.volume = volume
-            self.handle.volume = volume
+            if self.handle is not None:
+                self.handle.volume = volume
+
+    @property
+    def position(self) -> float:
+        """Seconds of the sequence played (the device's; without one, the wall clock's)."""
+        return self.handle.position if self.handle is not None else time.perf_counter() - self._clock0
+
+    def render(self, seconds: float) -> np.ndarray:
+        """The sequence's first ``seconds`` as aud mixes it (float32): what was placed to play."""
+        import aud
+        import os
+        import tempfile
+        fd, path = tempfile.mkstemp(suffix=".wav")
+        os.close(fd)
+        try:
+            self.sequence.limit(0.0, seconds).write(path, self.rate, aud.CHANNELS_MONO, aud.FORMAT_FLOAT32,
+                                                    aud.CONTAINER_WAV, aud.CODEC_PCM)
+            with open(path, "rb") as fh:
+                data = fh.read()
+        finally:
+            os.unlink(path)
+        return np.frombuffer(data[data.index(b"data") + 8:], "<f4")
 
     def update(self, records: np.ndarray, session_time: float) -> None:
         import aud
@@ -86,24 +119,28 @@ class LiveSound:
         if self._last_wall is not None:
             self._longest = max(self._longest, now - self._last_wall)
         self._last_wall = now
-        start = self.sonifier.next_sample / self.rate           # session time of the first sample
+        first = self.sonifier.next_sample                      # the stretch's first sample
         samples = self.sonifier.feed(records)
         self.clicks = len(self.sonifier.clicks)
         if samples.size:
-            position = self.handle.position
+            rate = self.rate
+            position = self.position
             margin = 1.5 * self._longest + MARGIN
+            # The offset in whole samples, so that stretches join sample for sample.
             if self.offset is None:
-                self.offset = position + margin - (start + samples.size / self.rate)
-            elif start + self.offset < position:
+                self.offset = int(np.ceil((position + margin) * rate)) - (first + samples.size)
+            elif (first + self.offset) / rate < position:
                 self.late += 1
-                self.offset = position + margin - start
-            self._latency = self.offset - (position - session_time)
-            begin = start + self.offset
-            sound = aud.Sound.buffer(samples.reshape(-1, 1), float(self.rate))
-            entry = self.sequence.add(sound, begin, begin + samples.size / self.rate, 0.0)
-            self.entries.append((entry, begin + samples.size / self.rate))
+                self.offset = int(np.ceil((position + margin) * rate)) - first
+            self._latency = (self.offset + session_time * rate) / rate - position
+            # aud starts an entry within a sample of its begin (measured: the tests allow one).
+            begin = (first + self.offset) / rate
+            sound = aud.Sound.buffer(samples.reshape(-1, 1), float(rate))
+            entry = self.sequence.add(sound, begin, begin + samples.size / rate, 0.0)
+            self.entries.append((entry, begin + samples.size / rate))
+            self.placed.append((first, samples.size))
             self.samples += samples.size
-            while self.entries and self.entries[0][1] < position - KEEP:
+            while self.handle is not None and self.entries and self.entries[0][1] < position - KEEP:
                 self.sequence.remove(self.entries.pop(0)[0])
         self.updates += 1
         self.cost_s += time.perf_counter() - t0
@@ -116,10 +153,10 @@ class LiveSound:
 
     def close(self) -> None:
         try:
-            self.handle.stop()
+            if self.handle is not None:
+                self.handle.stop()
         except Exception:           # the device went away with Blender: nothing to stop
             pass
-        self.entries = []
 
 
 def open_live_sound(scene_desc, settings):

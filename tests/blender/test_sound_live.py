@@ -88,3 +88,50 @@ def test_headless_with_sound_asked_for_says_there_is_no_audio_device_and_runs(bp
     assert quiet.sound is None and quiet.sound_message == "" and bpy.context.scene.grasp_lab.sound
     quiet.run_live()
     assert "sound" not in quiet.result.stats
+
+
+def test_the_live_stretches_join_in_blenders_mixer_as_the_recording_sounds(bpy, core, tmp_path):
+    """LiveSound (addon/sound_live.py) fed at each display update of a live session on the threaded
+    runtime: the stretches it placed in its aud.Sequence, mixed by audaspace (written out, as no
+    audio device exists here: the bpy module has none), are the recording's sound shifted by the
+    latency: every stretch where it belongs, within the one sample audaspace rounds a start to."""
+    sound_live = __import__("grasp_env").submodule("sound_live")
+    path = tmp_path / "live.mcap"
+    desc, run, tap = _session(core, True, path, seconds=1.0)
+    player = sound_live.LiveSound(desc, display_rate=20.0, volume=1.0, device=None)
+    run.start()
+    t0 = time.monotonic()
+    while run.snapshot().time < 1.0:
+        run.advance_to(time.monotonic() - t0)
+        time.sleep(0.05)
+        player.update(tap.take(), run.snapshot().time)
+    run.stop()
+    player.update(tap.take(), run.snapshot().time)
+    assert player.updates > 10 and player.late == 0 and player.offset > 0
+    rec = recording.open_recording(str(path))
+    first = rec.ticks["tick"] >= 1
+    whole, _ = sound.sonify(rec.header["scene"], rec.ticks[first])
+    mixed = player.render((player.offset + len(whole)) / player.rate + 0.1).astype(np.float64)
+    assert np.abs(whole).max() > 0.05
+    assert np.all(mixed[:player.offset - 48] == 0.0)
+    # Every sample of the session placed once, stretch after stretch.
+    assert [f for f, _ in player.placed] == list(np.cumsum([0] + [n for _, n in player.placed[:-1]]))
+    assert sum(n for _, n in player.placed) == len(whole)
+    # audaspace mixes the entries with sub-sample placement (not bit for bit): the sound's loudness
+    # over 10 ms windows is the recording's, and each click is heard at its tick (+-1 ms) after
+    # the latency: none lost at the joins.
+    placed = mixed[player.offset:player.offset + len(whole)]
+    w = 480
+    rms = lambda x: np.sqrt(np.mean(x[:len(x) // w * w].reshape(-1, w) ** 2, axis=1))  # noqa: E731
+    a, b = rms(placed), rms(whole.astype(np.float64))
+    # audaspace's offline mix drops an occasional stretch of a sequence of abutting entries
+    # (measured: 0-3 windows of 100; docs/sound.md, "Known limits"): most windows are the recording's.
+    matched = np.abs(a - b) <= 0.01
+    assert matched.mean() >= 0.9, np.flatnonzero(~matched)
+    step = np.abs(np.diff(placed, prepend=0.0))
+    heard = 0
+    for t, f, amp in player.sonifier.clicks:
+        near = np.arange(int(t * player.rate) - 96, int(t * player.rate) + 96)
+        first = near[np.argmax(step[near] > 0.5 * amp)]
+        heard += step[first] > 0.5 * amp and abs(first / player.rate - t) <= 0.001
+    assert len(player.sonifier.clicks) >= 2 and heard == len(player.sonifier.clicks)
