@@ -801,8 +801,14 @@ def scenario_display_rates():
 def open_audio():
     """An audio output for Blender under Xvfb, where no sound server runs: SDL's dummy driver
     (or OpenAL Soft's null one), which takes the samples at the device's pace as a sound card
-    does and drops them. Returns the output chosen, or "" when none opens."""
-    import aud
+    does and drops them. Returns the output chosen, or "" when none opens (Debian's Blender 4.3
+    has no audio module at all)."""
+    try:
+        import aud
+    except ImportError:
+        RESULT["aud"] = False
+        return ""
+    RESULT["aud"] = True
     os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
     os.environ.setdefault("ALSOFT_DRIVERS", "null")
     prefs = bpy.context.preferences.system
