@@ -231,3 +231,11 @@ def test_the_mapping_is_adjustable_from_the_command_line(synthetic, tmp_path):
     out, err = io.StringIO(), io.StringIO()
     assert cli.main(["export", str(rec.path), "--npz", str(tmp_path / "x.npz"), "--sound-map", "curve=1"],
                     out=out, err=err) != 0 and "--sound-map goes with --wav" in err.getvalue()
+
+
+def test_sound_options_are_checked_before_anything_runs(ext, tmp_path):
+    ext_cli = __import__("grasp_env").submodule("engine.cli")      # the extension's, Blender's commands in it
+    out, err = io.StringIO(), io.StringIO()
+    assert ext_cli.main(["run", str(tmp_path / "s.blend"), "--sound"], out=out, err=err) == 1
+    assert "--sound needs --realtime" in err.getvalue()
+    assert cli.main(["export", "x.mcap", "--wav", "a.wav", "--npz", "b.npz"], out=out, err=err) == 2
