@@ -3,14 +3,16 @@
 Every display update the session hands ``LiveSound.update`` the tick records of the interval
 (engine/tick_tap.py); engine/sound.py's Sonifier turns them into the samples of that stretch of
 session time, and they are placed in one playing ``aud.Sequence`` at their session time plus a
-fixed offset (whole samples), so consecutive stretches join whatever the display's rhythm (no
-click is lost between updates; audaspace starts an entry within one sample of its place). The offset is the latency: chosen at the first update so that
-the next stretch still arrives before its place is played (1.5 display intervals + 30 ms, at
-least the longest interval seen); a stretch that arrives late all the same moves the offset
-later (a gap once, counted as ``late``), never earlier.
+fixed offset (whole samples), so consecutive stretches follow each other whatever the display's
+rhythm: no click is lost between updates (audaspace mixes the joins close to, not exactly as, the
+recording's samples: docs/sound.md, "Known limits"). The offset is the latency: chosen at the
+first update so that the next stretch still arrives before its place is played (1.5 display
+intervals + 30 ms, at least the longest interval seen); a stretch that arrives late all the same
+moves the offset later (a gap once, counted as ``late``), never earlier.
 
 Headless Blender (``bpy`` module, ``blender -b``) opens no audio device (``aud.Device()`` answers
-a null device of rate 0): ``open_live_sound`` then says so and the session runs silent.
+a null device of rate 0), and Debian's Blender has no ``aud`` module: ``open_live_sound`` then
+says so and the session runs silent.
 """
 from __future__ import annotations
 
@@ -67,7 +69,6 @@ class LiveSound:
         self._clock0 = time.perf_counter()
         self.volume = None
         self.set_volume(volume)
-        self.interval = 1.0 / max(display_rate, 1.0)
         self.offset = None          # sequence sample - session sample
         self.entries = []           # (entry, end in sequence time)
         self.placed = []            # (first sample, samples) of every stretch placed
@@ -77,7 +78,7 @@ class LiveSound:
         self.cost_s = 0.0           # main-thread seconds spent (sonify + place)
         self.updates = 0
         self._last_wall = None
-        self._longest = self.interval
+        self._longest = 1.0 / max(display_rate, 1.0)     # the longest display interval seen
 
     @property
     def latency(self) -> float:
@@ -113,9 +114,10 @@ class LiveSound:
         return np.frombuffer(data[data.index(b"data") + 8:], "<f4")
 
     def update(self, records: np.ndarray, session_time: float) -> None:
+        """A display update: the interval's tick records in, their sound placed to play;
+        ``session_time``: the session's time now (for the latency)."""
         import aud
-        t0 = time.perf_counter()
-        now = time.perf_counter()
+        now = t0 = time.perf_counter()
         if self._last_wall is not None:
             self._longest = max(self._longest, now - self._last_wall)
         self._last_wall = now
@@ -126,14 +128,13 @@ class LiveSound:
             rate = self.rate
             position = self.position
             margin = 1.5 * self._longest + MARGIN
-            # The offset in whole samples, so that stretches join sample for sample.
+            # The offset in whole samples: each stretch begins where the one before ended.
             if self.offset is None:
                 self.offset = int(np.ceil((position + margin) * rate)) - (first + samples.size)
             elif (first + self.offset) / rate < position:
                 self.late += 1
                 self.offset = int(np.ceil((position + margin) * rate)) - first
             self._latency = (self.offset + session_time * rate) / rate - position
-            # aud starts an entry within a sample of its begin (measured: the tests allow one).
             begin = (first + self.offset) / rate
             sound = aud.Sound.buffer(samples.reshape(-1, 1), float(rate))
             entry = self.sequence.add(sound, begin, begin + samples.size / rate, 0.0)

@@ -153,6 +153,8 @@ class Sonifier:
         self.mapping = mapping or SoundMapping()
         self.models = analysis.body_models(scene)
         self.dynamic = np.array([not m.is_static for m in self.models] + [False])
+        self._mu_s = np.array([m.mu_s for m in self.models] + [0.0])
+        self._mu_d = np.array([m.mu_d for m in self.models] + [0.0])
         fingers = scene["fingers"] if isinstance(scene, dict) else scene.fingers
         self.nf = len(fingers)
         self.nb = len(self.models)
@@ -170,7 +172,7 @@ class Sonifier:
         self.clicks = []            # every click: (session time of its onset, finger, amplitude)
 
     # ------------------------------------------------------------------ per record
-    def _targets(self, rec, prev):
+    def _targets(self, rec, prev_time, prev_god_object):
         """Per record: the tone's frequency, the gate targets (touching per finger, slipping per
         finger, a held body's slip margin low), the scrape's loudness (slip speed)."""
         m = self.mapping
@@ -180,9 +182,9 @@ class Sonifier:
         freq = m.pitch(np.maximum(fn, 0.0))
         slipping = touching & (rec["state"] == SLIP)
         # Slip speed: the god-object's velocity over the body's surface point under it.
-        dt = (rec["time"] - prev["time"])[:, None]
+        dt = (rec["time"] - prev_time)[:, None]
         with np.errstate(divide="ignore", invalid="ignore"):
-            v_go = (rec["god_object"] - prev["god_object"]) / np.where(dt > 0, dt, np.inf)[..., None]
+            v_go = (rec["god_object"] - prev_god_object) / np.where(dt > 0, dt, np.inf)[..., None]
         if self.nb:
             body = np.where(contact >= 0, contact, 0)
             rows = np.arange(len(rec))[:, None]
@@ -193,7 +195,8 @@ class Sonifier:
         slip_speed = np.sqrt(np.einsum("...k,...k->...", v_go, v_go))
         loud = np.where(slipping, np.clip(slip_speed / m.slip_speed_full, 0.0, 1.0), 0.0)
         # The warning: a dynamic body held with its smallest slip margin mu |Fn| - |Ft| below the threshold.
-        mu = analysis.cone_mu(self.models, rec["state"], contact)
+        on = np.where((contact >= 0) & (contact < self.nb), contact, self.nb)
+        mu = np.where(rec["state"] == SLIP, self._mu_d[on], self._mu_s[on])      # analysis.cone_mu's
         held = touching & self.dynamic[np.where(contact >= 0, contact, self.nb)]
         warn = np.any(held & (mu * fn - ft < m.warning_margin), axis=1)
         gates = np.concatenate([touching, slipping, warn[:, None]], axis=1).astype(np.float64)
@@ -239,26 +242,26 @@ class Sonifier:
         prev = self._prev
         if not len(records):
             return np.zeros(0, np.float32)
-        seq = np.concatenate([prev, records])            # the held record, then the new ones
-        freq, gates, loud = self._targets(records, seq[:-1])
+        times = np.concatenate([prev["time"], records["time"]])     # the held record's, then the new ones
+        freq, gates, loud = self._targets(records, times[:-1],
+                                          np.concatenate([prev["god_object"], records["god_object"][:-1]]))
         touched = ((prev["contact"] >= 0) & (prev["state"] > 0))[0]
         for k, f, amp in self._onsets(records, touched, prev["hip"][0], float(prev["time"][0])):
             self._clicks.append((int(np.ceil(records["time"][k] * rate - 1e-9)), amp))
             self.clicks.append((float(records["time"][k]), f, amp))
-        # Each record's state holds from its time to the next record's: seq[k]'s (the held
+        # Each record's state holds from its time to the next record's: times[k]'s (the held
         # record's first).
         freq = np.concatenate([self._held[0][None], freq])
         gates = np.concatenate([self._held[1][None], gates])
         loud = np.concatenate([self._held[2][None], loud])
-        times = seq["time"]
-        env = self._gates.at(gates, times)                  # (len(seq), 2 nf + 1) at the records
+        env = self._gates.at(gates, times)                  # (len(times), 2 nf + 1) at the records
         phase = np.add.accumulate(np.concatenate([self._phase[None], freq[:-1] * np.diff(times)[:, None]]),
                                   axis=0)                   # cycles at each record
         n0 = self.next_sample
         n1 = max(n0, int(np.ceil(times[-1] * rate - 1e-9)))
         n = np.arange(n0, n1)
         t = n / rate
-        seg = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(seq) - 2)
+        seg = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 2)
         frac = (t - times[seg]) / (times[seg + 1] - times[seg])
         out = np.zeros(len(n))
         nf = self.nf
