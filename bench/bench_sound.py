@@ -67,8 +67,14 @@ def placement() -> list:
     rate it makes."""
     import grasp_env
     grasp_env.isolate()
-    import bpy  # noqa: F401
-    grasp_env.enable()
+    sys.stdout.flush()
+    saved = os.dup(1)                   # Blender's own lines (installing the extension) stay out of the report
+    os.dup2(os.open(os.devnull, os.O_WRONLY), 1)
+    try:
+        import bpy  # noqa: F401
+        grasp_env.enable()
+    finally:
+        os.dup2(saved, 1)
     import recordings
     from addon.engine import core_loader, inputs, runner, scene
     from addon.engine.tick_tap import TickTap
