@@ -14,6 +14,7 @@ and the grasp analysis (engine/analysis.py, docs/analysis.md): ``gl_held``, ``gl
 """
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from functools import partial
 
@@ -22,7 +23,7 @@ import numpy as np
 from mathutils import Matrix, Quaternion
 
 from . import anim, display
-from .engine import analysis, grasp_display
+from .engine import analysis, grasp_display, sound
 from .engine.measures import body_grip, finger_measures
 from .engine.recording import Recording, scene_from_dict
 from .engine.runner import quat_rotate
@@ -36,6 +37,8 @@ class BakeReport:
     keys: int = 0
     frame_end_was: int | None = None        # the scene's end frame before the bake moved it
     frame_end: int | None = None
+    sound: str = ""                         # the WAV written and put in the sequencer
+    sound_error: str = ""                   # why there is none
 
     def message(self) -> str:
         text = f"baked {len(self.baked)} objects over {self.frames} frames ({self.keys} keys)"
@@ -44,6 +47,10 @@ class BakeReport:
                      "the recording is longer than the animation")
         if self.missing:
             text += ("; not in the scene (renamed or deleted), not baked: " + ", ".join(self.missing))
+        if self.sound:
+            text += f"; its sound: {self.sound} (a sound strip in the sequencer)"
+        if self.sound_error:
+            text += f"; no sound: {self.sound_error}"
         return text
 
 
@@ -205,9 +212,47 @@ def _custom(obj, props: dict, run=None) -> list:
     return [(f'["{name}"]', 0, values) + ((run,) if run is not None else ()) for name, values in props.items()]
 
 
+SOUND_STRIP = "Grasp Lab Sound"
+
+
+def sound_path(rec_path: str, blend_path: str = "") -> str:
+    """Where a bake writes the recording's sound: ``<recording name>.wav`` beside the .blend
+    (``blend_path``; beside the recording while the .blend is not saved)."""
+    folder = os.path.dirname(os.path.abspath(blend_path or rec_path))
+    return os.path.join(folder, os.path.splitext(os.path.basename(rec_path))[0] + ".wav")
+
+
+def bake_sound(scene, rec_path: str, wav_path: str, frame_start: int) -> str:
+    """The recording's sound (every tick: engine/sound.py) as a WAV at ``wav_path`` and as the
+    scene's sound strip "Grasp Lab Sound" from ``frame_start`` (the frame of session time 0),
+    replacing the strip of an earlier bake: a render to video (FFmpeg with audio) carries it.
+    The mapping: the scene's (its Session panel's pitch settings). The strip names the WAV
+    relative to the open .blend when it is saved (Blender moves such paths along when the scene
+    is saved elsewhere: ``//name.wav`` beside the .blend it is saved as)."""
+    from .engine.recording import open_recording
+    from .sound_live import mapping_of
+    full = open_recording(rec_path)             # the bake's own copy may hold only the frames' ticks
+    done = sound.write_wav(wav_path, full.header["scene"], full.ticks, mapping_of(scene.grasp_lab))
+    if scene.sequence_editor is None:
+        scene.sequence_editor_create()
+    editor = scene.sequence_editor
+    strips = editor.strips if hasattr(editor, "strips") else editor.sequences     # renamed in 4.4
+    old = strips.get(SOUND_STRIP)
+    if old is not None:
+        strips.remove(old)
+    strip = strips.new_sound(SOUND_STRIP, done["path"], channel=1, frame_start=int(frame_start))
+    strip.name = SOUND_STRIP
+    if bpy.data.filepath:
+        strip.sound.filepath = bpy.path.relpath(done["path"])
+    return done["path"]
+
+
 def bake_recording(context, rec: Recording, every_tick: bool = False, force_scale: float | None = None,
-                   torque_scale: float | None = None) -> BakeReport:
-    """Bake ``rec`` into the context's scene. Returns what was baked and what was missing."""
+                   torque_scale: float | None = None, sound_to: str | None = None,
+                   blend_path: str | None = None) -> BakeReport:
+    """Bake ``rec`` into the context's scene. Returns what was baked and what was missing.
+    ``sound_to``: the WAV of its sound (default: sound_path beside the .blend; "" none);
+    ``blend_path``: the .blend the scene will be saved as (default: the open file's, if saved)."""
     scene = context.scene
     s = scene.grasp_lab
     force_scale = s.force_scale if force_scale is None else force_scale
@@ -300,6 +345,15 @@ def bake_recording(context, rec: Recording, every_tick: bool = False, force_scal
     if scene.frame_end < last:
         report.frame_end_was, report.frame_end = scene.frame_end, last
         scene.frame_end = last
+    blend_path = bpy.data.filepath if blend_path is None else blend_path
+    if sound_to is None:
+        sound_to = sound_path(rec.path, blend_path)
+    if sound_to:
+        # Last: the keys are in whatever becomes of the sound (a read-only folder says so).
+        try:
+            report.sound = bake_sound(scene, rec.path, sound_to, frame_start)
+        except (OSError, ValueError, RuntimeError) as ex:
+            report.sound_error = str(ex)
     return report
 
 

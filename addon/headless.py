@@ -108,14 +108,17 @@ def run(args, out, err) -> int:
         if not args.duration:
             raise CliError("--device: give --duration S (a device session has no end of its own)")
         session = live_session(context, args.device, args.forces == "on", duration=args.duration,
-                               record_path=record)
+                               record_path=record, sound=args.sound)
     else:
         session = BlenderSession(context, live=args.realtime,
-                                 duration=args.duration if args.duration else None, record_path=record)
+                                 duration=args.duration if args.duration else None, record_path=record,
+                                 sound=args.sound)
         if session.duration == float("inf"):
             session.finish()
             raise CliError(f"{args.scene}: no fingertip is animated, so a real-time session has no end: "
                            f"give --duration S")
+    if session.sound_message:
+        print(f"grasp-lab run: {session.sound_message}", file=err, flush=True)
     if getattr(args, "live_view", None) is not None:
         _serve_live(session, args, out)
     if session.recorder is not None:
@@ -197,7 +200,9 @@ def bake(args, out, err) -> int:
         print(f"warning: {w}", file=err)
     if len(rec.ticks) == 0:
         raise CliError(f"{args.recording}: no tick was recorded: nothing to bake")
-    report = baking.bake_recording(bpy.context, rec, every_tick=args.every_tick)
+    report = baking.bake_recording(bpy.context, rec, every_tick=args.every_tick, blend_path=args.save)
+    if report.sound_error:
+        print(f"warning: {args.recording}: no sound baked: {report.sound_error}", file=err)
     for name in report.missing:
         print(f"warning: {args.scene}: {name} is not in the scene (renamed or deleted): not baked", file=err)
     print(f"{args.recording}: {report.message()}", file=out)

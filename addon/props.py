@@ -116,6 +116,23 @@ class GRASPLAB_PG_scene(bpy.types.PropertyGroup):
     recording_folder: StringProperty(name="Recording Folder", default="//grasp_recordings/",
                                      subtype="DIR_PATH",
                                      description="Where session recordings are written")
+    sound: BoolProperty(name="Sound", default=True,
+                        description="Hear the grasp in live sessions through Blender's audio: a click at each "
+                                    "touch, a tone whose pitch follows the squeeze, a scrape while a finger "
+                                    "slips, a beep when a held body is close to slipping (off in background "
+                                    "mode)")
+    sound_volume: FloatProperty(name="Volume", default=0.5, min=0.0, max=1.0, subtype="FACTOR",
+                                description="Loudness of the live sound")
+    # The tone's pitch against the normal force (docs/sound.md): live and baked sound alike.
+    sound_pitch_low: FloatProperty(name="Pitch at 0 N", default=220.0, min=20.0, max=8000.0, unit="NONE",
+                                   description="The tone's frequency (Hz) at a light touch")
+    sound_pitch_high: FloatProperty(name="Pitch at Full", default=880.0, min=20.0, max=8000.0,
+                                    description="The tone's frequency (Hz) at Full Force and above")
+    sound_force_full: FloatProperty(name="Full Force", default=10.0, min=1e-3, soft_max=100.0,
+                                    description="The normal force (N) of the highest pitch")
+    sound_curve: FloatProperty(name="Curve", default=0.5, min=0.05, max=5.0,
+                               description="Exponent on force / Full Force: below 1 the pitch moves most at "
+                                           "light forces, 1 evenly (in musical steps), above 1 most near Full")
     live_view: BoolProperty(name="Live View", default=False,
                             description="Serve live sessions to Foxglove over WebSocket, watching only "
                                         "(docs/viewers.md)")

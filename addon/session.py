@@ -24,8 +24,9 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, FloatProperty
 
-from . import anim, convert, display, record
-from .engine import analysis, core_loader, grasp_display
+from . import anim, convert, display, record, sound_live
+from .engine import analysis, core_loader, grasp_display, recording
+from .engine.tick_tap import TickTap
 from .engine.devices.live import DeviceInput, device_event_detail, device_fingers, without_fingers
 from .engine.inputs import SampledTrajectory, TimelineInput, turning_fingers
 from .engine.runner import SessionRunner
@@ -63,7 +64,7 @@ def active_session():
 
 class BlenderSession:
     def __init__(self, context, *, live: bool, duration: float | None = None, reset: bool = True,
-                 record_path: str | None = None):
+                 record_path: str | None = None, sound: bool | None = None):
         scene = context.scene
         s = scene.grasp_lab
         self.scene = scene
@@ -134,9 +135,17 @@ class BlenderSession:
                 {"max_hip_speed": prefs.max_hip_speed, "hip_timeout": 2.0}
         self.recorder = record.session_recorder(self, record_path, self.threaded, options) \
             if (record_path or s.record) else None
+        # The live sound (docs/sound.md): the Session panel's Sound, off in background mode unless
+        # asked for (``sound=True``: grasp-lab run --realtime --sound), which then says there is no
+        # audio device there and runs silent.
+        self.sound, self.sound_message = None, ""
+        if live and (s.sound and not bpy.app.background if sound is None else sound):
+            self.sound, self.sound_message = sound_live.open_live_sound(desc, s)
+        tap = TickTap(self.handle.world, recording.tick_dtype(len(desc.bodies), len(desc.fingers)),
+                      s.haptic_rate) if self.sound is not None else None
         self.runner = SessionRunner(self.handle, self.source, haptic_rate=s.haptic_rate,
                                     use_runtime=self.threaded, recorder=self.recorder,
-                                    runtime_options=options)
+                                    runtime_options=options, tap=tap)
         store_rest_poses(context, self.links)
         self.objects = [bpy.data.objects[link.name] for link in self.links]
         self.dynamic = [i for i, link in enumerate(self.links) if not link.static]
@@ -225,6 +234,9 @@ class BlenderSession:
         if frame != self.scene.frame_current:
             self.scene.frame_current = frame
         self.apply(snap, frame)
+        if self.sound is not None:
+            self.sound.set_volume(self.settings.sound_volume)
+            self.sound.update(self.runner.tap.take(), snap.time)
         if display.overlay_active():
             display.set_overlay(snap, self.hud_text(), self.monitor.grasps)
         if self.live_view is not None:
@@ -341,6 +353,8 @@ class BlenderSession:
         lines = self.grasp_lines() + self.loop_lines()
         if self.live_view is not None:
             lines.append(self.live_view.status())
+        if self.sound is not None:
+            lines.append(self.sound.status())
         return "\n".join(lines)
 
     def finish(self):
@@ -357,6 +371,14 @@ class BlenderSession:
         self.runner.stop()
         r = self.result
         r.stats = self.runner.stats()
+        if self.sound is not None:
+            self.sound.close()
+            r.stats["sound"] = {"latency_ms": 1e3 * self.sound.latency, "late": self.sound.late,
+                                "clicks": self.sound.clicks, "seconds": self.sound.samples / self.sound.rate,
+                                "updates": self.sound.updates,
+                                "cost_ms": 1e3 * self.sound.cost_s / max(self.sound.updates, 1)}
+        elif self.sound_message:
+            r.stats["sound"] = {"message": self.sound_message}
         if self.live_view is not None:
             r.stats["live_view"] = self.live_view.close()
         if self.devices is not None:
@@ -481,6 +503,8 @@ class GRASPLAB_OT_session(bpy.types.Operator):
         session = self._start(context, live=True)
         if session is None:
             return {"CANCELLED"}
+        if session.sound_message:
+            self.report({"WARNING"}, f"Grasp Lab: {session.sound_message}")
         try:
             prefs = get_prefs(context)
             s = context.scene.grasp_lab

@@ -134,6 +134,18 @@ class GRASPLAB_PT_session(_GraspPanel, bpy.types.Panel):
         sub.active = s.display_objects
         sub.prop(s, "force_scale", text="Force m/N")
         sub.prop(s, "torque_scale", text="Torque m/N·m")
+        # Sound and its volume on one row: the volume greyed while the sound is off.
+        row = col.row(heading="Sound", align=True)
+        row.prop(s, "sound", text="")
+        sub = row.row(align=True)
+        sub.active = s.sound
+        sub.prop(s, "sound_volume", text="Volume", slider=True)
+        if s.sound:
+            sub = col.column(align=True)
+            sub.prop(s, "sound_pitch_low", text="Pitch Hz at 0 N")
+            sub.prop(s, "sound_pitch_high", text="at Full Force")
+            sub.prop(s, "sound_force_full", text="Full Force N")
+            sub.prop(s, "sound_curve")
         col.prop(s, "live_view")
         if s.live_view:                     # its address only when it is on: a shorter panel
             sub = col.column(align=True)

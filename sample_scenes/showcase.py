@@ -15,6 +15,8 @@ states, a summary table (printed, and in the index page).
     OUT/summary.txt                 the table as printed
     OUT/scenes/NAME.blend           the scene after its session, baked (opens on the rendered frame)
     OUT/scenes/NAME.png             its rendered frame
+    OUT/scenes/NAME.wav             its sound (docs/sound.md), a sound strip of the .blend
+    OUT/scenes/pinch_and_lift.mp4   the pinch and lift as a short video with its sound (H.264 + AAC)
     OUT/recordings/NAME.mcap        its recording (grasp-lab info / export / resim / bake)
     OUT/analysis/NAME/              grasp-lab analyze: grasp.csv, contacts.csv, summary.txt
     OUT/plots/NAME.png              grip and load force, finger states, over time
@@ -42,6 +44,8 @@ ANALYZE_EVERY = 10                  # every 10th haptic tick: 100 Hz at 1 kHz
 RENDER_SIZE = (480, 300)
 SKIN = (0.86, 0.66, 0.55, 1.0)
 FORCE_ARROW_FRACTION = 0.35         # the largest fingertip force: this fraction of the scene's size
+VIDEO_SCENES = ("pinch_and_lift",)  # rendered whole to a video with their sound
+VIDEO_SIZE = (320, 200)             # a third of a frame's cost at RENDER_SIZE (Workbench on llvmpipe)
 
 
 def _load(name, filename):
@@ -151,7 +155,10 @@ def run_scene(bpy, name, out_dir) -> dict:
     s.force_scale = force_scale
     t0 = time.perf_counter()
     rec = recording.open_recording(paths["recording"])
-    report = bake.bake_recording(bpy.context, rec, force_scale=force_scale)
+    report = bake.bake_recording(bpy.context, rec, force_scale=force_scale, blend_path=paths["blend"])
+    if report.sound_error:
+        raise RuntimeError(f"{name}: no sound baked: {report.sound_error}")
+    paths["sound"] = report.sound
     # from the god-object sphere's surface, so that a small force is not hidden inside it
     radii = np.array([f.radius for f in sc.fingers])[None, :, None]
     norms = np.linalg.norm(r.finger_forces, axis=2, keepdims=True)
@@ -166,10 +173,40 @@ def run_scene(bpy, name, out_dir) -> dict:
     bpy.ops.wm.save_as_mainfile(filepath=paths["blend"], compress=True)
     t0 = time.perf_counter()
     _pinch().render(bpy, paths["png"])
+    video_frames = 0
+    if name in VIDEO_SCENES:
+        paths["video"] = os.path.join(out_dir, "scenes", f"{name}.mp4")
+        video_frames = render_video(bpy, paths["video"])
+        bpy.context.scene.frame_set(frame)
     t["render"] = time.perf_counter() - t0
     return {"name": name, "scene": sc, "result": r, "measured": m, "failures": bad, "paths": paths,
             "frame": frame, "force_scale": force_scale, "keys": report.keys, "timings": t,
-            "ticks": len(rec.ticks), "stats": r.stats}
+            "ticks": len(rec.ticks), "stats": r.stats, "video_frames": video_frames}
+
+
+def render_video(bpy, path):
+    """The scene's whole frame range (Workbench) to an MP4, H.264 with the sequencer's sound (the
+    baked WAV) as AAC: what a browser plays. Returns the frames rendered."""
+    scene = bpy.context.scene
+    r = scene.render
+    settings = (r.filepath, r.image_settings.file_format, r.resolution_x, r.resolution_y)
+    r.resolution_x, r.resolution_y = VIDEO_SIZE
+    r.image_settings.file_format = "FFMPEG"
+    r.ffmpeg.format = "MPEG4"
+    r.ffmpeg.codec = "H264"
+    r.ffmpeg.constant_rate_factor = "MEDIUM"
+    r.ffmpeg.audio_codec = "AAC"
+    r.ffmpeg.audio_channels = "MONO"
+    r.ffmpeg.audio_mixrate = 48000
+    r.ffmpeg.audio_bitrate = 128
+    r.filepath = os.path.abspath(path)
+    if os.path.exists(path):
+        os.remove(path)
+    bpy.ops.render.render(animation=True)
+    r.filepath, r.image_settings.file_format, r.resolution_x, r.resolution_y = settings
+    if not os.path.exists(path):
+        raise RuntimeError(f"{path}: the video was not written")
+    return scene.frame_end - scene.frame_start + 1
 
 
 def _read_grasp_csv(path, body):
@@ -340,11 +377,19 @@ def write_index(out_dir, entries, rows, wall):
                      f"<p>Files: <a href='{rel(p['blend'])}'>{e(os.path.basename(p['blend']))}</a> (baked, "
                      f"{ent['keys']} keys; force arrows {ent['force_scale'] * 1e3:.1f} mm per N), "
                      f"<a href='{rel(p['recording'])}'>{e(os.path.basename(p['recording']))}</a> "
-                     f"({ent['ticks']} haptic ticks), analysis: "
+                     f"({ent['ticks']} haptic ticks), its sound "
+                     f"<a href='{rel(p['sound'])}'>{e(os.path.basename(p['sound']))}</a>"
+                     + (f", the video with sound <a href='{rel(p['video'])}'>{e(os.path.basename(p['video']))}</a>"
+                        if "video" in p else "") + ", analysis: "
                      f"<a href='{rel(p['analysis'])}/grasp.csv'>grasp.csv</a>, "
                      f"<a href='{rel(p['analysis'])}/contacts.csv'>contacts.csv</a>, "
                      f"<a href='{rel(p['analysis'])}/summary.txt'>summary</a>.</p>"
                      f"<pre>{e(ent['analysis_summary'])}</pre>")
+        if "video" in p:
+            parts.append(f"<p><video controls src='{rel(p['video'])}' width='{2 * VIDEO_SIZE[0]}'></video><br>"
+                         "With its sound (docs/sound.md): a click as each fingertip touches, a tone rising with "
+                         "the squeeze, a scrape while a finger slips, a beep while the box is close to slipping."
+                         "</p>")
     extra = [f for f in ("pinch_and_lift.blend", "pinch_and_lift.mcap", "pinch_and_lift_box.csv",
                          "pinch_and_lift_frame43.png") if os.path.exists(os.path.join(out_dir, f))]
     if extra:

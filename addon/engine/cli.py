@@ -140,6 +140,9 @@ def _configure_run(p):
                    help="device forces (default off, as in the UI): on turns them on at the start, ramping "
                         "in, with the same safety as the sidebar's Forces On")
     p.add_argument("--record", metavar="OUT.mcap", help="record every haptic tick to this file")
+    p.add_argument("--sound", action="store_true",
+                   help="with --realtime: play the grasp's sound through Blender's audio (docs/sound.md); "
+                        "headless Blender has no audio device, and says so")
     p.add_argument("--max-size", type=_size, default=limits.DEFAULT_MAX_SIZE, metavar="BYTES", help=MAX_SIZE_HELP)
     p.add_argument("--save", metavar="OUT.blend", help="save the scene after the session")
     p.add_argument("--set", action="append", default=[], type=_override, metavar="KEY=VALUE", help=SET_HELP)
@@ -199,7 +202,13 @@ def _configure_export(p):
     g.add_argument("--npz", metavar="FILE", help="write one .npz with every field")
     g.add_argument("--foxglove", metavar="OUT.mcap", help="a copy Foxglove shows: 3-D scene, transforms, "
                                                           "plot channels, events, at the display rate")
+    g.add_argument("--wav", metavar="OUT.wav", help="the grasp as sound: contact clicks, a tone whose pitch "
+                                                    "follows the normal force, slip scrapes, slip-margin "
+                                                    "warnings (docs/sound.md)")
     p.add_argument("--every", type=_positive_int, default=1, metavar="N", help="every N-th tick (default 1)")
+    p.add_argument("--sound-map", action="append", default=[], metavar="KEY=VALUE",
+                   help="with --wav: a setting of the sound's mapping, e.g. pitch_low=200, pitch_high=1200, "
+                        "force_full=5, curve=1, volume=0.8 (docs/sound.md lists them)")
 
 
 def _edges(text):
@@ -330,10 +339,20 @@ def _run_resim(args, out, err):
 
 def _run_export(args, out, err):
     from .export import export_csv, export_npz
-    outputs.check_paths({"REC.mcap": args.recording}, {"--csv": args.csv, "--npz": args.npz}, folders=("--csv",))
+    outputs.check_paths({"REC.mcap": args.recording}, {"--csv": args.csv, "--npz": args.npz, "--wav": args.wav},
+                        folders=("--csv",))
     if args.csv:
         for name in ("bodies.csv", "fingers.csv", "events.csv"):
             outputs.check_paths({"REC.mcap": args.recording}, {"--csv": os.path.join(args.csv, name)})
+    mapping = None
+    if args.sound_map:
+        if not args.wav:
+            raise CliError("--sound-map goes with --wav")
+        from .sound import mapping_from
+        try:
+            mapping = mapping_from(args.sound_map)
+        except ValueError as ex:
+            raise CliError(str(ex)) from None
     rec = _open(args.recording, err)
     if args.foxglove:
         from .viewer import export_foxglove
@@ -343,6 +362,11 @@ def _run_export(args, out, err):
             raise CliError(str(ex)) from None
         print(f"{args.foxglove}: {done['frames']} frames at {done['rate']:g} Hz, {done['events']} events, "
               f"{done['bytes'] / 1e6:.2f} MB; layout {done['layout']}", file=out)
+    elif args.wav:
+        from .sound import write_wav
+        done = write_wav(args.wav, rec.header["scene"], rec.ticks, mapping)
+        print(f"{args.wav}: {done['seconds']:.3f} s of sound at {done['rate']} Hz, {done['clicks']} clicks",
+              file=out)
     elif args.csv:
         counts = export_csv(rec, args.csv, args.every)
         for name, n in counts.items():
@@ -384,6 +408,8 @@ def _run_run(args, out, err):
         check_device(spec)
     if args.live_view is not None and not args.realtime:
         raise CliError("--live-view needs --realtime (it serves a live session)")
+    if args.sound and not args.realtime:
+        raise CliError("--sound needs --realtime (it plays a live session)")
     if args.device and not args.realtime:
         raise CliError("--device needs --realtime (devices drive a live session on the threaded runtime)")
     if args.forces == "on" and not args.device:
@@ -429,7 +455,8 @@ register_command("bake", "bake a recording into a scene as keyframes", _configur
                  needs_blender=True)
 register_command("resim", "re-simulate a recording (with overrides); 'identical' or the divergence report",
                  _configure_resim, _run_resim)
-register_command("export", "a recording as CSV tables or one .npz", _configure_export, _run_export)
+register_command("export", "a recording as CSV tables, one .npz, a Foxglove copy or its sound (.wav)",
+                 _configure_export, _run_export)
 register_command("analyze", "grasp analysis of a recording: closure, epsilon, slip margins, grip against load "
                             "(docs/analysis.md)", _configure_analyze, _run_analyze)
 

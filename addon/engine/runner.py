@@ -156,7 +156,7 @@ class SessionRunner:
     ``runtime_options`` go to ``World.start`` (max_hip_speed, hip_timeout, ...)."""
 
     def __init__(self, handle, source, haptic_rate=None, use_runtime=False, recorder=None,
-                 runtime_options=None):
+                 runtime_options=None, tap=None):
         if haptic_rate is None:
             haptic_rate = defaults.runtime("haptic_rate")
         if not (haptic_rate > 0):
@@ -176,6 +176,7 @@ class SessionRunner:
         self.max_step_wall = 0.0    # longest single advance_to, seconds
         self.ticks = []             # wall clock of every advance_to (display rate, jitter)
         self.recorder = recorder
+        self.tap = tap              # engine.tick_tap.TickTap: every tick for the display thread
         self.recording_end = {}     # what the recorder reported when it closed the file
         self.events = []    # (time s, source, event, value): safety events of devices, recorded too
         self._body_index = {bid: i for i, bid in enumerate(handle.body_ids)}
@@ -200,12 +201,26 @@ class SessionRunner:
             self.source.open()
             if self.recorder is not None:
                 self.recorder.begin(threaded=self.driver.threaded)
+            if self.tap is not None and self.driver.threaded:
+                if self.recorder is not None:
+                    self.tap.listen_to(self.recorder)   # one reader per tick log: the recorder's
+                else:
+                    self.tap.own_log()
             self.driver.start()
             if self.recorder is not None:
                 if self.driver.threaded:
                     self.recorder.runtime_started()
                 else:
                     self.driver.on_step = self.recorder.after_step
+            if self.tap is not None and not self.driver.threaded:
+                # Synchronous steps: the tap copies each step's record itself (the recorder
+                # writes blocks far apart in wall time).
+                record, tap = self.driver.on_step, self.tap.after_step
+
+                def both(tick):
+                    record(tick)
+                    tap(tick)
+                self.driver.on_step = tap if record is None else both
             self._started = True
             self._wall0 = time.perf_counter()
 

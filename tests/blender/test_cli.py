@@ -70,7 +70,8 @@ def test_launcher_help_everywhere():
 
 @pytest.mark.parametrize("args", [
     (), ("frobnicate",), ("info",), ("export", "x.mcap"), ("export", "x.mcap", "--csv", "d", "--npz", "f"),
-    ("export", "x.mcap", "--csv", "d", "--every", "0"), ("resim", "x.mcap", "--set", "Box.mass"),
+    ("export", "x.mcap", "--csv", "d", "--every", "0"), ("export", "x.mcap", "--wav", "a.wav", "--csv", "d"),
+    ("resim", "x.mcap", "--set", "Box.mass"),
     ("resim", "x.mcap", "--tolerance", "-1"), ("run", "s.blend", "--set", "gravity=1,2"),
     ("bake", "x.mcap", "s.blend"), ("analyze",), ("analyze", "x.mcap", "--edges", "2"),
     ("analyze", "x.mcap", "--every", "0"),

@@ -1,6 +1,6 @@
 """`make demo`, showcase part (sample_scenes/showcase.py) on four scenes, in a temporary
 directory: every file the index page names exists, the table says what physics says, the
-baked files reopen with their curves."""
+baked files reopen with their curves and their sound, the pinch and lift's video carries its sound."""
 import csv
 import importlib.util
 import io
@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import grasp_env
+import media
 
 SCENES = ["pinch_and_lift", "tripod_pencil", "weak_grip_slide", "plate_palm"]
 
@@ -144,3 +145,19 @@ def test_baked_file_reopens_with_its_curves(demo, bpy):
         colour = tuple(go.material_slots[0].material.diffuse_color)
         assert colour != pytest.approx(grasp_display.FREE_COLOR)
         np.testing.assert_allclose(colour, grasp_display.friction_color(go["gl_friction_use"]), atol=0.02)
+
+
+def test_every_scene_has_its_sound_and_the_pinch_video_carries_it(demo):
+    out, res, _ = demo
+    sound = grasp_env.submodule("engine.sound")
+    for name in SCENES:
+        samples, rate = sound.read_wav((out / "scenes" / f"{name}.wav").read_bytes())
+        assert np.abs(samples).max() > 0.05, name      # every scene touches: clicks and tones
+    page = (out / "index.html").read_text()
+    assert "src='scenes/pinch_and_lift.mp4'" in page
+    track = media.sound_track((out / "scenes" / "pinch_and_lift.mp4").read_bytes())
+    entry = next(e for e in res["entries"] if e["name"] == "pinch_and_lift")
+    expected = entry["video_frames"] * 48000 // 24
+    assert entry["video_frames"] >= 140                 # the whole pinch and lift (6 s at 24 fps)
+    assert track["codec"] == b"mp4a" and track["rate"] == 48000
+    assert expected <= track["duration"] < expected + 8192      # AAC in Blender's blocks of 8192 samples

@@ -798,6 +798,59 @@ def scenario_display_rates():
     RESULT["runs"] = runs
 
 
+def open_audio():
+    """An audio output for Blender under Xvfb, where no sound server runs: SDL's dummy driver
+    (or OpenAL Soft's null one), which takes the samples at the device's pace as a sound card
+    does and drops them. Returns the output chosen, or "" when none opens (Debian's Blender 4.3
+    has no audio module at all)."""
+    try:
+        import aud
+    except ImportError:
+        RESULT["aud"] = False
+        return ""
+    RESULT["aud"] = True
+    os.environ.setdefault("SDL_AUDIODRIVER", "dummy")
+    os.environ.setdefault("ALSOFT_DRIVERS", "null")
+    prefs = bpy.context.preferences.system
+    kinds = [i.identifier for i in prefs.bl_rna.properties["audio_device"].enum_items]
+    RESULT["audio_devices"] = kinds
+    for kind in ("SDL", "OpenAL"):
+        if kind in kinds:
+            prefs.audio_device = kind
+            device = aud.Device()
+            log(f"audio: {kind}: rate {device.rate}, channels {device.channels}")
+            if device.rate and device.channels:
+                return kind
+    return ""
+
+
+def scenario_sound():
+    """The pinch and lift live with the Session panel's Sound on, through Blender's audio (a
+    real output: SDL's dummy driver, no sound card here), then the same with Sound off, twice
+    each alternately (benchmark: the display rates, bench/bench_gui.py): each session runs to
+    its end; the sound's own account (clicks, seconds placed, late stretches, latency, cost
+    per update) goes to the result."""
+    setup_scene(duration=0.0, display_rate=30.0)
+    RESULT["audio"] = open_audio()
+    yield from open_grasp_tab()
+    runs = []
+    for sound_on in (True, False, True, False):
+        bpy.context.scene.grasp_lab.sound = sound_on
+        bpy.context.scene.grasp_lab.sound_volume = 0.5
+        yield 0.3
+        yield from start_by_click()
+        session = active_session()
+        RESULT.setdefault("sound_messages", []).append(session.sound_message)
+        yield from wait_until(lambda: active_session() is None, 60, "the session to end")
+        res = last_result()
+        runs.append({"sound": sound_on, "display_rate": res.stats["display_rate"], "time": res.stats["time"],
+                     "sound_stats": res.stats.get("sound")})
+        log(f"sound {sound_on}: {runs[-1]}")
+        check_stopped(f"sound_{len(runs)}")
+        yield 0.3
+    RESULT["runs"] = runs
+
+
 def scenario_exec_headless():
     """The same scene run headless (blender -b): the reference for the live runs."""
     setup_scene(duration=0.0)

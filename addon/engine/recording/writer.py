@@ -210,6 +210,7 @@ class SessionRecorder:
         self._stop = threading.Event()
         self._lock = threading.Lock()       # writer: recorder thread vs parameter events
         self.finished = False
+        self.listeners = []     # callables given each block of records written (engine.tick_tap)
 
     # ---- setup
     def begin(self, threaded: bool) -> None:
@@ -265,6 +266,8 @@ class SessionRecorder:
             self.writer.write_ticks(records)
             for tick, t, kind, subject, detail in self.events(records):
                 self.writer.event(t, kind, subject, detail, tick=tick)
+        for listen in self.listeners:
+            listen(records)
 
     # ---- threaded
     def _drain_loop(self) -> None:
@@ -278,6 +281,8 @@ class SessionRecorder:
                 stopping = self._stop.wait(wait)
                 n = self.world._drain_ticks(buf)
                 if self.writer.closed:      # abandoned (a write failed): the ring is drained only
+                    for listen in self.listeners if n else ():
+                        listen(buf[:n])
                     if stopping:
                         return
                     continue
