@@ -40,7 +40,11 @@ class GRASPLAB_PT_main(_GraspPanel, bpy.types.Panel):
         layout = self.layout
         row = layout.row(align=True)
         row.operator("grasp_lab.add_finger", icon="EMPTY_AXIS")
+        row.operator("grasp_lab.add_hand", icon="VIEW_PAN")
         row.operator("grasp_lab.validate_scene", text="Check", icon="CHECKMARK")
+        obj = context.active_object
+        if obj is not None and obj.type == "ARMATURE":
+            layout.operator("grasp_lab.set_hand_roles", icon="BONE_DATA")
         check = ops.last_check.get(context.scene.name)
         if check is not None:
             ok, text = check
