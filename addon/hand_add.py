@@ -238,6 +238,7 @@ def build_hand(context, side="RIGHT", location=(0.0, 0.0, 0.0), tip_targets=Fals
     name = name or f"Hand{hand_rig.SUFFIX[side]}"
     arm = _build_armature(context, name, bones)
     arm.location = location
+    context.view_layer.update()             # its matrix_world, where the tip empties go
     mesh = _build_mesh(context, f"{arm.name} Mesh", arm, bones)
     empties = _add_tip_targets(context, arm, side, stiffness) if tip_targets else []
     _set_roles(arm, bones, stiffness, first_channel=len(empties))
