@@ -520,6 +520,8 @@ class Hand:
     touching: tuple                         # bones (without the side suffix) that touch the held body
     curl: tuple = (75.0, 90.0, 60.0)        # the other fingers' MCP, PIP, DIP flexion, degrees
     stiffness: float = 1000.0
+    thumb_weight: float = 1.0               # the thumb's weight in the fit (it reaches least far)
+    ready: tuple = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))   # flexion beyond rest (fingers, thumb) fitted
 
 
 def _hand_rig():
@@ -530,20 +532,19 @@ def _hand_rig():
 
 
 def hand_placement(hand: Hand):
-    """(rotation 3x3, wrist position) of the hand whose relaxed fingertips (and wrist, toward
-    ``wrist_toward`` at their distance) best fit the closed tips: Kabsch's least squares."""
+    """(rotation 3x3, wrist position) of the hand whose fingertips flexed ``ready`` (and wrist, toward
+    ``wrist_toward`` at their distance) best fit the closed tips: Kabsch's weighted least squares."""
     import numpy as np
-    rig = _hand_rig()
-    bones = {b.name: b for b in rig.hand_bones(hand.side)}
-    tips = rig.tip_bones(hand.side)
-    p = np.array([bones[tips[f]].tail for f in hand.tips])
+    ready = _hand_rig().fingertips(hand.side, *hand.ready)
+    p = np.array([ready[f] for f in hand.tips])
     q = np.array([f.closed for f in hand.tips.values()])
     p_c, q_c = p.mean(axis=0), q.mean(axis=0)
     reach = float(np.linalg.norm(p_c))                      # the wrist is the hand frame's origin
     p = np.vstack([p, np.zeros(3)])
     q = np.vstack([q, q_c + reach * np.array(_unit(hand.wrist_toward))])
-    p_c, q_c = p.mean(axis=0), q.mean(axis=0)
-    u, _, vt = np.linalg.svd((p - p_c).T @ (q - q_c))
+    w = np.array([hand.thumb_weight if f == "thumb" else 1.0 for f in hand.tips] + [1.0])[:, None]
+    p_c, q_c = (w * p).sum(axis=0) / w.sum(), (w * q).sum(axis=0) / w.sum()
+    u, _, vt = np.linalg.svd((w * (p - p_c)).T @ (q - q_c))
     d = np.sign(np.linalg.det(vt.T @ u.T))
     rot = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
     return rot, q_c - rot @ p_c
@@ -619,7 +620,27 @@ def hand_pinch() -> Scene:
                  Held("Cube", rise=0.08, max_slip=0.002, grasp_frame=25, max_tilt_deg=3.0), hand=hand)
 
 
-HAND_SCENES = {f.__name__: f for f in (hand_pinch,)}
+def hand_tripod_pencil() -> Scene:
+    # tripod_pencil's pencil (10 g, hexagonal, 7 mm across flats, 175 mm, on end) in the hand: the
+    # thumb on the flat toward the wrist, the index and middle fingertips on the flats 120 degrees
+    # either side, 3 cm below its top, 1.5 mm deep, the hand coming from the side (the pencil passes
+    # in front of the knuckles); lifted 8 cm and carried 10 cm sideways.
+    flats, length, squeeze = 0.007, 0.175, 0.0015
+    pencil = Body("Pencil", Prism(flats / math.sqrt(3.0), length, 6), (0.0, 0.0, length / 2), mass=0.010,
+                  mu=(0.7, 0.5))
+    z = length - 0.03
+    tips = {}
+    for finger, deg in (("thumb", 270.0), ("index", 150.0), ("middle", 30.0)):
+        n = (math.cos(math.radians(deg)), math.sin(math.radians(deg)), 0.0)
+        tips[finger] = _tip(finger, (n[0] * flats / 2, n[1] * flats / 2, z), n, squeeze)
+    hand = Hand("RIGHT", tips, wrist_toward=(0.0, -1.0, 0.25), touching=("thumb.03", "f_index.03", "f_middle.03"),
+                ready=((30.0, 40.0, 20.0), (20.0, 30.0, 20.0)))
+    return Scene("hand_tripod_pencil", "The hand: a tripod of the thumb, index and middle fingertips lifts a "
+                 "10 g pencil and carries it", [_table(), pencil], [], _lift_keys(0.08, 0.01, carry=(0.10, 0.0, 0.0)),
+                 Held("Pencil", rise=0.08, max_slip=0.0015, grasp_frame=25, max_tilt_deg=3.0), hand=hand)
+
+
+HAND_SCENES = {f.__name__: f for f in (hand_pinch, hand_tripod_pencil)}
 
 
 def all_scenes() -> dict:

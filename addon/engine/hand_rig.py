@@ -170,6 +170,32 @@ def hand_bones(side: str = "RIGHT") -> list:
                      mirror(b.palmar), b.radius, b.limits, b.connected) for b in _right_hand()]
 
 
+def fingertips(side: str = "RIGHT", finger_flex=(0.0, 0.0, 0.0), thumb_flex=(0.0, 0.0, 0.0)) -> dict:
+    """finger -> its tip (the last bone's tail) in the hand's frame, each joint flexed so many
+    degrees more than at rest (within its range): where a grasp's fingertips can be."""
+    flex = {"finger": tuple(r + f for r, f in zip(REST_FLEX["finger"], finger_flex)),
+            "thumb": tuple(r + f for r, f in zip(REST_FLEX["thumb"], thumb_flex))}
+    tips = {}
+    for finger in FINGERS:
+        if finger == "thumb":
+            start, forward, palmar, lengths, limits = THUMB_BASE, THUMB_FORWARD, THUMB_PALMAR, LENGTHS["thumb"], \
+                THUMB_LIMITS
+        else:
+            base, knuckle_x, knuckle_z = METACARPALS[finger]
+            length = LENGTHS[finger][0]
+            dx, dz = knuckle_x - base[0], knuckle_z - base[2]
+            start = (knuckle_x, base[1] + math.sqrt(length * length - dx * dx - dz * dz), knuckle_z)
+            forward, palmar, lengths, limits = _sub(start, base), (0.0, 0.0, -1.0), LENGTHS[finger][1:], FINGER_LIMITS
+        angles = flex["thumb" if finger == "thumb" else "finger"]
+        for a, ((lo, hi), _, _) in zip(angles, limits):
+            if not lo <= a <= hi:
+                raise ValueError(f"{finger}: {a:g} degrees is outside its joint's range {lo:g}..{hi:g}")
+        chain = _chain("tip", start, forward, palmar, lengths, (1.0,) * 3, angles, limits, None, False)
+        tip = chain[-1].tail
+        tips[finger] = (-tip[0], tip[1], tip[2]) if side == "LEFT" else tip
+    return tips
+
+
 def tip_bones(side: str = "RIGHT") -> dict:
     """finger -> the name of its last bone (whose tail is the fingertip), thumb first."""
     return {f: ("thumb.03" if f == "thumb" else f"f_{f}.03") + SUFFIX[side] for f in FINGERS}
