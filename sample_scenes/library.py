@@ -522,6 +522,8 @@ class Hand:
     stiffness: float = 1000.0
     thumb_weight: float = 1.0               # the thumb's weight in the fit (it reaches least far)
     ready: tuple = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))   # flexion beyond rest (fingers, thumb) fitted
+    placement: tuple = None                 # (rotation rows, wrist): given, instead of the fit
+    approach: tuple = (0.0, 0.0, 0.0)       # the wrist backs off along this as the hand opens
 
 
 def _hand_rig():
@@ -535,6 +537,8 @@ def hand_placement(hand: Hand):
     """(rotation 3x3, wrist position) of the hand whose fingertips flexed ``ready`` (and wrist, toward
     ``wrist_toward`` at their distance) best fit the closed tips: Kabsch's weighted least squares."""
     import numpy as np
+    if hand.placement is not None:
+        return np.array(hand.placement[0], dtype=float), np.array(hand.placement[1], dtype=float)
     ready = _hand_rig().fingertips(hand.side, *hand.ready)
     p = np.array([ready[f] for f in hand.tips])
     q = np.array([f.closed for f in hand.tips.values()])
@@ -555,8 +559,14 @@ def _hand_points(sc: Scene):
     import numpy as np
     rot, wrist = hand_placement(sc.hand)
     pts = [finger_position(f, k) for f in sc.hand.tips.values() for k in sc.keys]
-    pts += [wrist + np.array(k.offset) for k in sc.keys]
+    pts += [_wrist_at(sc.hand, wrist, k) for k in sc.keys]
     return pts
+
+
+def _wrist_at(hand: Hand, wrist, key: Key) -> tuple:
+    """Where the armature (the wrist) is at a key: carried, and backed off as the hand opens."""
+    back = _unit(hand.approach) if any(hand.approach) else (0.0, 0.0, 0.0)
+    return tuple(w + o + key.opening * b for w, o, b in zip(wrist, key.offset, back))
 
 
 def _add_hand(bpy, sc: Scene):
@@ -583,7 +593,7 @@ def _add_hand(bpy, sc: Scene):
             for name, deg in zip(chain, h.curl):
                 arm.pose.bones[name].rotation_euler.x = math.radians(deg)
     for key in sc.keys:
-        arm.location = tuple(w + o for w, o in zip(wrist, key.offset))
+        arm.location = _wrist_at(h, wrist, key)
         arm.keyframe_insert("location", frame=key.frame)
     _set_interpolation(bpy, arm, sc.interpolation)
     return arm
@@ -640,7 +650,43 @@ def hand_tripod_pencil() -> Scene:
                  Held("Pencil", rise=0.08, max_slip=0.0015, grasp_frame=25, max_tilt_deg=3.0), hand=hand)
 
 
-HAND_SCENES = {f.__name__: f for f in (hand_pinch, hand_tripod_pencil)}
+def hand_can_power() -> Scene:
+    # can_power's can (66 x 115 mm, 350 g) in a power grasp of the hand: the can's axis along the
+    # knuckle line under the palm, the index on top, the palm's deepest metacarpal placed 3 mm into
+    # it; every fingertip (flexed as round a 42 mm radius) reaches by IK for the can's surface 3 mm
+    # deep, the thumb across. The hand comes in from the side (-x), closes and lifts it 10 cm.
+    import numpy as np
+    rig = _hand_rig()
+    rad, h, squeeze = 0.033, 0.115, 0.003
+    can = Body("Can", Prism(rad, h, 32, angle=math.pi / 32), (0.0, 0.0, h / 2), mass=0.35, mu=(0.6, 0.5))
+    axis_y = 0.065                               # hand frame: under the palm, toward the knuckles
+    bones = {b.name: b for b in rig.hand_bones("RIGHT")}
+
+    def depth(axis_z, b):                        # of a metacarpal capsule in the can (hand frame)
+        a, c = np.array(b.head)[1:], np.array(b.tail)[1:]
+        t = np.clip(np.dot((axis_y, axis_z) - a, c - a) / np.dot(c - a, c - a), 0.0, 1.0)
+        return rad + b.radius - float(np.linalg.norm(a + t * (c - a) - (axis_y, axis_z)))
+    palms = [bones[f"palm.0{k}.R"] for k in (1, 2, 3, 4)]
+    axis_z = -(rig.PALM_RADIUS + rad)
+    axis_z -= max(depth(axis_z, b) for b in palms) - squeeze
+    # hand x (index to little) -> world -z, hand y (fingers) -> world -y, palmar (-z) -> world +x
+    rot = np.array([[0.0, 0.0, -1.0], [0.0, -1.0, 0.0], [-1.0, 0.0, 0.0]])
+    wrist = np.array((0.0, 0.0, h / 2)) - rot @ np.array((0.0, axis_y, axis_z))
+    tips = {}
+    for finger, p in rig.fingertips("RIGHT", (25.0, 35.0, 20.0), (20.0, 30.0, 20.0)).items():
+        v = np.array((0.0, p[1] - axis_y, p[2] - axis_z))   # the tip moved radially onto the surface
+        v /= np.linalg.norm(v)
+        surface = rot @ (np.array((p[0], axis_y, axis_z)) + rad * v) + wrist
+        tips[finger] = _tip(finger, tuple(surface), tuple(rot @ v), squeeze)
+    hand = Hand("RIGHT", tips, wrist_toward=(-1.0, 0.0, 0.0), placement=(rot.tolist(), tuple(wrist)),
+                approach=(-1.0, 0.0, 0.0),
+                touching=("f_index.03", "f_middle.03", "f_ring.03", "f_pinky.03", "thumb.03"))
+    return Scene("hand_can_power", "The hand: a power grasp, the phalanges of the four fingers and the thumb "
+                 "round a full 350 g can, lifts it off the table", [_table(), can], [], _lift_keys(0.10, 0.015),
+                 Held("Can", rise=0.10, max_slip=0.003, grasp_frame=25, max_tilt_deg=5.0), hand=hand)
+
+
+HAND_SCENES = {f.__name__: f for f in (hand_pinch, hand_tripod_pencil, hand_can_power)}
 
 
 def all_scenes() -> dict:
