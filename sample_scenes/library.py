@@ -686,7 +686,35 @@ def hand_can_power() -> Scene:
                  Held("Can", rise=0.10, max_slip=0.003, grasp_frame=25, max_tilt_deg=5.0), hand=hand)
 
 
-HAND_SCENES = {f.__name__: f for f in (hand_pinch, hand_tripod_pencil, hand_can_power)}
+def hand_mug_handle() -> Scene:
+    # mug_hook's full mug (350 g, its ring handle on its +x side, Collision Shape Automatic) lifted
+    # by the hand's index hooked through the handle: the palm up, the index reaching in along -y
+    # (its tip in the handle's hole near its outer side, as mug_hook's fingertip), the other
+    # fingers and the thumb curled; the hand lifts 12 cm and the mug hangs from the index. The
+    # mug stands on a coaster, so that the back of the hand passes below its top.
+    import numpy as np
+    rad, h = 0.04, 0.09
+    ring = Ring(major=0.024, minor=0.006)
+    ring_x, ring_z = rad + 0.010, h / 2 - 0.030
+    mug = Body("Mug", Union(((Prism(rad, h, 32), (0.0, 0.0, 0.0)), (ring, (ring_x, 0.0, ring_z)))),
+               (0.0, 0.0, h / 2), mass=0.35, mu=(0.6, 0.5), collision="AUTO")
+    r = _hand_rig().RADII["index"][2]
+    inside = (ring_x + 0.006, 0.0, h / 2 + ring_z)
+    tips = {"index": Finger("index", inside, (0.0, 1.0, 0.0), radius=r, stiffness=1500.0, damping=3.0)}
+    rot = np.diag([1.0, -1.0, -1.0])             # palm up, the fingers along -y
+    ready = _hand_rig().fingertips("RIGHT", (-20.0, -15.0, -10.0))["index"]      # straight, level with the palm
+    wrist = np.array(inside) - rot @ np.array(ready)
+    hand = Hand("RIGHT", tips, wrist_toward=(0.0, 1.0, 0.0), placement=(rot.tolist(), tuple(wrist)),
+                touching=("f_index.03",), stiffness=1500.0)
+    keys = [Key(1, "rest", 0.04), Key(7, "reach in", 0.04), Key(25, "lift", 0.0),
+            Key(73, "hold", 0.0, (0.0, 0.0, 0.12)), Key(145, "end", 0.0, (0.0, 0.0, 0.12))]
+    stand = _table(size=(0.10, 0.10, 0.02), name="Stand")     # a coaster: the hand below its edge
+    return Scene("hand_mug_handle", "The hand: the index hooked through a full mug's handle lifts it; the mug "
+                 "hangs from the finger", [stand, mug], [], keys,
+                 Hangs("Mug", "f_index.03", rise=0.05, max_offset=0.003), hand=hand)
+
+
+HAND_SCENES = {f.__name__: f for f in (hand_pinch, hand_tripod_pencil, hand_can_power, hand_mug_handle)}
 
 
 def all_scenes() -> dict:
@@ -1041,7 +1069,7 @@ def measure(sc: Scene, r: Result) -> dict:
             out["just_enough"] = body.mass * G / (n_f * body.mu[0])
     elif isinstance(c, Hangs):
         i = r.body(c.body)
-        f = r.finger_names.index(c.finger)
+        f = _hand_bone_fingers(sc, r, [c.finger])[0] if sc.hand is not None else r.finger_names.index(c.finger)
         out["rise"] = float(r.com[-1, i, 2] - r.com[0, i, 2])
         d = r.com[-c.window:, i, :2] - r.god_objects[-c.window:, f, :2]
         out["com_offset"] = float(np.linalg.norm(d.mean(axis=0)))
