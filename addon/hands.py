@@ -84,7 +84,9 @@ def rig_of(arm, finger_index: dict) -> eh.HandRig:
                       parents=[index[b.parent.name] if b.parent is not None else -1 for b in bones],
                       lengths=np.array([b.length for b in bones]),
                       rest=np.array([np.array(b.matrix_local) for b in bones]),
-                      fingers=[finger_index.get(b.name, -1) for b in bones])
+                      fingers=[finger_index.get(b.name, -1) for b in bones],
+                      connected=[b.parent is not None and (b.use_connect or (b.head_local - b.parent.tail_local).length
+                                                           < 1e-6) for b in bones])
 
 
 def _link_like(obj, like) -> None:
