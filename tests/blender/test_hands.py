@@ -223,7 +223,9 @@ def test_keyed_hand_squeezes_lifts_and_the_rendered_hand_stays_on_the_box(bpy, b
     for obj, rig in ((skin, arm), (copy, rendered)):
         ev = obj.evaluated_get(dg)
         got = np.array([np.array(ev.matrix_world) @ np.append(v.co, 1) for v in ev.data.vertices])[:, :3]
-        want_m = np.array(rig.matrix_world) @ np.array(rig.pose.bones[bone].matrix) @ np.linalg.inv(rest)
+        rig_w = np.array(rig.matrix_world)
+        want_m = rig_w @ np.array(rig.pose.bones[bone].matrix) @ np.linalg.inv(rest) @ np.linalg.inv(rig_w) \
+            @ np.array(obj.matrix_world)
         want = np.array([want_m @ np.append(v.co, 1) for v in skin.data.vertices])[:, :3]
         np.testing.assert_allclose(got, want, atol=1e-6)
 
