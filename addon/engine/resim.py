@@ -223,22 +223,19 @@ def replay(world, hips: np.ndarray, dt: float, has_start: bool = True, before: d
     """Step ``world`` once per row of ``hips`` ((steps, fingers, 3): each step's HIPs) and
     return every tick's record; tick 0, the state before the first step, only ``if has_start``.
     The stretches run in C (``World.step_hips``); ``before`` ({step: f(world)}, 0-based steps)
-    runs Python before those steps: the sweep's pushes. ``turns`` ((steps, fingers, 4) or None):
-    each step's HIP orientations of turning fingers (a hand's bones, a turning palm), set with
-    the positions before every step as a session's driver does; those steps run one by one."""
+    runs Python before those steps: the sweep's pushes. ``turns`` ((steps, fingers, 4) or None;
+    ``recorded_turns``): each step's HIP orientations of the turning fingers (a hand's bones, a
+    turning palm), set before every step as a session's driver does; the steps then run one a
+    call."""
     n = len(hips)
     ticks = np.empty(n + 1, dtype=world.tick_dtype())       # every byte of a record is written
     world._tick_record(ticks[:1], 0)
     if turns is not None:
-        turning = np.flatnonzero(turning_fingers(turns))
         for k in range(n):
             if before and k in before:
                 before[k](world)
-            for f in turning:
-                world.set_finger_pose(int(f), tuple(hips[k, f]), tuple(turns[k, f]))
-            world.set_hips(np.ascontiguousarray(hips[k]))
-            world.step(dt)
-            world._tick_record(ticks[k + 1:k + 2], k + 1)
+            set_turns(world, hips, turns, k)
+            world.step_hips(hips[k:k + 1], dt, ticks[k + 1:k + 2], first_tick=k + 1)
         return ticks if has_start else ticks[1:]
     k = 0
     for stop in sorted(k for k in (before or ()) if 0 <= k < n) + [n]:
@@ -251,6 +248,13 @@ def replay(world, hips: np.ndarray, dt: float, has_start: bool = True, before: d
     return ticks if has_start else ticks[1:]
 
 
+def set_turns(world, hips, turns, k: int) -> None:
+    """Step ``k``'s orientations of the fingers that turn (``turns[k]``, NaN rows: fingers that
+    do not), before the step, as a session's driver sets them."""
+    for f in np.flatnonzero(~np.isnan(turns[k, :, 0])):
+        world.set_finger_pose(int(f), tuple(hips[k, f]), tuple(turns[k, f]))
+
+
 def recorded_turns(recorded: Recording, same_rate: bool, has_start: bool):
     """The recorded HIP orientations to replay with, when some finger turns (a hand's bones, a
     turning palm); None when none does (replayed in C as before) or the rate changes (not
@@ -258,9 +262,11 @@ def recorded_turns(recorded: Recording, same_rate: bool, has_start: bool):
     names = recorded.ticks.dtype.names or ()
     if "orientation" not in names or not same_rate:
         return None
-    q = np.ascontiguousarray(recorded.ticks["orientation"], dtype=np.float64)
-    if not turning_fingers(q).any():
+    q = np.array(recorded.ticks["orientation"], dtype=np.float64)
+    turning = turning_fingers(q)
+    if not turning.any():
         return None
+    q[:, ~turning] = np.nan          # set_turns leaves those alone
     return q[1:] if has_start else q
 
 

@@ -238,6 +238,26 @@ def test_a_hand_recording_resimulates_identically(bpy, baked):
     assert result.divergence.report() == "identical"
 
 
+def test_a_sweep_sample_of_a_hand_recording_with_nothing_varied_is_the_recording(bpy, baked):
+    """A sweep replays the bones' recorded orientations too (resim.recorded_turns): with nothing
+    varied its traces are the recording's, and the box is held."""
+    rec_mod = grasp_env.submodule("engine.recording")
+    sweep = grasp_env.submodule("engine.sweep")
+    rec = rec_mod.open_recording(bpy.context.scene.grasp_lab.last_recording)
+    core = grasp_env.graspcore()
+    job = sweep.make_job(rec, [], 0, analysis=False)
+    # The 15 phalanges turn (the chains close), the palm only rises: NaN, left alone.
+    palm = rec.finger_names.index("Hand:palm")
+    assert np.isnan(job.turns[:, palm]).all() and not np.isnan(np.delete(job.turns, palm, axis=1)).any()
+    desc = rec_mod.scene_from_dict(rec.header["scene"])
+    handle = grasp_env.submodule("engine.scene").build_world(desc, core, exact=True)
+    traces = sweep.replay_trace(handle.world, job.hips, 1.0 / job.rate, job.has_start, turns=job.turns)
+    np.testing.assert_array_equal(traces["pose"], rec.ticks["pose"])
+    np.testing.assert_array_equal(traces["god_object"], rec.ticks["god_object"])
+    row = sweep.run_sample(job, 0, core)
+    assert row["held"] == 1 and row["drop_time"] is None
+
+
 @pytest.mark.parametrize("case, words", [
     ("zero_length", ["Hand:f1.2", "zero length"]),
     ("zero_radius", ["Hand:f1.2", "zero radius"]),
