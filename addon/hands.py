@@ -173,19 +173,8 @@ class Hand:
             arm_world, inputs = np.array(self.arm.matrix_world), _bone_matrices(self.arm, self.rig)
         else:
             arm_world, inputs = self.samples[min(sample_index, len(self.samples) - 1)]
-        gods = {}
-        for i in self.rig.finger_bones():
-            f = self.rig.fingers[i]
-            q = eh.quat_from_matrix(inputs[i])
-            hip, b = snap.hips[f], int(snap.contacts[f])
-            position = hip
-            if b >= 0:
-                n = np.asarray(snap.normals[f], dtype=np.float64)
-                if np.linalg.norm(n) > 0:
-                    n = n / np.linalg.norm(n)
-                    support = eh.body_support(bodies[b].parts, snap.poses[b], n)
-                    position, _ = eh.god_pose(hip, q, self.points[f], self.radii[f], n, support)
-            gods[f] = eh.pose_matrix(position, q)
+        gods = eh.god_matrices({self.rig.fingers[i]: inputs[i] for i in self.rig.finger_bones()}, snap, bodies,
+                               self.points, self.radii)
         rendered = eh.rendered_matrices(self.rig, inputs, gods)
         self.corrections = eh.corrections(inputs, rendered, self.rig.lengths)
         bases = eh.local_bases(self.rig, arm_world, rendered)

@@ -8,8 +8,12 @@ boxes (bench/hands_spec.py) and lift them 10 cm.
   beside MuJoCo's ``mj_step`` on the same scene (bench/hands_mujoco.py in .venv-bench: capsule
   geoms on free bodies, each driven by a mocap body through a weld), interleaved repeats.
 * Both engines: the boxes' lift at the end (the grasp held).
+* The rendered hands (engine/hands.py) at every frame of the synchronous run: the deepest input
+  and rendered capsule in any box, the largest gap at a joint.
 
-    .venv/bin/python bench/bench_hands.py [--quick] [--json OUT]
+Prints its section of docs/benchmarks.md (run_bench.py includes it).
+
+    .venv/bin/python bench/bench_hands.py [--quick] [--no-mujoco] [--json OUT]
 """
 from __future__ import annotations
 
@@ -122,6 +126,100 @@ def step_times(graspcore, desc, times, pos, quat, repeats: int):
     return out, lift
 
 
+def _rigs(spec):
+    """Each hand's HandRig: the palm the root, each chain's first bone its child (not connected),
+    the others connected; rest = the pose at t = 0 (only the chain structure is used)."""
+    rigs = []
+    for hand in ("A", "B"):
+        idx = [i for i, f in enumerate(spec["fingers"]) if f["hand"] == hand]
+        parents, connected, last = [], [], {}
+        for k, i in enumerate(idx):
+            chain = spec["fingers"][i]["chain"]
+            parent = -1 if chain < 0 else last.get(chain, 0)
+            parents.append(parent)
+            connected.append(chain >= 0 and chain in last)
+            if chain >= 0:
+                last[chain] = k
+        rigs.append((idx, eh.HandRig(armature=hand, bones=[spec["fingers"][i]["name"] for i in idx], parents=parents,
+                                     lengths=np.array([spec["fingers"][i]["length"] for i in idx]),
+                                     rest=np.array([np.eye(4)] * len(idx)), fingers=list(idx), connected=connected)))
+    return rigs
+
+
+def _box_depth(heads, tails, radius, pose, half) -> float:
+    """Deepest point of capsules (segments heads-tails, radius) in a box at ``pose``, m
+    (negative: clear); segments sampled 100 times."""
+    r = eh.matrix_from_quat(pose[3:])
+    t = np.linspace(0, 1, 100)[None, :, None]
+    pts = heads[:, None] + t * (tails - heads)[:, None]
+    q = np.abs((pts - pose[:3]) @ r) - np.asarray(half)
+    d = np.linalg.norm(np.maximum(q, 0), axis=-1) + np.minimum(q.max(axis=-1), 0)
+    return float(np.max(radius - d.min(axis=1)))
+
+
+def rendered_depths(graspcore, spec, desc, times, pos, quat, fps=24):
+    """The grasp on the synchronous steps; at every frame the rendered hands (engine/hands.py:
+    god-poses, chain correction) beside the input: the deepest input and rendered capsule in
+    any box, and the largest gap at a connected joint."""
+    handle = scene.build_world(desc, graspcore)
+    run = runner.SessionRunner(handle, inputs.SampledTrajectory(times, pos, quat), 1000.0)
+    rigs = _rigs(spec)
+    radius = np.array([f["radius"] for f in spec["fingers"]])
+    points = {f: d.points for f, d in enumerate(desc.fingers)}
+    radii = {f: d.radius for f, d in enumerate(desc.fingers)}
+    worst = {"input": 0.0, "rendered": -1.0, "joint_gap": 0.0}
+    for k in range(int(DURATION * fps) + 1):
+        run.advance_to(k / fps)
+        snap = run.snapshot()
+        p, r = hands_spec.poses(snap.time)
+        m = np.array([np.eye(4)] * len(p))
+        m[:, :3, :3], m[:, :3, 3] = r, p
+        for idx, rig in rigs:
+            gods = eh.god_matrices({f: m[f] for f in idx}, snap, desc.bodies, points, radii)
+            out = eh.rendered_matrices(rig, m[idx], gods)
+            for name, mats in (("input", m[idx]), ("rendered", out)):
+                heads, tails = eh.bone_ends(mats, rig.lengths)
+                for b in range(3):
+                    depth = _box_depth(heads, tails, radius[idx], snap.poses[b], spec["boxes"][b]["half"])
+                    worst[name] = max(worst[name], depth)
+            heads, tails = eh.bone_ends(out, rig.lengths)
+            gaps = [np.linalg.norm(heads[i] - tails[rig.parents[i]]) for i in range(len(idx)) if rig.connected[i]]
+            worst["joint_gap"] = max(worst["joint_gap"], max(gaps))
+    run.stop()
+    return worst
+
+
+def markdown(r: dict) -> str:
+    rt = r["runtime"]
+    ratio = r.get("ratio")
+    lines = [
+        "## Hands: two hands holding three boxes", "",
+        "`bench/bench_hands.py` (docs/hands.md): two hands of 16 phalanx capsules and a palm each (34 convex "
+        "fingers of the core, 6 hull points each), closing 3 mm into the faces of three boxes (50 g) on a table "
+        "and lifting them 10 cm in 2.2 s, the poses on the core's track as an animated armature gives them. "
+        "MuJoCo: the same capsules on free bodies of 10 g, each driven by a mocap body through a weld with the "
+        "fingers' spring and damper, elliptic cones, implicitfast, dt 1 ms (bench/hands_mujoco.py).", "",
+        "| measure | value | target |",
+        "|---|---|---|",
+        f"| haptic tick work, threaded runtime at 1 kHz: p50 / p99 / max | {rt['work_p50_us']:.0f} / "
+        f"{rt['work_p99_us']:.0f} / {rt['work_max_us']:.0f} µs | p99 < 300 µs: "
+        f"{'met' if rt['work_p99_us'] < 300 else 'MISSED'} |",
+        f"| period jitter p99 (the runtime's, {rt['late_periods']} late periods of {rt['ticks']}) | "
+        f"{rt['jitter_p99_us']:.0f} µs | (machine load) |",
+        f"| step time, synchronous (median) | graspcore {r['graspcore_step_median_us']:.1f} µs"
+        + (f", MuJoCo {r['mujoco_step_median_us']:.1f} µs: {ratio:.2f}×" if ratio is not None else ", MuJoCo not run")
+        + f" | ≤ 0.5× MuJoCo: {'met' if ratio is not None and ratio <= 0.5 else ('MISSED' if ratio else 'not measured')} |",
+        f"| boxes lifted (graspcore runtime; MuJoCo) | {', '.join(f'{1e3 * z:.1f}' for z in rt['lift_m'])} mm"
+        + (f"; {', '.join(f'{1e3 * z:.1f}' for z in r['mujoco_lift_m'])} mm" if "mujoco_lift_m" in r else "")
+        + " | 100 mm |",
+        f"| deepest capsule in a box, input / rendered hand (every frame) | {1e3 * r['depth']['input']:.2f} / "
+        f"{1e3 * r['depth']['rendered']:.3f} mm | rendered ≤ 0.5 mm while the input goes 3 mm: "
+        f"{'met' if r['depth']['rendered'] <= 5e-4 and r['depth']['input'] >= 0.0029 else 'MISSED'} |",
+        f"| largest gap at a joint of the rendered hands | {1e3 * r['depth']['joint_gap']:.2g} mm | ≤ 0.5 mm |",
+    ]
+    return "\n".join(lines)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
@@ -158,11 +256,11 @@ def main(argv=None):
         result["ratio"] = result["graspcore_step_median_us"] / result["mujoco_step_median_us"]
     with tempfile.TemporaryDirectory() as tmp:
         result["runtime"] = runtime_ticks(gc, desc, times, pos, quat, os.path.join(tmp, "hands.mcap"))
-    text = json.dumps(result, indent=1)
-    print(text)
+    result["depth"] = rendered_depths(gc, spec, desc, times, pos, quat)
     if args.json:
         with open(args.json, "w") as fh:
-            fh.write(text + "\n")
+            fh.write(json.dumps(result, indent=1) + "\n")
+    print(markdown(result))
     return result
 
 

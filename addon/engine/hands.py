@@ -173,6 +173,25 @@ def god_pose(hip, orientation, points, radius, normal, support) -> tuple:
     return hip + depth * n, depth
 
 
+def god_matrices(inputs: dict, snap, bodies, points: dict, radii: dict) -> dict:
+    """The god-poses (4x4 world matrices) of Finger bones: ``inputs`` scene finger index -> the
+    bone's input world matrix (its orientation; the position is the snapshot's HIP), ``snap`` a
+    runner Snapshot (HIPs, contacts, normals, body poses), ``bodies`` the scene's BodyDescs (their
+    convex parts), ``points``/``radii`` per finger: its hull points and radius."""
+    out = {}
+    for f, m in inputs.items():
+        q = quat_from_matrix(m)
+        position = np.asarray(snap.hips[f], dtype=np.float64)
+        b = int(snap.contacts[f])
+        n = np.asarray(snap.normals[f], dtype=np.float64)
+        if b >= 0 and np.linalg.norm(n) > 0:
+            n = n / np.linalg.norm(n)
+            support = body_support(bodies[b].parts, snap.poses[b], n)
+            position, _ = god_pose(position, q, points[f], radii[f], n, support)
+        out[f] = pose_matrix(position, q)
+    return out
+
+
 @dataclass
 class HandRig:
     """One input armature: its bones parents first, and which are fingers of the scene."""
