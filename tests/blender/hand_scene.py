@@ -75,23 +75,30 @@ def build(bpy, skinned=True):
         pb.grasp_lab.role = "FINGER"
         pb.grasp_lab.radius = PALM_RADIUS if pb.name == "palm" else RADIUS
 
-    theta = closing_angle()
     for frame, closed, lifted in ((FRAMES["open"], 0, 0), (FRAMES["closed"], 1, 0), (FRAMES["lift_start"], 1, 0),
                                   (FRAMES["lifted"], 1, 1), (FRAMES["end"], 1, 1)):
-        palm_pb = arm.pose.bones["palm"]
-        rest = np.array(palm_pb.bone.matrix_local)[:3, :3]
-        palm_pb.location = tuple(rest.T @ np.array((0.0, 0.0, LIFT * lifted)))
-        palm_pb.keyframe_insert("location", frame=frame)
-        for k, (side, _) in enumerate(CHAINS):
-            pb = arm.pose.bones[chain_names(k)[0]]
-            # Turn about world Y (+: the tip toward -X), in the bone's rest axes.
-            axis = np.array(pb.bone.matrix_local)[:3, :3].T @ np.array((0.0, 1.0, 0.0))
-            half = 0.5 * side * theta * closed
-            pb.rotation_quaternion = (math.cos(half), *(math.sin(half) * axis))
-            pb.keyframe_insert("rotation_quaternion", frame=frame)
+        pose(arm, closed, lifted)
+        arm.pose.bones["palm"].keyframe_insert("location", frame=frame)
+        for k in range(len(CHAINS)):
+            arm.pose.bones[chain_names(k)[0]].keyframe_insert("rotation_quaternion", frame=frame)
     if skinned:
         skin_fingertip(bpy, arm, chain_names(0)[2])
     return arm, box
+
+
+def pose(arm, closed: float, lifted: float) -> None:
+    """The hand ``closed`` (0 open, 1 the capsules SQUEEZE into the box) and ``lifted`` (0 to 1
+    of LIFT): the palm's location, each chain's turn at its first joint."""
+    palm_pb = arm.pose.bones["palm"]
+    rest = np.array(palm_pb.bone.matrix_local)[:3, :3]
+    palm_pb.location = tuple(rest.T @ np.array((0.0, 0.0, LIFT * lifted)))
+    theta = closing_angle()
+    for k, (side, _) in enumerate(CHAINS):
+        pb = arm.pose.bones[chain_names(k)[0]]
+        # Turn about world Y (+: the tip toward -X), in the bone's rest axes.
+        axis = np.array(pb.bone.matrix_local)[:3, :3].T @ np.array((0.0, 1.0, 0.0))
+        half = 0.5 * side * theta * closed
+        pb.rotation_quaternion = (math.cos(half), *(math.sin(half) * axis))
 
 
 def skin_fingertip(bpy, arm, bone_name):

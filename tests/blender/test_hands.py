@@ -258,6 +258,44 @@ def test_a_sweep_sample_of_a_hand_recording_with_nothing_varied_is_the_recording
     assert row["held"] == 1 and row["drop_time"] is None
 
 
+def test_a_hand_posed_live_is_pushed_to_the_haptic_loop_and_rendered(bpy, core):
+    """Not animated: the armature as it is posed at each display update (by a mocap add-on, or
+    a person) goes to the threaded runtime with its time stamp. Closed on the box, the five
+    fingertips hold it and the rendered fingertips are on its surface; opened, they let go."""
+    import time as _time
+    session = grasp_env.submodule("session")
+    arm, box = hand_scene.build(bpy, skinned=False)
+    arm.animation_data_clear()
+    hand_scene.pose(arm, closed=1.0, lifted=0.0)
+    bpy.context.view_layer.update()
+    s = session.BlenderSession(bpy.context, live=True, duration=60.0)
+    assert s.runner.threaded and s.source.interactive
+    tips = [s.result.finger_names.index(f"Hand:f{k}.3") for k in range(5)]
+    t0 = _time.perf_counter()
+
+    def run_until(cond, what):
+        while not cond():
+            s.tick(_time.perf_counter() - t0)
+            _time.sleep(0.02)
+            assert _time.perf_counter() - t0 < 60.0, f"waiting for {what}"
+
+    run_until(lambda: s.snapshot.time > 0.3 and all(s.snapshot.contacts[tips] == 0)
+              and np.allclose(s.snapshot.hips[tips[0]], s.finger_objects[tips[0]].matrix_world.translation, atol=1e-6),
+              "the fingertips on the box")
+    rendered = bpy.data.objects["Hand Rendered"]
+    bpy.context.view_layer.update()                 # the pose set at the last update, evaluated
+    bm = np.array(box.matrix_world)
+    names = [f"f{k}.3" for k in range(5)]
+    depths_in = [hand_scene.RADIUS - _box_distance(h, t, bm, hand_scene.BOX_HALF) for h, t in zip(*_bones(arm, names))]
+    depths = [hand_scene.RADIUS - _box_distance(h, t, bm, hand_scene.BOX_HALF) for h, t in zip(*_bones(rendered, names))]
+    assert min(depths_in) > 0.002 and max(depths) <= 0.5e-3 and min(depths) >= -0.5e-3, (depths_in, depths)
+    hand_scene.pose(arm, closed=0.0, lifted=0.0)     # opened, as an add-on would pose it
+    bpy.context.view_layer.update()
+    run_until(lambda: all(s.snapshot.contacts[tips] < 0), "the fingertips to let go")
+    s.finish()
+    assert not s.runner.world.running
+
+
 @pytest.mark.parametrize("case, words", [
     ("zero_length", ["Hand:f1.2", "zero length"]),
     ("zero_radius", ["Hand:f1.2", "zero radius"]),
