@@ -52,6 +52,16 @@ class BoneFinger:
                                    rendered_of=str(self.armature.get(eh.RENDERED_OF_PROPERTY, "")))
 
 
+def bone_finger_named(name: str):
+    """The Finger bone a recording names ``<armature>:<bone>`` (either may hold a colon), or None."""
+    for i, ch in enumerate(name):
+        if ch == ":":
+            arm = bpy.data.objects.get(name[:i])
+            if arm is not None and arm.type == "ARMATURE" and name[i + 1:] in arm.pose.bones:
+                return BoneFinger(arm, name[i + 1:])
+    return None
+
+
 def finger_bones(context) -> list:
     """Every Finger bone of every armature of the view layer (armatures by name, bones in order)."""
     out = []
@@ -137,7 +147,7 @@ def _ensure_rendered_mesh(mesh, arm, rendered):
         _link_like(copy, mesh)
     copy.grasp_lab.role = "NONE"
     for m in copy.modifiers:
-        if m.type == "ARMATURE" and m.object in (arm, rendered):
+        if m.type == "ARMATURE" and (m.object is None or m.object in (arm, rendered)):
             m.object = rendered
     if mesh.parent == arm:
         copy.parent = rendered
@@ -214,6 +224,36 @@ class Hand:
             channels += [(f"{path}.scale", i, scales[:, k, i]) for i in range(3)]
             channels.append((f'{path}["{CORRECTION_PROPERTY}"]', 0, corr[:, k]))
         return anim.bake_channels(self.rendered, frames, channels)
+
+
+class RecordedSnapshot:
+    """What Hand.update reads of a snapshot, from a tick record (bake of a recording)."""
+
+    def __init__(self, tick):
+        self.hips, self.contacts, self.normals, self.poses = tick["hip"], tick["contact"], tick["normal"], tick["pose"]
+
+
+def bake_recorded_hands(scene, desc, ticks, frames) -> list:
+    """Key the rendered armature of every hand among a recording's fingers (``<armature>:<bone>``
+    names of the scene's armatures) at ``frames`` from ``ticks`` (one record a frame), the input
+    armatures sampled at those frames. Returns [(rendered armature, keys written)]; the fingers
+    found are not missing."""
+    hands = make_hands([bone_finger_named(f.name) for f in desc.fingers], desc)
+    if not hands or "normal" not in (ticks.dtype.names or ()):
+        return []
+    current = scene.frame_current
+    try:
+        for fr in frames:
+            scene.frame_set(int(np.floor(fr)), subframe=float(fr - np.floor(fr)))
+            for hand in hands:
+                hand.sample()
+        for k, fr in enumerate(frames):
+            snap = RecordedSnapshot(ticks[k])
+            for hand in hands:
+                hand.update(snap, desc.bodies, k, True, float(fr))
+    finally:
+        scene.frame_set(current)
+    return [(hand.rendered, hand.write_bake()) for hand in hands]
 
 
 def make_hands(finger_objects, desc) -> list:

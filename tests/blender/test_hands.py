@@ -238,6 +238,33 @@ def test_a_hand_recording_resimulates_identically(bpy, baked):
     assert result.divergence.report() == "identical"
 
 
+def test_baking_the_recording_keys_the_rendered_hand_as_the_session_did(bpy, baked):
+    """Bake Recording of the hand's recording, its rendered armature deleted first: made again
+    and keyed with the poses and corrections the session's own bake had (float32 keys)."""
+    arm = baked[0]
+    scene = bpy.context.scene
+    names = [b.name for b in arm.data.bones]
+    frames = (5, 13, 30, 45)
+    before = {}
+    rendered = bpy.data.objects["Hand Rendered"]
+    for frame in frames:
+        scene.frame_set(frame)
+        before[frame] = (_bones(rendered, names), [rendered.pose.bones[n]["gl_correction_mm"] for n in names])
+    bpy.data.objects.remove(rendered)
+    rec = grasp_env.submodule("engine.recording").open_recording(scene.grasp_lab.last_recording)
+    report = grasp_env.submodule("bake").bake_recording(bpy.context, rec)
+    assert "Hand Rendered" in report.baked and report.missing == [], report.message()
+    rendered = bpy.data.objects["Hand Rendered"]
+    assert bpy.data.objects["Fingertip Skin Rendered"].modifiers["Armature"].object == rendered
+    for frame in frames:
+        scene.frame_set(frame)
+        (h0, t0), c0 = before[frame]
+        h1, t1 = _bones(rendered, names)
+        np.testing.assert_allclose(h1, h0, atol=2e-6)
+        np.testing.assert_allclose(t1, t0, atol=2e-6)
+        np.testing.assert_allclose([rendered.pose.bones[n]["gl_correction_mm"] for n in names], c0, atol=1e-3)
+
+
 def test_a_sweep_sample_of_a_hand_recording_with_nothing_varied_is_the_recording(bpy, baked):
     """A sweep replays the bones' recorded orientations too (resim.recorded_turns): with nothing
     varied its traces are the recording's, and the box is held."""
