@@ -52,6 +52,16 @@ class BoneFinger:
                                    rendered_of=str(self.armature.get(eh.RENDERED_OF_PROPERTY, "")))
 
 
+def bone_finger_named(name: str):
+    """The Finger bone a recording names ``<armature>:<bone>`` (either may hold a colon), or None."""
+    for i, ch in enumerate(name):
+        if ch == ":":
+            arm = bpy.data.objects.get(name[:i])
+            if arm is not None and arm.type == "ARMATURE" and name[i + 1:] in arm.pose.bones:
+                return BoneFinger(arm, name[i + 1:])
+    return None
+
+
 def finger_bones(context) -> list:
     """Every Finger bone of every armature of the view layer (armatures by name, bones in order)."""
     out = []
@@ -84,7 +94,9 @@ def rig_of(arm, finger_index: dict) -> eh.HandRig:
                       parents=[index[b.parent.name] if b.parent is not None else -1 for b in bones],
                       lengths=np.array([b.length for b in bones]),
                       rest=np.array([np.array(b.matrix_local) for b in bones]),
-                      fingers=[finger_index.get(b.name, -1) for b in bones])
+                      fingers=[finger_index.get(b.name, -1) for b in bones],
+                      connected=[b.parent is not None and (b.use_connect or (b.head_local - b.parent.tail_local).length
+                                                           < 1e-6) for b in bones])
 
 
 def _link_like(obj, like) -> None:
@@ -135,7 +147,7 @@ def _ensure_rendered_mesh(mesh, arm, rendered):
         _link_like(copy, mesh)
     copy.grasp_lab.role = "NONE"
     for m in copy.modifiers:
-        if m.type == "ARMATURE" and m.object in (arm, rendered):
+        if m.type == "ARMATURE" and (m.object is None or m.object in (arm, rendered)):
             m.object = rendered
     if mesh.parent == arm:
         copy.parent = rendered
@@ -171,19 +183,8 @@ class Hand:
             arm_world, inputs = np.array(self.arm.matrix_world), _bone_matrices(self.arm, self.rig)
         else:
             arm_world, inputs = self.samples[min(sample_index, len(self.samples) - 1)]
-        gods = {}
-        for i in self.rig.finger_bones():
-            f = self.rig.fingers[i]
-            q = eh.quat_from_matrix(inputs[i])
-            hip, b = snap.hips[f], int(snap.contacts[f])
-            position = hip
-            if b >= 0:
-                n = np.asarray(snap.normals[f], dtype=np.float64)
-                if np.linalg.norm(n) > 0:
-                    n = n / np.linalg.norm(n)
-                    support = eh.body_support(bodies[b].parts, snap.poses[b], n)
-                    position, _ = eh.god_pose(hip, q, self.points[f], self.radii[f], n, support)
-            gods[f] = eh.pose_matrix(position, q)
+        gods = eh.god_matrices({self.rig.fingers[i]: inputs[i] for i in self.rig.finger_bones()}, snap, bodies,
+                               self.points, self.radii)
         rendered = eh.rendered_matrices(self.rig, inputs, gods)
         self.corrections = eh.corrections(inputs, rendered, self.rig.lengths)
         bases = eh.local_bases(self.rig, arm_world, rendered)
@@ -223,6 +224,36 @@ class Hand:
             channels += [(f"{path}.scale", i, scales[:, k, i]) for i in range(3)]
             channels.append((f'{path}["{CORRECTION_PROPERTY}"]', 0, corr[:, k]))
         return anim.bake_channels(self.rendered, frames, channels)
+
+
+class RecordedSnapshot:
+    """What Hand.update reads of a snapshot, from a tick record (bake of a recording)."""
+
+    def __init__(self, tick):
+        self.hips, self.contacts, self.normals, self.poses = tick["hip"], tick["contact"], tick["normal"], tick["pose"]
+
+
+def bake_recorded_hands(scene, desc, ticks, frames) -> list:
+    """Key the rendered armature of every hand among a recording's fingers (``<armature>:<bone>``
+    names of the scene's armatures) at ``frames`` from ``ticks`` (one record a frame), the input
+    armatures sampled at those frames. Returns [(rendered armature, keys written)]; the fingers
+    found are not missing."""
+    hands = make_hands([bone_finger_named(f.name) for f in desc.fingers], desc)
+    if not hands or "normal" not in (ticks.dtype.names or ()):
+        return []
+    current = scene.frame_current
+    try:
+        for fr in frames:
+            scene.frame_set(int(np.floor(fr)), subframe=float(fr - np.floor(fr)))
+            for hand in hands:
+                hand.sample()
+        for k, fr in enumerate(frames):
+            snap = RecordedSnapshot(ticks[k])
+            for hand in hands:
+                hand.update(snap, desc.bodies, k, True, float(fr))
+    finally:
+        scene.frame_set(current)
+    return [(hand.rendered, hand.write_bake()) for hand in hands]
 
 
 def make_hands(finger_objects, desc) -> list:

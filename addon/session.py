@@ -171,9 +171,11 @@ class BlenderSession:
             p = snap.poses[i]
             self.objects[i].matrix_world = self.links[i].matrix_world(p[:3], p[3:])
         self.follow_devices(snap)
+        # The input armature as sampled at the snapshot's frame (animated: the sample the core's
+        # track had), or as it is now (nothing scripted: posed live, by hand or a mocap add-on).
+        sample = int(round(snap.time * self.fps)) if self.source.script() is not None else None
         for hand in self.hands:
-            # Live: the armature as it is now (a mocap add-on poses it); EXEC: sampled at the frame.
-            hand.update(snap, self.desc.bodies, None if self.live else frame - self.frame_start, self.bake, frame)
+            hand.update(snap, self.desc.bodies, sample, self.bake, frame)
         grasps = self.monitor.update(snap)
         if self.display is not None:
             s = self.settings

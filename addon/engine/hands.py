@@ -12,9 +12,12 @@ touches along the contact normal the core reports, until the finger lies on the 
 supporting plane along that normal (``god_pose``): for a face that is the face itself, and the
 convex body lies wholly on the other side, so the god-pose never overlaps it. The rendered
 armature is then solved root first by a *chain correction* (``rendered_matrices``): a root Finger
-bone sits at its god-pose; every other Finger bone keeps its joint (its head where its rendered
-parent carries it, exactly, so joints stay connected) and its length, and swings to aim its tail
-at its god-pose's tail; non-Finger bones follow the input relative to their rendered parent.
+bone sits at its god-pose; a chain of connected Finger bones (a finger's phalanges) starts where
+its rendered parent carries its first joint and is solved by FABRIK from the god-poses' joints
+toward the last bone's god-pose tail, its last pass from that joint: every bone keeps its length,
+every joint is connected exactly, and the bones turn (each keeping its god-pose's roll) as little
+as it takes to put the fingertip where its god-pose is; non-Finger bones follow the input relative
+to their rendered parent.
 
 The names shared with the Add Hand builder and the bake: the rendered armature of input
 armature ``A`` is the object ``A Rendered`` with the custom property
@@ -34,6 +37,7 @@ RENDERED_OF_PROPERTY = "grasp_lab_rendered_of"
 CAPSULE_CORE_FRACTION = 0.02
 MIN_BONE_LENGTH = 1e-4      # m: a shorter bone is "zero length"
 SCALE_TOLERANCE = 1e-5      # relative: a bone's world scale must be 1 within this
+CHAIN_ITERATIONS = 100      # most FABRIK passes of the chain correction (each keeps the joints; 50 reach 0.1 µm on a 3-mm bend)
 
 
 def rendered_name(armature_name: str) -> str:
@@ -81,12 +85,12 @@ def bone_finger_desc(armature_name: str, bone_name: str, matrix, length: float, 
         raise SceneError(name, f'is a Finger bone of "{armature_name}", the rendered armature of '
                                f'"{rendered_of}": a rendered hand is output only; set the bone\'s role to None '
                                f'(the input hand is "{rendered_of}")')
-    m = np.asarray(matrix, dtype=np.float64)
-    if problem := _scale_problem(m):
-        raise SceneError(name, problem)
     if not (np.isfinite(length) and length >= MIN_BONE_LENGTH):
         raise SceneError(name, f"Finger bone has zero length ({length:.3g} m, at least {MIN_BONE_LENGTH:g} m): "
                                f"give the bone a length or set its role to None")
+    m = np.asarray(matrix, dtype=np.float64)
+    if problem := _scale_problem(m):
+        raise SceneError(name, problem)
     if not (np.isfinite(radius) and radius > 0):
         raise SceneError(name, f"Finger bone has a zero radius ({radius:.3g} m): a capsule needs a radius > 0")
     return FingerDesc(name=name, position=m[:3, 3].copy(), radius=float(radius), stiffness=float(stiffness),
@@ -169,6 +173,25 @@ def god_pose(hip, orientation, points, radius, normal, support) -> tuple:
     return hip + depth * n, depth
 
 
+def god_matrices(inputs: dict, snap, bodies, points: dict, radii: dict) -> dict:
+    """The god-poses (4x4 world matrices) of Finger bones: ``inputs`` scene finger index -> the
+    bone's input world matrix (its orientation; the position is the snapshot's HIP), ``snap`` a
+    runner Snapshot (HIPs, contacts, normals, body poses), ``bodies`` the scene's BodyDescs (their
+    convex parts), ``points``/``radii`` per finger: its hull points and radius."""
+    out = {}
+    for f, m in inputs.items():
+        q = quat_from_matrix(m)
+        position = np.asarray(snap.hips[f], dtype=np.float64)
+        b = int(snap.contacts[f])
+        n = np.asarray(snap.normals[f], dtype=np.float64)
+        if b >= 0 and np.linalg.norm(n) > 0:
+            n = n / np.linalg.norm(n)
+            support = body_support(bodies[b].parts, snap.poses[b], n)
+            position, _ = god_pose(position, q, points[f], radii[f], n, support)
+        out[f] = pose_matrix(position, q)
+    return out
+
+
 @dataclass
 class HandRig:
     """One input armature: its bones parents first, and which are fingers of the scene."""
@@ -178,9 +201,55 @@ class HandRig:
     lengths: np.ndarray             # (n,) rest length, m
     rest: np.ndarray                # (n, 4, 4) each bone's rest matrix in armature space (matrix_local)
     fingers: list = field(default_factory=list)     # per bone: index in the scene's fingers, -1 none
+    connected: list = field(default_factory=list)   # per bone: its head is its parent's tail
 
     def finger_bones(self) -> list:
         return [i for i, f in enumerate(self.fingers) if f >= 0]
+
+
+def _chain(rig: HandRig, first: int) -> list:
+    """``first`` and the Finger bones that continue it: each the only child of the one before,
+    connected to it (its head at the parent's tail)."""
+    children = {}
+    for k, p in enumerate(rig.parents):
+        children.setdefault(p, []).append(k)
+    chain = [first]
+    while len(kids := children.get(chain[-1], [])) == 1 and rig.connected[kids[0]] and rig.fingers[kids[0]] >= 0:
+        chain.append(kids[0])
+    return chain
+
+
+def solve_chain(anchor, lengths, heads, tip, iterations: int = CHAIN_ITERATIONS, tolerance: float = 1e-7):
+    """Joints (n + 1, 3) of a chain of bones of ``lengths`` from ``anchor`` toward ``tip``,
+    starting from the joints ``heads`` (n, 3; the first is moved to the anchor): FABRIK (Aristidou
+    & Lasenby 2011), its last pass from the anchor, so every bone has its length and every joint is
+    connected exactly; the tip is within ``tolerance`` of ``tip`` when the chain reaches it."""
+    lengths = np.asarray(lengths, dtype=np.float64)
+    joints = np.vstack([np.asarray(anchor, dtype=np.float64)[None], np.asarray(heads, dtype=np.float64)[1:],
+                        np.asarray(tip, dtype=np.float64)[None]])
+    n = len(lengths)
+
+    def toward(a, b, length):
+        d = b - a
+        norm = np.linalg.norm(d)
+        return a + (d / norm if norm > 1e-15 else np.array((0.0, 1.0, 0.0))) * length
+
+    reach = np.asarray(tip) - joints[0]
+    if np.linalg.norm(reach) >= lengths.sum():
+        # Out of reach: straight toward it (FABRIK's own answer, without its slow approach to it).
+        direction = reach / np.linalg.norm(reach)
+        joints[1:] = joints[0] + np.cumsum(lengths)[:, None] * direction
+        return joints
+    for _ in range(iterations):
+        joints[n] = tip
+        for k in range(n - 1, -1, -1):
+            joints[k] = toward(joints[k + 1], joints[k], lengths[k])
+        joints[0] = anchor
+        for k in range(n):
+            joints[k + 1] = toward(joints[k], joints[k + 1], lengths[k])
+        if np.linalg.norm(joints[n] - tip) < tolerance:
+            break
+    return joints
 
 
 def rendered_matrices(rig: HandRig, inputs, gods: dict) -> np.ndarray:
@@ -189,26 +258,31 @@ def rendered_matrices(rig: HandRig, inputs, gods: dict) -> np.ndarray:
     world matrix): the chain correction of the module's doc."""
     inputs = np.asarray(inputs, dtype=np.float64)
     out = np.empty_like(inputs)
+    done = set()
     y = np.array([0.0, 1.0, 0.0])
     for i, p in enumerate(rig.parents):
+        if i in done:
+            continue
         carried = inputs[i] if p < 0 else out[p] @ np.linalg.inv(inputs[p]) @ inputs[i]
         f = rig.fingers[i]
         if f < 0:
             out[i] = carried
             continue
-        g = gods[f]
         if p < 0:
-            out[i] = g
+            out[i] = gods[f]
             continue
-        joint = carried[:3, 3]
-        aim = g[:3, :3] @ (y * rig.lengths[i]) + g[:3, 3] - joint
-        dist = np.linalg.norm(aim)
-        r = g[:3, :3]
-        if dist > 1e-12:
-            r = swing(r @ y, aim / dist) @ r
-        out[i] = np.eye(4)
-        out[i][:3, :3] = r
-        out[i][:3, 3] = joint
+        chain = _chain(rig, i)
+        g = [gods[rig.fingers[k]] for k in chain]
+        lengths = rig.lengths[chain]
+        tip = g[-1][:3, :3] @ (y * lengths[-1]) + g[-1][:3, 3]
+        joints = solve_chain(carried[:3, 3], lengths, [m[:3, 3] for m in g], tip)
+        for k, m, head, tail in zip(chain, g, joints[:-1], joints[1:]):
+            r = m[:3, :3]
+            r = swing(r @ y, (tail - head) / np.linalg.norm(tail - head)) @ r
+            out[k] = np.eye(4)
+            out[k][:3, :3] = r
+            out[k][:3, 3] = head
+            done.add(k)
     return out
 
 

@@ -255,3 +255,19 @@ def test_the_robustness_panel_sweeps_the_last_recording(gui):
     # the map in the sidebar: thousands of pixels in the held probability's colours (red to
     # green), where the sidebar had next to none while the sweep ran
     assert r["warm_before"] < 500 and r["warm_after"] > r["warm_before"] + 3000, r
+
+
+def test_a_keyed_hand_lifts_the_box_live_and_its_rendered_hand_holds_it(gui):
+    """docs/hands.md: the keyed test hand live in the GUI. Once the box is lifted, at a display
+    update, the input capsules are 3 mm in the box and the rendered ones on its surface (never
+    0.5 mm inside), joints connected; the rendered hand is drawn (pixels that go when it is
+    hidden). The picture: build/gui/hand_live/hand_holding_box.png."""
+    r, console, code = run(gui, "hand_live", timeout=400)
+    ok(r, console)
+    stopped_cleanly(r)
+    assert r["threaded"] is True
+    assert abs(r["box_lift"] - 0.10) < 2e-3, r
+    assert r["input_depth"] > 0.0029, r
+    assert r["rendered_depth"] <= 0.0005 and r["joint_gap"] <= 0.0005, r
+    assert r["rendered_pixels"] > 500, r
+    assert "Hand: correction max" in r["hud"], r["hud"]
