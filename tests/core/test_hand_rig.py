@@ -102,3 +102,19 @@ def test_radius_of_a_recognised_bone_scales_with_the_hand():
     assert hand_rig.role_radius("index", 3) == hand_rig.RADII["index"][2]
     assert hand_rig.role_radius("ring", 0, scale=2.0) == 2 * hand_rig.PALM_RADIUS
     assert hand_rig.reference_length("middle") == pytest.approx(sum(hand_rig.LENGTHS["middle"][1:]))
+
+
+def test_fingertips_at_rest_are_the_last_bones_tails_and_flexing_curls_them_in():
+    by_name = {b.name: b for b in hand_rig.hand_bones("LEFT")}
+    rest = hand_rig.fingertips("LEFT")
+    for finger, bone in hand_rig.tip_bones("LEFT").items():
+        assert _dist(rest[finger], by_name[bone].tail) < 1e-12
+    curled = hand_rig.fingertips("LEFT", (40.0, 50.0, 30.0), (20.0, 20.0, 20.0))
+    for finger in hand_rig.FINGERS:
+        # flexed, the tip comes back toward the wrist (y) and down toward the palm's side (z)
+        assert curled[finger][1] < rest[finger][1] and curled[finger][2] < rest[finger][2]
+
+
+def test_fingertips_outside_a_joints_range_are_refused_naming_the_finger():
+    with pytest.raises(ValueError, match=r"index: 110 degrees is outside its joint's range -30\.\.90"):
+        hand_rig.fingertips("RIGHT", (100.0, 0.0, 0.0))
