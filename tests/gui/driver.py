@@ -964,7 +964,7 @@ def scenario_walkthrough():
     for k in range(2):
         _select_only(box)
         yield 0.5
-        yield from click_button(ui, 0, part=0, parts=2)          # Add Finger
+        yield from click_button(ui, 0, part=0, parts=3)          # Add Finger (Add Hand, Check)
         yield from wait_until(lambda: len([o for o in bpy.context.scene.objects
                                            if o.grasp_lab.role == "FINGER"]) == k + 1, 5, f"finger {k}")
     fingers = sorted((o for o in bpy.context.scene.objects if o.grasp_lab.role == "FINGER"), key=lambda o: o.name)
@@ -980,18 +980,18 @@ def scenario_walkthrough():
     before = pixels(screenshot("before_check"))
     rows = find_buttons(ui)
     x0, x1, y = rows[0]
-    yield from click_button(ui, 0, part=1, parts=2)              # Check
+    yield from click_button(ui, 0, part=2, parts=3)              # Check
     yield 1.5
     hover(win_region, 50, 50)                                     # the mouse off the button: as it is drawn
     yield 1.0
     after = pixels(docs_picture("check_plane", crop="sidebar"))
     RESULT["check_plane"] = ext("ops").last_check.get(bpy.context.scene.name)
-    RESULT["check_button_change"] = _unchanged(before, after, ui, (x0 + x1) // 2 + 4, x1 - 2, y)
+    RESULT["check_button_change"] = _unchanged(before, after, ui, x0 + 2 * (x1 - x0) // 3 + 4, x1 - 2, y)
     rows_after = find_buttons(ui, "rows_after_check")
     RESULT["check_rows"] = {"before": rows, "after": rows_after}
     bpy.data.objects.remove(plane)
     yield 0.5
-    yield from click_button(ui, 0, part=1, parts=2)
+    yield from click_button(ui, 0, part=2, parts=3)
     yield 1.5
     hover(win_region, 50, 50)
     yield 1.0
