@@ -652,12 +652,14 @@ def hand_tripod_pencil() -> Scene:
 
 def hand_can_power() -> Scene:
     # can_power's can (66 x 115 mm, 350 g) in a power grasp of the hand: the can's axis along the
-    # knuckle line under the palm, the index on top, the palm's deepest metacarpal placed 3 mm into
+    # knuckle line under the palm, the index on top, the palm's deepest metacarpal placed 8 mm into
     # it; every fingertip (flexed as round a 42 mm radius) reaches by IK for the can's surface 3 mm
-    # deep, the thumb across. The hand comes in from the side (-x), closes and lifts it 10 cm.
+    # deep, the thumb across. The hand comes in from the side (-x), closes and lifts it 10 cm. The
+    # thumb's and little finger's proximal bones, which IK drives through the can's inside, push it
+    # toward the fingers: placed less deep, the palm ends up off the can.
     import numpy as np
     rig = _hand_rig()
-    rad, h, squeeze = 0.033, 0.115, 0.003
+    rad, h, squeeze, palm_squeeze = 0.033, 0.115, 0.003, 0.008
     can = Body("Can", Prism(rad, h, 32, angle=math.pi / 32), (0.0, 0.0, h / 2), mass=0.35, mu=(0.6, 0.5))
     axis_y = 0.065                               # hand frame: under the palm, toward the knuckles
     bones = {b.name: b for b in rig.hand_bones("RIGHT")}
@@ -668,7 +670,7 @@ def hand_can_power() -> Scene:
         return rad + b.radius - float(np.linalg.norm(a + t * (c - a) - (axis_y, axis_z)))
     palms = [bones[f"palm.0{k}.R"] for k in (1, 2, 3, 4)]
     axis_z = -(rig.PALM_RADIUS + rad)
-    axis_z -= max(depth(axis_z, b) for b in palms) - squeeze
+    axis_z -= max(depth(axis_z, b) for b in palms) - palm_squeeze
     # hand x (index to little) -> world -z, hand y (fingers) -> world -y, palmar (-z) -> world +x
     rot = np.array([[0.0, 0.0, -1.0], [0.0, -1.0, 0.0], [-1.0, 0.0, 0.0]])
     wrist = np.array((0.0, 0.0, h / 2)) - rot @ np.array((0.0, axis_y, axis_z))
@@ -680,9 +682,9 @@ def hand_can_power() -> Scene:
         tips[finger] = _tip(finger, tuple(surface), tuple(rot @ v), squeeze)
     hand = Hand("RIGHT", tips, wrist_toward=(-1.0, 0.0, 0.0), placement=(rot.tolist(), tuple(wrist)),
                 approach=(-1.0, 0.0, 0.0),
-                touching=("f_index.03", "f_middle.03", "f_ring.03", "f_pinky.03", "thumb.03"))
-    return Scene("hand_can_power", "The hand: a power grasp, the phalanges of the four fingers and the thumb "
-                 "round a full 350 g can, lifts it off the table", [_table(), can], [], _lift_keys(0.10, 0.015),
+                touching=("palm.01", "f_index.03", "f_middle.03", "f_ring.03", "f_pinky.03", "thumb.03"))
+    return Scene("hand_can_power", "The hand: a power grasp, the palm and the phalanges of the four fingers and "
+                 "the thumb round a full 350 g can, lifts it off the table", [_table(), can], [], _lift_keys(0.10, 0.015),
                  Held("Can", rise=0.10, max_slip=0.003, grasp_frame=25, max_tilt_deg=5.0), hand=hand)
 
 
