@@ -5,7 +5,8 @@ Blender-facing modules (``props``, ``prefs``, ``ops``, ``session``, ``display``,
 ``engine`` (scene description, decomposition, input sources, session runner).
 """
 
-_MODULES = ("props", "prefs", "ops", "session", "ui", "devices_ui", "device_fit", "recording_ops", "robustness", "cli_blender")
+_MODULES = ("props", "prefs", "ops", "hand_add", "session", "ui", "devices_ui", "device_fit", "recording_ops",
+            "robustness", "cli_blender")
 
 
 def _modules():

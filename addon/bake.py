@@ -22,7 +22,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Quaternion
 
-from . import anim, display
+from . import anim, display, hands
 from .engine import analysis, grasp_display, sound
 from .engine.measures import body_grip, finger_measures
 from .engine.recording import Recording, scene_from_dict
@@ -296,8 +296,10 @@ def bake_recording(context, rec: Recording, every_tick: bool = False, force_scal
                                 _parent_inverse(obj)))
     for j, f in enumerate(desc.fingers):
         obj = bpy.data.objects.get(f.name)
-        if obj is None:
+        if obj is None and hands.bone_finger_named(f.name) is None:
             report.missing.append(f"finger {f.name}")
+        elif obj is None:
+            pass            # a Finger bone: its hand's rendered armature is keyed below
         else:
             jobs.append(partial(_point_job, obj, per["hip"][j], _parent_inverse(obj), []))
     # The display objects: made if missing, so a scene whose bodies are gone still shows forces.
@@ -327,6 +329,11 @@ def bake_recording(context, rec: Recording, every_tick: bool = False, force_scal
         jobs.append(partial(_arrows_job, force_arrow, torque_arrow, per["pose"][i], per["wrench"][i],
                             desc.bodies[i].mass_properties.center_of_mass, grip[:, i], force_scale, torque_scale,
                             props))
+
+    # Hands: the rendered armatures, keyed from the records (docs/hands.md).
+    for rendered, keys in hands.bake_recorded_hands(scene, desc, ticks, frames):
+        report.baked.append(rendered.name)
+        report.keys += keys
 
     wm = context.window_manager
     wm.progress_begin(0, len(jobs))

@@ -13,6 +13,7 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Quaternion
 
+from . import hands
 from .engine.decompose import decompose
 from .engine.scene import BodyDesc, FingerDesc, MeshData, SceneDesc, SceneError
 
@@ -73,7 +74,8 @@ def _dynamic_ancestor(obj):
 
 
 def scene_objects(context):
-    """Objects of the view layer with a role, bodies and fingers, sorted for determinism."""
+    """Objects of the view layer with a role, bodies and fingers (with the Finger bones of its
+    armatures: hands.BoneFinger), sorted for determinism."""
     bodies, fingers = [], []
     for obj in context.view_layer.objects:
         role = obj.grasp_lab.role
@@ -81,6 +83,7 @@ def scene_objects(context):
             bodies.append(obj)
         elif role == "FINGER":
             fingers.append(obj)
+    fingers += hands.finger_bones(context)
     bodies.sort(key=lambda o: o.name)
     fingers.sort(key=lambda o: (o.grasp_lab.channel, o.name))
     return bodies, fingers
@@ -142,7 +145,10 @@ def _frame_matrix(t, q) -> Matrix:
 def finger_desc(obj, depsgraph) -> FingerDesc:
     """An Empty is a fingertip sphere of Radius (with Soft Tip Radius, a soft fingertip: its
     ``torsion``); a mesh is a convex finger of its mesh's hull (a pad, a palm: docs/physics.md
-    "Area contacts") in its rigid frame, Radius not used (its torsion must stay 0: prepare says so)."""
+    "Area contacts") in its rigid frame, Radius not used (its torsion must stay 0: prepare says so);
+    a Finger bone a capsule (docs/hands.md)."""
+    if isinstance(obj, hands.BoneFinger):
+        return obj.desc()
     gl = obj.grasp_lab
     desc = FingerDesc(name=obj.name, position=np.array(obj.matrix_world.translation, dtype=np.float64),
                       radius=gl.radius, stiffness=gl.stiffness, damping=gl.damping, channel=gl.channel,
@@ -179,19 +185,20 @@ def scene_description(context):
 
 def finger_rotation(obj):
     """A finger object's rigid world rotation (w, x, y, z) as the core takes it: a mesh's, the
-    identity for an Empty (a sphere has none)."""
-    if obj.type != "MESH":
+    identity for an Empty (a sphere has none); a Finger bone's."""
+    if obj.type not in {"MESH", "BONE"}:
         return (1.0, 0.0, 0.0, 0.0)
     q = _frame(obj.matrix_world)[1]
     return (q.w, q.x, q.y, q.z)
 
 
-def sample_fingers(context, fingers, frame_start: int, frame_end: int):
+def sample_fingers(context, fingers, frame_start: int, frame_end: int, on_frame=None):
     """World poses of the finger objects at every frame (the scripted device).
 
     Returns (times relative to frame_start, positions (n_frames, n_fingers, 3), orientations
     (n_frames, n_fingers, 4) w x y z: a mesh finger's rigid world rotation, identity for an
-    Empty, whose sphere has none). Leaves the scene at ``frame_start``.
+    Empty, whose sphere has none). ``on_frame()``: called at every frame too (the hands sample
+    their whole armatures). Leaves the scene at ``frame_start``.
     """
     scene = context.scene
     fps = scene.render.fps / scene.render.fps_base
@@ -203,6 +210,8 @@ def sample_fingers(context, fingers, frame_start: int, frame_end: int):
         for j, obj in enumerate(fingers):
             pos[i, j] = obj.matrix_world.translation
             quat[i, j] = finger_rotation(obj)
+        if on_frame is not None:
+            on_frame()
     scene.frame_set(frame_start)
     bad = np.argwhere(~np.isfinite(pos).all(axis=2))
     if len(bad):

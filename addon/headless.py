@@ -52,8 +52,9 @@ def check_run_size(context, args) -> None:
     if not args.record or duration <= 0:
         return
     roles = [o.grasp_lab.role for o in scene.objects]
-    n_fingers = roles.count("FINGER")
-    n_bodies = len(roles) - n_fingers - roles.count("NONE")
+    n_bodies = len(roles) - roles.count("FINGER") - roles.count("NONE")
+    n_fingers = roles.count("FINGER") + sum(pb.grasp_lab.role == "FINGER" for o in scene.objects
+                                            if o.type == "ARMATURE" and o.pose is not None for pb in o.pose.bones)
     ticks = duration * s.haptic_rate + 1
     limits.check_recording_size("--record", args.record, ticks, tick_dtype(n_bodies, n_fingers).itemsize,
                                 args.max_size)

@@ -1,5 +1,5 @@
-"""Property groups: ``Object.grasp_lab`` (scene description per object) and
-``Scene.grasp_lab`` (session settings)."""
+"""Property groups: ``Object.grasp_lab`` (scene description per object),
+``PoseBone.grasp_lab`` (a bone as a finger) and ``Scene.grasp_lab`` (session settings)."""
 from __future__ import annotations
 
 import bpy
@@ -85,6 +85,26 @@ class GRASPLAB_PG_object(bpy.types.PropertyGroup):
     has_rest: BoolProperty(default=False, options={"HIDDEN"})
 
 
+BONE_ROLE_ITEMS = (
+    ("NONE", "None", "Not part of the grasp simulation: follows the input pose"),
+    ("FINGER", "Finger", "A capsule from head to tail with the bone's radius; its pose is a finger's HIP"),
+)
+
+
+class GRASPLAB_PG_bone(bpy.types.PropertyGroup):
+    """A pose bone as a finger: the same parameters as a Finger object (docs/hands.md)."""
+    role: EnumProperty(name="Role", items=BONE_ROLE_ITEMS, default="NONE",
+                       description="What this bone is in the grasp simulation")
+    radius: FloatProperty(name="Radius", default=defaults.finger("radius"), min=0.0, soft_max=0.05, unit="LENGTH",
+                          precision=4, description="Capsule radius around the bone from head to tail")
+    stiffness: FloatProperty(name="Stiffness", default=defaults.finger("stiffness"), min=1.0, soft_max=10000.0,
+                             description="Coupling spring between the input pose and the god-pose, N/m")
+    damping: FloatProperty(name="Damping", default=defaults.finger("damping"), min=0.0, soft_max=50.0,
+                           description="Coupling damping, N·s/m")
+    channel: IntProperty(name="Device Channel", default=0, min=0, max=63,
+                         description="Orders the fingers (by channel, then by name) like a Finger object's")
+
+
 class GRASPLAB_PG_scene(bpy.types.PropertyGroup):
     gravity: FloatVectorProperty(name="Gravity", default=tuple(defaults.world("gravity")), subtype="ACCELERATION",
                                  unit="ACCELERATION", size=3, description="Gravity, m/s²")
@@ -147,18 +167,20 @@ class GRASPLAB_PG_scene(bpy.types.PropertyGroup):
     last_recording: StringProperty(name="Last Recording", default="", subtype="FILE_PATH")
 
 
-CLASSES = (GRASPLAB_PG_object, GRASPLAB_PG_scene)
+CLASSES = (GRASPLAB_PG_object, GRASPLAB_PG_bone, GRASPLAB_PG_scene)
 
 
 def register():
     for c in CLASSES:
         bpy.utils.register_class(c)
     bpy.types.Object.grasp_lab = PointerProperty(type=GRASPLAB_PG_object)
+    bpy.types.PoseBone.grasp_lab = PointerProperty(type=GRASPLAB_PG_bone)
     bpy.types.Scene.grasp_lab = PointerProperty(type=GRASPLAB_PG_scene)
 
 
 def unregister():
     del bpy.types.Scene.grasp_lab
+    del bpy.types.PoseBone.grasp_lab
     del bpy.types.Object.grasp_lab
     for c in reversed(CLASSES):
         bpy.utils.unregister_class(c)

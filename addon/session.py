@@ -24,7 +24,7 @@ import bpy
 import numpy as np
 from bpy.props import BoolProperty, FloatProperty
 
-from . import anim, convert, display, record, sound_live
+from . import anim, convert, display, hands, record, sound_live
 from .engine import analysis, core_loader, grasp_display, recording
 from .engine.tick_tap import TickTap
 from .engine.devices.live import DeviceInput, device_event_detail, device_fingers, without_fingers
@@ -94,8 +94,11 @@ class BlenderSession:
             n_frames = max(scene.frame_end - scene.frame_start, 0)
         self.duration = duration if duration > 0 else n_frames / self.fps
         self.n_frames = n_frames
+        # Armatures with Finger bones: their rendered armatures, and every bone sampled per frame.
+        self.hands = hands.make_hands(finger_objs, desc)
         times, pos, quat = convert.sample_fingers(context, finger_objs, self.frame_start,
-                                                  min(self.frame_start + n_frames, scene.frame_end))
+                                                  min(self.frame_start + n_frames, scene.frame_end),
+                                                  on_frame=lambda: [h.sample() for h in self.hands])
         # Fingertips that move or (a mesh finger: a palm) turn on the timeline are scripted; the
         # others follow the user. Orientations go to the core only when a finger turns, so a
         # scene whose fingers only move runs as before, bit for bit.
@@ -177,6 +180,11 @@ class BlenderSession:
             p = snap.poses[i]
             self.objects[i].matrix_world = self.links[i].matrix_world(p[:3], p[3:])
         self.follow_devices(snap)
+        # The input armature as sampled at the snapshot's frame (animated: the sample the core's
+        # track had), or as it is now (nothing scripted: posed live, by hand or a mocap add-on).
+        sample = int(round(snap.time * self.fps)) if self.source.script() is not None else None
+        for hand in self.hands:
+            hand.update(snap, self.desc.bodies, sample, self.bake, frame)
         grasps = self.monitor.update(snap)
         if self.display is not None:
             s = self.settings
@@ -223,7 +231,7 @@ class BlenderSession:
         if self.source.interactive:
             # A mesh finger (a palm) rotated in the viewport turns too; spheres have no rotation.
             turns = [convert.finger_rotation(o) for o in self.finger_objects] \
-                if any(o.type == "MESH" for o in self.finger_objects) else None
+                if any(o.type in {"MESH", "BONE"} for o in self.finger_objects) else None
             self.source.set_live([tuple(o.matrix_world.translation) for o in self.finger_objects], turns)
         if self.devices is not None:
             self._record_device_events(self.devices.poll())
@@ -350,7 +358,7 @@ class BlenderSession:
 
     def hud_text(self) -> str:
         """The viewport's HUD: the grasp first, the loop's telemetry second and shorter."""
-        lines = self.grasp_lines() + self.loop_lines()
+        lines = self.grasp_lines() + [h.hud_line() for h in self.hands] + self.loop_lines()
         if self.live_view is not None:
             lines.append(self.live_view.status())
         if self.sound is not None:
@@ -391,6 +399,8 @@ class BlenderSession:
                 obj = bpy.data.objects.get(name)
                 if obj is not None:
                     anim.bake(obj, frames, np.array(vals))
+            for hand in self.hands:
+                hand.write_bake()
         if self.recorder is not None:
             r.recording = self.recorder.writer.path
             self.settings.last_recording = r.recording

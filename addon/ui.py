@@ -5,6 +5,7 @@ import bpy
 
 from . import ops, rest_poses, session
 from .engine import grasp_display
+from .engine import hands
 
 
 def wrapped_labels(layout, context, lines, icon_first="NONE", margin=40):
@@ -41,7 +42,11 @@ class GRASPLAB_PT_main(_GraspPanel, bpy.types.Panel):
         layout = self.layout
         row = layout.row(align=True)
         row.operator("grasp_lab.add_finger", icon="EMPTY_AXIS")
+        row.operator("grasp_lab.add_hand", icon="VIEW_PAN")
         row.operator("grasp_lab.validate_scene", text="Check", icon="CHECKMARK")
+        obj = context.active_object
+        if obj is not None and obj.type == "ARMATURE":
+            layout.operator("grasp_lab.set_hand_roles", icon="BONE_DATA")
         check = ops.last_check.get(context.scene.name)
         if check is not None:
             ok, text = check
@@ -82,6 +87,38 @@ class GRASPLAB_PT_object(_GraspPanel, bpy.types.Panel):
                 row = layout.row()
                 row.active = obj.type != "MESH" and gl.renderer == "XFCA"
                 row.prop(gl, "torsion")
+            layout.prop(gl, "channel", text="Channel")
+
+
+class GRASPLAB_PT_bone(_GraspPanel, bpy.types.Panel):
+    """The active bone of the active armature as a finger (docs/hands.md)."""
+    bl_label = "Bone"
+    bl_parent_id = "GRASPLAB_PT_main"
+
+    @classmethod
+    def poll(cls, context):
+        obj = context.active_object
+        return obj is not None and obj.type == "ARMATURE"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        obj = context.active_object
+        bone = obj.data.bones.active
+        if obj.get(hands.RENDERED_OF_PROPERTY):
+            layout.label(text=f"Rendered hand of {obj[hands.RENDERED_OF_PROPERTY]} (output)", icon="INFO")
+            return
+        if bone is None:
+            layout.label(text="No active bone")
+            return
+        gl = obj.pose.bones[bone.name].grasp_lab
+        layout.label(text=bone.name, icon="BONE_DATA")
+        layout.prop(gl, "role")
+        if gl.role == "FINGER":
+            layout.prop(gl, "radius")
+            layout.prop(gl, "stiffness")
+            layout.prop(gl, "damping")
             layout.prop(gl, "channel", text="Channel")
 
 
@@ -198,7 +235,7 @@ class GRASPLAB_PT_recording(_GraspPanel, bpy.types.Panel):
             layout.label(text=bpy.path.basename(s.last_recording), icon="FILE")
 
 
-CLASSES = (GRASPLAB_PT_main, GRASPLAB_PT_object, GRASPLAB_PT_scene, GRASPLAB_PT_session,
+CLASSES = (GRASPLAB_PT_main, GRASPLAB_PT_object, GRASPLAB_PT_bone, GRASPLAB_PT_scene, GRASPLAB_PT_session,
            GRASPLAB_PT_loop, GRASPLAB_PT_recording)
 
 

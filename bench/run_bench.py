@@ -7,7 +7,8 @@ bench/scenes_mujoco.py and bench/scenes_pybullet.py. Timing repeats of the engin
 interleaved so all see the same machine load. The multi-body scenes are run by
 bench/bench_multibody.py, the haptic-loop jitter by bench/bench_jitter.py, grasp quality
 against scipy by bench/bench_grasp_quality.py, grasp-lab analyze of a 10-minute recording by
-bench/bench_analysis.py, grasp-lab sweep by bench/bench_sweep.py.
+bench/bench_analysis.py, grasp-lab sweep by bench/bench_sweep.py, two hands holding three boxes by
+bench/bench_hands.py.
 Writes docs/benchmarks.md and prints it.
 
     .venv/bin/python bench/run_bench.py [--quick] [--out docs/benchmarks.md]
@@ -875,13 +876,17 @@ def main(argv=None) -> int:
     good, sweep_md = run_external([sys.executable, os.path.join(HERE, "bench_sweep.py")]
                                   + (["--quick", "--samples", "2000"] if args.quick else []), timeout=1800)
     ok &= good
+    log("hands (bench/bench_hands.py: two hands of capsules holding three boxes, beside MuJoCo)")
+    good, hands_md = run_external([sys.executable, os.path.join(HERE, "bench_hands.py")]
+                                  + (["--quick"] if args.quick else []), timeout=1800)
+    ok &= good
     meta["load_end"] = loadavg()
     meta["wall_s"] = time.perf_counter() - t_start
     md = report(info, mjinfo, grasps, creep, profile, gjk, blender, xml3, meta, pbinfo=pbinfo,
                 extra_targets=mb.target_rows(mb_rows, mjinfo is not None) + jitter_targets + serial_targets + unplug_targets
                 + grasp_targets + analysis_targets + live_targets,
                 sections=[s for s in (held_section, mb_section, jitter_section, serial_section, grasp_md,
-                                      analysis_md, live_md, sweep_md) if s])
+                                      analysis_md, live_md, sweep_md, hands_md) if s])
     if args.quick:
         md = md.replace("# Benchmarks\n", "# Benchmarks (--quick run: too few repeats to quote)\n", 1)
     os.makedirs(os.path.dirname(args.out), exist_ok=True)

@@ -165,6 +165,7 @@ class Scene:
     interpolation: str = "BEZIER"           # of the fingertip keys: BEZIER eases in and out
     shown: str = "hold"                     # the phase whose middle frame pictures the scene
     view: tuple = None                      # toward the camera (default VIEW_DIRECTION)
+    hand: object = None                     # a Hand: Add Hand's hand grasps (its bones the fingers)
 
     @property
     def frame_end(self) -> int:
@@ -503,10 +504,231 @@ def soft_pinch_bar() -> Scene:
 SCENES.update((f.__name__, f) for f in (soft_pinch_bar,))
 
 
+# --------------------------------------------------------------------------- scenes with the hand
+# Add Hand's hand (docs/hands-rig.md) grasps: its bones are the fingers (capsules along the
+# phalanges, the palm's metacarpals), and the scene runs from the armature's pose. The tips of the
+# grasping fingers are IK targets keyed like fingertips (``Finger``: the distal capsule's end-cap
+# centre when closed, and the direction it opens along); the other fingers curl out of the way; the
+# armature (the wrist) is keyed where the hand carries it. The hand is placed where its relaxed
+# fingertips best fit the closed tips, the wrist toward ``wrist_toward``.
+
+@dataclass
+class Hand:
+    side: str
+    tips: dict                              # finger ("thumb", "index", ...) -> Finger
+    wrist_toward: tuple                     # from the tips' centroid toward the wrist
+    touching: tuple                         # bones (without the side suffix) that touch the held body
+    curl: tuple = (75.0, 90.0, 60.0)        # the other fingers' MCP, PIP, DIP flexion, degrees
+    stiffness: float = 1000.0
+    thumb_weight: float = 1.0               # the thumb's weight in the fit (it reaches least far)
+    ready: tuple = ((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))   # flexion beyond rest (fingers, thumb) fitted
+    placement: tuple = None                 # (rotation rows, wrist): given, instead of the fit
+    approach: tuple = (0.0, 0.0, 0.0)       # the wrist backs off along this as the hand opens
+
+
+def _hand_rig():
+    if ROOT not in sys.path:
+        sys.path.insert(0, ROOT)
+    from addon.engine import hand_rig
+    return hand_rig
+
+
+def hand_placement(hand: Hand):
+    """(rotation 3x3, wrist position) of the hand whose fingertips flexed ``ready`` (and wrist, toward
+    ``wrist_toward`` at their distance) best fit the closed tips: Kabsch's weighted least squares."""
+    import numpy as np
+    if hand.placement is not None:
+        return np.array(hand.placement[0], dtype=float), np.array(hand.placement[1], dtype=float)
+    ready = _hand_rig().fingertips(hand.side, *hand.ready)
+    p = np.array([ready[f] for f in hand.tips])
+    q = np.array([f.closed for f in hand.tips.values()])
+    p_c, q_c = p.mean(axis=0), q.mean(axis=0)
+    reach = float(np.linalg.norm(p_c))                      # the wrist is the hand frame's origin
+    p = np.vstack([p, np.zeros(3)])
+    q = np.vstack([q, q_c + reach * np.array(_unit(hand.wrist_toward))])
+    w = np.array([hand.thumb_weight if f == "thumb" else 1.0 for f in hand.tips] + [1.0])[:, None]
+    p_c, q_c = (w * p).sum(axis=0) / w.sum(), (w * q).sum(axis=0) / w.sum()
+    u, _, vt = np.linalg.svd((w * (p - p_c)).T @ (q - q_c))
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    rot = vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+    return rot, q_c - rot @ p_c
+
+
+def _hand_points(sc: Scene):
+    """The hand's tips and wrist at every key (what the camera must see)."""
+    import numpy as np
+    rot, wrist = hand_placement(sc.hand)
+    pts = [finger_position(f, k) for f in sc.hand.tips.values() for k in sc.keys]
+    pts += [_wrist_at(sc.hand, wrist, k) for k in sc.keys]
+    return pts
+
+
+def _wrist_at(hand: Hand, wrist, key: Key) -> tuple:
+    """Where the armature (the wrist) is at a key: carried, and backed off as the hand opens."""
+    back = _unit(hand.approach) if any(hand.approach) else (0.0, 0.0, 0.0)
+    return tuple(w + o + key.opening * b for w, o, b in zip(wrist, key.offset, back))
+
+
+def _add_hand(bpy, sc: Scene):
+    from mathutils import Matrix
+    h = sc.hand
+    rig = _hand_rig()
+    hand_add = _extension_module(bpy, "hand_add")
+    rot, wrist = hand_placement(h)
+    arm, mesh, _ = hand_add.build_hand(bpy.context, h.side, tuple(wrist), tip_targets=True, stiffness=h.stiffness)
+    arm.rotation_euler = Matrix(rot.tolist()).to_euler("XYZ")
+    suffix = rig.SUFFIX[h.side]
+    for finger, bone in rig.tip_bones(h.side).items():
+        empty = bpy.data.objects[f"{hand_add.TIP_EMPTY_PREFIX}{finger}{suffix}"]
+        if finger in h.tips:
+            empty.grasp_lab.role = "NONE"           # an IK target: the bones are the fingers
+            for key in sc.keys:
+                empty.location = finger_position(h.tips[finger], key)
+                empty.keyframe_insert("location", frame=key.frame)
+            _set_interpolation(bpy, empty, sc.interpolation)
+        else:                                       # curled out of the way
+            arm.pose.bones[bone].constraints.remove(arm.pose.bones[bone].constraints["Reach Tip"])
+            bpy.data.objects.remove(empty)
+            chain = [bone[:-len(suffix) - 1] + f"{k}{suffix}" for k in (1, 2, 3)]
+            for name, deg in zip(chain, h.curl):
+                arm.pose.bones[name].rotation_euler.x = math.radians(deg)
+    for key in sc.keys:
+        arm.location = _wrist_at(h, wrist, key)
+        arm.keyframe_insert("location", frame=key.frame)
+    _set_interpolation(bpy, arm, sc.interpolation)
+    return arm
+
+
+def _extension_module(bpy, name):
+    import importlib
+    for mod in bpy.context.preferences.addons.keys():
+        if mod.endswith(".grasp_lab"):
+            return importlib.import_module(f"{mod}.{name}")
+    raise RuntimeError("the grasp_lab extension is not enabled")
+
+
+def _tip(finger, surface_point, outward, squeeze, side="RIGHT"):
+    """A grasping fingertip: its distal capsule's end cap ``squeeze`` into the surface at
+    ``surface_point`` whose outward normal is ``outward``."""
+    r = _hand_rig().RADII[finger][2]
+    n = _unit(outward)
+    return Finger(finger, tuple(p + (r - squeeze) * c for p, c in zip(surface_point, n)), n, radius=r)
+
+
+def hand_pinch() -> Scene:
+    # A 4 cm, 50 g cube on the table, pinched between the pads of the thumb and the index of the
+    # right hand (the hand's capsules, 2 mm deep: 2 N each against 0.25 N of weight each), lifted
+    # 8 cm and held.
+    size, squeeze = 0.04, 0.002
+    cube = Body("Cube", Box((size,) * 3), (0.0, 0.0, size / 2), mass=0.05, mu=(0.8, 0.6))
+    z = size / 2
+    tips = {"thumb": _tip("thumb", (0.0, -size / 2, z), (0.0, -1.0, 0.0), squeeze),
+            "index": _tip("index", (0.0, size / 2, z), (0.0, 1.0, 0.0), squeeze)}
+    hand = Hand("RIGHT", tips, wrist_toward=(0.0, -0.7, 0.7), touching=("thumb.03", "f_index.03"))
+    return Scene("hand_pinch", "The hand: the pads of the thumb and the index pinch a 50 g cube off the "
+                 "table and lift it", [_table(), cube], [], _lift_keys(0.08, 0.012),
+                 Held("Cube", rise=0.08, max_slip=0.002, grasp_frame=25, max_tilt_deg=3.0), hand=hand)
+
+
+def hand_tripod_pencil() -> Scene:
+    # tripod_pencil's pencil (10 g, hexagonal, 7 mm across flats, 175 mm, on end) in the hand: the
+    # thumb on the flat toward the wrist, the index and middle fingertips on the flats 120 degrees
+    # either side, 3 cm below its top, 1.5 mm deep, the hand coming from the side (the pencil passes
+    # in front of the knuckles); lifted 8 cm and carried 10 cm sideways.
+    flats, length, squeeze = 0.007, 0.175, 0.0015
+    pencil = Body("Pencil", Prism(flats / math.sqrt(3.0), length, 6), (0.0, 0.0, length / 2), mass=0.010,
+                  mu=(0.7, 0.5))
+    z = length - 0.03
+    tips = {}
+    for finger, deg in (("thumb", 270.0), ("index", 150.0), ("middle", 30.0)):
+        n = (math.cos(math.radians(deg)), math.sin(math.radians(deg)), 0.0)
+        tips[finger] = _tip(finger, (n[0] * flats / 2, n[1] * flats / 2, z), n, squeeze)
+    hand = Hand("RIGHT", tips, wrist_toward=(0.0, -1.0, 0.25), touching=("thumb.03", "f_index.03", "f_middle.03"),
+                ready=((30.0, 40.0, 20.0), (20.0, 30.0, 20.0)))
+    return Scene("hand_tripod_pencil", "The hand: a tripod of the thumb, index and middle fingertips lifts a "
+                 "10 g pencil and carries it", [_table(), pencil], [], _lift_keys(0.08, 0.01, carry=(0.10, 0.0, 0.0)),
+                 Held("Pencil", rise=0.08, max_slip=0.0015, grasp_frame=25, max_tilt_deg=3.0), hand=hand)
+
+
+def hand_can_power() -> Scene:
+    # can_power's can (66 x 115 mm, 350 g) in a power grasp of the hand: the can's axis along the
+    # knuckle line under the palm, the index on top, the palm's deepest metacarpal placed 8 mm into
+    # it; every fingertip (flexed as round a 42 mm radius) reaches by IK for the can's surface 3 mm
+    # deep, the thumb across. The hand comes in from the side (-x), closes and lifts it 10 cm. The
+    # thumb's and little finger's proximal bones, which IK drives through the can's inside, push it
+    # toward the fingers: placed less deep, the palm ends up off the can.
+    import numpy as np
+    rig = _hand_rig()
+    rad, h, squeeze, palm_squeeze = 0.033, 0.115, 0.003, 0.008
+    can = Body("Can", Prism(rad, h, 32, angle=math.pi / 32), (0.0, 0.0, h / 2), mass=0.35, mu=(0.6, 0.5))
+    axis_y = 0.065                               # hand frame: under the palm, toward the knuckles
+    bones = {b.name: b for b in rig.hand_bones("RIGHT")}
+
+    def depth(axis_z, b):                        # of a metacarpal capsule in the can (hand frame)
+        a, c = np.array(b.head)[1:], np.array(b.tail)[1:]
+        t = np.clip(np.dot((axis_y, axis_z) - a, c - a) / np.dot(c - a, c - a), 0.0, 1.0)
+        return rad + b.radius - float(np.linalg.norm(a + t * (c - a) - (axis_y, axis_z)))
+    palms = [bones[f"palm.0{k}.R"] for k in (1, 2, 3, 4)]
+    axis_z = -(rig.PALM_RADIUS + rad)
+    axis_z -= max(depth(axis_z, b) for b in palms) - palm_squeeze
+    # hand x (index to little) -> world -z, hand y (fingers) -> world -y, palmar (-z) -> world +x
+    rot = np.array([[0.0, 0.0, -1.0], [0.0, -1.0, 0.0], [-1.0, 0.0, 0.0]])
+    wrist = np.array((0.0, 0.0, h / 2)) - rot @ np.array((0.0, axis_y, axis_z))
+    tips = {}
+    for finger, p in rig.fingertips("RIGHT", (25.0, 35.0, 20.0), (20.0, 30.0, 20.0)).items():
+        v = np.array((0.0, p[1] - axis_y, p[2] - axis_z))   # the tip moved radially onto the surface
+        v /= np.linalg.norm(v)
+        surface = rot @ (np.array((p[0], axis_y, axis_z)) + rad * v) + wrist
+        tips[finger] = _tip(finger, tuple(surface), tuple(rot @ v), squeeze)
+    hand = Hand("RIGHT", tips, wrist_toward=(-1.0, 0.0, 0.0), placement=(rot.tolist(), tuple(wrist)),
+                approach=(-1.0, 0.0, 0.0),
+                touching=("palm.01", "f_index.03", "f_middle.03", "f_ring.03", "f_pinky.03", "thumb.03"))
+    return Scene("hand_can_power", "The hand: a power grasp, the palm and the phalanges of the four fingers and "
+                 "the thumb round a full 350 g can, lifts it off the table", [_table(), can], [], _lift_keys(0.10, 0.015),
+                 Held("Can", rise=0.10, max_slip=0.003, grasp_frame=25, max_tilt_deg=5.0), hand=hand)
+
+
+def hand_mug_handle() -> Scene:
+    # mug_hook's full mug (350 g, its ring handle on its +x side, Collision Shape Automatic) lifted
+    # by the hand's index hooked through the handle: the palm up, the index reaching in along -y
+    # (its tip in the handle's hole near its outer side, as mug_hook's fingertip), the other
+    # fingers and the thumb curled; the hand lifts 12 cm and the mug hangs from the index. The
+    # mug stands on a coaster, so that the back of the hand passes below its top.
+    import numpy as np
+    rad, h = 0.04, 0.09
+    ring = Ring(major=0.024, minor=0.006)
+    ring_x, ring_z = rad + 0.010, h / 2 - 0.030
+    mug = Body("Mug", Union(((Prism(rad, h, 32), (0.0, 0.0, 0.0)), (ring, (ring_x, 0.0, ring_z)))),
+               (0.0, 0.0, h / 2), mass=0.35, mu=(0.6, 0.5), collision="AUTO")
+    r = _hand_rig().RADII["index"][2]
+    inside = (ring_x + 0.006, 0.0, h / 2 + ring_z)
+    tips = {"index": Finger("index", inside, (0.0, 1.0, 0.0), radius=r, stiffness=1500.0, damping=3.0)}
+    rot = np.diag([1.0, -1.0, -1.0])             # palm up, the fingers along -y
+    ready = _hand_rig().fingertips("RIGHT", (-20.0, -15.0, -10.0))["index"]      # straight, level with the palm
+    wrist = np.array(inside) - rot @ np.array(ready)
+    hand = Hand("RIGHT", tips, wrist_toward=(0.0, 1.0, 0.0), placement=(rot.tolist(), tuple(wrist)),
+                touching=("f_index.03",), stiffness=1500.0)
+    keys = [Key(1, "rest", 0.04), Key(7, "reach in", 0.04), Key(25, "lift", 0.0),
+            Key(73, "hold", 0.0, (0.0, 0.0, 0.12)), Key(145, "end", 0.0, (0.0, 0.0, 0.12))]
+    stand = _table(size=(0.10, 0.10, 0.02), name="Stand")     # a coaster: the hand below its edge
+    return Scene("hand_mug_handle", "The hand: the index hooked through a full mug's handle lifts it; the mug "
+                 "hangs from the finger", [stand, mug], [], keys,
+                 Hangs("Mug", "f_index.03", rise=0.05, max_offset=0.003), hand=hand)
+
+
+HAND_SCENES = {f.__name__: f for f in (hand_pinch, hand_tripod_pencil, hand_can_power, hand_mug_handle)}
+
+
+def all_scenes() -> dict:
+    """Every scene: the fingertip scenes, then the hand's."""
+    return {**SCENES, **HAND_SCENES}
+
+
 def scene(name) -> Scene:
-    if name not in SCENES:
-        raise KeyError(f"no scene {name!r} in the library (have {', '.join(SCENES)})")
-    return SCENES[name]()
+    scenes = all_scenes()
+    if name not in scenes:
+        raise KeyError(f"no scene {name!r} in the library (have {', '.join(scenes)})")
+    return scenes[name]()
 
 
 # --------------------------------------------------------------------------- devices
@@ -644,6 +866,8 @@ def build(bpy, name):
             obj.location = finger_position(f, key)
             obj.keyframe_insert("location", frame=key.frame)
         _set_interpolation(bpy, obj, sc.interpolation)
+    if sc.hand is not None:
+        _add_hand(bpy, sc)
     _add_devices(bpy, sc)
     _add_view(bpy, sc)
     bscene.frame_set(bscene.frame_start)
@@ -655,6 +879,8 @@ def extent(sc: Scene):
     the hand carries them, and the fingertips at every key (the tables left out)."""
     import numpy as np
     pts = [finger_position(f, k) for f in sc.fingers for k in sc.keys]
+    if sc.hand is not None:
+        pts += _hand_points(sc)
     for f in sc.fingers:                    # a palm's or a pad's corners too
         if f.shape is not None:
             for k in sc.keys:
@@ -796,7 +1022,7 @@ def measure(sc: Scene, r: Result) -> dict:
     if isinstance(c, (Held, Carried)):
         i = r.body(c.body)
         g = fr.index(c.grasp_frame)
-        centroid = r.hips[:, _with_the_hand(sc)].mean(axis=1)
+        centroid = r.hips[:, _with_the_hand(sc, r)].mean(axis=1)
         rel = (r.com[:, i] - centroid) - (r.com[g, i] - centroid[g])
         lifted = fr.index(sc.frames_of("hold")[0])         # the first hold: lifted
         out["rise"] = float(r.com[lifted, i, 2] - r.com[0, i, 2])
@@ -807,7 +1033,9 @@ def measure(sc: Scene, r: Result) -> dict:
         out["fingers_touching"] = int(touching.sum())
         # what the finger springs alone give under the load (all in parallel): part of "slip"
         load = sum(sc.body(n).mass for n in (c.body,) + tuple(getattr(c, "riders", ()))) * G
-        if not any(f.shape is not None for f in sc.fingers):    # a palm's stiffness is per point of contact
+        if sc.hand is not None:                 # the bones that must touch it
+            out["not_touching"] = [b for b in _hand_bone_fingers(sc, r, sc.hand.touching) if not touching[b]]
+        elif not any(f.shape is not None for f in sc.fingers):  # a palm's stiffness is per point of contact
             out["spring_give"] = load / sum(f.stiffness for f, t in zip(sc.fingers, touching) if t)
         out["slipping_frames"] = int((r.states[hold][:, touching] == 2).any(axis=1).sum())
         if isinstance(c, Carried):
@@ -843,7 +1071,7 @@ def measure(sc: Scene, r: Result) -> dict:
             out["just_enough"] = body.mass * G / (n_f * body.mu[0])
     elif isinstance(c, Hangs):
         i = r.body(c.body)
-        f = r.finger_names.index(c.finger)
+        f = _hand_bone_fingers(sc, r, [c.finger])[0] if sc.hand is not None else r.finger_names.index(c.finger)
         out["rise"] = float(r.com[-1, i, 2] - r.com[0, i, 2])
         d = r.com[-c.window:, i, :2] - r.god_objects[-c.window:, f, :2]
         out["com_offset"] = float(np.linalg.norm(d.mean(axis=0)))
@@ -853,10 +1081,23 @@ def measure(sc: Scene, r: Result) -> dict:
     return out
 
 
-def _with_the_hand(sc: Scene) -> list:
+def _with_the_hand(sc: Scene, r: Result) -> list:
     """Indices of the fingers that only move with the hand (none of the keys moves them on
-    their own): what a held body's motion in the hand is measured against."""
+    their own): what a held body's motion in the hand is measured against. The hand's bones
+    all do (its tips hold still in it from the squeeze on)."""
+    if sc.hand is not None:
+        return list(range(len(r.finger_names)))
     return [i for i, f in enumerate(sc.fingers) if not any(f.name in k.moves for k in sc.keys)]
+
+
+def hand_armature_name(sc: Scene) -> str:
+    return "Hand" + _hand_rig().SUFFIX[sc.hand.side]
+
+
+def _hand_bone_fingers(sc: Scene, r: Result, bones) -> list:
+    """The fingers (indices in the result) of the hand's bones named without their side suffix."""
+    arm, suffix = hand_armature_name(sc), _hand_rig().SUFFIX[sc.hand.side]
+    return [r.finger_names.index(f"{arm}:{b}{suffix}") for b in bones]
 
 
 def _in_frame(pose, points):
@@ -883,7 +1124,10 @@ def verdict(sc: Scene, m: dict) -> list:
             bad.append(f"turned {m['tilt_deg']:.2f} deg (at most {c.max_tilt_deg})")
         if m["slipping_frames"]:
             bad.append(f"a finger slipped in {m['slipping_frames']} hold frames")
-        if m["fingers_touching"] != len(sc.fingers):
+        if sc.hand is not None:
+            if m["not_touching"]:
+                bad.append(f"{len(m['not_touching'])} of {len(sc.hand.touching)} bones that hold it do not touch it")
+        elif m["fingers_touching"] != len(sc.fingers):
             bad.append(f"{m['fingers_touching']} of {len(sc.fingers)} fingers touch it")
         if isinstance(c, Carried):
             if m["rider_shift"] > c.max_shift:
@@ -916,7 +1160,7 @@ def verdict(sc: Scene, m: dict) -> list:
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=os.path.join(ROOT, "build", "scenes"), help="where the .blend files go")
-    ap.add_argument("--only", nargs="+", choices=sorted(SCENES), help="these scenes only")
+    ap.add_argument("--only", nargs="+", choices=sorted(all_scenes()), help="these scenes only")
     ap.add_argument("--run", action="store_true", help="also run each scene and print its outcome")
     ap.add_argument("--no-save", action="store_true", help="do not write .blend files")
     ap.add_argument("--zip", help="install the extension from this built zip (default: $GRASP_LAB_ZIP, "
@@ -928,7 +1172,7 @@ def main(argv=None):
     import bpy
     grasp_env.enable(args.zip)
     failed = 0
-    for name in args.only or SCENES:
+    for name in args.only or all_scenes():
         bpy.ops.wm.read_homefile(use_empty=True)
         sc = build(bpy, name)
         if not args.no_save:

@@ -97,6 +97,11 @@ def _render_setup(bpy, sc):
     for f in sc.fingers:            # palms and finger pads (convex fingers) render, skin-coloured
         if f.shape is not None:
             bpy.data.objects[f.name].data.materials.append(pinch._material(bpy, "Hand", SKIN))
+    if sc.hand is not None:         # the hand: its rendered (god-pose) skinned mesh renders, not the input's
+        arm = bpy.data.objects[library().hand_armature_name(sc)]
+        mesh = bpy.data.objects[f"{arm.name} Mesh"]
+        mesh.data.materials.append(pinch._material(bpy, "Hand", SKIN))
+        mesh.hide_render = True
     scene.render.engine = "BLENDER_WORKBENCH"
     scene.display.shading.light = "STUDIO"
     scene.display.shading.studio_light = "studio.sl"
@@ -139,8 +144,11 @@ def run_scene(bpy, name, out_dir) -> dict:
     s.recording_folder = os.path.join(out_dir, "recordings")
     s.bake = False                  # the recording is baked below: keys and the grasp measures
     t0 = time.perf_counter()
-    r = lib.run(bpy, display_objects=True)
+    # (a hand's god-objects are its rendered bones: no spheres over them)
+    r = lib.run(bpy, display_objects=sc.hand is None)
     t["session"] = time.perf_counter() - t0
+    if sc.hand is not None:         # made by the session as a copy of the input's, hidden too
+        bpy.data.objects[f"{lib.hand_armature_name(sc)} Mesh Rendered"].hide_render = False
     if os.path.exists(paths["recording"]):
         os.remove(paths["recording"])
     os.replace(s.last_recording, paths["recording"])
@@ -159,11 +167,16 @@ def run_scene(bpy, name, out_dir) -> dict:
     if report.sound_error:
         raise RuntimeError(f"{name}: no sound baked: {report.sound_error}")
     paths["sound"] = report.sound
-    # from the god-object sphere's surface, so that a small force is not hidden inside it
-    radii = np.array([f.radius for f in sc.fingers])[None, :, None]
-    norms = np.linalg.norm(r.finger_forces, axis=2, keepdims=True)
-    tails = r.god_objects + radii * r.finger_forces / np.maximum(norms, 1e-12)
-    _pinch().add_finger_force_arrows(bpy, r.frames, tails, r.finger_forces, force_scale)
+    display = importlib.import_module(f"{pkg}.display")
+    if sc.hand is not None and display.COLLECTION in bpy.data.collections:
+        # the baked god-objects of a hand's bones are where its rendered mesh is: the mesh renders
+        bpy.data.collections[display.COLLECTION].hide_render = True
+    if sc.hand is None:             # (a hand's are its rendered bones: no arrows over them)
+        # from the god-object sphere's surface, so that a small force is not hidden inside it
+        radii = np.array([f.radius for f in sc.fingers])[None, :, None]
+        norms = np.linalg.norm(r.finger_forces, axis=2, keepdims=True)
+        tails = r.god_objects + radii * r.finger_forces / np.maximum(norms, 1e-12)
+        _pinch().add_finger_force_arrows(bpy, r.frames, tails, r.finger_forces, force_scale)
     t["bake"] = time.perf_counter() - t0
 
     frame = render_frame(sc, m)
@@ -405,7 +418,7 @@ def run(bpy, out_dir, names=None, stream=sys.stdout) -> dict:
     lib = library()
     out_dir = os.path.abspath(out_dir)
     os.makedirs(out_dir, exist_ok=True)
-    names = list(names or lib.SCENES)
+    names = list(names or lib.all_scenes())
     p = lambda *a: print(*a, file=stream, flush=True)       # noqa: E731
     t_all = time.perf_counter()
     entries, jobs = [], []
@@ -454,7 +467,7 @@ def main(argv=None):
     lib = library()
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=os.path.join(ROOT, "build", "demo"), help="where the outputs go")
-    ap.add_argument("--only", nargs="+", choices=sorted(lib.SCENES), help="these scenes only")
+    ap.add_argument("--only", nargs="+", choices=sorted(lib.all_scenes()), help="these scenes only")
     ap.add_argument("--zip", help="install the extension from this built zip (default: $GRASP_LAB_ZIP, "
                                   "else a development repository of addon/)")
     args = ap.parse_args(argv)

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from . import defaults
+from .inputs import turning_fingers
 from .limits import DEFAULT_MAX_SIZE, check_memory, check_recording_size, check_set_value
 from .recording import EventDetector, Recording, RecordingWriter, make_header, scene_from_dict
 from .runner import RUNTIME_PHYSICS
@@ -217,14 +218,25 @@ def compare(recorded: Recording, new_ticks: np.ndarray, tolerance: float, same_r
 STRETCH = 8192      # steps replayed in C per call (a few ms: Python handles signals in between)
 
 
-def replay(world, hips: np.ndarray, dt: float, has_start: bool = True, before: dict | None = None) -> np.ndarray:
+def replay(world, hips: np.ndarray, dt: float, has_start: bool = True, before: dict | None = None,
+           turns: np.ndarray | None = None) -> np.ndarray:
     """Step ``world`` once per row of ``hips`` ((steps, fingers, 3): each step's HIPs) and
     return every tick's record; tick 0, the state before the first step, only ``if has_start``.
     The stretches run in C (``World.step_hips``); ``before`` ({step: f(world)}, 0-based steps)
-    runs Python before those steps: the sweep's pushes."""
+    runs Python before those steps: the sweep's pushes. ``turns`` ((steps, fingers, 4) or None;
+    ``recorded_turns``): each step's HIP orientations of the turning fingers (a hand's bones, a
+    turning palm), set before every step as a session's driver does; the steps then run one a
+    call."""
     n = len(hips)
     ticks = np.empty(n + 1, dtype=world.tick_dtype())       # every byte of a record is written
     world._tick_record(ticks[:1], 0)
+    if turns is not None:
+        for k in range(n):
+            if before and k in before:
+                before[k](world)
+            set_turns(world, hips, turns, k)
+            world.step_hips(hips[k:k + 1], dt, ticks[k + 1:k + 2], first_tick=k + 1)
+        return ticks if has_start else ticks[1:]
     k = 0
     for stop in sorted(k for k in (before or ()) if 0 <= k < n) + [n]:
         while k < stop:     # at most STRETCH steps a call: signals (Ctrl-C, SIGTERM) are seen between
@@ -234,6 +246,28 @@ def replay(world, hips: np.ndarray, dt: float, has_start: bool = True, before: d
         if stop < n:
             before[stop](world)
     return ticks if has_start else ticks[1:]
+
+
+def set_turns(world, hips, turns, k: int) -> None:
+    """Step ``k``'s orientations of the fingers that turn (``turns[k]``, NaN rows: fingers that
+    do not), before the step, as a session's driver sets them."""
+    for f in np.flatnonzero(~np.isnan(turns[k, :, 0])):
+        world.set_finger_pose(int(f), tuple(hips[k, f]), tuple(turns[k, f]))
+
+
+def recorded_turns(recorded: Recording, same_rate: bool, has_start: bool):
+    """The recorded HIP orientations to replay with, when some finger turns (a hand's bones, a
+    turning palm); None when none does (replayed in C as before) or the rate changes (not
+    resampled: at another rate the fingers keep their start orientations, docs/hands.md)."""
+    names = recorded.ticks.dtype.names or ()
+    if "orientation" not in names or not same_rate:
+        return None
+    q = np.array(recorded.ticks["orientation"], dtype=np.float64)
+    turning = turning_fingers(q)
+    if not turning.any():
+        return None
+    q[:, ~turning] = np.nan          # set_turns leaves those alone
+    return q[1:] if has_start else q
 
 
 def runtime_schedule(recorded: Recording, same_rate: bool):
@@ -323,7 +357,7 @@ def resimulate(recorded: Recording, graspcore, overrides=(), tolerance: float = 
     if settings is not None:    # a live session: its object manager's ticks where they fell
         ticks = replay_runtime(world, recorded.ticks, settings, has_start)
     else:
-        ticks = replay(world, hips, dt, has_start)
+        ticks = replay(world, hips, dt, has_start, turns=recorded_turns(recorded, same_rate, has_start))
     div = compare(recorded, ticks, tolerance, same_rate)
     div.note = note
     header = make_header(desc, mode="resim", haptic_rate=rate, source=recorded.path,

@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import defaults
+from .inputs import core_unit_quaternions
 
 
 # The threaded runtime's settings that decide its physics (their defaults: the core's,
@@ -86,6 +87,7 @@ class DirectDriver:
         for mask, turns in ((scripted, self.source.orientations_at(t_next)),
                             (~scripted, self.source.live_orientations())):
             if turns is not None:
+                turns = core_unit_quaternions(turns)        # recorded as given: resim sets them again
                 for i in np.flatnonzero(mask):
                     self.world.set_finger_pose(self._finger_ids[i], tuple(hips[i]), tuple(turns[i]))
         if self._finger_ids:

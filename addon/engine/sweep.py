@@ -187,6 +187,7 @@ class Job:
     cells: int = 1
     grid_shape: tuple = ()
     devices: dict = field(default_factory=dict)     # a varied device's profile: name -> its file's text
+    turns: np.ndarray | None = None     # (steps, fingers, 4): turning fingers' orientations (resim.recorded_turns)
 
     @property
     def columns(self) -> list:
@@ -312,7 +313,7 @@ def make_job(rec, varies, seed: int, body_name: str | None = None, analysis: boo
                seed=int(seed), body=body, window=(int(held[0]), int(held[-1])), analysis=bool(analysis),
                analysis_period=float(analysis_period),
                cells=int(np.prod(grid_shape)) if grid_shape else 1, grid_shape=grid_shape,
-               devices=_device_texts(varies))
+               devices=_device_texts(varies), turns=_resim.recorded_turns(rec, True, has_start))
 
 
 def _analysis_module():
@@ -432,7 +433,7 @@ def run_sample(job: Job, i: int, graspcore) -> dict:
         before = _pusher(handle.body_ids[job.body], desc.bodies[job.body].mass_properties.mass,
                               d.push, dt, job.has_start)
     # The grasp measures read whole tick records; the outcomes alone, a step's short trace
-    ticks = (replay if job.analysis else replay_trace)(handle.world, hips, dt, job.has_start, before)
+    ticks = (replay if job.analysis else replay_trace)(handle.world, hips, dt, job.has_start, before, turns=job.turns)
     row = {"sample": i, "seed": seed, **d.values}
     row.update(outcomes(job, ticks, desc))
     if d.device:
@@ -476,17 +477,26 @@ class Columns:
         return Columns({name: v[key] for name, v in self.fields.items()})
 
 
-def replay_trace(world, hips: np.ndarray, dt: float, has_start: bool = True, before: dict | None = None) -> Columns:
+def replay_trace(world, hips: np.ndarray, dt: float, has_start: bool = True, before: dict | None = None,
+                 turns: np.ndarray | None = None) -> Columns:
     """``resim.replay`` with each step's short trace (``World.step_hips_trace``: the records'
     time, contact, state, force, god_object and pose, no state hash) instead of its record: all
     ``outcomes`` reads of a tick, field by field in contiguous arrays. Tick 0 from the world's
-    record."""
+    record. ``turns``: as ``resim.replay``'s."""
     n = len(hips)
     out = np.empty((), dtype=world.trace_dtype(n + 1))
     start = world.tick_record()
     for name in out.dtype.names:
         out[name][0] = start[name]
     k = 0
+    if turns is not None:
+        for k in range(n):
+            if before and k in before:
+                before[k](world)
+            _resim.set_turns(world, hips, turns, k)
+            world.step_hips_trace(hips[k:k + 1], dt, out, first=k + 1)
+        ticks = Columns({name: out[name] for name in out.dtype.names})
+        return ticks if has_start else ticks[1:]
     for stop in sorted(k for k in (before or ()) if 0 <= k < n) + [n]:
         while k < stop:     # at most STRETCH steps a call: signals are seen between
             end = min(stop, k + _resim.STRETCH)

@@ -77,6 +77,14 @@ def sample():
     return mod
 
 
+def hand_scene():
+    """The keyed test hand of tests/blender/test_hands.py."""
+    spec = importlib.util.spec_from_file_location("hand_scene", os.path.join(ROOT, "tests", "blender", "hand_scene.py"))
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
 # --------------------------------------------------------------------------- the screen
 
 def window():
@@ -1009,7 +1017,7 @@ def scenario_walkthrough():
     for k in range(2):
         _select_only(box)
         yield 0.5
-        yield from click_button(ui, 0, part=0, parts=2)          # Add Finger
+        yield from click_button(ui, 0, part=0, parts=3)          # Add Finger (Add Hand, Check)
         yield from wait_until(lambda: len([o for o in bpy.context.scene.objects
                                            if o.grasp_lab.role == "FINGER"]) == k + 1, 5, f"finger {k}")
     fingers = sorted((o for o in bpy.context.scene.objects if o.grasp_lab.role == "FINGER"), key=lambda o: o.name)
@@ -1025,18 +1033,18 @@ def scenario_walkthrough():
     before = pixels(screenshot("before_check"))
     rows = find_buttons(ui)
     x0, x1, y = rows[0]
-    yield from click_button(ui, 0, part=1, parts=2)              # Check
+    yield from click_button(ui, 0, part=2, parts=3)              # Check
     yield 1.5
     hover(win_region, 50, 50)                                     # the mouse off the button: as it is drawn
     yield 1.0
     after = pixels(docs_picture("check_plane", crop="sidebar"))
     RESULT["check_plane"] = ext("ops").last_check.get(bpy.context.scene.name)
-    RESULT["check_button_change"] = _unchanged(before, after, ui, (x0 + x1) // 2 + 4, x1 - 2, y)
+    RESULT["check_button_change"] = _unchanged(before, after, ui, x0 + 2 * (x1 - x0) // 3 + 4, x1 - 2, y)
     rows_after = find_buttons(ui, "rows_after_check")
     RESULT["check_rows"] = {"before": rows, "after": rows_after}
     bpy.data.objects.remove(plane)
     yield 0.5
-    yield from click_button(ui, 0, part=1, parts=2)
+    yield from click_button(ui, 0, part=2, parts=3)
     yield 1.5
     hover(win_region, 50, 50)
     yield 1.0
@@ -1278,6 +1286,78 @@ def scenario_device_fit():
     RESULT["hud_placed"] = fit_ui.hud_lines(scene)
     yield 1.5
     RESULT["placed"] = _tints("fit_placed", win_region, ui)
+
+
+def _box_depths(mod, arm, box):
+    """(deepest input capsule in the box, deepest rendered one, largest gap at a connected joint
+    of the rendered armature), m: the capsules' segments sampled 200 times."""
+    rendered = bpy.data.objects[arm.name + " Rendered"]
+    bm = np.array(box.matrix_world)
+    names = [b.name for b in arm.data.bones]
+
+    def depth(obj):
+        mw = np.array(obj.matrix_world)
+        out = []
+        for n in names:
+            pb = obj.pose.bones[n]
+            head, tail = (mw @ np.append(pb.head, 1))[:3], (mw @ np.append(pb.tail, 1))[:3]
+            pts = head + np.linspace(0, 1, 200)[:, None] * (tail - head)
+            q = np.abs((pts - bm[:3, 3]) @ bm[:3, :3]) - np.asarray(mod.BOX_HALF)
+            d = np.linalg.norm(np.maximum(q, 0), axis=1) + np.minimum(q.max(axis=1), 0)
+            out.append(arm.pose.bones[n].grasp_lab.radius - d.min())
+        return max(out)
+    mw = np.array(rendered.matrix_world)
+    gaps = [np.linalg.norm(mw[:3, :3] @ (rendered.pose.bones[b.name].head - rendered.pose.bones[b.parent.name].tail))
+            for b in arm.data.bones if b.use_connect]
+    return depth(arm), depth(rendered), max(gaps)
+
+
+def scenario_hand_live():
+    """The keyed test hand (a palm and 5 chains of 3 bones, every bone a Finger) live: Start
+    Session (click); once the hand has lifted the box, a picture of the rendered hand holding it
+    (docs/hands.md), the input and rendered capsules' depths in the box at that display update,
+    and a picture with the rendered hand hidden (the pixels it draws); Esc."""
+    for obj in list(bpy.data.objects):
+        bpy.data.objects.remove(obj)
+    mod = hand_scene()
+    arm, box = mod.build(bpy)
+    bpy.context.scene.grasp_lab.duration = 8.0       # the animation ends at 2 s, then holds
+    bpy.context.view_layer.update()
+    frame_scene()
+    rv3d = view3d()[0].spaces[0].region_3d
+    rv3d.view_location = (0.0, 0.0, 0.09)
+    rv3d.view_distance = 0.4
+    z0 = box.matrix_world.translation.z
+    yield from open_grasp_tab()
+    yield 1.0
+    yield from start_by_click()
+    s = active_session()
+    RESULT["threaded"] = s.runner.threaded
+    yield from wait_until(lambda: active_session() is None or (
+        s.snapshot is not None and s.snapshot.time >= 2.0 and s.snapshot.poses[0][2] > z0 + 0.09), 120,
+        "the hand to lift the box")
+    if active_session() is None:
+        raise AssertionError(f"the session ended before the box was lifted: {s.error or s.ended_by}")
+    shown = len(s.runner.ticks)
+    yield from wait_until(lambda: len(s.runner.ticks) >= shown + 2, 30, "two display updates")
+    yield 1.0
+    RESULT["box_lift"] = box.matrix_world.translation.z - z0
+    RESULT["input_depth"], RESULT["rendered_depth"], RESULT["joint_gap"] = _box_depths(mod, arm, box)
+    RESULT["hud"] = s.hud_text()
+    area, win_region, ui = view3d()
+    with_hand = region_pixels(pixels(screenshot("hand_holding_box")), win_region)
+    rendered = bpy.data.objects[arm.name + " Rendered"]
+    rendered.hide_set(True)
+    shown = len(s.runner.ticks)
+    yield from wait_until(lambda: len(s.runner.ticks) >= shown + 2, 30, "two display updates")
+    yield 1.0
+    without = region_pixels(pixels(screenshot("rendered_hidden")), win_region)
+    rendered.hide_set(False)
+    RESULT["rendered_pixels"] = int(np.any(np.abs(with_hand[40:, :ui.x - win_region.x, :3]
+                                                  - without[40:, :ui.x - win_region.x, :3]) > 0.1, axis=2).sum())
+    yield from press_in_viewport("Escape")
+    yield from wait_until(lambda: active_session() is None, 10, "Esc")
+    check_stopped("esc")
 
 
 SCENARIOS = {name[len("scenario_"):]: fn for name, fn in globals().items() if name.startswith("scenario_")}

@@ -300,3 +300,19 @@ def test_a_live_session_with_sound_on_runs_and_says_when_it_cannot_play(gui):
             assert st["clicks"] >= 2 and st["updates"] > 5
             assert 0 < st["latency_ms"] < 2000 and st["late"] <= 2, run_
     stopped_cleanly(r)
+
+
+def test_a_keyed_hand_lifts_the_box_live_and_its_rendered_hand_holds_it(gui):
+    """docs/hands.md: the keyed test hand live in the GUI. Once the box is lifted, at a display
+    update, the input capsules are 3 mm in the box and the rendered ones on its surface (never
+    0.5 mm inside), joints connected; the rendered hand is drawn (pixels that go when it is
+    hidden). The picture: build/gui/hand_live/hand_holding_box.png."""
+    r, console, code = run(gui, "hand_live", timeout=400)
+    ok(r, console)
+    stopped_cleanly(r)
+    assert r["threaded"] is True
+    assert abs(r["box_lift"] - 0.10) < 2e-3, r
+    assert r["input_depth"] > 0.0029, r
+    assert r["rendered_depth"] <= 0.0005 and r["joint_gap"] <= 0.0005, r
+    assert r["rendered_pixels"] > 500, r
+    assert "Hand: correction max" in r["hud"], r["hud"]
