@@ -1197,7 +1197,7 @@ def scenario_hand_live():
         bpy.data.objects.remove(obj)
     mod = hand_scene()
     arm, box = mod.build(bpy)
-    bpy.context.scene.grasp_lab.duration = 8.0       # the animation ends at 2 s, then holds
+    bpy.context.scene.grasp_lab.duration = 600.0     # the animation ends at 2 s, then holds until Esc
     bpy.context.view_layer.update()
     frame_scene()
     rv3d = view3d()[0].spaces[0].region_3d
@@ -1210,12 +1210,12 @@ def scenario_hand_live():
     s = active_session()
     RESULT["threaded"] = s.runner.threaded
     yield from wait_until(lambda: active_session() is None or (
-        s.snapshot is not None and s.snapshot.time >= 2.0 and s.snapshot.poses[0][2] > z0 + 0.09), 120,
+        s.snapshot is not None and s.snapshot.time >= 2.0 and s.snapshot.poses[0][2] > z0 + 0.09), 300,
         "the hand to lift the box")
     if active_session() is None:
         raise AssertionError(f"the session ended before the box was lifted: {s.error or s.ended_by}")
     shown = len(s.runner.ticks)
-    yield from wait_until(lambda: len(s.runner.ticks) >= shown + 2, 30, "two display updates")
+    yield from wait_until(lambda: len(s.runner.ticks) >= shown + 2, 120, "two display updates")
     yield 1.0
     RESULT["box_lift"] = box.matrix_world.translation.z - z0
     RESULT["input_depth"], RESULT["rendered_depth"], RESULT["joint_gap"] = _box_depths(mod, arm, box)
@@ -1225,7 +1225,7 @@ def scenario_hand_live():
     rendered = bpy.data.objects[arm.name + " Rendered"]
     rendered.hide_set(True)
     shown = len(s.runner.ticks)
-    yield from wait_until(lambda: len(s.runner.ticks) >= shown + 2, 30, "two display updates")
+    yield from wait_until(lambda: len(s.runner.ticks) >= shown + 2, 120, "two display updates")
     yield 1.0
     without = region_pixels(pixels(screenshot("rendered_hidden")), win_region)
     rendered.hide_set(False)
