@@ -1202,7 +1202,7 @@ def scenario_hand_live():
     frame_scene()
     rv3d = view3d()[0].spaces[0].region_3d
     rv3d.view_location = (0.0, 0.0, 0.09)
-    rv3d.view_distance = 0.4
+    rv3d.view_distance = 0.28
     z0 = box.matrix_world.translation.z
     yield from open_grasp_tab()
     yield 1.0
