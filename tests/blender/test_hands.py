@@ -323,6 +323,29 @@ def test_a_hand_posed_live_is_pushed_to_the_haptic_loop_and_rendered(bpy, core):
     assert not s.runner.world.running
 
 
+def test_a_mesh_parented_to_a_bone_is_a_pad_that_follows_it(bpy, core):
+    """A Finger-role mesh parented to a bone (parent type Bone) is a convex finger of its own
+    mesh, its pose sampled from the animated bone at every frame."""
+    arm, box = hand_scene.build(bpy, skinned=False)
+    for pb in arm.pose.bones:
+        pb.grasp_lab.role = "NONE"
+    pad = grasp_env.add_cube(bpy, "Pad", size=0.01, location=(0, 0, 0))
+    pad.grasp_lab.role = "FINGER"
+    pad.parent, pad.parent_type, pad.parent_bone = arm, "BONE", "f0.3"
+    pad.matrix_parent_inverse.identity()
+    session = grasp_env.submodule("session")
+    s = session.BlenderSession(bpy.context, live=False)
+    assert s.result.finger_names == ["Pad"] and s.desc.fingers[0].points is not None
+    times, pos, _, quats = s.source.track.times, s.source.track.positions, None, s.source.track.orientations
+    scene = bpy.context.scene
+    for frame in (hand_scene.FRAMES["open"], hand_scene.FRAMES["closed"], hand_scene.FRAMES["lifted"]):
+        scene.frame_set(frame)
+        k = frame - scene.frame_start
+        np.testing.assert_allclose(pos[k, 0], np.array(pad.matrix_world.translation), atol=1e-6)
+    assert quats is not None            # the pad turns with the closing finger
+    s.finish()
+
+
 @pytest.mark.parametrize("case, words", [
     ("zero_length", ["Hand:f1.2", "zero length"]),
     ("zero_radius", ["Hand:f1.2", "zero radius"]),
