@@ -213,20 +213,21 @@ def test_keyed_hand_squeezes_lifts_and_the_rendered_hand_stays_on_the_box(bpy, b
     assert len(gaps) == 10 * (scene.frame_end - scene.frame_start + 1) and max(gaps) <= 0.5e-3
     # The input armature is untouched: its keys as they were, no new ones.
     assert _keys(arm) == input_keys
-    # The skinned mesh has a rendered copy on the rendered armature, deformed with it.
-    skin, copy = bpy.data.objects["Fingertip Skin"], bpy.data.objects["Fingertip Skin Rendered"]
-    assert copy.data == skin.data and copy.modifiers["Armature"].object == rendered
+    # The skinned mesh has a rendered copy on the rendered armature, deformed with it: each
+    # vertex (wholly in its bone's group) moved by its bone's pose from its rest.
+    skin, copy = bpy.data.objects["Hand Skin"], bpy.data.objects["Hand Skin Rendered"]
+    assert copy.data == skin.data and copy.modifiers["Armature"].object == rendered and copy.parent == rendered
     scene.frame_set(hand_scene.FRAMES["lifted"])
     dg = bpy.context.evaluated_depsgraph_get()
-    bone = "f0.3"
-    rest = np.array(arm.data.bones[bone].matrix_local)
+    group_bone = {g.index: g.name for g in skin.vertex_groups}
+    bone_of = [group_bone[v.groups[0].group] for v in skin.data.vertices]
     for obj, rig in ((skin, arm), (copy, rendered)):
         ev = obj.evaluated_get(dg)
         got = np.array([np.array(ev.matrix_world) @ np.append(v.co, 1) for v in ev.data.vertices])[:, :3]
         rig_w = np.array(rig.matrix_world)
-        want_m = rig_w @ np.array(rig.pose.bones[bone].matrix) @ np.linalg.inv(rest) @ np.linalg.inv(rig_w) \
-            @ np.array(obj.matrix_world)
-        want = np.array([want_m @ np.append(v.co, 1) for v in skin.data.vertices])[:, :3]
+        moves = {b.name: rig_w @ np.array(rig.pose.bones[b.name].matrix) @ np.linalg.inv(np.array(b.matrix_local))
+                 @ np.linalg.inv(rig_w) @ np.array(obj.matrix_world) for b in arm.data.bones}
+        want = np.array([moves[b] @ np.append(v.co, 1) for b, v in zip(bone_of, skin.data.vertices)])[:, :3]
         np.testing.assert_allclose(got, want, atol=1e-6)
 
 
@@ -255,7 +256,7 @@ def test_baking_the_recording_keys_the_rendered_hand_as_the_session_did(bpy, bak
     report = grasp_env.submodule("bake").bake_recording(bpy.context, rec)
     assert "Hand Rendered" in report.baked and report.missing == [], report.message()
     rendered = bpy.data.objects["Hand Rendered"]
-    assert bpy.data.objects["Fingertip Skin Rendered"].modifiers["Armature"].object == rendered
+    assert bpy.data.objects["Hand Skin Rendered"].modifiers["Armature"].object == rendered
     for frame in frames:
         scene.frame_set(frame)
         (h0, t0), c0 = before[frame]
