@@ -15,9 +15,9 @@ armature is then solved root first by a *chain correction* (``rendered_matrices`
 bone sits at its god-pose; a chain of connected Finger bones (a finger's phalanges) starts where
 its rendered parent carries its first joint and is solved by FABRIK from the god-poses' joints
 toward the last bone's god-pose tail, its last pass from that joint: every bone keeps its length,
-every joint is connected exactly, and the bones turn (each keeping its god-pose's roll) as little
-as it takes to put the fingertip where its god-pose is; non-Finger bones follow the input relative
-to their rendered parent.
+every joint is connected exactly, and the bones turn (each keeping its god-pose's roll) to put the
+fingertip where its god-pose is; non-Finger bones follow the input relative to their rendered
+parent.
 
 The names shared with the Add Hand builder and the bake: the rendered armature of input
 armature ``A`` is the object ``A Rendered`` with the custom property
