@@ -6,7 +6,6 @@ lifted, the baked ``Hand Rendered`` armature's capsules stay on the box's surfac
 than 0.5 mm inside, within 0.5 mm of it where the input goes in) with its joints connected, the
 input armature untouched; a recording of it re-simulates identically; bad input is refused
 naming the bone."""
-import os
 
 import numpy as np
 import pytest
