@@ -238,6 +238,26 @@ def test_a_hand_recording_resimulates_identically(bpy, baked):
     assert result.divergence.report() == "identical"
 
 
+def test_a_live_hand_recording_of_the_threaded_runtime_resimulates_identically(bpy, core, tmp_path):
+    """The animated hand live on the threaded runtime (its poses on the core's track), recorded:
+    re-simulated on its hand-over schedule it is identical too."""
+    import time as _time
+    hand_scene.build(bpy, skinned=False)
+    session = grasp_env.submodule("session")
+    path = str(tmp_path / "live_hand.mcap")
+    s = session.BlenderSession(bpy.context, live=True, duration=1.0, record_path=path)
+    assert s.runner.threaded
+    t0 = _time.perf_counter()
+    while not s.tick(_time.perf_counter() - t0):
+        _time.sleep(0.03)
+        assert _time.perf_counter() - t0 < 120.0, "the live session never reached its end"
+    s.finish()
+    rec = grasp_env.submodule("engine.recording").open_recording(path)
+    assert rec.header["runtime"]["threaded"] and len(rec.finger_names) == 16
+    result = grasp_env.submodule("engine.resim").resimulate(rec, core)
+    assert result.divergence.report() == "identical"
+
+
 def test_baking_the_recording_keys_the_rendered_hand_as_the_session_did(bpy, baked):
     """Bake Recording of the hand's recording, its rendered armature deleted first: made again
     and keyed with the poses and corrections the session's own bake had (float32 keys)."""
