@@ -283,7 +283,9 @@ def rendered_matrices(rig: HandRig, inputs, gods: dict) -> np.ndarray:
     for i, p in enumerate(rig.parents):
         if i in done:
             continue
-        carried = inputs[i] if p < 0 else out[p] @ rigid_inverse(inputs[p]) @ inputs[i]
+        # Under a parent where the input is (nothing corrected above): the input itself, exactly.
+        carried = inputs[i] if p < 0 or np.array_equal(out[p], inputs[p]) else \
+            out[p] @ rigid_inverse(inputs[p]) @ inputs[i]
         f = rig.fingers[i]
         if f < 0:
             out[i] = carried
