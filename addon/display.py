@@ -116,7 +116,9 @@ class DisplayObjects:
             for me in ((sphere,) if name == "GL God-object" else (arrow,)):
                 if not me.materials:
                     me.materials.append(m)
-        self.radii = [max(f.radius, MIN_GO_RADIUS) for f in desc.fingers]
+        # A convex finger's (a palm's, a bone's capsule) god-object is its pressure centroid: a small
+        # dot, the finger itself being the mesh or the rendered bone (docs/hands.md).
+        self.radii = [MIN_GO_RADIUS if f.points is not None else max(f.radius, MIN_GO_RADIUS) for f in desc.fingers]
         self.god_objects = [_object(coll, f"GL God-object {f.name}", sphere)
                             for f in desc.fingers]
         # Each god-object its own material, coloured by its finger's friction use.

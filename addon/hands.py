@@ -169,9 +169,14 @@ class Hand:
         self.rendered = ensure_rendered(arm)
         self.points = {f: finger_desc[f].points for f in rig.fingers if f >= 0}
         self.radii = {f: finger_desc[f].radius for f in rig.fingers if f >= 0}
+        self.live = False           # posed live (not animated): read at every update, not sampled
         self.samples = []           # per sampled frame: (armature world 4x4, bone world matrices)
         self.corrections = np.zeros(len(rig.bones))
         self.baked = []             # per applied frame: (frame, object transform, bases, corrections)
+
+    def finger_indices(self) -> list:
+        """The scene's fingers that are this hand's bones."""
+        return [f for f in self.rig.fingers if f >= 0]
 
     def sample(self):
         self.samples.append((np.array(self.arm.matrix_world), _bone_matrices(self.arm, self.rig)))

@@ -106,6 +106,8 @@ class BlenderSession:
         scripted = (np.ptp(pos, axis=0).max(axis=1) > 1e-9) | turning if len(times) > 1 else \
             np.zeros(len(finger_objs), dtype=bool)
         self.source = TimelineInput(SampledTrajectory(times, pos, quat if turning.any() else None), scripted)
+        for hand in self.hands:     # animated: the samples; else posed live (a mocap add-on, a person)
+            hand.live = not scripted[hand.finger_indices()].any()
         self.finger_objects = finger_objs
         if live and not scripted.any() and not duration > 0:
             self.duration = float("inf")        # nothing scripted, no length asked: until Esc or Stop
@@ -181,10 +183,10 @@ class BlenderSession:
             self.objects[i].matrix_world = self.links[i].matrix_world(p[:3], p[3:])
         self.follow_devices(snap)
         # The input armature as sampled at the snapshot's frame (animated: the sample the core's
-        # track had), or as it is now (nothing scripted: posed live, by hand or a mocap add-on).
-        sample = int(round(snap.time * self.fps)) if self.source.script() is not None else None
+        # track had), or as it is now (posed live, by hand or a mocap add-on).
         for hand in self.hands:
-            hand.update(snap, self.desc.bodies, sample, self.bake, frame)
+            hand.update(snap, self.desc.bodies, None if hand.live else int(round(snap.time * self.fps)),
+                        self.bake, frame)
         grasps = self.monitor.update(snap)
         if self.display is not None:
             s = self.settings

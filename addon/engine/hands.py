@@ -15,9 +15,9 @@ armature is then solved root first by a *chain correction* (``rendered_matrices`
 bone sits at its god-pose; a chain of connected Finger bones (a finger's phalanges) starts where
 its rendered parent carries its first joint and is solved by FABRIK from the god-poses' joints
 toward the last bone's god-pose tail, its last pass from that joint: every bone keeps its length,
-every joint is connected exactly, and the bones turn (each keeping its god-pose's roll) as little
-as it takes to put the fingertip where its god-pose is; non-Finger bones follow the input relative
-to their rendered parent.
+every joint is connected exactly, and the bones turn (each keeping its god-pose's roll) to put the
+fingertip where its god-pose is; non-Finger bones follow the input relative to their rendered
+parent.
 
 The names shared with the Add Hand builder and the bake: the rendered armature of input
 armature ``A`` is the object ``A Rendered`` with the custom property
@@ -25,6 +25,7 @@ armature ``A`` is the object ``A Rendered`` with the custom property
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -37,7 +38,8 @@ RENDERED_OF_PROPERTY = "grasp_lab_rendered_of"
 CAPSULE_CORE_FRACTION = 0.02
 MIN_BONE_LENGTH = 1e-4      # m: a shorter bone is "zero length"
 SCALE_TOLERANCE = 1e-5      # relative: a bone's world scale must be 1 within this
-CHAIN_ITERATIONS = 100      # most FABRIK passes of the chain correction (each keeps the joints; 50 reach 0.1 µm on a 3-mm bend)
+CHAIN_ITERATIONS = 100      # most FABRIK passes of the chain correction (each keeps the joints exact)
+CHAIN_TOLERANCE = 1e-5      # m: a fingertip this near its god-pose's is there (well under the 0.5 mm asked)
 
 
 def rendered_name(armature_name: str) -> str:
@@ -219,27 +221,36 @@ def _chain(rig: HandRig, first: int) -> list:
     return chain
 
 
-def solve_chain(anchor, lengths, heads, tip, iterations: int = CHAIN_ITERATIONS, tolerance: float = 1e-7):
+def solve_chain(anchor, lengths, heads, tip, iterations: int = CHAIN_ITERATIONS, tolerance: float = CHAIN_TOLERANCE):
     """Joints (n + 1, 3) of a chain of bones of ``lengths`` from ``anchor`` toward ``tip``,
     starting from the joints ``heads`` (n, 3; the first is moved to the anchor): FABRIK (Aristidou
     & Lasenby 2011), its last pass from the anchor, so every bone has its length and every joint is
-    connected exactly; the tip is within ``tolerance`` of ``tip`` when the chain reaches it."""
-    lengths = np.asarray(lengths, dtype=np.float64)
-    joints = np.vstack([np.asarray(anchor, dtype=np.float64)[None], np.asarray(heads, dtype=np.float64)[1:],
-                        np.asarray(tip, dtype=np.float64)[None]])
+    connected exactly; the tip is within ``tolerance`` of ``tip`` when the chain reaches it.
+    Plain floats: a chain is a few 3-vectors, where numpy's per-call cost is most of the work."""
+    lengths = [float(v) for v in lengths]
+    anchor = [float(v) for v in anchor]
+    tip = [float(v) for v in tip]
     n = len(lengths)
+    reach = [t - a for t, a in zip(tip, anchor)]
+    dist = math.sqrt(sum(v * v for v in reach))
+    if dist >= sum(lengths):
+        # Out of reach: straight toward it (FABRIK's own answer, without its slow approach to it).
+        direction = [v / dist for v in reach]
+        out, along = [anchor], 0.0
+        for length in lengths:
+            along += length
+            out.append([a + along * d for a, d in zip(anchor, direction)])
+        return np.array(out)
+    joints = [anchor] + [[float(v) for v in h] for h in np.asarray(heads)[1:]] + [tip]
 
     def toward(a, b, length):
-        d = b - a
-        norm = np.linalg.norm(d)
-        return a + (d / norm if norm > 1e-15 else np.array((0.0, 1.0, 0.0))) * length
+        d = [q - p for p, q in zip(a, b)]
+        norm = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        if norm < 1e-15:
+            return [a[0], a[1] + length, a[2]]
+        s = length / norm
+        return [a[0] + d[0] * s, a[1] + d[1] * s, a[2] + d[2] * s]
 
-    reach = np.asarray(tip) - joints[0]
-    if np.linalg.norm(reach) >= lengths.sum():
-        # Out of reach: straight toward it (FABRIK's own answer, without its slow approach to it).
-        direction = reach / np.linalg.norm(reach)
-        joints[1:] = joints[0] + np.cumsum(lengths)[:, None] * direction
-        return joints
     for _ in range(iterations):
         joints[n] = tip
         for k in range(n - 1, -1, -1):
@@ -247,9 +258,18 @@ def solve_chain(anchor, lengths, heads, tip, iterations: int = CHAIN_ITERATIONS,
         joints[0] = anchor
         for k in range(n):
             joints[k + 1] = toward(joints[k], joints[k + 1], lengths[k])
-        if np.linalg.norm(joints[n] - tip) < tolerance:
+        if math.dist(joints[n], tip) < tolerance:
             break
-    return joints
+    return np.array(joints)
+
+
+def rigid_inverse(m) -> np.ndarray:
+    """The inverse of a rigid 4x4 matrix (rotation and translation)."""
+    m = np.asarray(m, dtype=np.float64)
+    out = np.eye(4)
+    out[:3, :3] = m[:3, :3].T
+    out[:3, 3] = -m[:3, :3].T @ m[:3, 3]
+    return out
 
 
 def rendered_matrices(rig: HandRig, inputs, gods: dict) -> np.ndarray:
@@ -263,7 +283,9 @@ def rendered_matrices(rig: HandRig, inputs, gods: dict) -> np.ndarray:
     for i, p in enumerate(rig.parents):
         if i in done:
             continue
-        carried = inputs[i] if p < 0 else out[p] @ np.linalg.inv(inputs[p]) @ inputs[i]
+        # Under a parent where the input is (nothing corrected above): the input itself, exactly.
+        carried = inputs[i] if p < 0 or np.array_equal(out[p], inputs[p]) else \
+            out[p] @ rigid_inverse(inputs[p]) @ inputs[i]
         f = rig.fingers[i]
         if f < 0:
             out[i] = carried
@@ -305,12 +327,12 @@ def local_bases(rig: HandRig, armature_world, matrices) -> np.ndarray:
     """Pose bones' ``matrix_basis`` (n, 4, 4) that put the bones at world ``matrices`` (n, 4, 4),
     the armature object at ``armature_world``, with Blender's default inheritance (rotation and
     scale inherited, local location)."""
-    pose = np.linalg.inv(np.asarray(armature_world, dtype=np.float64)) @ np.asarray(matrices)
+    pose = rigid_inverse(armature_world) @ np.asarray(matrices)
     out = np.empty_like(pose)
     for i, p in enumerate(rig.parents):
         if p < 0:
             rest_in_pose = rig.rest[i]
         else:
-            rest_in_pose = pose[p] @ np.linalg.inv(rig.rest[p]) @ rig.rest[i]
-        out[i] = np.linalg.inv(rest_in_pose) @ pose[i]
+            rest_in_pose = pose[p] @ rigid_inverse(rig.rest[p]) @ rig.rest[i]
+        out[i] = rigid_inverse(rest_in_pose) @ pose[i]
     return out

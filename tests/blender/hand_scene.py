@@ -1,7 +1,7 @@
 """A keyed test hand (docs/hands.md): an armature of a palm bone and 5 chains of 3 bones hanging
 down on both sides of a box on a table, every bone a Finger. The chains close by turning their
 proximal joints until the capsules go ``SQUEEZE`` (3 mm) into the box's sides, the palm lifts the
-hand ``LIFT`` (10 cm), and it holds. One mesh is skinned to a fingertip bone. Used by
+hand ``LIFT`` (10 cm), and it holds. A low-poly skin (a cylinder a bone) is skinned to it. Used by
 tests/blender/test_hands.py and the GUI test (tests/gui)."""
 from __future__ import annotations
 
@@ -82,7 +82,7 @@ def build(bpy, skinned=True):
         for k in range(len(CHAINS)):
             arm.pose.bones[chain_names(k)[0]].keyframe_insert("rotation_quaternion", frame=frame)
     if skinned:
-        skin_fingertip(bpy, arm, chain_names(0)[2])
+        skin_hand(bpy, arm)
     return arm, box
 
 
@@ -101,17 +101,26 @@ def pose(arm, closed: float, lifted: float) -> None:
         pb.rotation_quaternion = (math.cos(half), *(math.sin(half) * axis))
 
 
-def skin_fingertip(bpy, arm, bone_name):
-    """A small mesh around a fingertip bone, skinned to it (an Armature modifier, one group)."""
-    bone = arm.data.bones[bone_name]
-    head = np.array(bone.head_local)
-    tail = np.array(bone.tail_local)
-    bpy.ops.mesh.primitive_cube_add(size=0.012, location=tuple((head + tail) / 2))
-    skin = bpy.context.object
-    skin.name = "Fingertip Skin"
-    group = skin.vertex_groups.new(name=bone_name)
-    group.add(list(range(len(skin.data.vertices))), 1.0, "REPLACE")
-    mod = skin.modifiers.new("Armature", "ARMATURE")
-    mod.object = arm
+def skin_hand(bpy, arm):
+    """A low-poly skin: a 10-sided cylinder of each bone's radius along it, each skinned wholly to
+    its bone (an Armature modifier, a vertex group a bone), parented to the armature."""
+    import bmesh
+    from mathutils import Matrix
+    bm = bmesh.new()
+    members = {}
+    for bone in arm.data.bones:
+        r = arm.pose.bones[bone.name].grasp_lab.radius
+        first = len(bm.verts)
+        place = bone.matrix_local @ Matrix.Translation((0.0, bone.length / 2, 0.0)) @ Matrix.Rotation(-math.pi / 2, 4, "X")
+        bmesh.ops.create_cone(bm, cap_ends=True, segments=10, radius1=r, radius2=r, depth=bone.length, matrix=place)
+        members[bone.name] = list(range(first, len(bm.verts)))
+    me = bpy.data.meshes.new("Hand Skin")
+    bm.to_mesh(me)
+    bm.free()
+    skin = bpy.data.objects.new("Hand Skin", me)
+    bpy.context.scene.collection.objects.link(skin)
+    for name, verts in members.items():
+        skin.vertex_groups.new(name=name).add(verts, 1.0, "REPLACE")
+    skin.modifiers.new("Armature", "ARMATURE").object = arm
     skin.parent = arm
     return skin

@@ -1315,18 +1315,19 @@ def _box_depths(mod, arm, box):
 def scenario_hand_live():
     """The keyed test hand (a palm and 5 chains of 3 bones, every bone a Finger) live: Start
     Session (click); once the hand has lifted the box, a picture of the rendered hand holding it
-    (docs/hands.md), the input and rendered capsules' depths in the box at that display update,
-    and a picture with the rendered hand hidden (the pixels it draws); Esc."""
+    (docs/hands.md; the input armature and its skin hidden, as a person looks at the result),
+    the input and rendered capsules' depths in the box at that display update, and a picture with
+    the rendered hand and its skin hidden too (the pixels they draw); Esc."""
     for obj in list(bpy.data.objects):
         bpy.data.objects.remove(obj)
     mod = hand_scene()
     arm, box = mod.build(bpy)
-    bpy.context.scene.grasp_lab.duration = 8.0       # the animation ends at 2 s, then holds
+    bpy.context.scene.grasp_lab.duration = 600.0     # the animation ends at 2 s, then holds until Esc
     bpy.context.view_layer.update()
     frame_scene()
     rv3d = view3d()[0].spaces[0].region_3d
-    rv3d.view_location = (0.0, 0.0, 0.09)
-    rv3d.view_distance = 0.4
+    rv3d.view_location = (0.0, 0.0, 0.12)
+    rv3d.view_distance = 0.32
     z0 = box.matrix_world.translation.z
     yield from open_grasp_tab()
     yield 1.0
@@ -1334,25 +1335,36 @@ def scenario_hand_live():
     s = active_session()
     RESULT["threaded"] = s.runner.threaded
     yield from wait_until(lambda: active_session() is None or (
-        s.snapshot is not None and s.snapshot.time >= 2.0 and s.snapshot.poses[0][2] > z0 + 0.09), 120,
+        s.snapshot is not None and s.snapshot.time >= 2.0 and s.snapshot.poses[0][2] > z0 + 0.09), 300,
         "the hand to lift the box")
     if active_session() is None:
         raise AssertionError(f"the session ended before the box was lifted: {s.error or s.ended_by}")
     shown = len(s.runner.ticks)
-    yield from wait_until(lambda: len(s.runner.ticks) >= shown + 2, 30, "two display updates")
+    yield from wait_until(lambda: len(s.runner.ticks) >= shown + 2, 120, "two display updates")
     yield 1.0
     RESULT["box_lift"] = box.matrix_world.translation.z - z0
     RESULT["input_depth"], RESULT["rendered_depth"], RESULT["joint_gap"] = _box_depths(mod, arm, box)
     RESULT["hud"] = s.hud_text()
+    # The picture shows the rendered hand, as a person hides the input to look at it: the input
+    # armature and its skin hidden, nothing selected.
+    for obj in bpy.context.selected_objects:
+        obj.select_set(False)
+    for obj in (arm, bpy.data.objects["Hand Skin"]):
+        obj.hide_set(True)
+    shown = len(s.runner.ticks)
+    yield from wait_until(lambda: len(s.runner.ticks) >= shown + 2, 120, "two display updates")
+    yield 1.0
     area, win_region, ui = view3d()
     with_hand = region_pixels(pixels(screenshot("hand_holding_box")), win_region)
-    rendered = bpy.data.objects[arm.name + " Rendered"]
-    rendered.hide_set(True)
+    rendered = [bpy.data.objects[arm.name + " Rendered"], bpy.data.objects["Hand Skin Rendered"]]
+    for obj in rendered:
+        obj.hide_set(True)
     shown = len(s.runner.ticks)
-    yield from wait_until(lambda: len(s.runner.ticks) >= shown + 2, 30, "two display updates")
+    yield from wait_until(lambda: len(s.runner.ticks) >= shown + 2, 120, "two display updates")
     yield 1.0
     without = region_pixels(pixels(screenshot("rendered_hidden")), win_region)
-    rendered.hide_set(False)
+    for obj in rendered:
+        obj.hide_set(False)
     RESULT["rendered_pixels"] = int(np.any(np.abs(with_hand[40:, :ui.x - win_region.x, :3]
                                                   - without[40:, :ui.x - win_region.x, :3]) > 0.1, axis=2).sum())
     yield from press_in_viewport("Escape")

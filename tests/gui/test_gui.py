@@ -307,7 +307,7 @@ def test_a_keyed_hand_lifts_the_box_live_and_its_rendered_hand_holds_it(gui):
     update, the input capsules are 3 mm in the box and the rendered ones on its surface (never
     0.5 mm inside), joints connected; the rendered hand is drawn (pixels that go when it is
     hidden). The picture: build/gui/hand_live/hand_holding_box.png."""
-    r, console, code = run(gui, "hand_live", timeout=400)
+    r, console, code = run(gui, "hand_live", timeout=900)
     ok(r, console)
     stopped_cleanly(r)
     assert r["threaded"] is True
