@@ -1,7 +1,7 @@
 """Add Hand (an armature of our own with a skinned low-poly mesh, Finger roles set, optionally
 Finger empties at the tips driving it by IK) and Set Hand Roles (Finger roles on any armature's
 hand bones by their names: Rigify, BVH / mocap). The layout and the name patterns are
-engine/hand_rig.py's; docs/hands-rig.md."""
+engine/hand_rig.py's; docs/hands.md, "Add Hand, Rigify, BVH"."""
 from __future__ import annotations
 
 import math

@@ -505,7 +505,7 @@ SCENES.update((f.__name__, f) for f in (soft_pinch_bar,))
 
 
 # --------------------------------------------------------------------------- scenes with the hand
-# Add Hand's hand (docs/hands-rig.md) grasps: its bones are the fingers (capsules along the
+# Add Hand's hand (docs/hands.md, "Add Hand, Rigify, BVH") grasps: its bones are the fingers (capsules along the
 # phalanges, the palm's metacarpals), and the scene runs from the armature's pose. The tips of the
 # grasping fingers are IK targets keyed like fingertips (``Finger``: the distal capsule's end-cap
 # centre when closed, and the direction it opens along); the other fingers curl out of the way; the

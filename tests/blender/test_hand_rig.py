@@ -1,6 +1,6 @@
 """Add Hand (the armature, its joint limits, the skinned mesh, the fingertip empties driving it by
 IK) and Set Hand Roles on Rigify's metarig and on an armature imported from a BVH of a grasp,
-against a real bpy (docs/hands-rig.md)."""
+against a real bpy (docs/hands.md, "Add Hand, Rigify, BVH")."""
 import math
 import os
 import sys
