@@ -1,4 +1,5 @@
-"""The hand of our own and the bone-name patterns of other hands (bpy-free; docs/hands.md, "Add Hand, Rigify, BVH").
+"""The hand of our own and the bone-name patterns of other hands (bpy-free; docs/hands.md,
+"Add Hand, Rigify, BVH").
 
 ``hand_bones(side)`` is the layout *Add Hand* builds: a wrist bone ``hand``, four metacarpals
 ``palm.01``..``palm.04`` (the palm, as four capsules side by side), the thumb ``thumb.01``..``03``
