@@ -331,7 +331,8 @@ def _run_resim(args, out, err):
 
 def _run_export(args, out, err):
     from .export import export_csv, export_npz
-    outputs.check_paths({"REC.mcap": args.recording}, {"--csv": args.csv, "--npz": args.npz}, folders=("--csv",))
+    outputs.check_paths({"REC.mcap": args.recording}, {"--csv": args.csv, "--npz": args.npz,
+                                                       "--foxglove": args.foxglove}, folders=("--csv",))
     if args.csv:
         for name in ("bodies.csv", "fingers.csv", "events.csv"):
             outputs.check_paths({"REC.mcap": args.recording}, {"--csv": os.path.join(args.csv, name)})
@@ -357,6 +358,10 @@ def _run_export(args, out, err):
 def _run_analyze(args, out, err):
     from .analysis import analyse_recording, check_recording, point_contacts_note, summary
     from .recording import open_recording
+    outputs.check_paths({"REC.mcap": args.recording}, {"--csv": args.csv}, folders=("--csv",))
+    if args.csv:
+        for name in ("grasp.csv", "contacts.csv"):
+            outputs.check_paths({"REC.mcap": args.recording}, {"--csv": os.path.join(args.csv, name)})
     rec = open_recording(args.recording, every=args.every)
     _warn(rec, err)
     if len(rec.ticks) == 0:
