@@ -41,8 +41,7 @@ def note_kept(path: str, what: str) -> None:
 
 def written() -> list:
     """What this process wrote, for a stop's last line: renamed files, then files kept in place."""
-    return list(_committed) + [f"{path} ({what})" for path, what in _kept.items()
-                               if path not in _committed]
+    return [p for p in _committed if p not in _kept] + [f"{p} ({what})" for p, what in _kept.items()]
 
 
 def forget_written() -> None:

@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 from dataclasses import dataclass
 
 import numpy as np
@@ -580,8 +581,11 @@ def export_foxglove(rec: Recording, path: str, rate: float | None = None, force_
         writer.close()
     except Exception as ex:         # the SDK's own error type too (a write that failed: a full disk)
         out.discard()
-        raise OutputError(f"{out.path}: could not be written ({getattr(ex, 'strerror', None) or ex}); "
-                          f"it is as it was") from None
+        why = getattr(ex, "strerror", None) or f"{type(ex).__name__}: {ex}"
+        if not isinstance(ex, OSError):     # the SDK's error hides the errno: the free space says it
+            free = shutil.disk_usage(os.path.dirname(out.path)).free
+            why += f"; {free:,} bytes free there"
+        raise OutputError(f"{out.path}: could not be written ({why}); it is as it was") from None
     except BaseException:
         out.discard()
         raise

@@ -141,10 +141,12 @@ def test_two_bakes_to_one_path_the_second_is_refused_before_its_work(files, tmp_
     first = start("bake", long, files["scene"], "--save", out, "--every-tick")
     try:
         wait_for(first, "its claim on --save", lambda: (tmp_path / "baked.blend.partial").exists())
+        first.send_signal(signal.SIGSTOP)       # held mid-bake, however fast this machine is
         r = grasp_lab("bake", files["rec"], files["scene"], "--save", out)
         line = one_line_error(r, 1, "another Grasp Lab process", f"pid {first.pid}")
         assert "baked" not in r.stdout and "saved" not in r.stdout, (line, r.stdout)
     finally:
+        first.send_signal(signal.SIGCONT)
         so, err = first.communicate(timeout=600)
     assert first.returncode == 0 and f"saved: {out}" in so, err
     g = Guard(out)
@@ -184,9 +186,10 @@ def test_export_foxglove_onto_a_folder_or_a_full_disk(files, tmp_path, small_dis
     r = grasp_lab("export", files["rec"], "--foxglove", folder)
     one_line_error(r, 1, str(folder), "is a folder")
     assert os.listdir(folder) == []
-    disk = small_disk("200k")
+    disk = small_disk("48k")
     r = grasp_lab("export", files["rec"], "--foxglove", disk / "view.mcap")
-    one_line_error(r, 1, str(disk / "view.mcap"), "No space left on device")
+    line = one_line_error(r, 1, str(disk / "view.mcap"), "could not be written", "it is as it was")
+    assert "No space left on device" in line or "bytes free there" in line, line
     assert os.listdir(disk) == []
 
 
@@ -237,13 +240,21 @@ def test_a_stopped_sweep_says_what_it_kept(files, tmp_path):
 
 # ----------------------------------------------------------------- 10/11: true words, bake's scene
 
-def test_the_disk_full_run_prints_no_recording_line(files, small_disk):
-    disk = small_disk("600k")       # the check of the free space passes for 1 s; the run needs more
-    r = grasp_lab("run", files["scene"], "--duration", "1.5", "--record", disk / "new.mcap", "--max-size", "1G")
-    if r.returncode == 1 and "free there" in r.stderr:
-        pytest.fail(f"refused up front instead: {r.stderr}")
-    assert r.returncode == 1, r.stderr
-    assert "recording:" not in r.stdout, r.stdout
+def test_a_disk_full_run_prints_no_recording_line(files, small_disk):
+    disk = small_disk("6m")
+    proc = start("run", files["scene"], "--realtime", "--duration", "4", "--record", disk / "new.mcap")
+    partial = disk / "new.mcap.partial"
+    wait_for(proc, "a recording", lambda: partial.exists() and partial.stat().st_size > 20_000)
+    with open(disk / "filler", "wb") as fh:                # everything that is left
+        try:
+            while True:
+                fh.write(b"\0" * 65536)
+                fh.flush()
+        except OSError:
+            pass
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 1 and "No space left on device" in err, err
+    assert "recording:" not in out, out          # it was not written: nothing says it was
     assert not (disk / "new.mcap").exists()
 
 
