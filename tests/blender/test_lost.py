@@ -272,3 +272,39 @@ def test_bake_refuses_a_recording_of_another_scene(files, tmp_path):
     assert not out.exists()
     r = grasp_lab("bake", files["rec"], other, "--save", out, "--force")
     assert r.returncode == 0 and out.exists(), r.stderr
+
+
+def _chunks(path):
+    """(offset, body offset, body length) of each MCAP chunk record of a file."""
+    data = open(path, "rb").read()
+    pos, out = 8, []
+    while pos + 9 <= len(data):
+        opcode = data[pos]
+        length = int.from_bytes(data[pos + 1:pos + 9], "little")
+        if opcode == 0x06:
+            out.append((pos, pos + 9, length))
+        if opcode == 0x02:      # the footer
+            break
+        pos += 9 + length
+    return out
+
+
+def test_a_crc_error_skips_its_chunk_and_reads_on(files, tmp_path):
+    bad = copy(files["rec"], tmp_path / "bad.mcap")
+    chunks = _chunks(bad)
+    assert len(chunks) > 6
+    whole = recording.open_recording(str(files["rec"]))
+    offset, body, _ = chunks[len(chunks) // 2]
+    with open(bad, "r+b") as fh:                # the chunk's CRC of its records: one bit off
+        fh.seek(body + 24)
+        crc = fh.read(4)
+        fh.seek(body + 24)
+        fh.write(bytes([crc[0] ^ 1]) + crc[1:])
+    rec = recording.open_recording(str(bad))
+    assert len(rec.damage) == 1 and f"chunk at byte {offset} fails its CRC" in rec.damage[0], rec.damage
+    lost = len(whole.ticks) - len(rec.ticks)
+    assert 0 < lost < len(whole.ticks) // 4, lost        # one chunk's ticks lost, the rest read
+    assert rec.ticks["tick"][-1] == whole.ticks["tick"][-1] and rec.end is not None
+    r = grasp_lab("resim", bad)
+    assert r.returncode == 0 and r.stdout.strip() != "identical", r.stdout
+    assert "damaged" in r.stdout or "diverged" in r.stdout, r.stdout
