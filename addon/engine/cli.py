@@ -225,7 +225,11 @@ def _configure_analyze(p):
 def _warn(rec_or_summary, err):
     damage = rec_or_summary.damage if hasattr(rec_or_summary, "damage") else rec_or_summary["damage"]
     path = rec_or_summary.path if hasattr(rec_or_summary, "path") else rec_or_summary["path"]
+    writer = outputs.writer_of(path) if damage else ""
     for d in damage:
+        if writer and "cut short" in d:     # not cut short: its session is still going
+            d = (f"still being written ({writer} is recording it): what it holds so far was read, "
+                 f"up to its last flush")
         print(f"{PROG}: warning: {path}: {d}", file=err)
 
 

@@ -96,6 +96,23 @@ def _locker(path: str) -> str:
     return ""
 
 
+def writer_of(path: str) -> str:
+    """``a Grasp Lab process (pid N)`` when another process holds ``path``'s writer's lock (a
+    recording's partial file of a session still running), else ''."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
+    except OSError:
+        return ""
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        return ""
+    except OSError:
+        who = _locker(path)
+        return f"a Grasp Lab process{f' ({who})' if who else ''}"
+    finally:
+        os.close(fd)
+
+
 def _busy(path: str) -> str:
     """Why ``path``'s partial file is busy ('' when it is not): another process holds its lock."""
     partial = partial_path(path)

@@ -365,3 +365,18 @@ def test_run_device_keeps_the_probed_connection_open(files, tmp_path):
     assert device.poses_sent > 100 and device.host_closes <= 1, (device.poses_sent, device.host_closes)
     rec = recording.open_recording(str(tmp_path / "dev.mcap"))
     assert rec.damage == [] and not [e for e in rec.events if e.get("kind") == "device_lost"], rec.events
+
+
+def test_info_of_a_session_still_being_written_does_not_say_cut_short(files, tmp_path):
+    out = tmp_path / "live.mcap"
+    proc = start("run", files["scene"], "--realtime", "--duration", "600", "--record", out)
+    partial = tmp_path / "live.mcap.partial"
+    try:
+        wait_for(proc, "a recording", lambda: partial.exists() and partial.stat().st_size > 50_000)
+        r = grasp_lab("info", partial)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert "cut short" not in r.stderr and f"still being written (a Grasp Lab process (pid {proc.pid})" in r.stderr, \
+        r.stderr
