@@ -564,6 +564,9 @@ def export_foxglove(rec: Recording, path: str, rate: float | None = None, force_
     times = model.frame_times(rec, rate)
     if not len(times):
         raise ValueError(f"{rec.path}: the recording is shorter than one display frame")
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise OutputError(f"{path}: its folder {folder} is missing")
     out = AtomicFile(path)          # a folder, a busy or unwritable path refused here, naming it
     context = foxglove.Context()
     try:
