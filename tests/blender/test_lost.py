@@ -141,7 +141,8 @@ def test_two_bakes_to_one_path_the_second_is_refused_before_its_work(files, tmp_
     assert grasp_lab("run", files["scene"], "--duration", "60", "--record", long).returncode == 0
     first = start("bake", long, files["scene"], "--save", out, "--every-tick")
     try:
-        wait_for(first, "its claim on --save", lambda: (tmp_path / "baked.blend.partial").exists())
+        # Its claim: the partial file made and locked (made a moment before it is locked)
+        wait_for(first, "its claim on --save", lambda: outputs.writer_of(str(tmp_path / "baked.blend.partial")))
         first.send_signal(signal.SIGSTOP)       # held mid-bake, however fast this machine is
         r = grasp_lab("bake", files["rec"], files["scene"], "--save", out)
         line = one_line_error(r, 1, "another Grasp Lab process", f"pid {first.pid}")
