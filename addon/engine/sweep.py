@@ -1083,7 +1083,8 @@ def sweep(rec, varies, samples: int, seed: int, folder: str, workers: int = 1, s
     csv_path = os.path.join(folder, SAMPLES_FILE)
     done = read_rows(csv_path, names) if os.path.exists(csv_path) else {}
     total = spec["total"]
-    todo = [i for i in range(total) if i not in done]
+    # A fresh sweep's to-do list is a range (no list of every index); a resumed one lists what is left.
+    todo = range(total) if not done else [i for i in range(total) if i not in done]
     write_sorted(csv_path, names, done)          # whole lines only, then append
     t0 = time.perf_counter()
     ran = 0
