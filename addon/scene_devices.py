@@ -105,7 +105,7 @@ def add_device_specs(context, specs) -> list:
     from .engine.devices.cli_commands import parse_device_spec
     entries = context.scene.grasp_lab_devices
     parsed = [(spec, parse_device_spec(spec)) for spec in specs]     # all checked before any is added
-    hellos = hello_fingers([d["port"] for _, d in parsed if d["kind"] == "serial"], keep=True)
+    hellos = hello_fingers([d["port"] for _, d in parsed if d["kind"] == "serial"])
     declared, appended = {}, []
     for spec, d in parsed:
         port = d.get("port") or d.get("path") or ""

@@ -415,15 +415,11 @@ def live_session(context, device_specs=(), forces: bool = False, **options) -> B
     """A live BlenderSession driven by the devices of the scene's list and of ``device_specs``
     (added for this session only), forces enabled when ``forces``; a device that does not
     open is an error naming it. ``options`` go to BlenderSession (duration, record_path)."""
-    from .engine.devices.discovery import release_held
+    added = add_device_specs(context, device_specs)
     try:
-        added = add_device_specs(context, device_specs)
-        try:
-            live = BlenderSession(context, live=True, **options)
-        finally:
-            remove_entries(context, added)
+        live = BlenderSession(context, live=True, **options)
     finally:
-        release_held()      # a probed connection no device took (the session failed before)
+        remove_entries(context, added)
     if live.devices is not None and live.devices.failed:
         live.finish(discard_recording=True)
         raise ConnectionError("; ".join(f"{p}: {e}" for p, e in live.devices.failed.items()))

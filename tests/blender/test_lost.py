@@ -20,7 +20,6 @@ from test_reliability import Guard, copy, grasp_lab, one_line_error, start
 from test_reliability import files, small_disk  # noqa: F401 - pytest fixtures shared with the first suite
 
 from addon.engine import outputs, recording
-from addon.engine.devices import emulator
 
 STOP = {signal.SIGINT: "SIGINT (Ctrl-C)", signal.SIGTERM: "SIGTERM", signal.SIGHUP: "SIGHUP (terminal closed)"}
 
@@ -310,62 +309,6 @@ def test_a_crc_error_skips_its_chunk_and_reads_on(files, tmp_path):
     r = grasp_lab("resim", bad)
     assert r.returncode == 0 and r.stdout.strip() != "identical", r.stdout
     assert "damaged" in r.stdout or "diverged" in r.stdout, r.stdout
-
-
-# ----------------------------------------------------------------- 13: one device conversation
-
-class _EndsAtHangUp(emulator.Emulator):
-    """A device written from docs/protocol.md that ends its session when the host closes the
-    port (the pty's master reads EIO once no process has the terminal open): it counts the
-    host's closes and, after the first one that followed a hello, never answers again."""
-
-    def __init__(self, fd):
-        super().__init__(fd, n_fingers=2, motion=emulator.motion_static, rate=500.0)
-        self.host_closes = 0
-        self.gone = False
-
-    def _read(self, timeout):
-        import select
-        r, _, _ = select.select([self.fd], [], [], max(0.0, timeout))
-        if not r:
-            return
-        try:
-            data = os.read(self.fd, 65536)
-        except (BlockingIOError, InterruptedError):
-            return
-        except OSError:             # no process has the terminal open: the host closed it
-            if self.started is not None and not self.gone:
-                self.host_closes += 1
-                self.gone = True    # this device's session is over
-                self.stop = True
-            time.sleep(max(0.0, timeout))
-            return
-        for frame in self.decoder.feed(data):
-            self._on_frame(frame, time.perf_counter())
-
-
-def test_run_device_keeps_the_probed_connection_open(files, tmp_path):
-    import threading
-    import tty
-    master, slave = os.openpty()
-    tty.setraw(slave)
-    tty.setraw(master)
-    port = os.ttyname(slave)
-    os.close(slave)                 # the host's opens are the only ones
-    device = _EndsAtHangUp(master)
-    thread = threading.Thread(target=device.run, kwargs={"wait_hello": 300}, daemon=True)
-    thread.start()
-    try:
-        r = grasp_lab("run", files["scene"], "--realtime", "--duration", "1.5", "--device", f"serial:{port}",
-                      "--record", tmp_path / "dev.mcap")
-    finally:
-        device.stop = True
-        thread.join(30)
-        os.close(master)
-    assert r.returncode == 0, r.stdout + r.stderr
-    assert device.poses_sent > 100 and device.host_closes <= 1, (device.poses_sent, device.host_closes)
-    rec = recording.open_recording(str(tmp_path / "dev.mcap"))
-    assert rec.damage == [] and not [e for e in rec.events if e.get("kind") == "device_lost"], rec.events
 
 
 def test_info_of_a_session_still_being_written_does_not_say_cut_short(files, tmp_path):

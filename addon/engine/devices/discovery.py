@@ -221,23 +221,7 @@ class _Probe:
         return dict(self.result, port=self.port)
 
 
-# Connections a session's probe kept open (``hello_fingers(keep=True)``): port -> the probe's
-# descriptor (locked, raw), taken by the session's SerialDevice (``take_held``), so the device
-# sees one conversation from the hello on; ``release_held`` closes what no session took.
-_held: dict = {}
-
-
-def take_held(port: str):
-    """The open, locked descriptor a probe kept for ``port`` (None: none kept); the caller owns it."""
-    return _held.pop(port, None)
-
-
-def release_held() -> None:
-    for port in list(_held):
-        release_held_port(port)
-
-
-def probe_ports(ports, timeout: float = PROBE_TIMEOUT, keep: bool = False) -> list:
+def probe_ports(ports, timeout: float = PROBE_TIMEOUT) -> list:
     """Say hello on every port at once; per port (in order) a dict: ``port``, ``status``
     (``grasp_lab``, ``silent``, ``not_grasp_lab``, ``invalid``, ``busy``, ``terminal``: some
     process's controlling terminal, never written to; ``error``), ``detail``
@@ -274,29 +258,15 @@ def probe_ports(ports, timeout: float = PROBE_TIMEOUT, keep: bool = False) -> li
             waiting = [p for p in waiting if p.result is None]
     finally:
         for p in probes:
-            if keep and p.result is not None and p.result.get("status") == "grasp_lab" and p.fd is not None:
-                release_held_port(p.port)
-                _held[p.port], p.fd = p.fd, None        # the conversation goes on in the session
-            else:
-                p.close()
+            p.close()
     return [p.outcome(timeout) for p in probes]
 
 
-def release_held_port(port: str) -> None:
-    fd = _held.pop(port, None)
-    if fd is not None:
-        try:
-            os.close(fd)
-        except OSError:
-            pass
-
-
-def hello_fingers(ports, timeout: float = PROBE_TIMEOUT, keep: bool = False) -> dict:
+def hello_fingers(ports, timeout: float = PROBE_TIMEOUT) -> dict:
     """Finger count per port from the devices' hello (ports that do not answer are left out):
-    how many fingers a device added by its port drives. ``keep``: the connections to the
-    devices that answered stay open for the session (``take_held``), not closed and reopened."""
+    how many fingers a device added by its port drives."""
     ports = [p for p in ports if p]
-    return {r["port"]: r["hello"]["n_fingers"] for r in probe_ports(ports, timeout, keep) if r["status"] == "grasp_lab"} \
+    return {r["port"]: r["hello"]["n_fingers"] for r in probe_ports(ports, timeout) if r["status"] == "grasp_lab"} \
         if ports else {}
 
 

@@ -27,26 +27,6 @@ def workspace_matrix(transform) -> list:
     return [float(v) for v in m.reshape(-1)]
 
 
-class _HeldPort:
-    """A port a probe opened (locked, raw) as the little of pyserial's Serial a device uses."""
-
-    def __init__(self, fd: int):
-        self.fd = fd
-
-    def fileno(self) -> int:
-        return self.fd
-
-    def reset_input_buffer(self) -> None:
-        import termios
-        termios.tcflush(self.fd, termios.TCIFLUSH)
-
-    def close(self) -> None:
-        import os
-        if self.fd is not None:
-            os.close(self.fd)
-            self.fd = None
-
-
 class SerialDevice:
     """One device on one port, driving world fingers ``finger_offset ..``."""
 
@@ -67,17 +47,10 @@ class SerialDevice:
 
     def connect(self) -> None:
         import serial
-        from .discovery import take_held
-        held = take_held(self.port)
-        if held is not None:
-            # The session's own probe kept the port open: one conversation from its hello on
-            # (a device may end its session when the host closes the port).
-            self.serial = _HeldPort(held)
-        else:
-            try:
-                self.serial = serial.Serial(self.port, self.baud, timeout=0, write_timeout=0, exclusive=True)
-            except (serial.SerialException, OSError) as e:
-                raise ConnectionError(f"{self.port}: cannot open the port ({e})") from e
+        try:
+            self.serial = serial.Serial(self.port, self.baud, timeout=0, write_timeout=0, exclusive=True)
+        except (serial.SerialException, OSError) as e:
+            raise ConnectionError(f"{self.port}: cannot open the port ({e})") from e
         try:
             # Bytes from before this conversation (poses a device streamed after a Find Devices
             # probe, to nobody) are not this session's: its first pose is a fresh one.
