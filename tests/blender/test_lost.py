@@ -11,7 +11,6 @@ import os
 import pty
 import signal
 import socket
-import subprocess
 import time
 
 import pytest
