@@ -39,9 +39,6 @@ else:
 
 # ---- motions: fingertip positions (device metres) of n fingers at time t ---------------
 
-UNANSWERED_GRACE = 10.0     # s a --duration emulator waits past its end for a host that only said hello
-
-
 def _ring(n, radius, z):
     if n == 1:
         return [(radius, 0.0, z)]
@@ -170,7 +167,6 @@ class Emulator:
         self.stop = False
         self.started = None         # the host's conversation started (see _on_frame)
         self.last_answer = None     # when the host last answered a pose (a force frame)
-        self.answered = False       # a host answered a pose in this conversation (not only a probe's hello)
         self.estop_at = estop_at    # s into streaming: the stop button (None: never)
         self.estop_sent_at = None
         self.forces_after_estop = 0     # force frames with a non-zero force after the button, before ENABLE(1)
@@ -222,7 +218,6 @@ class Emulator:
         new_conversation = self.last_answer is None or now - self.last_answer > HOST_SILENCE
         if frame.type == P.FORCE:
             self.last_answer = now
-            self.answered = True
         if frame.type == P.HELLO_HOST:
             self.host_hellos += 1       # a (re)started host: forces off until it enables them again
             self.enabled = False
@@ -231,7 +226,6 @@ class Emulator:
             self._send(P.HELLO_DEVICE, self.hello)
             if new_conversation:
                 self.started = now
-                self.answered = False
                 if self.estop_sent_at is not None:  # the script's button, pressed to nobody: pressed in this one
                     self.estop_sent_at, self.estopped = None, False
         elif frame.type == P.ENABLE:
@@ -304,10 +298,7 @@ class Emulator:
         while not self.stop:
             now = time.perf_counter()
             t = now - self.started
-            # --duration counts from the conversation's hello, but does not run out before a host
-            # answers: a host may probe (hello) and keep the port open while its session starts
-            # (grasp-lab run --device); a probe no session follows ends it UNANSWERED_GRACE later.
-            if duration is not None and t >= duration and (self.answered or t >= duration + UNANSWERED_GRACE):
+            if duration is not None and t >= duration:
                 break
             if self.force_expiry and now > self.force_expiry and any(any(f) for f in self.rendered):
                 self.ttl_expiries += 1        # the host went quiet: the device lets go by itself
@@ -392,7 +383,7 @@ def build_parser(parser=None):
                    help="with --from: play the scene's fingertips from the Kth (in channel order, from 0) on: "
                         "one of several devices of a scene")
     p.add_argument("--rate", type=float, default=1000.0, help="pose rate, Hz (default 1000)")
-    p.add_argument("--duration", type=float, default=None, help="stop after this many seconds of streaming, counted from the hello of the conversation a host answers (a probe's hello alone: 10 s more)")
+    p.add_argument("--duration", type=float, default=None, help="stop after this many seconds of streaming")
     p.add_argument("--force-max", type=float, default=5.0, help="the device's force limit, N per finger (default 5)")
     p.add_argument("--ttl-max", type=int, default=50, help="longest force TTL the device accepts, ms (default 50)")
     p.add_argument("--estop-at", type=float, default=None, metavar="S",
@@ -463,10 +454,6 @@ def main(argv=None, args=None, motion=None):
     finally:
         if serial_port is not None:
             serial_port.close()
-        if slave is not None:       # the end of streaming is the unplug: at once, not after the logs
-            os.close(slave)
-            os.close(fd)
-            slave = None
     if args.force_log:
         emu.write_force_log(args.force_log)
     print("REPORT " + json.dumps(report), flush=True)
