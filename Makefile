@@ -39,10 +39,11 @@ $(VENV)/.core: $(VENV)/.deps $(CORE_SRC) $(CORE_HDR) $(BINDING) $(PY_SRC) native
 	rm -rf native/build native/*.egg-info
 	touch $@
 
-# `grasp-lab` in the venv (docs/cli.md): the command line of this checkout's extension.
+# `grasp-lab` in the venv (docs/cli.md): the command line of this checkout's extension. The
+# stop signals (SIGHUP, SIGINT, SIGTERM) are held from the first line until launch() handles them.
 $(VENV)/bin/grasp-lab: $(VENV)/.deps Makefile
 	printf '%s\n' '#!/bin/sh' '# grasp-lab (docs/cli.md), written by make' \
-	  'exec "$(CURDIR)/$(PY)" -c "import sys; sys.path.insert(0, \"$(CURDIR)\"); from addon.launcher import launch; sys.exit(launch())" "$$@"' > $@
+	  'exec "$(CURDIR)/$(PY)" -c "import signal, sys; signal.pthread_sigmask(signal.SIG_BLOCK, (1, 2, 15)); sys.path.insert(0, \"$(CURDIR)\"); from addon.launcher import launch; sys.exit(launch())" "$$@"' > $@
 	chmod +x $@
 
 core: $(VENV)/.core $(VENV)/bin/grasp-lab

@@ -11,7 +11,7 @@ from . import bake as baking
 from . import emulate_blend
 from .engine import limits
 from .engine.cli import CliError
-from .engine.outputs import AtomicFile
+from .engine.outputs import AtomicFile, blend_is_whole
 from .engine.recording import open_recording, tick_dtype
 from .engine.resim import BODY_KEYS, FINGER_KEYS
 
@@ -28,16 +28,32 @@ def open_blend(path: str) -> None:
         raise CliError(f"{path}: cannot open as a .blend ({str(ex).strip()})") from None
 
 
-def save_blend(path: str) -> str:
-    """Saved beside its target (a copy: the open file keeps its name) and renamed into place."""
-    out = AtomicFile(path)
-    with out:
-        os.unlink(out.partial)      # Blender writes the file itself (and would back up an old one)
+def claim_blend(path: str) -> AtomicFile:
+    """The --save target claimed before the command begins (its partial file locked: a second
+    command saving to it is refused now, not after its work); ``save_blend`` writes it."""
+    return AtomicFile(path)
+
+
+def save_blend(out: AtomicFile) -> str:
+    """Saved by Blender beside its target (a copy: the open file keeps its name), synced,
+    checked whole (its ENDB block: Blender does not notice every failed write on a full disk)
+    and renamed into place; anything else leaves the target as it was, naming it."""
+    written = out.partial + ".blend"
+    try:
+        bpy.ops.wm.save_as_mainfile(filepath=written, copy=True)
+    except RuntimeError as ex:  # Blender's report (a full disk, ...); the target is as it was
+        _remove(written)
+        out.discard()
+        raise CliError(f"{out.path}: could not save ({str(ex).strip()}); it is as it was") from None
+    return out.commit(verify=blend_is_whole, source=written)
+
+
+def _remove(path: str) -> None:
+    for p in (path, path + "@"):        # Blender's own temporary name too
         try:
-            bpy.ops.wm.save_as_mainfile(filepath=out.partial, copy=True)
-        except RuntimeError as ex:  # Blender's report (a full disk, ...); the target is as it was
-            raise CliError(f"{out.path}: could not save ({str(ex).strip()}); it is as it was") from None
-    return out.path
+            os.unlink(p)
+        except OSError:
+            pass
 
 
 def check_run_size(context, args) -> None:
@@ -105,23 +121,23 @@ def run(args, out, err) -> int:
     if args.device:
         check_channels(context)
     record = os.path.abspath(args.record) if args.record else None
-    if args.device:
-        if not args.duration:
-            raise CliError("--device: give --duration S (a device session has no end of its own)")
-        session = live_session(context, args.device, args.forces == "on", duration=args.duration,
-                               record_path=record, sound=args.sound)
-    else:
-        session = BlenderSession(context, live=args.realtime,
-                                 duration=args.duration if args.duration else None, record_path=record,
-                                 sound=args.sound)
-        if session.duration == float("inf"):
-            session.finish()
-            raise CliError(f"{args.scene}: no fingertip is animated, so a real-time session has no end: "
-                           f"give --duration S")
+    if args.device and not args.duration:
+        raise CliError("--device: give --duration S (a device session has no end of its own)")
+    # Everything that can refuse does so before the recording is opened: the --save target
+    # claimed (locked), the live view's address bound.
+    saving = claim_blend(args.save) if args.save else None
+    live_server = _bind_live(args) if getattr(args, "live_view", None) is not None else None
+    try:
+        session = _start_session(context, args, record, live_server)
+    except BaseException:
+        if live_server is not None:
+            live_server.close()
+        raise
     if session.sound_message:
         print(f"grasp-lab run: {session.sound_message}", file=err, flush=True)
-    if getattr(args, "live_view", None) is not None:
-        _serve_live(session, args, out)
+    if live_server is not None:
+        print(f"live view: {session.live_view.address} (Foxglove: open a connection, Foxglove WebSocket, "
+              f"to this address)", file=out, flush=True)
     if session.recorder is not None:
         for o in args.set:          # in the header's scene already; the events say they were set
             session.recorder.parameter_change(0.0, o.obj or "scene", o.key, o.value)
@@ -132,23 +148,41 @@ def run(args, out, err) -> int:
             session.run_to_end()
     finally:
         result = session.finish()
-    code = _report(args, result, session.runner.recording_end, applied, out)
+    code = _report(args, result, session.runner.recording_end, applied, saving, out)
     return (_report_devices(session, out, err) or code) if args.device else code
 
 
-def _serve_live(session, args, out) -> None:
-    """--live-view: the session's display updates served to Foxglove (engine/live_view.py)."""
-    from .session import start_live_view
+def _start_session(context, args, record, live_server):
+    """The session, its devices connected and its live view attached; a session that fails at
+    its start ends with its recording discarded (the file it would replace as it was)."""
+    from .session import BlenderSession, live_session
+    if args.device:
+        session = live_session(context, args.device, args.forces == "on", duration=args.duration,
+                               record_path=record, sound=args.sound)
+    else:
+        session = BlenderSession(context, live=args.realtime,
+                                 duration=args.duration if args.duration else None, record_path=record,
+                                 sound=args.sound)
+        if session.duration == float("inf"):
+            session.finish(discard_recording=True)
+            raise CliError(f"{args.scene}: no fingertip is animated, so a real-time session has no end: "
+                           f"give --duration S")
+    if live_server is not None:
+        from .session import start_live_view
+        start_live_view(session, server=live_server)
+    return session
+
+
+def _bind_live(args):
+    """--live-view: its address bound before the session (and its recording) starts."""
+    from .engine.live_view import bind_server
     try:
-        start_live_view(session, args.live_view, args.live_view_bind)
+        return bind_server(args.live_view, args.live_view_bind)
     except (ImportError, OSError) as ex:
-        session.finish()
-        raise CliError(str(ex)) from None
-    print(f"live view: {session.live_view.address} (Foxglove: open a connection, Foxglove WebSocket, "
-          f"to this address)", file=out, flush=True)
+        raise CliError(f"--live-view {args.live_view_bind}:{args.live_view}: {ex}") from None
 
 
-def _report(args, result, end, applied, out) -> int:
+def _report(args, result, end, applied, saving, out) -> int:
     st = result.stats
     print(f"{os.path.abspath(args.scene)}: {st['time']:.3f} s simulated, {st.get('runtime_haptic_ticks', st['steps'])} ticks at "
           f"{st['haptic_rate_target']:g} Hz ({'threaded runtime, real time' if st['threaded'] else 'EXEC'}), "
@@ -162,11 +196,11 @@ def _report(args, result, end, applied, out) -> int:
                  f"({', '.join(f'{k} {n}' for k, n in sorted(refused.items()))})" if refused else "")
               + (f"; {lv['error']}" if lv["error"] else ""), file=out)
     if result.recording:
-        print(f"recording: {result.recording} ({end.get('overflow', 0)} ticks lost to overflow)", file=out)
-        if end.get("recorder_error"):
+        if end.get("recorder_error"):       # said before anything claims it was written
             raise CliError(f"{result.recording}: {end['recorder_error']}")
-    if args.save:
-        print(f"saved: {save_blend(args.save)}", file=out)
+        print(f"recording: {result.recording} ({end.get('overflow', 0)} ticks lost to overflow)", file=out)
+    if saving is not None:
+        print(f"saved: {save_blend(saving)}", file=out)
     return 0
 
 
@@ -193,6 +227,7 @@ def _report_devices(live, out, err) -> int:
 
 
 def bake(args, out, err) -> int:
+    saving = claim_blend(args.save)     # a second bake to this path is refused now, not after its work
     open_blend(args.scene)
     render = bpy.context.scene.render
     rec = open_recording(args.recording, fps=None if args.every_tick else render.fps / render.fps_base,
@@ -201,14 +236,28 @@ def bake(args, out, err) -> int:
         print(f"warning: {w}", file=err)
     if len(rec.ticks) == 0:
         raise CliError(f"{args.recording}: no tick was recorded: nothing to bake")
+    _check_bake_fits(args, rec)
     report = baking.bake_recording(bpy.context, rec, every_tick=args.every_tick, blend_path=args.save)
     if report.sound_error:
         print(f"warning: {args.recording}: no sound baked: {report.sound_error}", file=err)
     for name in report.missing:
         print(f"warning: {args.scene}: {name} is not in the scene (renamed or deleted): not baked", file=err)
     print(f"{args.recording}: {report.message()}", file=out)
-    print(f"saved: {save_blend(args.save)}", file=out)
+    print(f"saved: {save_blend(saving)}", file=out)
     return 0
+
+
+def _check_bake_fits(args, rec) -> None:
+    """A recording made in another scene (none of its bodies and fingers here, or some
+    missing) is refused, naming them, unless --force: baking it would only move the end frame."""
+    scene = rec.header.get("scene", {})
+    names = [b["name"] for b in scene.get("bodies", [])] + [f["name"] for f in scene.get("fingers", [])]
+    missing = [n for n in names if bpy.data.objects.get(n) is None]
+    if missing and not getattr(args, "force", False):
+        shown = ", ".join(missing[:8]) + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
+        whose = "none" if len(missing) == len(names) else f"{len(missing)} of {len(names)}"
+        raise CliError(f"{args.recording}: {whose} of its bodies and fingers are in {args.scene} "
+                       f"(missing: {shown}); is it this scene's recording? --force bakes what is there")
 
 
 # The Blender commands' work, by name: the command line (engine/cli.py) checks their arguments,

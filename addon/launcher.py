@@ -77,8 +77,18 @@ def main(argv=None, prog=cli.PROG, out=None, err=None) -> int:
     return cli.main(argv, prog, out, err)
 
 
+def _stop_outside_a_command(signum, frame):
+    """A stop signal before a command has begun (its arguments read) or after it ended: one
+    line and the signal's exit code through ``sys.exit`` (the temporary folders removed)."""
+    name = cli.SIGNAL_NAMES.get(signum, f"signal {signum}")
+    cli._say(sys.stderr, f"{cli.PROG}: stopped by {name} outside a command; nothing was written")
+    sys.exit(128 + signum)
+
+
 def launch() -> int:
-    """``grasp-lab`` in the venv. Outside a command (loading, exiting) SIGTERM exits through
-    ``sys.exit``, so the temporary folders are removed then too."""
-    signal.signal(signal.SIGTERM, lambda signum, frame: sys.exit(128 + signum))
+    """``grasp-lab`` in the venv. The launcher script holds the stop signals from its first
+    line (imports included); from here they are handled, a held one at once."""
+    for sig in cli.STOP_SIGNALS:
+        signal.signal(sig, _stop_outside_a_command)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, cli.STOP_SIGNALS)
     return main(sys.argv[1:])

@@ -367,12 +367,16 @@ class BlenderSession:
             lines.append(self.sound.status())
         return "\n".join(lines)
 
-    def finish(self):
-        """Stop the runner, bake, save the recording; leave the scene in its final state."""
+    def finish(self, discard_recording: bool = False):
+        """Stop the runner, bake, save the recording; leave the scene in its final state.
+        ``discard_recording``: the session failed at its start (a device that did not open):
+        its recording is removed, the file it would have replaced left as it was."""
         global last_result
         if self.finished:
             return self.result
         self.finished = True
+        if discard_recording and self.recorder is not None:
+            self.recorder.discard_on_finish = True
         device_stats = {}
         if self.devices is not None:
             self._record_device_events(self.devices.poll())   # before the runner stops and the file closes
@@ -403,7 +407,7 @@ class BlenderSession:
                     anim.bake(obj, frames, np.array(vals))
             for hand in self.hands:
                 hand.write_bake()
-        if self.recorder is not None:
+        if self.recorder is not None and not discard_recording:
             r.recording = self.recorder.writer.path
             self.settings.last_recording = r.recording
         # Final state: the frame the session ended on, bodies where the session left them.
@@ -431,12 +435,13 @@ class BlenderSession:
 
 # --------------------------------------------------------------------------- live view
 
-def start_live_view(session, port: int, bind: str):
+def start_live_view(session, port: int = 0, bind: str = "127.0.0.1", server=None):
     """Serve a live session to Foxglove (engine/live_view.py): the session panel's Live View
-    and ``grasp-lab run --live-view``. ImportError without foxglove-sdk, OSError for an
-    address it cannot serve on."""
+    and ``grasp-lab run --live-view`` (``server``: bound before the session). ImportError
+    without foxglove-sdk, OSError for an address it cannot serve on."""
     from .engine.live_view import LiveView, header_of
-    session.live_view = LiveView(header_of(session.desc, session.runner.haptic_rate), port=port, bind=bind)
+    session.live_view = LiveView(header_of(session.desc, session.runner.haptic_rate), port=port, bind=bind,
+                                 bound=server)
     return session.live_view
 
 
@@ -450,7 +455,7 @@ def live_session(context, device_specs=(), forces: bool = False, **options) -> B
     finally:
         remove_entries(context, added)
     if live.devices is not None and live.devices.failed:
-        live.finish()
+        live.finish(discard_recording=True)
         raise ConnectionError("; ".join(f"{p}: {e}" for p, e in live.devices.failed.items()))
     if forces and live.devices is not None:
         live.devices.enable(True)

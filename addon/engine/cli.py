@@ -184,6 +184,8 @@ def _configure_bake(p):
     p.add_argument("--save", metavar="OUT.blend", required=True, help="where to save the baked scene")
     p.add_argument("--every-tick", action="store_true",
                    help="a key at every haptic tick (subframes) instead of every frame")
+    p.add_argument("--force", action="store_true",
+                   help="bake even when some of the recording's bodies and fingers are not in the scene")
 
 
 def _configure_resim(p):
@@ -233,7 +235,11 @@ def _configure_analyze(p):
 def _warn(rec_or_summary, err):
     damage = rec_or_summary.damage if hasattr(rec_or_summary, "damage") else rec_or_summary["damage"]
     path = rec_or_summary.path if hasattr(rec_or_summary, "path") else rec_or_summary["path"]
+    writer = outputs.writer_of(path) if damage else ""
     for d in damage:
+        if writer and "cut short" in d:     # not cut short: its session is still going
+            d = (f"still being written ({writer} is recording it): what it holds so far was read, "
+                 f"up to its last flush")
         print(f"{PROG}: warning: {path}: {d}", file=err)
 
 
@@ -339,8 +345,8 @@ def _run_resim(args, out, err):
 
 def _run_export(args, out, err):
     from .export import export_csv, export_npz
-    outputs.check_paths({"REC.mcap": args.recording}, {"--csv": args.csv, "--npz": args.npz, "--wav": args.wav},
-                        folders=("--csv",))
+    outputs.check_paths({"REC.mcap": args.recording}, {"--csv": args.csv, "--npz": args.npz, "--wav": args.wav,
+                                                       "--foxglove": args.foxglove}, folders=("--csv",))
     if args.csv:
         for name in ("bodies.csv", "fingers.csv", "events.csv"):
             outputs.check_paths({"REC.mcap": args.recording}, {"--csv": os.path.join(args.csv, name)})
@@ -380,6 +386,10 @@ def _run_export(args, out, err):
 def _run_analyze(args, out, err):
     from .analysis import analyse_recording, check_recording, point_contacts_note, summary
     from .recording import open_recording
+    outputs.check_paths({"REC.mcap": args.recording}, {"--csv": args.csv}, folders=("--csv",))
+    if args.csv:
+        for name in ("grasp.csv", "contacts.csv"):
+            outputs.check_paths({"REC.mcap": args.recording}, {"--csv": os.path.join(args.csv, name)})
     rec = open_recording(args.recording, every=args.every)
     _warn(rec, err)
     if len(rec.ticks) == 0:
@@ -494,11 +504,24 @@ def _vary_arg(text):
         raise argparse.ArgumentTypeError(str(ex)) from None
 
 
+def _ranged_int(low: int, high: int):
+    """A whole number in low .. high: the range is in the message of a value outside it."""
+    def parse(text):
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+        if not low <= v <= high:
+            raise argparse.ArgumentTypeError(f"must be in {low} .. {high:,}, got {v}")
+        return v
+    return parse
+
+
 def _configure_sweep(p) -> None:
-    from .sweep import ANALYSIS_PERIOD
+    from .sweep import ANALYSIS_PERIOD, MAX_SAMPLES
     p.add_argument("recording", metavar="REC.mcap", help="a recording (or SCENE.blend: recorded first)")
-    p.add_argument("--samples", type=_positive_int, required=True, metavar="N",
-                   help="samples (per cell of the grid axes, if any)")
+    p.add_argument("--samples", type=_ranged_int(1, MAX_SAMPLES), required=True, metavar="N",
+                   help=f"samples (per cell of the grid axes, if any), 1 .. {MAX_SAMPLES:,}")
     p.add_argument("--seed", type=int, default=0, metavar="S", help="the sweep's seed (default 0)")
     p.add_argument("--vary", action="append", default=[], type=_vary_arg, metavar="SPEC",
                    help="KEY=LO:HI (uniform), KEY=MEAN~SD (normal), KEY=A,B,C (grid); keys: OBJECT.PROPERTY "
@@ -507,24 +530,28 @@ def _configure_sweep(p) -> None:
     p.add_argument("--out", required=True, metavar="DIR", help="samples.csv, summary.json, map.png, outcomes.png "
                                                               "(a sweep there already is resumed)")
     where = p.add_mutually_exclusive_group()
-    where.add_argument("--workers", type=_positive_int, default=os.cpu_count() or 1, metavar="K",
-                       help="local worker processes (default: the core count)")
+    where.add_argument("--workers", type=_ranged_int(1, os.cpu_count() or 1), default=os.cpu_count() or 1,
+                       metavar="K", help=f"local worker processes, 1 .. the core count ({os.cpu_count() or 1}, "
+                                         f"the default); more run on a --scheduler")
     where.add_argument("--scheduler", metavar="tcp://HOST:PORT", help="an existing Dask scheduler")
     p.add_argument("--body", metavar="NAME", help="the held body (default: the one the recording holds longest)")
     p.add_argument("--no-analysis", action="store_true",
                    help="skip the grasp measures (time in force closure, smallest epsilon)")
+    p.add_argument("--force", action="store_true",
+                   help="write into a --out folder that holds files no sweep wrote (a file of a sweep's "
+                        "name, map.png, is replaced)")
     p.add_argument("--analysis-period", type=_positive_float, default=ANALYSIS_PERIOD, metavar="S",
                    help=f"the grasp measures every S seconds while held (default {ANALYSIS_PERIOD})")
 
 
 def _run_sweep(args, out, err) -> int:
     from .recording import open_recording
-    from .sweep import sweep
+    from .sweep import PICTURES, RECORDING_FILE, SAMPLES_FILE, SPEC_FILE, SUMMARY_FILE, claim_folder, sweep
     path = args.recording
     if path.endswith(".blend"):
-        recorded = os.path.join(args.out, "recording.mcap")
+        recorded = os.path.join(args.out, RECORDING_FILE)
+        claim_folder(args.out, (RECORDING_FILE, SPEC_FILE, SAMPLES_FILE, SUMMARY_FILE) + PICTURES, args.force)
         if not os.path.exists(recorded):
-            os.makedirs(args.out, exist_ok=True)
             if main(["run", path, "--record", recorded], out=err, err=err) != 0:
                 raise CliError(f"{path}: could not record the scene to sweep")
         path = recorded
@@ -539,7 +566,7 @@ def _run_sweep(args, out, err) -> int:
             print(f"sweep: {done}/{total} samples, {seconds:.1f} s", file=err, flush=True)
     result = sweep(rec, args.vary, args.samples, args.seed, args.out, workers=args.workers,
                    scheduler=args.scheduler, body=args.body, analysis=not args.no_analysis,
-                   analysis_period=args.analysis_period, progress=progress)
+                   analysis_period=args.analysis_period, progress=progress, force=args.force)
     s = result.summary
     print(f"{s['held']} of {s['samples']} samples held {s['body']!r}: p = {s['p_held']:.3f}, "
           f"95 % interval {s['ci95'][0]:.3f} .. {s['ci95'][1]:.3f}", file=out)
@@ -647,7 +674,7 @@ def main(argv=None, prog=PROG, out=None, err=None) -> int:
                 try:
                     if load_extension is None:
                         raise RuntimeError("run it with grasp-lab or blender -c grasp_lab")
-                    extension_main = load_extension()
+                    extension_main = _load_unsignalled(load_extension)
                 except (ImportError, RuntimeError, OSError) as ex:
                     print(f"{prog} {cmd.name}: error: Blender (the bpy module) with the Grasp Lab extension "
                           f"is needed: {ex}", file=err)
@@ -656,6 +683,19 @@ def main(argv=None, prog=PROG, out=None, err=None) -> int:
             return _run_command(cmd, args, prog, out, err)
         except KeyboardInterrupt:       # a signal while Blender was loading
             return _stopped(prog, cmd.name, err)
+
+
+def _load_unsignalled(load):
+    """Blender (bpy and the extension) loaded with the stop signals held back: a signal in
+    the middle of Blender's start-up is not a Python exception inside Blender's C code (a
+    traceback and a command that ran on, or a crash). One that arrived is taken when the
+    load is done: the command stops there, before it has begun (nothing written)."""
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+    try:
+        loaded = load()
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)      # a held signal is handled here
+    return loaded
 
 
 def _run_command(cmd, args, prog, out, err) -> int:
@@ -695,11 +735,12 @@ def _run_command(cmd, args, prog, out, err) -> int:
 # ------------------------------------------------------------------------ signals, warnings
 
 _stop_signal = 0        # the signal that is stopping this command (0: none)
-SIGNAL_NAMES = {2: "SIGINT (Ctrl-C)", 15: "SIGTERM"}
+SIGNAL_NAMES = {1: "SIGHUP (terminal closed)", 2: "SIGINT (Ctrl-C)", 15: "SIGTERM"}
+STOP_SIGNALS = (signal.SIGHUP, signal.SIGINT, signal.SIGTERM)
 
 
 def _on_signal(signum, frame):
-    """SIGINT / SIGTERM: the first one stops the command where it is (KeyboardInterrupt, so
+    """SIGINT / SIGTERM / SIGHUP: the first one stops the command where it is (KeyboardInterrupt, so
     every ``finally`` finishes what it writes); later ones wait for that to finish."""
     global _stop_signal
     if _stop_signal:
@@ -714,22 +755,31 @@ def _on_signal(signum, frame):
 
 def _stopped(prog, name, err, detail="") -> int:
     signum = _stop_signal or signal.SIGINT
-    done = outputs.committed()
+    done = outputs.written()
     what = (f"finished {', '.join(done)}" if done else "nothing was written")
-    print(f"{prog} {name}: stopped by {SIGNAL_NAMES.get(signum, signum)}; {what}"
-          + (f" ({detail})" if detail else ""), file=err)
+    _say(err, f"{prog} {name}: stopped by {SIGNAL_NAMES.get(signum, signum)}; {what}"
+         + (f" ({detail})" if detail else ""))
     return 128 + int(signum)
+
+
+def _say(err, line: str) -> None:
+    """A line on standard error that may be gone (SIGHUP: the terminal closed): not an error."""
+    try:
+        print(line, file=err, flush=True)
+    except (OSError, ValueError):
+        pass
 
 
 @contextlib.contextmanager
 def _signals_stop():
-    """SIGINT and SIGTERM handled by _on_signal for the command (main thread only)."""
+    """SIGINT, SIGTERM and SIGHUP handled by _on_signal for the command (main thread only)."""
     global _stop_signal
     from .recording import set_stop_reason
     _stop_signal = 0
     set_stop_reason("")
+    outputs.forget_written()
     try:
-        old = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+        old = {sig: signal.signal(sig, _on_signal) for sig in STOP_SIGNALS}
     except ValueError:          # not the main thread: signals are the host's business
         old = {}
     try:

@@ -8,7 +8,7 @@ import zipfile
 
 import numpy as np
 
-from .outputs import AtomicFile
+from .outputs import AtomicFile, OutputError, write_together
 from .recording import STATE_NAMES, Recording
 
 BODY_COLUMNS = ["time", "body", "x", "y", "z", "qw", "qx", "qy", "qz", "vx", "vy", "vz", "wx", "wy", "wz",
@@ -36,38 +36,24 @@ def export_csv(rec: Recording, folder: str, every: int = 1) -> dict:
     """bodies.csv, fingers.csv, events.csv in ``folder``; one row per tick (every ``every``-th)
     per body or finger. The three are written beside their targets and renamed into place
     together when all are written. Returns {name: rows written}."""
-    made = not os.path.isdir(folder)
-    os.makedirs(folder, exist_ok=True)
-    names = ("bodies.csv", "fingers.csv", "events.csv")
-    outs = []
-    try:
-        outs = [AtomicFile(os.path.join(folder, name)) for name in names]
-        texts = [io.TextIOWrapper(o.file, newline="", encoding="utf-8") for o in outs]
-        counts = dict(zip(names, _write_csv(rec, _rows(rec.ticks, every), *map(csv.writer, texts))))
-        for t in texts:
-            t.flush()
-            t.detach()          # the AtomicFile keeps the file open until it is renamed
-        for o in outs:
-            o.commit()
-    except BaseException:
-        for o in outs:
-            o.discard()
-        if made:
-            try:
-                os.rmdir(folder)        # made here, for nothing
-            except OSError:
-                pass
-        raise
-    return counts
+    ticks = _rows(rec.ticks, every)
+    return write_together(folder, {
+        "bodies.csv": lambda fh: _write_bodies(rec, ticks, csv.writer(fh)),
+        "fingers.csv": lambda fh: _write_fingers(rec, ticks, csv.writer(fh)),
+        "events.csv": lambda fh: _write_events(rec, csv.writer(fh))})
 
 
-def _write_csv(rec, ticks, bodies, fingers, events):
+def _write_bodies(rec, ticks, bodies) -> int:
     bodies.writerow(BODY_COLUMNS)
     values = np.concatenate([ticks["pose"], ticks["velocity"], ticks["wrench"]], axis=2)  # (n, nb, 19)
     for k, t in enumerate(ticks["time"]):
         ts = repr(float(t))
         for b, name in enumerate(rec.body_names):
             bodies.writerow([ts, name, *_fmt(values[k, b])])
+    return len(ticks) * len(rec.body_names)
+
+
+def _write_fingers(rec, ticks, fingers) -> int:
     fingers.writerow(FINGER_COLUMNS)
     values = np.concatenate([ticks["hip"], ticks["god_object"], ticks["force"], ticks["device_force"]], axis=2)
     for k, t in enumerate(ticks["time"]):
@@ -77,11 +63,15 @@ def _write_csv(rec, ticks, bodies, fingers, events):
             c = int(ticks["contact"][k, f])
             fingers.writerow([ts, name, *_fmt(values[k, f]), STATE_NAMES[s] if 0 <= s < 3 else str(s),
                               rec.body_names[c] if 0 <= c < len(rec.body_names) else ""])
+    return len(ticks) * len(rec.finger_names)
+
+
+def _write_events(rec, events) -> int:
     events.writerow(EVENT_COLUMNS)
     for e in _events_by_time(rec):
         events.writerow([repr(float(e.get("time", 0.0))), e.get("kind", ""), e.get("subject", ""),
                          e.get("detail", "")])
-    return len(ticks) * len(rec.body_names), len(ticks) * len(rec.finger_names), len(rec.events)
+    return len(rec.events)
 
 
 def export_npz(rec: Recording, path: str, every: int = 1) -> int:
@@ -96,13 +86,21 @@ def export_npz(rec: Recording, path: str, every: int = 1) -> int:
               "event_subject": np.array([e.get("subject", "") for e in events]),
               "event_detail": np.array([e.get("detail", "") for e in events])}
     arrays.update({name: np.ascontiguousarray(ticks[name]) for name in ticks.dtype.names})
-    with AtomicFile(path) as out:
+    out = AtomicFile(path)
+    try:
         # np.savez_compressed's layout, with the archive closed on any error (a full disk)
         # before the file is discarded.
         with zipfile.ZipFile(out.file, "w", zipfile.ZIP_DEFLATED, allowZip64=True) as archive:
             for name, array in arrays.items():
                 with archive.open(f"{name}.npy", "w", force_zip64=True) as member:
                     np.lib.format.write_array(member, array, allow_pickle=False)
+    except OSError as ex:
+        out.discard()
+        raise OutputError(f"{out.path}: could not be written ({ex.strerror or ex}); it is as it was") from None
+    except BaseException:
+        out.discard()
+        raise
+    out.commit()
     return len(ticks)
 
 
@@ -121,21 +119,19 @@ def _text(values) -> list:
     return list(map(repr, np.asarray(values, dtype=np.float64).tolist()))
 
 
-def _write_table(path: str, header: list, columns: list) -> int:
-    with open(path, "w", newline="") as fh:
-        fh.write(",".join(header) + "\n")
-        rows = 0
-        for row in zip(*columns):
-            fh.write(",".join(row) + "\n")
-            rows += 1
+def _write_table(fh, header: list, columns: list) -> int:
+    fh.write(",".join(header) + "\n")
+    rows = 0
+    for row in zip(*columns):
+        fh.write(",".join(row) + "\n")
+        rows += 1
     return rows
 
 
 def export_analysis_csv(rec: Recording, table, folder: str) -> dict:
     """grasp.csv (one row per analysed tick per body in contact) and contacts.csv (the contacts
     it used) of an ``analysis.GraspTable`` of ``rec`` in ``folder`` (columns: docs/cli.md).
-    Returns {name: rows written}."""
-    os.makedirs(folder, exist_ok=True)
+    Both are written whole and go in together (outputs.write_together). Returns {name: rows written}."""
     names = np.array(rec.body_names + [""], dtype=object)
     fingers = np.array(rec.finger_names + [""], dtype=object)
     time = rec.ticks["time"][table.snapshot]
@@ -148,11 +144,11 @@ def export_analysis_csv(rec: Recording, table, folder: str) -> dict:
     columns += [_text(table.mu_min), _text(table.friction_needed), _text(table.min_slip_margin),
                 fingers[table.min_slip_finger].tolist(), _text(table.grip_force), _text(table.load_force)]
     columns += [_text(table.center[:, k]) for k in range(3)] + [_text(table.radius)]
-    counts = {"grasp.csv": _write_table(os.path.join(folder, "grasp.csv"), GRASP_COLUMNS, columns)}
+    grasp_columns = columns
     set_of = np.repeat(np.arange(len(table.body)), table.count)
     columns = [_text(time[set_of]), names[table.body[set_of]].tolist(), fingers[table.finger].tolist()]
     columns += [_text(table.point[:, k]) for k in range(3)] + [_text(table.normal[:, k]) for k in range(3)]
     columns += [_text(table.mu), _text(table.fn), _text(table.ft), _text(table.friction_use),
                 _text(table.slip_margin)]
-    counts["contacts.csv"] = _write_table(os.path.join(folder, "contacts.csv"), CONTACT_COLUMNS, columns)
-    return counts
+    return write_together(folder, {"grasp.csv": lambda fh: _write_table(fh, GRASP_COLUMNS, grasp_columns),
+                                   "contacts.csv": lambda fh: _write_table(fh, CONTACT_COLUMNS, columns)})

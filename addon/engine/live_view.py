@@ -86,16 +86,13 @@ class _Viewers:
             return sum(self.refused.values())
 
 
-class LiveView:
-    """Serves one session. ``offer(snapshot)`` from the display update; ``close()`` at the end."""
+class BoundServer:
+    """A live view's server, bound (``bind_server``) before the session it serves exists: a
+    port that is taken refuses the command before its recording is opened."""
 
-    def __init__(self, header: dict, port: int = DEFAULT_PORT, bind: str = DEFAULT_BIND):
+    def __init__(self, port: int = DEFAULT_PORT, bind: str = DEFAULT_BIND):
         foxglove = _sdk()
-        from .viewer import FoxgloveChannels
-        self.model = SceneModel(header)
-        self.header = header
         self.context = foxglove.Context()
-        self.channels = FoxgloveChannels(self.model, self.context)
         self.viewers = _Viewers()
         try:
             from foxglove.websocket import Capability, StatusLevel
@@ -107,6 +104,28 @@ class LiveView:
         except Exception as ex:         # the SDK's own error type: say what could not be bound
             raise OSError(f"live view: cannot serve on {bind}:{port} ({ex})") from None
         self.viewers.server, self.viewers.error_level = self.server, StatusLevel.Error
+        self.bind = bind
+
+    def close(self) -> None:
+        self.server.stop()
+
+
+def bind_server(port: int = DEFAULT_PORT, bind: str = DEFAULT_BIND) -> BoundServer:
+    return BoundServer(port, bind)
+
+
+class LiveView:
+    """Serves one session. ``offer(snapshot)`` from the display update; ``close()`` at the end."""
+
+    def __init__(self, header: dict, port: int = DEFAULT_PORT, bind: str = DEFAULT_BIND,
+                 bound: BoundServer | None = None):
+        from .viewer import FoxgloveChannels
+        bound = bound or BoundServer(port, bind)
+        self.model = SceneModel(header)
+        self.header = header
+        self.context = bound.context
+        self.server, self.viewers, bind = bound.server, bound.viewers, bound.bind
+        self.channels = FoxgloveChannels(self.model, self.context)
         self.bind, self.port = bind, int(self.server.port)
         self.dtype = tick_dtype(len(self.model.body_names), len(self.model.finger_names))
         self.events = EventDetector(header)

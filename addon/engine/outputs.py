@@ -16,6 +16,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import fcntl
+import io
 import os
 import threading
 
@@ -26,8 +27,27 @@ _committed: list = []       # outputs renamed into place by this process, in ord
 _open: list = []            # AtomicFiles neither committed nor discarded
 
 
+_kept: dict = {}            # files written in place (a sweep's samples.csv): path -> what they hold
+
+
 def committed() -> list:
     return list(_committed)
+
+
+def note_kept(path: str, what: str) -> None:
+    """A file written in place, not renamed (appended rows a resume reads): a stop says it kept it."""
+    _kept[os.path.abspath(path)] = what
+
+
+def written() -> list:
+    """What this process wrote, for a stop's last line: renamed files, then files kept in place."""
+    return [p for p in _committed if p not in _kept] + [f"{p} ({what})" for p, what in _kept.items()]
+
+
+def forget_written() -> None:
+    """A new command in this process (Blender) starts with nothing written."""
+    _committed.clear()
+    _kept.clear()
 
 
 def close_unfinished() -> list:
@@ -74,6 +94,23 @@ def _locker(path: str) -> str:
     except OSError:
         pass
     return ""
+
+
+def writer_of(path: str) -> str:
+    """``a Grasp Lab process (pid N)`` when another process holds ``path``'s writer's lock (a
+    recording's partial file of a session still running), else ''."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
+    except OSError:
+        return ""
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        return ""
+    except OSError:
+        who = _locker(path)
+        return f"a Grasp Lab process{f' ({who})' if who else ''}"
+    finally:
+        os.close(fd)
 
 
 def _busy(path: str) -> str:
@@ -185,26 +222,50 @@ class AtomicFile:
                     pass
             raise
 
-    def commit(self) -> str:
-        """Flush, sync and rename into place. Returns the final path."""
-        if not self.done:
+    def commit(self, verify=None, source: str | None = None) -> str:
+        """Flush, sync, verify and rename into place; returns the final path.
+
+        ``verify(path)``: checks what was written (``blend_is_whole``, ``csv_rows``), raising
+        OutputError when it is not whole. ``source``: a file another writer made beside the
+        target (Blender's save) that goes into place instead of this object's partial file,
+        which stays the lock until then. A write, sync or check that fails leaves the target
+        as it was, removes what was written and raises OutputError naming the target."""
+        if self.done:
+            return self.path
+        written = source or self.partial
+        try:
             self.file.flush()
-            os.fsync(self.file.fileno())
-            os.replace(self.partial, self.path)
-            self.file.close()           # the lock goes with it, after the rename
-            self.done = True
-            _committed.append(self.path)
-            _open.remove(self)
+            if source is None:
+                os.fsync(self.file.fileno())
+            else:
+                _fsync_path(source)
+            if verify is not None:
+                verify(written)
+            os.replace(written, self.path)
+            _fsync_path(os.path.dirname(self.path))      # the rename itself survives a power cut
+        except (OSError, OutputError) as ex:
+            if source is not None:
+                _unlink(source)
+            if not self.keep:           # a recording's readable prefix is its writer's to cut back
+                self.discard()
+            why = ex.strerror if isinstance(ex, OSError) and ex.strerror else str(ex)
+            raise OutputError(f"{self.path}: could not be written ({why}); it is as it was") from None
+        if source is not None:
+            _unlink(self.partial)       # the lock file; the lock goes when it is closed below
+        self.file.close()
+        self.done = True
+        _committed.append(self.path)
+        _open.remove(self)
         return self.path
 
     def discard(self) -> None:
         """Nothing worth keeping was written: remove the partial file, leave the target."""
         if not self.done:
+            _unlink(self.partial)
             try:
-                os.unlink(self.partial)
+                self.file.close()       # a buffer that cannot go (a full disk) goes with it
             except OSError:
                 pass
-            self.file.close()
             self.done = True
             if self in _open:
                 _open.remove(self)
@@ -235,6 +296,102 @@ class AtomicFile:
             self.commit()
         else:
             self.discard()
+
+
+def write_whole(path: str, data, verify=None) -> str:
+    """``data`` (bytes or text) written to ``path`` whole or not at all (AtomicFile)."""
+    out = AtomicFile(path)
+    try:
+        out.file.write(data.encode() if isinstance(data, str) else data)
+    except OSError as ex:
+        out.discard()
+        raise OutputError(f"{out.path}: could not be written ({ex.strerror or ex}); it is as it was") from None
+    return out.commit(verify)
+
+
+def _unlink(path: str) -> None:
+    try:
+        os.unlink(path)
+    except OSError:
+        pass
+
+
+def _fsync_path(path: str) -> None:
+    fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+# ------------------------------------------------------------------ checks of what was written
+
+def blend_is_whole(path: str) -> None:
+    """A .blend as Blender writes it: the ``BLENDER`` header and, at the end, the ``ENDB``
+    block (a file cut short by a full disk has no end). Compressed saves (zstd) are checked
+    by their frame header only: their end is inside the compression."""
+    with open(path, "rb") as fh:
+        head = fh.read(12)
+        fh.seek(0, os.SEEK_END)
+        size = fh.tell()
+        fh.seek(max(size - 64, 0))
+        tail = fh.read()
+    if head.startswith(b"\x28\xb5\x2f\xfd"):       # zstd: Blender's compressed save
+        return
+    if not head.startswith(b"BLENDER"):
+        raise OutputError(f"not a .blend file ({size} bytes, no BLENDER header)")
+    if b"ENDB" not in tail:
+        raise OutputError(f"cut short: {size} bytes and no ENDB block at its end")
+
+
+def csv_rows(rows: int):
+    """A check that a CSV file holds its header and exactly ``rows`` records, its last line ended."""
+    def verify(path: str) -> None:
+        import csv
+        with open(path, newline="", encoding="utf-8") as fh:
+            text = fh.read()
+        if text and not text.endswith("\n"):
+            raise OutputError(f"cut short: its last line is not ended ({len(text)} characters)")
+        records = sum(1 for _ in csv.reader(io.StringIO(text))) - 1
+        if records != rows:
+            raise OutputError(f"holds {records} rows, {rows} were written")
+    return verify
+
+
+def write_together(folder: str, writers: dict) -> dict:
+    """Files of one command that go in together (export --csv, analyze --csv): each
+    ``writers[name](text_file) -> rows`` writes ``folder/name`` as a partial file; when all are
+    written, each is checked (its row count) and renamed into place. An error before the
+    renames leaves every target as it was (and a folder made here for nothing removed).
+    Returns {name: rows}."""
+    made = not os.path.isdir(folder)
+    os.makedirs(folder, exist_ok=True)
+    outs, counts = [], {}
+    try:
+        for name, write in writers.items():
+            out = AtomicFile(os.path.join(folder, name))
+            outs.append(out)
+            text = io.TextIOWrapper(out.file, newline="", encoding="utf-8")
+            try:
+                counts[name] = write(text)
+                text.flush()
+            except OSError as ex:
+                raise OutputError(f"{out.path}: could not be written ({ex.strerror or ex}); "
+                                  f"it is as it was") from None
+            finally:
+                text.detach()           # the AtomicFile keeps the file open until it is renamed
+        for out, name in zip(outs, writers):
+            out.commit(verify=csv_rows(counts[name]))
+    except BaseException:
+        for out in outs:
+            out.discard()
+        if made:
+            try:
+                os.rmdir(folder)        # made here, for nothing
+            except OSError:
+                pass
+        raise
+    return counts
 
 
 # ------------------------------------------------------------------ writes a signal must not cut

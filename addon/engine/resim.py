@@ -136,8 +136,12 @@ class Divergence:
     worst: list = field(default_factory=list)        # (subject, max distance, at time)
     timeline: list = field(default_factory=list)     # (time, max body distance, max finger distance)
     note: str = ""                  # what of the recording could not be replayed as it ran
+    damage: str = ""                # the recording's damage: what was read is not the whole session
 
     def report(self) -> str:
+        if self.identical and self.damage:
+            return (f"identical over the {self.ticks} ticks that could be read, which are not the whole "
+                    f"session: the recording is damaged ({self.damage})")
         if self.identical:
             return "identical"
         lines = [f"diverged: {self.ticks} ticks compared, tolerance {self.tolerance:g} m"]
@@ -186,15 +190,17 @@ def compare(recorded: Recording, new_ticks: np.ndarray, tolerance: float, same_r
         new = new_ticks
         old = recorded.ticks[recorded.sample(new_ticks["time"])]
         n = len(new)
+    damage = "; ".join(recorded.damage)
     if n == 0:
-        return Divergence(identical=len(recorded.ticks) == len(new_ticks), ticks=0, tolerance=tolerance)
+        return Divergence(identical=len(recorded.ticks) == len(new_ticks), ticks=0, tolerance=tolerance,
+                          damage=damage)
     hashes_equal = old["state_hash"] == new["state_hash"]
     identical = bool(same_rate and len(recorded.ticks) == len(new_ticks) and hashes_equal.all())
     d_body = np.linalg.norm(old["pose"][:, :, :3] - new["pose"][:, :, :3], axis=2)           # (n, nb)
     d_fing = np.linalg.norm(old["god_object"] - new["god_object"], axis=2)                   # (n, nf)
     dist = np.concatenate([d_body, d_fing], axis=1)
     subjects = [f"body {b}" for b in names_b] + [f"finger {f}" for f in names_f]
-    div = Divergence(identical=identical, ticks=n, tolerance=tolerance)
+    div = Divergence(identical=identical, ticks=n, tolerance=tolerance, damage=damage)
     if not hashes_equal.all():
         div.first_hash_tick = int(new["tick"][np.argmin(hashes_equal)])
     over = dist > tolerance

@@ -257,8 +257,30 @@ def torsion_problem(f: FingerDesc) -> str:
     return ""
 
 
+def check_ranges(desc: SceneDesc) -> None:
+    """Every value of the scene in the legal range of its ``--set`` key (engine/limits.py): a
+    scene's own 5 m fingertip is refused as ``--set radius=5`` is. Raises SceneError."""
+    from .limits import check_set_value
+
+    def check(name, key, value):
+        if why := check_set_value(key, float(value)):
+            raise SceneError(name, f"{why} (the range of --set {key})")
+    check("scene", "haptic_rate", desc.haptic_rate)
+    for g in desc.gravity:
+        check("scene", "gravity", g)
+    for b in desc.bodies:
+        for key in ("mu_s", "mu_d", "viscosity"):
+            check(b.name, key, getattr(b, key))
+        if b.mass is not None and not b.static:
+            check(b.name, "mass", b.mass)
+    for f in desc.fingers:
+        for key in ("stiffness", "damping", "cursor_mass") + (("radius",) if f.points is None else ()):
+            check(f.name, key, getattr(f, key))
+
+
 def prepare(desc: SceneDesc) -> SceneDesc:
     """Validate every body and finger; fill in mass properties. Raises SceneError."""
+    check_ranges(desc)
     seen = set()
     for b in desc.bodies:
         if b.name in seen:

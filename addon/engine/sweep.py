@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import outputs
 from . import recording as _recording
 from .recording import scene_from_dict, scene_to_dict
 from . import resim as _resim
@@ -42,6 +43,10 @@ LOCAL_CHUNK_MAX = 64        # samples per task on the local pool at most (balanc
 CHUNK_SECONDS_DASK = 1.0    # s of work per task on a Dask cluster at least (its per-task overhead)
 CONNECT_TIMEOUT = 30.0      # s to reach a --scheduler
 SPEC_FILE, SAMPLES_FILE, SUMMARY_FILE = "sweep.json", "samples.csv", "summary.json"
+MANIFEST_FILE = "sweep_files.txt"   # the files a sweep wrote in its folder: it never overwrites another's
+PICTURES = ("map.png", "outcomes.png")
+RECORDING_FILE = "recording.mcap"   # a sweep of a .blend records it here first
+MAX_SAMPLES = 1_000_000     # per cell: the finished rows are held in memory for the summary
 STRICTLY_POSITIVE = ("mass", "stiffness")
 
 
@@ -831,22 +836,37 @@ def read_rows(path: str, names: list) -> dict:
     return rows
 
 
-def _atomic_write(path: str, text: str) -> None:
-    tmp = f"{path}.tmp{os.getpid()}"
-    with open(tmp, "w", newline="") as fh:
-        fh.write(text)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
-
-
 def write_sorted(path: str, names: list, rows: dict) -> None:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow(names)
     for i in sorted(rows):
         w.writerow([_cell(rows[i][n]) for n in names])
-    _atomic_write(path, buf.getvalue())
+    outputs.write_whole(path, buf.getvalue(), verify=outputs.csv_rows(len(rows)))
+
+
+def claim_folder(folder: str, names, force: bool = False) -> None:
+    """``folder`` made the sweep's: refused (SweepError naming them) when it holds files that no
+    sweep wrote there (a user's own map.png), unless ``force``; ``names`` are added to its
+    manifest before any of them is written, so a sweep stopped half-way still owns them."""
+    os.makedirs(folder, exist_ok=True)
+    manifest = os.path.join(folder, MANIFEST_FILE)
+    try:
+        with open(manifest) as fh:
+            ours = {line.strip() for line in fh if line.strip()}
+    except FileNotFoundError:
+        ours = set()
+    except OSError as ex:
+        raise SweepError(f"{manifest}: not readable ({ex.strerror or ex})") from None
+    foreign = sorted(n for n in os.listdir(folder)
+                     if n not in ours | {MANIFEST_FILE} and not n.endswith(outputs.PARTIAL))
+    if foreign and not force:
+        shown = ", ".join(foreign[:6]) + (f" and {len(foreign) - 6} more" if len(foreign) > 6 else "")
+        raise SweepError(f"--out {folder}: holds files this sweep did not write ({shown}); name an empty or "
+                         f"new folder, or give --force to write beside them (a file of a sweep's name "
+                         f"is then replaced)")
+    if not set(names) <= ours:
+        outputs.write_whole(manifest, "".join(f"{n}\n" for n in sorted(ours | set(names))))
 
 
 # ------------------------------------------------------------------------ statistics
@@ -859,7 +879,8 @@ def wilson(k: int, n: int, z: float = Z95) -> tuple:
     denom = 1 + z * z / n
     centre = (p + z * z / (2 * n)) / denom
     half = z / denom * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n))
-    return (max(0.0, centre - half), min(1.0, centre + half))
+    # It holds p: rounding once put the lower end of 0 of n above 0 (a negative error bar).
+    return (max(0.0, min(centre - half, p)), min(1.0, max(centre + half, p)))
 
 
 def _stats(values) -> dict:
@@ -968,10 +989,7 @@ def write_png(path: str, rgb: np.ndarray) -> None:
     raw = b"".join(b"\0" + rgb[y].tobytes() for y in range(h))
     data = (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
             + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b""))
-    tmp = path + ".tmp"
-    with open(tmp, "wb") as fh:
-        fh.write(data)
-    os.replace(tmp, path)
+    outputs.write_whole(path, data)
 
 
 def draw_pictures(job: Job, rows: list, folder: str) -> list:
@@ -1032,9 +1050,7 @@ def draw_pictures(job: Job, rows: list, folder: str) -> list:
         ax.set_ylabel("samples")
     ax.set_title(f"held {int(held.sum())} of {len(rows)}")
     fig.tight_layout()
-    paths.append(os.path.join(folder, "map.png"))
-    fig.savefig(paths[-1], metadata={"Software": None})
-    plt.close(fig)
+    paths.append(_save_figure(fig, os.path.join(folder, "map.png")))
 
     names = [("drop_time", "drop time, s (dropped samples)"), ("max_slip", "largest slip, mm"),
              ("max_force", "largest finger force, N"), ("held_time", "time held, s")]
@@ -1055,10 +1071,18 @@ def draw_pictures(job: Job, rows: list, folder: str) -> list:
                 ax.legend(fontsize=8)
             break
     fig.tight_layout()
-    paths.append(os.path.join(folder, "outcomes.png"))
-    fig.savefig(paths[-1], metadata={"Software": None})
-    plt.close(fig)
+    paths.append(_save_figure(fig, os.path.join(folder, "outcomes.png")))
     return paths
+
+
+def _save_figure(fig, path: str) -> str:
+    import matplotlib.pyplot as plt
+    buf = io.BytesIO()
+    try:
+        fig.savefig(buf, format="png", metadata={"Software": None})
+    finally:
+        plt.close(fig)
+    return outputs.write_whole(path, buf.getvalue())
 
 
 def _bins(vary: Vary, x, rows):
@@ -1111,18 +1135,21 @@ class SweepResult:
 
 def sweep(rec, varies, samples: int, seed: int, folder: str, workers: int = 1, scheduler: str | None = None,
           body: str | None = None, analysis: bool = True, analysis_period: float = ANALYSIS_PERIOD,
-          pictures: bool = True, progress=None) -> SweepResult:
+          pictures: bool = True, progress=None, force: bool = False) -> SweepResult:
     """Run (or finish) a sweep of ``rec`` into ``folder``; samples already there are kept."""
+    if not 1 <= samples <= MAX_SAMPLES:
+        raise SweepError(f"--samples {samples}: must be in 1 .. {MAX_SAMPLES:,}")
     job = make_job(rec, varies, seed, body, analysis, analysis_period)
     spec = spec_of(job, rec, samples)
-    os.makedirs(folder, exist_ok=True)
+    claim_folder(folder, (SPEC_FILE, SAMPLES_FILE, SUMMARY_FILE) + PICTURES, force)
     _check_resume(folder, spec)
-    _atomic_write(os.path.join(folder, SPEC_FILE), json.dumps(spec, indent=1) + "\n")
+    outputs.write_whole(os.path.join(folder, SPEC_FILE), json.dumps(spec, indent=1) + "\n")
     names = fieldnames(job)
     csv_path = os.path.join(folder, SAMPLES_FILE)
     done = read_rows(csv_path, names) if os.path.exists(csv_path) else {}
     total = spec["total"]
-    todo = [i for i in range(total) if i not in done]
+    # A fresh sweep's to-do list is a range (no list of every index); a resumed one lists what is left.
+    todo = range(total) if not done else [i for i in range(total) if i not in done]
     write_sorted(csv_path, names, done)          # whole lines only, then append
     t0 = time.perf_counter()
     ran = 0
@@ -1137,6 +1164,7 @@ def sweep(rec, varies, samples: int, seed: int, folder: str, workers: int = 1, s
                     done[row["sample"]] = row
                 fh.flush()
                 ran += len(new)
+                outputs.note_kept(csv_path, f"{len(done)} samples")
                 if progress:
                     progress(len(done), total, time.perf_counter() - t0)
             if scheduler:
@@ -1147,7 +1175,7 @@ def sweep(rec, varies, samples: int, seed: int, folder: str, workers: int = 1, s
     rows = [done[i] for i in sorted(done) if i < total]
     write_sorted(csv_path, names, {r["sample"]: r for r in rows})
     summary = summarize(job, rows, spec)
-    _atomic_write(os.path.join(folder, SUMMARY_FILE), json.dumps(summary, indent=1) + "\n")
+    outputs.write_whole(os.path.join(folder, SUMMARY_FILE), json.dumps(summary, indent=1) + "\n")
     paths = [csv_path, os.path.join(folder, SUMMARY_FILE)]
     if pictures and rows:
         paths += draw_pictures(job, rows, folder)

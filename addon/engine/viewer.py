@@ -15,12 +15,14 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 from dataclasses import dataclass
 
 import numpy as np
 
 from . import analysis
 from .measures import body_grip, finger_measures
+from .outputs import AtomicFile, OutputError, write_whole
 from .recording import STATE_NAMES, Recording
 from .runner import quat_rotate
 
@@ -562,11 +564,13 @@ def export_foxglove(rec: Recording, path: str, rate: float | None = None, force_
     times = model.frame_times(rec, rate)
     if not len(times):
         raise ValueError(f"{rec.path}: the recording is shorter than one display frame")
-    tmp = f"{path}.partial"
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise OutputError(f"{path}: its folder {folder} is missing")
+    out = AtomicFile(path)          # a folder, a busy or unwritable path refused here, naming it
     context = foxglove.Context()
-    fh = open(tmp, "wb")        # ours, so a path that cannot be written fails naming it
     try:
-        writer = foxglove.open_mcap(fh, context=context, writer_options=MCAPWriteOptions(profile=""))
+        writer = foxglove.open_mcap(out.file, context=context, writer_options=MCAPWriteOptions(profile=""))
         channels = FoxgloveChannels(model, context)
         events = sorted(rec.events, key=lambda e: float(e.get("time", 0.0)))
         k = 0
@@ -578,16 +582,18 @@ def export_foxglove(rec: Recording, path: str, rate: float | None = None, force_
         for e in events[k:]:
             channels.log_event(e)
         writer.close()
-        fh.close()
+    except Exception as ex:         # the SDK's own error type too (a write that failed: a full disk)
+        out.discard()
+        why = getattr(ex, "strerror", None) or f"{type(ex).__name__}: {ex}"
+        if not isinstance(ex, OSError):     # the SDK's error hides the errno: the free space says it
+            free = shutil.disk_usage(os.path.dirname(out.path)).free
+            why += f"; {free:,} bytes free there"
+        raise OutputError(f"{out.path}: could not be written ({why}); it is as it was") from None
     except BaseException:
-        fh.close()
-        os.remove(tmp)
+        out.discard()
         raise
-    os.replace(tmp, path)
-    layout = layout_path(path)
-    with open(f"{layout}.partial", "w") as fh:
-        fh.write(layout_json(model))
-    os.replace(f"{layout}.partial", layout)
+    out.commit()
+    layout = write_whole(layout_path(path), layout_json(model))
     return {"frames": len(times), "events": len(events), "bytes": os.path.getsize(path),
             "rate": float(rate or model.display_rate), "layout": layout}
 

@@ -229,7 +229,8 @@ def test_the_same_samples_from_one_process_two_and_a_resumed_sweep(lift, tmp_pat
     # A sweep killed mid-write: 5 whole rows and a torn sixth. It runs the other 7 and ends the same.
     lines = (tmp_path / "one" / "samples.csv").read_text().splitlines(keepends=True)
     (tmp_path / "cut").mkdir()
-    (tmp_path / "cut" / "sweep.json").write_bytes((tmp_path / "one" / "sweep.json").read_bytes())
+    for name in ("sweep.json", sweep.MANIFEST_FILE):    # what it wrote first: its files, its spec
+        (tmp_path / "cut" / name).write_bytes((tmp_path / "one" / name).read_bytes())
     (tmp_path / "cut" / "samples.csv").write_text("".join(lines[:6]) + lines[6][:17])
     resumed = sweep.sweep(lift, V(*SPECS), 12, 11, str(tmp_path / "cut"), workers=1)
     assert resumed.ran == 7

@@ -460,7 +460,7 @@ def test_cli_refuses_to_overwrite_the_recording(pinch, tmp_path):
     err = io.StringIO()
     assert cli.main(["export", str(rec), "--foxglove", str(tmp_path / "." / "rec.mcap")], out=io.StringIO(),
                     err=err) == 1
-    assert "the recording itself" in err.getvalue()
+    assert "refusing to write over an input" in err.getvalue() and str(rec) in err.getvalue()
     assert rec.read_bytes() == before
 
 

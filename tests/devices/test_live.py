@@ -127,3 +127,15 @@ def test_a_source_device_owns_its_fingers_in_the_core():
         b.close()
     with pytest.raises(RuntimeError, match="not running"):
         world.device_forces(0, out, True)
+
+
+def test_a_device_placed_where_it_has_too_few_fingers_is_refused():
+    # Issue #29: a 2-finger device at @2 of a 3-finger scene drove finger 2 and silently dropped
+    # its second finger. Placed by hand, it is refused, naming it; placed by the host it still
+    # goes where it fits.
+    from addon.engine.devices.live import assign_specs
+    with pytest.raises(ValueError, match=r"serial:/dev/pts/77@2.*the device has 2 fingers .2\.\.3., the scene "
+                                         r"has 3 and 1 of them free there"):
+        assign_specs(["serial:/dev/pts/77@2"], 3, hellos={"/dev/pts/77": 2})
+    placed = assign_specs(["serial:/dev/pts/77@1"], 3, hellos={"/dev/pts/77": 2})
+    assert (placed[0]["finger_offset"], placed[0]["num_fingers"]) == (1, 2)

@@ -42,9 +42,11 @@ def assign_specs(specs, n_fingers: int, taken=(), counts=None, hellos=None) -> l
                                         d.get("finger_offset", 0) if "@" in spec else None)
         except ValueError as e:
             raise ValueError(f"--device {spec!r}: {e}") from None
-        if counts and count < wanted:
-            raise ValueError(f"--device {spec!r}: fingers {first}..{first + wanted - 1}, the scene has "
-                             f"{n_fingers} and {count} of them free")
+        if (counts or "@" in spec) and wanted and count < wanted:
+            # Asked for (counts) or placed by hand (@N): a device that would lose fingers there is
+            # refused, not cut to the fingers that are left.
+            raise ValueError(f"--device {spec!r}: the device has {wanted} fingers ({first}..{first + wanted - 1}), "
+                             f"the scene has {n_fingers} and {count} of them free there")
         d["finger_offset"], d["num_fingers"] = first, count
         taken.append((first, count))
         out.append(d)

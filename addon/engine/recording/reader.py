@@ -12,6 +12,7 @@ import struct
 import sys
 import threading
 import zlib
+from dataclasses import dataclass
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -64,6 +65,18 @@ class Recording:
 MAX_CHUNK = 1 << 30         # bytes: a chunk claiming more is damage, not a reason to allocate it
 
 
+class ChunkCRCError(ValueError):
+    """A chunk whose bytes are not what its CRC says: skipped, the reading goes on after it."""
+
+
+@dataclass
+class SkippedChunk:
+    """What ``_records`` yields for a chunk it skipped (its CRC): where, and its time span."""
+    offset: int
+    start_ns: int
+    end_ns: int
+
+
 def _chunk_data(compression: str, packed, size: int, crc: int, validate: bool) -> bytes:
     """The uncompressed records of an MCAP chunk, CRC checked when ``validate``."""
     if size > MAX_CHUNK:
@@ -81,7 +94,7 @@ def _chunk_data(compression: str, packed, size: int, crc: int, validate: bool) -
     if len(data) != size:
         raise ValueError(f"chunk holds {len(data)} bytes, its header says {size}")
     if validate and crc != 0 and zlib.crc32(data) != crc:
-        raise ValueError("chunk CRC mismatch")
+        raise ChunkCRCError("chunk CRC mismatch")
     return data
 
 
@@ -152,7 +165,13 @@ def _records(fh, validate: bool, cursor: _Cursor):
         body = view[pos + 9:pos + 9 + length]
         pos += 9 + length
         if opcode == Opcode.CHUNK:
-            yield from _chunk_records(body, validate)
+            try:
+                records = list(_chunk_records(body, validate))    # all of it checked before any is used
+            except ChunkCRCError:
+                start_ns, end_ns = struct.unpack_from("<QQ", body, 0) if len(body) >= 16 else (0, 0)
+                yield SkippedChunk(cursor.pos, start_ns, end_ns)
+                continue
+            yield from records
         elif opcode in (Opcode.MESSAGE, Opcode.SCHEMA, Opcode.CHANNEL):
             yield _parse_record(opcode, body, copy=True)   # outside chunks (other writers)
         elif opcode == Opcode.FOOTER:
@@ -345,6 +364,7 @@ def _read_linear(path: str, fps: float | None, validate: bool, span: float | Non
     schemas, channels = {}, {}
     header = dtype = None
     events, damage = [], []
+    skipped = []            # chunks whose CRC failed: skipped, the rest read
     rows = None
     end = None
     footer = False
@@ -415,6 +435,8 @@ def _read_linear(path: str, fps: float | None, validate: bool, span: float | Non
                         events.append(ev)
                     elif ch.topic == TOPIC_END:
                         end = json.loads(bytes(data))
+                elif isinstance(rec, SkippedChunk):
+                    skipped.append(rec)
                 elif rec is True:
                     footer = True
         except RecordingError:
@@ -430,6 +452,9 @@ def _read_linear(path: str, fps: float | None, validate: bool, span: float | Non
         if damage and "cut short" not in damage[0]:
             detail += f"; {damage[0]}"
         raise RecordingError(f"{path}: not a readable Grasp Lab recording ({detail})")
+    for c in skipped:
+        damage.append(f"chunk at byte {c.offset} fails its CRC (t = {c.start_ns / 1e9:.3f} .. {c.end_ns / 1e9:.3f} s): "
+                      f"skipped, its ticks and events lost; everything after it was read")
     if footer and cursor.trailing:
         damage.append(f"{cursor.trailing} bytes after the footer (byte {size - cursor.trailing} on): not "
                       f"part of the recording (appended or written over by something else); ignored")

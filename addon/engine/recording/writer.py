@@ -5,6 +5,7 @@ session loses at most that much. ``SessionRecorder`` feeds a writer from a runni
 tick log that the haptic loop fills (threaded runtime); it derives the events (events.py)."""
 from __future__ import annotations
 
+import errno
 import json
 import sys
 import threading
@@ -12,7 +13,7 @@ import time
 
 import numpy as np
 
-from ..outputs import AtomicFile, uninterrupted
+from ..outputs import AtomicFile, OutputError, uninterrupted
 from .events import EventDetector
 from .format import (BLOCK_TICKS, JSON_SCHEMA, PROFILE, TICK_ENCODING, TICK_SCHEMA, TOPIC_END, TOPIC_EVENTS,
                      TOPIC_HEADER, TOPIC_TICKS, RecordingError, schema_of, tick_dtype)
@@ -121,9 +122,9 @@ class RecordingWriter:
             self._write_json(TOPIC_END, data, self.last_time)
             self._mcap.finish()
             self._out.commit()
-        except OSError as ex:
+        except (OSError, OutputError) as ex:
             self.abandon()
-            raise OSError(ex.errno, f"{ex.strerror or ex}: the recording could not be finished; "
+            raise OSError(getattr(ex, "errno", None) or errno.EIO, f"{getattr(ex, 'strerror', None) or ex}: the recording could not be finished; "
                                     f"{self.partial} holds its first {self.ticks_flushed()} ticks "
                                     f"(a readable prefix, `grasp-lab info` reads it), {self.path} is "
                                     f"as it was") from None
@@ -211,6 +212,7 @@ class SessionRecorder:
         self._lock = threading.Lock()       # writer: recorder thread vs parameter events
         self.finished = False
         self.listeners = []     # callables given each block of records written (engine.tick_tap)
+        self.discard_on_finish = False      # the session failed at its start: nothing of it is kept
 
     # ---- setup
     def begin(self, threaded: bool) -> None:
@@ -333,7 +335,9 @@ class SessionRecorder:
         why = stop_reason() or _in_flight() or self.error
         if why:
             end.update(clean=False, ended_by=why)
-        if not self.writer.closed:
+        if self.discard_on_finish:
+            self.writer.discard()
+        elif not self.writer.closed:
             try:
                 self.writer.close(end)
             except OSError as ex:
