@@ -198,7 +198,11 @@ def _configure_export(p):
     g.add_argument("--npz", metavar="FILE", help="write one .npz with every field")
     g.add_argument("--foxglove", metavar="OUT.mcap", help="a copy Foxglove shows: 3-D scene, transforms, "
                                                           "plot channels, events, at the display rate")
+    g.add_argument("--rerun", metavar="OUT.rrd", help="a Rerun recording: 3-D scene, plots, events and a layout, "
+                                                      "at the display rate (needs rerun-sdk)")
     p.add_argument("--every", type=_positive_int, default=1, metavar="N", help="every N-th tick (default 1)")
+    p.add_argument("--every-tick", action="store_true",
+                   help="with --rerun: a frame for every recorded haptic tick instead of the display rate")
 
 
 def _edges(text):
@@ -329,12 +333,23 @@ def _run_resim(args, out, err):
 
 def _run_export(args, out, err):
     from .export import export_csv, export_npz
-    outputs.check_paths({"REC.mcap": args.recording}, {"--csv": args.csv, "--npz": args.npz}, folders=("--csv",))
+    outputs.check_paths({"REC.mcap": args.recording}, {"--csv": args.csv, "--npz": args.npz, "--rerun": args.rerun},
+                        folders=("--csv",))
     if args.csv:
         for name in ("bodies.csv", "fingers.csv", "events.csv"):
             outputs.check_paths({"REC.mcap": args.recording}, {"--csv": os.path.join(args.csv, name)})
+    if args.every_tick and not args.rerun:
+        raise CliError("--every-tick goes with --rerun (--csv and --npz take --every N)")
     rec = _open(args.recording, err)
-    if args.foxglove:
+    if args.rerun:
+        from .rerun_view import export_rerun
+        try:
+            done = export_rerun(rec, args.rerun, every_tick=args.every_tick)
+        except ImportError as ex:
+            raise CliError(str(ex)) from None
+        print(f"{args.rerun}: {done['frames']} frames at {done['rate']:g} Hz, {done['events']} events, "
+              f"{done['bytes'] / 1e6:.2f} MB", file=out)
+    elif args.foxglove:
         from .viewer import export_foxglove
         try:
             done = export_foxglove(rec, args.foxglove)
@@ -428,7 +443,38 @@ register_command("bake", "bake a recording into a scene as keyframes", _configur
                  needs_blender=True)
 register_command("resim", "re-simulate a recording (with overrides); 'identical' or the divergence report",
                  _configure_resim, _run_resim)
-register_command("export", "a recording as CSV tables or one .npz", _configure_export, _run_export)
+register_command("export", "a recording as CSV tables, one .npz, or a viewer's copy (Foxglove, Rerun)",
+                 _configure_export, _run_export)
+
+
+def _configure_view(p):
+    p.add_argument("recording", metavar="REC.mcap")
+    p.add_argument("--screenshot", metavar="PNG", help="write the viewer's picture to PNG and exit (needs a "
+                                                       "display: headless, Xvfb)")
+    p.add_argument("--size", default="1600x900", metavar="WxH", help="with --screenshot: the window size "
+                                                                      "(default 1600x900)")
+    p.add_argument("--every-tick", action="store_true", help="a frame for every recorded haptic tick")
+
+
+def _run_view(args, out, err):
+    from .rerun_view import view_recording
+    outputs.check_paths({"REC.mcap": args.recording}, {"--screenshot": args.screenshot})
+    try:
+        done = view_recording(args.recording, screenshot=args.screenshot, size=args.size,
+                              every_tick=args.every_tick, warn=lambda line: print(f"{PROG}: warning: {line}",
+                                                                                  file=err))
+    except ImportError as ex:
+        raise CliError(str(ex)) from None
+    print(f"{done['rrd']}: " + ("converted" if done["converted"] else "up to date (cached)"), file=out)
+    if args.screenshot:
+        print(f"screenshot: {args.screenshot}", file=out)
+    else:
+        print(f"Rerun viewer started (pid {done['pid']})", file=out)
+    return EXIT_OK
+
+
+register_command("view", "open a recording in the Rerun viewer (converted once, cached beside it); "
+                         "--screenshot PNG: its picture", _configure_view, _run_view)
 register_command("analyze", "grasp analysis of a recording: closure, epsilon, slip margins, grip against load "
                             "(docs/analysis.md)", _configure_analyze, _run_analyze)
 

@@ -305,6 +305,36 @@ def stale_copies(rec_path: str, keep: str) -> list:
     return out
 
 
+def view_recording(rec_path: str, screenshot: str | None = None, size: str = "1600x900", every_tick: bool = False,
+                   warn=None) -> dict:
+    """``grasp-lab view`` and Blender's *Open in Rerun*: the recording's Rerun copy (made once,
+    kept beside it as ``cached_copy`` names it, older copies of it removed), then the viewer
+    on it as a separate process (not waited for), or with ``screenshot`` its picture.
+    ``warn(line)`` hears what a damaged recording lost. Returns {"rrd", "converted", "pid"}."""
+    from .recording import RecordingError, open_recording, summarize
+    _sdk()
+    try:
+        fingerprint = summarize(rec_path)["fingerprint"]
+    except (KeyError, TypeError):
+        fingerprint = ""
+    rrd = cached_copy(rec_path, fingerprint, every_tick)
+    converted = not os.path.exists(rrd)
+    if converted:
+        rec = open_recording(rec_path)
+        for line in rec.warnings():
+            if warn is not None:
+                warn(line)
+        if len(rec.ticks) == 0:
+            raise RecordingError(f"{rec_path}: no tick was recorded")
+        export_rerun(rec, rrd, every_tick=every_tick)
+        for old in stale_copies(rec_path, rrd):
+            os.remove(old)
+    if screenshot:
+        take_screenshot(rrd, screenshot, size)
+        return {"rrd": rrd, "converted": converted, "pid": None}
+    return {"rrd": rrd, "converted": converted, "pid": open_viewer(rrd).pid}
+
+
 def viewer_command(rrd: str, screenshot: str | None = None, size: str = "1600x900") -> list:
     """The viewer's command line for a file: its own gRPC port on 127.0.0.1, any free one
     (several viewers may run at once), and with ``screenshot`` its picture then exit."""
@@ -320,7 +350,7 @@ def open_viewer(rrd: str) -> subprocess.Popen:
                             stderr=subprocess.DEVNULL, start_new_session=True)
 
 
-def screenshot(rrd: str, png: str, size: str = "1600x900", timeout: float = 300.0) -> str:
+def take_screenshot(rrd: str, png: str, size: str = "1600x900", timeout: float = 300.0) -> str:
     """The viewer's own picture of ``rrd`` at ``png`` (``--screenshot-to``; it needs a display:
     Xvfb with -extension Composite headless). Written beside ``png`` and renamed; the viewer
     may exit non-zero after writing it (0.23 does on its way out), so the picture decides.
