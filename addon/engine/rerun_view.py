@@ -306,11 +306,12 @@ def stale_copies(rec_path: str, keep: str) -> list:
 
 
 def view_recording(rec_path: str, screenshot: str | None = None, size: str = "1600x900", every_tick: bool = False,
-                   warn=None) -> dict:
+                   warn=None, launch: bool = True) -> dict:
     """``grasp-lab view`` and Blender's *Open in Rerun*: the recording's Rerun copy (made once,
     kept beside it as ``cached_copy`` names it, older copies of it removed), then the viewer
     on it as a separate process (not waited for), or with ``screenshot`` its picture.
-    ``warn(line)`` hears what a damaged recording lost. Returns {"rrd", "converted", "pid"}."""
+    ``warn(line)`` hears what a damaged recording lost; ``launch=False``: the copy alone.
+    Returns {"rrd", "converted", "pid"}."""
     from .recording import RecordingError, open_recording, summarize
     _sdk()
     try:
@@ -332,7 +333,7 @@ def view_recording(rec_path: str, screenshot: str | None = None, size: str = "16
     if screenshot:
         take_screenshot(rrd, screenshot, size)
         return {"rrd": rrd, "converted": converted, "pid": None}
-    return {"rrd": rrd, "converted": converted, "pid": open_viewer(rrd).pid}
+    return {"rrd": rrd, "converted": converted, "pid": open_viewer(rrd).pid if launch else None}
 
 
 def viewer_command(rrd: str, screenshot: str | None = None, size: str = "1600x900") -> list:
