@@ -95,8 +95,7 @@ def blueprint(model: SceneModel):
     events = rrb.TextLogView(origin="/events", name="Events")
     del rr
     return rrb.Blueprint(rrb.Horizontal(rrb.Vertical(three_d, events, row_shares=[4, 1]), rrb.Vertical(*plots),
-                                        column_shares=[3, 2]),
-                         rrb.TimePanel(expanded=True), collapse_panels=True)
+                                        column_shares=[3, 2]), collapse_panels=True)
 
 
 class RerunLogger:
