@@ -133,15 +133,15 @@ def run(args, out, err) -> int:
 
 
 def _serve_live(session, args, out) -> None:
-    """--live-view: the session's display updates served to Foxglove (engine/live_view.py)."""
+    """--live-view: the session's display updates served to Foxglove (engine/live_view.py) or
+    streamed to Rerun (engine/rerun_view.py)."""
     from .session import start_live_view
     try:
         start_live_view(session, args.live_view, args.live_view_bind)
     except (ImportError, OSError) as ex:
         session.finish()
         raise CliError(str(ex)) from None
-    print(f"live view: {session.live_view.address} (Foxglove: open a connection, Foxglove WebSocket, "
-          f"to this address)", file=out, flush=True)
+    print(f"live view: {session.live_view.address} ({session.live_view.hint})", file=out, flush=True)
 
 
 def _report(args, result, end, applied, out) -> int:

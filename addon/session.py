@@ -148,7 +148,7 @@ class BlenderSession:
         self.result = SessionResult(body_names=[b.name for b in desc.bodies],
                                     finger_names=[f.name for f in desc.fingers])
         self.snapshot = None
-        self.live_view = None       # engine.live_view.LiveView: display updates served to Foxglove
+        self.live_view = None       # engine.live_view.LiveLoop: display updates served to Foxglove or Rerun
         self.finished = False
         self.error = ""             # why a live session stopped early
         self.ended_by = "Stop"      # how it ended, for the report
@@ -397,12 +397,18 @@ class BlenderSession:
 
 # --------------------------------------------------------------------------- live view
 
-def start_live_view(session, port: int, bind: str):
-    """Serve a live session to Foxglove (engine/live_view.py): the session panel's Live View
-    and ``grasp-lab run --live-view``. ImportError without foxglove-sdk, OSError for an
-    address it cannot serve on."""
+def start_live_view(session, port, bind: str):
+    """Serve a live session to Foxglove (engine/live_view.py; ``port`` a number), or stream it
+    to a Rerun viewer (engine/rerun_view.py; ``port`` "rerun", "rerun:PORT" or
+    "rerun:HOST:PORT"): the session panel's Live View and ``grasp-lab run --live-view``.
+    ImportError without the viewer's SDK, OSError for an address it cannot serve on."""
     from .engine.live_view import LiveView, header_of
-    session.live_view = LiveView(header_of(session.desc, session.runner.haptic_rate), port=port, bind=bind)
+    header = header_of(session.desc, session.runner.haptic_rate)
+    if isinstance(port, str):
+        from .engine.rerun_view import RerunLiveView
+        session.live_view = RerunLiveView(header, port)
+    else:
+        session.live_view = LiveView(header, port=port, bind=bind)
     return session.live_view
 
 

@@ -142,11 +142,24 @@ def _configure_run(p):
     p.add_argument("--max-size", type=_size, default=limits.DEFAULT_MAX_SIZE, metavar="BYTES", help=MAX_SIZE_HELP)
     p.add_argument("--save", metavar="OUT.blend", help="save the scene after the session")
     p.add_argument("--set", action="append", default=[], type=_override, metavar="KEY=VALUE", help=SET_HELP)
-    p.add_argument("--live-view", nargs="?", const=8765, type=_port, metavar="PORT",
+    p.add_argument("--live-view", nargs="?", const=8765, type=_live_view, metavar="PORT|rerun",
                    help="with --realtime: serve the session to Foxglove over WebSocket, watching only "
-                        "(default port 8765; 0: any free port)")
+                        "(default port 8765; 0: any free port); rerun, rerun:PORT or rerun:HOST:PORT: stream "
+                        "it to a Rerun viewer (default 127.0.0.1:9876, the viewer's own)")
     p.add_argument("--live-view-bind", default="127.0.0.1", metavar="ADDR",
                    help="the address the live view listens on (default 127.0.0.1: this machine only)")
+
+
+def _live_view(text):
+    """--live-view's value: a port (Foxglove) or a Rerun viewer's address (rerun[:[HOST:]PORT])."""
+    if text.split(":", 1)[0] == "rerun":
+        from .rerun_view import live_url
+        try:
+            live_url(text)
+        except ValueError as ex:
+            raise argparse.ArgumentTypeError(str(ex)) from None
+        return text
+    return _port(text)
 
 
 def _port(text):

@@ -21,6 +21,7 @@ import uuid
 
 import numpy as np
 
+from .live_view import LiveLoop
 from .recording import Recording
 from .viewer import (BODY_COLOR, FINGER_FORCE_COLOR, FORCE_COLOR, GO_COLOR, HIP_COLOR, HIP_DIAMETER,
                      STATE_COLORS, STATIC_BODY_COLOR, TORQUE_COLOR, WEAKEST_COLOR, WEAKEST_TORQUE_COLOR,
@@ -54,6 +55,11 @@ def _sdk():
 
 def _rgba8(rgba) -> list:
     return [int(round(255 * c)) for c in rgba]
+
+
+def drawn(vectors: np.ndarray) -> np.ndarray:
+    """Which arrows are drawn: longer than 1e-6 m (as the Foxglove channels' arrows)."""
+    return np.einsum("ij,ij->i", vectors, vectors) > 1e-12
 
 
 def part(name: str) -> str:
@@ -110,6 +116,9 @@ class RerunLogger:
         self.time_offset = 0.0      # s added to session time (live: the wall clock)
         scene = model.header["scene"]
         self.convex = [f.get("points") is not None for f in scene["fingers"]]
+        # packed 0xRRGGBBAA: one colour per row of a column
+        self.state_colors = np.array([int.from_bytes(bytes(_rgba8(STATE_COLORS[k])), "big") for k in range(3)],
+                                     dtype=np.uint32)
 
     def _mesh(self, triangles, rgba):
         rr = self.rr
@@ -157,57 +166,71 @@ class RerunLogger:
                                 (p.slip_margin[i], "slip margin")):
                 s.log(path, rr.SeriesLines(names=[f"{name} {label}"]), static=True)
 
-    def _arrows(self, path, indexes, origins, vectors) -> None:
-        """Arrows of one entity over the batch: a zero vector is a frame without it (an empty row)."""
-        rr = self.rr
-        shown = np.einsum("ij,ij->i", vectors, vectors) > 1e-12
-        columns = rr.Arrows3D.columns(origins=origins[shown], vectors=vectors[shown]).partition(shown.astype(np.int32))
-        self.stream.send_columns(path, indexes=indexes, columns=columns, strict=True)
-
-    def _scalars(self, path, indexes, values) -> None:
-        self.stream.send_columns(path, indexes=indexes, columns=self.rr.Scalars.columns(
-            scalars=np.asarray(values, dtype=np.float64)), strict=True)
-
-    def log_batch(self, b: FrameBatch) -> None:
-        rr, s, p, model = self.rr, self.stream, self.paths, self.model
-        indexes = [rr.TimeColumn(TIME, duration=b.time + self.time_offset), rr.TimeColumn(TICK, sequence=b.tick)]
-        # packed 0xRRGGBBAA: one colour per row of the column
-        state_colors = np.array([int.from_bytes(bytes(_rgba8(STATE_COLORS[k])), "big") for k in range(3)],
-                                dtype=np.uint32)
+    def items(self, b: FrameBatch):
+        """What a FrameBatch shows, entity by entity: (path, archetype, {field: array with the
+        frames first}). An arrow's zero vector is a frame without it."""
+        rr, p, model = self.rr, self.paths, self.model
         for i in range(len(model.body_names)):
-            pose = b.pose[:, i]
-            s.send_columns(p.body[i], indexes=indexes, columns=rr.Transform3D.columns(
-                translation=pose[:, :3], quaternion=pose[:, [4, 5, 6, 3]]), strict=True)
+            yield p.body[i], rr.Transform3D, {"translation": b.pose[:, i, :3], "quaternion": b.pose[:, i][:, [4, 5, 6, 3]]}
         for j in range(len(model.finger_names)):
             base = p.finger[j]
             go, hip = b.god_object[:, j], b.hip[:, j]
             if self.convex[j]:
-                s.send_columns(f"{base}/god_pose", indexes=indexes, columns=rr.Transform3D.columns(
-                    translation=go, quaternion=b.orientation[:, j][:, [1, 2, 3, 0]]), strict=True)
+                yield f"{base}/god_pose", rr.Transform3D, {"translation": go,
+                                                           "quaternion": b.orientation[:, j][:, [1, 2, 3, 0]]}
             else:
-                s.send_columns(f"{base}/god_object", indexes=indexes, columns=rr.Points3D.columns(positions=go), strict=True)
-            s.send_columns(f"{base}/hip", indexes=indexes, columns=rr.Points3D.columns(positions=hip), strict=True)
-            state = np.clip(b.state[:, j], 0, 2)
-            s.send_columns(f"{base}/spring", indexes=indexes, columns=rr.LineStrips3D.columns(
-                strips=list(np.stack([hip, go], axis=1)), colors=state_colors[state]), strict=True)
-            self._arrows(f"{base}/force", indexes, b.push_tail[:, j], b.push[:, j])
+                yield f"{base}/god_object", rr.Points3D, {"positions": go}
+            yield f"{base}/hip", rr.Points3D, {"positions": hip}
+            yield f"{base}/spring", rr.LineStrips3D, {"strips": np.stack([hip, go], axis=1),
+                                                      "colors": self.state_colors[np.clip(b.state[:, j], 0, 2)]}
+            yield f"{base}/force", rr.Arrows3D, {"origins": b.push_tail[:, j], "vectors": b.push[:, j]}
             if b.normals:
-                self._scalars(p.normal_force[j], indexes, b.fingers["normal_force"][:, j])
-                self._scalars(p.tangential_force[j], indexes, b.fingers["tangential_force"][:, j])
-                self._scalars(p.friction_use[j], indexes, b.fingers["friction_use"][:, j])
+                yield p.normal_force[j], rr.Scalars, {"scalars": b.fingers["normal_force"][:, j]}
+                yield p.tangential_force[j], rr.Scalars, {"scalars": b.fingers["tangential_force"][:, j]}
+                yield p.friction_use[j], rr.Scalars, {"scalars": b.fingers["friction_use"][:, j]}
         for i in range(len(model.body_names)):
             if model.static[i]:
                 continue
-            self._arrows(f"{p.residual[i]}/force", indexes, b.com[:, i], b.residual_force[:, i])
-            self._arrows(f"{p.residual[i]}/torque", indexes, b.com[:, i], b.residual_torque[:, i])
-            self._arrows(f"{p.weakest[i]}/force", indexes, b.weakest_center[:, i], b.weakest_force[:, i])
-            self._arrows(f"{p.weakest[i]}/torque", indexes, b.weakest_center[:, i], b.weakest_torque[:, i])
+            yield f"{p.residual[i]}/force", rr.Arrows3D, {"origins": b.com[:, i], "vectors": b.residual_force[:, i]}
+            yield f"{p.residual[i]}/torque", rr.Arrows3D, {"origins": b.com[:, i], "vectors": b.residual_torque[:, i]}
+            yield f"{p.weakest[i]}/force", rr.Arrows3D, {"origins": b.weakest_center[:, i],
+                                                         "vectors": b.weakest_force[:, i]}
+            yield f"{p.weakest[i]}/torque", rr.Arrows3D, {"origins": b.weakest_center[:, i],
+                                                          "vectors": b.weakest_torque[:, i]}
             if b.normals:
-                self._scalars(p.grip[i], indexes, b.bodies["grip"][:, i])
+                yield p.grip[i], rr.Scalars, {"scalars": b.bodies["grip"][:, i]}
             if b.grasp:
                 for path, name in ((p.load, "load"), (p.grip_load, "grip_load"), (p.closure, "closure"),
                                    (p.epsilon, "epsilon"), (p.slip_margin, "slip_margin")):
-                    self._scalars(path[i], indexes, b.bodies[name][:, i])
+                    yield path[i], rr.Scalars, {"scalars": b.bodies[name][:, i]}
+
+    def log_batch(self, b: FrameBatch) -> None:
+        """A batch of frames as columns (``send_columns``: a few calls per entity for any number
+        of frames, what a recording's copy needs); one frame (a live update) as plain ``log``
+        calls, which cost a tenth of a one-row column."""
+        rr, s = self.rr, self.stream
+        if len(b.time) == 1:
+            s.set_time(TIME, duration=float(b.time[0]) + self.time_offset)
+            s.set_time(TICK, sequence=int(b.tick[0]))
+            for path, archetype, fields in self.items(b):
+                if archetype is rr.Arrows3D and not drawn(fields["vectors"][:1])[0]:
+                    s.log(path, rr.Arrows3D(origins=np.zeros((0, 3)), vectors=np.zeros((0, 3))))
+                elif archetype is rr.Transform3D:
+                    s.log(path, rr.Transform3D(**{k: v[0] for k, v in fields.items()}))
+                else:
+                    s.log(path, archetype(**{k: v[:1] for k, v in fields.items()}))
+            return
+        indexes = [rr.TimeColumn(TIME, duration=b.time + self.time_offset), rr.TimeColumn(TICK, sequence=b.tick)]
+        for path, archetype, fields in self.items(b):
+            if archetype is rr.Arrows3D:
+                shown = drawn(fields["vectors"])
+                columns = archetype.columns(**{k: v[shown] for k, v in fields.items()}).partition(
+                    shown.astype(np.int32))
+            elif archetype is rr.LineStrips3D:
+                columns = archetype.columns(strips=list(fields["strips"]), colors=fields["colors"])
+            else:
+                columns = archetype.columns(**fields)
+            s.send_columns(path, indexes=indexes, columns=columns, strict=True)
 
     def log_event(self, e: dict) -> None:
         rr = self.rr
@@ -395,20 +418,62 @@ def _is_png(path: str) -> bool:
 
 # --------------------------------------------------------------------------- live
 
-DEFAULT_LIVE_URL = "rerun+http://127.0.0.1:9876/proxy"
+DEFAULT_LIVE_PORT = 9876        # the Rerun viewer's own default
 
 
 def live_url(spec: str) -> str:
     """``rerun`` (a viewer on this machine, its default port), ``rerun:PORT`` or
     ``rerun:HOST:PORT`` as the viewer's gRPC address."""
-    rest = spec.partition(":")[2]
-    if not rest:
-        return DEFAULT_LIVE_URL
+    kind, _, rest = spec.partition(":")
+    if kind != "rerun":
+        raise ValueError(f"--live-view {spec}: expected PORT (Foxglove), rerun, rerun:PORT or rerun:HOST:PORT")
     host, _, port = rest.rpartition(":")
     try:
-        p = int(port)
+        p = int(port) if port else DEFAULT_LIVE_PORT
     except ValueError:
         raise ValueError(f"--live-view {spec}: expected rerun, rerun:PORT or rerun:HOST:PORT") from None
     if not 0 < p < 65536:
         raise ValueError(f"--live-view {spec}: a port is 1..65535")
     return f"rerun+http://{host or '127.0.0.1'}:{p}/proxy"
+
+
+class RerunLiveView(LiveLoop):
+    """A live session streamed to a Rerun viewer over its own protocol (gRPC; the SDK buffers
+    and sends from its own threads): the same entities as a recording's copy, with the
+    blueprint, stamped with the wall clock. Never on the haptic thread (engine/live_view.py's
+    loop). The viewer is started by the user (``rerun``, on this machine by default). Its
+    session_time timeline is session time (Rerun's own log_time is the wall clock); its tick
+    timeline counts display updates."""
+
+    hint = "Rerun: start the viewer (rerun) on that address; it shows the session as it runs"
+
+    def __init__(self, header: dict, spec: str = "rerun"):
+        rr = _sdk()
+        super().__init__(header)
+        self.url = live_url(spec)
+        self.stream = rr.RecordingStream(APPLICATION_ID, recording_id=str(uuid.uuid4()), send_properties=False)
+        try:
+            self.stream.connect_grpc(self.url, default_blueprint=blueprint(self.model))
+        except Exception as ex:         # the SDK's own error type: say what could not be reached
+            raise OSError(f"live view: cannot stream to {self.url} ({ex})") from None
+        self.logger = RerunLogger(self.model, self.stream)
+        self.logger.static()
+        self._start()
+
+    @property
+    def address(self) -> str:
+        return self.url
+
+    def status(self) -> str:
+        return (f"live view {self.url}: {self.updates} updates, {self.dropped} skipped"
+                + (f"; {self.error}" if self.error else ""))
+
+    def publish(self, batch, events, time_offset) -> None:
+        self.logger.log_batch(batch)
+        for e in events:
+            self.logger.log_event(e)
+
+    def _close_viewer(self) -> dict:
+        self.stream.flush(blocking=True)
+        self.stream.disconnect()
+        return {"refused": {}}

@@ -340,3 +340,74 @@ def test_commands_without_the_sdk_say_what_to_install(pinch, tmp_path, monkeypat
         assert len(lines) == 1 and "pip install rerun-sdk==" in lines[0], lines
     assert list(tmp_path.iterdir()) == []
     assert not any(n.endswith(".rrd") for n in os.listdir(os.path.dirname(pinch.path)))
+
+
+# --------------------------------------------------------------------------- live
+
+def free_port() -> int:
+    import socket
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def wait_for(check, deadline: float, what: str):
+    """``check()``'s first true answer, looking until ``deadline`` seconds have passed."""
+    import time
+    end = time.monotonic() + deadline
+    while True:
+        answer = check()
+        if answer:
+            return answer
+        if time.monotonic() > end:
+            raise AssertionError(f"{what}: not within {deadline:g} s")
+        time.sleep(0.2)
+
+
+def received_frames(path):
+    """The Box's transforms a Rerun receiver has written so far (None while unreadable)."""
+    try:
+        return column(load(str(path)), "/world/bodies/Box", "Translation3D")
+    except Exception:       # the receiver is still writing its first chunk
+        return None
+
+
+def test_cli_realtime_live_view_rerun(bpy, sample, tmp_path):
+    """`grasp-lab run --realtime --live-view rerun:PORT` streams the session to a Rerun
+    receiver (the viewer binary, saving what it receives): every display update arrives, with
+    the bodies where the session's own recording has them at those times."""
+    import socket
+    sample.build(bpy)
+    blend = tmp_path / "pinch.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    port = free_port()
+    received = tmp_path / "live.rrd"
+    receiver = subprocess.Popen([rerun_view.viewer_binary(), "--bind", "127.0.0.1", "--port", str(port),
+                                 "--save", str(received)], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        def listening():
+            with socket.socket() as s:
+                return s.connect_ex(("127.0.0.1", port)) == 0
+        wait_for(listening, 60, "the Rerun receiver listening")
+        launcher = os.path.join(recordings.ROOT, ".venv", "bin", "grasp-lab")
+        rec = tmp_path / "live.mcap"
+        run = subprocess.run([launcher, "run", str(blend), "--realtime", "--duration", "3", "--record", str(rec),
+                              "--live-view", f"rerun:{port}"], capture_output=True, text=True, timeout=600)
+        assert run.returncode == 0, run.stdout + run.stderr
+        assert f"live view: rerun+http://127.0.0.1:{port}/proxy" in run.stdout
+        import re
+        updates = int(re.search(r"live view: (\d+) updates", run.stdout).group(1))
+        assert updates >= 10, run.stdout
+        times, translation = wait_for(lambda: (lambda r: r if r and len(r[0]) == updates else None)(
+            received_frames(received)), 120, f"{updates} frames received")
+    finally:
+        receiver.terminate()
+        receiver.wait(timeout=60)
+    recording = load(str(received))
+    paths = entity_paths(recording)
+    assert {"/world/fingers/Finger\\ 0/god_object", "/plots/finger_force/Finger\\ 0/normal",
+            "/plots/closure/Box/closure", "/world/bodies/Box/part_0"} <= paths, sorted(paths)
+    recorded = open_recording(str(rec))
+    box = recorded.body_names.index("Box")
+    np.testing.assert_allclose(np.concatenate(translation), recorded.ticks["pose"][recorded.sample(times), box, :3],
+                               atol=1e-6)
