@@ -411,3 +411,35 @@ def test_cli_realtime_live_view_rerun(bpy, sample, tmp_path):
     box = recorded.body_names.index("Box")
     np.testing.assert_allclose(np.concatenate(translation), recorded.ticks["pose"][recorded.sample(times), box, :3],
                                atol=1e-6)
+
+
+# --------------------------------------------------------------------------- Blender
+
+def test_open_in_rerun_operator(bpy, pinch, tmp_path, monkeypatch):
+    """The Recording panel's Open in Rerun: the same copy as `grasp-lab view` (beside the
+    recording), the viewer started as a separate process that Blender does not wait for.
+    Without a display the viewer gives up by itself (after the operator has returned)."""
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    rec = tmp_path / "rec.mcap"
+    shutil.copy(pinch.path, rec)
+    started = []
+    real_popen = subprocess.Popen
+
+    def watch(*args, **kwargs):         # the real Popen; the test only keeps the process to wait for it
+        proc = real_popen(*args, **kwargs)
+        started.append(proc)
+        return proc
+    monkeypatch.setattr(rerun_view.subprocess, "Popen", watch)
+    assert bpy.ops.grasp_lab.open_in_rerun(filepath=str(rec)) == {"FINISHED"}
+    copies = [p for p in tmp_path.iterdir() if p.suffix == ".rrd"]
+    assert len(copies) == 1 and load(str(copies[0])).application_id() == "grasp_lab"
+    assert len(started) == 1 and started[0].args[0] == rerun_view.viewer_binary()
+    assert started[0].args[-1] == str(copies[0])
+    assert started[0].wait(timeout=120) != 0          # no display: it ends by itself
+    # Without the SDK: cancelled, saying what to install.
+    monkeypatch.setitem(sys.modules, "rerun", None)
+    for name in [n for n in sys.modules if n.startswith("rerun.")]:
+        monkeypatch.delitem(sys.modules, name)
+    with pytest.raises(RuntimeError, match="pip install rerun-sdk=="):
+        bpy.ops.grasp_lab.open_in_rerun(filepath=str(rec))

@@ -4,8 +4,8 @@ writes docs/images/rerun_*.png with ``python tests/gui/rerun_shots.py --out docs
 
 Xvfb runs with ``-extension Composite`` (without it the viewer's window reads back black) on a
 display it picks itself (``-displayfd``), so parallel runs never share one; the screen is
-twice the window's size, so the pointer (at the screen's centre) is not over the window and
-draws no hover tooltip. Rerun keeps its settings in XDG folders: each run gets its own.
+more than twice the window's size in pixels (the viewer draws at 2 pixels a point here), so
+the pointer (at the screen's centre) is not over the window and draws no hover tooltip. Rerun keeps its settings in XDG folders: each run gets its own.
 """
 from __future__ import annotations
 
@@ -23,7 +23,7 @@ if ROOT not in sys.path:
     sys.path.insert(0, ROOT)        # addon.engine (bpy-free): the colours the copy is drawn in
 SETUP = os.path.join(ROOT, "tests", "gui", "rerun_viewer.sh")
 WINDOW = (1600, 900)            # logical points; the picture is 2x that
-SCREEN = "3200x2000x24"
+SCREEN = "7200x4200x24"
 HOW = "make test installs them as root on Debian (tests/gui/rerun_viewer.sh setup)"
 # The blueprint's layout (engine/rerun_view.blueprint): the 3-D view and the events in the
 # left 3/5, the plots in the right 2/5; the top bar and the time panel at the bottom.
