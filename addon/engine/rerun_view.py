@@ -34,6 +34,7 @@ APPLICATION_ID = "grasp_lab"
 TIME = "session_time"       # timeline: session time (a duration from the start), s
 TICK = "tick"               # timeline: the haptic tick each frame shows
 ARROW_RADIUS = 0.002        # m
+BACKGROUND = (24, 24, 28)   # the 3-D view's background, RGB
 SPRING_RADIUS = 0.001       # m
 # Plots, each a time-series view of the blueprint: root path, title.
 PLOTS = (("plots/finger_force", "Finger forces (N): normal, tangential"),
@@ -97,7 +98,7 @@ def blueprint(model: SceneModel):
     plots = [rrb.TimeSeriesView(origin=f"/{root}", name=title, plot_legend=rrb.PlotLegend(visible=True))
              for root, title in PLOTS]
     # Rerun 0.23 has no camera setting in a blueprint: the view frames what it shows.
-    three_d = rrb.Spatial3DView(origin="/world", name="Grasp", background=[24, 24, 28])
+    three_d = rrb.Spatial3DView(origin="/world", name="Grasp", background=list(BACKGROUND))
     events = rrb.TextLogView(origin="/events", name="Events")
     del rr
     return rrb.Blueprint(rrb.Horizontal(rrb.Vertical(three_d, events, row_shares=[4, 1]), rrb.Vertical(*plots),
@@ -265,7 +266,7 @@ def export_rerun(rec: Recording, path: str, rate: float | None = None, every_tic
     stream = rr.RecordingStream(APPLICATION_ID, recording_id=str(rec.header.get("fingerprint") or uuid.uuid4()),
                                 send_properties=False)
     try:
-        stream.save(tmp, default_blueprint=blueprint(model))
+        stream.save(tmp)
         logger = RerunLogger(model, stream)
         logger.static()
         for b in model.batches(rec, times, batch=4096):
@@ -273,6 +274,9 @@ def export_rerun(rec: Recording, path: str, rate: float | None = None, every_tic
         events = sorted(rec.events, key=lambda e: float(e.get("time", 0.0)))
         for e in events:
             logger.log_event(e)
+        # The layout last and active: a viewer that has made up a layout of its own while the
+        # data streamed in (it does when the data comes first) switches to this one.
+        stream.send_blueprint(blueprint(model), make_active=True, make_default=True)
         stream.flush(blocking=True)
         stream.disconnect()
     except BaseException:

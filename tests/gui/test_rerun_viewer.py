@@ -44,6 +44,11 @@ def test_viewer_draws_the_grasp_and_its_plots(display, recording, tmp_path):
     h, w = image.shape[:2]
     assert (w, h) == (2 * rs.WINDOW[0], 2 * rs.WINDOW[1])
     view = rs.region(image, rs.THREE_D)
+    # The file's layout is the one shown: its 3-D view (with the background it sets) where the
+    # layout puts it, not a layout the viewer made up.
+    from addon.engine import rerun_view
+    background = np.all(np.abs(view.astype(int) - rerun_view.BACKGROUND) <= 1, axis=2)
+    assert 0.2 < background.mean() < 0.95, background.mean()
     # The 3-D view is not empty: the box (the moving body's colour) fills a good part of its middle.
     box = rs.body_pixels(view, viewer.BODY_COLOR)
     vh, vw = box.shape
