@@ -104,6 +104,14 @@ def run(args, out, err) -> int:
     if args.device:
         check_channels(context)
     record = os.path.abspath(args.record) if args.record else None
+    if isinstance(getattr(args, "live_view", None), str):
+        # The Rerun SDK (with pyarrow) takes seconds to import on a busy machine: before the
+        # session's clock starts, not out of its duration.
+        from .engine.rerun_view import _sdk
+        try:
+            _sdk()
+        except ImportError as ex:
+            raise CliError(str(ex)) from None
     if args.device:
         if not args.duration:
             raise CliError("--device: give --duration S (a device session has no end of its own)")
