@@ -7,7 +7,8 @@ says it in Rerun's words: ``Mesh3D`` bodies (their convex parts, logged once) un
 ``Transform3D`` per frame, the fingers' HIPs, god-objects (a convex finger's god-pose: its hull
 under a transform), springs coloured by stick/slip and force arrows, the residual and weakest
 wrench arrows, ``Scalars`` plots, the events as a ``TextLog`` and a saved blueprint (layout).
-Rerun takes whole columns (``send_columns``): a batch of frames is a few calls per entity.
+A copy's frames go out as whole columns (``send_columns``: a few calls per entity for a
+batch of frames), a live update's single frame as plain ``log`` calls.
 
 bpy-free. ``rerun-sdk`` is imported only here, when one of these commands runs.
 """
@@ -93,14 +94,13 @@ class RerunPaths:
 
 def blueprint(model: SceneModel):
     """The layout saved with the recording: the 3-D view beside the plots, the events below."""
-    rr = _sdk()
+    _sdk()
     import rerun.blueprint as rrb
     plots = [rrb.TimeSeriesView(origin=f"/{root}", name=title, plot_legend=rrb.PlotLegend(visible=True))
              for root, title in PLOTS]
     # Rerun 0.23 has no camera setting in a blueprint: the view frames what it shows.
     three_d = rrb.Spatial3DView(origin="/world", name="Grasp", background=list(BACKGROUND))
     events = rrb.TextLogView(origin="/events", name="Events")
-    del rr
     return rrb.Blueprint(rrb.Horizontal(rrb.Vertical(three_d, events, row_shares=[4, 1]), rrb.Vertical(*plots),
                                         column_shares=[3, 2]), collapse_panels=True)
 
@@ -114,16 +114,16 @@ class RerunLogger:
         self.model = model
         self.stream = stream
         self.paths = RerunPaths(model)
-        self.time_offset = 0.0      # s added to session time (live: the wall clock)
+        self.time_offset = 0.0      # s added to session time on the session_time timeline
         scene = model.header["scene"]
         self.convex = [f.get("points") is not None for f in scene["fingers"]]
         # packed 0xRRGGBBAA: one colour per row of a column
         self.state_colors = np.array([int.from_bytes(bytes(_rgba8(STATE_COLORS[k])), "big") for k in range(3)],
                                      dtype=np.uint32)
 
-    def _mesh(self, triangles, rgba):
+    def _mesh(self, tris, rgba):
+        """Hull triangles (T, 3, 3) as a flat-shaded mesh."""
         rr = self.rr
-        tris = np.concatenate(triangles).reshape(-1, 3, 3) if isinstance(triangles, list) else triangles
         n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
         n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
         return rr.Mesh3D(vertex_positions=tris.reshape(-1, 3), triangle_indices=np.arange(3 * len(tris)).reshape(-1, 3),

@@ -231,6 +231,33 @@ def test_finger_force_plots_are_analyze_numbers(closure):
     np.testing.assert_array_equal(drawn, np.array([c[0] for c in closed]) == 1.0)
 
 
+def test_a_convex_finger_is_its_hull_at_its_god_pose(core, tmp_path):
+    """A palm (a convex finger, test_area_analysis's plate on a palm): its hull logged once,
+    in its own frame, under a transform at the god-object turned by the recorded orientation."""
+    from test_area_analysis import K, PALM, PLATE_H, PLATE_HALF, PLATE_M, _body, _mesh, _record
+    from addon.engine import scene
+    d = scene.SceneDesc()
+    _body(d, "Plate", (PLATE_HALF, PLATE_HALF, PLATE_H), (0, 0, PLATE_H), PLATE_M)
+    d.fingers.append(scene.FingerDesc("Palm", np.array([0.0, 0.0, -PALM[2]]), 0.0, K, 2.0, 0,
+                                      points=_mesh(PALM, "Palm").vertices))
+    rec = _record(tmp_path / "plate.mcap", scene.prepare(d), lambda t: [[0.0, 0.0, -PALM[2]]], 0.6)
+    rrd = tmp_path / "palm.rrd"
+    rerun_view.export_rerun(rec, str(rrd))
+    recording = load(str(rrd))
+    base = "/world/fingers/Palm/god_pose"
+    hull = static(recording, f"{base}/hull", "Position3D").reshape(-1, 3)
+    corners = np.asarray(_mesh(PALM, "Palm").vertices)
+    d = np.linalg.norm(hull[:, None] - corners[None], axis=2)
+    assert d.min(axis=1).max() < 1e-6 and d.min(axis=0).max() < 1e-6
+    times = viewer.SceneModel(rec.header).frame_times(rec)
+    ticks = rec.ticks[rec.sample(times)]
+    _, translation = column(recording, base, "Translation3D")
+    _, rotation = column(recording, base, "RotationQuat")
+    np.testing.assert_allclose(np.concatenate(translation), ticks["god_object"][:, 0], atol=1e-6)
+    np.testing.assert_allclose(np.concatenate(rotation), ticks["orientation"][:, 0][:, [1, 2, 3, 0]], atol=1e-6)
+    assert "/world/fingers/Palm/god_object" not in entity_paths(recording)
+
+
 def test_every_tick(closure, tmp_path):
     rec, _ = closure
     path = tmp_path / "every.rrd"
