@@ -412,6 +412,14 @@ def start_live_view(session, port, bind: str):
     return session.live_view
 
 
+def live_view_target(settings):
+    """The Session panel's live view as start_live_view takes it: Foxglove's port, or the
+    Rerun viewer on this machine ("rerun:127.0.0.1:PORT")."""
+    if settings.live_view_viewer == "RERUN":
+        return f"rerun:127.0.0.1:{settings.live_view_rerun_port}"
+    return settings.live_view_port
+
+
 def live_session(context, device_specs=(), forces: bool = False, **options) -> BlenderSession:
     """A live BlenderSession driven by the devices of the scene's list and of ``device_specs``
     (added for this session only), forces enabled when ``forces``; a device that does not
@@ -492,7 +500,7 @@ class GRASPLAB_OT_session(bpy.types.Operator):
             s = context.scene.grasp_lab
             if s.live_view:
                 try:
-                    start_live_view(session, s.live_view_port, s.live_view_bind)
+                    start_live_view(session, live_view_target(s), s.live_view_bind)
                 except (ImportError, OSError) as ex:       # the session runs without it
                     self.report({"WARNING"}, f"Grasp Lab: no live view: {ex}")
             session.start_live(s.display_rate, budget=prefs.max_step_ms * 1e-3)

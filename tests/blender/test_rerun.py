@@ -470,3 +470,46 @@ def test_open_in_rerun_operator(bpy, pinch, tmp_path, monkeypatch):
         monkeypatch.delitem(sys.modules, name)
     with pytest.raises(RuntimeError, match="pip install rerun-sdk=="):
         bpy.ops.grasp_lab.open_in_rerun(filepath=str(rec))
+
+
+def test_the_session_panels_live_view_in_rerun(bpy, sample, core, tmp_path):
+    """The Session panel's Live View set to Rerun: a live Blender session streamed to the Rerun
+    viewer on this machine at the panel's port (start_live_view, shared with the command line),
+    every display update received; the HUD names the address."""
+    import grasp_env
+    import socket
+    session = grasp_env.submodule("session")
+    sample.build(bpy)
+    s = bpy.context.scene.grasp_lab
+    assert (s.live_view_viewer, s.live_view_rerun_port) == ("FOXGLOVE", 9876)
+    assert session.live_view_target(s) == s.live_view_port
+    s.live_view_viewer = "RERUN"
+    s.live_view_rerun_port = free_port()
+    assert session.live_view_target(s) == f"rerun:127.0.0.1:{s.live_view_rerun_port}"
+    received = tmp_path / "panel.rrd"
+    receiver = subprocess.Popen([rerun_view.viewer_binary(), "--bind", "127.0.0.1", "--port",
+                                 str(s.live_view_rerun_port), "--save", str(received)],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        def listening():
+            with socket.socket() as sock:
+                return sock.connect_ex(("127.0.0.1", s.live_view_rerun_port)) == 0
+        wait_for(listening, 60, "the Rerun receiver listening")
+        live = session.BlenderSession(bpy.context, live=True, duration=2.0)
+        try:
+            lv = session.start_live_view(live, session.live_view_target(s), s.live_view_bind)
+            import time
+            t0 = time.perf_counter()
+            while time.perf_counter() - t0 < 1.0:
+                live.tick(time.perf_counter() - t0)
+                time.sleep(0.03)
+            assert lv.address in live.hud_text()
+        finally:
+            result = live.finish()
+        stats = result.stats["live_view"]
+        assert stats["updates"] >= 5 and stats["error"] == "", stats
+        wait_for(lambda: (lambda r: r is not None and len(r[0]) == stats["updates"])(received_frames(received)),
+                 120, f"{stats['updates']} frames received")
+    finally:
+        receiver.terminate()
+        receiver.wait(timeout=60)
