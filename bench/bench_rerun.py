@@ -8,6 +8,9 @@ its target (under 10 s), and the .rrd's size per second of session; the same for
 best of three, with and without the grasp analysis (the copy's plots of closure, epsilon,
 load, slip margin and the weakest-wrench arrows), so what the Rerun side itself costs shows.
 
+The live view in Rerun: what one display update's frame costs its thread, the numbers and
+the ``log`` calls (into Rerun's in-memory sink: the network is the SDK's own thread).
+
 Usage: .venv/bin/python bench/bench_rerun.py [--minutes 10]
 """
 from __future__ import annotations
@@ -15,6 +18,7 @@ from __future__ import annotations
 import argparse
 import os
 import shutil
+import statistics
 import sys
 import tempfile
 import time
@@ -46,6 +50,31 @@ def timed(rec, out, repeats=3):
     return min(full), min(bare), done
 
 
+def live_costs(rec, frames=300):
+    """µs per live update's frame logged (RerunLogger.log_batch of one frame: plain ``log``
+    calls) into an in-memory sink, and the same frame's numbers (frame_batch) alone."""
+    import numpy as np
+
+    from addon.engine import rerun_view, viewer
+    rr = rerun_view._sdk()
+    model = viewer.SceneModel(rec.header)
+    stream = rr.RecordingStream(rerun_view.APPLICATION_ID, send_properties=False)
+    stream.memory_recording()
+    logger = rerun_view.RerunLogger(model, stream)
+    logger.static()
+    rows = np.linspace(0, len(rec.ticks) - 1, frames).astype(int)
+    numbers, logged = [], []
+    for r in rows:
+        t0 = time.perf_counter()
+        b = viewer.frame_batch(model, rec, rec.ticks[r:r + 1], rec.ticks["time"][r:r + 1])
+        t1 = time.perf_counter()
+        logger.log_batch(b)
+        logged.append((time.perf_counter() - t1) * 1e6)
+        numbers.append((t1 - t0) * 1e6)
+    stream.disconnect()
+    return numbers, logged
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--minutes", type=float, default=10.0, help="session length (default 10)")
@@ -53,7 +82,7 @@ def main(argv=None) -> int:
     import bench_recording
     import graspcore as gc
     import recordings
-    from bench_viewer import pressing
+    from bench_viewer import pct, pressing
 
     from addon.engine.recording import open_recording
     from addon.engine.rerun_view import RERUN_VERSION
@@ -77,6 +106,10 @@ def main(argv=None) -> int:
                          f"{spent / duration * 1e3:.1f} ms per second of session)"))
             rows.append((f".rrd per second of session, {label}: Rerun copy / recording",
                          f"{done['bytes'] / duration / 1e3:.1f} / {os.path.getsize(path) / duration / 1e3:.1f} kB"))
+            numbers, logged = live_costs(rec)
+            rows.append((f"live view in Rerun, {label}: one update's frame numbers / its log calls (median / p95)",
+                         f"{statistics.median(numbers):.0f} / {pct(numbers, 95):.0f} µs; "
+                         f"{statistics.median(logged):.0f} / {pct(logged, 95):.0f} µs"))
             if not synthetic:
                 targets.append((f"export --rerun of a {args.minutes:g}-minute recording at the display rate "
                                 f"< {TARGET_S:g} s", f"{spent:.2f} s", spent < TARGET_S))

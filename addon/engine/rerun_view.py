@@ -433,7 +433,7 @@ def live_url(spec: str) -> str:
         raise ValueError(f"--live-view {spec}: expected PORT (Foxglove), rerun, rerun:PORT or rerun:HOST:PORT")
     host, _, port = rest.rpartition(":")
     try:
-        p = int(port) if port else DEFAULT_LIVE_PORT
+        p = int(port) if rest else DEFAULT_LIVE_PORT
     except ValueError:
         raise ValueError(f"--live-view {spec}: expected rerun, rerun:PORT or rerun:HOST:PORT") from None
     if not 0 < p < 65536:

@@ -513,3 +513,17 @@ def test_the_session_panels_live_view_in_rerun(bpy, sample, core, tmp_path):
     finally:
         receiver.terminate()
         receiver.wait(timeout=60)
+
+
+@pytest.mark.parametrize("spec, url", [("rerun", "rerun+http://127.0.0.1:9876/proxy"),
+                                       ("rerun:9000", "rerun+http://127.0.0.1:9000/proxy"),
+                                       ("rerun:10.0.0.5:9001", "rerun+http://10.0.0.5:9001/proxy")])
+def test_live_view_addresses(spec, url):
+    assert rerun_view.live_url(spec) == url
+
+
+@pytest.mark.parametrize("spec", ["rerun:abc", "rerun:0", "rerun:70000", "rerun:host:"])
+def test_live_view_bad_addresses_are_usage_errors(spec, tmp_path, capsys):
+    assert cli.main(["run", str(tmp_path / "x.blend"), "--realtime", "--live-view", spec], out=io.StringIO(),
+                    err=io.StringIO()) == 2
+    assert f"--live-view {spec}" in capsys.readouterr().err       # argparse's own usage error
