@@ -126,7 +126,8 @@ class RerunLogger:
         rr = self.rr
         n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])
         n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
-        return rr.Mesh3D(vertex_positions=tris.reshape(-1, 3), triangle_indices=np.arange(3 * len(tris)).reshape(-1, 3),
+        return rr.Mesh3D(vertex_positions=tris.reshape(-1, 3),
+                         triangle_indices=np.arange(3 * len(tris)).reshape(-1, 3),
                          vertex_normals=np.repeat(n, 3, axis=0), albedo_factor=_rgba8(rgba))
 
     def static(self) -> None:
@@ -172,7 +173,8 @@ class RerunLogger:
         frames first}). An arrow's zero vector is a frame without it."""
         rr, p, model = self.rr, self.paths, self.model
         for i in range(len(model.body_names)):
-            yield p.body[i], rr.Transform3D, {"translation": b.pose[:, i, :3], "quaternion": b.pose[:, i][:, [4, 5, 6, 3]]}
+            yield p.body[i], rr.Transform3D, {"translation": b.pose[:, i, :3],
+                                              "quaternion": b.pose[:, i][:, [4, 5, 6, 3]]}
         for j in range(len(model.finger_names)):
             base = p.finger[j]
             go, hip = b.god_object[:, j], b.hip[:, j]

@@ -335,7 +335,8 @@ def test_cli_exports_what_a_damaged_recording_kept(pinch, tmp_path):
     assert f"{frames} frames" in out.getvalue()
     t, translation = column(load(str(path)), "/world/bodies/Box", "Translation3D")
     assert len(t) == frames
-    np.testing.assert_allclose(np.concatenate(translation), kept.ticks["pose"][kept.sample(t), kept.body_names.index("Box"), :3], atol=1e-6)
+    box = kept.body_names.index("Box")
+    np.testing.assert_allclose(np.concatenate(translation), kept.ticks["pose"][kept.sample(t), box, :3], atol=1e-6)
 
 
 def test_view_caches_the_copy_by_fingerprint(pinch, tmp_path):

@@ -5,7 +5,8 @@ writes docs/images/rerun_*.png with ``python tests/gui/rerun_shots.py --out docs
 Xvfb runs with ``-extension Composite`` (without it the viewer's window reads back black) on a
 display it picks itself (``-displayfd``), so parallel runs never share one; the screen is
 more than twice the window's size in pixels (the viewer draws at 2 pixels a point here), so
-the pointer (at the screen's centre) is not over the window and draws no hover tooltip. Rerun keeps its settings in XDG folders: each run gets its own.
+the pointer (at the screen's centre) is not over the window and draws no hover tooltip.
+Rerun keeps its settings in XDG folders: each run gets its own.
 """
 from __future__ import annotations
 
