@@ -59,7 +59,7 @@ def live_costs(rec, frames=300):
     rr = rerun_view._sdk()
     model = viewer.SceneModel(rec.header)
     stream = rr.RecordingStream(rerun_view.APPLICATION_ID, send_properties=False)
-    stream.memory_recording()
+    memory = stream.memory_recording()     # kept: dropping it drops the sink
     logger = rerun_view.RerunLogger(model, stream)
     logger.static()
     rows = np.linspace(0, len(rec.ticks) - 1, frames).astype(int)
@@ -71,7 +71,8 @@ def live_costs(rec, frames=300):
         logger.log_batch(b)
         logged.append((time.perf_counter() - t1) * 1e6)
         numbers.append((t1 - t0) * 1e6)
-    stream.disconnect()
+    stream.flush(blocking=True)
+    assert len(memory.drain_as_bytes()) > 0
     return numbers, logged
 
 
