@@ -81,6 +81,7 @@ test-blender: test-blender-45 test-blender-42 test-blender-50
 # had, the tests say why and how to get it (and fail under CI=true).
 test-gui: $(EXT_ZIP)
 	@tests/gui/gui_blender.sh setup || echo "GUI Blender: not set up; the GUI tests say why"
+	@tests/gui/rerun_viewer.sh setup || echo "Rerun viewer (Xvfb, software Vulkan): not set up; its test says why"
 	GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) -m pytest -q -rs tests/gui
 
 # The sample scene as a .blend (built, not committed) and the docs render.
@@ -104,12 +105,15 @@ blender-docs-image: $(EXT_ZIP)
 	  --force-scale 0.01 --render docs/images/pinch_and_lift.png
 
 # The README's pictures (docs/images/demo_contact_sheet.png, gui_*.png): the demo's contact sheet,
-# and the GUI Blender of the tests walking through the README (tests/gui/docs_images.py).
+# and the GUI Blender of the tests walking through the README (tests/gui/docs_images.py); and
+# docs/viewers.md's rerun_*.png: the Rerun viewer's own pictures of library scenes under Xvfb.
 # Run again when the UI changes; commit the pictures.
 docs-images: $(EXT_ZIP)
 	GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) sample_scenes/showcase.py --out $(BUILD)/demo
 	@tests/gui/gui_blender.sh setup || echo "GUI Blender: not set up; docs_images.py says why"
 	GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) tests/gui/docs_images.py --demo $(BUILD)/demo --out docs/images
+	@tests/gui/rerun_viewer.sh setup || echo "Rerun viewer: not set up; rerun_shots.py says why"
+	$(PY) tests/gui/rerun_shots.py --out docs/images
 
 bench-blender: $(EXT_ZIP)
 	GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) bench/bench_blender.py

@@ -121,6 +121,14 @@ def run(args, out, err) -> int:
     if args.device:
         check_channels(context)
     record = os.path.abspath(args.record) if args.record else None
+    if isinstance(getattr(args, "live_view", None), str):
+        # The Rerun SDK (with pyarrow) takes seconds to import on a busy machine: before the
+        # session's clock starts, not out of its duration.
+        from .engine.rerun_view import _sdk
+        try:
+            _sdk()
+        except ImportError as ex:
+            raise CliError(str(ex)) from None
     if args.device and not args.duration:
         raise CliError("--device: give --duration S (a device session has no end of its own)")
     # Everything that can refuse does so before the recording is opened: the --save target
@@ -135,9 +143,8 @@ def run(args, out, err) -> int:
         raise
     if session.sound_message:
         print(f"grasp-lab run: {session.sound_message}", file=err, flush=True)
-    if live_server is not None:
-        print(f"live view: {session.live_view.address} (Foxglove: open a connection, Foxglove WebSocket, "
-              f"to this address)", file=out, flush=True)
+    if getattr(args, "live_view", None) is not None:
+        print(f"live view: {session.live_view.address} ({session.live_view.hint})", file=out, flush=True)
     if session.recorder is not None:
         for o in args.set:          # in the header's scene already; the events say they were set
             session.recorder.parameter_change(0.0, o.obj or "scene", o.key, o.value)
@@ -153,9 +160,10 @@ def run(args, out, err) -> int:
 
 
 def _start_session(context, args, record, live_server):
-    """The session, its devices connected and its live view attached; a session that fails at
+    """The session, its devices connected and its live view attached (served to Foxglove,
+    engine/live_view.py, or streamed to Rerun, engine/rerun_view.py); a session that fails at
     its start ends with its recording discarded (the file it would replace as it was)."""
-    from .session import BlenderSession, live_session
+    from .session import BlenderSession, live_session, start_live_view
     if args.device:
         session = live_session(context, args.device, args.forces == "on", duration=args.duration,
                                record_path=record, sound=args.sound)
@@ -167,14 +175,20 @@ def _start_session(context, args, record, live_server):
             session.finish(discard_recording=True)
             raise CliError(f"{args.scene}: no fingertip is animated, so a real-time session has no end: "
                            f"give --duration S")
-    if live_server is not None:
-        from .session import start_live_view
-        start_live_view(session, server=live_server)
+    if getattr(args, "live_view", None) is not None:
+        try:
+            start_live_view(session, args.live_view, args.live_view_bind, server=live_server)
+        except (ImportError, OSError) as ex:
+            session.finish(discard_recording=True)
+            raise CliError(str(ex)) from None
     return session
 
 
 def _bind_live(args):
-    """--live-view: its address bound before the session (and its recording) starts."""
+    """--live-view PORT: its address bound before the session (and its recording) starts (a
+    Rerun live view connects to its viewer instead: nothing to bind)."""
+    if isinstance(args.live_view, str):
+        return None
     from .engine.live_view import bind_server
     try:
         return bind_server(args.live_view, args.live_view_bind)

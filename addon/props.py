@@ -154,10 +154,19 @@ class GRASPLAB_PG_scene(bpy.types.PropertyGroup):
                                description="Exponent on force / Full Force: below 1 the pitch moves most at "
                                            "light forces, 1 evenly (in musical steps), above 1 most near Full")
     live_view: BoolProperty(name="Live View", default=False,
-                            description="Serve live sessions to Foxglove over WebSocket, watching only "
-                                        "(docs/viewers.md)")
+                            description="Show live sessions in a viewer while they run: served to Foxglove "
+                                        "over WebSocket (watching only) or streamed to Rerun (docs/viewers.md)")
+    live_view_viewer: EnumProperty(name="Viewer", default="FOXGLOVE",
+                                   items=[("FOXGLOVE", "Foxglove", "Serve the session over Foxglove's WebSocket "
+                                                                   "protocol; Foxglove connects to it"),
+                                          ("RERUN", "Rerun", "Stream the session to a Rerun viewer running on "
+                                                             "this machine (start it with: rerun)")],
+                                   description="Which viewer the live view is for (docs/viewers.md)")
     live_view_port: IntProperty(name="Port", default=8765, min=0, max=65535,
                                 description="Live view port (0: any free port, shown in the HUD)")
+    live_view_rerun_port: IntProperty(name="Rerun Port", default=9876, min=1, max=65535,
+                                      description="The port the Rerun viewer on this machine listens on "
+                                                  "(its default: 9876)")
     live_view_bind: StringProperty(name="Bind", default="127.0.0.1",
                                    description="Address the live view listens on (127.0.0.1: this "
                                                "machine only; 0.0.0.0: every interface)")

@@ -1,5 +1,6 @@
 """File > Import > Grasp Lab Recording, and the same in the Grasp tab's Recording panel:
-bake a recording (.mcap) into the scene (bake.py)."""
+bake a recording (.mcap) into the scene (bake.py); and Open in Rerun there (engine/rerun_view.py,
+what ``grasp-lab view`` does)."""
 from __future__ import annotations
 
 import os
@@ -25,18 +26,7 @@ class GRASPLAB_OT_import_recording(bpy.types.Operator, ImportHelper):
                              description="A key at every haptic tick (subframes) instead of every frame")
 
     def invoke(self, context, event):
-        # The file browser opens on the recording just made (or the newest in the recording
-        # folder), not on the .blend's folder and name.
-        s = context.scene.grasp_lab
-        latest = record.latest_recording(s)
-        if latest:
-            self.filepath = latest
-        else:
-            folder = bpy.path.abspath(s.recording_folder)
-            if os.path.isdir(folder):
-                self.filepath = os.path.join(folder, "")
-        context.window_manager.fileselect_add(self)
-        return {"RUNNING_MODAL"}
+        return _browse_recordings(self, context)
 
     def execute(self, context):
         try:
@@ -51,6 +41,46 @@ class GRASPLAB_OT_import_recording(bpy.types.Operator, ImportHelper):
             return {"CANCELLED"}
         context.scene.grasp_lab.last_recording = self.filepath
         self.report({"WARNING"} if report.missing else {"INFO"}, f"Grasp Lab: {report.message()}")
+        return {"FINISHED"}
+
+
+def _browse_recordings(op, context):
+    """The file browser on the recording just made (or the newest in the recording folder),
+    not on the .blend's folder and name."""
+    s = context.scene.grasp_lab
+    latest = record.latest_recording(s)
+    if latest:
+        op.filepath = latest
+    else:
+        folder = bpy.path.abspath(s.recording_folder)
+        if os.path.isdir(folder):
+            op.filepath = os.path.join(folder, "")
+    context.window_manager.fileselect_add(op)
+    return {"RUNNING_MODAL"}
+
+
+class GRASPLAB_OT_open_in_rerun(bpy.types.Operator, ImportHelper):
+    """Open a recording in the Rerun viewer: the 3-D grasp, its plots and events (a separate
+    program; Blender goes on). Converted once and kept beside the recording; needs rerun-sdk
+    in Blender's Python (docs/viewers.md)"""
+    bl_idname = "grasp_lab.open_in_rerun"
+    bl_label = "Open in Rerun"
+
+    filename_ext = ".mcap"
+    filter_glob: StringProperty(default="*.mcap", options={"HIDDEN"})
+
+    def invoke(self, context, event):
+        return _browse_recordings(self, context)
+
+    def execute(self, context):
+        from .engine.rerun_view import view_recording
+        try:
+            done = view_recording(self.filepath, warn=lambda line: self.report({"WARNING"}, line))
+        except (ImportError, RecordingError, ValueError, OSError) as ex:
+            self.report({"ERROR"}, f"Grasp Lab: {ex}")
+            return {"CANCELLED"}
+        self.report({"INFO"}, f"Grasp Lab: {bpy.path.basename(done['rrd'])} "
+                              f"({'converted' if done['converted'] else 'cached'}) in the Rerun viewer")
         return {"FINISHED"}
 
 
@@ -132,11 +162,13 @@ def _panel(self, context):
     row = self.layout.row(align=True)
     row.operator(GRASPLAB_OT_import_recording.bl_idname, text="Bake Recording", icon="IMPORT")
     row.operator(GRASPLAB_OT_show_curves.bl_idname, icon="GRAPH")
+    self.layout.operator(GRASPLAB_OT_open_in_rerun.bl_idname, icon="VIEW3D")
 
 
 def register():
     bpy.utils.register_class(GRASPLAB_OT_import_recording)
     bpy.utils.register_class(GRASPLAB_OT_show_curves)
+    bpy.utils.register_class(GRASPLAB_OT_open_in_rerun)
     bpy.types.TOPBAR_MT_file_import.append(_menu)
     ui.GRASPLAB_PT_recording.append(_panel)
 
@@ -144,5 +176,6 @@ def register():
 def unregister():
     ui.GRASPLAB_PT_recording.remove(_panel)
     bpy.types.TOPBAR_MT_file_import.remove(_menu)
+    bpy.utils.unregister_class(GRASPLAB_OT_open_in_rerun)
     bpy.utils.unregister_class(GRASPLAB_OT_show_curves)
     bpy.utils.unregister_class(GRASPLAB_OT_import_recording)

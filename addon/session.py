@@ -162,7 +162,7 @@ class BlenderSession:
         self.result = SessionResult(body_names=[b.name for b in desc.bodies],
                                     finger_names=[f.name for f in desc.fingers])
         self.snapshot = None
-        self.live_view = None       # engine.live_view.LiveView: display updates served to Foxglove
+        self.live_view = None       # engine.live_view.LiveLoop: display updates served to Foxglove or Rerun
         self.finished = False
         self.error = ""             # why a live session stopped early
         self.ended_by = "Stop"      # how it ended, for the report
@@ -435,14 +435,28 @@ class BlenderSession:
 
 # --------------------------------------------------------------------------- live view
 
-def start_live_view(session, port: int = 0, bind: str = "127.0.0.1", server=None):
-    """Serve a live session to Foxglove (engine/live_view.py): the session panel's Live View
-    and ``grasp-lab run --live-view`` (``server``: bound before the session). ImportError
-    without foxglove-sdk, OSError for an address it cannot serve on."""
+def start_live_view(session, port=0, bind: str = "127.0.0.1", server=None):
+    """Serve a live session to Foxglove (engine/live_view.py; ``port`` a number, ``server`` the
+    server bound before the session), or stream it to a Rerun viewer (engine/rerun_view.py;
+    ``port`` "rerun", "rerun:PORT" or "rerun:HOST:PORT"): the session panel's Live View and
+    ``grasp-lab run --live-view``. ImportError without the viewer's SDK, OSError for an address it
+    cannot serve on."""
     from .engine.live_view import LiveView, header_of
-    session.live_view = LiveView(header_of(session.desc, session.runner.haptic_rate), port=port, bind=bind,
-                                 bound=server)
+    header = header_of(session.desc, session.runner.haptic_rate)
+    if isinstance(port, str):
+        from .engine.rerun_view import RerunLiveView
+        session.live_view = RerunLiveView(header, port)
+    else:
+        session.live_view = LiveView(header, port=port, bind=bind, bound=server)
     return session.live_view
+
+
+def live_view_target(settings):
+    """The Session panel's live view as start_live_view takes it: Foxglove's port, or the
+    Rerun viewer on this machine ("rerun:127.0.0.1:PORT")."""
+    if settings.live_view_viewer == "RERUN":
+        return f"rerun:127.0.0.1:{settings.live_view_rerun_port}"
+    return settings.live_view_port
 
 
 def live_session(context, device_specs=(), forces: bool = False, **options) -> BlenderSession:
@@ -527,7 +541,7 @@ class GRASPLAB_OT_session(bpy.types.Operator):
             s = context.scene.grasp_lab
             if s.live_view:
                 try:
-                    start_live_view(session, s.live_view_port, s.live_view_bind)
+                    start_live_view(session, live_view_target(s), s.live_view_bind)
                 except (ImportError, OSError) as ex:       # the session runs without it
                     self.report({"WARNING"}, f"Grasp Lab: no live view: {ex}")
             session.start_live(s.display_rate, budget=prefs.max_step_ms * 1e-3)

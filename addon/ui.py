@@ -186,8 +186,12 @@ class GRASPLAB_PT_session(_GraspPanel, bpy.types.Panel):
         col.prop(s, "live_view")
         if s.live_view:                     # its address only when it is on: a shorter panel
             sub = col.column(align=True)
-            sub.prop(s, "live_view_port")
-            sub.prop(s, "live_view_bind")
+            sub.prop(s, "live_view_viewer")
+            if s.live_view_viewer == "RERUN":
+                sub.prop(s, "live_view_rerun_port")
+            else:
+                sub.prop(s, "live_view_port")
+                sub.prop(s, "live_view_bind")
         moved = rest_poses.moved_from_rest(context) if active is None else []
         if moved:
             # After a session the bodies hang where it left them: say so, and offer the way back.

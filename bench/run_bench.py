@@ -819,6 +819,11 @@ def main(argv=None) -> int:
                                   os.path.join(HERE, "bench_sound.py")], timeout=900)
         ok &= good
         blender = blender.rstrip() + "\n\n" + snd
+        log("Rerun copy (bench/bench_rerun.py)")
+        good, rrd = run_external([venv_py if os.path.exists(venv_py) else sys.executable,
+                                  os.path.join(HERE, "bench_rerun.py")], timeout=900)
+        ok &= good
+        blender = blender.rstrip() + "\n\n" + rrd
     jitter_s = 5.0 if args.quick else 60.0
     log(f"haptic-loop jitter (bench/bench_jitter.py, {jitter_s:g} s per run: bare loop and runtime, "
         "SCHED_FIFO and normal)")

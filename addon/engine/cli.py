@@ -146,11 +146,24 @@ def _configure_run(p):
     p.add_argument("--max-size", type=_size, default=limits.DEFAULT_MAX_SIZE, metavar="BYTES", help=MAX_SIZE_HELP)
     p.add_argument("--save", metavar="OUT.blend", help="save the scene after the session")
     p.add_argument("--set", action="append", default=[], type=_override, metavar="KEY=VALUE", help=SET_HELP)
-    p.add_argument("--live-view", nargs="?", const=8765, type=_port, metavar="PORT",
+    p.add_argument("--live-view", nargs="?", const=8765, type=_live_view, metavar="PORT|rerun",
                    help="with --realtime: serve the session to Foxglove over WebSocket, watching only "
-                        "(default port 8765; 0: any free port)")
+                        "(default port 8765; 0: any free port); rerun, rerun:PORT or rerun:HOST:PORT: stream "
+                        "it to a Rerun viewer (default 127.0.0.1:9876, the viewer's own)")
     p.add_argument("--live-view-bind", default="127.0.0.1", metavar="ADDR",
                    help="the address the live view listens on (default 127.0.0.1: this machine only)")
+
+
+def _live_view(text):
+    """--live-view's value: a port (Foxglove) or a Rerun viewer's address (rerun[:[HOST:]PORT])."""
+    if text.split(":", 1)[0] == "rerun":
+        from .rerun_view import live_url
+        try:
+            live_url(text)
+        except ValueError as ex:
+            raise argparse.ArgumentTypeError(str(ex)) from None
+        return text
+    return _port(text)
 
 
 def _port(text):
@@ -207,7 +220,11 @@ def _configure_export(p):
     g.add_argument("--wav", metavar="OUT.wav", help="the grasp as sound: contact clicks, a tone whose pitch "
                                                     "follows the normal force, slip scrapes, slip-margin "
                                                     "warnings (docs/sound.md)")
+    g.add_argument("--rerun", metavar="OUT.rrd", help="a Rerun recording: 3-D scene, plots, events and a layout, "
+                                                      "at the display rate (needs rerun-sdk)")
     p.add_argument("--every", type=_positive_int, default=1, metavar="N", help="every N-th tick (default 1)")
+    p.add_argument("--every-tick", action="store_true",
+                   help="with --rerun: a frame for every recorded haptic tick instead of the display rate")
     p.add_argument("--sound-map", action="append", default=[], metavar="KEY=VALUE",
                    help="with --wav: a setting of the sound's mapping, e.g. pitch_low=200, pitch_high=1200, "
                         "force_full=5, curve=1, volume=0.8 (docs/sound.md lists them)")
@@ -346,10 +363,13 @@ def _run_resim(args, out, err):
 def _run_export(args, out, err):
     from .export import export_csv, export_npz
     outputs.check_paths({"REC.mcap": args.recording}, {"--csv": args.csv, "--npz": args.npz, "--wav": args.wav,
-                                                       "--foxglove": args.foxglove}, folders=("--csv",))
+                                                       "--foxglove": args.foxglove, "--rerun": args.rerun},
+                        folders=("--csv",))
     if args.csv:
         for name in ("bodies.csv", "fingers.csv", "events.csv"):
             outputs.check_paths({"REC.mcap": args.recording}, {"--csv": os.path.join(args.csv, name)})
+    if args.every_tick and not args.rerun:
+        raise CliError("--every-tick goes with --rerun (--csv and --npz take --every N)")
     mapping = None
     if args.sound_map:
         if not args.wav:
@@ -360,7 +380,15 @@ def _run_export(args, out, err):
         except ValueError as ex:
             raise CliError(str(ex)) from None
     rec = _open(args.recording, err)
-    if args.foxglove:
+    if args.rerun:
+        from .rerun_view import export_rerun
+        try:
+            done = export_rerun(rec, args.rerun, every_tick=args.every_tick)
+        except ImportError as ex:
+            raise CliError(str(ex)) from None
+        print(f"{args.rerun}: {done['frames']} frames at {done['rate']:g} Hz, {done['events']} events, "
+              f"{done['bytes'] / 1e6:.2f} MB", file=out)
+    elif args.foxglove:
         from .viewer import export_foxglove
         try:
             done = export_foxglove(rec, args.foxglove)
@@ -465,8 +493,38 @@ register_command("bake", "bake a recording into a scene as keyframes", _configur
                  needs_blender=True)
 register_command("resim", "re-simulate a recording (with overrides); 'identical' or the divergence report",
                  _configure_resim, _run_resim)
-register_command("export", "a recording as CSV tables, one .npz, a Foxglove copy or its sound (.wav)",
-                 _configure_export, _run_export)
+register_command("export", "a recording as CSV tables, one .npz, a viewer's copy (Foxglove, Rerun) or its "
+                           "sound (.wav)", _configure_export, _run_export)
+
+
+def _configure_view(p):
+    p.add_argument("recording", metavar="REC.mcap")
+    p.add_argument("--screenshot", metavar="PNG", help="write the viewer's picture to PNG and exit (needs a "
+                                                       "display: headless, Xvfb)")
+    p.add_argument("--size", default="1600x900", metavar="WxH", help="with --screenshot: the window size "
+                                                                      "(default 1600x900)")
+    p.add_argument("--every-tick", action="store_true", help="a frame for every recorded haptic tick")
+
+
+def _run_view(args, out, err):
+    from .rerun_view import view_recording
+    outputs.check_paths({"REC.mcap": args.recording}, {"--screenshot": args.screenshot})
+    try:
+        done = view_recording(args.recording, screenshot=args.screenshot, size=args.size,
+                              every_tick=args.every_tick, warn=lambda line: print(f"{PROG}: warning: {line}",
+                                                                                  file=err))
+    except ImportError as ex:
+        raise CliError(str(ex)) from None
+    print(f"{done['rrd']}: " + ("converted" if done["converted"] else "up to date (cached)"), file=out)
+    if args.screenshot:
+        print(f"screenshot: {args.screenshot}", file=out)
+    else:
+        print(f"Rerun viewer started (pid {done['pid']})", file=out)
+    return EXIT_OK
+
+
+register_command("view", "open a recording in the Rerun viewer (converted once, cached beside it); "
+                         "--screenshot PNG: its picture", _configure_view, _run_view)
 register_command("analyze", "grasp analysis of a recording: closure, epsilon, slip margins, grip against load "
                             "(docs/analysis.md)", _configure_analyze, _run_analyze)
 

@@ -22,7 +22,7 @@ import time
 import numpy as np
 
 from .recording import FLAG_FORCES_ENABLED, EventDetector, scene_to_dict, tick_dtype
-from .viewer import SceneModel, _sdk, frames_of, grasp_arrays_of
+from .viewer import SceneModel, _sdk, frame_batch, grasp_arrays_of, viewer_frames
 
 DEFAULT_PORT = 8765
 DEFAULT_BIND = "127.0.0.1"
@@ -114,45 +114,35 @@ def bind_server(port: int = DEFAULT_PORT, bind: str = DEFAULT_BIND) -> BoundServ
     return BoundServer(port, bind)
 
 
-class LiveView:
-    """Serves one session. ``offer(snapshot)`` from the display update; ``close()`` at the end."""
+class LiveLoop:
+    """A live view's machinery, whatever the viewer: ``offer(snapshot)`` from the display
+    update; the view's own thread turns the latest snapshot into the viewer frames' numbers
+    (viewer.frame_batch, as a recording's copy) and hands them to ``publish``; ``close()`` at
+    the end. Subclasses set up their viewer, then call ``_start()``."""
 
-    def __init__(self, header: dict, port: int = DEFAULT_PORT, bind: str = DEFAULT_BIND,
-                 bound: BoundServer | None = None):
-        from .viewer import FoxgloveChannels
-        bound = bound or BoundServer(port, bind)
+    address = ""
+
+    def __init__(self, header: dict):
         self.model = SceneModel(header)
         self.header = header
-        self.context = bound.context
-        self.server, self.viewers, bind = bound.server, bound.viewers, bound.bind
-        self.channels = FoxgloveChannels(self.model, self.context)
-        self.bind, self.port = bind, int(self.server.port)
         self.dtype = tick_dtype(len(self.model.body_names), len(self.model.finger_names))
         self.events = EventDetector(header)
         self.updates = 0
         self.dropped = 0                    # snapshots replaced before the thread took them
         self.cost_us = []                   # per update: snapshot to messages sent, this thread's wall time
         self.error = ""
-        self._slot = collections.deque(maxlen=1)    # (snapshot, wall time offered): the latest, unsent
+        self._slot = collections.deque(maxlen=1)    # (snapshot, grasps, wall time offered): the latest, unsent
         self._stop = threading.Event()
         self._tick = 0
         self._thread = threading.Thread(target=self._loop, name="grasp_lab live view", daemon=True)
-        self._thread.start()
 
-    @property
-    def address(self) -> str:
-        return f"ws://{self.bind}:{self.port}"
+    def _start(self) -> None:
+        self._thread.start()
 
     @property
     def pending(self) -> bool:
         """A snapshot is offered and not yet sent."""
         return bool(self._slot)
-
-    def status(self) -> str:
-        refused = self.viewers.refused_total()
-        return (f"live view {self.address}: {self.viewers.subscribed} subscriptions, {self.updates} updates, "
-                f"{self.dropped} skipped" + (f", {refused} requests refused" if refused else "")
-                + (f"; {self.error}" if self.error else ""))
 
     def offer(self, snap, grasps=None) -> None:
         """The latest snapshot (engine.runner.Snapshot) and, if the display update analysed it,
@@ -174,7 +164,14 @@ class LiveView:
         r["force"][0], r["device_force"][0] = snap.spring_forces, snap.finger_forces
         r["normal"][0] = snap.normals
         r["state"][0], r["contact"][0] = snap.finger_states, snap.contacts
+        if "orientation" in self.dtype.names:
+            r["orientation"][0] = (1.0, 0.0, 0.0, 0.0)      # a snapshot has no finger orientations
         return r
+
+    def publish(self, batch, events: list, time_offset: float) -> None:
+        """One display update's FrameBatch (one frame) and the events since the last, to the
+        viewer; stamps are session time + ``time_offset`` (the wall clock of the update)."""
+        raise NotImplementedError
 
     def _loop(self):
         try:
@@ -186,28 +183,67 @@ class LiveView:
                         return
                     continue
                 t0 = time.perf_counter()
+                row = self._row(snap)
+                batch = frame_batch(self.model, self, row, [snap.time],
+                                    grasp=None if grasps is None else grasp_arrays_of(grasps,
+                                                                                      len(self.model.body_names)))
+                events = [{"tick": tick, "time": t, "kind": kind, "subject": subject, "detail": detail}
+                          for tick, t, kind, subject, detail in self.events(row)]
                 # Stamped with the wall clock of the display update that offered it: a viewer's
                 # timeline is the wall clock, and its delay is what it receives minus the stamp.
-                self.channels.time_offset = offered - snap.time
-                if self.viewers.joined:
-                    self.viewers.joined = False
-                    self.channels.resend_bodies()
-                row = self._row(snap)
-                fr = frames_of(self.model, self, row, [snap.time],
-                               grasp=None if grasps is None else grasp_arrays_of(grasps, len(self.model.body_names)))[0]
-                for tick, t, kind, subject, detail in self.events(row):
-                    self.channels.log_event({"tick": tick, "time": t, "kind": kind, "subject": subject,
-                                             "detail": detail})
-                self.channels.log_frame(fr)
+                self.publish(batch, events, offered - snap.time)
                 self.updates += 1
                 self.cost_us.append((time.perf_counter() - t0) * 1e6)
         except Exception as ex:     # the session goes on without its viewers; close() reports it
             self.error = f"live view stopped: {ex}"
 
+    def _close_viewer(self) -> dict:
+        """The viewer's end; extra keys for close()'s answer."""
+        return {}
+
     def close(self) -> dict:
         self._stop.set()
         self._thread.join()
-        self.server.stop()
-        return {"updates": self.updates, "dropped": self.dropped, "error": self.error,
-                "refused": dict(self.viewers.refused)}
+        extra = self._close_viewer()
+        return {"updates": self.updates, "dropped": self.dropped, "error": self.error, **extra}
 
+
+class LiveView(LiveLoop):
+    """Serves one session to Foxglove viewers over its WebSocket protocol, on a server bound
+    before the session (``bound``, bind_server) or bound here."""
+
+    hint = "Foxglove: open a connection, Foxglove WebSocket, to this address"
+
+    def __init__(self, header: dict, port: int = DEFAULT_PORT, bind: str = DEFAULT_BIND,
+                 bound: BoundServer | None = None):
+        from .viewer import FoxgloveChannels
+        bound = bound or BoundServer(port, bind)
+        super().__init__(header)
+        self.context = bound.context
+        self.server, self.viewers = bound.server, bound.viewers
+        self.channels = FoxgloveChannels(self.model, self.context)
+        self.bind, self.port = bound.bind, int(self.server.port)
+        self._start()
+
+    @property
+    def address(self) -> str:
+        return f"ws://{self.bind}:{self.port}"
+
+    def status(self) -> str:
+        refused = self.viewers.refused_total()
+        return (f"live view {self.address}: {self.viewers.subscribed} subscriptions, {self.updates} updates, "
+                f"{self.dropped} skipped" + (f", {refused} requests refused" if refused else "")
+                + (f"; {self.error}" if self.error else ""))
+
+    def publish(self, batch, events, time_offset) -> None:
+        self.channels.time_offset = time_offset
+        if self.viewers.joined:
+            self.viewers.joined = False
+            self.channels.resend_bodies()
+        for e in events:
+            self.channels.log_event(e)
+        self.channels.log_frame(viewer_frames(self.model, batch)[0])
+
+    def _close_viewer(self) -> dict:
+        self.server.stop()
+        return {"refused": dict(self.viewers.refused)}

@@ -175,15 +175,20 @@ class SceneModel:
         first, last = int(np.ceil(t[0] * rate - 1e-9)), int(np.floor(t[-1] * rate + 1e-9))
         return np.arange(first, last + 1) / rate
 
-    def frames(self, rec: Recording, times: np.ndarray, batch: int = 512):
-        """ViewerFrames at ``times``, computed ``batch`` at a time (a long session's frames are
-        never all in memory)."""
+    def batches(self, rec: Recording, times: np.ndarray, batch: int = 512):
+        """FrameBatches at ``times`` (each frame the last tick at or before its time), ``batch``
+        frames at a time (a long session's frames are never all in memory)."""
         with_normals = "normal" in (rec.ticks.dtype.names or ())
         for start in range(0, len(times), batch):
             part = times[start:start + batch]
             rows = rec.sample(part)
             grasp = self.grasp_numbers(rec, rows) if with_normals else None
-            yield from frames_of(self, rec, rec.ticks[rows], part, normals=with_normals, grasp=grasp)
+            yield frame_batch(self, rec, rec.ticks[rows], part, normals=with_normals, grasp=grasp)
+
+    def frames(self, rec: Recording, times: np.ndarray, batch: int = 512):
+        """ViewerFrames at ``times`` (``batches``, one frame at a time)."""
+        for b in self.batches(rec, times, batch):
+            yield from viewer_frames(self, b)
 
     def grasp_numbers(self, rec, rows) -> dict:
         """The grasp analysis (analysis.analyse_recording without the volume: the viewer does
@@ -195,7 +200,7 @@ class SceneModel:
 
 
 GRASP_IDLE = {"held": 0.0, "closure": 0.0, "epsilon": 0.0, "resisted_force": 0.0, "mu_min": analysis.NONE,
-              "slip_margin": 0.0, "slip_finger": -1, "grip_load": 0.0}
+              "slip_margin": 0.0, "slip_finger": -1, "load": 0.0, "grip_load": 0.0}
 
 
 def grasp_arrays(table, snapshots, n: int, n_bodies: int) -> dict:
@@ -207,7 +212,7 @@ def grasp_arrays(table, snapshots, n: int, n_bodies: int) -> dict:
     values = {"held": np.ones(len(table.body)), "closure": q["force_closure"].astype(np.float64),
               "epsilon": q["epsilon"], "resisted_force": table.resisted_force, "mu_min": table.mu_min,
               "slip_margin": table.min_slip_margin, "slip_finger": table.min_slip_finger,
-              "grip_load": table.grip_ratio}
+              "load": table.load_force, "grip_load": table.grip_ratio}
     out = {}
     for name, v in values.items():
         a = np.full((n, n_bodies), GRASP_IDLE[name], dtype=np.int64 if name == "slip_finger" else np.float64)
@@ -235,7 +240,7 @@ def grasp_arrays_of(grasps, n_bodies: int) -> dict:
         b = g.body
         values = {"held": 1.0, "closure": float(g.force_closure), "epsilon": g.epsilon,
                   "resisted_force": g.resisted_force, "mu_min": g.mu_min, "slip_margin": g.min_slip_margin,
-                  "grip_load": g.grip_ratio}
+                  "load": g.load_force, "grip_load": g.grip_ratio}
         for name, v in values.items():
             out[name][0, b] = v if np.isfinite(v) else analysis.NONE
         out["slip_finger"][0, b] = g.min_slip_finger
@@ -245,9 +250,38 @@ def grasp_arrays_of(grasps, n_bodies: int) -> dict:
     return out
 
 
-def frames_of(model: SceneModel, rec, ticks: np.ndarray, times, normals: bool = True,
-              grasp: dict | None = None) -> list:
-    """ViewerFrames of tick records (one per frame time), computed for all of them at once.
+@dataclass
+class FrameBatch:
+    """What the display frames of a stretch of a session show, as arrays (n frames first; world
+    frame, SI): the one computation behind every viewer (the Foxglove channels, the Rerun
+    recording, both live views). Arrow vectors are scaled to metres (``SceneModel``'s force
+    and torque scales); a zero vector is an arrow not drawn."""
+    time: np.ndarray            # (n,) s
+    tick: np.ndarray            # (n,) the haptic tick each frame shows
+    pose: np.ndarray            # (n, nb, 7) x y z qw qx qy qz
+    com: np.ndarray             # (n, nb, 3) centre of mass, world
+    hip: np.ndarray             # (n, nf, 3)
+    god_object: np.ndarray      # (n, nf, 3)
+    orientation: np.ndarray     # (n, nf, 4) the finger's orientation qw qx qy qz (a convex finger's god-pose)
+    state: np.ndarray           # (n, nf) 0 free, 1 stick, 2 slip
+    contact: np.ndarray         # (n, nf) body index, -1 free
+    force: np.ndarray           # (n, nf, 3) coupling force, N
+    push_tail: np.ndarray       # (n, nf, 3) the finger's push on the body: its tail ...
+    push: np.ndarray            # (n, nf, 3) ... and vector, its head at the god-object
+    residual_force: np.ndarray  # (n, nb, 3) scaled residual force at the centre of mass
+    residual_torque: np.ndarray  # (n, nb, 3) scaled residual torque
+    weakest_center: np.ndarray  # (n, nb, 3)
+    weakest_force: np.ndarray   # (n, nb, 3) the weakest wrench's force part (zero out of closure)
+    weakest_torque: np.ndarray  # (n, nb, 3) its torque part, along the axis it turns about
+    fingers: dict               # name -> (n, nf) numbers for plots (FINGER_SCHEMA's numbers)
+    bodies: dict                # name -> (n, nb) numbers for plots (BODY_SCHEMA's numbers)
+    normals: bool               # the records carry contact normals (the numbers that need one are there)
+    grasp: bool                 # the grasp analysis is there (bodies' GRASP_IDLE numbers)
+
+
+def frame_batch(model: SceneModel, rec, ticks: np.ndarray, times, normals: bool = True,
+                grasp: dict | None = None) -> FrameBatch:
+    """The FrameBatch of tick records (one per frame time), computed for all of them at once.
     ``normals=False``: the records carry no contact normals, so the finger numbers that need
     one (normal and tangential force, friction use, grip) are left out. ``grasp``:
     grasp_arrays's answer for these records (the analysis's per-body numbers and the
@@ -257,54 +291,80 @@ def frames_of(model: SceneModel, rec, ticks: np.ndarray, times, normals: bool = 
     pose, force, go, wrench = ticks["pose"], ticks["force"], ticks["god_object"], ticks["wrench"]
     com = pose[..., :3] + quat_rotate(pose[..., 3:], model.com_local[None])
     push = -force * model.force_scale
-    finger_arrow = arrows(go - push, push)
-    force_arrow = arrows(com, wrench[..., :3] * model.force_scale)
-    torque_arrow = arrows(com, wrench[..., 3:] * model.torque_scale)
     n, nb = len(ticks), len(model.body_names)
     if grasp is not None:
         # The weakest wrench as the viewport draws it (grasp_display.weakest_geometry): its force
         # part from the centre of mass, twice the torque radius per unit; its torque part (a
         # ring there) as a second arrow along its axis, the same length per unit.
         reach = 2.0 * grasp["radius"][..., None]
-        weakest_force = arrows(grasp["center"], reach * grasp["weakest"][..., :3])
-        weakest_torque = arrows(grasp["center"], reach * grasp["weakest"][..., 3:])
+        center = grasp["center"]
+        weakest_force, weakest_torque = reach * grasp["weakest"][..., :3], reach * grasp["weakest"][..., 3:]
     else:
-        weakest_force = weakest_torque = np.zeros((n, nb, 8))
-    finger_names = np.array(model.finger_names + [""], dtype=object)
+        center = weakest_force = weakest_torque = np.zeros((n, nb, 3))
     contact, state = ticks["contact"], ticks["state"]
-    names = np.array(model.body_names + [""], dtype=object)
-    contact_name = names[np.where(contact >= 0, contact, len(model.body_names))]
-    on = contact[:, None, :] == np.arange(len(model.body_names))[None, :, None]       # (n, nb, nf)
-    in_contact, slipping = on.sum(axis=2), (on & (state[:, None, :] == 2)).sum(axis=2)
-    res_force = np.linalg.norm(wrench[..., :3], axis=-1)
-    res_torque = np.linalg.norm(wrench[..., 3:], axis=-1)
-    penetration = np.linalg.norm(go - ticks["hip"], axis=-1)
-    per_finger = {"force_norm": m["gl_force"]}
+    on = contact[:, None, :] == np.arange(nb)[None, :, None]       # (n, nb, nf)
+    fingers = {"force_norm": m["gl_force"]}
     if normals:
-        per_finger.update({"normal_force": m["gl_normal_force"], "tangential_force": m["gl_tangential_force"],
-                           "friction_use": m["gl_friction_use"]})
+        fingers.update({"normal_force": m["gl_normal_force"], "tangential_force": m["gl_tangential_force"],
+                        "friction_use": m["gl_friction_use"]})
+    fingers["penetration"] = np.linalg.norm(go - ticks["hip"], axis=-1)
+    bodies = {"grip": grip} if normals else {}
+    bodies.update({"residual_force": np.linalg.norm(wrench[..., :3], axis=-1),
+                   "residual_torque": np.linalg.norm(wrench[..., 3:], axis=-1),
+                   "fingers_in_contact": on.sum(axis=2),
+                   "fingers_slipping": (on & (state[:, None, :] == 2)).sum(axis=2)})
+    if grasp is not None:
+        bodies.update({name: grasp[name] for name in GRASP_IDLE})
+    names = ticks.dtype.names
+    orientation = (ticks["orientation"] if "orientation" in names
+                   else np.broadcast_to(np.array([1.0, 0.0, 0.0, 0.0]), go.shape[:-1] + (4,)))
+    return FrameBatch(time=np.asarray(times, dtype=np.float64), tick=ticks["tick"].astype(np.int64), pose=pose,
+                      com=com, hip=ticks["hip"], god_object=go, orientation=orientation, state=state,
+                      contact=contact, force=force, push_tail=go - push, push=push,
+                      residual_force=wrench[..., :3] * model.force_scale,
+                      residual_torque=wrench[..., 3:] * model.torque_scale, weakest_center=center,
+                      weakest_force=weakest_force, weakest_torque=weakest_torque, fingers=fingers, bodies=bodies,
+                      normals=bool(normals), grasp=grasp is not None)
+
+
+def frames_of(model: SceneModel, rec, ticks: np.ndarray, times, normals: bool = True,
+              grasp: dict | None = None) -> list:
+    """ViewerFrames of tick records (one per frame time): frame_batch's numbers as messages take them."""
+    return viewer_frames(model, frame_batch(model, rec, ticks, times, normals, grasp))
+
+
+def viewer_frames(model: SceneModel, b: FrameBatch) -> list:
+    """A FrameBatch as ViewerFrames (Foxglove's arrows, plain Python numbers)."""
+    finger_arrow = arrows(b.push_tail, b.push)
+    force_arrow, torque_arrow = arrows(b.com, b.residual_force), arrows(b.com, b.residual_torque)
+    weakest_force, weakest_torque = arrows(b.weakest_center, b.weakest_force), arrows(b.weakest_center,
+                                                                                      b.weakest_torque)
+    finger_names = np.array(model.finger_names + [""], dtype=object)
+    names = np.array(model.body_names + [""], dtype=object)
+    contact_name = names[np.where(b.contact >= 0, b.contact, len(model.body_names))]
+    per_finger = {key: v for key, v in b.fingers.items() if key != "penetration"}
+    per_body = {key: b.bodies[key] for key in ("grip", "residual_force", "residual_torque", "fingers_in_contact",
+                                               "fingers_slipping") if key in b.bodies}
     out = []
-    for k, t in enumerate(np.asarray(times, dtype=np.float64).tolist()):
-        f, st, cn = force[k].tolist(), state[k].tolist(), contact_name[k].tolist()
+    for k, t in enumerate(b.time.tolist()):
+        f, st, cn = b.force[k].tolist(), b.state[k].tolist(), contact_name[k].tolist()
         meas = {key: v[k].tolist() for key, v in per_finger.items()}
-        pen = penetration[k].tolist()
+        pen = b.fingers["penetration"][k].tolist()
         fingers = [{"time": t, "force": {"x": f[j][0], "y": f[j][1], "z": f[j][2]},
                     **{key: v[j] for key, v in meas.items()},
                     "state": st[j], "state_name": STATE_NAMES[st[j]] if 0 <= st[j] < 3 else str(st[j]),
                     "contact": cn[j], "penetration": pen[j]} for j in range(len(st))]
-        p, g, rf, rt = pose[k].tolist(), grip[k].tolist(), res_force[k].tolist(), res_torque[k].tolist()
-        ic, sl = in_contact[k].tolist(), slipping[k].tolist()
+        p = b.pose[k].tolist()
+        nums = {key: v[k].tolist() for key, v in per_body.items()}
         bodies = [{"time": t, "position": {"x": p[i][0], "y": p[i][1], "z": p[i][2]},
-                   **({"grip": g[i]} if normals else {}),
-                   "residual_force": rf[i], "residual_torque": rt[i], "fingers_in_contact": ic[i],
-                   "fingers_slipping": sl[i]} for i in range(len(p))]
-        if grasp is not None:
-            for i, b in enumerate(bodies):
+                   **{key: v[i] for key, v in nums.items()}} for i in range(len(p))]
+        if b.grasp:
+            for i, body in enumerate(bodies):
                 if model.static[i]:
                     continue
-                b.update({name: grasp[name][k, i].item() for name in GRASP_IDLE})
-                b["slip_finger_name"] = str(finger_names[b["slip_finger"]])
-        out.append(ViewerFrame(time=t, pose=p, hip=ticks["hip"][k].tolist(), god_object=go[k].tolist(),
+                body.update({name: b.bodies[name][k, i].item() for name in GRASP_IDLE})
+                body["slip_finger_name"] = str(finger_names[body["slip_finger"]])
+        out.append(ViewerFrame(time=t, pose=p, hip=b.hip[k].tolist(), god_object=b.god_object[k].tolist(),
                                state=st, finger_arrow=finger_arrow[k].tolist(), force_arrow=force_arrow[k].tolist(),
                                torque_arrow=torque_arrow[k].tolist(),
                                weakest_force_arrow=weakest_force[k].tolist(),
@@ -495,6 +555,7 @@ BODY_SCHEMA = {"type": "object", "title": "grasp_lab.BodyNumbers", "properties":
     "slip_margin": {"type": "number", "description": "smallest mu |Fn| - |Ft| of its fingers, N"},
     "slip_finger": {"type": "integer", "description": "index of the finger with that margin, -1 none"},
     "slip_finger_name": {"type": "string"},
+    "load": {"type": "number", "description": "m |a - g|: the weight plus the inertial force the grip must balance, N"},
     "grip_load": {"type": "number", "description": "grip force / load force (-1: no load)"}}}
 
 
