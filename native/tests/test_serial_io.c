@@ -1170,6 +1170,44 @@ static void test_soft_start(void) {
     gc_world_destroy(w);
 }
 
+/* A device that falls silent halfway through its soft start (a busy machine pausing it) and then
+ * streams again: the sample after the silence is walked over a long segment (slower than the soft
+ * speed), and the next one, a tick later, asks for the rest of the way at once. The soft start
+ * holds until the HIP is at the device's pose: no tick moves it more than the soft speed allows.
+ * (Sample times are the real clock's: the sleep makes the silence at least 0.3 s, whatever the load.) */
+static void test_soft_start_survives_a_silence(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    gcFingerDef fd = gc_default_finger_def();
+    int32_t f0;
+    GC_CHECK(gc_world_add_finger(w, &fd, &f0) == GC_OK, "finger");
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.realtime = 0;
+    const double step = GC_HIP_SOFT_START_SPEED / rd.haptic_rate;
+    const double far[3] = {0.0, 0.0, 0.05};
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start: %s", gc_world_last_error(w));
+    double prev[3], h[3], max_step = 0;
+    hip_of(w, prev);
+    int arrived = -1;
+    for (int tick = 0; tick < 2000 && arrived < 0; ++tick) {
+        if (tick == 0 || tick == 131 || tick >= 132) GC_CHECK(gc_world_push_device_hips(w, 0, 1, far) == GC_OK, "push");
+        if (tick == 131) sleep_ms(300); /* 2.6 cm walked, 2.4 cm to go: silence, then a sample */
+        GC_CHECK(gc_world_advance(w, 1, 0.0) == GC_OK, "advance");
+        hip_of(w, h);
+        double s2 = 0;
+        for (int c = 0; c < 3; ++c) s2 += (h[c] - prev[c]) * (h[c] - prev[c]);
+        max_step = fmax(max_step, sqrt(s2));
+        memcpy(prev, h, sizeof h);
+        if (h[2] == far[2]) arrived = tick + 1;
+    }
+    GC_CHECK(max_step <= step * (1 + 1e-9), "after a silence: no tick moves the HIP more than %.3g m: %.6g m", step,
+             max_step);
+    GC_CHECK(arrived >= 250, "5 cm at the soft speed: arrived after %d ticks, wants at least 250", arrived);
+    GC_CHECK(gc_world_stop(w) == GC_OK, "stop");
+    gc_world_destroy(w);
+}
+
 /* A device read elsewhere (push_device_hips from another thread) beside a serial device thread,
  * both writing their fingers' slots while the haptic loop reads them (TSan: no race), each
  * finger its own writer: a finger a device drives is refused to the other, and free again once
@@ -1466,6 +1504,7 @@ int main(void) {
     test_crc_and_cobs();
     test_force_gate();
     test_soft_start();
+    test_soft_start_survives_a_silence();
     test_vectors();
     test_fuzzed_decoder();
     test_device_thread();

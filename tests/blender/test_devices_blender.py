@@ -196,14 +196,17 @@ def test_run_device_drives_animated_fingers_forces_on_recording_is_the_truth(bpy
     assert bpy.data.objects["Finger 0"].animation_data is not None   # the fingertips stay keyframed
     blend, rec, log = tmp_path / "pinch.blend", tmp_path / "run.mcap", tmp_path / "forces.csv"
     bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    # The lift ends 1.5 s into streaming; the button 0.5 s later; the unplug 0.4 s after that. The
+    # session runs 2 s longer than the emulator: its start, the hello and a busy machine's pauses
+    # come before and in between (every window below is found from the recording, not the clock).
     emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--motion", "lift",
-                            "--estop-at", "1.6", "--duration", "2.0", "--force-log", str(log)],
+                            "--estop-at", "2.0", "--duration", "2.4", "--force-log", str(log)],
                            cwd=grasp_env.ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     launcher = os.path.join(grasp_env.ROOT, ".venv", "bin", "grasp-lab")
     try:
         port = emu.stdout.readline().split()[1]
         r = subprocess.run([launcher, "run", str(blend), "--realtime", "--device", f"serial:{port}",
-                            "--forces", "on", "--duration", "3.0", "--record", str(rec)],
+                            "--forces", "on", "--duration", "4.5", "--record", str(rec)],
                            capture_output=True, text=True, timeout=120)
         out = emu.communicate(timeout=20)[0]
     finally:
@@ -212,26 +215,33 @@ def test_run_device_drives_animated_fingers_forces_on_recording_is_the_truth(bpy
     # The unplug (the emulator ended after 2 s of streaming) is said, and the exit code says so.
     assert r.returncode == 3, (r.returncode, r.stdout, r.stderr)
     assert f"fingers: Finger 0, Finger 1: serial device {port}" in r.stdout, r.stdout
-    summary = [line for line in r.stdout.splitlines() if line.startswith(f"device {port}: ")]
-    assert summary and "0 frames dropped, 0 missing, 1 e-stops, 1 losses" in summary[0], r.stdout
-    assert f"grasp-lab run: device {port} lost at" in r.stderr and "(hang-up), not back by the end" in r.stderr, \
-        r.stderr
-
     recording = grasp_env.submodule("engine.recording").open_recording(str(rec))
     ticks, events = recording.ticks, recording.events
     t = ticks["time"]
     hip, device_force, spring = ticks["hip"], ticks["device_force"], ticks["force"]
     kinds = {e["kind"]: e for e in events}
-    t_estop, t_lost = kinds["device_estop"]["time"], kinds["device_lost"]["time"]
+    # The losses the recording holds: the unplug last; before it, on a busy machine, maybe a pause
+    # of the emulator longer than the 0.1 s lost_timeout (a silence, then recovered). The summary
+    # says as many as the recording.
+    losses = [e for e in events if e["kind"] == "device_lost"]
+    assert losses and losses[-1]["value"] == 1, events
+    summary = [line for line in r.stdout.splitlines() if line.startswith(f"device {port}: ")]
+    assert summary and f"0 frames dropped, 0 missing, 1 e-stops, {len(losses)} losses" in summary[0], r.stdout
+    assert f"grasp-lab run: device {port} lost at" in r.stderr and "(hang-up), not back by the end" in r.stderr, \
+        r.stderr
+    t_conn, t_estop, t_lost = kinds["device_connected"]["time"], kinds["device_estop"]["time"], losses[-1]["time"]
     assert kinds["device_estop"]["value"] == 1 and kinds["device_enabled"]["value"] == 1, events
-    assert t_estop < t_lost
+    assert t_conn < t_estop < t_lost, events
 
     # The device drives its fingers: the emulator's lift (radius 3 cm, z up to 5 cm), not the
     # keyframes (whose fingertips stay 4.8 cm out and 2.5 cm above the table until frame 19).
-    holding = (t > t_estop - 0.09) & (t < t_estop)     # the lift ended 0.1 s before the button
-    assert holding.sum() > 30
+    # The hold (0.5 s of the emulator's, before its button): the ticks before the e-stop whose
+    # HIPs are at the lift's top, as the recording has them.
+    before = t < t_estop
+    at_top = np.all(np.abs(hip[:, :, 2] - 0.05) < 2e-3, axis=1)
+    holding = before & at_top
+    assert holding.sum() > 100, (holding.sum(), t[before][-5:], hip[before][-5:])
     np.testing.assert_allclose(np.abs(hip[holding][:, :, 0]), 0.03, atol=2e-3)
-    np.testing.assert_allclose(hip[holding][:, :, 2], 0.05, atol=2e-3)
     assert recording.ticks["pose"][holding][-1, 0, 2] > 0.02       # and lifted the box (from z = 0) with them
 
     # Forces reached the device, and the recording holds only forces the device received.
@@ -248,18 +258,19 @@ def test_run_device_drives_animated_fingers_forces_on_recording_is_the_truth(bpy
     # The stop button: zero from the e-stop on, in the recording and at the device, at its time.
     after = t >= t_estop
     assert not nonzero[after].any(), t[after][nonzero[after].any(axis=1)][:5]
-    assert nonzero[(t > t_estop - 0.3) & (t < t_estop)].any()               # on until then
+    assert nonzero[holding].any(), "no device force while the box was held up, before the e-stop"   # on until then
     assert report["forces_after_estop"] == 0 and report["violations"] == dict.fromkeys(report["violations"], 0)
     # The unplug: the fingers let go (no spring force) within 0.25 s.
     released = (t > t_lost + 0.25)
     assert released.any() and np.linalg.norm(spring[released], axis=2).max() < 1e-6
-    # Device events at the session time they were observed: the button was pressed 1.6 s of wall
-    # time after the device's hello, which came after the session started (session time is the
-    # haptic loop's, a little behind the wall on a loaded machine); no force is recorded after
+    # Device events at the session time they were observed (not the monotonic clock's stamps, not
+    # all at the end): the button was pressed 2.0 s of the emulator's time after the device's
+    # hello (the connected event; session time is the haptic loop's, a little behind the wall on
+    # a loaded machine, and a busy machine only delays the button); no force is recorded after
     # it. (How close the stamp is to the tick is checked in C, native/tests/test_serial_io.c:
     # here a loaded machine may pause the emulator, and the host's TTL zeroes the record first.)
     last_force = t[nonzero.any(axis=1)][-1]
-    assert 1.5 <= t_estop < 2.0 and last_force <= t_estop, (last_force, t_estop)
+    assert t_estop - t_conn >= 1.5 and t_lost < t[-1] and last_force <= t_estop, (t_conn, t_estop, last_force)
 
     info = subprocess.run([launcher, "info", str(rec)], capture_output=True, text=True, timeout=60).stdout
     assert f"Finger 0, Finger 1: serial device {port}" in info, info

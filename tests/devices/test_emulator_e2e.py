@@ -15,6 +15,7 @@ graspcore = pytest.importorskip("graspcore")
 pytest.importorskip("serial")
 
 from addon.engine.devices.serial_device import SerialDevice, workspace_matrix  # noqa: E402
+from waiting import wait_until  # noqa: E402  (tests/support, docs/testing.md)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BOX = 0.03          # half-width of the static boxes the fingers grip
@@ -63,14 +64,6 @@ def springs(world):
     return np.linalg.norm(world.snapshot()["spring_forces"], axis=1)
 
 
-def wait_for(predicate, timeout, what):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return
-        time.sleep(0.005)
-    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
-
 
 def test_emulator_end_to_end_unplug_and_reconnect():
     world = make_world([0.0])
@@ -78,23 +71,24 @@ def test_emulator_end_to_end_unplug_and_reconnect():
     dev = SerialDevice(world, emu.port, finger_offset=0, num_fingers=2, ramp_time=0.1, stall_timeout=0.05)
     try:
         dev.connect()
-        wait_for(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > 800, 15, "streaming")
+        wait_until(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > 800, 30, "streaming")
         np.testing.assert_allclose(springs(world), GRIP_SPRING, rtol=0.05)
-        time.sleep(0.2)
         dev.enable()
-        time.sleep(0.8)
+        # The ramp's end (its gain, from the device thread), then 200 more force frames at full gain.
+        st = wait_until(lambda: dev.stats()["gain"] == 1.0 and dev.stats(), 30, "the ramp to end (gain 1)",
+                        seen=dev.stats)
+        wait_until(lambda: dev.stats()["forces_sent"] > st["forces_sent"] + 200, 30,
+                   "200 force frames at full gain", seen=dev.stats)
         st = dev.stats()
         assert st["name"] == "grasp-lab-emulator" and st["device_fingers"] == 2 and st["enabled"]
-        assert st["pose_rate"] > 250, st          # 1 kHz streaming, of that order on a loaded machine
         assert st["dropped"] == 0 and st["gain"] == 1.0, st
 
-        # Unplug: within 0.25 s of the hang-up the fingers have let go; the session runs on.
+        # Unplug: the fingers let go (how soon after the hang-up is seen: native/tests/test_serial_io.c,
+        # on the manual clock); the session runs on.
         report = emu.stop()
-        t_unplug = time.monotonic()
-        wait_for(lambda: np.all(springs(world) < 1e-6), 0.25, "the fingers to let go")
-        assert time.monotonic() - t_unplug < 0.25
+        wait_until(lambda: np.all(springs(world) < 1e-6), 30, "the fingers to let go", seen=lambda: springs(world))
         assert world.running
-        wait_for(lambda: dev.stats()["state"] == "hangup", 0.25, "the hang-up to show")
+        wait_until(lambda: dev.stats()["state"] == "hangup", 30, "the hang-up to show", seen=dev.stats)
         events = [name for _, name, _, _ in dev.events()]
         assert events[:2] == ["connected", "enabled"] and "lost" in events, events
 
@@ -104,13 +98,13 @@ def test_emulator_end_to_end_unplug_and_reconnect():
         assert report["max_force_n"] == pytest.approx(5.0, abs=1e-5), report
         assert report["force_frames"] > 0.9 * report["poses_sent"] - 50, report
         assert report["last_ttl_us"] == 20000
-        assert report["latency_p50_ms"] < 5.0, report
+        # (Its latency, pose to force frame, is a benchmark's: bench/bench_serial.py, docs/benchmarks.md.)
 
         # Reconnect: a new device on a new port picks the same fingers up again.
         emu = Emulator("--fingers", "2", "--motion", "grip")
         before = dev.stats()["poses"]                   # the counters run on over the reconnection
         dev.reconnect(emu.port)
-        wait_for(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > before + 700, 15,
+        wait_until(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > before + 700, 30,
                  "streaming again")
         np.testing.assert_allclose(springs(world), GRIP_SPRING, rtol=0.05)
         assert dev.stats()["enabled"]
@@ -130,7 +124,7 @@ def test_two_emulators_drive_two_hands():
     try:
         for d in devs:
             d.connect()
-        wait_for(lambda: all(d.stats()["poses"] > 800 for d in devs), 15, "both streaming")
+        wait_until(lambda: all(d.stats()["poses"] > 800 for d in devs), 30, "both streaming")
         s = springs(world)
         np.testing.assert_allclose(s[:2], GRIP_SPRING, rtol=0.05)   # the left hand grips its box
         np.testing.assert_allclose(s[2:], 0.0, atol=1e-9)           # the right hand stays open
@@ -159,19 +153,20 @@ def test_device_set_one_of_two_unplugged_the_other_holds_on():
                           frames=[translation(-0.2), translation(0.2)])
         assert [(d.finger_offset, d.num_fingers) for d in devices.devices] == [(0, 2), (2, 2)]
         assert not DeviceInput(4).interactive and DeviceInput(4).script() is None
-        wait_for(lambda: all(d.stats()["poses"] > 800 for d in devices.devices), 15, "both streaming")
-        assert all(s["state"] == "streaming" and s["rate_hz"] > 250 for s in devices.status())
+        wait_until(lambda: all(d.stats()["poses"] > 800 for d in devices.devices), 30, "both streaming")
+        assert all(s["state"] == "streaming" for s in devices.status()), devices.status()
         devices.enable()
         np.testing.assert_allclose(springs(world), GRIP_SPRING, rtol=0.05)
         right.stop()
-        wait_for(lambda: np.all(springs(world)[2:] < 1e-6), 0.25, "the right hand to let go")
+        wait_until(lambda: np.all(springs(world)[2:] < 1e-6), 30, "the right hand to let go")
         np.testing.assert_allclose(springs(world)[:2], GRIP_SPRING, rtol=0.05)   # the left hand holds on
         time.sleep(0.15)
         devices.poll()     # tries to reopen the vanished pty: fails, stays let go
         # Still attached (not detached to reopen a port that is not there): its thread keeps the
         # fingers on their god-objects, which a body that moves would otherwise press against.
-        status = devices.status()
-        assert status[0]["state"] == "streaming" and status[1]["state"] == "hangup", status
+        # (The left one may pause on a busy machine and come back: its state is waited for.)
+        wait_until(lambda: [s["state"] for s in devices.status()] == ["streaming", "hangup"], 30,
+                   "left streaming, right hung up", seen=devices.status)
         assert devices.devices[1].connected
         labels = {(label, name) for _, label, name, _ in devices.events}
         assert (right.port, "lost") in labels and (left.port, "enabled") in labels, labels
@@ -201,7 +196,7 @@ def test_soft_start_first_pose_5_cm_away():
     bound = 0.2 * 1e-3 * (1 + 1e-9)
     try:
         dev.connect()
-        wait_for(lambda: np.abs(world.snapshot()["hips"] - target).max() < 1e-6, 5, "the HIPs at the device")  # float32 poses
+        wait_until(lambda: np.abs(world.snapshot()["hips"] - target).max() < 1e-6, 30, "the HIPs at the device")  # float32 poses
         time.sleep(0.05)
         ticks = world.drain_ticks(records)
         hips, tick = ticks["hip"], ticks["tick"]
@@ -216,14 +211,14 @@ def test_soft_start_first_pose_5_cm_away():
         # Unplug (the fingers let go where they are), move the device frame 2 cm, reconnect:
         # the first pose of the new connection is 2 cm away, walked again.
         emu.stop()
-        wait_for(lambda: dev.stats()["state"] == "hangup", 1.0, "the hang-up")
+        wait_until(lambda: dev.stats()["state"] == "hangup", 30, "the hang-up")
         world.drain_ticks(records)
         emu = Emulator("--fingers", "2", "--motion", "static")
         lifted[2, 3] = 0.07
         dev.transform = workspace_matrix(lifted)
         dev.reconnect(emu.port)
         target[:, 2] = 0.07
-        wait_for(lambda: np.abs(world.snapshot()["hips"] - target).max() < 1e-6, 5, "the HIPs back at the device")
+        wait_until(lambda: np.abs(world.snapshot()["hips"] - target).max() < 1e-6, 30, "the HIPs back at the device")
         time.sleep(0.05)
         ticks = world.drain_ticks(records)
         steps = np.linalg.norm(np.diff(ticks["hip"], axis=0), axis=2)
@@ -254,7 +249,7 @@ def test_emulator_orientation_tilts_a_palm_under_a_plate():
     dev = SerialDevice(world, emu.port, finger_offset=0, num_fingers=1, transform=frame)
     try:
         dev.connect()
-        wait_for(lambda: dev.stats()["oriented_poses"] > 1800, 20, "1.8 s of oriented poses")
+        wait_until(lambda: dev.stats()["oriented_poses"] > 1800, 30, "1.8 s of oriented poses")
         st = dev.stats()
         assert st["sends_orientations"] and st["dropped"] == 0, st
         pose = world.snapshot()["poses"][plate]
