@@ -17,7 +17,8 @@ CFLAGS_COMMON := $(CORE_FLAGS) -Werror -Inative/include -Inative/src
 C_TESTS := $(patsubst native/tests/%.c,%,$(wildcard native/tests/test_*.c))
 CORE_OBJ := $(notdir $(CORE_SRC:.c=.o))
 
-.PHONY: all venv core lib check-layers demo test test-c test-c-asan test-c-tsan test-py bench clean
+.PHONY: all venv core lib check-layers demo test test-c test-c-asan test-c-tsan test-py bench clean \
+        test-under-load flake-hunt
 
 all: core
 
@@ -92,9 +93,44 @@ test-c-tsan: $(addprefix $(BUILD)/c-tsan/,$(TSAN_TESTS))
 test-py: core
 	$(PY) -m pytest -q tests/core tests/devices
 
-# test-blender (addon.mk) runs tests/blender on bpy 4.5, 4.2 and 5.0.1; test-gui (addon.mk)
-# the extension in a real GUI Blender under Xvfb.
-test: check-layers test-c test-c-asan test-c-tsan test-py test-blender test-gui
+# --- make test: the stages side by side (docs/testing.md) --------------------------------
+# What the stages share is built first, once (TEST_PREREQS: the venv and core, the extension,
+# the bpy 4.2 / 5.0.1 venvs, the plain C library and tests); then the stages run side by side,
+# TEST_JOBS at a time, longest first, each stage's output in build/test-logs/STAGE.log; the end
+# prints each stage's result and time, the end of a failed stage's log, and fails if any failed.
+# test-blender-* (addon.mk) run tests/blender on bpy 4.5, 4.2 and 5.0.1; test-gui (addon.mk) the
+# extension in a real GUI Blender under Xvfb. A new stage: a target that needs nothing another
+# stage builds (or add that to TEST_PREREQS), its name added to TEST_STAGES.
+TEST_STAGES := test-blender-45 test-gui test-c-asan test-c-tsan test-py test-blender-42 test-blender-50 \
+               test-c check-layers
+TEST_PREREQS := core extension venv-bpy42 venv-bpy50 $(addprefix $(BUILD)/c/,$(C_TESTS))
+TEST_JOBS ?= 3
+TEST_LOGS := $(BUILD)/test-logs
+
+test:
+	@rm -rf $(TEST_LOGS) && mkdir -p $(TEST_LOGS) && date +%s > $(TEST_LOGS)/.start
+	@tests/load/run_stage.sh prepare $(TEST_LOGS) $(MAKE) --no-print-directory $(TEST_PREREQS) || true
+	@if grep -q FAILED $(TEST_LOGS)/prepare.result; then tail -n 40 $(TEST_LOGS)/prepare.log; exit 1; fi
+	@$(MAKE) --no-print-directory -j$(TEST_JOBS) $(addprefix stage-,$(TEST_STAGES))
+	@tests/load/stage_summary.sh $(TEST_LOGS) prepare $(TEST_STAGES)
+
+stage-%:
+	@tests/load/run_stage.sh $* $(TEST_LOGS) $(MAKE) --no-print-directory $*
+
+# --- Under load (docs/testing.md) ----------------------------------------------------
+# Both cores kept busy by plain CPU hogs at normal priority (tests/load/under_load.sh starts them
+# and stops them however the command ends). No retries anywhere: a flake is a bug to fix.
+#   make test-under-load                         the whole of `make test`, under load
+#   make flake-hunt TEST=tests/x.py::test_y N=20  one test (or any pytest selection) N times under
+#                                                 load: says how many runs failed, keeps their logs
+N ?= 20
+test-under-load:
+	tests/load/under_load.sh $(MAKE) --no-print-directory test
+
+flake-hunt: core extension
+	@test -n "$(TEST)" || { echo "usage: make flake-hunt TEST='tests/...::test_name' [N=20]" >&2; exit 2; }
+	GRASP_LAB_REQUIRE_CORE=1 GRASP_LAB_ZIP=$(EXT_ZIP) tests/load/under_load.sh \
+	  tests/load/flake_hunt.sh $(N) $(BUILD)/flake-hunt $(PY) $(TEST)
 
 # --- The main job -------------------------------------------------------------
 # (a) the core alone, a table in the terminal; (b) the sample scene headless in Blender

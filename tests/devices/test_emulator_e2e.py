@@ -64,6 +64,13 @@ def springs(world):
     return np.linalg.norm(world.snapshot()["spring_forces"], axis=1)
 
 
+def wait_for_grip(world, fingers=slice(None)):
+    """The grip closed on the box (the emulator's motion runs on its clock; the HIPs follow its
+    poses as they come, later on a busy machine): every finger's spring at the grip's."""
+    wait_until(lambda: np.allclose(springs(world)[fingers], GRIP_SPRING, rtol=0.05), 30,
+               f"the grip's {GRIP_SPRING:g} N springs", seen=lambda: springs(world))
+
+
 
 def test_emulator_end_to_end_unplug_and_reconnect():
     world = make_world([0.0])
@@ -72,7 +79,7 @@ def test_emulator_end_to_end_unplug_and_reconnect():
     try:
         dev.connect()
         wait_until(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > 800, 30, "streaming")
-        np.testing.assert_allclose(springs(world), GRIP_SPRING, rtol=0.05)
+        wait_for_grip(world)
         dev.enable()
         # The ramp's end (its gain, from the device thread), then 200 more force frames at full gain.
         st = wait_until(lambda: dev.stats()["gain"] == 1.0 and dev.stats(), 30, "the ramp to end (gain 1)",
@@ -106,7 +113,7 @@ def test_emulator_end_to_end_unplug_and_reconnect():
         dev.reconnect(emu.port)
         wait_until(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > before + 700, 30,
                  "streaming again")
-        np.testing.assert_allclose(springs(world), GRIP_SPRING, rtol=0.05)
+        wait_for_grip(world)
         assert dev.stats()["enabled"]
         report = emu.stop()
         assert report["host_hellos"] == 1 and report["max_force_n"] > 4.9, report
@@ -125,11 +132,10 @@ def test_two_emulators_drive_two_hands():
         for d in devs:
             d.connect()
         wait_until(lambda: all(d.stats()["poses"] > 800 for d in devs), 30, "both streaming")
-        s = springs(world)
-        np.testing.assert_allclose(s[:2], GRIP_SPRING, rtol=0.05)   # the left hand grips its box
-        np.testing.assert_allclose(s[2:], 0.0, atol=1e-9)           # the right hand stays open
-        hips = world.snapshot()["hips"]
-        np.testing.assert_allclose(hips[2:, 0], [0.26, 0.14], atol=1e-6)  # right hand, its own frame
+        wait_for_grip(world, slice(0, 2))                           # the left hand grips its box
+        wait_until(lambda: np.allclose(world.snapshot()["hips"][2:, 0], [0.26, 0.14], atol=1e-6), 30,
+                   "the right hand at its device's pose, in its own frame", seen=lambda: world.snapshot()["hips"])
+        np.testing.assert_allclose(springs(world)[2:], 0.0, atol=1e-9)   # the right hand stays open
         with pytest.raises(ValueError, match="already driven"):
             world.attach_serial(devs[0].serial.fileno(), finger_offset=1, num_fingers=2)
         reports = [left.stop(), right.stop()]
@@ -156,10 +162,10 @@ def test_device_set_one_of_two_unplugged_the_other_holds_on():
         wait_until(lambda: all(d.stats()["poses"] > 800 for d in devices.devices), 30, "both streaming")
         assert all(s["state"] == "streaming" for s in devices.status()), devices.status()
         devices.enable()
-        np.testing.assert_allclose(springs(world), GRIP_SPRING, rtol=0.05)
+        wait_for_grip(world)
         right.stop()
         wait_until(lambda: np.all(springs(world)[2:] < 1e-6), 30, "the right hand to let go")
-        np.testing.assert_allclose(springs(world)[:2], GRIP_SPRING, rtol=0.05)   # the left hand holds on
+        wait_for_grip(world, slice(0, 2))                                        # the left hand holds on
         time.sleep(0.15)
         devices.poll()     # tries to reopen the vanished pty: fails, stays let go
         # Still attached (not detached to reopen a port that is not there): its thread keeps the
@@ -204,9 +210,7 @@ def test_soft_start_first_pose_5_cm_away():
         np.testing.assert_allclose(hips[0], [(0.06, 0, 0), (-0.06, 0, 0)], atol=1e-12)
         steps = np.linalg.norm(np.diff(hips, axis=0), axis=2)
         assert steps.max() <= bound, steps.max()                      # never a jump
-        walking = (steps > 1.99e-4).sum(axis=0)
-        assert np.all(walking >= 245), walking                        # 5 cm at 0.2 mm a tick
-        np.testing.assert_allclose(hips[-1], target, atol=1e-6)
+        np.testing.assert_allclose(hips[-1], target, atol=1e-6)      # 5 cm in steps of at most 0.2 mm
 
         # Unplug (the fingers let go where they are), move the device frame 2 cm, reconnect:
         # the first pose of the new connection is 2 cm away, walked again.
@@ -223,7 +227,9 @@ def test_soft_start_first_pose_5_cm_away():
         ticks = world.drain_ticks(records)
         steps = np.linalg.norm(np.diff(ticks["hip"], axis=0), axis=2)
         assert np.all(np.diff(ticks["tick"]) == 1) and steps.max() <= bound, steps.max()
-        assert np.all((steps > 1.99e-4).sum(axis=0) >= 95)            # 2 cm walked, not jumped
+        # 2 cm walked, not jumped: from where the fingers let go (at 5 cm) to the device's pose.
+        np.testing.assert_allclose(ticks["hip"][0], [(0.06, 0, 0.05), (-0.06, 0, 0.05)], atol=1e-6)
+        np.testing.assert_allclose(ticks["hip"][-1], target, atol=1e-6)
     finally:
         emu.proc.kill()
         dev.disconnect()

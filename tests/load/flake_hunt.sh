@@ -6,6 +6,7 @@
 set -u
 n=$1 logdir=$2 python=$3
 shift 3
+logdir="$logdir/$(date -u +%Y%m%d-%H%M%S)-$$"   # one folder a hunt: hunts side by side do not mix
 mkdir -p "$logdir"
 failed=0
 start=$SECONDS
