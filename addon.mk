@@ -8,7 +8,7 @@
 #                      focused subset on bpy 4.2 (.venv-bpy42) and 5.0.1 (.venv-bpy50).
 
 .PHONY: extension extension-validate test-blender test-gui test-blender-45 test-blender-42 \
-        test-blender-50 venv-bpy42 venv-bpy50 clean-extension sample-scenes scenes blender-docs-image docs-images \
+        test-blender-50 test-blender-fast venv-bpy42 venv-bpy50 clean-extension sample-scenes scenes blender-docs-image docs-images \
         bench-blender
 
 EXT_VERSION := $(shell sed -n 's/^version *= *"\(.*\)"/\1/p' blender_manifest.toml | head -1)
@@ -75,6 +75,10 @@ test-blender-50: $(EXT_ZIP) .venv-bpy50/.deps
 	GRASP_LAB_REQUIRE_CORE=1 GRASP_LAB_ZIP=$(EXT_ZIP) .venv-bpy50/bin/python -m pytest -q -m multiversion tests/blender
 
 test-blender: test-blender-45 test-blender-42 test-blender-50
+
+# make test-fast's share of tests/blender: the multiversion subset on bpy 4.5.
+test-blender-fast: $(EXT_ZIP)
+	GRASP_LAB_REQUIRE_CORE=1 GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) -m pytest -q -m multiversion tests/blender
 
 # A real GUI Blender (docs/gui-tests.md): Debian 13's Blender 4.3 in a chroot cached in
 # ~/.cache/grasp-lab (built once, as root), or BLENDER=/path/to/blender. Where it cannot be
