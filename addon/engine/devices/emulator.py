@@ -167,6 +167,7 @@ class Emulator:
         self.stop = False
         self.started = None         # the host's conversation started (see _on_frame)
         self.last_answer = None     # when the host last answered a pose (a force frame)
+        self.say = None             # a line for whoever runs it (main: standard output), e.g. its button
         self.estop_at = estop_at    # s into streaming: the stop button (None: never)
         self.estop_sent_at = None
         self.forces_after_estop = 0     # force frames with a non-zero force after the button, before ENABLE(1)
@@ -308,6 +309,9 @@ class Emulator:
                 self.enabled, self.estopped = False, True
                 self.rendered = [(0.0, 0.0, 0.0)] * self.n
                 self._send(P.ESTOP, P.estop(P.ESTOP_BUTTON))
+                if self.say is not None:    # a test waits for this, not for a time: who got it
+                    streaming = self.last_answer is not None and now - self.last_answer <= HOST_SILENCE
+                    self.say(f"ESTOP {t:.3f} {'streaming' if streaming else 'unanswered'}")
             status = (P.STATUS_FORCES_ON if self.enabled else 0) | (P.STATUS_ESTOPPED if self.estopped else 0)
             positions = self.motion(t, self.n)
             turns = self.orientation(t, self.n) if self.host_takes_orientations else None
@@ -441,6 +445,8 @@ def main(argv=None, args=None, motion=None):
                    estop_at=args.estop_at, log_forces=bool(args.force_log), udp=udp, drop_every=args.drop_every,
                    dup_every=args.dup_every, reorder_every=args.reorder_every,
                    orientation=ORIENTATIONS[args.orientation] if args.orientation else None)
+
+    emu.say = lambda line: print(line, flush=True)
 
     def stop(signum, frame):
         emu.stop = True
