@@ -88,7 +88,7 @@ def test_emulator_end_to_end_unplug_and_reconnect():
                    "200 force frames at full gain", seen=dev.stats)
         st = dev.stats()
         assert st["name"] == "grasp-lab-emulator" and st["device_fingers"] == 2 and st["enabled"]
-        assert st["dropped"] == 0 and st["gain"] == 1.0, st
+        assert st["gain"] == 1.0, st
 
         # Unplug: the fingers let go (how soon after the hang-up is seen: native/tests/test_serial_io.c,
         # on the manual clock); the session runs on.
@@ -103,6 +103,9 @@ def test_emulator_end_to_end_unplug_and_reconnect():
         # What the device saw: force frames answering poses, clamped to its 5 N, none while
         # disabled, within its TTL limit.
         assert report["violations"] == dict.fromkeys(report["violations"], 0), report
+        # Frames lost on the way: only those it could not write (the pty full while a busy machine
+        # kept the host's thread from reading).
+        assert st["dropped"] <= report["write_errors"], (st, report)
         assert report["max_force_n"] == pytest.approx(5.0, abs=1e-5), report
         assert report["force_frames"] > 0.9 * report["poses_sent"] - 50, report
         assert report["last_ttl_us"] == 20000
