@@ -205,7 +205,8 @@ class Emulator:
     def _write(self, frame):
         try:
             if self.udp is None:
-                os.write(self.fd, frame)
+                if os.write(self.fd, frame) < len(frame):
+                    self.write_errors += 1    # the pty full: the rest of the frame lost, the host drops it
             elif self.host_addr is not None:
                 self.udp.sendto(frame, self.host_addr)
         except (BlockingIOError, OSError):
