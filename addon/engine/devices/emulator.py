@@ -170,7 +170,10 @@ class Emulator:
         self.say = None             # a line for whoever runs it (main: standard output), e.g. its button
         self.estop_at = estop_at    # s into streaming: the stop button (None: never)
         self.estop_sent_at = None
-        self.forces_after_estop = 0     # force frames with a non-zero force after the button, before ENABLE(1)
+        self.forces_after_estop = 0     # non-zero force frames answering a pose sent after the button (a host
+                                        # that had read it), before ENABLE(1)
+        self.forces_in_flight = 0       # non-zero ones answering a pose sent before it (on their way then)
+        self.estop_seq = None           # the sequence number of its ESTOP frame
         self.force_log = [] if log_forces else None     # (t, ack_seq, ttl_us, forces) of every force frame
         # UDP (--udp): a bound socket; frames go to the host that said hello (others are ignored).
         self.udp, self.host_addr, self.foreign = udp, None, 0
@@ -245,7 +248,11 @@ class Emulator:
             self.rendered = self.checker.check(force, self.enabled)
             self.host_takes_orientations = force.takes_orientations and self.orientation is not None
             if self.estopped and any(any(f) for f in force.forces):
-                self.forces_after_estop += 1
+                after = self.estop_seq is not None and 0 < (force.ack_seq - self.estop_seq) & 0xFFFF < 0x8000
+                if after:
+                    self.forces_after_estop += 1
+                else:
+                    self.forces_in_flight += 1
             if self.force_log is not None:
                 self.force_log.append((now - (self.started or now), force.ack_seq, force.ttl_us, force.forces))
             self.force_expiry = now + force.ttl_us * 1e-6
@@ -307,6 +314,7 @@ class Emulator:
                 self.rendered = [(0.0, 0.0, 0.0)] * self.n
             if self.estop_at is not None and self.estop_sent_at is None and t >= self.estop_at:
                 self.estop_sent_at = t        # the stop button: forces off at once, latched, and said so
+                self.estop_seq = self.seq
                 self.enabled, self.estopped = False, True
                 self.rendered = [(0.0, 0.0, 0.0)] * self.n
                 self._send(P.ESTOP, P.estop(P.ESTOP_BUTTON))
@@ -347,6 +355,7 @@ class Emulator:
             "latency_max_ms": _ms(lat[-1] if lat else None), "unacknowledged": self.poses_sent - len(lat),
             "host_frames_dropped": self.decoder.errors, "write_errors": self.write_errors,
             "estop_at_s": self.estop_sent_at, "forces_after_estop": self.forces_after_estop,
+            "forces_in_flight_at_estop": self.forces_in_flight,
             "injected": self.injected, "foreign_datagrams": self.foreign, "oriented_poses": self.oriented_poses,
         }
 
@@ -403,6 +412,20 @@ def build_parser(parser=None):
     return p
 
 
+DEVICE_NICE = -10       # the emulator stands in for a device's own microcontroller
+
+
+def _as_a_device_would_run():
+    """A device runs on its own processor: a busy host does not pause it. The emulator asks for a
+    higher scheduling priority (nice -10) where it may (root, or CAP_SYS_NICE), so that the host's
+    load does not pause its stream as no real device would be; elsewhere it runs as it is."""
+    try:
+        if os.getpriority(os.PRIO_PROCESS, 0) > DEVICE_NICE:
+            os.setpriority(os.PRIO_PROCESS, 0, DEVICE_NICE)
+    except (PermissionError, OSError):
+        pass
+
+
 def main(argv=None, args=None, motion=None):
     """``motion``: (motion, finger count) for ``--from`` (the bpy side reads the .blend:
     emulate_blend.py)."""
@@ -414,6 +437,7 @@ def main(argv=None, args=None, motion=None):
     if args.first and not args.from_blend:
         raise SystemExit("--first: only with --from (a named motion has no fingers of a scene to choose from)")
     name = "grasp-lab-emulator"
+    _as_a_device_would_run()
     if args.from_blend:
         if motion is None:
             raise SystemExit(f"--from {args.from_blend}: reading a .blend needs Blender: grasp-lab emulate --from, "
