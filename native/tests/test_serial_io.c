@@ -199,10 +199,22 @@ static void sleep_ms(int ms) {
     nanosleep(&ts, NULL);
 }
 
-/* Waits (up to 2 s, a millisecond at a time) for `cond`, re-evaluated each time: what the
+/* Seconds on the monotonic clock. */
+static double now_s(void) {
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
+}
+
+/* How long a test waits for a state before it fails (docs/testing.md): only a bound on a hang;
+ * a busy machine may take seconds where a quiet one takes milliseconds. */
+#define STATE_DEADLINE_S 60.0
+
+/* Waits (up to STATE_DEADLINE_S, a millisecond at a time) for `cond`, re-evaluated each time: what the
  * device and haptic threads do is checked, not how soon a loaded machine lets them do it
- * (tests/devices/test_emulator_e2e.py holds the let-go to its 0.25 s over a real pty). */
-#define WAIT_UNTIL(cond) for (int wait_ms_ = 0; wait_ms_ < 2000 && !(cond); ++wait_ms_) sleep_ms(1)
+ * (how soon over a real pty, the let-go's 0.25 s included: bench/bench_unplug.py). */
+#define WAIT_UNTIL(cond) \
+    for (double wait_end_ = now_s() + STATE_DEADLINE_S; !(cond) && now_s() < wait_end_;) sleep_ms(1)
 
 /* Poses for `ms` milliseconds, one a millisecond, reading what comes back in between. */
 static void stream(Dev *d, int ms, double z) {
@@ -296,7 +308,7 @@ static void test_device_thread(void) {
     /* The 50 ms ramp is over by now; on a loaded machine the frames that say so can come late
      * (and the enable itself may be taken up late: the ramp is judged by the frames, not by
      * what one frame a fixed time after the enable says). */
-    for (int k = 0; k < 40 && fabs(force_z(&dev) - 3.0) >= 1e-5; ++k) stream(&dev, 50, 0.098);
+    for (double end_ = now_s() + STATE_DEADLINE_S; now_s() < end_ && fabs(force_z(&dev) - 3.0) >= 1e-5;) stream(&dev, 50, 0.098);
     GC_CHECK(dev.ramp_frames - before >= 5, "ramping in: %d frames between 0 and 3 N", dev.ramp_frames - before);
     GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-5, "clamped to the device's 3 N: %.4f", force_z(&dev));
     GC_CHECK(dev.last_enable == 1, "ENABLE(1) sent");
@@ -315,9 +327,10 @@ static void test_device_thread(void) {
              (unsigned long long)st.dropped);
     GC_CHECK(st.device_fingers == 1 && !strcmp(st.name, "test") && st.enabled == 1, "capabilities: %d '%s'",
              st.device_fingers, st.name);
-    /* Sanity only (the rates and latencies are benchmarked: bench/bench_serial.py). */
-    GC_CHECK(st.pose_rate > 200 && st.latency_p99_us > 0 && st.latency_p99_us < 100000, "rate %.0f Hz, p99 %.0f us",
-             st.pose_rate, st.latency_p99_us);
+    /* Measured (the rates and latencies are benchmarked: bench/bench_serial.py; a busy machine may
+     * pause this thread's stream for longer than the rate's 0.25 s window). */
+    GC_CHECK(st.poses > 100 && st.latency_p99_us > 0, "poses %llu, p99 %.0f us", (unsigned long long)st.poses,
+             st.latency_p99_us);
 
     /* Random bytes between poses: never a crash (ASan), dropped and counted, poses go on. */
     uint64_t dropped_before = st.dropped, poses_before = st.poses;
@@ -341,12 +354,14 @@ static void test_device_thread(void) {
     GC_CHECK(st.state == GC_SERIAL_LOST && fabs(sp[2]) < 1e-6, "silent: state %d, spring %.6f N", st.state, sp[2]);
     /* Poses again: it holds again. */
     stream(&dev, 100, 0.098);
-    for (int k = 0; k < 40 && (spring(w, sp), fabs(sp[2] - 10.0) >= 0.5); ++k) stream(&dev, 50, 0.098);
+    for (double end_ = now_s() + STATE_DEADLINE_S; now_s() < end_ && (spring(w, sp), fabs(sp[2] - 10.0) >= 0.5);) stream(&dev, 50, 0.098);
     GC_CHECK(fabs(sp[2] - 10.0) < 0.5, "recovered: spring %.3f N", sp[2]);
     /* Hang-up: let go again. */
     close(dev.fd);
     WAIT_UNTIL((spring(w, sp), gc_world_serial_stats(w, id, &st), st.state == GC_SERIAL_HANGUP && fabs(sp[2]) < 1e-6));
-    GC_CHECK(st.state == GC_SERIAL_HANGUP && fabs(sp[2]) < 1e-6 && st.disconnects == 2, "hang-up: state %d, spring %.6f, %llu",
+    /* (Two losses at least: the silence, the hang-up; a busy machine's pause of this thread's
+     * stream may add one.) */
+    GC_CHECK(st.state == GC_SERIAL_HANGUP && fabs(sp[2]) < 1e-6 && st.disconnects >= 2, "hang-up: state %d, spring %.6f, %llu",
              st.state, sp[2], (unsigned long long)st.disconnects);
     gcSerialEvent ev[64];
     int n = gc_world_serial_events(w, id, ev, 64), seen = 0;
@@ -593,7 +608,7 @@ static void test_recorded_forces(void) {
              dr.nonzero);
 
     gc_world_serial_enable(w, id, 1);
-    for (int k = 0; k < 40 && fabs(force_z(&dev) - 3.0) >= 1e-6; ++k) stream(&dev, 50, 0.049);
+    for (double end_ = now_s() + STATE_DEADLINE_S; now_s() < end_ && fabs(force_z(&dev) - 3.0) >= 1e-6;) stream(&dev, 50, 0.049);
     GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-6, "3 N sent (clamped in device axes): %.4f", force_z(&dev));
     stream(&dev, 100, 0.049);
     dr = drain(w, &dev);
@@ -624,7 +639,7 @@ static void test_recorded_forces(void) {
 
     /* Forces on again; then an e-stop whose ESTOP frame was lost: only the poses' status says so. */
     gc_world_serial_enable(w, id, 1);
-    for (int k = 0; k < 40 && fabs(force_z(&dev) - 3.0) >= 1e-6; ++k) stream(&dev, 50, 0.049);
+    for (double end_ = now_s() + STATE_DEADLINE_S; now_s() < end_ && fabs(force_z(&dev) - 3.0) >= 1e-6;) stream(&dev, 50, 0.049);
     GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-6, "re-enabled: %.4f", force_z(&dev));
     stream(&dev, 60, 0.049); /* past the grace after ENABLE(1) */
     dev.status = GC_STATUS_ESTOPPED;
@@ -639,7 +654,7 @@ static void test_recorded_forces(void) {
     /* Forces on, then silence: the record goes to zero when the last frame's TTL (20 ms) is over. */
     dev.status = 0;
     gc_world_serial_enable(w, id, 1);
-    for (int k = 0; k < 40 && fabs(force_z(&dev) - 3.0) >= 1e-6; ++k) stream(&dev, 50, 0.049);
+    for (double end_ = now_s() + STATE_DEADLINE_S; now_s() < end_ && fabs(force_z(&dev) - 3.0) >= 1e-6;) stream(&dev, 50, 0.049);
     dr = drain(w, &dev);
     GC_CHECK(dr.last[2] == 1.5 && dr.unmatched == 0, "forces again: %g", dr.last[2]);
     sleep_ms(60);
@@ -707,7 +722,7 @@ static void test_recorded_forces_are_the_frames(void) {
     dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, 12);
     stream(&dev, 400, 0.0); /* the soft start walks the HIP there (5 cm at 0.2 m/s) */
     gc_world_serial_enable(w, id, 1);
-    for (int k = 0; k < 40 && !(force_z(&dev) > 1.0); ++k) stream(&dev, 50, 0.0);
+    for (double end_ = now_s() + STATE_DEADLINE_S; now_s() < end_ && !(force_z(&dev) > 1.0);) stream(&dev, 50, 0.0);
     stream(&dev, 100, 0.0);
     double sp[3];
     spring(w, sp);
@@ -810,7 +825,7 @@ static void test_estop_in_status_before_enable(void) {
     gc_world_serial_enable(w, id, 1);
     WAIT_UNTIL((dev_read(&dev, 1), dev.last_enable == 1));
     dev.status = 0;
-    for (int k = 0; k < 40 && fabs(force_z(&dev) - 3.0) >= 1e-6; ++k) stream(&dev, 50, -0.002);
+    for (double end_ = now_s() + STATE_DEADLINE_S; now_s() < end_ && fabs(force_z(&dev) - 3.0) >= 1e-6;) stream(&dev, 50, -0.002);
     gc_world_serial_stats(w, id, &st);
     GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-6 && st.estops == 1 && st.enabled,
              "enabled: %.4f N sent, %d e-stops", force_z(&dev), (int)st.estops);
@@ -1016,7 +1031,7 @@ static void test_udp(void) {
     GC_CHECK(gc_world_attach_serial(w, host, &sd, &id) == GC_OK, "attach udp: %s", gc_world_last_error(w));
     uint8_t buf[512];
     ssize_t k = -1;
-    for (int i = 0; i < 200 && k < 0; ++i, sleep_ms(1)) k = recv(dev, buf, sizeof buf, 0);
+    for (double end_ = now_s() + STATE_DEADLINE_S; k < 0 && now_s() < end_; sleep_ms(1)) k = recv(dev, buf, sizeof buf, 0);
     gcFrame fr;
     GC_CHECK(k > 1 && gc_frame_decode(buf, (size_t)k - 1, &fr) == GC_FRAME_OK && fr.type == GC_MSG_HELLO_HOST,
              "HELLO_HOST to the configured address (%zd bytes)", k);
