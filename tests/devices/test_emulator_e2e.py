@@ -253,7 +253,10 @@ def test_emulator_orientation_tilts_a_palm_under_a_plate():
     palm = world.add_finger(radius=0.0, stiffness=1000.0, damping=2.0, position=(0, 0, -0.01),
                             points=box(0.045, 0.04, 0.01))
     plate = world.add_body(box(0.1, 0.1, 0.005), mass=0.4, position=(0, 0, 0.005))
-    world.start(priority=0, ramp_time=0.0, watchdog_timeout=0.05)
+    # The haptic loop as a session runs it (SCHED_FIFO where granted): at normal priority under
+    # a busy machine it falls out of step with the object manager, and the palm, turning in
+    # larger steps between the plate's, flings it (seen 3 in 20 runs under load; docs/testing.md).
+    world.start(ramp_time=0.0, watchdog_timeout=0.05)
     emu = Emulator("--fingers", "1", "--motion", "static", "--orientation", "tilt")
     frame = np.eye(4)
     frame[:3, 3] = (-0.06, 0.0, -0.01)          # the static motion's fingertip (6 cm out) onto the palm
