@@ -299,7 +299,7 @@ def frame_scene():
     rv3d.view_distance = 0.45
 
 
-def click_primary_button(timeout=8.0):
+def click_primary_button(timeout=60.0):
     t0 = time.monotonic()
     while True:                     # the display may be slow to show it (llvmpipe, ~1-5 Hz)
         area, win_region, ui = view3d()
@@ -316,7 +316,7 @@ def click_primary_button(timeout=8.0):
     yield 0.1
 
 
-def start_by_click(timeout=10.0):
+def start_by_click(timeout=60.0):
     yield from click_primary_button()
     yield from wait_until(lambda: active_session() is not None, timeout, "the session to start")
     log("session started by a click on Start Session")
