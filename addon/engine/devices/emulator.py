@@ -168,6 +168,7 @@ class Emulator:
         self.started = None         # the host's conversation started (see _on_frame)
         self.last_answer = None     # when the host last answered a pose (a force frame)
         self.say = None             # a line for whoever runs it (main: standard output), e.g. its button
+        self.answered = False       # the host has answered a pose in this conversation (it streams)
         self.estop_at = estop_at    # s into streaming: the stop button (None: never)
         self.estop_sent_at = None
         self.forces_after_estop = 0     # non-zero force frames answering a pose sent after the button (a host
@@ -223,6 +224,7 @@ class Emulator:
         new_conversation = self.last_answer is None or now - self.last_answer > HOST_SILENCE
         if frame.type == P.FORCE:
             self.last_answer = now
+            self.answered = True
         if frame.type == P.HELLO_HOST:
             self.host_hellos += 1       # a (re)started host: forces off until it enables them again
             self.enabled = False
@@ -231,6 +233,7 @@ class Emulator:
             self._send(P.HELLO_DEVICE, self.hello)
             if new_conversation:
                 self.started = now
+                self.answered = False
                 if self.estop_sent_at is not None:  # the script's button, pressed to nobody: pressed in this one
                     self.estop_sent_at, self.estopped = None, False
         elif frame.type == P.ENABLE:
@@ -319,8 +322,7 @@ class Emulator:
                 self.rendered = [(0.0, 0.0, 0.0)] * self.n
                 self._send(P.ESTOP, P.estop(P.ESTOP_BUTTON))
                 if self.say is not None:    # a test waits for this, not for a time: who got it
-                    streaming = self.last_answer is not None and now - self.last_answer <= HOST_SILENCE
-                    self.say(f"ESTOP {t:.3f} {'streaming' if streaming else 'unanswered'}")
+                    self.say(f"ESTOP {t:.3f} {'streaming' if self.answered else 'unanswered'}")
             status = (P.STATUS_FORCES_ON if self.enabled else 0) | (P.STATUS_ESTOPPED if self.estopped else 0)
             positions = self.motion(t, self.n)
             turns = self.orientation(t, self.n) if self.host_takes_orientations else None
