@@ -495,6 +495,8 @@ static void test_two_devices(void) {
 typedef struct Drained {
     int records, nonzero, unmatched;
     double last[3];
+    double last_nonzero[3]; /* the last record with a force: a busy machine may pause this thread
+                             * past the frame's TTL before it drains, and the last is zero then */
 } Drained;
 
 /* A record's device force (scene axes) is what some force frame carried (device axes), mapped
@@ -508,7 +510,7 @@ static int sent_in_some_frame(const Dev *d, const double f[3]) {
 }
 
 static Drained drain(gcWorld *w, const Dev *d) {
-    Drained out = {0, 0, 0, {0, 0, 0}};
+    Drained out = {0, 0, 0, {0, 0, 0}, {0, 0, 0}};
     size_t size = gc_tick_record_size(1, 1);
     static unsigned char buf[4096 * 1024];
     int n;
@@ -519,6 +521,7 @@ static Drained drain(gcWorld *w, const Dev *d) {
             if (f[0] != 0 || f[1] != 0 || f[2] != 0) {
                 out.nonzero++;
                 out.unmatched += !sent_in_some_frame(d, f);
+                memcpy(out.last_nonzero, f, sizeof f);
             }
             memcpy(out.last, f, sizeof f);
         }
@@ -612,11 +615,13 @@ static void test_recorded_forces(void) {
     GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-6, "3 N sent (clamped in device axes): %.4f", force_z(&dev));
     stream(&dev, 100, 0.049);
     dr = drain(w, &dev);
-    GC_CHECK(dr.nonzero > 50 && dr.unmatched == 0, "enabled: %d records with a device force, %d not sent in any frame",
+    /* (How many records carry it depends on how late a busy machine runs this thread and the
+     * frames' 20 ms TTL: some, every one of them sent.) */
+    GC_CHECK(dr.nonzero > 0 && dr.unmatched == 0, "enabled: %d records with a device force, %d not sent in any frame",
              dr.nonzero, dr.unmatched);
-    GC_CHECK(dr.last[0] == 0 && dr.last[1] == 0 && dr.last[2] == 1.5,
-             "recorded (%g %g %g): the 3 N sent, in scene axes 1.5 N (the spring is 10 N)", dr.last[0], dr.last[1],
-             dr.last[2]);
+    GC_CHECK(dr.last_nonzero[0] == 0 && dr.last_nonzero[1] == 0 && dr.last_nonzero[2] == 1.5,
+             "recorded (%g %g %g): the 3 N sent, in scene axes 1.5 N (the spring is 10 N)", dr.last_nonzero[0],
+             dr.last_nonzero[1], dr.last_nonzero[2]);
 
     /* The device's stop button: ESTOP(1). Forces zero from then on, on both sides. */
     double before = world_time(w);
@@ -656,7 +661,7 @@ static void test_recorded_forces(void) {
     gc_world_serial_enable(w, id, 1);
     for (double end_ = now_s() + STATE_DEADLINE_S; now_s() < end_ && fabs(force_z(&dev) - 3.0) >= 1e-6;) stream(&dev, 50, 0.049);
     dr = drain(w, &dev);
-    GC_CHECK(dr.last[2] == 1.5 && dr.unmatched == 0, "forces again: %g", dr.last[2]);
+    GC_CHECK(dr.last_nonzero[2] == 1.5 && dr.unmatched == 0, "forces again: %g", dr.last_nonzero[2]);
     sleep_ms(60);
     dr = drain(w, &dev);
     GC_CHECK(dr.records > 5 && dr.last[2] == 0.0, "silent past the TTL: %d records, last %g", dr.records, dr.last[2]);
