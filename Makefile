@@ -108,12 +108,13 @@ test-devices: core
 #                     pty of the user: two of them at once would talk to each other's devices;
 #   TEST_STAGES       beside them and each other: they share nothing at run time.
 # The end prints each stage's result and time (and the end of a failed stage's log), and fails
-# if any failed. test-blender-* (addon.mk) run tests/blender on bpy 4.5, 4.2 and 5.0.1 (those two
-# only -m multiversion, which uses no pty); test-gui (addon.mk) the extension in a real GUI Blender
-# under Xvfb. A new stage: a target that needs nothing another stage builds at run time (or put
+# if any failed. test-blender-* (addon.mk) run tests/blender on bpy 4.5 (its files that open a pty,
+# and the rest), 4.2 and 5.0.1 (those two only -m multiversion, which uses no pty); test-gui
+# (addon.mk) the extension in a real GUI Blender under Xvfb. A new stage: a target that needs nothing another stage builds at run time (or put
 # that in TEST_PREREQS), its name added to TEST_PTY_STAGES if it opens a pty, else TEST_STAGES.
-TEST_PTY_STAGES := test-blender-45 test-devices test-gui
-TEST_STAGES := test-c-asan test-c-tsan test-core test-blender-42 test-blender-50 test-c check-layers
+TEST_PTY_STAGES := test-blender-45-pty test-devices test-gui
+TEST_STAGES := test-blender-45-rest test-c-asan test-c-tsan test-core test-blender-42 test-blender-50 test-c \
+               check-layers
 TEST_PREREQS := core extension venv-bpy42 venv-bpy50 $(addprefix $(BUILD)/c/,$(C_TESTS))
 TEST_JOBS ?= 3
 TEST_LOGS := $(BUILD)/test-logs
