@@ -253,9 +253,8 @@ def test_emulator_orientation_tilts_a_palm_under_a_plate():
                             points=box(0.045, 0.04, 0.01))
     plate = world.add_body(box(0.1, 0.1, 0.005), mass=0.4, position=(0, 0, 0.005))
     # Under load (both cores busy) the plate is sometimes flung off the turning palm (3 of 20
-    # runs at normal priority, 2 of 20 with the haptic loop at SCHED_FIFO): the object manager
-    # falls behind the palm's real-time turn. An open defect of the runtime under overload
-    # (docs/testing.md), not hidden here.
+    # runs at normal priority, 2 of 20 with the haptic loop at SCHED_FIFO): an open defect of the
+    # runtime under overload, its cause not found yet (docs/testing.md), not hidden here.
     world.start(priority=0, ramp_time=0.0, watchdog_timeout=0.05)
     emu = Emulator("--fingers", "1", "--motion", "static", "--orientation", "tilt")
     frame = np.eye(4)
