@@ -414,13 +414,20 @@ def build_parser(parser=None):
     return p
 
 
-DEVICE_NICE = -10       # the emulator stands in for a device's own microcontroller
+DEVICE_PRIORITY = 10    # SCHED_FIFO, below the host's haptic loop (80) and device threads (70)
+DEVICE_NICE = -10       # where real-time scheduling is refused
 
 
 def _as_a_device_would_run():
-    """A device runs on its own processor: a busy host does not pause it. The emulator asks for a
-    higher scheduling priority (nice -10) where it may (root, or CAP_SYS_NICE), so that the host's
-    load does not pause its stream as no real device would be; elsewhere it runs as it is."""
+    """A device runs on its own processor: a busy host does not pause it. The emulator (which
+    sleeps between poses, never spins) asks for real-time scheduling below the host's own
+    threads, else for nice -10, where it may (root, or CAP_SYS_NICE), so that the host's load
+    does not pause its stream as no real device would be; elsewhere it runs as it is."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(DEVICE_PRIORITY))
+        return
+    except (PermissionError, OSError, AttributeError):
+        pass
     try:
         if os.getpriority(os.PRIO_PROCESS, 0) > DEVICE_NICE:
             os.setpriority(os.PRIO_PROCESS, 0, DEVICE_NICE)
