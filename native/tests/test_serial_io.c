@@ -322,6 +322,8 @@ static void test_device_thread(void) {
     stream(&dev, 50, 0.098);
     gcSerialStats st;
     WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.frame_errors[GC_FRAME_RANGE] >= 2 && st.dropped >= 4));
+    /* Streaming on (a busy machine may pause this thread's stream past lost_timeout: then streaming again). */
+    WAIT_UNTIL((stream(&dev, 5, 0.098), gc_world_serial_stats(w, id, &st), st.state == GC_SERIAL_STREAMING));
     GC_CHECK(st.state == GC_SERIAL_STREAMING && st.frame_errors[GC_FRAME_RANGE] == 2 && st.dropped >= 4,
              "state %d, range %llu, dropped %llu", st.state, (unsigned long long)st.frame_errors[GC_FRAME_RANGE],
              (unsigned long long)st.dropped);
@@ -343,6 +345,7 @@ static void test_device_thread(void) {
         stream(&dev, 2, 0.098);
     }
     WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.dropped > dropped_before + 40 && st.poses >= poses_before + 75));
+    WAIT_UNTIL((stream(&dev, 5, 0.098), gc_world_serial_stats(w, id, &st), st.state == GC_SERIAL_STREAMING));
     GC_CHECK(st.state == GC_SERIAL_STREAMING && st.dropped > dropped_before + 40 && st.poses >= poses_before + 75,
              "after noise: state %d, dropped %llu (was %llu), poses %llu (was %llu)", st.state,
              (unsigned long long)st.dropped, (unsigned long long)dropped_before, (unsigned long long)st.poses,
