@@ -18,7 +18,8 @@ CFLAGS_COMMON := $(CORE_FLAGS) -Werror -Inative/include -Inative/src
 C_TESTS := $(patsubst native/tests/%.c,%,$(wildcard native/tests/test_*.c))
 CORE_OBJ := $(CORE_SRC:native/src/%.c=%.o)
 
-.PHONY: all venv core lib check-layers layers-table demo test test-c test-c-asan test-c-tsan test-py bench clean
+.PHONY: all venv core lib check-layers layers-table demo test test-c test-c-asan test-c-tsan test-py bench clean \
+        test-under-load flake-hunt test-fast stage-pty-chain test-core test-devices
 
 all: core
 
@@ -95,12 +96,71 @@ test-c-tsan: $(addprefix $(BUILD)/c-tsan/,$(TSAN_TESTS))
 	@for t in $^; do echo "== $$t (TSan)"; TSAN_OPTIONS=halt_on_error=1 $$t || exit 1; done
 
 # --- Python tests ---------------------------------------------------------------
-test-py: core
-	$(PY) -m pytest -q tests/core tests/devices
+test-py: test-core test-devices
 
-# test-blender (addon.mk) runs tests/blender on bpy 4.5, 4.2 and 5.0.1; test-gui (addon.mk)
-# the extension in a real GUI Blender under Xvfb.
-test: check-layers test-c test-c-asan test-c-tsan test-py test-blender test-gui
+# tests/core (no pty: beside anything) and tests/devices (emulators on ptys, Find Devices).
+test-core: core
+	$(PY) -m pytest -q tests/core
+
+test-devices: core
+	$(PY) -m pytest -q tests/devices
+
+# --- make test: the stages side by side (docs/testing.md) --------------------------------
+# What the stages share is built first, once (TEST_PREREQS: the venv and core, the extension,
+# the bpy 4.2 / 5.0.1 venvs, the plain C library and tests). Then two kinds of stages run side by
+# side, TEST_JOBS at a time, each stage's output in build/test-logs/STAGE.log:
+#   TEST_PTY_STAGES   one after another: they start device emulators on pseudo-terminals, and
+#                     Find Devices (in tests/devices, tests/blender, tests/gui) probes every raw
+#                     pty of the user: two of them at once would talk to each other's devices;
+#   TEST_STAGES       beside them and each other: they share nothing at run time.
+# The end prints each stage's result and time (and the end of a failed stage's log), and fails
+# if any failed. test-blender-* (addon.mk) run tests/blender on bpy 4.5 (its files that open a pty,
+# and the rest), 4.2 and 5.0.1 (those two only -m multiversion, which uses no pty); test-gui
+# (addon.mk) the extension in a real GUI Blender under Xvfb. A new stage: a target that needs nothing another stage builds at run time (or put
+# that in TEST_PREREQS), its name added to TEST_PTY_STAGES if it opens a pty, else TEST_STAGES.
+TEST_PTY_STAGES := test-blender-45-pty test-devices test-gui
+TEST_STAGES := test-blender-45-rest test-c-asan test-c-tsan test-core test-blender-42 test-blender-50 test-c \
+               check-layers
+TEST_PREREQS := core extension venv-bpy42 venv-bpy50 $(addprefix $(BUILD)/c/,$(C_TESTS))
+TEST_JOBS ?= 3
+TEST_LOGS := $(BUILD)/test-logs
+
+test:
+	@rm -rf $(TEST_LOGS) && mkdir -p $(TEST_LOGS) && date +%s > $(TEST_LOGS)/.start
+	@tests/load/run_stage.sh prepare $(TEST_LOGS) $(MAKE) --no-print-directory $(TEST_PREREQS)
+	@if grep -q FAILED $(TEST_LOGS)/prepare.result; then tail -n 40 $(TEST_LOGS)/prepare.log; exit 1; fi
+	@$(MAKE) --no-print-directory -j$(TEST_JOBS) stage-pty-chain $(addprefix stage-,$(TEST_STAGES))
+	@tests/load/stage_summary.sh $(TEST_LOGS) prepare $(TEST_PTY_STAGES) $(TEST_STAGES)
+
+stage-pty-chain:
+	@for s in $(TEST_PTY_STAGES); do tests/load/run_stage.sh $$s $(TEST_LOGS) $(MAKE) --no-print-directory $$s; done
+
+stage-%:
+	@tests/load/run_stage.sh $* $(TEST_LOGS) $(MAKE) --no-print-directory $*
+
+# For iteration (docs/testing.md, README): the layers, the plain C tests, tests/core and
+# tests/devices, and tests/blender's multiversion subset on bpy 4.5; not the sanitizers, not
+# the rest of tests/blender, not the GUI. At most 2 minutes on a quiet 2-core machine.
+test-fast: core extension $(addprefix $(BUILD)/c/,$(C_TESTS))
+	@rm -rf $(TEST_LOGS) && mkdir -p $(TEST_LOGS) && date +%s > $(TEST_LOGS)/.start
+	@$(MAKE) --no-print-directory -j$(TEST_JOBS) stage-check-layers stage-test-c stage-test-core \
+	  stage-test-devices stage-test-blender-fast
+	@tests/load/stage_summary.sh $(TEST_LOGS) check-layers test-c test-core test-devices test-blender-fast
+
+# --- Under load (docs/testing.md) ----------------------------------------------------
+# Both cores kept busy by plain CPU hogs at normal priority (tests/load/under_load.sh starts them
+# and stops them however the command ends). No retries anywhere: a flake is a bug to fix.
+#   make test-under-load                         the whole of `make test`, under load
+#   make flake-hunt TEST=tests/x.py::test_y N=20  one test (or any pytest selection) N times under
+#                                                 load: says how many runs failed, keeps their logs
+N ?= 20
+test-under-load:
+	tests/load/under_load.sh $(MAKE) --no-print-directory test
+
+flake-hunt: core extension
+	@test -n "$(TEST)" || { echo "usage: make flake-hunt TEST='tests/...::test_name' [N=20]" >&2; exit 2; }
+	GRASP_LAB_REQUIRE_CORE=1 GRASP_LAB_ZIP=$(EXT_ZIP) tests/load/under_load.sh \
+	  tests/load/flake_hunt.sh $(N) $(BUILD)/flake-hunt $(PY) $(TEST)
 
 # --- The main job -------------------------------------------------------------
 # (a) the core alone, a table in the terminal; (b) the sample scene headless in Blender

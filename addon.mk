@@ -8,7 +8,7 @@
 #                      focused subset on bpy 4.2 (.venv-bpy42) and 5.0.1 (.venv-bpy50).
 
 .PHONY: extension extension-validate test-blender test-gui test-blender-45 test-blender-42 \
-        test-blender-50 venv-bpy42 venv-bpy50 clean-extension sample-scenes scenes fit-table blender-docs-image docs-images \
+        test-blender-50 test-blender-fast test-blender-45-pty test-blender-45-rest venv-bpy42 venv-bpy50 clean-extension sample-scenes scenes fit-table blender-docs-image docs-images \
         bench-blender
 
 EXT_VERSION := $(shell sed -n 's/^version *= *"\(.*\)"/\1/p' blender_manifest.toml | head -1)
@@ -65,8 +65,19 @@ venv-bpy50: .venv-bpy50/.deps
 
 # Full set on 4.5 (dev venv, graspcore installed there too); on 4.2 / 5.0.1 the
 # extension is installed from the zip and a focused subset runs (-m multiversion).
-test-blender-45: $(EXT_ZIP)
-	GRASP_LAB_REQUIRE_CORE=1 GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) -m pytest -q tests/blender
+# make test runs these two halves of it side by side with the other stages (docs/testing.md):
+# the files that open pseudo-terminals (device emulators, Find Devices, a --device) one after
+# another with the other such stages, found by what they call; the rest beside anything.
+BLENDER_PTY_TESTS := $(shell grep -l -E 'devices\.emulator|emulate_blend|devices_refresh|find_devices|openpty|hello_fingers|"--device"|serial:' tests/blender/test_*.py 2>/dev/null)
+BLENDER_OTHER_TESTS := $(filter-out $(BLENDER_PTY_TESTS),$(wildcard tests/blender/test_*.py))
+
+test-blender-45: test-blender-45-pty test-blender-45-rest
+
+test-blender-45-pty: $(EXT_ZIP)
+	GRASP_LAB_REQUIRE_CORE=1 GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) -m pytest -q $(BLENDER_PTY_TESTS)
+
+test-blender-45-rest: $(EXT_ZIP)
+	GRASP_LAB_REQUIRE_CORE=1 GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) -m pytest -q $(BLENDER_OTHER_TESTS)
 
 test-blender-42: $(EXT_ZIP) .venv-bpy42/.deps
 	GRASP_LAB_REQUIRE_CORE=1 GRASP_LAB_ZIP=$(EXT_ZIP) .venv-bpy42/bin/python -m pytest -q -m multiversion tests/blender
@@ -75,6 +86,10 @@ test-blender-50: $(EXT_ZIP) .venv-bpy50/.deps
 	GRASP_LAB_REQUIRE_CORE=1 GRASP_LAB_ZIP=$(EXT_ZIP) .venv-bpy50/bin/python -m pytest -q -m multiversion tests/blender
 
 test-blender: test-blender-45 test-blender-42 test-blender-50
+
+# make test-fast's share of tests/blender: the multiversion subset on bpy 4.5.
+test-blender-fast: $(EXT_ZIP)
+	GRASP_LAB_REQUIRE_CORE=1 GRASP_LAB_ZIP=$(EXT_ZIP) $(PY) -m pytest -q -m multiversion tests/blender
 
 # A real GUI Blender (docs/gui-tests.md): Debian 13's Blender 4.3 in a chroot cached in
 # ~/.cache/grasp-lab (built once, as root), or BLENDER=/path/to/blender. Where it cannot be

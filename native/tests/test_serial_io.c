@@ -199,19 +199,22 @@ static void sleep_ms(int ms) {
     nanosleep(&ts, NULL);
 }
 
-/* The state a test waits for may take long on a busy machine (both cores taken, ASan, TSan): every
- * wait is on state with one generous deadline, never a count of ticks or a window of time. */
-#define DEADLINE_S 30.0
-static double seconds_now(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+/* Seconds on the monotonic clock. */
+static double now_s(void) {
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
 }
-/* Waits (up to DEADLINE_S, a millisecond at a time) for `cond`, re-evaluated each time; the check
- * after it says what was seen when it did not come. */
-#define WAIT_UNTIL(cond) for (double wait_t0_ = seconds_now(); seconds_now() - wait_t0_ < DEADLINE_S && !(cond);) sleep_ms(1)
-/* Streams poses (`ms` a round) until `cond` holds, up to DEADLINE_S. */
-#define STREAM_UNTIL(cond, dev, ms, z) for (double stream_t0_ = seconds_now(); seconds_now() - stream_t0_ < DEADLINE_S && !(cond);) stream((dev), (ms), (z))
+
+/* How long a test waits for a state before it fails (docs/testing.md): only a bound on a hang;
+ * a busy machine may take seconds where a quiet one takes milliseconds. */
+#define STATE_DEADLINE_S 60.0
+
+/* Waits (up to STATE_DEADLINE_S, a millisecond at a time) for `cond`, re-evaluated each time: what the
+ * device and haptic threads do is checked, not how soon a loaded machine lets them do it
+ * (how soon over a real pty, the let-go's 0.25 s included: bench/bench_unplug.py). */
+#define WAIT_UNTIL(cond) \
+    for (double wait_end_ = now_s() + STATE_DEADLINE_S; !(cond) && now_s() < wait_end_;) sleep_ms(1)
 
 /* Poses for `ms` milliseconds, one a millisecond, reading what comes back in between. */
 static void stream(Dev *d, int ms, double z) {
@@ -305,7 +308,7 @@ static void test_device_thread(void) {
     /* The 50 ms ramp is over by now; on a loaded machine the frames that say so can come late
      * (and the enable itself may be taken up late: the ramp is judged by the frames, not by
      * what one frame a fixed time after the enable says). */
-    STREAM_UNTIL(fabs(force_z(&dev) - 3.0) < 1e-5, &dev, 50, 0.098);
+    for (double end_ = now_s() + STATE_DEADLINE_S; now_s() < end_ && fabs(force_z(&dev) - 3.0) >= 1e-5;) stream(&dev, 50, 0.098);
     GC_CHECK(dev.ramp_frames - before >= 5, "ramping in: %d frames between 0 and 3 N", dev.ramp_frames - before);
     GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-5, "clamped to the device's 3 N: %.4f", force_z(&dev));
     GC_CHECK(dev.last_enable == 1, "ENABLE(1) sent");
@@ -319,14 +322,17 @@ static void test_device_thread(void) {
     stream(&dev, 50, 0.098);
     gcSerialStats st;
     WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.frame_errors[GC_FRAME_RANGE] >= 2 && st.dropped >= 4));
+    /* Streaming on (a busy machine may pause this thread's stream past lost_timeout: then streaming again). */
+    WAIT_UNTIL((stream(&dev, 5, 0.098), gc_world_serial_stats(w, id, &st), st.state == GC_SERIAL_STREAMING));
     GC_CHECK(st.state == GC_SERIAL_STREAMING && st.frame_errors[GC_FRAME_RANGE] == 2 && st.dropped >= 4,
              "state %d, range %llu, dropped %llu", st.state, (unsigned long long)st.frame_errors[GC_FRAME_RANGE],
              (unsigned long long)st.dropped);
     GC_CHECK(st.device_fingers == 1 && !strcmp(st.name, "test") && st.enabled == 1, "capabilities: %d '%s'",
              st.device_fingers, st.name);
-    /* Sanity only (the rates and latencies are benchmarked: bench/bench_serial.py). */
-    GC_CHECK(st.pose_rate > 200 && st.latency_p99_us > 0 && st.latency_p99_us < 100000, "rate %.0f Hz, p99 %.0f us",
-             st.pose_rate, st.latency_p99_us);
+    /* Measured (the rates and latencies are benchmarked: bench/bench_serial.py; a busy machine may
+     * pause this thread's stream for longer than the rate's 0.25 s window). */
+    GC_CHECK(st.poses > 100 && st.latency_p99_us > 0, "poses %llu, p99 %.0f us", (unsigned long long)st.poses,
+             st.latency_p99_us);
 
     /* Random bytes between poses: never a crash (ASan), dropped and counted, poses go on. */
     uint64_t dropped_before = st.dropped, poses_before = st.poses;
@@ -339,6 +345,7 @@ static void test_device_thread(void) {
         stream(&dev, 2, 0.098);
     }
     WAIT_UNTIL((gc_world_serial_stats(w, id, &st), st.dropped > dropped_before + 40 && st.poses >= poses_before + 75));
+    WAIT_UNTIL((stream(&dev, 5, 0.098), gc_world_serial_stats(w, id, &st), st.state == GC_SERIAL_STREAMING));
     GC_CHECK(st.state == GC_SERIAL_STREAMING && st.dropped > dropped_before + 40 && st.poses >= poses_before + 75,
              "after noise: state %d, dropped %llu (was %llu), poses %llu (was %llu)", st.state,
              (unsigned long long)st.dropped, (unsigned long long)dropped_before, (unsigned long long)st.poses,
@@ -350,12 +357,14 @@ static void test_device_thread(void) {
     GC_CHECK(st.state == GC_SERIAL_LOST && fabs(sp[2]) < 1e-6, "silent: state %d, spring %.6f N", st.state, sp[2]);
     /* Poses again: it holds again. */
     stream(&dev, 100, 0.098);
-    STREAM_UNTIL((spring(w, sp), fabs(sp[2] - 10.0) < 0.5), &dev, 50, 0.098);
+    for (double end_ = now_s() + STATE_DEADLINE_S; now_s() < end_ && (spring(w, sp), fabs(sp[2] - 10.0) >= 0.5);) stream(&dev, 50, 0.098);
     GC_CHECK(fabs(sp[2] - 10.0) < 0.5, "recovered: spring %.3f N", sp[2]);
     /* Hang-up: let go again. */
     close(dev.fd);
     WAIT_UNTIL((spring(w, sp), gc_world_serial_stats(w, id, &st), st.state == GC_SERIAL_HANGUP && fabs(sp[2]) < 1e-6));
-    GC_CHECK(st.state == GC_SERIAL_HANGUP && fabs(sp[2]) < 1e-6 && st.disconnects == 2, "hang-up: state %d, spring %.6f, %llu",
+    /* (Two losses at least: the silence, the hang-up; a busy machine's pause of this thread's
+     * stream may add one.) */
+    GC_CHECK(st.state == GC_SERIAL_HANGUP && fabs(sp[2]) < 1e-6 && st.disconnects >= 2, "hang-up: state %d, spring %.6f, %llu",
              st.state, sp[2], (unsigned long long)st.disconnects);
     gcSerialEvent ev[64];
     int n = gc_world_serial_events(w, id, ev, 64), seen = 0;
@@ -489,6 +498,8 @@ static void test_two_devices(void) {
 typedef struct Drained {
     int records, nonzero, unmatched;
     double last[3];
+    double last_nonzero[3]; /* the last record with a force: a busy machine may pause this thread
+                             * past the frame's TTL before it drains, and the last is zero then */
 } Drained;
 
 /* A record's device force (scene axes) is what some force frame carried (device axes), mapped
@@ -502,7 +513,7 @@ static int sent_in_some_frame(const Dev *d, const double f[3]) {
 }
 
 static Drained drain(gcWorld *w, const Dev *d) {
-    Drained out = {0, 0, 0, {0, 0, 0}};
+    Drained out = {0, 0, 0, {0, 0, 0}, {0, 0, 0}};
     size_t size = gc_tick_record_size(1, 1);
     static unsigned char buf[4096 * 1024];
     int n;
@@ -513,6 +524,7 @@ static Drained drain(gcWorld *w, const Dev *d) {
             if (f[0] != 0 || f[1] != 0 || f[2] != 0) {
                 out.nonzero++;
                 out.unmatched += !sent_in_some_frame(d, f);
+                memcpy(out.last_nonzero, f, sizeof f);
             }
             memcpy(out.last, f, sizeof f);
         }
@@ -602,15 +614,17 @@ static void test_recorded_forces(void) {
              dr.nonzero);
 
     gc_world_serial_enable(w, id, 1);
-    STREAM_UNTIL(fabs(force_z(&dev) - 3.0) < 1e-6, &dev, 50, 0.049);
+    for (double end_ = now_s() + STATE_DEADLINE_S; now_s() < end_ && fabs(force_z(&dev) - 3.0) >= 1e-6;) stream(&dev, 50, 0.049);
     GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-6, "3 N sent (clamped in device axes): %.4f", force_z(&dev));
     stream(&dev, 100, 0.049);
     dr = drain(w, &dev);
-    GC_CHECK(dr.nonzero > 50 && dr.unmatched == 0, "enabled: %d records with a device force, %d not sent in any frame",
+    /* (How many records carry it depends on how late a busy machine runs this thread and the
+     * frames' 20 ms TTL: some, every one of them sent.) */
+    GC_CHECK(dr.nonzero > 0 && dr.unmatched == 0, "enabled: %d records with a device force, %d not sent in any frame",
              dr.nonzero, dr.unmatched);
-    GC_CHECK(dr.last[0] == 0 && dr.last[1] == 0 && dr.last[2] == 1.5,
-             "recorded (%g %g %g): the 3 N sent, in scene axes 1.5 N (the spring is 10 N)", dr.last[0], dr.last[1],
-             dr.last[2]);
+    GC_CHECK(dr.last_nonzero[0] == 0 && dr.last_nonzero[1] == 0 && dr.last_nonzero[2] == 1.5,
+             "recorded (%g %g %g): the 3 N sent, in scene axes 1.5 N (the spring is 10 N)", dr.last_nonzero[0],
+             dr.last_nonzero[1], dr.last_nonzero[2]);
 
     /* The device's stop button: ESTOP(1). Forces zero from then on, on both sides. */
     double before = world_time(w);
@@ -633,7 +647,7 @@ static void test_recorded_forces(void) {
 
     /* Forces on again; then an e-stop whose ESTOP frame was lost: only the poses' status says so. */
     gc_world_serial_enable(w, id, 1);
-    STREAM_UNTIL(fabs(force_z(&dev) - 3.0) < 1e-6, &dev, 50, 0.049);
+    for (double end_ = now_s() + STATE_DEADLINE_S; now_s() < end_ && fabs(force_z(&dev) - 3.0) >= 1e-6;) stream(&dev, 50, 0.049);
     GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-6, "re-enabled: %.4f", force_z(&dev));
     stream(&dev, 60, 0.049); /* past the grace after ENABLE(1) */
     dev.status = GC_STATUS_ESTOPPED;
@@ -648,9 +662,9 @@ static void test_recorded_forces(void) {
     /* Forces on, then silence: the record goes to zero when the last frame's TTL (20 ms) is over. */
     dev.status = 0;
     gc_world_serial_enable(w, id, 1);
-    STREAM_UNTIL(fabs(force_z(&dev) - 3.0) < 1e-6, &dev, 50, 0.049);
+    for (double end_ = now_s() + STATE_DEADLINE_S; now_s() < end_ && fabs(force_z(&dev) - 3.0) >= 1e-6;) stream(&dev, 50, 0.049);
     dr = drain(w, &dev);
-    GC_CHECK(dr.last[2] == 1.5 && dr.unmatched == 0, "forces again: %g", dr.last[2]);
+    GC_CHECK(dr.last_nonzero[2] == 1.5 && dr.unmatched == 0, "forces again: %g", dr.last_nonzero[2]);
     sleep_ms(60);
     dr = drain(w, &dev);
     GC_CHECK(dr.records > 5 && dr.last[2] == 0.0, "silent past the TTL: %d records, last %g", dr.records, dr.last[2]);
@@ -716,7 +730,7 @@ static void test_recorded_forces_are_the_frames(void) {
     dev_send(&dev, GC_MSG_HELLO_DEVICE, hello, 12);
     stream(&dev, 400, 0.0); /* the soft start walks the HIP there (5 cm at 0.2 m/s) */
     gc_world_serial_enable(w, id, 1);
-    STREAM_UNTIL(force_z(&dev) > 1.0, &dev, 50, 0.0);
+    for (double end_ = now_s() + STATE_DEADLINE_S; now_s() < end_ && !(force_z(&dev) > 1.0);) stream(&dev, 50, 0.0);
     stream(&dev, 100, 0.0);
     double sp[3];
     spring(w, sp);
@@ -819,7 +833,7 @@ static void test_estop_in_status_before_enable(void) {
     gc_world_serial_enable(w, id, 1);
     WAIT_UNTIL((dev_read(&dev, 1), dev.last_enable == 1));
     dev.status = 0;
-    STREAM_UNTIL(fabs(force_z(&dev) - 3.0) < 1e-6, &dev, 50, -0.002);
+    for (double end_ = now_s() + STATE_DEADLINE_S; now_s() < end_ && fabs(force_z(&dev) - 3.0) >= 1e-6;) stream(&dev, 50, -0.002);
     gc_world_serial_stats(w, id, &st);
     GC_CHECK(fabs(force_z(&dev) - 3.0) < 1e-6 && st.estops == 1 && st.enabled,
              "enabled: %.4f N sent, %d e-stops", force_z(&dev), (int)st.estops);
@@ -1025,7 +1039,7 @@ static void test_udp(void) {
     GC_CHECK(gc_world_attach_serial(w, host, &sd, &id) == GC_OK, "attach udp: %s", gc_world_last_error(w));
     uint8_t buf[512];
     ssize_t k = -1;
-    for (int i = 0; i < 200 && k < 0; ++i, sleep_ms(1)) k = recv(dev, buf, sizeof buf, 0);
+    for (double end_ = now_s() + STATE_DEADLINE_S; k < 0 && now_s() < end_; sleep_ms(1)) k = recv(dev, buf, sizeof buf, 0);
     gcFrame fr;
     GC_CHECK(k > 1 && gc_frame_decode(buf, (size_t)k - 1, &fr) == GC_FRAME_OK && fr.type == GC_MSG_HELLO_HOST,
              "HELLO_HOST to the configured address (%zd bytes)", k);
@@ -1176,6 +1190,44 @@ static void test_soft_start(void) {
         GC_CHECK(gc_world_stop(w) == GC_OK, "stop");
         for (int i = 0; i < 2; ++i) GC_CHECK(gc_world_set_hip(w, i, back) == GC_OK, "home");
     }
+    gc_world_destroy(w);
+}
+
+/* A device that falls silent halfway through its soft start (a busy machine pausing it) and then
+ * streams again: the sample after the silence is walked over a long segment (slower than the soft
+ * speed), and the next one, a tick later, asks for the rest of the way at once. The soft start
+ * holds until the HIP is at the device's pose: no tick moves it more than the soft speed allows.
+ * (Sample times are the real clock's: the sleep makes the silence at least 0.3 s, whatever the load.) */
+static void test_soft_start_survives_a_silence(void) {
+    gcWorld *w = NULL;
+    gcWorldDef wd = gc_default_world_def();
+    GC_CHECK(gc_world_create(&wd, &w) == GC_OK, "create");
+    gcFingerDef fd = gc_default_finger_def();
+    int32_t f0;
+    GC_CHECK(gc_world_add_finger(w, &fd, &f0) == GC_OK, "finger");
+    gcRuntimeDef rd = gc_default_runtime_def();
+    rd.realtime = 0;
+    const double step = GC_HIP_SOFT_START_SPEED / rd.haptic_rate;
+    const double far[3] = {0.0, 0.0, 0.05};
+    GC_CHECK(gc_world_start(w, &rd) == GC_OK, "start: %s", gc_world_last_error(w));
+    double prev[3], h[3], max_step = 0;
+    hip_of(w, prev);
+    int arrived = -1;
+    for (int tick = 0; tick < 2000 && arrived < 0; ++tick) {
+        if (tick == 0 || tick == 131 || tick >= 132) GC_CHECK(gc_world_push_device_hips(w, 0, 1, far) == GC_OK, "push");
+        if (tick == 131) sleep_ms(300); /* 2.6 cm walked, 2.4 cm to go: silence, then a sample */
+        GC_CHECK(gc_world_advance(w, 1, 0.0) == GC_OK, "advance");
+        hip_of(w, h);
+        double s2 = 0;
+        for (int c = 0; c < 3; ++c) s2 += (h[c] - prev[c]) * (h[c] - prev[c]);
+        max_step = fmax(max_step, sqrt(s2));
+        memcpy(prev, h, sizeof h);
+        if (h[2] == far[2]) arrived = tick + 1;
+    }
+    GC_CHECK(max_step <= step * (1 + 1e-9), "after a silence: no tick moves the HIP more than %.3g m: %.6g m", step,
+             max_step);
+    GC_CHECK(arrived >= 250, "5 cm at the soft speed: arrived after %d ticks, wants at least 250", arrived);
+    GC_CHECK(gc_world_stop(w) == GC_OK, "stop");
     gc_world_destroy(w);
 }
 
@@ -1475,6 +1527,7 @@ int main(void) {
     test_crc_and_cobs();
     test_force_gate();
     test_soft_start();
+    test_soft_start_survives_a_silence();
     test_vectors();
     test_fuzzed_decoder();
     test_device_thread();

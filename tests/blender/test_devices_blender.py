@@ -1,6 +1,7 @@
 """The emulator playing a .blend's fingertip animation (``--from``) over a real pty."""
 import json
 import os
+import re
 import select
 import subprocess
 import sys
@@ -10,6 +11,7 @@ import tty
 import grasp_env
 import numpy as np
 import pytest
+from waiting import wait_until
 
 sys.path.insert(0, grasp_env.ROOT)
 from addon.engine.devices import protocol as P  # noqa: E402
@@ -65,15 +67,13 @@ def test_live_session_with_an_emulated_device(bpy, sample, core):
         session._active = s          # what the operator does: the panel and operators see it
         try:
             assert s.devices is not None and not s.source.interactive
-            t0 = time.perf_counter()
-            while time.perf_counter() - t0 < 1.5:
-                s.tick(time.perf_counter() - t0)
-                time.sleep(0.02)
-            assert list(s.snapshot.contacts) == [0, 0], s.snapshot.contacts   # both grip the box
+            wait_until(lambda: list(s.snapshot.contacts) == [0, 0], 60, "both fingertips gripping the box",
+                       seen=lambda: s.snapshot.contacts, poll=0.02, each=s.tick)
             assert bpy.ops.grasp_lab.device_forces(on=True) == {"FINISHED"}
-            time.sleep(0.1)
-            lines = scene_devices.status_lines(s.devices)
-            assert lines[0].startswith(f"{port}: streaming, fingers 0..1") and "forces enabled" in lines[0], lines
+            lines = wait_until(lambda: (lambda ls: "forces enabled" in ls[0] and ls)(scene_devices.status_lines(
+                s.devices)), 60, "the panel's status: forces enabled", seen=lambda: scene_devices.status_lines(
+                s.devices), poll=0.02)
+            assert lines[0].startswith(f"{port}: streaming, fingers 0..1"), lines
             assert lines[0] in s.hud_text()
         finally:
             session._active = None
@@ -161,20 +161,15 @@ def test_live_session_with_a_glove_in_the_device_list(bpy, core):
         entry = bpy.context.scene.grasp_lab_devices[0]
         assert entry.num_fingers == 5
         entry.frame = None                                   # hand frame = the scene
-        s = session.BlenderSession(bpy.context, live=True, duration=5.0)
+        s = session.BlenderSession(bpy.context, live=True, duration=120.0)
         try:
             assert not s.devices.failed, s.devices.failed
             os.write(master, b"A4095B2048C0D0E1000\n")
             curls = [1.0, 2048 / 4095, 0.0, 0.0, 1000 / 4095]
             # The tips start up to 45 cm from the glove's: the soft start walks them there at
-            # 0.2 m/s (docs/devices.md: 2.4 s), so poll until they are there (at most 4.8 s).
-            t0 = time.perf_counter()
-            while time.perf_counter() - t0 < 4.8:
-                s.tick(time.perf_counter() - t0)
-                time.sleep(0.02)
-                if np.allclose(s.snapshot.hips, G.fingertips(curls), atol=1e-9):
-                    break
-            assert np.allclose(s.snapshot.hips, G.fingertips(curls), atol=1e-9), s.snapshot.hips
+            # 0.2 m/s (docs/devices.md: 2.4 s of haptic ticks, longer on a busy machine).
+            wait_until(lambda: np.allclose(s.snapshot.hips, G.fingertips(curls), atol=1e-9), 60,
+                       "the glove's fingertips", seen=lambda: s.snapshot.hips, poll=0.02, each=s.tick)
             assert os.read(master, 4096).endswith(b"A0B0C0D0E0\n")     # forces off: a zero brake line
         finally:
             s.finish()
@@ -196,42 +191,82 @@ def test_run_device_drives_animated_fingers_forces_on_recording_is_the_truth(bpy
     assert bpy.data.objects["Finger 0"].animation_data is not None   # the fingertips stay keyframed
     blend, rec, log = tmp_path / "pinch.blend", tmp_path / "run.mcap", tmp_path / "forces.csv"
     bpy.ops.wm.save_as_mainfile(filepath=str(blend))
+    # The lift ends 1.5 s into streaming; the button at 2.5 s. The emulator's clock starts at the
+    # run's probe (a hello) and again at the session's: the test waits for the button pressed
+    # to the streaming session (the emulator says so), then unplugs it (SIGTERM: it reports and
+    # closes the pty), however long a busy machine took to get there. The session runs 10 s:
+    # 7.5 s after the button for the test to see it and unplug (every window below is found from
+    # the recording, not the clock).
     emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--motion", "lift",
-                            "--estop-at", "1.6", "--duration", "2.0", "--force-log", str(log)],
+                            "--estop-at", "2.5", "--force-log", str(log),
+                            "--wait", "600"],     # for the run's hello: Blender starts slowly on a busy machine
                            cwd=grasp_env.ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     launcher = os.path.join(grasp_env.ROOT, ".venv", "bin", "grasp-lab")
+    run = None
     try:
         port = emu.stdout.readline().split()[1]
-        r = subprocess.run([launcher, "run", str(blend), "--realtime", "--device", f"serial:{port}",
-                            "--forces", "on", "--duration", "3.0", "--record", str(rec)],
-                           capture_output=True, text=True, timeout=120)
-        out = emu.communicate(timeout=20)[0]
+        run = subprocess.Popen([launcher, "run", str(blend), "--realtime", "--device", f"serial:{port}",
+                                "--forces", "on", "--duration", "10.0", "--record", str(rec)],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        said = []
+
+        def pressed_to_the_session():
+            if select.select([emu.stdout], [], [], 0.1)[0]:
+                said.append(emu.stdout.readline())
+            return any(line.startswith("ESTOP ") and line.split()[2] == "streaming" for line in said) \
+                or run.poll() is not None
+        wait_until(pressed_to_the_session, 600, "the emulator's button pressed to the streaming session",
+                   seen=lambda: said, poll=0.0)
+        assert run.poll() is None, ("the run ended before the button", said, run.communicate())
+        emu.terminate()                      # the unplug
+        out, err = emu.communicate(timeout=60)
+        run_out, run_err = run.communicate(timeout=300)
     finally:
         emu.kill()
-    report = json.loads([line for line in out.splitlines() if line.startswith("REPORT ")][0][7:])
-    # The unplug (the emulator ended after 2 s of streaming) is said, and the exit code says so.
+        if run is not None:
+            run.kill()
+            run.wait()
+    r = subprocess.CompletedProcess(run.args, run.returncode, run_out, run_err)
+    reports = [line for line in out.splitlines() if line.startswith("REPORT ")]
+    assert reports, ("the emulator's report", out, err, r.stdout, r.stderr)
+    report = json.loads(reports[0][7:])
+    # The unplug is said, and the exit code says so.
     assert r.returncode == 3, (r.returncode, r.stdout, r.stderr)
     assert f"fingers: Finger 0, Finger 1: serial device {port}" in r.stdout, r.stdout
-    summary = [line for line in r.stdout.splitlines() if line.startswith(f"device {port}: ")]
-    assert summary and "0 frames dropped, 0 missing, 1 e-stops, 1 losses" in summary[0], r.stdout
-    assert f"grasp-lab run: device {port} lost at" in r.stderr and "(hang-up), not back by the end" in r.stderr, \
-        r.stderr
-
     recording = grasp_env.submodule("engine.recording").open_recording(str(rec))
     ticks, events = recording.ticks, recording.events
     t = ticks["time"]
     hip, device_force, spring = ticks["hip"], ticks["device_force"], ticks["force"]
     kinds = {e["kind"]: e for e in events}
-    t_estop, t_lost = kinds["device_estop"]["time"], kinds["device_lost"]["time"]
+    # The losses the recording holds: the unplug last; before it, on a busy machine, maybe a pause
+    # of the emulator longer than the 0.1 s lost_timeout (a silence, then recovered). The unplug
+    # itself is seen as a hang-up, or first as a silence when the emulator, ending, takes longer
+    # than that to write its log and close the pty. The summary says as many as the recording.
+    losses = [e for e in events if e["kind"] == "device_lost"]
+    assert losses and losses[-1]["value"] in (0, 1), events
+    how = "(hang-up)" if losses[-1]["value"] == 1 else "(silence)"
+    summary = [line for line in r.stdout.splitlines() if line.startswith(f"device {port}: ")]
+    counts = re.search(r"(\d+) frames dropped(?: \([^)]*\))?, (\d+) missing, 1 e-stops, (\d+) losses",
+                       summary[0] if summary else "")
+    assert counts and int(counts[3]) == len(losses), r.stdout
+    # Frames lost on the way: only those the emulator could not write (the pty full while a busy
+    # machine kept the host's thread from reading), as its report counts them.
+    assert int(counts[1]) + int(counts[2]) <= report["write_errors"], (summary, report["write_errors"])
+    assert f"grasp-lab run: device {port} lost at" in r.stderr and f"{how}, not back by the end" in r.stderr, \
+        r.stderr
+    t_conn, t_estop, t_lost = kinds["device_connected"]["time"], kinds["device_estop"]["time"], losses[-1]["time"]
     assert kinds["device_estop"]["value"] == 1 and kinds["device_enabled"]["value"] == 1, events
-    assert t_estop < t_lost
+    assert t_conn < t_estop < t_lost, events
 
     # The device drives its fingers: the emulator's lift (radius 3 cm, z up to 5 cm), not the
     # keyframes (whose fingertips stay 4.8 cm out and 2.5 cm above the table until frame 19).
-    holding = (t > t_estop - 0.09) & (t < t_estop)     # the lift ended 0.1 s before the button
-    assert holding.sum() > 30
+    # The hold (1 s of the emulator's, before its button): the ticks before the e-stop whose
+    # HIPs are at the lift's top, as the recording has them.
+    before = t < t_estop
+    at_top = np.all(np.abs(hip[:, :, 2] - 0.05) < 2e-3, axis=1)
+    holding = before & at_top
+    assert holding.sum() > 100, (holding.sum(), t[before][-5:], hip[before][-5:])
     np.testing.assert_allclose(np.abs(hip[holding][:, :, 0]), 0.03, atol=2e-3)
-    np.testing.assert_allclose(hip[holding][:, :, 2], 0.05, atol=2e-3)
     assert recording.ticks["pose"][holding][-1, 0, 2] > 0.02       # and lifted the box (from z = 0) with them
 
     # Forces reached the device, and the recording holds only forces the device received.
@@ -248,22 +283,23 @@ def test_run_device_drives_animated_fingers_forces_on_recording_is_the_truth(bpy
     # The stop button: zero from the e-stop on, in the recording and at the device, at its time.
     after = t >= t_estop
     assert not nonzero[after].any(), t[after][nonzero[after].any(axis=1)][:5]
-    assert nonzero[(t > t_estop - 0.3) & (t < t_estop)].any()               # on until then
+    assert nonzero[holding].any(), "no device force while the box was held up, before the e-stop"   # on until then
     assert report["forces_after_estop"] == 0 and report["violations"] == dict.fromkeys(report["violations"], 0)
     # The unplug: the fingers let go (no spring force) within 0.25 s.
     released = (t > t_lost + 0.25)
     assert released.any() and np.linalg.norm(spring[released], axis=2).max() < 1e-6
-    # Device events at the session time they were observed: the button was pressed 1.6 s of wall
-    # time after the device's hello, which came after the session started (session time is the
-    # haptic loop's, a little behind the wall on a loaded machine); no force is recorded after
+    # Device events at the session time they were observed (not the monotonic clock's stamps, not
+    # all at the end): the button was pressed 2.5 s of the emulator's time after the device's
+    # hello (the connected event; session time is the haptic loop's, a little behind the wall on
+    # a loaded machine, and a busy machine only delays the button); no force is recorded after
     # it. (How close the stamp is to the tick is checked in C, native/tests/test_serial_io.c:
     # here a loaded machine may pause the emulator, and the host's TTL zeroes the record first.)
     last_force = t[nonzero.any(axis=1)][-1]
-    assert 1.5 <= t_estop < 2.0 and last_force <= t_estop, (last_force, t_estop)
+    assert t_estop - t_conn >= 2.0 and t_lost < t[-1] and last_force <= t_estop, (t_conn, t_estop, last_force)
 
     info = subprocess.run([launcher, "info", str(rec)], capture_output=True, text=True, timeout=60).stdout
     assert f"Finger 0, Finger 1: serial device {port}" in info, info
-    assert f"device      {port} lost at" in info and "(hang-up), not back by the end" in info, info
+    assert f"device      {port} lost at" in info and f"{how}, not back by the end" in info, info
     subprocess.run([launcher, "export", str(rec), "--csv", str(tmp_path / "csv")], check=True, timeout=60,
                    capture_output=True)
     with open(tmp_path / "csv" / "events.csv") as fh:
@@ -364,15 +400,14 @@ def test_a_found_device_brings_its_finger_count_and_its_fingers_follow_it(bpy, s
         assert bpy.ops.grasp_lab.device_add(port=port) == {"FINISHED"}
         assert [(e.port, e.finger_offset, e.num_fingers) for e in entries] == [(port, 0, 2)]
         start = [tuple(t.matrix_world.translation) for t in tips]
-        s = session.BlenderSession(bpy.context, live=True, duration=10.0)
+        s = session.BlenderSession(bpy.context, live=True, duration=120.0)
         try:
-            t0 = time.perf_counter()
-            while time.perf_counter() - t0 < 2.0:
-                s.tick(time.perf_counter() - t0)
-                time.sleep(0.02)
-            hips = s.snapshot.hips
-            # The emulator's lift about the workspace frame at the box: 3 cm out, 5 cm up by now.
+            # The emulator's lift about the workspace frame at the box: 3 cm out, 5 cm up (after
+            # 1.5 s of its streaming; waited for, the session ticking as Blender's timer would).
             frame = np.array(entries[0].frame.matrix_world.translation)
+            wait_until(lambda: np.allclose(s.snapshot.hips[:2, 2] - frame[2], 0.05, atol=2e-3), 60,
+                       "the lift's top", seen=lambda: s.snapshot.hips, poll=0.02, each=s.tick)
+            hips = s.snapshot.hips
             np.testing.assert_allclose(np.abs(hips[:2, 0] - frame[0]), 0.03, atol=2e-3)
             np.testing.assert_allclose(hips[:2, 2] - frame[2], 0.05, atol=2e-3)
             for i, tip in enumerate(tips):

@@ -164,9 +164,9 @@ def test_an_output_that_is_an_input_is_refused_naming_both(files, tmp_path, comm
 
 def test_two_writers_of_one_path_the_second_is_refused(files, tmp_path):
     out = tmp_path / "two.mcap"
-    # Long enough that the two refused commands (each a Blender start, seconds on a loaded
-    # machine) run while the first still writes.
-    first = start("run", files["scene"], "--realtime", "--duration", "12", "--record", out)
+    # Writing until the test stops it (SIGTERM, once the two refused commands, each a Blender
+    # start, seconds or more on a loaded machine, have run): no duration to outlast.
+    first = start("run", files["scene"], "--realtime", "--duration", "600", "--record", out)
     try:
         partial = tmp_path / "two.mcap.partial"
         deadline = time.monotonic() + 60
@@ -177,13 +177,15 @@ def test_two_writers_of_one_path_the_second_is_refused(files, tmp_path):
         one_line_error(r, 1, "another Grasp Lab process", f"pid {first.pid}", "two.mcap.partial")
         r = grasp_lab("resim", files["rec"], "--record", out)
         one_line_error(r, 1, "another Grasp Lab process")
+        assert first.poll() is None, first.communicate()      # refused while the first still wrote
     finally:
+        first.send_signal(signal.SIGTERM)
         _, err = first.communicate(timeout=60)
-    assert first.returncode == 0, err
+    assert first.returncode == 143 and f"stopped by SIGTERM; finished {out}" in err, err
     g = Guard(out)
     g.check(may_write=[out])
     rec = recording.open_recording(out)
-    assert rec.damage == [] and rec.end["clean"] and rec.header["mode"] == "realtime"
+    assert rec.damage == [] and rec.end["ended_by"] == "SIGTERM" and rec.header["mode"] == "realtime"
 
 
 @pytest.mark.parametrize("args, needles", [
@@ -271,7 +273,7 @@ def test_a_signal_finishes_the_recording(files, tmp_path, sig, code, name, realt
     lines = [line for line in err.splitlines() if line.strip()]
     assert lines == [f"grasp-lab run: stopped by {name}; finished {out}"], err
     print(f"\n{name} {'real time' if realtime else 'EXEC'}: exited {answered:.3f} s after the signal")
-    assert answered < 5.0           # sanity only: docs/reliability.md has the measured times
+    assert answered < 30.0          # a hang only (a busy machine adds seconds): docs/reliability.md has the measured times
     rec = recording.open_recording(out)
     assert rec.damage == [] and rec.end["clean"] is False and rec.end["ended_by"] == name
     assert len(rec.ticks) > 10 and rec.end["ticks"] == len(rec.ticks)

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 import grasp_env
+from waiting import wait_until
 
 
 def _f32(v):
@@ -235,15 +236,13 @@ def test_live_session_on_the_threaded_runtime(bpy, sample, core):
     z0 = box.matrix_world.translation.z
     s = session.BlenderSession(bpy.context, live=True, duration=2.0)
     assert s.runner.threaded and s.runner.world.running
-    t0 = _time.perf_counter()
-    while _time.perf_counter() - t0 < 0.6:
-        s.tick(_time.perf_counter() - t0)
-        _time.sleep(0.02)
-    snap = s.snapshot
-    assert snap.time > 0.2                           # the haptic loop advanced on its own
-    assert list(snap.finger_states) == [1, 1]        # both fingertips hold the box (stick)
-    assert list(snap.contacts) == [0, 0]
-    assert box.matrix_world.translation.z != z0      # poses written back from snapshots
+    # Ticking as Blender's timer would until the haptic loop, on its own, has both fingertips
+    # holding the box (stick) and lifting it (its pose written back from the snapshots).
+    wait_until(lambda: s.snapshot is not None and s.snapshot.time > 0.2 and list(s.snapshot.finger_states) == [1, 1]
+               and list(s.snapshot.contacts) == [0, 0] and box.matrix_world.translation.z != z0, 60,
+               "both fingertips holding the box, lifting it",
+               seen=lambda: s.snapshot and (s.snapshot.time, s.snapshot.finger_states, s.snapshot.contacts,
+                                            box.matrix_world.translation.z - z0), poll=0.02, each=s.tick)
     stats = s.runner.stats()
     assert stats["runtime_haptic_rate"] > 0
     # The report is the C loop's own: rate, steps and step time are not the display's.
@@ -346,13 +345,12 @@ def test_palm_rotated_in_the_viewport_turns_in_the_core(bpy, core, threaded):
     bpy.context.view_layer.update()
     want = palm.matrix_world.to_quaternion().normalized()
     world, palm_id = s.runner.world, s.handle.finger_ids[0]
-    t0 = _time.perf_counter()
-    t = 0.0
-    while t < 0.5:
-        t = _time.perf_counter() - t0 if threaded else t + 0.05
-        s.tick(t)
-        if threaded:
-            _time.sleep(0.02)
+    if threaded:        # until the haptic loop has had 0.5 s of its own time to turn the palm
+        wait_until(lambda: s.snapshot is not None and s.snapshot.time >= 0.5, 60, "0.5 s of the haptic loop's time",
+                   seen=lambda: s.snapshot and s.snapshot.time, poll=0.02, each=s.tick)
+    else:
+        for k in range(1, 11):
+            s.tick(0.05 * k)
     s.finish()
     got = np.array(world.finger_pose(palm_id)[1])
     np.testing.assert_allclose(np.abs(got), np.abs([want.w, want.x, want.y, want.z]), atol=1e-7)

@@ -11,6 +11,7 @@ import pytest
 
 import graspcore
 from scenes import box_points
+from waiting import wait_until
 
 DT = 1e-3
 
@@ -260,9 +261,8 @@ def test_realtime_threads_with_inputs_and_snapshots_from_other_threads():
     threads = [threading.Thread(target=pusher), threading.Thread(target=reader)]
     for th in threads:
         th.start()
-    deadline = time.monotonic() + 10.0
-    while time.monotonic() < deadline and w.stats()["adopted_bodies"] != 1:
-        time.sleep(0.005)
+    wait_until(lambda: w.stats()["adopted_bodies"] == 1, 60, "the haptic loop to adopt the gripped box",
+               seen=lambda: w.stats()["adopted_bodies"])
     adopted = w.stats()["adopted_bodies"]
     w._debug_stall(0.02)                             # stop while the haptic loop is stalled
     time.sleep(0.002)
@@ -296,13 +296,10 @@ def test_haptic_thread_reports_its_setup():
         if tasks.is_dir():
             # start() waits for the haptic thread's set-up only; the object manager names
             # itself as it starts, a moment later.
-            deadline = time.monotonic() + 2.0
-            while True:
-                names = {(t / "comm").read_text().strip() for t in tasks.iterdir()}
-                if {"gc-haptic", "gc-object"} <= names or time.monotonic() > deadline:
-                    break
-                time.sleep(0.001)
-            assert {"gc-haptic", "gc-object"} <= names, names
+            def names():
+                return {(t / "comm").read_text().strip() for t in tasks.iterdir()}
+            wait_until(lambda: {"gc-haptic", "gc-object"} <= names(), 60, "both threads named", seen=names,
+                       poll=0.001)
         w.stop()
 
 

@@ -24,7 +24,7 @@ def run_cli(*args, timeout=30):
 
 def test_devices_probe_finds_the_emulator():
     emu = subprocess.Popen(GRASP_LAB + ["emulate", "--pty",
-                            "--fingers", "3", "--duration", "0.3", "--force-max", "2.5"],
+                            "--fingers", "3", "--force-max", "2.5"],   # until the test ends it
                            cwd=ROOT, stdout=subprocess.PIPE, text=True)
     try:
         port = emu.stdout.readline().split()[1]
@@ -34,8 +34,9 @@ def test_devices_probe_finds_the_emulator():
         assert entry["grasp_lab"] == {"n_fingers": 3, "renders_forces": True, "units": 0, "rate_hz": 1000,
                                       "force_max": 2.5, "ttl_max_ms": 50, "name": "grasp-lab-emulator",
                                       "orientations": False}
+        emu.terminate()     # (a --duration would count from the probe's hello: a race with a busy machine)
         report = json.loads([l for l in emu.communicate(timeout=20)[0].splitlines() if l.startswith("REPORT ")][0][7:])
-        assert report["host_hellos"] == 1 and report["force_frames"] == 0 and report["poses_sent"] > 100
+        assert report["host_hellos"] == 1 and report["force_frames"] == 0 and report["poses_sent"] > 0
     finally:
         emu.kill()
 
@@ -82,7 +83,7 @@ def test_emulate_on_a_named_port():
     tty.setraw(slave)
     path = os.ttyname(slave)
     emu = subprocess.Popen(GRASP_LAB + ["emulate", path,
-                            "--fingers", "1", "--motion", "circle", "--duration", "0.2", "--rate", "200"],
+                            "--fingers", "1", "--motion", "circle", "--rate", "200"],   # until the test ends it
                            cwd=ROOT, stdout=subprocess.PIPE, text=True)
     try:
         assert emu.stdout.readline().strip() == f"PORT {path}"
@@ -90,13 +91,14 @@ def test_emulate_on_a_named_port():
         dec, poses = P.StreamDecoder(), []
         import select
         import time
-        end = time.monotonic() + 10
+        end = time.monotonic() + 60         # a hang's bound: 20 poses take 0.1 s on a quiet machine
         while len(poses) < 20 and time.monotonic() < end:
             if select.select([master], [], [], 0.1)[0]:
                 poses += [P.parse_pose(f.payload) for f in dec.feed(os.read(master, 4096)) if f.type == P.POSE]
         assert len(poses) >= 20 and dec.dropped == 0
         r = [math.hypot(*p.positions[0][:2]) for p in poses]
         assert all(0.035 < v < 0.085 for v in r)     # the circle motion: 6 cm ring, 2 cm circle
+        emu.terminate()
         report = json.loads([l for l in emu.communicate(timeout=20)[0].splitlines() if l.startswith("REPORT ")][0][7:])
         assert report["rate_hz"] == 200 and report["host_hellos"] == 1
     finally:

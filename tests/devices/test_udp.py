@@ -18,18 +18,11 @@ graspcore = pytest.importorskip("graspcore")
 from addon.engine.devices import protocol as P  # noqa: E402
 from addon.engine.devices.cli_commands import parse_device_spec  # noqa: E402
 from addon.engine.devices.serial_device import UdpDevice  # noqa: E402
+from waiting import wait_until  # noqa: E402  (tests/support, docs/testing.md)
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 BOX, RADIUS = 0.03, 0.008
 
-
-def wait_for(predicate, timeout, what):
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return
-        time.sleep(0.005)
-    raise AssertionError(f"timed out after {timeout} s waiting for {what}")
 
 
 def emulator(*args):
@@ -78,7 +71,7 @@ def test_udp_lost_duplicated_reordered_and_a_second_sender():
     try:
         dev.connect()
         assert dev.bind == "127.0.0.1"                 # a device on this machine: only loopback listens
-        wait_for(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > 200, 10, "streaming")
+        wait_until(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > 200, 30, "streaming")
         assert dev.stats()["peer"] == f"127.0.0.1:{port}"
         closing = world.drain_ticks(records)["hip"].copy()
         # Someone else sends valid poses (fingertips far away) to the host's socket: ignored.
@@ -86,7 +79,7 @@ def test_udp_lost_duplicated_reordered_and_a_second_sender():
             intruder.sendto(P.encode(P.POSE, k, P.pose(k, [(0.5, 0.5, 0.5), (0.5, 0.5, 0.5)])),
                             ("127.0.0.1", dev.local_port))
         dev.enable()
-        wait_for(lambda: dev.stats()["poses"] > 1500, 10, "more poses")
+        wait_until(lambda: dev.stats()["poses"] > 1500, 30, "more poses")
         st = dev.stats()
         closing = np.concatenate([closing, world.drain_ticks(records)["hip"]])
     finally:
@@ -116,21 +109,20 @@ def test_udp_stalled_device_is_lost_and_lets_go():
     dev = UdpDevice(world, "127.0.0.1", port, 0, 2, ramp_time=0.0, stall_timeout=0.05)
     try:
         dev.connect()
-        wait_for(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > 700, 10, "gripping")
+        wait_until(lambda: dev.stats()["state"] == "streaming" and dev.stats()["poses"] > 700, 30, "gripping")
         dev.enable()
-        wait_for(lambda: dev.stats()["gain"] == 1.0, 5, "forces on")
+        wait_until(lambda: dev.stats()["gain"] == 1.0, 30, "forces on")
         emu.send_signal(signal.SIGSTOP)               # the network (or the bridge) stalls
-        t0 = time.monotonic()
-        wait_for(lambda: np.linalg.norm(world.snapshot()["spring_forces"], axis=1).max() < 1e-6, 1.0, "let go")
-        assert time.monotonic() - t0 < 0.25
-        wait_for(lambda: dev.stats()["state"] == "lost", 0.1, "the state to say so")      # published every 10 ms
+        wait_until(lambda: np.linalg.norm(world.snapshot()["spring_forces"], axis=1).max() < 1e-6, 30, "let go")
+        # (How soon: bench/bench_unplug.py; exactly, on the manual clock: native/tests/test_serial_io.c.)
+        wait_until(lambda: dev.stats()["state"] == "lost", 30, "the state to say so")      # published every 10 ms
         emu.send_signal(signal.SIGCONT)                # back: picked up again
-        wait_for(lambda: dev.stats()["state"] == "streaming", 5, "streaming again")
+        wait_until(lambda: dev.stats()["state"] == "streaming", 30, "streaming again")
         names = [e[1] for e in dev.events()]
         # Back with a pose ("recovered") or first with its answer to the hellos sent while it was
         # silent ("connected": it says hello again, forces off until the host's ENABLE).
         assert names[names.index("lost") + 1] in ("recovered", "connected"), names
-        wait_for(lambda: dev.stats()["gain"] == 1.0 and dev.stats()["enabled"], 5, "forces on again")
+        wait_until(lambda: dev.stats()["gain"] == 1.0 and dev.stats()["enabled"], 30, "forces on again")
     finally:
         emu.send_signal(signal.SIGCONT)
         report = report_of(emu)

@@ -49,7 +49,7 @@ def environment(user_dir: str, what: str = "GUI tests need a GUI Blender") -> di
     return prepare(os.environ.get("GRASP_LAB_ZIP", ""), user_dir)
 
 
-def run(env: dict, scenario: str, timeout: float = 180, background: bool = False):
+def run(env: dict, scenario: str, timeout: float = 600, background: bool = False):
     """Run one driver scenario; returns (result.json as a dict, console output, exit code)."""
     out = os.path.join(OUT, scenario)
     shutil.rmtree(out, ignore_errors=True)

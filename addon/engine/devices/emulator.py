@@ -167,9 +167,14 @@ class Emulator:
         self.stop = False
         self.started = None         # the host's conversation started (see _on_frame)
         self.last_answer = None     # when the host last answered a pose (a force frame)
+        self.say = None             # a line for whoever runs it (main: standard output), e.g. its button
+        self.answered = False       # the host has answered a pose in this conversation (it streams)
         self.estop_at = estop_at    # s into streaming: the stop button (None: never)
         self.estop_sent_at = None
-        self.forces_after_estop = 0     # force frames with a non-zero force after the button, before ENABLE(1)
+        self.forces_after_estop = 0     # non-zero force frames answering a pose sent after the button (a host
+                                        # that had read it), before ENABLE(1)
+        self.forces_in_flight = 0       # non-zero ones answering a pose sent before it (on their way then)
+        self.estop_seq = None           # the sequence number of its ESTOP frame
         self.force_log = [] if log_forces else None     # (t, ack_seq, ttl_us, forces) of every force frame
         # UDP (--udp): a bound socket; frames go to the host that said hello (others are ignored).
         self.udp, self.host_addr, self.foreign = udp, None, 0
@@ -204,7 +209,8 @@ class Emulator:
     def _write(self, frame):
         try:
             if self.udp is None:
-                os.write(self.fd, frame)
+                if os.write(self.fd, frame) < len(frame):
+                    self.write_errors += 1    # the pty full: the rest of the frame lost, the host drops it
             elif self.host_addr is not None:
                 self.udp.sendto(frame, self.host_addr)
         except (BlockingIOError, OSError):
@@ -218,6 +224,7 @@ class Emulator:
         new_conversation = self.last_answer is None or now - self.last_answer > HOST_SILENCE
         if frame.type == P.FORCE:
             self.last_answer = now
+            self.answered = True
         if frame.type == P.HELLO_HOST:
             self.host_hellos += 1       # a (re)started host: forces off until it enables them again
             self.enabled = False
@@ -226,6 +233,7 @@ class Emulator:
             self._send(P.HELLO_DEVICE, self.hello)
             if new_conversation:
                 self.started = now
+                self.answered = False
                 if self.estop_sent_at is not None:  # the script's button, pressed to nobody: pressed in this one
                     self.estop_sent_at, self.estopped = None, False
         elif frame.type == P.ENABLE:
@@ -243,7 +251,11 @@ class Emulator:
             self.rendered = self.checker.check(force, self.enabled)
             self.host_takes_orientations = force.takes_orientations and self.orientation is not None
             if self.estopped and any(any(f) for f in force.forces):
-                self.forces_after_estop += 1
+                after = self.estop_seq is not None and 0 < (force.ack_seq - self.estop_seq) & 0xFFFF < 0x8000
+                if after:
+                    self.forces_after_estop += 1
+                else:
+                    self.forces_in_flight += 1
             if self.force_log is not None:
                 self.force_log.append((now - (self.started or now), force.ack_seq, force.ttl_us, force.forces))
             self.force_expiry = now + force.ttl_us * 1e-6
@@ -305,9 +317,12 @@ class Emulator:
                 self.rendered = [(0.0, 0.0, 0.0)] * self.n
             if self.estop_at is not None and self.estop_sent_at is None and t >= self.estop_at:
                 self.estop_sent_at = t        # the stop button: forces off at once, latched, and said so
+                self.estop_seq = self.seq
                 self.enabled, self.estopped = False, True
                 self.rendered = [(0.0, 0.0, 0.0)] * self.n
                 self._send(P.ESTOP, P.estop(P.ESTOP_BUTTON))
+                if self.say is not None:    # a test waits for this, not for a time: who got it
+                    self.say(f"ESTOP {t:.3f} {'streaming' if self.answered else 'unanswered'}")
             status = (P.STATUS_FORCES_ON if self.enabled else 0) | (P.STATUS_ESTOPPED if self.estopped else 0)
             positions = self.motion(t, self.n)
             turns = self.orientation(t, self.n) if self.host_takes_orientations else None
@@ -342,6 +357,7 @@ class Emulator:
             "latency_max_ms": _ms(lat[-1] if lat else None), "unacknowledged": self.poses_sent - len(lat),
             "host_frames_dropped": self.decoder.errors, "write_errors": self.write_errors,
             "estop_at_s": self.estop_sent_at, "forces_after_estop": self.forces_after_estop,
+            "forces_in_flight_at_estop": self.forces_in_flight,
             "injected": self.injected, "foreign_datagrams": self.foreign, "oriented_poses": self.oriented_poses,
         }
 
@@ -398,6 +414,27 @@ def build_parser(parser=None):
     return p
 
 
+DEVICE_PRIORITY = 10    # SCHED_FIFO, below the host's haptic loop (80) and device threads (70)
+DEVICE_NICE = -10       # where real-time scheduling is refused
+
+
+def _as_a_device_would_run():
+    """A device runs on its own processor: a busy host does not pause it. The emulator (which
+    sleeps between poses, never spins) asks for real-time scheduling below the host's own
+    threads, else for nice -10, where it may (root, or CAP_SYS_NICE), so that the host's load
+    does not pause its stream as no real device would be; elsewhere it runs as it is."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(DEVICE_PRIORITY))
+        return
+    except (PermissionError, OSError, AttributeError):
+        pass
+    try:
+        if os.getpriority(os.PRIO_PROCESS, 0) > DEVICE_NICE:
+            os.setpriority(os.PRIO_PROCESS, 0, DEVICE_NICE)
+    except (PermissionError, OSError):
+        pass
+
+
 def main(argv=None, args=None, motion=None):
     """``motion``: (motion, finger count) for ``--from`` (the bpy side reads the .blend:
     emulate_blend.py)."""
@@ -409,6 +446,7 @@ def main(argv=None, args=None, motion=None):
     if args.first and not args.from_blend:
         raise SystemExit("--first: only with --from (a named motion has no fingers of a scene to choose from)")
     name = "grasp-lab-emulator"
+    _as_a_device_would_run()
     if args.from_blend:
         if motion is None:
             raise SystemExit(f"--from {args.from_blend}: reading a .blend needs Blender: grasp-lab emulate --from, "
@@ -441,6 +479,8 @@ def main(argv=None, args=None, motion=None):
                    estop_at=args.estop_at, log_forces=bool(args.force_log), udp=udp, drop_every=args.drop_every,
                    dup_every=args.dup_every, reorder_every=args.reorder_every,
                    orientation=ORIENTATIONS[args.orientation] if args.orientation else None)
+
+    emu.say = lambda line: print(line, flush=True)
 
     def stop(signum, frame):
         emu.stop = True

@@ -150,9 +150,15 @@ static void advance_hips(gcRuntime *rt, double t_next) {
         if (df->soft_start) walk = rt->follow[i];
         gcVec3 hip = scripted ? gc_hip_track_sample(rt->track, i, t_next)
                               : gc_hip_follow_advance(&rt->follow[i], hw->fingers[i].hip, dt, max_speed);
-        if (df->soft_start && !scripted) { /* over once the soft speed no longer holds the walk back */
+        if (df->soft_start && !scripted) { /* over once the soft speed no longer holds the walk back and
+                                               * the HIP is within a soft step of the device's latest sample:
+                                               * a sample after a long silence is walked over a long segment,
+                                               * slower than the soft speed, but the next one may ask for the
+                                               * rest of the way in a tick */
             gcVec3 unheld = gc_hip_follow_advance(&walk, hw->fingers[i].hip, dt, rt->def.max_hip_speed);
-            if (unheld.x == hip.x && unheld.y == hip.y && unheld.z == hip.z) df->soft_start = 0;
+            if (unheld.x == hip.x && unheld.y == hip.y && unheld.z == hip.z &&
+                gc_len(gc_sub(rt->follow[i].to, hip)) <= GC_HIP_SOFT_START_SPEED * dt)
+                df->soft_start = 0;
         }
         hw->fingers[i].hip = hip;
         gcQuat q; /* the track's or the walk's orientation: normalised as gc_world_set_finger_pose does */
