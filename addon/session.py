@@ -317,13 +317,18 @@ class BlenderSession:
             if detail:
                 lines.append(f"step {st['step_us']:.0f} µs   {st['steps']} steps   {cost}")
             return lines
-        enabled = None if self.devices is None else [d["enabled"] for d in self.devices.status()]
-        forces = grasp_display.force_output(st["runtime_forces_enabled"], enabled)
+        # Forces reach a hand only through a device: without one, the watchdog and stale-input
+        # counters count the timeline's input, not a fault, so they stay out of the way unless
+        # something is wrong (a rejected input, a force that was not a number).
+        has_device = self.devices is not None
+        enabled = [d["enabled"] for d in self.devices.status()] if has_device else None
+        forces = f"   {grasp_display.force_output(st['runtime_forces_enabled'], enabled)}" if has_device else ""
         lines = [f"t {st['time']:.2f} {end}   haptic {st['haptic_rate']:.0f} Hz   "
-                 f"display {st['display_rate']:.1f} Hz   p99 {st['runtime_jitter_p99_us']:.0f} µs   {forces}"]
+                 f"display {st['display_rate']:.1f} Hz   p99 {st['runtime_jitter_p99_us']:.0f} µs{forces}"]
         safety = {k: st[f"runtime_{k}"] for k in ("rejected_inputs", "watchdog_trips", "stale_inputs",
                                                   "nonfinite_forces")}
-        if detail or any(safety.values()):
+        wrong = safety["rejected_inputs"] or safety["nonfinite_forces"]
+        if detail or wrong or (has_device and any(safety.values())):
             lines.append(f"safety: rejected inputs {safety['rejected_inputs']}   watchdog {safety['watchdog_trips']}   "
                          f"stale {safety['stale_inputs']}   non-finite {safety['nonfinite_forces']}")
         if detail:

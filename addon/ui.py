@@ -1,15 +1,17 @@
 """The "Grasp" tab in the 3D viewport sidebar."""
 from __future__ import annotations
 
+import os
+
 import bpy
 
-from . import ops, rest_poses, session
+from . import ops, record, rest_poses, session
 from .engine import grasp_display
 
 
-def wrapped_labels(layout, context, lines, icon_first="NONE"):
-    """Labels that wrap at the region's width instead of being cut off mid-word: measured in
-    the interface font where it can be (a window), else at about 6.5 px a character."""
+def _measure(context, icon_first="NONE"):
+    """(width, measure) of a label line in this region: pixels and the interface font where
+    there is a window, else characters at about 6.5 px each."""
     scale = context.preferences.system.ui_scale
     width = (context.region.width if context.region else 300) - 40 * scale   # panel and box margins
     if icon_first != "NONE":
@@ -21,8 +23,16 @@ def wrapped_labels(layout, context, lines, icon_first="NONE"):
         measure = lambda text: blf.dimensions(0, text)[0]  # noqa: E731
     if measure is None:
         width, measure = int(width / (6.5 * scale)), len
+    return width, measure
+
+
+def wrapped_labels(layout, context, lines, icon_first="NONE", path=False):
+    """Labels that wrap at the region's width instead of being cut off mid-word (``path``: one
+    file path, broken after its separators)."""
+    width, measure = _measure(context, icon_first)
+    wrapped = grasp_display.wrap_path(lines[0], width, measure) if path else grasp_display.wrap(lines, width, measure)
     col = layout.column(align=True)
-    for k, line in enumerate(grasp_display.wrap(lines, width, measure)):
+    for k, line in enumerate(wrapped):
         col.label(text=line, icon=icon_first if k == 0 else "NONE")
     return col
 
@@ -181,8 +191,14 @@ class GRASPLAB_PT_recording(_GraspPanel, bpy.types.Panel):
         s = context.scene.grasp_lab
         layout.prop(s, "record")
         layout.prop(s, "recording_folder", text="Folder")
+        # The folder in full, where the files really go (an unsaved file: the per-user one).
+        box = layout.box()
+        if not bpy.data.filepath and record.folder_of(s) == os.path.normpath(record.user_folder()):
+            wrapped_labels(box, context, ["Not saved yet: recording to your Grasp Lab folder"], icon_first="INFO")
+        wrapped_labels(box, context, [record.folder_of(s) + os.sep], path=True)
+        box.operator("grasp_lab.open_recording_folder", icon="FILE_FOLDER")
         if s.last_recording:
-            layout.label(text=bpy.path.basename(s.last_recording), icon="FILE")
+            wrapped_labels(layout, context, [bpy.path.basename(s.last_recording)], icon_first="FILE", path=True)
 
 
 CLASSES = (GRASPLAB_PT_main, GRASPLAB_PT_object, GRASPLAB_PT_scene, GRASPLAB_PT_session,

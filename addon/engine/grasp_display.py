@@ -136,14 +136,50 @@ def _keep(text: str) -> str:
     return text.replace(" ", NBSP)
 
 
-def grasp_lines(grasps, body_names, finger_names) -> list:
-    """The grasp, per held body: closure and epsilon, the force it resists in its weakest
-    direction, grip against load, the finger closest to slipping; then each finger's state
-    and friction use. Plain lines, most important first; ``wrap`` never splits a value from
-    its unit or a finger's entry (they are joined by no-break spaces)."""
+FIRM_USE = 0.5      # every contact using under half its friction: held firmly
+BARELY_USE = 0.8    # a contact using this much of its friction is close to slipping
+
+
+def verdict(grasp, body_name: str, finger_names) -> str:
+    """One line in words for a body the fingers touch: whether it is held, how firmly, and
+    what would make it slip first. Held means no contact sliding and the grip at least the
+    load; firmly, in force closure with every contact under FIRM_USE of its friction;
+    barely, a contact at BARELY_USE or more. The first to slip is the contact using the
+    largest share of its friction (a contact without normal force counts as fully used)."""
+    uses = [(c.friction_use if math.isfinite(c.friction_use) else math.inf, c) for c in grasp.contacts]
+    worst_use, worst = max(uses, key=lambda u: u[0]) if uses else (0.0, None)
+    if any(c.state == 2 for c in grasp.contacts):
+        word = "slipping"
+    elif not grasp.grip_ratio >= 1.0:
+        word = "not held (grip below load)"
+    elif grasp.force_closure and worst_use < FIRM_USE:
+        word = "held firmly"
+    elif worst_use < BARELY_USE:
+        word = "held" if grasp.force_closure else "held, but free to turn (not in force closure)"
+    else:
+        word = "held, barely"
+    if worst is None:
+        return f"{body_name}: {word}"
+    who = finger_names[worst.finger]
+    return (f"{body_name}: {word}; {_keep(who)} slips first "
+            f"({_keep(f'{_percent(worst.friction_use)} of its friction')})")
+
+
+def verdict_lines(grasps, body_names, finger_names) -> list:
+    """verdict for each touched body; one line saying so when no finger touches a body."""
     if not grasps:
         return ["No finger on a body"]
-    lines = []
+    return [verdict(g, body_names[g.body], finger_names) for g in grasps]
+
+
+def grasp_lines(grasps, body_names, finger_names) -> list:
+    """The grasp, per held body: the verdict in words first, then the numbers: closure and
+    epsilon, the force it resists in its weakest direction, grip against load, the finger
+    closest to slipping; then each finger's state and friction use. ``wrap`` never splits a
+    value from its unit or a finger's entry (they are joined by no-break spaces)."""
+    if not grasps:
+        return ["No finger on a body"]
+    lines = verdict_lines(grasps, body_names, finger_names)
     for g in grasps:
         closure = "closure yes" if g.force_closure else "closure no"
         lines.append(f"{body_names[g.body]}: {closure}  {_keep(f'ε {g.epsilon:.3f}')}  "
@@ -193,6 +229,20 @@ def wrap(lines, width, measure=len) -> list:
                 current = indent + "  " + word
         out.append(current)
     return out
+
+
+def wrap_path(path: str, width, measure=len) -> list:
+    """A file path in lines of at most ``width`` (as ``wrap``), broken after a separator so
+    that every piece can be read and the whole path is there; a name longer than the width
+    gets a line of its own."""
+    parts = [p + "/" for p in path.split("/")[:-1]] + [path.split("/")[-1]]
+    out, current = [], ""
+    for part in (p for p in parts if p):
+        if current and measure(current + part) > width:
+            out.append(current)
+            current = ""
+        current += part
+    return out + ([current] if current else [])
 
 
 def weakest_geometry(grasp, length: float | None = None, segments: int = 48):

@@ -251,7 +251,11 @@ def test_live_session_on_the_threaded_runtime(bpy, sample, core):
     assert stats["haptic_rate"] == stats["runtime_haptic_rate"] > 250
     assert stats["steps"] > 200 and stats["step_us"] > 0
     hud = s.hud_text()                               # the grasp, then the C loop's own timing
-    assert hud.startswith("Box: closure ") and "p99" in hud and "haptic 0 Hz" not in hud
+    lines = hud.split("\n")                          # the verdict in words, then the numbers
+    assert lines[0].startswith("Box: held") and " slips first " in lines[0], lines
+    assert lines[1].startswith("Box: closure ") and "p99" in hud and "haptic 0 Hz" not in hud
+    # no device: the safety counters (the timeline's input trips the watchdog) are not shown
+    assert "safety:" not in hud and "forces held at zero" not in hud, hud
     detail = "\n".join(s.loop_lines(detail=True))   # the sidebar's Loop panel: all of it
     assert stats["runtime_priority_note"] in detail and "safety: rejected inputs" in detail
     assert "step 0 µs" not in detail
