@@ -114,8 +114,8 @@ def run(args, out, err) -> int:
                                  duration=args.duration if args.duration else None, record_path=record)
         if session.duration == float("inf"):
             session.finish()
-            raise CliError(f"{args.scene}: no fingertip is animated, so a real-time session has no end: "
-                           f"give --duration S")
+            raise CliError(f"{args.scene}: a real-time session with no fingertip animated, or driven by the "
+                           f"scene's devices, has no end: give --duration S")
     if getattr(args, "live_view", None) is not None:
         _serve_live(session, args, out)
     if session.recorder is not None:

@@ -124,6 +124,9 @@ class GRASPLAB_PG_scene(bpy.types.PropertyGroup):
     live_view_bind: StringProperty(name="Bind", default="127.0.0.1",
                                    description="Address the live view listens on (127.0.0.1: this "
                                                "machine only; 0.0.0.0: every interface)")
+    finger_target: PointerProperty(name="Finger Target", type=bpy.types.Object,
+                                   description="The body Add Finger last put a fingertip beside: the next "
+                                               "one goes beside it too while a fingertip is selected")
     # --- live status (read-only in the UI)
     running: BoolProperty(name="Running", default=False)
     status: StringProperty(name="Status", default="")

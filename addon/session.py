@@ -47,6 +47,8 @@ class SessionResult:
     recording: str = ""
     final: object = None                            # last Snapshot
     grasps: list = field(default_factory=list)      # per display frame: analysis.BodyGrasp list
+    scene_name: str = ""
+    verdict: list = field(default_factory=list)     # the grasp in words when it ended (grasp_display.verdict_lines)
 
     def trajectory(self, body_name) -> np.ndarray:
         i = self.body_names.index(body_name)
@@ -121,8 +123,9 @@ class BlenderSession:
                  for label, e in zip(self.device_labels, entries)],
                 len(finger_objs), [o.name for o in finger_objs])
             self.source = DeviceInput(len(finger_objs), without_fingers(self.source.script(), self.driven_by >= 0))
-            if self.source.script() is None:
-                self.duration = duration if duration > 0 else float("inf")  # the devices' session: until asked
+            # A device session runs until Esc or Stop unless a duration is set, whatever the
+            # other fingers' animation (they hold its last frame after its end).
+            self.duration = duration if duration > 0 else float("inf")
         options = {}
         if self.threaded:
             # Fingertips moved in the viewport arrive at the display's rate, which under a
@@ -158,6 +161,8 @@ class BlenderSession:
         self.devices = None
         if use_devices:
             self.devices = connect_scene_devices(scene, self.handle.world)
+            if scene.grasp_lab_device_forces:       # Forces On before the session: it starts with them
+                self.devices.enable(True)
         self.apply(self.runner.snapshot(), self.frame_start)
 
     # ------------------------------------------------------------- per update
@@ -369,6 +374,8 @@ class BlenderSession:
             r.stats["device_stats"] = device_stats         # each device's counters when it was closed
             self.runner.events += self.devices.events
         r.final = self.snapshot
+        r.scene_name = self.scene.name
+        r.verdict = grasp_display.verdict_lines(self.monitor.grasps, r.body_names, r.finger_names)
         if self.bake:
             for name, (frames, vals) in self._baked.items():
                 obj = bpy.data.objects.get(name)
@@ -627,7 +634,18 @@ def _on_undo_pre(*_args):
 
 
 @bpy.app.handlers.persistent
+def _on_undo_post(*_args):
+    # The last session's summary describes a scene that undo took back: it goes.
+    global last_result
+    last_result = None
+
+
+@bpy.app.handlers.persistent
 def _on_load_post(*_args):
+    global last_result
+    last_result = None          # another file: nothing of the last one's session stays on screen
+    from .ops import last_check
+    last_check.clear()
     for scene in bpy.data.scenes:
         if scene.grasp_lab.running:
             scene.grasp_lab.running = False
@@ -643,6 +661,7 @@ def register():
     bpy.app.handlers.load_post.append(_on_load_post)
     bpy.app.handlers.undo_pre.append(_on_undo_pre)
     bpy.app.handlers.redo_pre.append(_on_undo_pre)
+    bpy.app.handlers.undo_post.append(_on_undo_post)
 
 
 def unregister():
@@ -650,7 +669,8 @@ def unregister():
     for lst, fn in ((bpy.app.handlers.load_pre, _on_load_pre),
                     (bpy.app.handlers.load_post, _on_load_post),
                     (bpy.app.handlers.undo_pre, _on_undo_pre),
-                    (bpy.app.handlers.redo_pre, _on_undo_pre)):
+                    (bpy.app.handlers.redo_pre, _on_undo_pre),
+                    (bpy.app.handlers.undo_post, _on_undo_post)):
         while fn in lst:
             lst.remove(fn)
     for c in reversed(CLASSES):

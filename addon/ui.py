@@ -119,6 +119,14 @@ class GRASPLAB_PT_session(_GraspPanel, bpy.types.Panel):
         layout = self.layout
         s = context.scene.grasp_lab
         active = session.active_session()
+        falling = ops.support_offer(context) if active is None else []
+        if falling:
+            # Nothing static to rest on: say so before the session, with the one-click fix.
+            box = layout.box()
+            names = ", ".join(o.name for o in falling[:3]) + (" ..." if len(falling) > 3 else "")
+            wrapped_labels(box, context, [f"Nothing holds {names} up: it falls when the session starts"],
+                           icon_first="ERROR")
+            box.operator("grasp_lab.add_table", icon="MESH_PLANE")
         # The panel's one primary action, drawn highlighted (depress) and large.
         row = layout.row()
         row.scale_y = 1.5
@@ -161,9 +169,11 @@ class GRASPLAB_PT_session(_GraspPanel, bpy.types.Panel):
             row.operator("grasp_lab.reset", icon="LOOP_BACK")
         row.operator("grasp_lab.clear_display", text="Clear Display", icon="TRASH")
         res = session.last_result
-        if active is None and res is not None and res.stats:
-            wrapped_labels(layout, context, [f"Last: {res.stats.get('time', 0):.2f} s, "
-                                             f"{res.stats.get('step_us', 0):.0f} µs/step"], icon_first="INFO")
+        if active is None and res is not None and res.stats and res.scene_name == context.scene.name:
+            # The session's summary: the grasp in words when it ended, then its length.
+            box = layout.box()
+            wrapped_labels(box, context, [f"Last session, {res.stats.get('time', 0):.2f} s:"] + res.verdict,
+                           icon_first="INFO")
 
 
 class GRASPLAB_PT_loop(_GraspPanel, bpy.types.Panel):
