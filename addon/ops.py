@@ -55,17 +55,20 @@ def finger_placement(corners, n_existing, radius):
 
 
 def _finger_target(context):
-    """The body a new fingertip goes beside: the selected mesh (not a finger), else the body the
-    last one went beside (Add Finger selects the fingertip it adds, so that the next click still
-    goes to the same body, on its opposite side), else None (the 3D cursor)."""
+    """The body a new fingertip goes beside: the selected mesh (not a finger); with a fingertip
+    selected, the body the last one went beside (Add Finger selects the fingertip it adds, so
+    that the next click still goes to the same body, on its opposite side); else None (nothing
+    selected: the 3D cursor)."""
     s = context.scene.grasp_lab
     target = context.active_object
-    if target is not None and target.select_get() and target.type == "MESH" \
-            and target.grasp_lab.role != "FINGER":
+    if target is None or not target.select_get():
+        return None                 # nothing chosen: the 3D cursor
+    if target.type == "MESH" and target.grasp_lab.role != "FINGER":
         return target
-    target = s.finger_target
-    if target is not None and target.name in context.view_layer.objects and target.type == "MESH":
-        return target
+    remembered = s.finger_target
+    if target.grasp_lab.role == "FINGER" and remembered is not None \
+            and remembered.name in context.view_layer.objects and remembered.type == "MESH":
+        return remembered
     return None
 
 

@@ -57,10 +57,18 @@ def test_live_session_with_an_emulated_device(bpy, sample, core):
                            cwd=grasp_env.ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         port = emu.stdout.readline().split()[1]
-        bpy.context.scene.cursor.location = box.matrix_world.translation
+        bpy.context.scene.cursor.location = (1.0, 2.0, 3.0)          # not where the frame goes
         assert bpy.ops.grasp_lab.device_add(port=port) == {"FINISHED"}
         entry = bpy.context.scene.grasp_lab_devices[0]
         assert entry.frame is not None and entry.finger_offset == 0 and entry.num_fingers == 2
+        # The workspace frame on the fingers it drives: at their centre, the emulator's 6 cm rest
+        # ring scaled to their spread (engine.placement.workspace_frame)
+        tips = np.array([tuple(bpy.data.objects[f"Finger {i}"].matrix_world.translation) for i in (0, 1)])
+        centre = tips.mean(axis=0)
+        np.testing.assert_allclose(tuple(entry.frame.location), centre, atol=1e-6)
+        spread = np.linalg.norm(tips - centre, axis=1).mean()
+        np.testing.assert_allclose(tuple(entry.frame.scale), [spread / 0.06] * 3, rtol=1e-6)
+        bpy.context.scene.grasp_lab_device_forces = True          # Forces On before the session
         s = session.BlenderSession(bpy.context, live=True, duration=10.0)
         session._active = s          # what the operator does: the panel and operators see it
         try:
@@ -70,11 +78,11 @@ def test_live_session_with_an_emulated_device(bpy, sample, core):
                 s.tick(time.perf_counter() - t0)
                 time.sleep(0.02)
             assert list(s.snapshot.contacts) == [0, 0], s.snapshot.contacts   # both grip the box
-            assert bpy.ops.grasp_lab.device_forces(on=True) == {"FINISHED"}
-            time.sleep(0.1)
-            lines = scene_devices.status_lines(s.devices)
+            lines = scene_devices.status_lines(s.devices)     # the session started with forces on
             assert lines[0].startswith(f"{port}: streaming, fingers 0..1") and "forces enabled" in lines[0], lines
             assert lines[0] in s.hud_text()
+            assert bpy.ops.grasp_lab.device_forces(on=False) == {"FINISHED"}     # Forces Off, now
+            assert not bpy.context.scene.grasp_lab_device_forces and not s.devices.devices[0].enabled
         finally:
             session._active = None
             s.finish()
@@ -371,10 +379,12 @@ def test_a_found_device_brings_its_finger_count_and_its_fingers_follow_it(bpy, s
                 s.tick(time.perf_counter() - t0)
                 time.sleep(0.02)
             hips = s.snapshot.hips
-            # The emulator's lift about the workspace frame at the box: 3 cm out, 5 cm up by now.
+            # The emulator's lift about the workspace frame on the fingertips (scaled to their
+            # spread): 3 cm out, 5 cm up by now, in device metres.
             frame = np.array(entries[0].frame.matrix_world.translation)
-            np.testing.assert_allclose(np.abs(hips[:2, 0] - frame[0]), 0.03, atol=2e-3)
-            np.testing.assert_allclose(hips[:2, 2] - frame[2], 0.05, atol=2e-3)
+            scale = entries[0].frame.scale.x
+            np.testing.assert_allclose(np.abs(hips[:2, 0] - frame[0]), 0.03 * scale, atol=2e-3)
+            np.testing.assert_allclose(hips[:2, 2] - frame[2], 0.05 * scale, atol=2e-3)
             for i, tip in enumerate(tips):
                 np.testing.assert_allclose(tip.matrix_world.translation, hips[i], atol=1e-6)
             np.testing.assert_allclose(extra.matrix_world.translation, (0.0, 0.3, 0.2))   # no device: stays

@@ -218,8 +218,9 @@ def test_live_session_ticks_without_timers(bpy, sample, core):
     assert "real time" in s.hud_text()
     assert s.tick(5.0) is True                       # reached the duration
     hud = s.hud_text().replace("\u00a0", " ").split("\n")   # the grasp first: closed on the box
-    assert hud[0].startswith("Box: closure ") and "Finger 0 stick" in hud[3] and "Finger 1 stick" in hud[3]
-    assert hud[4].startswith("t 1.25 / 1.25 s") and len(hud) == 5
+    assert hud[0].startswith("Box: held") and hud[1].startswith("Box: closure ")     # the words, then the numbers
+    assert "Finger 0 stick" in hud[4] and "Finger 1 stick" in hud[4]
+    assert hud[5].startswith("t 1.25 / 1.25 s") and len(hud) == 6
     s.finish()
     display.add_overlay()                            # no-op headless
     assert not display.overlay_active()
