@@ -77,3 +77,12 @@ def test_an_unsaved_file_records_to_the_user_folder_never_the_working_directory(
     assert naming.recording_folder("//grasp_recordings/", "/p/scene.blend", user) == "/p/grasp_recordings"
     assert naming.recording_folder("/data/rec/", "", user) == "/data/rec"          # an absolute folder: as given
     assert naming.recording_folder("/data/rec", "/p/scene.blend", user) == "/data/rec"
+
+
+def test_sweep_map_bins_adapt_to_the_sample_count():
+    from addon.engine import sweep
+    assert sweep.bin_count(50, 1) == 12 and sweep.bin_count(50, 2) == 3
+    assert sweep.bin_count(400, 2) == 10 and sweep.bin_count(2000, 2) == sweep.MAX_BINS
+    assert sweep.bin_count(3, 2) == 2 and sweep.bin_count(0, 1) == 2      # never a single cell
+    for n in (50, 400, 2000):                 # about SAMPLES_PER_CELL a cell, or fewer cells
+        assert n / sweep.bin_count(n, 2) ** 2 >= sweep.SAMPLES_PER_CELL
