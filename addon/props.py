@@ -111,6 +111,11 @@ class GRASPLAB_PG_scene(bpy.types.PropertyGroup):
                                description="Force arrow length in metres per newton (0.02: 1 N is a 2 cm arrow)")
     torque_scale: FloatProperty(name="Torque Scale (m/N·m)", default=1.0, min=0.0, soft_max=10.0, precision=3,
                                 description="Torque arrow length in metres per newton-metre")
+    weakest_scale: FloatProperty(name="Weakest Wrench Size", default=0.5, min=0.0, soft_max=3.0, precision=2,
+                                 description="Size of the weakest-wrench display (magenta, drawn around the held "
+                                             "body): its arrow is this times twice the body's radius per unit of "
+                                             "the wrench's force part, its ring this times the radius beyond the "
+                                             "body. 0: not drawn")
     record: BoolProperty(name="Record", default=False,
                          description="Record every haptic tick of each session to the recording folder (.mcap)")
     recording_folder: StringProperty(name="Recording Folder", default="//grasp_recordings/",

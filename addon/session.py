@@ -347,8 +347,11 @@ class BlenderSession:
         return lines
 
     def hud_text(self) -> str:
-        """The viewport's HUD: the grasp first, the loop's telemetry second and shorter."""
+        """The viewport's HUD: the grasp first, the loop's telemetry second and shorter; the
+        weakest wrench's legend while one is drawn."""
         lines = self.grasp_lines() + self.loop_lines()
+        if any(g.force_closure for g in self.monitor.grasps):
+            lines.append(grasp_display.WEAKEST_LEGEND)
         if self.live_view is not None:
             lines.append(self.live_view.status())
         return "\n".join(lines)
@@ -506,7 +509,7 @@ class GRASPLAB_OT_session(bpy.types.Operator):
             # Wakes this handler to notice an end it did not see (timer, Stop button).
             session.timer = session.wm.event_timer_add(session.interval, window=context.window)
             _active = session
-            display.add_overlay(prefs.show_overlay, prefs.show_hud)
+            display.add_overlay(prefs.show_overlay, prefs.show_hud, s.weakest_scale)
             s.running = True
             bpy.app.timers.register(_live_tick, first_interval=0.0)
         except Exception:

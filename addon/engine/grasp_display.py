@@ -245,29 +245,38 @@ def wrap_path(path: str, width, measure=len) -> list:
     return out + ([current] if current else [])
 
 
-def weakest_geometry(grasp, length: float | None = None, segments: int = 48):
+def weakest_geometry(grasp, length: float | None = None, segments: int = 48, scale: float = 1.0,
+                     outside: bool = False):
     """Where to draw the weakest wrench of a grasp in force closure, world coordinates:
     ``arrow`` (start, end): from the centre of mass along its force part, ``length`` times
     the part's norm (default twice the torque radius); ``ring`` (segments + 1, 3): a closed
     circle about its torque part's axis, radius the radius times the part's norm, and
     ``ring_tip`` (point, tangent): where and which way the ring turns (right hand about the
-    axis). None when the grasp is not in closure (no weakest direction)."""
+    axis). ``scale`` multiplies both sizes. ``outside``: drawn around the body instead of over
+    it (the viewport's way, so that it never hides the object): the arrow starts on the body's
+    bounding sphere and the ring's radius is the sphere's plus the scaled one. None when the
+    grasp is not in closure (no weakest direction)."""
     w = np.asarray(grasp.weakest, dtype=np.float64)
     if not grasp.force_closure or not np.all(np.isfinite(w)) or not np.any(w):
         return None
     center = np.asarray(grasp.center, dtype=np.float64)
     radius = float(grasp.radius)
-    length = 2.0 * radius if length is None else float(length)
+    length = scale * (2.0 * radius if length is None else float(length))
     force, torque = w[:3], w[3:]
-    out = {"arrow": (center, center + length * force), "ring": None, "ring_tip": None}
+    f = float(np.linalg.norm(force))
+    start = center + radius * force / f if outside and f > 1e-12 else center
+    out = {"arrow": (start, start + length * force), "ring": None, "ring_tip": None}
     t = float(np.linalg.norm(torque))
     if t > 1e-9:
         axis = torque / t
         u = np.cross(axis, (1.0, 0.0, 0.0) if abs(axis[0]) < 0.9 else (0.0, 1.0, 0.0))
         u /= np.linalg.norm(u)
         v = np.cross(axis, u)
-        r = radius * t
+        r = scale * radius * t + (radius if outside else 0.0)
         a = np.linspace(0.0, 2.0 * math.pi, segments + 1)
         out["ring"] = center + r * (np.cos(a)[:, None] * u + np.sin(a)[:, None] * v)
         out["ring_tip"] = (center + r * u, v)      # d/da at a = 0: +v, counter-clockwise about axis
     return out
+
+
+WEAKEST_LEGEND = "magenta: the push (arrow) and twist (ring) the grasp resists least"

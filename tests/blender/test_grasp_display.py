@@ -198,6 +198,12 @@ def test_weakest_geometry_arrow_along_the_force_ring_about_the_torque():
     tip, tangent = geo["ring_tip"]
     turn = np.cross(tip - g.center, tangent)
     assert turn[2] > 0 and abs(turn[0]) < 1e-12                        # right hand about +z
+    # the viewport's way: around the body, not over it, at the user's scale
+    geo = grasp_display.weakest_geometry(g, scale=0.5, outside=True)
+    start, end = geo["arrow"]
+    np.testing.assert_allclose(start, [1, 2 + 0.05, 3])                # on the bounding sphere
+    np.testing.assert_allclose(end - start, [0, 0.5 * 2 * 0.05 * 0.6, 0])
+    np.testing.assert_allclose(np.linalg.norm(geo["ring"] - g.center, axis=1), 0.05 + 0.5 * 0.05 * 0.8)
     g.weakest = np.array([0.0, 0, 1, 0, 0, 0])
     assert grasp_display.weakest_geometry(g)["ring"] is None           # no torque part
     g.force_closure = False

@@ -494,7 +494,7 @@ def scenario_grasp_hud():
     RESULT["pixels"] = {"before": before, "during": during}
     RESULT["pictures_taken"] = attempt + 1
     gd = ext("engine.grasp_display")
-    RESULT["weakest_on_screen"] = weakest_on_screen(shot, area, win_region, gd.weakest_geometry(grasps[0]))
+    RESULT["weakest_on_screen"] = weakest_on_screen(shot, area, win_region, ext("display").weakest_shown(grasps[0]))
     RESULT["grasps"] = [{"body": g.body, "force_closure": bool(g.force_closure), "epsilon": g.epsilon,
                          "weakest": [float(v) for v in g.weakest], "grip_ratio": g.grip_ratio,
                          "contacts": [{"finger": c.finger, "friction_use": c.friction_use, "state": c.state}

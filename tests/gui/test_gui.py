@@ -46,8 +46,10 @@ def test_start_session_then_esc_then_the_stop_button(gui):
     assert before["hud_white"] < 50 < 1000 < during["hud_white"], r["pixels"]
     # The HUD leads with the grasp, then the C loop's own numbers, not the display's.
     hud = r["hud"].replace("\u00a0", " ").split("\n")     # no-break spaces as spaces
-    assert hud[0].startswith("Box: closure ") and "Finger 0 stick" in hud[3] and "Finger 1 stick" in hud[3]
-    assert hud[4].startswith("t ") and "until Esc" in hud[4] and "haptic 0 Hz" not in hud[4]
+    assert hud[0].startswith("Box: held") and hud[1].startswith("Box: closure ")    # words, then numbers
+    assert "Finger 0 stick" in hud[4] and "Finger 1 stick" in hud[4]
+    assert hud[5].startswith("t ") and "until Esc" in hud[5] and "haptic 0 Hz" not in hud[5]
+    assert "safety:" not in r["hud"] and "forces held at zero" not in r["hud"]    # no device: no safety line
     # Esc ends it within one display frame: no later than the longest of the last display
     # updates (Blender answers the key once the frame it is drawing is done), plus the
     # time xdotool takes to send it.
@@ -66,9 +68,11 @@ def test_the_hud_and_viewport_show_a_held_grasp(gui):
     assert g["force_closure"] and g["epsilon"] > 0 and sorted(c["finger"] for c in g["contacts"]) == [0, 1, 2]
     assert abs(sum(w * w for w in g["weakest"]) - 1.0) < 1e-9            # a unit wrench
     hud = r["hud"].replace("\u00a0", " ").split("\n")     # no-break spaces as spaces
-    assert hud[0].startswith(f"Box: closure yes  ε {g['epsilon']:.3f}  resists "), hud
-    assert hud[1].startswith("  grip ") and " / load " in hud[1] and hud[2].startswith("  slip margin ")
-    assert all(f"Finger {i} stick" in hud[3] for i in range(3)), hud
+    assert hud[0].startswith("Box: held") and " slips first (" in hud[0], hud        # the verdict in words
+    assert hud[1].startswith(f"Box: closure yes  ε {g['epsilon']:.3f}  resists "), hud
+    assert hud[2].startswith("  grip ") and " / load " in hud[2] and hud[3].startswith("  slip margin ")
+    assert all(f"Finger {i} stick" in hud[4] for i in range(3)), hud
+    assert hud[-1].startswith("magenta: ")                      # the weakest wrench's legend
     before, during = r["pixels"]["before"], r["pixels"]["during"]
     assert during["magenta"] > before["magenta"] + 100, r["pixels"]          # the weakest wrench
     assert during["green"] > before["green"] + 100, r["pixels"]              # god-objects far from slip
