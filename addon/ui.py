@@ -37,6 +37,20 @@ def wrapped_labels(layout, context, lines, icon_first="NONE", path=False):
     return col
 
 
+def baked_frame_lines(context) -> list:
+    """The verdict at the current frame of a bake (engine.grasp_display.baked_verdict_lines),
+    [] when the scene has no baked measures."""
+    objs = context.view_layer.objects
+    bodies = [(o.name[len("GL Force "):], o.get("gl_held", 0.0), o.get("gl_closure", 0.0),
+               o.get("gl_grip_load", 0.0)) for o in objs if o.name.startswith("GL Force ") and "gl_held" in o]
+    if not bodies:
+        return []
+    fingers = [(o.name[len("GL God-object "):], o.get("gl_state", 0.0), o.get("gl_friction_use", 0.0))
+               for o in sorted(objs, key=lambda o: o.name)
+               if o.name.startswith("GL God-object ") and "gl_state" in o]
+    return grasp_display.baked_verdict_lines(bodies, fingers)
+
+
 class _GraspPanel:
     bl_space_type = "VIEW_3D"
     bl_region_type = "UI"
@@ -169,6 +183,11 @@ class GRASPLAB_PT_session(_GraspPanel, bpy.types.Panel):
         if not moved:
             row.operator("grasp_lab.reset", icon="LOOP_BACK")
         row.operator("grasp_lab.clear_display", text="Clear Display", icon="TRASH")
+        baked = baked_frame_lines(context) if active is None else []
+        if baked:
+            # Scrubbing a bake: the grasp in words at this frame.
+            wrapped_labels(layout.box(), context, [f"Frame {context.scene.frame_current} (baked):"] + baked,
+                           icon_first="KEYFRAME")
         res = session.last_result
         if active is None and res is not None and res.stats and res.scene_name == context.scene.name:
             # The session's summary: the grasp in words when it ended, then its length.

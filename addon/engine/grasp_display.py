@@ -172,6 +172,27 @@ def verdict_lines(grasps, body_names, finger_names) -> list:
     return [verdict(g, body_names[g.body], finger_names) for g in grasps]
 
 
+class _Baked:
+    """What verdict reads of a grasp, from a baked frame's properties."""
+
+    def __init__(self, **kw):
+        self.__dict__.update(kw)
+
+
+def baked_verdict_lines(bodies, fingers) -> list:
+    """verdict_lines at a baked frame, from the bake's animated properties there: ``bodies``
+    [(name, gl_held, gl_closure, gl_grip_load)], ``fingers`` [(name, gl_state, gl_friction_use)].
+    The bake keeps no finger-to-body link, so each held body is judged with every finger in
+    contact (exact for one body; a scene with several reads the fingers of all of them)."""
+    names = [f[0] for f in fingers]
+    touching = [_Baked(finger=k, state=int(round(state)), friction_use=use if use >= 0 else math.nan)
+                for k, (_, state, use) in enumerate(fingers) if int(round(state)) > 0]
+    grasps = [_Baked(body=i, contacts=touching, force_closure=closure > 0.5,
+                     grip_ratio=ratio if ratio >= 0 else math.inf)
+              for i, (_, held, closure, ratio) in enumerate(bodies) if held > 0.5]
+    return verdict_lines(grasps, [b[0] for b in bodies], names)
+
+
 def grasp_lines(grasps, body_names, finger_names) -> list:
     """The grasp, per held body: the verdict in words first, then the numbers: closure and
     epsilon, the force it resists in its weakest direction, grip against load, the finger

@@ -159,6 +159,19 @@ def test_verdict_lines_one_per_touched_body_before_the_numbers():
     assert lines[2].startswith("Box: closure yes") and grasp_display.verdict_lines([], [], []) == ["No finger on a body"]
 
 
+def test_a_baked_frame_gets_the_same_verdict():
+    bodies = [("Pencil", 1.0, 1.0, 45.0), ("Cup", 0.0, 0.0, 0.0)]       # the cup is not held
+    fingers = [("Thumb", 1.0, 0.2), ("Index", 1.0, 0.45), ("Middle", 0.0, 0.0)]
+    assert [x.replace(grasp_display.NBSP, " ") for x in grasp_display.baked_verdict_lines(bodies, fingers)] == [
+        "Pencil: held firmly; Index slips first (45% of its friction)"]
+    fingers[1] = ("Index", 2.0, 1.0)                                       # sliding at that frame
+    assert grasp_display.baked_verdict_lines(bodies, fingers)[0].startswith("Pencil: slipping; Index")
+    assert grasp_display.baked_verdict_lines([("Pencil", 0.0, 0.0, 0.0)], fingers) == ["No finger on a body"]
+    # friction use keyed -1 (not bounded: no normal force) is the first to slip
+    line = grasp_display.baked_verdict_lines(bodies, [("Thumb", 1.0, 0.1), ("Index", 1.0, -1.0)])[0]
+    assert line.startswith("Pencil: held, barely; Index")
+
+
 def test_force_output_is_one_statement_of_what_reaches_the_hand():
     assert grasp_display.force_output(True) == "forces on"
     assert grasp_display.force_output(True, [False, True]) == "forces on"

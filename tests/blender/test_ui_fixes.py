@@ -206,3 +206,19 @@ def test_bodies_moved_by_a_session_are_offered_a_reset(bpy, sample, core):
     assert [o.name for o in rest_poses.moved_from_rest(bpy.context)] == ["Box"]
     assert bpy.ops.grasp_lab.reset() == {"FINISHED"}
     assert rest_poses.moved_from_rest(bpy.context) == []
+
+
+def test_scrubbing_a_bake_says_in_words_how_the_grasp_is_at_that_frame(bpy, baked):
+    """The pinch and lift baked: mid-lift the box is held by both fingers (words from the baked
+    properties at that frame); at the first frame no finger touches it yet."""
+    ui = grasp_env.submodule("ui")
+    scene = bpy.context.scene
+    scene.frame_set(43)
+    lines = ui.baked_frame_lines(bpy.context)
+    assert len(lines) == 1 and lines[0].startswith("Box: held") and "slips first" in lines[0], lines
+    force = bpy.data.objects["GL Force Box"]
+    assert force["gl_held"] == 1.0
+    scene.frame_set(scene.frame_start)
+    assert ui.baked_frame_lines(bpy.context) == ["No finger on a body"]
+    # the baked measures say what they are, with units (their tooltips)
+    assert "N" in force.id_properties_ui("gl_grip").as_dict()["description"]
