@@ -842,20 +842,12 @@ def scenario_device():
     RESULT["device_events"] = [e[2] for e in last_result().stats["device_events"]]
 
 
-def scenario_find_devices():
-    """Find Devices as a person uses it, with an emulator running (started by the test, its
-    pty in GRASP_LAB_GUI_DEVICE_PORT): the sidebar scrolled to the Devices panel, a click on
-    Find Devices; a row appears below it with the device's name and a + button, and a line with
-    its finger count and port (text pixels in both, each line narrower than the sidebar in the
-    interface font); a click on that + adds the device with the fingers of its hello."""
+def find_and_add_device(port, picture=None):
+    """Find Devices clicked (the Devices panel on screen), then the + of ``port``'s row among
+    the rows that appear under it (other emulators on the machine may answer too: the list's
+    order says which is ours); what it saw goes to RESULT."""
     import blf
-    port = os.environ["GRASP_LAB_GUI_DEVICE_PORT"]
-    setup_scene(animated=False)
-    yield from open_grasp_tab()
     area, win_region, ui = view3d()
-    hover(ui, ui.width / 2, ui.height / 2)
-    xdo("click", "--repeat", "15", "5")             # scrolled down to the Devices panel
-    yield 1.5
     devices_ui = ext("devices_ui")
     row = yield from operator_row(ui, "grasp_lab.devices_refresh", part=0, parts=2, name="before_find")
     x0, x1, y_find = row                                            # Find Devices | Add Device
@@ -900,9 +892,26 @@ def scenario_find_devices():
     found = [d for d in devices_ui._discovered["devices"] if d["port"] == port]
     lines = [found[0]["name"], f"{found[0]['n_fingers']} fingers, {port}"] if found else []
     RESULT["lines"] = {"region_width": ui.width, "text": lines, "text_px": [blf.dimensions(0, x)[0] for x in lines]}
-    docs_picture("find_devices", crop="sidebar")
+    if picture:
+        docs_picture(picture, crop="sidebar")
     yield from click_at(ui, cx, ui.height - cy)     # the device's +
     yield 0.5
+
+
+def scenario_find_devices():
+    """Find Devices as a person uses it, with an emulator running (started by the test, its
+    pty in GRASP_LAB_GUI_DEVICE_PORT): the sidebar scrolled to the Devices panel, a click on
+    Find Devices; a row appears below it with the device's name and a + button, and a line with
+    its finger count and port (text pixels in both, each line narrower than the sidebar in the
+    interface font); a click on that + adds the device with the fingers of its hello."""
+    port = os.environ["GRASP_LAB_GUI_DEVICE_PORT"]
+    setup_scene(animated=False)
+    yield from open_grasp_tab()
+    area, win_region, ui = view3d()
+    hover(ui, ui.width / 2, ui.height / 2)
+    xdo("click", "--repeat", "15", "5")             # scrolled down to the Devices panel
+    yield 1.5
+    yield from find_and_add_device(port, picture="find_devices")
     RESULT["entries"] = [(e.kind, e.port, e.finger_offset, e.num_fingers)
                          for e in bpy.context.scene.grasp_lab_devices]
     screenshot("after_add")
