@@ -6,10 +6,10 @@ from __future__ import annotations
 import bpy
 from bpy.props import BoolProperty, CollectionProperty, EnumProperty, IntProperty, PointerProperty, StringProperty
 
-from . import convert, session
+from . import convert, session, ui
+from .engine import placement
 from .engine.devices.cli_commands import hid_devices
 from .engine.devices.discovery import find_devices, hello_fingers
-from .engine import placement
 from .engine.devices.live import free_fingers
 from .scene_devices import scene_finger_count, status_lines, taken_fingers, waiting_entry
 
@@ -232,9 +232,7 @@ class GRASPLAB_PT_devices(bpy.types.Panel):
                         text="Forces On" if context.scene.grasp_lab_device_forces else "Forces Off",
                         icon="FORCE_FORCE" if context.scene.grasp_lab_device_forces else "PAUSE")
         if devices is not None:
-            col = layout.column()
-            for line in status_lines(devices):
-                col.label(text=line)
+            ui.wrapped_labels(layout, context, status_lines(devices))
             layout.operator("grasp_lab.device_reconnect", icon="LINKED")
         elif len(context.scene.grasp_lab_devices):
             # Two short lines: the sidebar at its default width never cuts them.

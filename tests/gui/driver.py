@@ -1105,6 +1105,260 @@ def scenario_walkthrough():
     docs_picture("curves")
 
 
+def find_field(region, data_path, tries=3, xs=(0.75, 0.55)):
+    """Centre (region coordinates) of the property field whose data path ends in ``data_path``
+    (``grasp_lab.role``), found as a person can check one: the mouse over each row of the
+    region in turn and Ctrl+Shift+C (Blender copies the data path of the field under the
+    mouse). When it is not on screen, the region is scrolled down a few notches at a time."""
+    wm = bpy.context.window_manager
+    for attempt in range(tries):
+        for y in range(region.height - 40, 20, -10):
+            for frac in xs:
+                x = region.width * frac
+                hover(region, x, y)
+                yield 0.12
+                wm.clipboard = ""
+                xdo("key", "ctrl+shift+c")
+                yield 0.12
+                if wm.clipboard.endswith(data_path):
+                    return x, y
+        hover(region, region.width / 2, region.height / 2)
+        xdo("click", "--repeat", "8", "5")          # further down, as a person scrolls
+        yield 1.0
+    raise AssertionError(f"no field {data_path} in the region")
+
+
+def scroll_to_top(region):
+    hover(region, region.width / 2, region.height / 2)
+    xdo("click", "--repeat", "40", "4")
+    yield 1.0
+
+
+class LabelRecorder:
+    """A stand-in for a panel's layout that keeps the text of every label drawn (with whether
+    it has an icon): the panels' text as Blender is told to draw it, to measure in its font."""
+
+    def __init__(self, out):
+        self._out = out
+
+    def label(self, text="", icon="NONE", **_kw):
+        self._out.append((text, icon != "NONE"))
+        return self
+
+    def __getattr__(self, name):
+        return lambda *a, **kw: self
+
+
+def sidebar_labels():
+    """Every label the Grasp tab's panels draw now, in the sidebar's context, with its width in
+    the interface font and the width it has (the sidebar less the panel's margins, and an
+    icon's room): [(text, text px, room px)]."""
+    import blf
+    from types import SimpleNamespace
+    area, win_region, ui = view3d()
+    prefs = bpy.context.preferences
+    scale = prefs.system.ui_scale
+    blf.size(0, prefs.ui_styles[0].widget.points * scale)
+    out = []
+    panels = [c for c in bpy.types.Panel.__subclasses__() if getattr(c, "bl_category", "") == "Grasp"]
+    with bpy.context.temp_override(window=window(), area=area, region=ui):
+        for cls in panels:
+            if hasattr(cls, "poll") and not cls.poll(bpy.context):
+                continue
+            labels = []
+            cls.draw(SimpleNamespace(layout=LabelRecorder(labels)), bpy.context)
+            for text, icon in labels:
+                room = ui.width - 40 * scale - (50 * scale if icon else 0)
+                out.append((text, blf.dimensions(0, text)[0], room))
+    return out
+
+
+def scenario_first_hour():
+    """The README's walkthrough word for word, from Blender's own startup file (the 2 m cube,
+    the camera, the light; nothing prepared), with the device step on the emulator the test
+    started (GRASP_LAB_GUI_DEVICE_PORT). Every step by clicks and keys; what each step left is
+    in RESULT, and every label the sidebar draws is measured against its width."""
+    port = os.environ["GRASP_LAB_GUI_DEVICE_PORT"]
+    RESULT["startup_objects"] = sorted(o.name for o in bpy.data.objects)
+    RESULT["blend_path"] = bpy.data.filepath
+    cube = bpy.data.objects["Cube"]
+    RESULT["cube_selected"] = cube.select_get() and bpy.context.view_layer.objects.active is cube
+    yield from open_grasp_tab()
+    yield 1.0
+    area, win_region, ui = view3d()
+    labels = {}
+    # --- 1. Role Dynamic (Object panel: the Role dropdown, then D for Dynamic), Add Finger twice
+    x, y = yield from find_field(ui, "grasp_lab.role")
+    yield from click_at(ui, x, y)
+    yield 0.8
+    xdo("key", "d")
+    yield from wait_until(lambda: cube.grasp_lab.role == "DYNAMIC", 5, "the cube's role to be Dynamic")
+    labels["role"] = sidebar_labels()
+    yield from scroll_to_top(ui)
+    for k in range(2):
+        row = yield from operator_row(ui, "grasp_lab.add_finger", part=0, parts=2)
+        yield from click_part(ui, row, part=0, parts=2)
+        yield from wait_until(lambda: len([o for o in bpy.context.scene.objects
+                                           if o.grasp_lab.role == "FINGER"]) == k + 1, 5, f"finger {k}")
+    fingers = sorted((o for o in bpy.context.scene.objects if o.grasp_lab.role == "FINGER"), key=lambda o: o.name)
+    RESULT["fingers"] = [{"name": f.name, "location": list(f.location), "radius": f.grasp_lab.radius}
+                         for f in fingers]
+    yield 1.0
+    RESULT["support_offer"] = [o.name for o in ext("ops").support_offer(bpy.context)]
+    labels["offer"] = sidebar_labels()
+    docs_picture("first_offer", crop="sidebar")
+    row = yield from operator_row(ui, "grasp_lab.add_table")
+    yield from click_part(ui, row)
+    yield from wait_until(lambda: "Table" in bpy.data.objects, 5, "Add Table")
+    table = bpy.data.objects["Table"]
+    bpy.context.view_layer.update()
+    RESULT["table"] = {"role": table.grasp_lab.role, "top": max((table.matrix_world @ v.co).z for v in table.data.vertices),
+                       "offer_after": [o.name for o in ext("ops").support_offer(bpy.context)]}
+    yield from scroll_to_top(ui)
+    row = yield from operator_row(ui, "grasp_lab.validate_scene", part=1, parts=2)
+    yield from click_part(ui, row, part=1, parts=2)                 # Check
+    yield 1.5
+    RESULT["check"] = ext("ops").last_check.get(bpy.context.scene.name)
+    # --- 2. live: the second fingertip (still selected) pushed 5 cm into the cube with G
+    yield from start_by_click()
+    yield 1.5
+    RESULT["selected_for_grab"] = [o.name for o in bpy.context.selected_objects]
+    yield from press_in_viewport("g")
+    yield 0.3
+    xdo("key", "x")
+    yield 0.2
+    xdo("key", "minus", "0", "period", "0", "5")
+    yield 0.3
+    xdo("key", "Return")
+    yield from wait_until(lambda: active_session() is not None and list(active_session().snapshot.contacts) == [0, 0],
+                          30, "both fingertips on the cube")
+    yield 2.0
+    s = active_session()
+    RESULT["live_hud"] = s.hud_text()
+    RESULT["live_duration"] = s.duration
+    docs_picture("first_live")
+    yield from press_in_viewport("Escape")
+    yield from wait_until(lambda: active_session() is None, 10, "Esc")
+    check_stopped("live")
+    yield 1.0
+    RESULT["summary"] = list(last_result().verdict)
+    labels["summary"] = sidebar_labels()
+    # --- 3. record: Record ticked in the Recording panel (an unsaved file: the user folder)
+    x, y = yield from find_field(ui, "grasp_lab.record")
+    yield from click_at(ui, x, y)
+    yield from wait_until(lambda: bpy.context.scene.grasp_lab.record, 5, "Record ticked")
+    yield 1.0
+    labels["recording"] = sidebar_labels()
+    RESULT["recording_folder"] = ext("record").folder_of(bpy.context.scene.grasp_lab)
+    RESULT["user_folder"] = ext("record").user_folder()
+    docs_picture("first_record_folder", crop="sidebar")
+    yield from scroll_to_top(ui)
+    yield from start_by_click()
+    yield from wait_until(lambda: active_session() is not None and active_session().runner.time > 2.0, 30,
+                          "two seconds recorded")
+    yield from press_in_viewport("Escape")
+    yield from wait_until(lambda: active_session() is None, 10, "Esc")
+    check_stopped("record")
+    RESULT["recording"] = bpy.context.scene.grasp_lab.last_recording
+    # --- 4. bake: the browser on the recording just made, Enter
+    hover(ui, ui.width / 2, ui.height / 2)
+    xdo("click", "--repeat", "30", "5")
+    yield 1.0
+    row = yield from operator_row(ui, "grasp_lab.import_recording", part=0, parts=2)
+    yield from click_part(ui, row, part=0, parts=2)                 # Bake Recording
+    browser = {}
+
+    def file_browser():
+        for w in bpy.context.window_manager.windows:
+            for a in w.screen.areas:
+                if a.type == "FILE_BROWSER":
+                    browser["params"] = a.spaces.active.params
+                    return True
+        return False
+    yield from wait_until(file_browser, 10, "the file browser")
+    yield 1.5
+    p = browser["params"]
+    RESULT["browser"] = {"directory": p.directory.decode() if isinstance(p.directory, bytes) else p.directory,
+                         "filename": p.filename}
+    xdo("key", "Return")
+    yield from wait_until(lambda: "GL Force Cube" in bpy.data.objects
+                          and "gl_closure" in bpy.data.objects["GL Force Cube"].keys(), 30, "the bake")
+    yield 1.0
+    # --- 5. Show Curves: normalised, measures described with units; a baked frame in words
+    area, win_region, ui = view3d()
+    row = yield from operator_row(ui, "grasp_lab.show_curves", part=1, parts=2, name="rows_after_bake")
+    yield from click_part(ui, row, part=1, parts=2)
+    yield from wait_until(lambda: any(a.type == "GRAPH_EDITOR" for a in window().screen.areas), 10, "a Graph Editor")
+    yield 2.0
+    graph = next(a for a in window().screen.areas if a.type == "GRAPH_EDITOR")
+    force = bpy.data.objects["GL Force Cube"]
+    RESULT["graph"] = {"normalized": graph.spaces.active.use_normalization,
+                       "filter": graph.spaces.active.dopesheet.filter_text,
+                       "grip_description": force.id_properties_ui("gl_grip").as_dict().get("description", "")}
+    docs_picture("first_curves")
+    scene = bpy.context.scene
+    scene.frame_set(scene.frame_start + 24)                 # a second in: scrubbed to
+    yield 1.0
+    RESULT["baked_frame"] = ext("ui").baked_frame_lines(bpy.context)
+    # --- 6. the device: Record off, Find Devices, + of the emulator, Forces On, Start Session
+    area, win_region, ui = view3d()
+    yield from scroll_to_top(ui)
+    x, y = yield from find_field(ui, "grasp_lab.record")
+    yield from click_at(ui, x, y)
+    yield from wait_until(lambda: not bpy.context.scene.grasp_lab.record, 5, "Record unticked")
+    hover(ui, ui.width / 2, ui.height / 2)
+    xdo("click", "--repeat", "30", "5")
+    yield 1.5
+    yield from find_and_add_device(port)
+    entries = bpy.context.scene.grasp_lab_devices
+    RESULT["device_entries"] = [(e.kind, e.port, e.finger_offset, e.num_fingers) for e in entries]
+    frame = entries[0].frame if len(entries) else None
+    RESULT["device_frame"] = None if frame is None else {"location": list(frame.location), "scale": list(frame.scale)}
+    yield 1.0
+    x, y = yield from find_field(ui, "grasp_lab_device_forces")
+    yield from click_at(ui, x, y)
+    yield from wait_until(lambda: bpy.context.scene.grasp_lab_device_forces, 5, "Forces On")
+    yield 1.0
+    labels["devices"] = sidebar_labels()
+    yield from scroll_to_top(ui)
+    yield from start_by_click()
+    yield from wait_until(lambda: active_session() is not None and active_session().devices is not None
+                          and list(active_session().snapshot.contacts) == [0, 0], 30,
+                          "the device's fingertips on the cube")
+    yield 2.0
+    s = active_session()
+    RESULT["device_hud"] = s.hud_text()
+    RESULT["device_duration"] = s.duration
+    RESULT["device_enabled"] = [d["enabled"] for d in s.devices.status()]
+    docs_picture("first_device")
+    labels["device_session"] = sidebar_labels()
+    yield from press_in_viewport("Escape")
+    yield from wait_until(lambda: active_session() is None, 10, "Esc")
+    check_stopped("device")
+    # --- 7. robustness: the recording picked in the list (the newest: the one made), Run Sweep
+    r = bpy.context.scene.grasp_lab_robustness
+    RESULT["sweep_choice"] = ext("robustness").chosen_recording(bpy.context.scene)
+    hover(ui, ui.width / 2, ui.height / 2)
+    xdo("click", "--repeat", "40", "5")
+    yield 1.5
+    row = yield from operator_row(ui, "grasp_lab.robustness_sweep")
+    yield from click_part(ui, row)
+    robustness = ext("robustness")
+    yield from wait_until(lambda: bpy.context.scene.name in robustness._jobs, 10, "the sweep to start")
+    job = robustness._jobs[bpy.context.scene.name]
+    yield from wait_until(lambda: not job.running, 300, "the sweep to end", poll=0.5)
+    yield from wait_until(lambda: not bpy.app.timers.is_registered(robustness.sweep_tick), 30,
+                          "the sweep's process to be collected", poll=0.5)
+    RESULT["sweep"] = {"status": r.status, "error": job.error, "folder": job.folder,
+                       "files": sorted(os.listdir(job.folder)), "returncode": job._proc.returncode}
+    hover(ui, ui.width / 2, ui.height / 2)
+    xdo("click", "--repeat", "40", "5")
+    yield 1.5
+    labels["robustness"] = sidebar_labels()
+    docs_picture("first_robustness", crop="sidebar")
+    RESULT["labels"] = labels
+
+
 def scenario_robustness():
     """The Robustness panel as a person uses it: a recorded pinch and lift, the sidebar scrolled
     to the panel, Run Sweep clicked; the progress bar moves while Blender keeps drawing (the

@@ -5,6 +5,9 @@ Each test starts a GUI Blender under Xvfb (tests/gui/gui_blender.sh: Debian 13's
 takes screenshots (kept in build/gui/<scenario>/) and writes what it saw to result.json.
 """
 import os
+import re
+import subprocess
+import sys
 
 import pytest
 
@@ -241,6 +244,63 @@ def test_the_readme_walkthrough_click_by_click(gui):
     assert g["filter"] == "gl_" and g["only_selected"] and g["height"] > 200
     assert g["selected"] == ["GL Force Box", "GL God-object Finger 0", "GL God-object Finger 1"]
     assert g["keys"] > 1000 and g["selected_keys"] == 0
+
+
+def test_the_first_hour_from_the_startup_file_word_for_word(gui):
+    """The README's walkthrough from Blender's own startup file, as a new user follows it, with
+    the device step on the emulator: a held grasp, a recording in a folder the panel states, a
+    bake, readable curves, a device session until Esc and a robustness answer; every label the
+    sidebar drew on the way fits its default width."""
+    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty"],   # the README's
+                           cwd=gui_run.ROOT, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        port = emu.stdout.readline().split()[1]
+        r, console, _ = run(dict(gui, GRASP_LAB_GUI_DEVICE_PORT=port), "first_hour", timeout=900)
+    finally:
+        emu.kill()
+        emu.wait()
+    ok(r, console)
+    stopped_cleanly(r)
+    # Blender's startup file, nothing prepared: the cube selected, the file not saved
+    assert r["startup_objects"] == ["Camera", "Cube", "Light"] and r["cube_selected"] and r["blend_path"] == ""
+    # 1. two fingertips on opposite sides of the 2 m cube, sized to it (a twentieth: 10 cm)
+    f0, f1 = r["fingers"]
+    assert f0["radius"] == pytest.approx(0.1) and f1["radius"] == pytest.approx(0.1)
+    assert f0["location"] == pytest.approx([-1.1, 0, 0], abs=1e-6) and f1["location"] == pytest.approx([1.1, 0, 0], abs=1e-6)
+    # the falling cube offered a table before any session; one click put it under the cube
+    assert r["support_offer"] == ["Cube"]
+    assert r["table"]["role"] == "STATIC" and r["table"]["top"] == pytest.approx(-1.0) and r["table"]["offer_after"] == []
+    assert r["check"][0] and r["check"][1].startswith("Grasp scene OK: 1 dynamic, 1 static, 2 fingers"), r["check"]
+    # 2. live until Esc; the HUD's first line says in words that the cube is held, and the
+    # summary after Esc says it too; no safety counters without a device
+    assert r["selected_for_grab"] == ["Finger 1"] and r["live_duration"] == float("inf")
+    hud = r["live_hud"].replace("\u00a0", " ").split("\n")
+    assert hud[0].startswith("Cube: held") and " slips first (" in hud[0], hud
+    assert "safety:" not in r["live_hud"] and "forces held at zero" not in r["live_hud"]
+    assert r["summary"] and r["summary"][0].startswith("Cube: "), r["summary"]
+    # 3. an unsaved file records to the per-user folder, named after the scene and the time
+    assert r["recording_folder"] == os.path.normpath(r["user_folder"]) and "grasp_lab" in r["user_folder"]
+    folder, name = os.path.split(r["recording"])
+    assert folder == r["recording_folder"] and re.fullmatch(r"Scene_\d{4}-\d\d-\d\d_\d\d-\d\d-\d\d\.mcap", name), name
+    # 4. the bake's browser on it; 5. curves normalised, measures with units, a baked frame in words
+    assert r["browser"] == {"directory": folder + os.sep, "filename": name}
+    assert r["graph"]["normalized"] and r["graph"]["filter"] == "gl_" and ", N" in r["graph"]["grip_description"]
+    assert len(r["baked_frame"]) == 1 and r["baked_frame"][0].startswith("Cube: "), r["baked_frame"]
+    # 6. the device: on fingers 0..1, its frame on them (not at the cursor), forces on from the
+    # start, running until Esc with both fingertips on the cube
+    assert r["device_entries"] == [["SERIAL", port, 0, 2]], r["device_entries"]
+    assert r["device_frame"]["location"] == pytest.approx([0, 0, 0], abs=1e-6)
+    assert r["device_frame"]["scale"] == pytest.approx([1.1 / 0.06] * 3)
+    assert r["device_duration"] == float("inf") and r["device_enabled"] == [True]
+    assert f"{port}: streaming" in r["device_hud"], r["device_hud"]
+    # 7. the sweep of the recording picked (the one made), results only, its process collected
+    assert r["sweep_choice"] == r["recording"]
+    assert not r["sweep"]["error"] and r["sweep"]["status"].startswith("Held "), r["sweep"]
+    assert r["sweep"]["returncode"] == 0 and not [f for f in r["sweep"]["files"] if f.endswith(".zip")], r["sweep"]
+    # nothing cut: every label the sidebar drew, at its default width, fits
+    for step, labels in r["labels"].items():
+        cut = [(text, px, room) for text, px, room in labels if px > room]
+        assert not cut, (step, cut)
 
 
 def test_the_robustness_panel_sweeps_the_last_recording(gui):
