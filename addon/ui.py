@@ -165,7 +165,7 @@ class GRASPLAB_PT_session(_GraspPanel, bpy.types.Panel):
         sub.active = s.display_objects
         sub.prop(s, "force_scale", text="Force m/N")
         sub.prop(s, "torque_scale", text="Torque m/N·m")
-        col.prop(s, "weakest_scale", text="Weakest Wrench")
+        col.prop(s, "weakest_scale", text="Wrench Size")
         col.prop(s, "live_view")
         if s.live_view:                     # its address only when it is on: a shorter panel
             sub = col.column(align=True)

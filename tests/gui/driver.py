@@ -1135,15 +1135,31 @@ def scroll_to_top(region):
 
 
 class LabelRecorder:
-    """A stand-in for a panel's layout that keeps the text of every label drawn (with whether
-    it has an icon): the panels' text as Blender is told to draw it, to measure in its font."""
+    """A stand-in for a panel's layout that keeps the text Blender is told to draw as labels:
+    each label (with whether it has an icon) and each property's label where it stands alone
+    (the left column of a split layout; a checkbox's text), to measure in the interface font."""
 
-    def __init__(self, out):
+    def __init__(self, out, split=False):
         self._out = out
+        self.use_property_split = split
 
     def label(self, text="", icon="NONE", **_kw):
-        self._out.append((text, icon != "NONE"))
+        self._out.append((text, "icon" if icon != "NONE" else "label"))
         return self
+
+    def prop(self, data, name, text=None, **_kw):
+        rna = data.bl_rna.properties[name]
+        text = rna.name if text is None else text
+        if text and self.use_property_split:
+            self._out.append((text, "split"))
+        elif text and rna.type == "BOOLEAN" and not _kw.get("toggle"):
+            self._out.append((text, "icon"))          # a checkbox: its box where an icon would be
+        return self
+
+    def _child(self, *a, **kw):
+        return LabelRecorder(self._out, self.use_property_split)
+
+    row = column = box = split = _child
 
     def __getattr__(self, name):
         return lambda *a, **kw: self
@@ -1167,8 +1183,11 @@ def sidebar_labels():
                 continue
             labels = []
             cls.draw(SimpleNamespace(layout=LabelRecorder(labels)), bpy.context)
-            for text, icon in labels:
-                room = ui.width - 40 * scale - (50 * scale if icon else 0)
+            for text, kind in labels:
+                # the panel's margins, an icon's room; a split layout's labels get 40 % of the
+                # row less their padding (Blender's property split)
+                full = ui.width - 40 * scale
+                room = {"label": full, "icon": full - 50 * scale, "split": 0.4 * full - 10 * scale}[kind]
                 out.append((text, blf.dimensions(0, text)[0], room))
     return out
 
@@ -1357,6 +1376,13 @@ def scenario_first_hour():
     labels["robustness"] = sidebar_labels()
     docs_picture("first_robustness", crop="sidebar")
     RESULT["labels"] = labels
+    # The measure's model against what this sidebar showed: a split label that Blender 4.3 cut
+    # here ("Weakest Wren…", an earlier name of the Wrench Size field) and one it drew whole.
+    import blf
+    full = ui.width - 40 * bpy.context.preferences.system.ui_scale
+    room = 0.4 * full - 10 * bpy.context.preferences.system.ui_scale
+    RESULT["label_model"] = {"room": room, "cut": blf.dimensions(0, "Weakest Wrench")[0],
+                             "whole": blf.dimensions(0, "Friction Static")[0]}
 
 
 def scenario_robustness():

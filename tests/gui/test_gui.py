@@ -297,7 +297,10 @@ def test_the_first_hour_from_the_startup_file_word_for_word(gui):
     assert r["sweep_choice"] == r["recording"]
     assert not r["sweep"]["error"] and r["sweep"]["status"].startswith("Held "), r["sweep"]
     assert r["sweep"]["returncode"] == 0 and not [f for f in r["sweep"]["files"] if f.endswith(".zip")], r["sweep"]
-    # nothing cut: every label the sidebar drew, at its default width, fits
+    # nothing cut: every label the sidebar drew, at its default width, fits (the measure's
+    # model first checked against a label this sidebar cut and one it drew whole)
+    model = r["label_model"]
+    assert model["whole"] <= model["room"] < model["cut"], model
     for step, labels in r["labels"].items():
         cut = [(text, px, room) for text, px, room in labels if px > room]
         assert not cut, (step, cut)
