@@ -1128,6 +1128,22 @@ def find_field(region, data_path, tries=3, xs=(0.75, 0.55)):
     raise AssertionError(f"no field {data_path} in the region")
 
 
+def settle(region, timeout=20.0):
+    """Waits until the region's pixels are the same in two screenshots in a row: Blender slides
+    panels to their new places over several redraws (a slow display: seconds), and a button
+    found on a picture taken meanwhile is no longer there when it is clicked."""
+    t0 = time.monotonic()
+    last = None
+    while True:
+        now = region_pixels(pixels(screenshot("settle")), region)[..., :3]
+        if last is not None and np.array_equal(now, last):
+            return
+        if time.monotonic() - t0 > timeout:
+            raise AssertionError(f"the region kept changing for {timeout} s")
+        last = now
+        yield 0.5
+
+
 def scroll_to_top(region):
     hover(region, region.width / 2, region.height / 2)
     xdo("click", "--repeat", "40", "4")
@@ -1207,6 +1223,7 @@ def scenario_first_hour():
     area, win_region, ui = view3d()
     labels = {}
     # --- 1. Role Dynamic (Object panel: the Role dropdown, then D for Dynamic), Add Finger twice
+    yield from settle(ui)
     x, y = yield from find_field(ui, "grasp_lab.role")
     yield from click_at(ui, x, y)
     yield 0.8
@@ -1215,6 +1232,7 @@ def scenario_first_hour():
     labels["role"] = sidebar_labels()
     yield from scroll_to_top(ui)
     for k in range(2):
+        yield from settle(ui)
         row = yield from operator_row(ui, "grasp_lab.add_finger", part=0, parts=2)
         yield from click_part(ui, row, part=0, parts=2)
         yield from wait_until(lambda: len([o for o in bpy.context.scene.objects
@@ -1226,6 +1244,7 @@ def scenario_first_hour():
     RESULT["support_offer"] = [o.name for o in ext("ops").support_offer(bpy.context)]
     labels["offer"] = sidebar_labels()
     docs_picture("first_offer", crop="sidebar")
+    yield from settle(ui)
     row = yield from operator_row(ui, "grasp_lab.add_table")
     yield from click_part(ui, row)
     yield from wait_until(lambda: "Table" in bpy.data.objects, 5, "Add Table")
@@ -1234,11 +1253,13 @@ def scenario_first_hour():
     RESULT["table"] = {"role": table.grasp_lab.role, "top": max((table.matrix_world @ v.co).z for v in table.data.vertices),
                        "offer_after": [o.name for o in ext("ops").support_offer(bpy.context)]}
     yield from scroll_to_top(ui)
+    yield from settle(ui)
     row = yield from operator_row(ui, "grasp_lab.validate_scene", part=1, parts=2)
     yield from click_part(ui, row, part=1, parts=2)                 # Check
     yield 1.5
     RESULT["check"] = ext("ops").last_check.get(bpy.context.scene.name)
     # --- 2. live: the second fingertip (still selected) pushed 5 cm into the cube with G
+    yield from settle(ui)
     yield from start_by_click()
     yield 1.5
     RESULT["selected_for_grab"] = [o.name for o in bpy.context.selected_objects]
@@ -1263,6 +1284,7 @@ def scenario_first_hour():
     RESULT["summary"] = list(last_result().verdict)
     labels["summary"] = sidebar_labels()
     # --- 3. record: Record ticked in the Recording panel (an unsaved file: the user folder)
+    yield from settle(ui)
     x, y = yield from find_field(ui, "grasp_lab.record")
     yield from click_at(ui, x, y)
     yield from wait_until(lambda: bpy.context.scene.grasp_lab.record, 5, "Record ticked")
@@ -1272,6 +1294,7 @@ def scenario_first_hour():
     RESULT["user_folder"] = ext("record").user_folder()
     docs_picture("first_record_folder", crop="sidebar")
     yield from scroll_to_top(ui)
+    yield from settle(ui)
     yield from start_by_click()
     yield from wait_until(lambda: active_session() is not None and active_session().runner.time > 2.0, 30,
                           "two seconds recorded")
@@ -1283,6 +1306,7 @@ def scenario_first_hour():
     hover(ui, ui.width / 2, ui.height / 2)
     xdo("click", "--repeat", "30", "5")
     yield 1.0
+    yield from settle(ui)
     row = yield from operator_row(ui, "grasp_lab.import_recording", part=0, parts=2)
     yield from click_part(ui, row, part=0, parts=2)                 # Bake Recording
     browser = {}
@@ -1305,6 +1329,7 @@ def scenario_first_hour():
     yield 1.0
     # --- 5. Show Curves: normalised, measures described with units; a baked frame in words
     area, win_region, ui = view3d()
+    yield from settle(ui)
     row = yield from operator_row(ui, "grasp_lab.show_curves", part=1, parts=2, name="rows_after_bake")
     yield from click_part(ui, row, part=1, parts=2)
     yield from wait_until(lambda: any(a.type == "GRAPH_EDITOR" for a in window().screen.areas), 10, "a Graph Editor")
@@ -1322,24 +1347,28 @@ def scenario_first_hour():
     # --- 6. the device: Record off, Find Devices, + of the emulator, Forces On, Start Session
     area, win_region, ui = view3d()
     yield from scroll_to_top(ui)
+    yield from settle(ui)
     x, y = yield from find_field(ui, "grasp_lab.record")
     yield from click_at(ui, x, y)
     yield from wait_until(lambda: not bpy.context.scene.grasp_lab.record, 5, "Record unticked")
     hover(ui, ui.width / 2, ui.height / 2)
     xdo("click", "--repeat", "30", "5")
     yield 1.5
+    yield from settle(ui)
     yield from find_and_add_device(port)
     entries = bpy.context.scene.grasp_lab_devices
     RESULT["device_entries"] = [(e.kind, e.port, e.finger_offset, e.num_fingers) for e in entries]
     frame = entries[0].frame if len(entries) else None
     RESULT["device_frame"] = None if frame is None else {"location": list(frame.location), "scale": list(frame.scale)}
     yield 1.0
+    yield from settle(ui)
     x, y = yield from find_field(ui, "grasp_lab_device_forces")
     yield from click_at(ui, x, y)
     yield from wait_until(lambda: bpy.context.scene.grasp_lab_device_forces, 5, "Forces On")
     yield 1.0
     labels["devices"] = sidebar_labels()
     yield from scroll_to_top(ui)
+    yield from settle(ui)
     yield from start_by_click()
     yield from wait_until(lambda: active_session() is not None and active_session().devices is not None
                           and list(active_session().snapshot.contacts) == [0, 0], 30,
@@ -1360,6 +1389,7 @@ def scenario_first_hour():
     hover(ui, ui.width / 2, ui.height / 2)
     xdo("click", "--repeat", "40", "5")
     yield 1.5
+    yield from settle(ui)
     row = yield from operator_row(ui, "grasp_lab.robustness_sweep")
     yield from click_part(ui, row)
     robustness = ext("robustness")
