@@ -138,6 +138,7 @@ def _keep(text: str) -> str:
 
 FIRM_USE = 0.5      # every contact using under half its friction: held firmly
 BARELY_USE = 0.8    # a contact using this much of its friction is close to slipping
+NEAR_NOTHING_USE = 0.01     # under this share of its friction, no finger is worth naming
 
 
 def verdict(grasp, body_name: str, finger_names) -> str:
@@ -145,7 +146,8 @@ def verdict(grasp, body_name: str, finger_names) -> str:
     what would make it slip first. Held means no contact sliding and the grip at least the
     load; firmly, in force closure with every contact under FIRM_USE of its friction;
     barely, a contact at BARELY_USE or more. The first to slip is the contact using the
-    largest share of its friction (a contact without normal force counts as fully used)."""
+    largest share of its friction (a contact without normal force counts as fully used); none
+    is named while every contact uses under NEAR_NOTHING_USE."""
     uses = [(c.friction_use if math.isfinite(c.friction_use) else math.inf, c) for c in grasp.contacts]
     worst_use, worst = max(uses, key=lambda u: u[0]) if uses else (0.0, None)
     if any(c.state == 2 for c in grasp.contacts):
@@ -160,6 +162,8 @@ def verdict(grasp, body_name: str, finger_names) -> str:
         word = "held, barely"
     if worst is None:
         return f"{body_name}: {word}"
+    if worst_use < NEAR_NOTHING_USE:
+        return f"{body_name}: {word}; no finger near slipping"      # resting on a table, squeezed
     who = finger_names[worst.finger]
     return (f"{body_name}: {word}; {_keep(who)} slips first "
             f"({_keep(f'{_percent(worst.friction_use)} of its friction')})")

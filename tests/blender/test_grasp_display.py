@@ -148,6 +148,8 @@ def test_verdict_says_in_words_whether_held_how_firmly_and_who_slips_first():
     assert words(_contacts((0.3, 1), (1.0, 2))).startswith("Pencil: slipping; Index")
     assert words(_contacts((0.3, 1), (0.3, 1)), ratio=0.4).startswith("Pencil: not held (grip below load)")
     assert words(_contacts((0.3, 1), (0.3, 1)), ratio=math.nan).startswith("Pencil: not held")
+    # squeezed with no load to carry (a body resting on a table): nobody to name
+    assert words(_contacts((0.0, 1), (0.005, 1))) == "Pencil: held firmly; no finger near slipping"
     # a contact with no normal force (use not a number) is the first to slip
     assert words(_contacts((0.3, 1), (math.nan, 1))) == "Pencil: held, barely; Index slips first (— of its friction)"
 
