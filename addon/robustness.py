@@ -23,6 +23,7 @@ _jobs = {}                  # scene name -> BackgroundSweep (the one running or 
 _previews = None            # bpy.utils.previews collection of the maps shown
 
 
+NEWEST = "NEWEST"           # the recording list's first entry: whichever recording is newest
 _verdicts = {}              # recording path -> ((mtime, size), its verdict in words)
 _items = []                 # the recording list's items: Blender needs them kept alive
 
@@ -66,7 +67,7 @@ def _recording_items(self, context):
     # The first item (the default) follows the newest recording; the others stay on their file.
     newest = (f"Newest ({os.path.basename(paths[0])}: {recording_verdict(paths[0])})" if paths
               else "No recording yet: record a session first")
-    _items = [("", newest, "The newest recording of the scene", "TIME", 0)]
+    _items = [(NEWEST, newest, "The newest recording of the scene", "TIME", 0)]
     _items += [(p, f"{os.path.basename(p)}: {recording_verdict(p)}", p, "FILE",
                 1 + zlib.crc32(p.encode()) % 0x7FFFFFFE) for p in paths]
     return _items
@@ -75,7 +76,7 @@ def _recording_items(self, context):
 def chosen_recording(scene) -> str:
     """The recording the panel sweeps: the one picked in its list, else the newest."""
     picked = _settings(scene).recording
-    if picked and os.path.isfile(picked):
+    if picked != NEWEST and os.path.isfile(picked):
         return picked
     found = scene_recordings(scene)
     return found[0] if found else ""

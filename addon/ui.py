@@ -13,7 +13,9 @@ def _measure(context, icon_first="NONE"):
     """(width, measure) of a label line in this region: pixels and the interface font where
     there is a window, else characters at about 6.5 px each."""
     scale = context.preferences.system.ui_scale
-    width = (context.region.width if context.region else 300) - 40 * scale   # panel and box margins
+    # the panel's and a box's margins and the label's own padding: a 240 px path was cut in a
+    # box of a 291 px sidebar (Blender 4.3, measured on screen)
+    width = (context.region.width if context.region else 300) - 56 * scale
     if icon_first != "NONE":
         width -= 50 * scale             # the icon before the text and its padding (measured on screen)
     measure = None

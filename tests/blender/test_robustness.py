@@ -120,7 +120,7 @@ def test_the_panel_picks_its_recording_from_a_list_with_verdicts(bpy, core, pinc
     assert robustness.chosen_recording(scene) == newer                    # nothing picked: the newest
     assert robustness.recording_verdict(newer).startswith("holds Box ")
     items = robustness._recording_items(None, bpy.context)
-    assert [i[0] for i in items] == ["", newer, older] and items[1][1].startswith("pinch_new.mcap: holds Box ")
+    assert [i[0] for i in items] == ["NEWEST", newer, older] and items[1][1].startswith("pinch_new.mcap: holds Box ")
     assert items[0][1].startswith("Newest (pinch_new.mcap: holds Box ")
     r = scene.grasp_lab_robustness
     r.recording = older

@@ -857,6 +857,7 @@ def find_and_add_device(port, picture=None):
     RESULT["asked"] = devices_ui._discovered["asked"]
     yield 1.5                                       # redrawn with the list
     area, win_region, ui = view3d()
+    yield from settle(ui)                           # the panels below slid down to make room
     theme = bpy.context.preferences.themes[0].user_interface
     px = region_pixels(pixels(screenshot("after_find")), ui)[..., :3]
     button = np.all(np.abs(px - np.array(theme.wcol_tool.inner[:3])) < 6 / 255, axis=2)
@@ -1181,6 +1182,16 @@ class LabelRecorder:
         return lambda *a, **kw: self
 
 
+def label_room(width, scale):
+    """The text width a label has in a sidebar ``width`` px wide, by kind: a label (the panel's
+    and a box's margins, its padding), one after an icon, the left column of a property split
+    (40 % of the row less its padding). Checked against what Blender 4.3 drew (RESULT's
+    label_model): a 240 px path cut in a box of a 291 px sidebar, a 194 px line after an icon
+    drawn whole; a split label of 89 px cut, one of 76 px whole."""
+    full = width - 56 * scale
+    return {"label": full, "icon": full - 26 * scale, "split": 0.4 * full - 12 * scale}
+
+
 def sidebar_labels():
     """Every label the Grasp tab's panels draw now, in the sidebar's context, with its width in
     the interface font and the width it has (the sidebar less the panel's margins, and an
@@ -1200,10 +1211,7 @@ def sidebar_labels():
             labels = []
             cls.draw(SimpleNamespace(layout=LabelRecorder(labels)), bpy.context)
             for text, kind in labels:
-                # the panel's margins, an icon's room; a split layout's labels get 40 % of the
-                # row less their padding (Blender's property split)
-                full = ui.width - 40 * scale
-                room = {"label": full, "icon": full - 50 * scale, "split": 0.4 * full - 10 * scale}[kind]
+                room = label_room(ui.width, scale)[kind]
                 out.append((text, blf.dimensions(0, text)[0], room))
     return out
 
@@ -1409,10 +1417,13 @@ def scenario_first_hour():
     # The measure's model against what this sidebar showed: a split label that Blender 4.3 cut
     # here ("Weakest Wren…", an earlier name of the Wrench Size field) and one it drew whole.
     import blf
-    full = ui.width - 40 * bpy.context.preferences.system.ui_scale
-    room = 0.4 * full - 10 * bpy.context.preferences.system.ui_scale
-    RESULT["label_model"] = {"room": room, "cut": blf.dimensions(0, "Weakest Wrench")[0],
-                             "whole": blf.dimensions(0, "Friction Static")[0]}
+    room = label_room(ui.width, bpy.context.preferences.system.ui_scale)
+    px = lambda text: blf.dimensions(0, text)[0]          # noqa: E731
+    RESULT["label_model"] = {
+        "width": ui.width, "room": room,
+        "split": {"cut": px("Weakest Wrench"), "whole": max(px("Friction Static"), px("Torque m/N·m"))},
+        "label": {"cut": px("blender_user0/extensions/.user/user_default/")},
+        "icon": {"whole": px("Nothing holds Cube up: it falls when")}}
 
 
 def scenario_robustness():
