@@ -638,9 +638,15 @@ def _on_undo_pre(*_args):
 
 @bpy.app.handlers.persistent
 def _on_undo_post(*_args):
-    # The last session's summary describes a scene that undo took back: it goes.
+    # The last session's summary describes a scene that undo took back: it goes. The undone
+    # objects' matrix_world is stale until the depsgraph is evaluated: evaluated now, so the
+    # Session panel's "where the session left it" compares the poses undo brought back.
     global last_result
     last_result = None
+    try:
+        bpy.context.view_layer.update()
+    except (AttributeError, RuntimeError):
+        pass
 
 
 @bpy.app.handlers.persistent

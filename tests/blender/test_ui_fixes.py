@@ -222,3 +222,20 @@ def test_scrubbing_a_bake_says_in_words_how_the_grasp_is_at_that_frame(bpy, bake
     assert ui.baked_frame_lines(bpy.context) == ["No finger on a body"]
     # the baked measures say what they are, with units (their tooltips)
     assert "N" in force.id_properties_ui("gl_grip").as_dict()["description"]
+
+
+def test_state_lines_go_on_file_load_and_undo(bpy, sample, core):
+    """The last session's summary and Check's result describe the file they were made in:
+    another file loaded, or the session undone, and they go."""
+    session, ops = grasp_env.submodule("session"), grasp_env.submodule("ops")
+    sample.build(bpy)
+    assert bpy.ops.grasp_lab.session(duration=0.5) == {"FINISHED"}
+    assert session.last_result is not None and session.last_result.verdict
+    assert session.last_result.scene_name == bpy.context.scene.name
+    session._on_undo_post()                                # what Blender calls after an undo
+    assert session.last_result is None
+    assert bpy.ops.grasp_lab.session(duration=0.5) == {"FINISHED"}
+    bpy.ops.grasp_lab.validate_scene()                     # after the session: kept until...
+    assert bpy.context.scene.name in ops.last_check and session.last_result is not None
+    bpy.ops.wm.read_homefile(use_empty=True)               # ...another file: the handlers run
+    assert session.last_result is None and ops.last_check == {}
