@@ -1113,8 +1113,8 @@ def find_field(region, data_path, tries=3, xs=(0.75, 0.55)):
     mouse). When it is not on screen, the region is scrolled down a few notches at a time."""
     wm = bpy.context.window_manager
     for attempt in range(tries):
-        for y in range(region.height - 40, 20, -10):
-            for frac in xs:
+        for frac in xs:                             # a field's middle first, then its left part
+            for y in range(region.height - 40, 20, -10):
                 x = region.width * frac
                 hover(region, x, y)
                 yield 0.12
