@@ -882,6 +882,10 @@ def find_and_add_device(port, picture=None):
     plus_rows = pluses[mine]
     cy = (plus_rows[0] + plus_rows[-1]) / 2
     cols = np.nonzero(button[plus_rows[0]:plus_rows[-1] + 1, right:].any(axis=0))[0] + right
+    # the button's own run of columns: a scrollbar at the sidebar's edge (content taller than
+    # the sidebar) is drawn in a like colour, and must not pull the click off the button
+    runs = np.split(cols, np.nonzero(np.diff(cols) > 1)[0] + 1)
+    cols = max(runs, key=len)
     cx = (cols[0] + cols[-1]) / 2
     line_h = int(plus_rows[-1] - plus_rows[0] + 1)
     name_row = text[plus_rows[0]:plus_rows[-1] + 1, :right]
