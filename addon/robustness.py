@@ -65,8 +65,7 @@ def _recording_items(self, context):
     scene = context.scene if context is not None else None
     paths = scene_recordings(scene) if scene is not None else []
     # The first item (the default) follows the newest recording; the others stay on their file.
-    newest = (f"Newest ({os.path.basename(paths[0])}: {recording_verdict(paths[0])})" if paths
-              else "No recording yet: record a session first")
+    newest = "Newest recording" if paths else "No recording yet"
     _items = [(NEWEST, newest, "The newest recording of the scene", "TIME", 0)]
     _items += [(p, f"{os.path.basename(p)}: {recording_verdict(p)}", p, "FILE",
                 1 + zlib.crc32(p.encode()) % 0x7FFFFFFE) for p in paths]
@@ -249,8 +248,20 @@ class GRASPLAB_PT_robustness(ui._GraspPanel, bpy.types.Panel):
         path = chosen_recording(context.scene)
         layout.prop(r, "recording", text="")
         if path:
-            ui.wrapped_labels(layout, context, [f"{os.path.basename(path)}: {recording_verdict(path)}"],
-                              icon_first="FILE")
+            ui.wrapped_labels(layout, context, [os.path.basename(path), f"  {recording_verdict(path)}"])
+        else:
+            ui.wrapped_labels(layout, context, ["Record a session first"])
+        busy = running(context.scene)
+        # The answer first, under the recording it is about; the settings after it.
+        if r.status:
+            ui.wrapped_labels(layout, context, [r.status])
+        icon = map_icon(r.map_path) if not busy else 0
+        if icon:
+            box = layout.box()
+            box.template_icon(icon_value=icon, scale=10.0)
+            box.label(text="P(held): red 0, yellow ½, green 1")
+            if r.axes:
+                ui.wrapped_labels(box, context, [r.axes])
         col = layout.column(align=True)
         for flag, props in (("vary_friction", ("friction_min", "friction_max")),
                             ("vary_mass", ("mass_min", "mass_max")),
@@ -265,22 +276,12 @@ class GRASPLAB_PT_robustness(ui._GraspPanel, bpy.types.Panel):
         row.prop(r, "samples")
         row.prop(r, "seed")
         layout.prop(r, "workers")
-        busy = running(context.scene)
         if busy:
             row = layout.row(align=True)
             row.progress(factor=r.progress, type="BAR", text=f"{r.progress * 100:.0f} %")
             row.operator("grasp_lab.robustness_cancel", text="", icon="CANCEL")
         else:
             layout.operator("grasp_lab.robustness_sweep", icon="PLAY")
-        if r.status:
-            ui.wrapped_labels(layout, context, [r.status])
-        icon = map_icon(r.map_path) if not busy else 0
-        if icon:
-            box = layout.box()
-            box.template_icon(icon_value=icon, scale=10.0)
-            box.label(text="P(held): red 0, yellow ½, green 1")
-            if r.axes:
-                ui.wrapped_labels(box, context, [r.axes])
 
 
 @bpy.app.handlers.persistent

@@ -121,7 +121,7 @@ def test_the_panel_picks_its_recording_from_a_list_with_verdicts(bpy, core, pinc
     assert robustness.recording_verdict(newer).startswith("holds Box ")
     items = robustness._recording_items(None, bpy.context)
     assert [i[0] for i in items] == ["NEWEST", newer, older] and items[1][1].startswith("pinch_new.mcap: holds Box ")
-    assert items[0][1].startswith("Newest (pinch_new.mcap: holds Box ")
+    assert items[0][1] == "Newest recording"
     r = scene.grasp_lab_robustness
     r.recording = older
     assert robustness.chosen_recording(scene) == older

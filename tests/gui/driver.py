@@ -1171,10 +1171,11 @@ class LabelRecorder:
     def prop(self, data, name, text=None, **_kw):
         rna = data.bl_rna.properties[name]
         text = rna.name if text is None else text
-        if text and self.use_property_split:
+        checkbox = rna.type == "BOOLEAN" and not _kw.get("toggle") and not _kw.get("icon_only")
+        if text and checkbox:           # its text beside its box (in a split, in the right column)
+            self._out.append((text, "checkbox_split" if self.use_property_split else "icon"))
+        elif text and self.use_property_split:
             self._out.append((text, "split"))
-        elif text and rna.type == "BOOLEAN" and not _kw.get("toggle"):
-            self._out.append((text, "icon"))          # a checkbox: its box where an icon would be
         return self
 
     def _child(self, *a, **kw):
@@ -1193,7 +1194,8 @@ def label_room(width, scale):
     label_model): a 240 px path cut in a box of a 291 px sidebar, a 194 px line after an icon
     drawn whole; a split label of 89 px cut, one of 76 px whole."""
     full = width - 56 * scale
-    return {"label": full, "icon": full - 26 * scale, "split": 0.4 * full - 12 * scale}
+    return {"label": full, "icon": full - 26 * scale, "split": 0.4 * full - 12 * scale,
+            "checkbox_split": 0.6 * full - 26 * scale}
 
 
 def sidebar_labels():

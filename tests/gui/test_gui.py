@@ -289,8 +289,9 @@ def test_the_first_hour_from_the_startup_file_word_for_word(gui):
     # 6. the device: on fingers 0..1, its frame on them (not at the cursor), forces on from the
     # start, running until Esc with both fingertips on the cube
     assert r["device_entries"] == [["SERIAL", port, 0, 2]], r["device_entries"]
-    assert r["device_frame"]["location"] == pytest.approx([0, 0, 0], abs=1e-6)
-    assert r["device_frame"]["scale"] == pytest.approx([1.1 / 0.06] * 3)
+    # (finger 1 was pushed 5 cm in with G in step 2: the fingers' centre is 2.5 cm off the cube's)
+    assert r["device_frame"]["location"] == pytest.approx([(-1.1 + 1.05) / 2, 0, 0], abs=1e-6)
+    assert r["device_frame"]["scale"] == pytest.approx([(1.1 + 1.05) / 2 / 0.06] * 3)
     assert r["device_duration"] == float("inf") and r["device_enabled"] == [True]
     assert f"{port}: streaming" in r["device_hud"], r["device_hud"]
     # 7. the sweep of the recording picked (the one made), results only, its process collected
