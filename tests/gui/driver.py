@@ -1191,10 +1191,10 @@ def label_room(width, scale):
     """The text width a label has in a sidebar ``width`` px wide, by kind: a label (the panel's
     and a box's margins, its padding), one after an icon, the left column of a property split
     (40 % of the row less its padding). Checked against what Blender 4.3 drew (RESULT's
-    label_model): a 240 px path cut in a box of a 291 px sidebar, a 194 px line after an icon
-    drawn whole; a split label of 89 px cut, one of 76 px whole."""
+    label_model): a 248 px path cut in a box of a 291 px sidebar, a 197 px line after an icon
+    drawn whole; a split label of 93 px cut, one of 81 px whole."""
     full = width - 56 * scale
-    return {"label": full, "icon": full - 26 * scale, "split": 0.4 * full - 12 * scale,
+    return {"label": full, "icon": full - 26 * scale, "split": 0.4 * full - 10 * scale,
             "checkbox_split": 0.6 * full - 26 * scale}
 
 
@@ -1427,7 +1427,8 @@ def scenario_first_hour():
     px = lambda text: blf.dimensions(0, text)[0]          # noqa: E731
     RESULT["label_model"] = {
         "width": ui.width, "room": room,
-        "split": {"cut": px("Weakest Wrench"), "whole": max(px("Friction Static"), px("Torque m/N·m"))},
+        "split": {"cut": px("Weakest Wrench"),
+                  "whole": max(px("Friction Static"), px("Torque m/N·m"), px("Soft Tip Radius"))},
         "label": {"cut": px("blender_user0/extensions/.user/user_default/")},
         "icon": {"whole": px("Nothing holds Cube up: it falls when")}}
 
