@@ -71,7 +71,7 @@ def test_the_hud_and_viewport_show_a_held_grasp(gui):
     assert g["force_closure"] and g["epsilon"] > 0 and sorted(c["finger"] for c in g["contacts"]) == [0, 1, 2]
     assert abs(sum(w * w for w in g["weakest"]) - 1.0) < 1e-9            # a unit wrench
     hud = r["hud"].replace("\u00a0", " ").split("\n")     # no-break spaces as spaces
-    assert hud[0].startswith("Box: held") and " slips first (" in hud[0], hud        # the verdict in words
+    assert hud[0].startswith("Box: held firmly"), hud       # the verdict in words: in closure, far from slip
     assert hud[1].startswith(f"Box: closure yes  ε {g['epsilon']:.3f}  resists "), hud
     assert hud[2].startswith("  grip ") and " / load " in hud[2] and hud[3].startswith("  slip margin ")
     assert all(f"Finger {i} stick" in hud[4] for i in range(3)), hud
