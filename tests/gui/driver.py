@@ -1011,6 +1011,8 @@ def scenario_walkthrough():
     fingers[0].location.x = box.location.x - (half + r - 0.003)
     bpy.context.view_layer.update()
     yield 0.5
+    area, win_region, ui = view3d()
+    yield from settle(ui)
     yield from start_by_click()
     yield 1.5
     s = active_session()
@@ -1040,6 +1042,8 @@ def scenario_walkthrough():
     s.recording_folder = folder + os.sep
     s.last_recording = ""
     yield 1.0
+    area, win_region, ui = view3d()
+    yield from settle(ui)
     yield from start_by_click()
     yield from wait_until(lambda: active_session() is None, 60, "the recorded session to end")
     check_stopped("record")
