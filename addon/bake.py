@@ -24,7 +24,7 @@ from mathutils import Matrix, Quaternion
 
 from . import anim, display, hands
 from .engine import analysis, grasp_display, sound
-from .engine.measures import body_grip, finger_measures
+from .engine.measures import DESCRIPTIONS, body_grip, finger_measures
 from .engine.recording import Recording, scene_from_dict
 from .engine.runner import quat_rotate
 
@@ -205,10 +205,17 @@ def _arrow_channels(origin, vec, scale, run):
             + [("scale", 0, sx, run), ("scale", 1, sx, run), ("scale", 2, sz, run)])
 
 
+def _describe(obj, name):
+    """The property's tooltip: what it is and its unit (engine.measures.DESCRIPTIONS)."""
+    if name in DESCRIPTIONS:
+        obj.id_properties_ui(name).update(description=DESCRIPTIONS[name])
+
+
 def _custom(obj, props: dict, run=None) -> list:
     """Channels of animated custom properties (made here), values per frame or per ``run``."""
     for name in props:
         obj[name] = 0.0
+        _describe(obj, name)
     return [(f'["{name}"]', 0, values) + ((run,) if run is not None else ()) for name, values in props.items()]
 
 
@@ -325,6 +332,7 @@ def bake_recording(context, rec: Recording, every_tick: bool = False, force_scal
             arrow.rotation_mode = "QUATERNION"
         for name in ("gl_grip", "gl_force", "gl_torque"):
             force_arrow[name] = 0.0
+            _describe(force_arrow, name)
         props = _custom(force_arrow, {name: np.ascontiguousarray(v[:, i]) for name, v in grasp.items()}, at)
         jobs.append(partial(_arrows_job, force_arrow, torque_arrow, per["pose"][i], per["wrench"][i],
                             desc.bodies[i].mass_properties.center_of_mass, grip[:, i], force_scale, torque_scale,

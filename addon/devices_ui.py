@@ -6,7 +6,8 @@ from __future__ import annotations
 import bpy
 from bpy.props import BoolProperty, CollectionProperty, EnumProperty, IntProperty, PointerProperty, StringProperty
 
-from . import session
+from . import convert, session, ui
+from .engine import placement
 from .engine.devices.cli_commands import hid_devices
 from .engine.devices.discovery import find_devices, hello_fingers
 from .engine.devices.live import free_fingers
@@ -66,8 +67,8 @@ class GRASPLAB_OT_devices_refresh(bpy.types.Operator):
 class GRASPLAB_OT_device_add(bpy.types.Operator):
     bl_idname = "grasp_lab.device_add"
     bl_label = "Add Device"
-    bl_description = ("Add a device with a workspace frame (an Empty at the 3D cursor), on the fingers no other "
-                      "device drives")
+    bl_description = ("Add a device on the fingers no other device drives, with a workspace frame (an Empty) "
+                      "at the centre of those fingers (at the 3D cursor when the scene has none yet)")
     bl_options = {"REGISTER", "UNDO"}
     port: StringProperty(name="Port")
     kind: EnumProperty(name="Kind", items=KIND_ITEMS, default="SERIAL")
@@ -111,7 +112,15 @@ class GRASPLAB_OT_device_add(bpy.types.Operator):
         frame = bpy.data.objects.new(f"Device Frame {len(entries)}", None)
         frame.empty_display_type = "ARROWS"
         frame.empty_display_size = 0.05
-        frame.location = scene.cursor.location
+        # Among the fingers it drives, not at the 3D cursor: the device's rest pose lies on the
+        # scene's fingers (engine.placement.workspace_frame); a SpaceMouse or a glove carries
+        # the fingertips from where they are, at scale 1.
+        fingers = convert.scene_objects(context)[1][first:first + count]
+        origin, scale = placement.workspace_frame([tuple(f.matrix_world.translation) for f in fingers],
+                                                  tuple(scene.cursor.location))
+        frame.location = origin
+        if self.kind in {"SERIAL", "UDP"}:
+            frame.scale = (scale, scale, scale)
         scene.collection.objects.link(frame)
         entry.frame = frame
         scene.grasp_lab_device_index = len(entries) - 1
@@ -144,8 +153,15 @@ class GRASPLAB_OT_device_forces(bpy.types.Operator):
         return _active_devices() is not None
 
     def execute(self, context):
-        _active_devices().enable(self.on)
+        context.scene.grasp_lab_device_forces = self.on      # its update turns the devices' forces on/off
         return {"FINISHED"}
+
+
+def _forces_changed(scene, context):
+    """Forces On/Off: the setting a session starts with, and during one, the devices' forces now."""
+    devices = _active_devices()
+    if devices is not None:
+        devices.enable(scene.grasp_lab_device_forces)
 
 
 class GRASPLAB_OT_device_reconnect(bpy.types.Operator):
@@ -210,16 +226,19 @@ class GRASPLAB_PT_devices(bpy.types.Panel):
             if not entry.port and entry.kind != "SPACEMOUSE":
                 box.label(text="Waiting for a port (Find Devices)", icon="INFO")
         devices = _active_devices()
+        if devices is not None or len(context.scene.grasp_lab_devices):
+            # Before a session: the forces it starts with; during one: the forces now.
+            layout.prop(context.scene, "grasp_lab_device_forces", toggle=True,
+                        text="Forces On" if context.scene.grasp_lab_device_forces else "Forces Off",
+                        icon="FORCE_FORCE" if context.scene.grasp_lab_device_forces else "PAUSE")
         if devices is not None:
-            col = layout.column()
-            for line in status_lines(devices):
-                col.label(text=line)
-            row = layout.row(align=True)        # two to a row: "Forces On" / "Off" never cut
-            row.operator("grasp_lab.device_forces", text="Forces On", icon="PLAY").on = True
-            row.operator("grasp_lab.device_forces", text="Forces Off", icon="PAUSE").on = False
+            ui.wrapped_labels(layout, context, status_lines(devices))
             layout.operator("grasp_lab.device_reconnect", icon="LINKED")
         elif len(context.scene.grasp_lab_devices):
-            layout.label(text="Devices connect when a live session starts", icon="INFO")
+            # Two short lines: the sidebar at its default width never cuts them.
+            col = layout.column(align=True)
+            col.label(text="Devices connect when", icon="INFO")
+            col.label(text="a live session starts", icon="BLANK1")
 
 
 CLASSES = (GRASPLAB_PG_device, GRASPLAB_OT_devices_refresh, GRASPLAB_OT_device_add, GRASPLAB_OT_device_remove,
@@ -231,9 +250,14 @@ def register():
         bpy.utils.register_class(c)
     bpy.types.Scene.grasp_lab_devices = CollectionProperty(type=GRASPLAB_PG_device)
     bpy.types.Scene.grasp_lab_device_index = IntProperty(default=0)
+    bpy.types.Scene.grasp_lab_device_forces = BoolProperty(
+        name="Device Forces", default=False, update=_forces_changed,
+        description="Send forces back to the devices (they ramp in): the setting a live session starts "
+                    "with; during a session, on or off now")
 
 
 def unregister():
+    del bpy.types.Scene.grasp_lab_device_forces
     del bpy.types.Scene.grasp_lab_device_index
     del bpy.types.Scene.grasp_lab_devices
     for c in reversed(CLASSES):

@@ -183,7 +183,7 @@ def clear_display_objects():
 # --------------------------------------------------------------------------- overlay
 
 _handlers = []          # (space type, handle)
-_overlay = {"snap": None, "hud": "", "grasps": (), "show_overlay": True, "show_hud": True}
+_overlay = {"snap": None, "hud": "", "grasps": (), "show_overlay": True, "show_hud": True, "weakest_scale": 0.5}
 _shader = {}
 
 
@@ -226,14 +226,20 @@ def _draw_view():
     gpu.state.blend_set("NONE")
 
 
+def weakest_shown(grasp):
+    """The weakest wrench as the viewport draws it: around the body (never over it), at the
+    session's Weakest Wrench scale (grasp_display.weakest_geometry)."""
+    return grasp_display.weakest_geometry(grasp, scale=_overlay["weakest_scale"], outside=True)
+
+
 def _draw_weakest(sh, batch_for_shader, grasps):
     """Per body in closure: the weakest wrench's force part as an arrow from the centre of
     mass, its torque part as a ring about its axis with a head showing the sense."""
     import gpu
-    gpu.state.line_width_set(4.0)
+    gpu.state.line_width_set(3.0)
     sh.uniform_float("color", grasp_display.WEAKEST_COLOR)
     for g in grasps:
-        geo = grasp_display.weakest_geometry(g)
+        geo = weakest_shown(g)
         if geo is None:
             continue
         start, end = geo["arrow"]
@@ -279,11 +285,12 @@ def _draw_hud():
         y += 20
 
 
-def add_overlay(show_overlay=True, show_hud=True):
+def add_overlay(show_overlay=True, show_hud=True, weakest_scale=0.5):
     """Add the viewport draw handlers (live sessions only; never headless)."""
     if bpy.app.background or _handlers:
         return
-    _overlay.update(snap=None, hud="", grasps=(), show_overlay=show_overlay, show_hud=show_hud)
+    _overlay.update(snap=None, hud="", grasps=(), show_overlay=show_overlay, show_hud=show_hud,
+                    weakest_scale=weakest_scale)
     st = bpy.types.SpaceView3D
     _handlers.append(st.draw_handler_add(_draw_view, (), "WINDOW", "POST_VIEW"))
     _handlers.append(st.draw_handler_add(_draw_hud, (), "WINDOW", "POST_PIXEL"))

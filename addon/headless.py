@@ -173,8 +173,8 @@ def _start_session(context, args, record, live_server):
                                  sound=args.sound)
         if session.duration == float("inf"):
             session.finish(discard_recording=True)
-            raise CliError(f"{args.scene}: no fingertip is animated, so a real-time session has no end: "
-                           f"give --duration S")
+            raise CliError(f"{args.scene}: a real-time session with no fingertip animated, or driven by the "
+                           f"scene's devices, has no end: give --duration S")
     if getattr(args, "live_view", None) is not None:
         try:
             start_live_view(session, args.live_view, args.live_view_bind, server=live_server)

@@ -5,6 +5,7 @@ import bpy
 from bpy.props import EnumProperty
 
 from . import convert, display, rest_poses
+from .engine import placement
 from .engine.scene import SceneError, prepare
 from .prefs import get_prefs
 from .props import ROLE_ITEMS
@@ -53,9 +54,28 @@ def finger_placement(corners, n_existing, radius):
     return loc, radius
 
 
+def _finger_target(context):
+    """The body a new fingertip goes beside: the selected mesh (not a finger); with a fingertip
+    selected, the body the last one went beside (Add Finger selects the fingertip it adds, so
+    that the next click still goes to the same body, on its opposite side); else None (nothing
+    selected: the 3D cursor)."""
+    s = context.scene.grasp_lab
+    target = context.active_object
+    if target is None or not target.select_get():
+        return None                 # nothing chosen: the 3D cursor
+    if target.type == "MESH" and target.grasp_lab.role != "FINGER":
+        return target
+    remembered = s.finger_target
+    if target.grasp_lab.role == "FINGER" and remembered is not None \
+            and remembered.name in context.view_layer.objects and remembered.type == "MESH":
+        return remembered
+    return None
+
+
 class GRASPLAB_OT_add_finger(bpy.types.Operator):
     """Add a fingertip (a sphere empty with the Finger role) beside the selected object, touching
-    it, or at the 3D cursor when no object is selected"""
+    it (again beside that object when the last fingertip added is selected: opposite sides in
+    turn), or at the 3D cursor when no object was chosen"""
     bl_idname = "grasp_lab.add_finger"
     bl_label = "Add Finger"
     bl_options = {"REGISTER", "UNDO"}
@@ -63,10 +83,8 @@ class GRASPLAB_OT_add_finger(bpy.types.Operator):
     def execute(self, context):
         prefs = get_prefs(context)
         fingers = [o for o in context.view_layer.objects if o.grasp_lab.role == "FINGER"]
-        target = context.active_object
-        if target is not None and (not target.select_get() or target.type != "MESH"
-                                   or target.grasp_lab.role == "FINGER"):
-            target = None
+        target = _finger_target(context)
+        context.scene.grasp_lab.finger_target = target
         radius = prefs.finger_radius
         if target is not None:
             from mathutils import Vector
@@ -88,6 +106,46 @@ class GRASPLAB_OT_add_finger(bpy.types.Operator):
             o.select_set(False)
         obj.select_set(True)
         context.view_layer.objects.active = obj
+        return {"FINISHED"}
+
+
+def support_offer(context):
+    """The dynamic bodies that would fall at Start Session (nothing static in the scene to
+    rest on, engine.placement.needs_support), else []."""
+    objs = [o for o in context.view_layer.objects if o.type == "MESH" or o.grasp_lab.role == "FINGER"]
+    if not placement.needs_support([o.grasp_lab.role for o in objs], context.scene.grasp_lab.gravity):
+        return []
+    return [o for o in objs if o.grasp_lab.role == "DYNAMIC"]
+
+
+class GRASPLAB_OT_add_table(bpy.types.Operator):
+    """Add a static box (a table) under the dynamic bodies, its top touching their bottom, so that
+    they rest on it instead of falling when the session starts"""
+    bl_idname = "grasp_lab.add_table"
+    bl_label = "Add Table"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def execute(self, context):
+        from mathutils import Vector
+        bodies = [o for o in context.view_layer.objects if o.grasp_lab.role == "DYNAMIC"]
+        if not bodies:
+            self.report({"ERROR"}, "Grasp Lab: no dynamic body to put a table under")
+            return {"CANCELLED"}
+        corners = [tuple(o.matrix_world @ Vector(c)) for o in bodies for c in o.bound_box]
+        centre, dims = placement.table_under(corners)
+        mesh = bpy.data.meshes.new("Table")
+        hx, hy, hz = (d / 2 for d in dims)
+        verts = [(sx * hx, sy * hy, sz * hz) for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]
+        faces = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+        mesh.from_pydata(verts, [], faces)
+        mesh.update()
+        table = bpy.data.objects.new("Table", mesh)
+        table.location = centre
+        context.collection.objects.link(table)
+        table.grasp_lab.role = "STATIC"
+        prefs = get_prefs(context)
+        table.grasp_lab.mu_s, table.grasp_lab.mu_d = prefs.mu_s, prefs.mu_d
+        self.report({"INFO"}, f"Grasp Lab: a table under {', '.join(o.name for o in bodies)}")
         return {"FINISHED"}
 
 
@@ -150,7 +208,7 @@ class GRASPLAB_OT_clear_display(bpy.types.Operator):
         return {"FINISHED"}
 
 
-CLASSES = (GRASPLAB_OT_set_role, GRASPLAB_OT_add_finger, GRASPLAB_OT_validate,
+CLASSES = (GRASPLAB_OT_set_role, GRASPLAB_OT_add_finger, GRASPLAB_OT_add_table, GRASPLAB_OT_validate,
            GRASPLAB_OT_reset, GRASPLAB_OT_clear_display)
 
 

@@ -131,6 +131,11 @@ class GRASPLAB_PG_scene(bpy.types.PropertyGroup):
                                description="Force arrow length in metres per newton (0.02: 1 N is a 2 cm arrow)")
     torque_scale: FloatProperty(name="Torque Scale (m/N·m)", default=1.0, min=0.0, soft_max=10.0, precision=3,
                                 description="Torque arrow length in metres per newton-metre")
+    weakest_scale: FloatProperty(name="Weakest Wrench Size", default=0.5, min=0.0, soft_max=3.0, precision=2,
+                                 description="Size of the weakest-wrench display (magenta, drawn around the held "
+                                             "body): its arrow is this times twice the body's radius per unit of "
+                                             "the wrench's force part, its ring this times the radius beyond the "
+                                             "body. 0: not drawn")
     record: BoolProperty(name="Record", default=False,
                          description="Record every haptic tick of each session to the recording folder (.mcap)")
     recording_folder: StringProperty(name="Recording Folder", default="//grasp_recordings/",
@@ -170,6 +175,9 @@ class GRASPLAB_PG_scene(bpy.types.PropertyGroup):
     live_view_bind: StringProperty(name="Bind", default="127.0.0.1",
                                    description="Address the live view listens on (127.0.0.1: this "
                                                "machine only; 0.0.0.0: every interface)")
+    finger_target: PointerProperty(name="Finger Target", type=bpy.types.Object,
+                                   description="The body Add Finger last put a fingertip beside: the next "
+                                               "one goes beside it too while a fingertip is selected")
     # --- live status (read-only in the UI)
     running: BoolProperty(name="Running", default=False)
     status: StringProperty(name="Status", default="")

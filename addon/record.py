@@ -8,7 +8,7 @@ import time
 import bpy
 
 from .engine import defaults
-from .engine.recording import RecordingWriter, SessionRecorder, make_header
+from .engine.recording import RecordingWriter, SessionRecorder, make_header, naming
 from .engine.runner import RUNTIME_PHYSICS
 
 # The core's runtime defaults (graspcore.RUNTIME_DEFAULTS) that the header records when a
@@ -17,10 +17,27 @@ from .engine.runner import RUNTIME_PHYSICS
 RECORDED_RUNTIME_DEFAULTS = ("max_force", "ramp_time", "watchdog_timeout", "hip_timeout") + RUNTIME_PHYSICS
 
 
+def user_folder(create: bool = False) -> str:
+    """The per-user Grasp Lab recordings folder, for files not saved yet: the extension's
+    own user folder (``<Blender's user extensions>/.user/<repo>/grasp_lab/recordings``), or
+    Blender's user data folder when the add-on is not an extension (a development checkout)."""
+    try:
+        base = bpy.utils.extension_path_user(__package__, create=create)
+    except (ValueError, AttributeError, TypeError):
+        base = bpy.utils.user_resource("DATAFILES", path="grasp_lab", create=create)
+    return os.path.join(base, "recordings")
+
+
+def folder_of(settings) -> str:
+    """The absolute folder this scene's sessions record to (engine.recording.naming)."""
+    return naming.recording_folder(settings.recording_folder, bpy.data.filepath, user_folder())
+
+
 def default_path(settings) -> str:
-    folder = bpy.path.abspath(settings.recording_folder)
+    folder = folder_of(settings)
     os.makedirs(folder, exist_ok=True)
-    return os.path.join(folder, time.strftime("grasp_%Y%m%d_%H%M%S.mcap"))
+    label = naming.scene_label(bpy.data.filepath, settings.id_data.name)
+    return os.path.join(folder, naming.recording_name(label, time.time(), folder))
 
 
 def latest_recording(settings) -> str:
@@ -29,7 +46,7 @@ def latest_recording(settings) -> str:
     last = bpy.path.abspath(settings.last_recording) if settings.last_recording else ""
     if last and os.path.isfile(last):
         return last
-    folder = bpy.path.abspath(settings.recording_folder)
+    folder = folder_of(settings)
     try:
         found = [os.path.join(folder, f) for f in os.listdir(folder) if f.endswith(".mcap")]
     except OSError:

@@ -52,7 +52,7 @@ def _browse_recordings(op, context):
     if latest:
         op.filepath = latest
     else:
-        folder = bpy.path.abspath(s.recording_folder)
+        folder = record.folder_of(s)
         if os.path.isdir(folder):
             op.filepath = os.path.join(folder, "")
     context.window_manager.fileselect_add(op)
@@ -117,6 +117,9 @@ class GRASPLAB_OT_show_curves(bpy.types.Operator):
         if area is not None:
             space = area.spaces.active
             space.dopesheet.show_only_selected = True
+            # Each curve scaled to -1..1: grip/load (tens) would flatten epsilon (hundredths)
+            # and closure (0 or 1) to a line at zero on one axis.
+            space.use_normalization = True
             space.dopesheet.filter_text = "gl_"          # the measures, not the transforms
             region = next(r for r in area.regions if r.type == "WINDOW")
             with context.temp_override(area=area, region=region):
@@ -154,6 +157,23 @@ def _graph_editor(context):
     return area
 
 
+class GRASPLAB_OT_open_recording_folder(bpy.types.Operator):
+    """Open the folder this scene's sessions record to in the system's file manager (made if
+    it does not exist yet)"""
+    bl_idname = "grasp_lab.open_recording_folder"
+    bl_label = "Open Folder"
+
+    def execute(self, context):
+        folder = record.folder_of(context.scene.grasp_lab)
+        try:
+            os.makedirs(folder, exist_ok=True)
+        except OSError as ex:
+            self.report({"ERROR"}, f"Grasp Lab: cannot make the recording folder {folder}: {ex}")
+            return {"CANCELLED"}
+        bpy.ops.wm.path_open(filepath=folder)
+        return {"FINISHED"}
+
+
 def _menu(self, context):
     self.layout.operator(GRASPLAB_OT_import_recording.bl_idname, text="Grasp Lab Recording (.mcap)")
 
@@ -169,6 +189,7 @@ def register():
     bpy.utils.register_class(GRASPLAB_OT_import_recording)
     bpy.utils.register_class(GRASPLAB_OT_show_curves)
     bpy.utils.register_class(GRASPLAB_OT_open_in_rerun)
+    bpy.utils.register_class(GRASPLAB_OT_open_recording_folder)
     bpy.types.TOPBAR_MT_file_import.append(_menu)
     ui.GRASPLAB_PT_recording.append(_panel)
 
@@ -176,6 +197,7 @@ def register():
 def unregister():
     ui.GRASPLAB_PT_recording.remove(_panel)
     bpy.types.TOPBAR_MT_file_import.remove(_menu)
+    bpy.utils.unregister_class(GRASPLAB_OT_open_recording_folder)
     bpy.utils.unregister_class(GRASPLAB_OT_open_in_rerun)
     bpy.utils.unregister_class(GRASPLAB_OT_show_curves)
     bpy.utils.unregister_class(GRASPLAB_OT_import_recording)

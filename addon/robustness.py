@@ -5,13 +5,15 @@ process, with a progress bar, Cancel, and the map in the sidebar when it is done
 from __future__ import annotations
 
 import os
+import zlib
 
 import bpy
 import bpy.utils.previews
-from bpy.props import BoolProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty, StringProperty
 
 from . import record, ui
 from .engine.background_sweep import BackgroundSweep, panel_varies, sweep_folder
+from .engine.background_sweep import recording_verdict as recording_words
 from .engine.recording import RecordingError, open_recording
 from .engine.sweep import SweepError
 
@@ -21,7 +23,68 @@ _jobs = {}                  # scene name -> BackgroundSweep (the one running or 
 _previews = None            # bpy.utils.previews collection of the maps shown
 
 
+NEWEST = "NEWEST"           # the recording list's first entry: whichever recording is newest
+_verdicts = {}              # recording path -> ((mtime, size), its verdict in words)
+_items = []                 # the recording list's items: Blender needs them kept alive
+
+
+def recording_verdict(path: str) -> str:
+    """background_sweep.recording_verdict of a recording file, read once per version of it."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return "missing"
+    key = (st.st_mtime_ns, st.st_size)
+    cached = _verdicts.get(path)
+    if cached is None or cached[0] != key:
+        try:
+            text = recording_words(open_recording(path))
+        except (RecordingError, OSError, ValueError, KeyError) as ex:
+            text = f"unreadable: {ex}"
+        cached = _verdicts[path] = (key, text)
+    return cached[1]
+
+
+def scene_recordings(scene) -> list:
+    """The scene's recordings, newest first: the .mcap files of its recording folder, and the
+    last one it made or baked if that is elsewhere."""
+    folder = record.folder_of(scene.grasp_lab)
+    try:
+        found = [os.path.join(folder, f) for f in os.listdir(folder) if f.endswith(".mcap")]
+    except OSError:
+        found = []
+    last = record.latest_recording(scene.grasp_lab)
+    if last and last not in found:
+        found.append(last)
+    return sorted(found, key=lambda p: os.path.getmtime(p) if os.path.exists(p) else 0.0, reverse=True)
+
+
+def _recording_items(self, context):
+    # Each item's number is fixed by its path, so a choice stays on its file as new ones arrive.
+    global _items
+    scene = context.scene if context is not None else None
+    paths = scene_recordings(scene) if scene is not None else []
+    # The first item (the default) follows the newest recording; the others stay on their file.
+    newest = "Newest recording" if paths else "No recording yet"
+    _items = [(NEWEST, newest, "The newest recording of the scene", "TIME", 0)]
+    _items += [(p, f"{os.path.basename(p)}: {recording_verdict(p)}", p, "FILE",
+                1 + zlib.crc32(p.encode()) % 0x7FFFFFFE) for p in paths]
+    return _items
+
+
+def chosen_recording(scene) -> str:
+    """The recording the panel sweeps: the one picked in its list, else the newest."""
+    picked = _settings(scene).recording
+    if picked != NEWEST and os.path.isfile(picked):
+        return picked
+    found = scene_recordings(scene)
+    return found[0] if found else ""
+
+
 class GRASPLAB_PG_robustness(bpy.types.PropertyGroup):
+    recording: EnumProperty(name="Recording", items=_recording_items,
+                            description="The recording to sweep: the scene's recordings, newest first, each "
+                                        "with what it holds (only a held body can be swept)")
     vary_friction: BoolProperty(name="Friction", default=True,
                                 description="Vary the held body's static friction uniformly in the range")
     friction_min: FloatProperty(name="μs from", default=0.2, min=0.0, soft_max=2.0)
@@ -80,7 +143,7 @@ class GRASPLAB_OT_robustness_sweep(bpy.types.Operator):
     def execute(self, context):
         scene = context.scene
         r = _settings(scene)
-        path = record.latest_recording(scene.grasp_lab)
+        path = chosen_recording(scene)
         if not path:
             self.report({"ERROR"}, "Grasp Lab: no recording to sweep: record a session first")
             return {"CANCELLED"}
@@ -158,7 +221,8 @@ def sweep_tick():
         elif still:             # its scene is gone (file loaded): nobody to show it to
             job.cancel()
             still = False
-        any_running |= still
+        # polled until its process is collected too: no zombie left until Blender exits
+        any_running |= still or not job.reap()
     try:
         ui_redraw()
     except (AttributeError, ReferenceError):
@@ -181,8 +245,23 @@ class GRASPLAB_PT_robustness(ui._GraspPanel, bpy.types.Panel):
     def draw(self, context):
         layout = self.layout
         r = _settings(context.scene)
-        path = record.latest_recording(context.scene.grasp_lab)
-        layout.label(text=bpy.path.basename(path) if path else "No recording yet", icon="FILE")
+        path = chosen_recording(context.scene)
+        layout.prop(r, "recording", text="")
+        if path:
+            ui.wrapped_labels(layout, context, [os.path.basename(path), f"  {recording_verdict(path)}"])
+        else:
+            ui.wrapped_labels(layout, context, ["Record a session first"])
+        busy = running(context.scene)
+        # The answer first, under the recording it is about; the settings after it.
+        if r.status:
+            ui.wrapped_labels(layout, context, [r.status])
+        icon = map_icon(r.map_path) if not busy else 0
+        if icon:
+            box = layout.box()
+            box.template_icon(icon_value=icon, scale=10.0)
+            box.label(text="P(held): red 0, yellow ½, green 1")
+            if r.axes:
+                ui.wrapped_labels(box, context, [r.axes])
         col = layout.column(align=True)
         for flag, props in (("vary_friction", ("friction_min", "friction_max")),
                             ("vary_mass", ("mass_min", "mass_max")),
@@ -197,22 +276,12 @@ class GRASPLAB_PT_robustness(ui._GraspPanel, bpy.types.Panel):
         row.prop(r, "samples")
         row.prop(r, "seed")
         layout.prop(r, "workers")
-        busy = running(context.scene)
         if busy:
             row = layout.row(align=True)
             row.progress(factor=r.progress, type="BAR", text=f"{r.progress * 100:.0f} %")
             row.operator("grasp_lab.robustness_cancel", text="", icon="CANCEL")
         else:
             layout.operator("grasp_lab.robustness_sweep", icon="PLAY")
-        if r.status:
-            ui.wrapped_labels(layout, context, [r.status])
-        icon = map_icon(r.map_path) if not busy else 0
-        if icon:
-            box = layout.box()
-            box.template_icon(icon_value=icon, scale=10.0)
-            box.label(text="P(held): red 0, yellow ½, green 1")
-            if r.axes:
-                ui.wrapped_labels(box, context, [r.axes])
 
 
 @bpy.app.handlers.persistent

@@ -48,6 +48,8 @@ class SessionResult:
     recording: str = ""
     final: object = None                            # last Snapshot
     grasps: list = field(default_factory=list)      # per display frame: analysis.BodyGrasp list
+    scene_name: str = ""
+    verdict: list = field(default_factory=list)     # the grasp in words when it ended (grasp_display.verdict_lines)
 
     def trajectory(self, body_name) -> np.ndarray:
         i = self.body_names.index(body_name)
@@ -127,8 +129,9 @@ class BlenderSession:
                  for label, e in zip(self.device_labels, entries)],
                 len(finger_objs), [o.name for o in finger_objs])
             self.source = DeviceInput(len(finger_objs), without_fingers(self.source.script(), self.driven_by >= 0))
-            if self.source.script() is None:
-                self.duration = duration if duration > 0 else float("inf")  # the devices' session: until asked
+            # A device session runs until Esc or Stop unless a duration is set, whatever the
+            # other fingers' animation (they hold its last frame after its end).
+            self.duration = duration if duration > 0 else float("inf")
         options = {}
         if self.threaded:
             # Fingertips moved in the viewport arrive at the display's rate, which under a
@@ -172,6 +175,8 @@ class BlenderSession:
         self.devices = None
         if use_devices:
             self.devices = connect_scene_devices(scene, self.handle.world)
+            if scene.grasp_lab_device_forces:       # Forces On before the session: it starts with them
+                self.devices.enable(True)
         self.apply(self.runner.snapshot(), self.frame_start)
 
     # ------------------------------------------------------------- per update
@@ -339,13 +344,18 @@ class BlenderSession:
             if detail:
                 lines.append(f"step {st['step_us']:.0f} µs   {st['steps']} steps   {cost}")
             return lines
-        enabled = None if self.devices is None else [d["enabled"] for d in self.devices.status()]
-        forces = grasp_display.force_output(st["runtime_forces_enabled"], enabled)
+        # Forces reach a hand only through a device: without one, the watchdog and stale-input
+        # counters count the timeline's input, not a fault, so they stay out of the way unless
+        # something is wrong (a rejected input, a force that was not a number).
+        has_device = self.devices is not None
+        enabled = [d["enabled"] for d in self.devices.status()] if has_device else None
+        forces = f"   {grasp_display.force_output(st['runtime_forces_enabled'], enabled)}" if has_device else ""
         lines = [f"t {st['time']:.2f} {end}   haptic {st['haptic_rate']:.0f} Hz   "
-                 f"display {st['display_rate']:.1f} Hz   p99 {st['runtime_jitter_p99_us']:.0f} µs   {forces}"]
+                 f"display {st['display_rate']:.1f} Hz   p99 {st['runtime_jitter_p99_us']:.0f} µs{forces}"]
         safety = {k: st[f"runtime_{k}"] for k in ("rejected_inputs", "watchdog_trips", "stale_inputs",
                                                   "nonfinite_forces")}
-        if detail or any(safety.values()):
+        wrong = safety["rejected_inputs"] or safety["nonfinite_forces"]
+        if detail or wrong or (has_device and any(safety.values())):
             lines.append(f"safety: rejected inputs {safety['rejected_inputs']}   watchdog {safety['watchdog_trips']}   "
                          f"stale {safety['stale_inputs']}   non-finite {safety['nonfinite_forces']}")
         if detail:
@@ -359,8 +369,11 @@ class BlenderSession:
         return lines
 
     def hud_text(self) -> str:
-        """The viewport's HUD: the grasp first, the loop's telemetry second and shorter."""
+        """The viewport's HUD: the grasp first, the loop's telemetry second and shorter; the
+        weakest wrench's legend while one is drawn."""
         lines = self.grasp_lines() + [h.hud_line() for h in self.hands] + self.loop_lines()
+        if any(g.force_closure for g in self.monitor.grasps):
+            lines.append(grasp_display.WEAKEST_LEGEND)
         if self.live_view is not None:
             lines.append(self.live_view.status())
         if self.sound is not None:
@@ -400,6 +413,8 @@ class BlenderSession:
             r.stats["device_stats"] = device_stats         # each device's counters when it was closed
             self.runner.events += self.devices.events
         r.final = self.snapshot
+        r.scene_name = self.scene.name
+        r.verdict = grasp_display.verdict_lines(self.monitor.grasps, r.body_names, r.finger_names)
         if self.bake:
             for name, (frames, vals) in self._baked.items():
                 obj = bpy.data.objects.get(name)
@@ -549,7 +564,7 @@ class GRASPLAB_OT_session(bpy.types.Operator):
             # Wakes this handler to notice an end it did not see (timer, Stop button).
             session.timer = session.wm.event_timer_add(session.interval, window=context.window)
             _active = session
-            display.add_overlay(prefs.show_overlay, prefs.show_hud)
+            display.add_overlay(prefs.show_overlay, prefs.show_hud, s.weakest_scale)
             s.running = True
             bpy.app.timers.register(_live_tick, first_interval=0.0)
         except Exception:
@@ -677,7 +692,24 @@ def _on_undo_pre(*_args):
 
 
 @bpy.app.handlers.persistent
+def _on_undo_post(*_args):
+    # The last session's summary describes a scene that undo took back: it goes. The undone
+    # objects' matrix_world is stale until the depsgraph is evaluated: evaluated now, so the
+    # Session panel's "where the session left it" compares the poses undo brought back.
+    global last_result
+    last_result = None
+    try:
+        bpy.context.view_layer.update()
+    except (AttributeError, RuntimeError):
+        pass
+
+
+@bpy.app.handlers.persistent
 def _on_load_post(*_args):
+    global last_result
+    last_result = None          # another file: nothing of the last one's session stays on screen
+    from .ops import last_check
+    last_check.clear()
     for scene in bpy.data.scenes:
         if scene.grasp_lab.running:
             scene.grasp_lab.running = False
@@ -693,6 +725,7 @@ def register():
     bpy.app.handlers.load_post.append(_on_load_post)
     bpy.app.handlers.undo_pre.append(_on_undo_pre)
     bpy.app.handlers.redo_pre.append(_on_undo_pre)
+    bpy.app.handlers.undo_post.append(_on_undo_post)
 
 
 def unregister():
@@ -700,7 +733,8 @@ def unregister():
     for lst, fn in ((bpy.app.handlers.load_pre, _on_load_pre),
                     (bpy.app.handlers.load_post, _on_load_post),
                     (bpy.app.handlers.undo_pre, _on_undo_pre),
-                    (bpy.app.handlers.redo_pre, _on_undo_pre)):
+                    (bpy.app.handlers.redo_pre, _on_undo_pre),
+                    (bpy.app.handlers.undo_post, _on_undo_post)):
         while fn in lst:
             lst.remove(fn)
     for c in reversed(CLASSES):

@@ -1,18 +1,22 @@
 """The "Grasp" tab in the 3D viewport sidebar."""
 from __future__ import annotations
 
+import os
+
 import bpy
 
-from . import ops, rest_poses, session
+from . import ops, record, rest_poses, session
 from .engine import grasp_display
 from .engine import hands
 
 
-def wrapped_labels(layout, context, lines, icon_first="NONE", margin=40):
-    """Labels that wrap at the region's width instead of being cut off mid-word: measured in
-    the interface font where it can be (a window), else at about 6.5 px a character.
-    ``margin``: the panel's and boxes' margins, px (a sub-panel's are wider)."""
+def _measure(context, icon_first="NONE", margin=56):
+    """(width, measure) of a label line in this region: pixels and the interface font where
+    there is a window, else characters at about 6.5 px each. ``margin``: the panel's and boxes'
+    margins, px (a sub-panel's are wider)."""
     scale = context.preferences.system.ui_scale
+    # the panel's and a box's margins and the label's own padding: a 240 px path was cut in a
+    # box of a 291 px sidebar (Blender 4.3, measured on screen)
     width = (context.region.width if context.region else 300) - margin * scale
     if icon_first != "NONE":
         width -= 50 * scale             # the icon before the text and its padding (measured on screen)
@@ -23,10 +27,32 @@ def wrapped_labels(layout, context, lines, icon_first="NONE", margin=40):
         measure = lambda text: blf.dimensions(0, text)[0]  # noqa: E731
     if measure is None:
         width, measure = int(width / (6.5 * scale)), len
+    return width, measure
+
+
+def wrapped_labels(layout, context, lines, icon_first="NONE", path=False, margin=56):
+    """Labels that wrap at the region's width instead of being cut off mid-word (``path``: one
+    file path, broken after its separators; ``margin`` as _measure's)."""
+    width, measure = _measure(context, icon_first, margin)
+    wrapped = grasp_display.wrap_path(lines[0], width, measure) if path else grasp_display.wrap(lines, width, measure)
     col = layout.column(align=True)
-    for k, line in enumerate(grasp_display.wrap(lines, width, measure)):
+    for k, line in enumerate(wrapped):
         col.label(text=line, icon=icon_first if k == 0 else "NONE")
     return col
+
+
+def baked_frame_lines(context) -> list:
+    """The verdict at the current frame of a bake (engine.grasp_display.baked_verdict_lines),
+    [] when the scene has no baked measures."""
+    objs = context.view_layer.objects
+    bodies = [(o.name[len("GL Force "):], o.get("gl_held", 0.0), o.get("gl_closure", 0.0),
+               o.get("gl_grip_load", 0.0)) for o in objs if o.name.startswith("GL Force ") and "gl_held" in o]
+    if not bodies:
+        return []
+    fingers = [(o.name[len("GL God-object "):], o.get("gl_state", 0.0), o.get("gl_friction_use", 0.0))
+               for o in sorted(objs, key=lambda o: o.name)
+               if o.name.startswith("GL God-object ") and "gl_state" in o]
+    return grasp_display.baked_verdict_lines(bodies, fingers)
 
 
 class _GraspPanel:
@@ -147,6 +173,14 @@ class GRASPLAB_PT_session(_GraspPanel, bpy.types.Panel):
         layout = self.layout
         s = context.scene.grasp_lab
         active = session.active_session()
+        falling = ops.support_offer(context) if active is None else []
+        if falling:
+            # Nothing static to rest on: say so before the session, with the one-click fix.
+            box = layout.box()
+            names = ", ".join(o.name for o in falling[:3]) + (" ..." if len(falling) > 3 else "")
+            wrapped_labels(box, context, [f"Nothing holds {names} up: it falls when the session starts"],
+                           icon_first="ERROR")
+            box.operator("grasp_lab.add_table", icon="MESH_PLANE")
         # The panel's one primary action, drawn highlighted (depress) and large.
         row = layout.row()
         row.scale_y = 1.5
@@ -183,6 +217,7 @@ class GRASPLAB_PT_session(_GraspPanel, bpy.types.Panel):
             sub.prop(s, "sound_pitch_high", text="at Full Force")
             sub.prop(s, "sound_force_full", text="Full Force N")
             sub.prop(s, "sound_curve")
+        col.prop(s, "weakest_scale", text="Wrench Size")
         col.prop(s, "live_view")
         if s.live_view:                     # its address only when it is on: a shorter panel
             sub = col.column(align=True)
@@ -204,10 +239,17 @@ class GRASPLAB_PT_session(_GraspPanel, bpy.types.Panel):
         if not moved:
             row.operator("grasp_lab.reset", icon="LOOP_BACK")
         row.operator("grasp_lab.clear_display", text="Clear Display", icon="TRASH")
+        baked = baked_frame_lines(context) if active is None else []
+        if baked:
+            # Scrubbing a bake: the grasp in words at this frame.
+            wrapped_labels(layout.box(), context, [f"Frame {context.scene.frame_current} (baked):"] + baked,
+                           icon_first="KEYFRAME")
         res = session.last_result
-        if active is None and res is not None and res.stats:
-            wrapped_labels(layout, context, [f"Last: {res.stats.get('time', 0):.2f} s, "
-                                             f"{res.stats.get('step_us', 0):.0f} µs/step"], icon_first="INFO")
+        if active is None and res is not None and res.stats and res.scene_name == context.scene.name:
+            # The session's summary: the grasp in words when it ended, then its length.
+            box = layout.box()
+            wrapped_labels(box, context, [f"Last session, {res.stats.get('time', 0):.2f} s:"] + res.verdict,
+                           icon_first="INFO")
 
 
 class GRASPLAB_PT_loop(_GraspPanel, bpy.types.Panel):
@@ -235,8 +277,14 @@ class GRASPLAB_PT_recording(_GraspPanel, bpy.types.Panel):
         s = context.scene.grasp_lab
         layout.prop(s, "record")
         layout.prop(s, "recording_folder", text="Folder")
+        # The folder in full, where the files really go (an unsaved file: the per-user one).
+        box = layout.box()
+        if not bpy.data.filepath and record.folder_of(s) == os.path.normpath(record.user_folder()):
+            wrapped_labels(box, context, ["Not saved yet: recording to your Grasp Lab folder"], icon_first="INFO")
+        wrapped_labels(box, context, [record.folder_of(s) + os.sep], path=True)
+        box.operator("grasp_lab.open_recording_folder", icon="FILE_FOLDER")
         if s.last_recording:
-            layout.label(text=bpy.path.basename(s.last_recording), icon="FILE")
+            wrapped_labels(layout, context, [bpy.path.basename(s.last_recording)], icon_first="FILE", path=True)
 
 
 CLASSES = (GRASPLAB_PT_main, GRASPLAB_PT_object, GRASPLAB_PT_bone, GRASPLAB_PT_scene, GRASPLAB_PT_session,

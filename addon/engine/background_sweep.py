@@ -14,8 +14,10 @@ import hashlib
 import json
 import os
 import queue
+import shutil
 import subprocess
 import sys
+import tempfile
 import threading
 
 from . import core_loader
@@ -69,6 +71,27 @@ def panel_varies(rec, friction=None, mass=None, hip_noise=None, push=None) -> li
     return specs
 
 
+def held_time(rec) -> tuple:
+    """(body name, seconds) of the dynamic body the recording holds longest (held: at least
+    sweep.HOLD_FINGERS fingers on it), ("", 0.0) when it never holds one: what the Robustness
+    panel's list says of each recording, since only a held body can be swept."""
+    scene = rec.header["scene"]
+    best, longest = "", 0
+    for i, b in enumerate(scene["bodies"]):
+        if not b["static"]:
+            n = int((_sweep.hold_counts(rec.ticks, i) >= _sweep.HOLD_FINGERS).sum())
+            if n > longest:
+                best, longest = b["name"], n
+    return best, longest / float(rec.haptic_rate)
+
+
+def recording_verdict(rec) -> str:
+    """A recording in a few words for a list: what it holds and how long, or that it holds
+    nothing (a sweep of it is refused)."""
+    name, seconds = held_time(rec)
+    return f"holds {name} {seconds:.1f} s" if name else "holds nothing: cannot be swept"
+
+
 def sweep_folder(recording: str, varies, samples: int, seed: int) -> str:
     """Where a sweep of ``recording`` goes: beside it, named by what it is, so that the same
     sweep started again (after a Cancel) resumes there and another one never collides."""
@@ -93,10 +116,14 @@ class BackgroundSweep:
         self._lines = queue.Queue()
         self._stderr = []
         self._proc = None
+        self._scratch = None        # the engine zip's folder while the child may need it
 
     def start(self) -> None:
         os.makedirs(self.folder, exist_ok=True)
-        path, package = _sweep.engine_zip(self.folder)
+        # The engine the child imports goes to a folder of its own, deleted once the child is
+        # gone: the results folder holds only results.
+        self._scratch = tempfile.mkdtemp(prefix="grasp_lab_sweep_")
+        path, package = _sweep.engine_zip(self._scratch)
         # The folder of the core this process runs (a built extension vendors it in engine/graspcore/,
         # which the zip leaves out): last on the child's path, after the caller's (numpy, mcap).
         core_folder = os.path.dirname(os.path.dirname(os.path.abspath(core_loader.load().__file__)))
@@ -148,9 +175,19 @@ class BackgroundSweep:
             self._proc.wait()
             self.error = self.error or (f"the sweep process ended with status {self._proc.returncode}: "
                                         + (" / ".join(self._stderr[-3:]) or "no message"))
-        if self._proc is not None:
-            self._proc.poll()       # reaps the child once it has exited (never waits)
+        self.reap()
         return self.running
+
+    def reap(self) -> bool:
+        """Collects the child once it has exited (never waits) and deletes the engine zip; True
+        when nothing of the sweep is left running (a caller's timer stops polling then, with no
+        zombie left behind)."""
+        if self._proc is not None and self._proc.poll() is None:
+            return False
+        if self._scratch is not None:
+            shutil.rmtree(self._scratch, ignore_errors=True)
+            self._scratch = None
+        return True
 
     def cancel(self, timeout: float = 5.0) -> None:
         """Ends the child now (the samples it finished are kept in the folder)."""
@@ -163,6 +200,7 @@ class BackgroundSweep:
         except subprocess.TimeoutExpired:
             self._proc.kill()
             self._proc.wait()
+        self.reap()
 
     def describe(self) -> str:
         """One line for the panel."""

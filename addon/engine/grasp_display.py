@@ -136,14 +136,75 @@ def _keep(text: str) -> str:
     return text.replace(" ", NBSP)
 
 
-def grasp_lines(grasps, body_names, finger_names) -> list:
-    """The grasp, per held body: closure and epsilon, the force it resists in its weakest
-    direction, grip against load, the finger closest to slipping; then each finger's state
-    and friction use. Plain lines, most important first; ``wrap`` never splits a value from
-    its unit or a finger's entry (they are joined by no-break spaces)."""
+FIRM_USE = 0.5      # every contact using under half its friction: held firmly
+BARELY_USE = 0.8    # a contact using this much of its friction is close to slipping
+NEAR_NOTHING_USE = 0.01     # under this share of its friction, no finger is worth naming
+
+
+def verdict(grasp, body_name: str, finger_names) -> str:
+    """One line in words for a body the fingers touch: whether it is held, how firmly, and
+    what would make it slip first. Held means no contact sliding and the grip at least the
+    load; firmly, in force closure with every contact under FIRM_USE of its friction;
+    barely, a contact at BARELY_USE or more. The first to slip is the contact using the
+    largest share of its friction (a contact without normal force counts as fully used); none
+    is named while every contact uses under NEAR_NOTHING_USE."""
+    uses = [(c.friction_use if math.isfinite(c.friction_use) else math.inf, c) for c in grasp.contacts]
+    worst_use, worst = max(uses, key=lambda u: u[0]) if uses else (0.0, None)
+    if any(c.state == 2 for c in grasp.contacts):
+        word = "slipping"
+    elif not grasp.grip_ratio >= 1.0:
+        word = "not held (grip below load)"
+    elif grasp.force_closure and worst_use < FIRM_USE:
+        word = "held firmly"
+    elif worst_use < BARELY_USE:
+        word = "held" if grasp.force_closure else "held, but free to turn (not in force closure)"
+    else:
+        word = "held, barely"
+    if worst is None:
+        return f"{body_name}: {word}"
+    if worst_use < NEAR_NOTHING_USE:
+        return f"{body_name}: {word}; no finger near slipping"      # resting on a table, squeezed
+    who = finger_names[worst.finger]
+    return (f"{body_name}: {word}; {_keep(who)} slips first "
+            f"({_keep(f'{_percent(worst.friction_use)} of its friction')})")
+
+
+def verdict_lines(grasps, body_names, finger_names) -> list:
+    """verdict for each touched body; one line saying so when no finger touches a body."""
     if not grasps:
         return ["No finger on a body"]
-    lines = []
+    return [verdict(g, body_names[g.body], finger_names) for g in grasps]
+
+
+class _Baked:
+    """What verdict reads of a grasp, from a baked frame's properties."""
+
+    def __init__(self, **kw):
+        self.__dict__.update(kw)
+
+
+def baked_verdict_lines(bodies, fingers) -> list:
+    """verdict_lines at a baked frame, from the bake's animated properties there: ``bodies``
+    [(name, gl_held, gl_closure, gl_grip_load)], ``fingers`` [(name, gl_state, gl_friction_use)].
+    The bake keeps no finger-to-body link, so each held body is judged with every finger in
+    contact (exact for one body; a scene with several reads the fingers of all of them)."""
+    names = [f[0] for f in fingers]
+    touching = [_Baked(finger=k, state=int(round(state)), friction_use=use if use >= 0 else math.nan)
+                for k, (_, state, use) in enumerate(fingers) if int(round(state)) > 0]
+    grasps = [_Baked(body=i, contacts=touching, force_closure=closure > 0.5,
+                     grip_ratio=ratio if ratio >= 0 else math.inf)
+              for i, (_, held, closure, ratio) in enumerate(bodies) if held > 0.5]
+    return verdict_lines(grasps, [b[0] for b in bodies], names)
+
+
+def grasp_lines(grasps, body_names, finger_names) -> list:
+    """The grasp, per held body: the verdict in words first, then the numbers: closure and
+    epsilon, the force it resists in its weakest direction, grip against load, the finger
+    closest to slipping; then each finger's state and friction use. ``wrap`` never splits a
+    value from its unit or a finger's entry (they are joined by no-break spaces)."""
+    if not grasps:
+        return ["No finger on a body"]
+    lines = verdict_lines(grasps, body_names, finger_names)
     for g in grasps:
         closure = "closure yes" if g.force_closure else "closure no"
         lines.append(f"{body_names[g.body]}: {closure}  {_keep(f'ε {g.epsilon:.3f}')}  "
@@ -195,29 +256,52 @@ def wrap(lines, width, measure=len) -> list:
     return out
 
 
-def weakest_geometry(grasp, length: float | None = None, segments: int = 48):
+def wrap_path(path: str, width, measure=len) -> list:
+    """A file path in lines of at most ``width`` (as ``wrap``), broken after a separator so
+    that every piece can be read and the whole path is there; a name longer than the width
+    gets a line of its own."""
+    parts = [p + "/" for p in path.split("/")[:-1]] + [path.split("/")[-1]]
+    out, current = [], ""
+    for part in (p for p in parts if p):
+        if current and measure(current + part) > width:
+            out.append(current)
+            current = ""
+        current += part
+    return out + ([current] if current else [])
+
+
+def weakest_geometry(grasp, length: float | None = None, segments: int = 48, scale: float = 1.0,
+                     outside: bool = False):
     """Where to draw the weakest wrench of a grasp in force closure, world coordinates:
     ``arrow`` (start, end): from the centre of mass along its force part, ``length`` times
     the part's norm (default twice the torque radius); ``ring`` (segments + 1, 3): a closed
     circle about its torque part's axis, radius the radius times the part's norm, and
     ``ring_tip`` (point, tangent): where and which way the ring turns (right hand about the
-    axis). None when the grasp is not in closure (no weakest direction)."""
+    axis). ``scale`` multiplies both sizes. ``outside``: drawn around the body instead of over
+    it (the viewport's way, so that it never hides the object): the arrow starts on the body's
+    bounding sphere and the ring's radius is the sphere's plus the scaled one. None when the
+    grasp is not in closure (no weakest direction)."""
     w = np.asarray(grasp.weakest, dtype=np.float64)
     if not grasp.force_closure or not np.all(np.isfinite(w)) or not np.any(w):
         return None
     center = np.asarray(grasp.center, dtype=np.float64)
     radius = float(grasp.radius)
-    length = 2.0 * radius if length is None else float(length)
+    length = scale * (2.0 * radius if length is None else float(length))
     force, torque = w[:3], w[3:]
-    out = {"arrow": (center, center + length * force), "ring": None, "ring_tip": None}
+    f = float(np.linalg.norm(force))
+    start = center + radius * force / f if outside and f > 1e-12 else center
+    out = {"arrow": (start, start + length * force), "ring": None, "ring_tip": None}
     t = float(np.linalg.norm(torque))
     if t > 1e-9:
         axis = torque / t
         u = np.cross(axis, (1.0, 0.0, 0.0) if abs(axis[0]) < 0.9 else (0.0, 1.0, 0.0))
         u /= np.linalg.norm(u)
         v = np.cross(axis, u)
-        r = radius * t
+        r = scale * radius * t + (radius if outside else 0.0)
         a = np.linspace(0.0, 2.0 * math.pi, segments + 1)
         out["ring"] = center + r * (np.cos(a)[:, None] * u + np.sin(a)[:, None] * v)
         out["ring_tip"] = (center + r * u, v)      # d/da at a = 0: +v, counter-clockwise about axis
     return out
+
+
+WEAKEST_LEGEND = "magenta: the push (arrow) and twist (ring) the grasp resists least"

@@ -32,3 +32,24 @@ def body_grip(contact: np.ndarray, normal_force: np.ndarray, n_bodies: int) -> n
     rows, fingers = np.nonzero(on)
     np.add.at(grip, (rows, contact[on]), normal_force[rows, fingers])
     return grip
+
+
+# What each baked property is, with its unit: the tooltip of the property in Blender (the
+# Graph Editor's channel and the Object properties' Custom Properties).
+DESCRIPTIONS = {
+    "gl_state": "Finger state: 0 free, 1 stick, 2 slip",
+    "gl_force": "Magnitude of the force, N (on a god-object: rendered to the finger; on a body's "
+                "force arrow: the residual force on the body)",
+    "gl_normal_force": "Normal force |Fn| of the contact, N",
+    "gl_tangential_force": "Tangential (friction) force |Ft| of the contact, N",
+    "gl_friction_use": "Friction use |Ft| / (μ |Fn|), a ratio: 0 far from slipping, 1 at slip (-1: not bounded)",
+    "gl_grip": "Grip: the sum of the normal forces of the fingers on the body, N",
+    "gl_torque": "Magnitude of the residual torque on the body, N·m",
+    "gl_held": "1 while a finger touches the body, else 0",
+    "gl_closure": "1 while the grasp is in force closure, else 0",
+    "gl_epsilon": "Epsilon grasp quality: the smallest wrench the grasp resists per unit of grip, "
+                  "a ratio (0 out of closure)",
+    "gl_mu_min": "Smallest friction coefficient μ that closes the grasp, a ratio (-1: none does)",
+    "gl_slip_margin": "Smallest slip margin over the fingers: μ|Fn| - |Ft|, N",
+    "gl_grip_load": "Grip force over load force (weight and inertia), a ratio",
+}

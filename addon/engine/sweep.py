@@ -958,7 +958,7 @@ def plain_map(job: Job, rows: list) -> np.ndarray:
     index, shape = [], []
     for v in keys:
         x = np.array([r[v.column] for r in rows], dtype=np.float64)
-        edges, i = _bins(v, x, rows)
+        edges, i = _bins(v, x, rows, len(keys))
         index.append(i)
         shape.append(len(edges) - 1)
     nx = shape[0] if keys else 1
@@ -1011,8 +1011,8 @@ def draw_pictures(job: Job, rows: list, folder: str) -> list:
     if len(keys) == 2:
         x = np.array([r[keys[0].column] for r in rows], dtype=np.float64)
         y = np.array([r[keys[1].column] for r in rows], dtype=np.float64)
-        xe, xi = _bins(keys[0], x, rows)
-        ye, yi = _bins(keys[1], y, rows)
+        xe, xi = _bins(keys[0], x, rows, 2)
+        ye, yi = _bins(keys[1], y, rows, 2)
         p = np.full((len(ye) - 1, len(xe) - 1), np.nan)
         for a in range(len(xe) - 1):
             for b in range(len(ye) - 1):
@@ -1085,16 +1085,27 @@ def _save_figure(fig, path: str) -> str:
     return outputs.write_whole(path, buf.getvalue())
 
 
-def _bins(vary: Vary, x, rows):
-    """Bin edges and each sample's bin: a grid axis's values, else up to 10 even bins."""
+SAMPLES_PER_CELL = 4        # the map's aim: about this many samples in each cell
+MAX_BINS = 20               # per axis: 400 cells at most
+
+
+def bin_count(samples: int, axes: int) -> int:
+    """Bins per axis of a map of ``samples`` over ``axes`` (1 or 2) ranged axes: about
+    SAMPLES_PER_CELL samples a cell, 2 to MAX_BINS per axis (50 samples: 12 bins on one
+    axis, 3 x 3 cells on two; 2000: 20 and 20 x 20)."""
+    k = (max(samples, 1) / SAMPLES_PER_CELL) ** (1.0 / max(axes, 1))
+    return int(np.clip(np.floor(k), 2, MAX_BINS))
+
+
+def _bins(vary: Vary, x, rows, axes: int = 1):
+    """Bin edges and each sample's bin: a grid axis's values, else bin_count even bins."""
     if vary.grid:
         values = np.array(sorted(set(vary.grid)), dtype=np.float64)
         mids = (values[1:] + values[:-1]) / 2
         step = (values[-1] - values[0]) / max(1, len(values) - 1) or 1.0
         edges = np.concatenate([[values[0] - step / 2], mids, [values[-1] + step / 2]])
     else:
-        k = int(np.clip(np.sqrt(len(rows) / 4), 2, 10))
-        edges = np.linspace(x.min(), x.max(), k + 1)
+        edges = np.linspace(x.min(), x.max(), bin_count(len(rows), axes) + 1)
     index = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, len(edges) - 2)
     return edges, index
 

@@ -59,22 +59,32 @@ def test_live_session_with_an_emulated_device(bpy, sample, core):
                            cwd=grasp_env.ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         port = emu.stdout.readline().split()[1]
-        bpy.context.scene.cursor.location = box.matrix_world.translation
+        bpy.context.scene.cursor.location = (1.0, 2.0, 3.0)          # not where the frame goes
         assert bpy.ops.grasp_lab.device_add(port=port) == {"FINISHED"}
         entry = bpy.context.scene.grasp_lab_devices[0]
         assert entry.frame is not None and entry.finger_offset == 0 and entry.num_fingers == 2
+        # The workspace frame on the fingers it drives: at their centre, the emulator's 6 cm rest
+        # ring scaled to their spread (engine.placement.workspace_frame)
+        tips = np.array([tuple(bpy.data.objects[f"Finger {i}"].matrix_world.translation) for i in (0, 1)])
+        centre = tips.mean(axis=0)
+        np.testing.assert_allclose(tuple(entry.frame.location), centre, atol=1e-6)
+        spread = np.linalg.norm(tips - centre, axis=1).mean()
+        np.testing.assert_allclose(tuple(entry.frame.scale), [spread / 0.06] * 3, rtol=1e-6)
+        bpy.context.scene.grasp_lab_device_forces = True          # Forces On before the session
         s = session.BlenderSession(bpy.context, live=True, duration=10.0)
         session._active = s          # what the operator does: the panel and operators see it
         try:
             assert s.devices is not None and not s.source.interactive
             wait_until(lambda: list(s.snapshot.contacts) == [0, 0], 60, "both fingertips gripping the box",
                        seen=lambda: s.snapshot.contacts, poll=0.02, each=s.tick)
-            assert bpy.ops.grasp_lab.device_forces(on=True) == {"FINISHED"}
+            # the session started with forces on (the Devices panel's setting)
             lines = wait_until(lambda: (lambda ls: "forces enabled" in ls[0] and ls)(scene_devices.status_lines(
                 s.devices)), 60, "the panel's status: forces enabled", seen=lambda: scene_devices.status_lines(
                 s.devices), poll=0.02)
             assert lines[0].startswith(f"{port}: streaming, fingers 0..1"), lines
             assert lines[0] in s.hud_text()
+            assert bpy.ops.grasp_lab.device_forces(on=False) == {"FINISHED"}     # Forces Off, now
+            assert not bpy.context.scene.grasp_lab_device_forces and not s.devices.devices[0].enabled
         finally:
             session._active = None
             s.finish()
@@ -402,14 +412,16 @@ def test_a_found_device_brings_its_finger_count_and_its_fingers_follow_it(bpy, s
         start = [tuple(t.matrix_world.translation) for t in tips]
         s = session.BlenderSession(bpy.context, live=True, duration=120.0)
         try:
-            # The emulator's lift about the workspace frame at the box: 3 cm out, 5 cm up (after
-            # 1.5 s of its streaming; waited for, the session ticking as Blender's timer would).
+            # The emulator's lift about the workspace frame on the fingertips (scaled to their
+            # spread): 3 cm out, 5 cm up, in device metres (waited for, the session ticking as
+            # Blender's timer would).
             frame = np.array(entries[0].frame.matrix_world.translation)
-            wait_until(lambda: np.allclose(s.snapshot.hips[:2, 2] - frame[2], 0.05, atol=2e-3), 60,
+            scale = entries[0].frame.scale.x
+            wait_until(lambda: np.allclose(s.snapshot.hips[:2, 2] - frame[2], 0.05 * scale, atol=2e-3), 60,
                        "the lift's top", seen=lambda: s.snapshot.hips, poll=0.02, each=s.tick)
             hips = s.snapshot.hips
-            np.testing.assert_allclose(np.abs(hips[:2, 0] - frame[0]), 0.03, atol=2e-3)
-            np.testing.assert_allclose(hips[:2, 2] - frame[2], 0.05, atol=2e-3)
+            np.testing.assert_allclose(np.abs(hips[:2, 0] - frame[0]), 0.03 * scale, atol=2e-3)
+            np.testing.assert_allclose(hips[:2, 2] - frame[2], 0.05 * scale, atol=2e-3)
             for i, tip in enumerate(tips):
                 np.testing.assert_allclose(tip.matrix_world.translation, hips[i], atol=1e-6)
             np.testing.assert_allclose(extra.matrix_world.translation, (0.0, 0.3, 0.2))   # no device: stays

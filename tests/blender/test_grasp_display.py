@@ -109,6 +109,7 @@ def _grasp(body=0, closure=True):
 def test_grasp_lines_lead_with_closure_and_name_the_finger_closest_to_slip():
     lines = grasp_display.grasp_lines([_grasp()], ["Box"], ["Thumb", "Index Tip"])
     assert [x.replace(grasp_display.NBSP, " ") for x in lines] == [
+        "Box: slipping; Index Tip slips first (100% of its friction)",
         "Box: closure yes  ε 0.123  resists 0.62 N",
         "  grip 5.00 N / load 1.96 N = 2.5×",
         "  slip margin 0.00 N at Index Tip",
@@ -118,11 +119,59 @@ def test_grasp_lines_lead_with_closure_and_name_the_finger_closest_to_slip():
     assert "0.62\u00a0N" in " ".join(narrow) and any(x.strip() == "Index\u00a0Tip\u00a0slip\u00a0100%"
                                                         for x in narrow), narrow
     open_ = grasp_display.grasp_lines([_grasp(closure=False)], ["Box"], ["Thumb", "Index"])
-    assert open_[0].startswith("Box: closure no") and not any("slip margin" in x for x in open_)
+    assert open_[1].startswith("Box: closure no") and not any("slip margin" in x for x in open_)
     weightless = _grasp()
     weightless.grip_ratio = math.inf
-    assert grasp_display.grasp_lines([weightless], ["Box"], ["T", "I"])[1].endswith("= ∞")
+    assert grasp_display.grasp_lines([weightless], ["Box"], ["T", "I"])[2].endswith("= ∞")
     assert grasp_display.grasp_lines([], ["Box"], ["T"]) == ["No finger on a body"]
+
+
+def _contacts(*uses_states):
+    return [SimpleNamespace(finger=k, state=state, friction_use=use) for k, (use, state) in enumerate(uses_states)]
+
+
+def test_verdict_says_in_words_whether_held_how_firmly_and_who_slips_first():
+    names = ["Thumb", "Index"]
+
+    def words(contacts, closure=True, ratio=3.0):
+        g = SimpleNamespace(body=0, contacts=contacts, force_closure=closure, grip_ratio=ratio)
+        return grasp_display.verdict(g, "Pencil", names).replace(grasp_display.NBSP, " ")
+    # in closure, every contact under half its friction: firmly; the larger use slips first
+    assert words(_contacts((0.2, 1), (0.4, 1))) == "Pencil: held firmly; Index slips first (40% of its friction)"
+    # in closure but one contact at 60 %: held, not firmly
+    assert words(_contacts((0.6, 1), (0.1, 1))).startswith("Pencil: held; Thumb slips first (60%")
+    # a two-finger pinch out of closure (free to turn about the line of its fingertips)
+    assert words(_contacts((0.2, 1), (0.3, 1)), closure=False).startswith(
+        "Pencil: held, but free to turn (not in force closure); Index")
+    # close to the cone: barely; sliding: slipping; grip under the load: not held
+    assert words(_contacts((0.85, 1), (0.1, 1))).startswith("Pencil: held, barely; Thumb")
+    assert words(_contacts((0.3, 1), (1.0, 2))).startswith("Pencil: slipping; Index")
+    assert words(_contacts((0.3, 1), (0.3, 1)), ratio=0.4).startswith("Pencil: not held (grip below load)")
+    assert words(_contacts((0.3, 1), (0.3, 1)), ratio=math.nan).startswith("Pencil: not held")
+    # squeezed with no load to carry (a body resting on a table): nobody to name
+    assert words(_contacts((0.0, 1), (0.005, 1))) == "Pencil: held firmly; no finger near slipping"
+    # a contact with no normal force (use not a number) is the first to slip
+    assert words(_contacts((0.3, 1), (math.nan, 1))) == "Pencil: held, barely; Index slips first (— of its friction)"
+
+
+def test_verdict_lines_one_per_touched_body_before_the_numbers():
+    a, b = _grasp(body=0), _grasp(body=1)
+    lines = grasp_display.grasp_lines([a, b], ["Box", "Lid"], ["T", "I"])
+    assert lines[0].startswith("Box: slipping") and lines[1].startswith("Lid: slipping")
+    assert lines[2].startswith("Box: closure yes") and grasp_display.verdict_lines([], [], []) == ["No finger on a body"]
+
+
+def test_a_baked_frame_gets_the_same_verdict():
+    bodies = [("Pencil", 1.0, 1.0, 45.0), ("Cup", 0.0, 0.0, 0.0)]       # the cup is not held
+    fingers = [("Thumb", 1.0, 0.2), ("Index", 1.0, 0.45), ("Middle", 0.0, 0.0)]
+    assert [x.replace(grasp_display.NBSP, " ") for x in grasp_display.baked_verdict_lines(bodies, fingers)] == [
+        "Pencil: held firmly; Index slips first (45% of its friction)"]
+    fingers[1] = ("Index", 2.0, 1.0)                                       # sliding at that frame
+    assert grasp_display.baked_verdict_lines(bodies, fingers)[0].startswith("Pencil: slipping; Index")
+    assert grasp_display.baked_verdict_lines([("Pencil", 0.0, 0.0, 0.0)], fingers) == ["No finger on a body"]
+    # friction use keyed -1 (not bounded: no normal force) is the first to slip
+    line = grasp_display.baked_verdict_lines(bodies, [("Thumb", 1.0, 0.1), ("Index", 1.0, -1.0)])[0]
+    assert line.startswith("Pencil: held, barely; Index")
 
 
 def test_force_output_is_one_statement_of_what_reaches_the_hand():
@@ -164,6 +213,12 @@ def test_weakest_geometry_arrow_along_the_force_ring_about_the_torque():
     tip, tangent = geo["ring_tip"]
     turn = np.cross(tip - g.center, tangent)
     assert turn[2] > 0 and abs(turn[0]) < 1e-12                        # right hand about +z
+    # the viewport's way: around the body, not over it, at the user's scale
+    geo = grasp_display.weakest_geometry(g, scale=0.5, outside=True)
+    start, end = geo["arrow"]
+    np.testing.assert_allclose(start, [1, 2 + 0.05, 3])                # on the bounding sphere
+    np.testing.assert_allclose(end - start, [0, 0.5 * 2 * 0.05 * 0.6, 0])
+    np.testing.assert_allclose(np.linalg.norm(geo["ring"] - g.center, axis=1), 0.05 + 0.5 * 0.05 * 0.8)
     g.weakest = np.array([0.0, 0, 1, 0, 0, 0])
     assert grasp_display.weakest_geometry(g)["ring"] is None           # no torque part
     g.force_closure = False

@@ -63,7 +63,7 @@ def test_enable_disable_cycles(bpy, ext):
         addon_utils.disable(ext, default_set=True)
         addon_utils.enable(ext, default_set=True)
     assert hasattr(bpy.types.Object, "grasp_lab")
-    assert len(_our_handlers(bpy)) == 6   # load_pre (session, robustness), load_post (session, device_fit), undo_pre, redo_pre
+    assert len(_our_handlers(bpy)) == 7   # load_pre (session, robustness), load_post (session, device_fit), undo_pre, redo_pre, undo_post
 
 
 def test_operators_have_tooltips(bpy, ext):

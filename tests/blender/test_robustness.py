@@ -95,8 +95,42 @@ def test_run_sweep_to_the_end(bpy, core, pinch):
     assert os.path.basename(r.map_path) == "map.png" and os.path.isfile(r.map_path)
     assert len(rows_in(job.folder)) == 6
     assert r.axes.startswith("→: Box.mu_s=0.2:1   ↑: Box.mass=")
-    assert robustness.sweep_tick() is None               # nothing runs: the timer goes
+    assert tick_until(robustness, lambda: False) is None     # its process collected: the timer goes
     assert robustness.map_icon(r.map_path) >= 0          # loads (0 only without a GPU preview)
+    # no zombie: the child was collected; only results in the results folder (no engine zip)
+    assert job._proc.returncode == 0 and job._scratch is None
+    assert not [f for f in os.listdir(job.folder) if f.endswith(".zip")], os.listdir(job.folder)
+
+
+def test_the_panel_picks_its_recording_from_a_list_with_verdicts(bpy, core, pinch, tmp_path):
+    """The scene's recordings, newest first, each with what it holds; a recording that holds
+    nothing says so; the one picked is the one swept, and it stays picked as new ones arrive."""
+    import shutil
+    robustness = grasp_env.submodule("robustness")
+    scene = bpy.context.scene
+    scene.grasp_lab.recording_folder = str(tmp_path)
+    scene.grasp_lab.last_recording = ""
+    assert robustness.chosen_recording(scene) == ""
+    older = str(tmp_path / "pinch_old.mcap")
+    shutil.copy(pinch, older)
+    os.utime(older, (time.time() - 60, time.time() - 60))
+    newer = str(tmp_path / "pinch_new.mcap")
+    shutil.copy(pinch, newer)
+    assert robustness.scene_recordings(scene) == [newer, older]
+    assert robustness.chosen_recording(scene) == newer                    # nothing picked: the newest
+    assert robustness.recording_verdict(newer).startswith("holds Box ")
+    items = robustness._recording_items(None, bpy.context)
+    assert [i[0] for i in items] == ["NEWEST", newer, older] and items[1][1].startswith("pinch_new.mcap: holds Box ")
+    assert items[0][1] == "Newest recording"
+    r = scene.grasp_lab_robustness
+    r.recording = older
+    assert robustness.chosen_recording(scene) == older
+    newest = str(tmp_path / "pinch_newest.mcap")
+    shutil.copy(pinch, newest)
+    robustness._recording_items(None, bpy.context)
+    assert r.recording == older and robustness.chosen_recording(scene) == older   # still the one picked
+    (tmp_path / "broken.mcap").write_bytes(b"not a recording")
+    assert robustness.recording_verdict(str(tmp_path / "broken.mcap")).startswith("unreadable")
 
 
 def test_cancel_keeps_the_finished_samples_and_run_resumes(bpy, core, pinch):

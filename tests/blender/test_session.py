@@ -219,8 +219,9 @@ def test_live_session_ticks_without_timers(bpy, sample, core):
     assert "real time" in s.hud_text()
     assert s.tick(5.0) is True                       # reached the duration
     hud = s.hud_text().replace("\u00a0", " ").split("\n")   # the grasp first: closed on the box
-    assert hud[0].startswith("Box: closure ") and "Finger 0 stick" in hud[3] and "Finger 1 stick" in hud[3]
-    assert hud[4].startswith("t 1.25 / 1.25 s") and len(hud) == 5
+    assert hud[0].startswith("Box: held") and hud[1].startswith("Box: closure ")     # the words, then the numbers
+    assert "Finger 0 stick" in hud[4] and "Finger 1 stick" in hud[4]
+    assert hud[5].startswith("t 1.25 / 1.25 s") and len(hud) == 6
     s.finish()
     display.add_overlay()                            # no-op headless
     assert not display.overlay_active()
@@ -250,7 +251,11 @@ def test_live_session_on_the_threaded_runtime(bpy, sample, core):
     assert stats["haptic_rate"] == stats["runtime_haptic_rate"] > 250
     assert stats["steps"] > 200 and stats["step_us"] > 0
     hud = s.hud_text()                               # the grasp, then the C loop's own timing
-    assert hud.startswith("Box: closure ") and "p99" in hud and "haptic 0 Hz" not in hud
+    lines = hud.split("\n")                          # the verdict in words, then the numbers
+    assert lines[0].startswith("Box: held") and " slips first " in lines[0], lines
+    assert lines[1].startswith("Box: closure ") and "p99" in hud and "haptic 0 Hz" not in hud
+    # no device: the safety counters (the timeline's input trips the watchdog) are not shown
+    assert "safety:" not in hud and "forces held at zero" not in hud, hud
     detail = "\n".join(s.loop_lines(detail=True))   # the sidebar's Loop panel: all of it
     assert stats["runtime_priority_note"] in detail and "safety: rejected inputs" in detail
     assert "step 0 µs" not in detail

@@ -150,10 +150,38 @@ def test_add_finger_small_object_and_cursor(bpy):
     f = bpy.context.active_object
     assert f.grasp_lab.radius == pytest.approx(prefs_radius)       # the preference: already seen
     np.testing.assert_allclose(tuple(f.location), (-0.025 - prefs_radius, 0, 0), atol=1e-6)
-    # the finger is now selected: the next goes to the 3D cursor
+    # the finger it added is now selected: the next goes beside the same cube, on its other side
     bpy.context.scene.cursor.location = (0.3, 0.0, 0.0)
     assert bpy.ops.grasp_lab.add_finger() == {"FINISHED"}
+    np.testing.assert_allclose(tuple(bpy.context.active_object.location), (0.025 + prefs_radius, 0, 0), atol=1e-6)
+    # nothing selected: at the 3D cursor
+    bpy.ops.object.select_all(action="DESELECT")
+    assert bpy.ops.grasp_lab.add_finger() == {"FINISHED"}
     np.testing.assert_allclose(tuple(bpy.context.active_object.location), (0.3, 0, 0), atol=1e-6)
+
+
+def test_add_finger_on_blenders_default_cube_then_a_table_under_it(bpy):
+    """The walkthrough from the startup file: the 2 m cube, made dynamic, gets two fingertips
+    on opposite sides sized to it, and the offer of a table (it would fall): Add Table puts one
+    under it, and the offer goes."""
+    ops = grasp_env.submodule("ops")
+    bpy.ops.mesh.primitive_cube_add(size=2.0)
+    cube = bpy.context.active_object
+    cube.grasp_lab.role = "DYNAMIC"
+    assert [o.name for o in ops.support_offer(bpy.context)] == [cube.name]
+    bpy.ops.grasp_lab.add_finger()
+    bpy.ops.grasp_lab.add_finger()          # the first fingertip is selected now
+    fingers = sorted((o for o in bpy.context.scene.objects if o.grasp_lab.role == "FINGER"), key=lambda o: o.name)
+    assert [f.grasp_lab.radius for f in fingers] == pytest.approx([0.1, 0.1])       # a twentieth of 2 m
+    np.testing.assert_allclose([tuple(f.location) for f in fingers], [(-1.1, 0, 0), (1.1, 0, 0)], atol=1e-6)
+    assert bpy.ops.grasp_lab.add_table() == {"FINISHED"}
+    table = bpy.context.scene.objects["Table"]
+    assert table.grasp_lab.role == "STATIC" and ops.support_offer(bpy.context) == []
+    bpy.context.view_layer.update()
+    top = max((table.matrix_world @ v.co).z for v in table.data.vertices)
+    assert top == pytest.approx(-1.0) and table.dimensions.x == pytest.approx(6.0)
+    ok = bpy.ops.grasp_lab.validate_scene()
+    assert ok == {"FINISHED"}, ops.last_check        # a closed mesh, outward: the core takes it
 
 
 def test_new_device_drives_the_fingers_left(bpy):
@@ -178,3 +206,36 @@ def test_bodies_moved_by_a_session_are_offered_a_reset(bpy, sample, core):
     assert [o.name for o in rest_poses.moved_from_rest(bpy.context)] == ["Box"]
     assert bpy.ops.grasp_lab.reset() == {"FINISHED"}
     assert rest_poses.moved_from_rest(bpy.context) == []
+
+
+def test_scrubbing_a_bake_says_in_words_how_the_grasp_is_at_that_frame(bpy, baked):
+    """The pinch and lift baked: mid-lift the box is held by both fingers (words from the baked
+    properties at that frame); at the first frame no finger touches it yet."""
+    ui = grasp_env.submodule("ui")
+    scene = bpy.context.scene
+    scene.frame_set(43)
+    lines = ui.baked_frame_lines(bpy.context)
+    assert len(lines) == 1 and lines[0].startswith("Box: held") and "slips first" in lines[0], lines
+    force = bpy.data.objects["GL Force Box"]
+    assert force["gl_held"] == 1.0
+    scene.frame_set(scene.frame_start)
+    assert ui.baked_frame_lines(bpy.context) == ["No finger on a body"]
+    # the baked measures say what they are, with units (their tooltips)
+    assert "N" in force.id_properties_ui("gl_grip").as_dict()["description"]
+
+
+def test_state_lines_go_on_file_load_and_undo(bpy, sample, core):
+    """The last session's summary and Check's result describe the file they were made in:
+    another file loaded, or the session undone, and they go."""
+    session, ops = grasp_env.submodule("session"), grasp_env.submodule("ops")
+    sample.build(bpy)
+    assert bpy.ops.grasp_lab.session(duration=0.5) == {"FINISHED"}
+    assert session.last_result is not None and session.last_result.verdict
+    assert session.last_result.scene_name == bpy.context.scene.name
+    session._on_undo_post()                                # what Blender calls after an undo
+    assert session.last_result is None
+    assert bpy.ops.grasp_lab.session(duration=0.5) == {"FINISHED"}
+    bpy.ops.grasp_lab.validate_scene()                     # after the session: kept until...
+    assert bpy.context.scene.name in ops.last_check and session.last_result is not None
+    bpy.ops.wm.read_homefile(use_empty=True)               # ...another file: the handlers run
+    assert session.last_result is None and ops.last_check == {}

@@ -1,6 +1,6 @@
 """`make docs-images`: the README's pictures, made by the project's own GUI Blender
 (tests/gui/gui_blender.sh) walking through the README (tests/gui/driver.py, scenarios
-``walkthrough``, ``device`` and ``device_fit``), and the demo's contact sheet; cropped to what they show,
+``walkthrough``, ``device``, ``device_fit`` and ``first_hour``), and the demo's contact sheet; cropped to what they show,
 scaled down and stored as 256-colour PNGs in docs/images/.
 
     python tests/gui/docs_images.py [--demo build/demo] [--out docs/images]
@@ -37,8 +37,8 @@ def save(src, crop, dst, width):
     print(f"{dst}: {img.width} x {img.height}, {os.path.getsize(dst) / 1024:.0f} kB")
 
 
-def run_scenario(env, name, **extra):
-    result, console, code = gui_run.run(dict(env, **extra), name, timeout=300)
+def run_scenario(env, name, timeout=300, **extra):
+    result, console, code = gui_run.run(dict(env, **extra), name, timeout=timeout)
     if not result.get("ok"):
         raise SystemExit(f"the GUI scenario {name} failed:\n{result.get('error')}\n{console[-2000:]}")
     return result
@@ -59,20 +59,27 @@ def main(argv=None):
     save(sheet, None, os.path.join(args.out, "demo_contact_sheet.png"), WIDTH)
     env = gui_run.prepare(os.environ.get("GRASP_LAB_ZIP", ""), tempfile.mkdtemp(prefix="grasp_lab_docs_"))
     pictures = dict(run_scenario(env, "walkthrough")["docs_pictures"])
-    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--motion", "grip"],
-                           cwd=gui_run.ROOT, stdout=subprocess.PIPE, text=True)
-    try:
-        port = emu.stdout.readline().split()[1]
-        pictures.update(run_scenario(env, "device", GRASP_LAB_GUI_DEVICE_PORT=port)["docs_pictures"])
-    finally:
-        emu.terminate()
-        emu.wait(timeout=20)
+    for scenario in ("device", "first_hour"):       # each with an emulator of its own
+        emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty", "--motion", "grip"],
+                               cwd=gui_run.ROOT, stdout=subprocess.PIPE, text=True)
+        try:
+            port = emu.stdout.readline().split()[1]
+            pictures.update(run_scenario(env, scenario, timeout=900,
+                                         GRASP_LAB_GUI_DEVICE_PORT=port)["docs_pictures"])
+        finally:
+            emu.terminate()
+            emu.wait(timeout=20)
     pictures.update(run_scenario(env, "device_fit")["docs_pictures"])
+    save_pictures(pictures, args.out)
+    return 0
+
+
+def save_pictures(pictures, out):
+    """A scenario's docs pictures (its result's ``docs_pictures``) as docs/images/gui_<name>.png."""
     for name, pic in pictures.items():
         crop = pic["crop"]
         width = SIDEBAR_WIDTH if crop is not None and crop[2] < 400 else WIDTH
-        save(pic["path"], crop, os.path.join(args.out, f"gui_{name}.png"), width)
-    return 0
+        save(pic["path"], crop, os.path.join(out, f"gui_{name}.png"), width)
 
 
 if __name__ == "__main__":

@@ -505,7 +505,7 @@ def scenario_grasp_hud():
     RESULT["pixels"] = {"before": before, "during": during}
     RESULT["pictures_taken"] = attempt + 1
     gd = ext("engine.grasp_display")
-    RESULT["weakest_on_screen"] = weakest_on_screen(shot, area, win_region, gd.weakest_geometry(grasps[0]))
+    RESULT["weakest_on_screen"] = weakest_on_screen(shot, area, win_region, ext("display").weakest_shown(grasps[0]))
     RESULT["grasps"] = [{"body": g.body, "force_closure": bool(g.force_closure), "epsilon": g.epsilon,
                          "weakest": [float(v) for v in g.weakest], "grip_ratio": g.grip_ratio,
                          "contacts": [{"finger": c.finger, "friction_use": c.friction_use, "state": c.state}
@@ -910,20 +910,12 @@ def scenario_device():
     RESULT["device_events"] = [e[2] for e in last_result().stats["device_events"]]
 
 
-def scenario_find_devices():
-    """Find Devices as a person uses it, with an emulator running (started by the test, its
-    pty in GRASP_LAB_GUI_DEVICE_PORT): the sidebar scrolled to the Devices panel, a click on
-    Find Devices; a row appears below it with the device's name and a + button, and a line with
-    its finger count and port (text pixels in both, each line narrower than the sidebar in the
-    interface font); a click on that + adds the device with the fingers of its hello."""
+def find_and_add_device(port, picture=None):
+    """Find Devices clicked (the Devices panel on screen), then the + of ``port``'s row among
+    the rows that appear under it (other emulators on the machine may answer too: the list's
+    order says which is ours); what it saw goes to RESULT."""
     import blf
-    port = os.environ["GRASP_LAB_GUI_DEVICE_PORT"]
-    setup_scene(animated=False)
-    yield from open_grasp_tab()
     area, win_region, ui = view3d()
-    hover(ui, ui.width / 2, ui.height / 2)
-    xdo("click", "--repeat", "15", "5")             # scrolled down to the Devices panel
-    yield 1.5
     devices_ui = ext("devices_ui")
     row = yield from operator_row(ui, "grasp_lab.devices_refresh", part=0, parts=2, name="before_find")
     x0, x1, y_find = row                                            # Find Devices | Add Device
@@ -933,6 +925,7 @@ def scenario_find_devices():
     RESULT["asked"] = devices_ui._discovered["asked"]
     yield 1.5                                       # redrawn with the list
     area, win_region, ui = view3d()
+    yield from settle(ui)                           # the panels below slid down to make room
     theme = bpy.context.preferences.themes[0].user_interface
     px = region_pixels(pixels(screenshot("after_find")), ui)[..., :3]
     button = np.all(np.abs(px - np.array(theme.wcol_tool.inner[:3])) < 6 / 255, axis=2)
@@ -957,6 +950,10 @@ def scenario_find_devices():
     plus_rows = pluses[mine]
     cy = (plus_rows[0] + plus_rows[-1]) / 2
     cols = np.nonzero(button[plus_rows[0]:plus_rows[-1] + 1, right:].any(axis=0))[0] + right
+    # the button's own run of columns: a scrollbar at the sidebar's edge (content taller than
+    # the sidebar) is drawn in a like colour, and must not pull the click off the button
+    runs = np.split(cols, np.nonzero(np.diff(cols) > 1)[0] + 1)
+    cols = max(runs, key=len)
     cx = (cols[0] + cols[-1]) / 2
     line_h = int(plus_rows[-1] - plus_rows[0] + 1)
     name_row = text[plus_rows[0]:plus_rows[-1] + 1, :right]
@@ -968,9 +965,26 @@ def scenario_find_devices():
     found = [d for d in devices_ui._discovered["devices"] if d["port"] == port]
     lines = [found[0]["name"], f"{found[0]['n_fingers']} fingers, {port}"] if found else []
     RESULT["lines"] = {"region_width": ui.width, "text": lines, "text_px": [blf.dimensions(0, x)[0] for x in lines]}
-    docs_picture("find_devices", crop="sidebar")
+    if picture:
+        docs_picture(picture, crop="sidebar")
     yield from click_at(ui, cx, ui.height - cy)     # the device's +
     yield 0.5
+
+
+def scenario_find_devices():
+    """Find Devices as a person uses it, with an emulator running (started by the test, its
+    pty in GRASP_LAB_GUI_DEVICE_PORT): the sidebar scrolled to the Devices panel, a click on
+    Find Devices; a row appears below it with the device's name and a + button, and a line with
+    its finger count and port (text pixels in both, each line narrower than the sidebar in the
+    interface font); a click on that + adds the device with the fingers of its hello."""
+    port = os.environ["GRASP_LAB_GUI_DEVICE_PORT"]
+    setup_scene(animated=False)
+    yield from open_grasp_tab()
+    area, win_region, ui = view3d()
+    hover(ui, ui.width / 2, ui.height / 2)
+    xdo("click", "--repeat", "15", "5")             # scrolled down to the Devices panel
+    yield 1.5
+    yield from find_and_add_device(port, picture="find_devices")
     RESULT["entries"] = [(e.kind, e.port, e.finger_offset, e.num_fingers)
                          for e in bpy.context.scene.grasp_lab_devices]
     screenshot("after_add")
@@ -1065,6 +1079,8 @@ def scenario_walkthrough():
     fingers[0].location.x = box.location.x - (half + r - 0.003)
     bpy.context.view_layer.update()
     yield 0.5
+    area, win_region, ui = view3d()
+    yield from settle(ui)
     yield from start_by_click()
     yield 1.5
     s = active_session()
@@ -1094,6 +1110,8 @@ def scenario_walkthrough():
     s.recording_folder = folder + os.sep
     s.last_recording = ""
     yield 1.0
+    area, win_region, ui = view3d()
+    yield from settle(ui)
     yield from start_by_click()
     yield from wait_until(lambda: active_session() is None, 60, "the recorded session to end")
     check_stopped("record")
@@ -1162,6 +1180,329 @@ def scenario_walkthrough():
     RESULT["graph"]["keys"] = len(keys)
     RESULT["graph"]["selected_keys"] = int(sum(keys))
     docs_picture("curves")
+
+
+def find_field(region, data_path, tries=3, xs=(0.75, 0.55)):
+    """Centre (region coordinates) of the property field whose data path ends in ``data_path``
+    (``grasp_lab.role``), found as a person can check one: the mouse over each row of the
+    region in turn and Ctrl+Shift+C (Blender copies the data path of the field under the
+    mouse). When it is not on screen, the region is scrolled down a few notches at a time."""
+    wm = bpy.context.window_manager
+    for attempt in range(tries):
+        for frac in xs:                             # a field's middle first, then its left part
+            for y in range(region.height - 40, 20, -10):
+                x = region.width * frac
+                hover(region, x, y)
+                yield 0.12
+                wm.clipboard = ""
+                xdo("key", "ctrl+shift+c")
+                yield 0.12
+                if wm.clipboard.endswith(data_path):
+                    return x, y
+        hover(region, region.width / 2, region.height / 2)
+        xdo("click", "--repeat", "8", "5")          # further down, as a person scrolls
+        yield 1.0
+    raise AssertionError(f"no field {data_path} in the region")
+
+
+def settle(region, timeout=20.0):
+    """Waits until the region's pixels are the same in two screenshots in a row: Blender slides
+    panels to their new places over several redraws (a slow display: seconds), and a button
+    found on a picture taken meanwhile is no longer there when it is clicked."""
+    t0 = time.monotonic()
+    last = None
+    while True:
+        now = region_pixels(pixels(screenshot("settle")), region)[..., :3]
+        if last is not None and np.array_equal(now, last):
+            return
+        if time.monotonic() - t0 > timeout:
+            raise AssertionError(f"the region kept changing for {timeout} s")
+        last = now
+        yield 0.5
+
+
+def scroll_to_top(region):
+    hover(region, region.width / 2, region.height / 2)
+    xdo("click", "--repeat", "40", "4")
+    yield 1.0
+
+
+class LabelRecorder:
+    """A stand-in for a panel's layout that keeps the text Blender is told to draw as labels:
+    each label (with whether it has an icon) and each property's label where it stands alone
+    (the left column of a split layout; a checkbox's text), to measure in the interface font."""
+
+    def __init__(self, out, split=False):
+        self._out = out
+        self.use_property_split = split
+
+    def label(self, text="", icon="NONE", **_kw):
+        self._out.append((text, "icon" if icon != "NONE" else "label"))
+        return self
+
+    def prop(self, data, name, text=None, **_kw):
+        rna = data.bl_rna.properties[name]
+        text = rna.name if text is None else text
+        checkbox = rna.type == "BOOLEAN" and not _kw.get("toggle") and not _kw.get("icon_only")
+        if text and checkbox:           # its text beside its box (in a split, in the right column)
+            self._out.append((text, "checkbox_split" if self.use_property_split else "icon"))
+        elif text and self.use_property_split:
+            self._out.append((text, "split"))
+        return self
+
+    def _child(self, *a, **kw):
+        return LabelRecorder(self._out, self.use_property_split)
+
+    row = column = box = split = _child
+
+    def __getattr__(self, name):
+        return lambda *a, **kw: self
+
+
+def label_room(width, scale):
+    """The text width a label has in a sidebar ``width`` px wide, by kind: a label (the panel's
+    and a box's margins, its padding), one after an icon, the left column of a property split
+    (40 % of the row less its padding). Checked against what Blender 4.3 drew (RESULT's
+    label_model): a 248 px path cut in a box of a 291 px sidebar, a 197 px line after an icon
+    drawn whole; a split label of 93 px cut, one of 81 px whole."""
+    full = width - 56 * scale
+    return {"label": full, "icon": full - 26 * scale, "split": 0.4 * full - 10 * scale,
+            "checkbox_split": 0.6 * full - 26 * scale}
+
+
+def sidebar_labels():
+    """Every label the Grasp tab's panels draw now, in the sidebar's context, with its width in
+    the interface font and the width it has (the sidebar less the panel's margins, and an
+    icon's room): [(text, text px, room px)]."""
+    import blf
+    from types import SimpleNamespace
+    area, win_region, ui = view3d()
+    prefs = bpy.context.preferences
+    scale = prefs.system.ui_scale
+    blf.size(0, prefs.ui_styles[0].widget.points * scale)
+    out = []
+    panels = [c for c in bpy.types.Panel.__subclasses__() if getattr(c, "bl_category", "") == "Grasp"]
+    with bpy.context.temp_override(window=window(), area=area, region=ui):
+        for cls in panels:
+            if hasattr(cls, "poll") and not cls.poll(bpy.context):
+                continue
+            labels = []
+            cls.draw(SimpleNamespace(layout=LabelRecorder(labels)), bpy.context)
+            for text, kind in labels:
+                room = label_room(ui.width, scale)[kind]
+                out.append((text, blf.dimensions(0, text)[0], room))
+    return out
+
+
+def scenario_first_hour():
+    """The README's walkthrough word for word, from Blender's own startup file (the 2 m cube,
+    the camera, the light; nothing prepared), with the device step on the emulator the test
+    started (GRASP_LAB_GUI_DEVICE_PORT). Every step by clicks and keys; what each step left is
+    in RESULT, and every label the sidebar draws is measured against its width."""
+    port = os.environ["GRASP_LAB_GUI_DEVICE_PORT"]
+    RESULT["startup_objects"] = sorted(o.name for o in bpy.data.objects)
+    RESULT["blend_path"] = bpy.data.filepath
+    cube = bpy.data.objects["Cube"]
+    RESULT["cube_selected"] = cube.select_get() and bpy.context.view_layer.objects.active is cube
+    yield from open_grasp_tab()
+    yield 1.0
+    area, win_region, ui = view3d()
+    labels = {}
+    # --- 1. Role Dynamic (Object panel: the Role dropdown, then D for Dynamic), Add Finger twice
+    yield from settle(ui)
+    x, y = yield from find_field(ui, "grasp_lab.role")
+    yield from click_at(ui, x, y)
+    yield 0.8
+    xdo("key", "d")
+    yield from wait_until(lambda: cube.grasp_lab.role == "DYNAMIC", 5, "the cube's role to be Dynamic")
+    labels["role"] = sidebar_labels()
+    yield from scroll_to_top(ui)
+    for k in range(2):
+        yield from settle(ui)
+        row = yield from operator_row(ui, "grasp_lab.add_finger", part=0, parts=2)
+        yield from click_part(ui, row, part=0, parts=2)
+        yield from wait_until(lambda: len([o for o in bpy.context.scene.objects
+                                           if o.grasp_lab.role == "FINGER"]) == k + 1, 5, f"finger {k}")
+    fingers = sorted((o for o in bpy.context.scene.objects if o.grasp_lab.role == "FINGER"), key=lambda o: o.name)
+    RESULT["fingers"] = [{"name": f.name, "location": list(f.location), "radius": f.grasp_lab.radius}
+                         for f in fingers]
+    yield 1.0
+    RESULT["support_offer"] = [o.name for o in ext("ops").support_offer(bpy.context)]
+    labels["offer"] = sidebar_labels()
+    docs_picture("first_offer", crop="sidebar")
+    yield from settle(ui)
+    row = yield from operator_row(ui, "grasp_lab.add_table")
+    yield from click_part(ui, row)
+    yield from wait_until(lambda: "Table" in bpy.data.objects, 5, "Add Table")
+    table = bpy.data.objects["Table"]
+    bpy.context.view_layer.update()
+    RESULT["table"] = {"role": table.grasp_lab.role, "top": max((table.matrix_world @ v.co).z for v in table.data.vertices),
+                       "offer_after": [o.name for o in ext("ops").support_offer(bpy.context)]}
+    yield from scroll_to_top(ui)
+    yield from settle(ui)
+    row = yield from operator_row(ui, "grasp_lab.validate_scene", part=1, parts=2)
+    yield from click_part(ui, row, part=1, parts=2)                 # Check
+    yield 1.5
+    RESULT["check"] = ext("ops").last_check.get(bpy.context.scene.name)
+    # --- 2. live: the second fingertip (still selected) pushed 5 cm into the cube with G
+    yield from settle(ui)
+    yield from start_by_click()
+    yield 1.5
+    RESULT["selected_for_grab"] = [o.name for o in bpy.context.selected_objects]
+    yield from press_in_viewport("g")
+    yield 0.3
+    xdo("key", "x")
+    yield 0.2
+    xdo("key", "minus", "0", "period", "0", "5")
+    yield 0.3
+    xdo("key", "Return")
+    yield from wait_until(lambda: active_session() is not None and list(active_session().snapshot.contacts) == [0, 0],
+                          30, "both fingertips on the cube")
+    yield 2.0
+    s = active_session()
+    RESULT["live_hud"] = s.hud_text()
+    RESULT["live_duration"] = s.duration
+    docs_picture("first_live")
+    yield from press_in_viewport("Escape")
+    yield from wait_until(lambda: active_session() is None, 10, "Esc")
+    check_stopped("live")
+    yield 1.0
+    RESULT["summary"] = list(last_result().verdict)
+    labels["summary"] = sidebar_labels()
+    # --- 3. record: Record ticked in the Recording panel (an unsaved file: the user folder)
+    yield from settle(ui)
+    x, y = yield from find_field(ui, "grasp_lab.record")
+    yield from click_at(ui, x, y)
+    yield from wait_until(lambda: bpy.context.scene.grasp_lab.record, 5, "Record ticked")
+    yield 1.0
+    labels["recording"] = sidebar_labels()
+    RESULT["recording_folder"] = ext("record").folder_of(bpy.context.scene.grasp_lab)
+    RESULT["user_folder"] = ext("record").user_folder()
+    docs_picture("first_record_folder", crop="sidebar")
+    yield from scroll_to_top(ui)
+    yield from settle(ui)
+    yield from start_by_click()
+    yield from wait_until(lambda: active_session() is not None and active_session().runner.time > 2.0, 30,
+                          "two seconds recorded")
+    yield from press_in_viewport("Escape")
+    yield from wait_until(lambda: active_session() is None, 10, "Esc")
+    check_stopped("record")
+    RESULT["recording"] = bpy.context.scene.grasp_lab.last_recording
+    # --- 4. bake: the browser on the recording just made, Enter
+    hover(ui, ui.width / 2, ui.height / 2)
+    xdo("click", "--repeat", "30", "5")
+    yield 1.0
+    yield from settle(ui)
+    row = yield from operator_row(ui, "grasp_lab.import_recording", part=0, parts=2)
+    yield from click_part(ui, row, part=0, parts=2)                 # Bake Recording
+    browser = {}
+
+    def file_browser():
+        for w in bpy.context.window_manager.windows:
+            for a in w.screen.areas:
+                if a.type == "FILE_BROWSER":
+                    browser["params"] = a.spaces.active.params
+                    return True
+        return False
+    yield from wait_until(file_browser, 10, "the file browser")
+    yield 1.5
+    p = browser["params"]
+    RESULT["browser"] = {"directory": p.directory.decode() if isinstance(p.directory, bytes) else p.directory,
+                         "filename": p.filename}
+    xdo("key", "Return")
+    yield from wait_until(lambda: "GL Force Cube" in bpy.data.objects
+                          and "gl_closure" in bpy.data.objects["GL Force Cube"].keys(), 30, "the bake")
+    yield 1.0
+    # --- 5. Show Curves: normalised, measures described with units; a baked frame in words
+    area, win_region, ui = view3d()
+    yield from settle(ui)
+    row = yield from operator_row(ui, "grasp_lab.show_curves", part=1, parts=2, name="rows_after_bake")
+    yield from click_part(ui, row, part=1, parts=2)
+    yield from wait_until(lambda: any(a.type == "GRAPH_EDITOR" for a in window().screen.areas), 10, "a Graph Editor")
+    yield 2.0
+    graph = next(a for a in window().screen.areas if a.type == "GRAPH_EDITOR")
+    force = bpy.data.objects["GL Force Cube"]
+    RESULT["graph"] = {"normalized": graph.spaces.active.use_normalization,
+                       "filter": graph.spaces.active.dopesheet.filter_text,
+                       "grip_description": force.id_properties_ui("gl_grip").as_dict().get("description", "")}
+    docs_picture("first_curves")
+    scene = bpy.context.scene
+    scene.frame_set(scene.frame_start + 24)                 # a second in: scrubbed to
+    yield 1.0
+    RESULT["baked_frame"] = ext("ui").baked_frame_lines(bpy.context)
+    # --- 6. the device: Record off, Find Devices, + of the emulator, Forces On, Start Session
+    area, win_region, ui = view3d()
+    yield from scroll_to_top(ui)
+    yield from settle(ui)
+    x, y = yield from find_field(ui, "grasp_lab.record")
+    yield from click_at(ui, x, y)
+    yield from wait_until(lambda: not bpy.context.scene.grasp_lab.record, 5, "Record unticked")
+    hover(ui, ui.width / 2, ui.height / 2)
+    xdo("click", "--repeat", "30", "5")
+    yield 1.5
+    yield from settle(ui)
+    yield from find_and_add_device(port)
+    entries = bpy.context.scene.grasp_lab_devices
+    RESULT["device_entries"] = [(e.kind, e.port, e.finger_offset, e.num_fingers) for e in entries]
+    frame = entries[0].frame if len(entries) else None
+    RESULT["device_frame"] = None if frame is None else {"location": list(frame.location), "scale": list(frame.scale)}
+    yield 1.0
+    yield from settle(ui)
+    x, y = yield from find_field(ui, "grasp_lab_device_forces")
+    yield from click_at(ui, x, y)
+    yield from wait_until(lambda: bpy.context.scene.grasp_lab_device_forces, 5, "Forces On")
+    yield 1.0
+    labels["devices"] = sidebar_labels()
+    yield from scroll_to_top(ui)
+    yield from settle(ui)
+    yield from start_by_click()
+    yield from wait_until(lambda: active_session() is not None and active_session().devices is not None
+                          and list(active_session().snapshot.contacts) == [0, 0], 30,
+                          "the device's fingertips on the cube")
+    yield 2.0
+    s = active_session()
+    RESULT["device_hud"] = s.hud_text()
+    RESULT["device_duration"] = s.duration
+    RESULT["device_enabled"] = [d["enabled"] for d in s.devices.status()]
+    docs_picture("first_device")
+    labels["device_session"] = sidebar_labels()
+    yield from press_in_viewport("Escape")
+    yield from wait_until(lambda: active_session() is None, 10, "Esc")
+    check_stopped("device")
+    # --- 7. robustness: the recording picked in the list (the newest: the one made), Run Sweep
+    r = bpy.context.scene.grasp_lab_robustness
+    RESULT["sweep_choice"] = ext("robustness").chosen_recording(bpy.context.scene)
+    hover(ui, ui.width / 2, ui.height / 2)
+    xdo("click", "--repeat", "40", "5")
+    yield 1.5
+    yield from settle(ui)
+    row = yield from operator_row(ui, "grasp_lab.robustness_sweep")
+    yield from click_part(ui, row)
+    robustness = ext("robustness")
+    yield from wait_until(lambda: bpy.context.scene.name in robustness._jobs, 10, "the sweep to start")
+    job = robustness._jobs[bpy.context.scene.name]
+    yield from wait_until(lambda: not job.running, 300, "the sweep to end", poll=0.5)
+    yield from wait_until(lambda: not bpy.app.timers.is_registered(robustness.sweep_tick), 30,
+                          "the sweep's process to be collected", poll=0.5)
+    RESULT["sweep"] = {"status": r.status, "error": job.error, "folder": job.folder,
+                       "files": sorted(os.listdir(job.folder)), "returncode": job._proc.returncode}
+    hover(ui, ui.width / 2, ui.height / 2)
+    xdo("click", "--repeat", "40", "5")
+    yield 1.5
+    labels["robustness"] = sidebar_labels()
+    docs_picture("first_robustness", crop="sidebar")
+    RESULT["labels"] = labels
+    # The measure's model against what this sidebar showed: a split label that Blender 4.3 cut
+    # here ("Weakest Wren…", an earlier name of the Wrench Size field) and one it drew whole.
+    import blf
+    room = label_room(ui.width, bpy.context.preferences.system.ui_scale)
+    px = lambda text: blf.dimensions(0, text)[0]          # noqa: E731
+    RESULT["label_model"] = {
+        "width": ui.width, "room": room,
+        "split": {"cut": px("Weakest Wrench"),
+                  "whole": max(px("Friction Static"), px("Torque m/N·m"), px("Soft Tip Radius"))},
+        "label": {"cut": px("blender_user0/extensions/.user/user_default/")},
+        "icon": {"whole": px("Nothing holds Cube up: it falls when")}}
 
 
 def scenario_robustness():

@@ -5,6 +5,9 @@ Each test starts a GUI Blender under Xvfb (tests/gui/gui_blender.sh: Debian 13's
 takes screenshots (kept in build/gui/<scenario>/) and writes what it saw to result.json.
 """
 import os
+import re
+import subprocess
+import sys
 
 import pytest
 
@@ -46,8 +49,10 @@ def test_start_session_then_esc_then_the_stop_button(gui):
     assert before["hud_white"] < 50 < 1000 < during["hud_white"], r["pixels"]
     # The HUD leads with the grasp, then the C loop's own numbers, not the display's.
     hud = r["hud"].replace("\u00a0", " ").split("\n")     # no-break spaces as spaces
-    assert hud[0].startswith("Box: closure ") and "Finger 0 stick" in hud[3] and "Finger 1 stick" in hud[3]
-    assert hud[4].startswith("t ") and "until Esc" in hud[4] and "haptic 0 Hz" not in hud[4]
+    assert hud[0].startswith("Box: held") and hud[1].startswith("Box: closure ")    # words, then numbers
+    assert "Finger 0 stick" in hud[4] and "Finger 1 stick" in hud[4]
+    assert hud[5].startswith("t ") and "until Esc" in hud[5] and "haptic 0 Hz" not in hud[5]
+    assert "safety:" not in r["hud"] and "forces held at zero" not in r["hud"]    # no device: no safety line
     # Esc ends it within one display frame: no later than the longest of the last display
     # updates (Blender answers the key once the frame it is drawing is done), plus the
     # time xdotool takes to send it.
@@ -66,9 +71,11 @@ def test_the_hud_and_viewport_show_a_held_grasp(gui):
     assert g["force_closure"] and g["epsilon"] > 0 and sorted(c["finger"] for c in g["contacts"]) == [0, 1, 2]
     assert abs(sum(w * w for w in g["weakest"]) - 1.0) < 1e-9            # a unit wrench
     hud = r["hud"].replace("\u00a0", " ").split("\n")     # no-break spaces as spaces
-    assert hud[0].startswith(f"Box: closure yes  ε {g['epsilon']:.3f}  resists "), hud
-    assert hud[1].startswith("  grip ") and " / load " in hud[1] and hud[2].startswith("  slip margin ")
-    assert all(f"Finger {i} stick" in hud[3] for i in range(3)), hud
+    assert hud[0].startswith("Box: held firmly"), hud       # the verdict in words: in closure, far from slip
+    assert hud[1].startswith(f"Box: closure yes  ε {g['epsilon']:.3f}  resists "), hud
+    assert hud[2].startswith("  grip ") and " / load " in hud[2] and hud[3].startswith("  slip margin ")
+    assert all(f"Finger {i} stick" in hud[4] for i in range(3)), hud
+    assert hud[-1].startswith("magenta: ")                      # the weakest wrench's legend
     before, during = r["pixels"]["before"], r["pixels"]["during"]
     assert during["magenta"] > before["magenta"] + 100, r["pixels"]          # the weakest wrench
     assert during["green"] > before["green"] + 100, r["pixels"]              # god-objects far from slip
@@ -83,7 +90,8 @@ def test_the_hud_and_viewport_show_a_held_grasp(gui):
     assert all(c["friction_use"] < 0.5 for c in g["contacts"]), g       # squeezing on a table: green
     side = r["sidebar"]
     assert max(side["text_px"]) < side["region_width"] - 20 * side["ui_scale"], side
-    assert " ".join(side["lines"]).split()[:3] == ["Box:", "closure", "yes"]
+    words = " ".join(side["lines"]).replace("\u00a0", " ").split()
+    assert words[:3] == ["Box:", "held", "firmly;"] and "Box: closure yes" in " ".join(words), words   # words, numbers
 
 
 def test_ctrl_z_after_a_session_and_during_one(gui):
@@ -239,6 +247,69 @@ def test_the_readme_walkthrough_click_by_click(gui):
     assert g["filter"] == "gl_" and g["only_selected"] and g["height"] > 200
     assert g["selected"] == ["GL Force Box", "GL God-object Finger 0", "GL God-object Finger 1"]
     assert g["keys"] > 1000 and g["selected_keys"] == 0
+
+
+def test_the_first_hour_from_the_startup_file_word_for_word(gui):
+    """The README's walkthrough from Blender's own startup file, as a new user follows it, with
+    the device step on the emulator: a held grasp, a recording in a folder the panel states, a
+    bake, readable curves, a device session until Esc and a robustness answer; every label the
+    sidebar drew on the way fits its default width."""
+    emu = subprocess.Popen([sys.executable, "-m", "addon.engine.devices.emulator", "--pty"],   # the README's
+                           cwd=gui_run.ROOT, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    try:
+        port = emu.stdout.readline().split()[1]
+        r, console, _ = run(dict(gui, GRASP_LAB_GUI_DEVICE_PORT=port), "first_hour", timeout=900)
+    finally:
+        emu.kill()
+        emu.wait()
+    ok(r, console)
+    stopped_cleanly(r)
+    # Blender's startup file, nothing prepared: the cube selected, the file not saved
+    assert r["startup_objects"] == ["Camera", "Cube", "Light"] and r["cube_selected"] and r["blend_path"] == ""
+    # 1. two fingertips on opposite sides of the 2 m cube, sized to it (a twentieth: 10 cm)
+    f0, f1 = r["fingers"]
+    assert f0["radius"] == pytest.approx(0.1) and f1["radius"] == pytest.approx(0.1)
+    assert f0["location"] == pytest.approx([-1.1, 0, 0], abs=1e-6) and f1["location"] == pytest.approx([1.1, 0, 0], abs=1e-6)
+    # the falling cube offered a table before any session; one click put it under the cube
+    assert r["support_offer"] == ["Cube"]
+    assert r["table"]["role"] == "STATIC" and r["table"]["top"] == pytest.approx(-1.0) and r["table"]["offer_after"] == []
+    assert r["check"][0] and r["check"][1].startswith("Grasp scene OK: 1 dynamic, 1 static, 2 fingers"), r["check"]
+    # 2. live until Esc; the HUD's first line says in words that the cube is held, and the
+    # summary after Esc says it too; no safety counters without a device
+    assert r["selected_for_grab"] == ["Finger 1"] and r["live_duration"] == float("inf")
+    hud = r["live_hud"].replace("\u00a0", " ").split("\n")
+    assert hud[0].startswith("Cube: held"), hud
+    assert "safety:" not in r["live_hud"] and "forces held at zero" not in r["live_hud"]
+    assert r["summary"] and r["summary"][0].startswith("Cube: "), r["summary"]
+    # 3. an unsaved file records to the per-user folder, named after the scene and the time
+    assert r["recording_folder"] == os.path.normpath(r["user_folder"]) and "grasp_lab" in r["user_folder"]
+    folder, name = os.path.split(r["recording"])
+    assert folder == r["recording_folder"] and re.fullmatch(r"Scene_\d{4}-\d\d-\d\d_\d\d-\d\d-\d\d\.mcap", name), name
+    # 4. the bake's browser on it; 5. curves normalised, measures with units, a baked frame in words
+    assert r["browser"] == {"directory": folder + os.sep, "filename": name}
+    assert r["graph"]["normalized"] and r["graph"]["filter"] == "gl_" and ", N" in r["graph"]["grip_description"]
+    assert len(r["baked_frame"]) == 1 and r["baked_frame"][0].startswith("Cube: "), r["baked_frame"]
+    # 6. the device: on fingers 0..1, its frame on them (not at the cursor), forces on from the
+    # start, running until Esc with both fingertips on the cube
+    assert r["device_entries"] == [["SERIAL", port, 0, 2]], r["device_entries"]
+    # (finger 1 was pushed 5 cm in with G in step 2: the fingers' centre is 2.5 cm off the cube's)
+    assert r["device_frame"]["location"] == pytest.approx([(-1.1 + 1.05) / 2, 0, 0], abs=1e-6)
+    assert r["device_frame"]["scale"] == pytest.approx([(1.1 + 1.05) / 2 / 0.06] * 3)
+    assert r["device_duration"] == float("inf") and r["device_enabled"] == [True]
+    assert f"{port}: streaming" in r["device_hud"], r["device_hud"]
+    # 7. the sweep of the recording picked (the one made), results only, its process collected
+    assert r["sweep_choice"] == r["recording"]
+    assert not r["sweep"]["error"] and r["sweep"]["status"].startswith("Held "), r["sweep"]
+    assert r["sweep"]["returncode"] == 0 and not [f for f in r["sweep"]["files"] if f.endswith(".zip")], r["sweep"]
+    # nothing cut: every label the sidebar drew, at its default width, fits (the measure's
+    # model first checked against a label this sidebar cut and one it drew whole)
+    model, room = r["label_model"], r["label_model"]["room"]
+    if model["width"] == 291:          # the sidebar these were seen in (1600 x 900, UI scale 1)
+        assert model["split"]["whole"] <= room["split"] < model["split"]["cut"], model
+        assert room["label"] < model["label"]["cut"] and model["icon"]["whole"] <= room["icon"], model
+    for step, labels in r["labels"].items():
+        cut = [(text, px, room) for text, px, room in labels if px > room]
+        assert not cut, (step, cut)
 
 
 def test_the_robustness_panel_sweeps_the_last_recording(gui):

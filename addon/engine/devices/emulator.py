@@ -300,9 +300,11 @@ class Emulator:
                 self._on_frame(frame, now)
 
     def run(self, duration=None, wait_hello=30.0):
+        """Streams poses once the host has said hello (``wait_hello`` seconds at most; 0 or
+        None: as long as it takes), for ``duration`` seconds (None: until stopped)."""
         t_open = time.perf_counter()
         while self.started is None and not self.stop:
-            if time.perf_counter() - t_open > wait_hello:
+            if wait_hello and time.perf_counter() - t_open > wait_hello:
                 raise TimeoutError(f"no hello from the host within {wait_hello} s")
             self._read(0.05)
         period = 1.0 / self.rate
@@ -409,7 +411,9 @@ def build_parser(parser=None):
     p.add_argument("--drop-every", type=int, default=0, help="UDP: lose every Kth pose (tests)")
     p.add_argument("--dup-every", type=int, default=0, help="UDP: send every Kth pose twice (tests)")
     p.add_argument("--reorder-every", type=int, default=0, help="UDP: send every Kth pose after the next one (tests)")
-    p.add_argument("--wait", type=float, default=30.0, help="seconds to wait for the host's hello (default 30)")
+    p.add_argument("--wait", type=float, default=0.0,
+                   help="seconds to wait for the host's hello, then give up (default 0: as long as it takes, "
+                        "a person starts the emulator and then goes to Blender)")
     p.add_argument("--report", metavar="PATH", help="also write the report as JSON here")
     return p
 
