@@ -252,12 +252,12 @@ def bake(args, out, err) -> int:
         raise CliError(f"{args.recording}: no tick was recorded: nothing to bake")
     _check_bake_fits(args, rec)
     report = baking.bake_recording(bpy.context, rec, every_tick=args.every_tick, blend_path=args.save)
-    if report.sound_error:
-        print(f"warning: {args.recording}: no sound baked: {report.sound_error}", file=err)
     for name in report.missing:
         print(f"warning: {args.scene}: {name} is not in the scene (renamed or deleted): not baked", file=err)
     print(f"{args.recording}: {report.message()}", file=out)
     print(f"saved: {save_blend(saving)}", file=out)
+    if report.sound_error:      # after the save: a scene that could not be saved is the one error to tell
+        print(f"warning: {args.recording}: no sound baked: {report.sound_error}", file=err)
     return 0
 
 
