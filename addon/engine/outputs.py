@@ -116,18 +116,8 @@ def writer_of(path: str) -> str:
 def _busy(path: str) -> str:
     """Why ``path``'s partial file is busy ('' when it is not): another process holds its lock."""
     partial = partial_path(path)
-    try:
-        fd = os.open(partial, os.O_RDONLY | os.O_CLOEXEC)
-    except OSError:
-        return ""
-    try:
-        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
-        return ""
-    except OSError:
-        who = _locker(partial)
-        return f"another Grasp Lab process{f' ({who})' if who else ''} is writing it ({partial})"
-    finally:
-        os.close(fd)
+    holder = writer_of(partial)
+    return f"another Grasp Lab process{holder[len('a Grasp Lab process'):]} is writing it ({partial})" if holder else ""
 
 
 def check_paths(inputs: dict, outputs: dict, folders: tuple = ()) -> None:
