@@ -50,14 +50,17 @@ extension-validate: $(EXT_ZIP)
 	$(PY) $(BLENDER_EXT) validate $(EXT_ZIP)
 
 # --- multi-version bpy venvs (the zip brings trimesh/pyserial/hidapi and the core) ---
-.venv-bpy42/.deps:
+# pytest and what tests/blender imports when it is collected (hypothesis, pinned in requirements.txt).
+TEST_TOOLS = pytest $(shell grep '^hypothesis==' requirements.txt)
+
+.venv-bpy42/.deps: requirements.txt
 	$(PYTHON) -m venv .venv-bpy42
-	.venv-bpy42/bin/python -m pip --disable-pip-version-check -q install "bpy==4.2.*" pytest
+	.venv-bpy42/bin/python -m pip --disable-pip-version-check -q install "bpy==4.2.*" $(TEST_TOOLS)
 	touch $@
 
-.venv-bpy50/.deps:
+.venv-bpy50/.deps: requirements.txt
 	$(PYTHON) -m venv .venv-bpy50
-	.venv-bpy50/bin/python -m pip --disable-pip-version-check -q install "bpy==5.0.1" pytest
+	.venv-bpy50/bin/python -m pip --disable-pip-version-check -q install "bpy==5.0.1" $(TEST_TOOLS)
 	touch $@
 
 venv-bpy42: .venv-bpy42/.deps
