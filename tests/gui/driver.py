@@ -230,6 +230,20 @@ def operator_row(region, idname, part=0, parts=1, name="find_buttons", tries=3):
     raise AssertionError(f"no button row runs {idname} (rows {rows}: {seen})")
 
 
+def scrolled_to_operator(region, idname, part=0, parts=1, name="find_buttons", scrolls=10):
+    """operator_row's row, the sidebar scrolled down (the wheel, four notches at a time, as a
+    person scrolls) until a row that runs ``idname`` is on screen: panels above it (a longer
+    Session panel, a new sub-panel) move it, and the test looks for it as a person does."""
+    for _ in range(scrolls):
+        try:
+            return (yield from operator_row(region, idname, part=part, parts=parts, name=name, tries=1))
+        except AssertionError:
+            hover(region, region.width / 2, region.height / 2)
+            xdo("click", "--repeat", "4", "5")
+            yield 0.8
+    return (yield from operator_row(region, idname, part=part, parts=parts, name=name))
+
+
 def click_part(region, row, part=0, parts=1):
     """Click the ``part``-th of ``parts`` buttons of a button row (operator_row's)."""
     x0, x1, y = row
@@ -917,7 +931,7 @@ def find_and_add_device(port, picture=None):
     import blf
     area, win_region, ui = view3d()
     devices_ui = ext("devices_ui")
-    row = yield from operator_row(ui, "grasp_lab.devices_refresh", part=0, parts=2, name="before_find")
+    row = yield from scrolled_to_operator(ui, "grasp_lab.devices_refresh", part=0, parts=2, name="before_find")
     x0, x1, y_find = row                                            # Find Devices | Add Device
     yield from click_part(ui, row, part=0, parts=2)
     yield from wait_until(lambda: devices_ui._discovered["asked"] is not None, 60, "Find Devices to answer")
