@@ -230,16 +230,17 @@ def operator_row(region, idname, part=0, parts=1, name="find_buttons", tries=3):
     raise AssertionError(f"no button row runs {idname} (rows {rows}: {seen})")
 
 
-def scrolled_to_operator(region, idname, part=0, parts=1, name="find_buttons", scrolls=10):
-    """operator_row's row, the sidebar scrolled down (the wheel, four notches at a time, as a
-    person scrolls) until a row that runs ``idname`` is on screen: panels above it (a longer
-    Session panel, a new sub-panel) move it, and the test looks for it as a person does."""
-    for _ in range(scrolls):
+def scrolled_to_operator(region, idname, part=0, parts=1, name="find_buttons", scrolls=8):
+    """operator_row's row, the sidebar scrolled (the wheel, four notches at a time, as a person
+    scrolls: down first, then up) until a row that runs ``idname`` is on screen: panels above
+    or below it (a longer Session panel, a new sub-panel) move it, and the test looks for it as
+    a person does."""
+    for button in ["5"] * scrolls + ["4"] * (3 * scrolls):
         try:
             return (yield from operator_row(region, idname, part=part, parts=parts, name=name, tries=1))
         except AssertionError:
             hover(region, region.width / 2, region.height / 2)
-            xdo("click", "--repeat", "4", "5")
+            xdo("click", "--repeat", "4", button)
             yield 0.8
     return (yield from operator_row(region, idname, part=part, parts=parts, name=name))
 
