@@ -22,10 +22,18 @@
 #include "base/gc_math.h"
 #include "graspcore.h"
 
+/* tick_fields' rows by name, in the table's order (checked below): fill_record places each field
+ * at the offset the table gives it. */
+enum {
+    F_TICK, F_TIME, F_OBJECT_TIME, F_STATE_HASH, F_PERIOD_US, F_WORK_US, F_FLAGS, F_ADOPTED, F_LOG_US, F_HIP,
+    F_GOD_OBJECT, F_FORCE, F_DEVICE_FORCE, F_NORMAL, F_POSE, F_VELOCITY, F_WRENCH, F_STATE, F_CONTACT, F_PARTS,
+    F_ORIENTATION, F_PATCH, F_OBJECT_TICK, F_OBJECT_READS, F_COUNT
+};
 struct gcTickLog {
     int capacity;                 /* records, as asked by gc_world_set_tick_log */
     int num_bodies, num_fingers;  /* the layout the ring was sized for */
     size_t record_size;
+    size_t offsets[F_COUNT];      /* of each field in a record of that layout (record_offsets) */
     unsigned char *records;       /* capacity * record_size */
     size_t locked_bytes;          /* of records, locked in RAM (mlock); 0 when not */
     _Atomic uint64_t head;        /* records written (producer) */
@@ -63,13 +71,6 @@ static const gcTickField tick_fields[] = {
     {"patch", "<f4", 4, GC_TICK_PER_FINGER, 2 * GC_FINGER_PATCH_CORNERS, 2},
     {"object_tick", "<u8", 8, GC_TICK_ONCE, 1, 0},  /* the hand-over schedule (docs/recording-format.md) */
     {"object_reads", "<u8", 8, GC_TICK_ONCE, 1, 0},
-};
-/* tick_fields' rows by name, in the table's order (checked below): fill_record places each field
- * at the offset the table gives it. */
-enum {
-    F_TICK, F_TIME, F_OBJECT_TIME, F_STATE_HASH, F_PERIOD_US, F_WORK_US, F_FLAGS, F_ADOPTED, F_LOG_US, F_HIP,
-    F_GOD_OBJECT, F_FORCE, F_DEVICE_FORCE, F_NORMAL, F_POSE, F_VELOCITY, F_WRENCH, F_STATE, F_CONTACT, F_PARTS,
-    F_ORIENTATION, F_PATCH, F_OBJECT_TICK, F_OBJECT_READS, F_COUNT
 };
 _Static_assert(sizeof tick_fields / sizeof tick_fields[0] == F_COUNT, "a row of tick_fields has no F_ name");
 
@@ -210,12 +211,10 @@ uint64_t gc_tick_state_hash(const gcWorld *w) {
  * The layout is docs/recording-format.md's, field by field; the state hash is
  * gc_tick_state_hash's, computed here finger by finger beside the fingers' fields so that its
  * dependent multiply chain overlaps the copies. */
-static void fill_record(const gcWorld *w, const double *device_force, uint64_t tick, double object_time,
-                        gcTickSchedule schedule, float period_us, float work_us, uint32_t flags, uint32_t adopted,
+static void fill_record(const size_t off[F_COUNT], const gcWorld *w, const double *device_force, uint64_t tick,
+                        double object_time, gcTickSchedule schedule, float period_us, float work_us, uint32_t flags, uint32_t adopted,
                         float log_us, unsigned char *out) {
     const size_t nb = (size_t)w->num_bodies, nf = (size_t)w->num_fingers;
-    size_t off[F_COUNT];
-    record_offsets(nb, nf, off);
     unsigned char *hip = out + off[F_HIP], *go = out + off[F_GOD_OBJECT], *force = out + off[F_FORCE];
     unsigned char *dev = out + off[F_DEVICE_FORCE], *normal = out + off[F_NORMAL], *pose = out + off[F_POSE];
     unsigned char *vel = out + off[F_VELOCITY], *wrench = out + off[F_WRENCH], *state = out + off[F_STATE];
@@ -314,7 +313,9 @@ gcStatus gc_world_tick_record(gcWorld *w, uint64_t tick, void *out, size_t size)
         gc_world_set_error(w, "tick_record: buffer of %zu bytes, a record needs %zu", size, need);
         return GC_ERR_INVALID_ARGUMENT;
     }
-    fill_record(w, NULL, tick, w->time, (gcTickSchedule){0, 0}, 0.0f, 0.0f, 1u, 0u, 0.0f, out);
+    size_t off[F_COUNT];
+    record_offsets((size_t)w->num_bodies, (size_t)w->num_fingers, off);
+    fill_record(off, w, NULL, tick, w->time, (gcTickSchedule){0, 0}, 0.0f, 0.0f, 1u, 0u, 0.0f, out);
     return GC_OK;
 }
 
@@ -378,6 +379,7 @@ gcTickLog *gc_tick_log_begin(gcWorld *w, gcStatus *status) {
     if (!log) return NULL;
     pthread_mutex_lock(&log->drain_mutex); /* a drain from another thread waits for the new ring */
     size_t size = gc_tick_record_size(w->num_bodies, w->num_fingers);
+    record_offsets((size_t)w->num_bodies, (size_t)w->num_fingers, log->offsets); /* once: the haptic tick reads them */
     if (!log->records || size != log->record_size) {
         free_records(log);
         log->records = malloc((size_t)log->capacity * size);
@@ -433,7 +435,9 @@ void gc_tick_log_prefetch(const gcTickLog *log) {
 
 void gc_tick_record_fill(const gcWorld *hw, const double *device_force, uint64_t tick, double object_time,
                          gcTickSchedule schedule, int forces_enabled, int adopted, void *out) {
-    fill_record(hw, device_force, tick, object_time, schedule, 0.0f, 0.0f, forces_enabled ? (uint32_t)GC_TICK_FORCES_ENABLED : 0u,
+    size_t off[F_COUNT];
+    record_offsets((size_t)hw->num_bodies, (size_t)hw->num_fingers, off);
+    fill_record(off, hw, device_force, tick, object_time, schedule, 0.0f, 0.0f, forces_enabled ? (uint32_t)GC_TICK_FORCES_ENABLED : 0u,
                 (uint32_t)adopted, 0.0f, out);
 }
 
@@ -452,7 +456,7 @@ void gc_tick_log_push(gcTickLog *log, const gcWorld *hw, const double *device_fo
         return;
     }
     unsigned char *slot = log->records + (head % (uint64_t)log->capacity) * log->record_size;
-    fill_record(hw, device_force, tick, object_time, schedule, period_us, work_us, forces_enabled ? (uint32_t)GC_TICK_FORCES_ENABLED : 0u,
+    fill_record(log->offsets, hw, device_force, tick, object_time, schedule, period_us, work_us, forces_enabled ? (uint32_t)GC_TICK_FORCES_ENABLED : 0u,
                 (uint32_t)adopted, log->prev_log_us, slot);
     atomic_store_explicit(&log->head, head + 1, memory_order_release);
     log->prev_log_us = (float)((monotonic_ns() - t0) * 1e-3);
